@@ -1,0 +1,73 @@
+#include "apps/cli_util.h"
+
+#include <unistd.h>
+
+#include <cstdio>
+#include <ctime>
+
+namespace driftlab::apps {
+
+int fail(std::string_view message, int code) {
+  std::fprintf(stderr, "driftlab: %.*s\n", static_cast<int>(message.size()), message.data());
+  return code;
+}
+
+std::string human_bytes(double bytes) {
+  static const char* kUnits[] = {"B", "KiB", "MiB", "GiB", "TiB"};
+  int unit = 0;
+  while (bytes >= 1024 && unit < 4) {
+    bytes /= 1024;
+    ++unit;
+  }
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), unit == 0 ? "%.0f %s" : "%.1f %s", bytes, kUnits[unit]);
+  return buf;
+}
+
+std::string thousands(int64_t n) {
+  std::string digits = std::to_string(n < 0 ? -n : n);
+  std::string out;
+  for (size_t i = 0; i < digits.size(); ++i) {
+    if (i > 0 && (digits.size() - i) % 3 == 0) out += ',';
+    out += digits[i];
+  }
+  return n < 0 ? "-" + out : out;
+}
+
+std::string format_utime(int64_t utime) {
+  constexpr int64_t kYear2000 = 946684800LL * 1000000;
+  char buf[64];
+  if (utime < kYear2000) {
+    std::snprintf(buf, sizeof(buf), "%.6f s", static_cast<double>(utime) * 1e-6);
+    return buf;
+  }
+  const time_t secs = static_cast<time_t>(utime / 1000000);
+  std::tm tm{};
+  gmtime_r(&secs, &tm);
+  char date[32];
+  std::strftime(date, sizeof(date), "%Y-%m-%d %H:%M:%S", &tm);
+  std::snprintf(buf, sizeof(buf), "%s.%06lld UTC", date, static_cast<long long>(utime % 1000000));
+  return buf;
+}
+
+Progress::Progress(std::string label)
+    : label_(std::move(label)), enabled_(isatty(STDERR_FILENO) == 1), start_(std::chrono::steady_clock::now()) {}
+
+Progress::~Progress() {
+  if (drawn_) std::fprintf(stderr, "\r\033[K");
+}
+
+void Progress::update(uint64_t done, uint64_t total) {
+  if (!enabled_) return;
+  const auto now = std::chrono::steady_clock::now();
+  // Stay silent for quick jobs; then redraw at most every 100 ms.
+  if (now - start_ < std::chrono::seconds(1) || now - last_ < std::chrono::milliseconds(100)) return;
+  last_ = now;
+  drawn_ = true;
+  const double pct = total > 0 ? 100.0 * static_cast<double>(done) / static_cast<double>(total) : 0.0;
+  std::fprintf(stderr, "\r\033[K%s %5.1f%%  %s of %s", label_.c_str(), pct, human_bytes(done).c_str(),
+               human_bytes(total).c_str());
+  std::fflush(stderr);
+}
+
+}  // namespace driftlab::apps

@@ -1,0 +1,39 @@
+// Small helpers shared by the subcommands: errors, number formatting, progress on a TTY.
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <string>
+#include <string_view>
+
+namespace driftlab::apps {
+
+inline constexpr int kExitOk = 0;
+inline constexpr int kExitFailure = 1;
+inline constexpr int kExitBadInput = 2;
+
+/// Prints "driftlab: message" as one line on stderr and returns code.
+int fail(std::string_view message, int code = kExitBadInput);
+
+/// 1536 -> "1.5 KiB".
+std::string human_bytes(double bytes);
+/// 1234567 -> "1,234,567".
+std::string thousands(int64_t n);
+/// A log timestamp [us] as "2026-11-22 02:20:22.123456 UTC", or as seconds when it is not a plausible epoch time.
+std::string format_utime(int64_t utime);
+
+/// A one-line progress indicator on stderr, drawn only when stderr is a terminal, at most 10 times a second.
+class Progress {
+ public:
+  explicit Progress(std::string label);
+  ~Progress();
+  void update(uint64_t done, uint64_t total);
+
+ private:
+  std::string label_;
+  bool enabled_;
+  bool drawn_ = false;
+  std::chrono::steady_clock::time_point start_, last_;
+};
+
+}  // namespace driftlab::apps

@@ -1,0 +1,13 @@
+// The driftlab subcommands. Each add_*_command registers a subcommand on app; when it runs, its exit
+// code is stored in *exit_code (0 ok, 1 failure while working, 2 bad usage or bad input).
+#pragma once
+
+namespace CLI {
+class App;
+}
+
+namespace driftlab::apps {
+
+void add_info_command(CLI::App& app, int* exit_code);
+
+}  // namespace driftlab::apps

@@ -1,0 +1,132 @@
+// driftlab info LOG [--json]: what a log holds (channels, types, rates, time range) and what is wrong with it.
+#include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
+
+#include <cstdio>
+#include <iostream>
+#include <memory>
+
+#include "apps/cli_util.h"
+#include "apps/commands.h"
+#include "core/log_format.h"
+#include "core/log_index.h"
+#include "lcmtypes/type_registry.h"
+
+namespace driftlab::apps {
+namespace {
+
+struct InfoOptions {
+  std::string log;
+  bool json = false;
+  int max_problems = 20;
+};
+
+double rate_hz(const ChannelSummary& c) {
+  if (c.count < 2 || c.last_utime <= c.first_utime) return 0.0;
+  return static_cast<double>(c.count - 1) / (static_cast<double>(c.last_utime - c.first_utime) * 1e-6);
+}
+
+std::string type_of(const ChannelSummary& c) {
+  const char* name = lcmtypes::type_name(c.fingerprint);
+  std::string type = name != nullptr ? name : "unknown";
+  return c.mixed_fingerprints ? type + " (mixed)" : type;
+}
+
+nlohmann::json to_json(const std::string& path, const LogSummary& s) {
+  nlohmann::json channels = nlohmann::json::array();
+  for (const auto& c : s.channels) {
+    const char* type = lcmtypes::type_name(c.fingerprint);
+    channels.push_back({{"name", c.name},
+                        {"type", type != nullptr && !c.mixed_fingerprints ? nlohmann::json(type) : nlohmann::json()},
+                        {"count", c.count},
+                        {"bytes", c.bytes},
+                        {"rate_hz", rate_hz(c)},
+                        {"first_utime", c.first_utime},
+                        {"last_utime", c.last_utime}});
+  }
+  nlohmann::json problems = nlohmann::json::array();
+  for (const auto& p : s.problems) {
+    problems.push_back({{"offset", p.offset}, {"kind", to_string(p.kind)}, {"detail", p.detail}});
+  }
+  return {{"file", path},
+          {"bytes", s.file_bytes},
+          {"events", s.events},
+          {"start_utime", s.start_utime},
+          {"end_utime", s.end_utime},
+          {"duration_s", static_cast<double>(s.end_utime - s.start_utime) * 1e-6},
+          {"channels", channels},
+          {"problems", problems},
+          {"problems_total", s.problems_total}};
+}
+
+void print_table(const std::string& path, const LogSummary& s, int max_problems) {
+  std::printf("%s: %s, %s events, %.3f s\n", path.c_str(), human_bytes(static_cast<double>(s.file_bytes)).c_str(),
+              thousands(s.events).c_str(), static_cast<double>(s.end_utime - s.start_utime) * 1e-6);
+  if (s.events > 0) std::printf("from %s to %s\n", format_utime(s.start_utime).c_str(), format_utime(s.end_utime).c_str());
+  size_t name_w = 7, type_w = 4;
+  for (const auto& c : s.channels) {
+    name_w = std::max(name_w, c.name.size());
+    type_w = std::max(type_w, type_of(c).size());
+  }
+  if (!s.channels.empty()) {
+    std::printf("\n%-*s  %-*s  %10s  %10s  %9s  %9s  %9s\n", static_cast<int>(name_w), "channel",
+                static_cast<int>(type_w), "type", "count", "bytes", "rate Hz", "first s", "last s");
+  }
+  for (const auto& c : s.channels) {
+    std::printf("%-*s  %-*s  %10s  %10s  %9.2f  %9.3f  %9.3f\n", static_cast<int>(name_w), c.name.c_str(),
+                static_cast<int>(type_w), type_of(c).c_str(), thousands(c.count).c_str(),
+                human_bytes(static_cast<double>(c.bytes)).c_str(), rate_hz(c),
+                static_cast<double>(c.first_utime - s.start_utime) * 1e-6,
+                static_cast<double>(c.last_utime - s.start_utime) * 1e-6);
+  }
+  if (s.problems_total == 0) {
+    std::printf("\nno problems\n");
+    return;
+  }
+  std::printf("\n%s problem%s:\n", thousands(static_cast<int64_t>(s.problems_total)).c_str(),
+              s.problems_total == 1 ? "" : "s");
+  int shown = 0;
+  for (const auto& p : s.problems) {
+    if (shown++ == max_problems) break;
+    std::printf("  at byte %llu: %s: %s\n", static_cast<unsigned long long>(p.offset), to_string(p.kind),
+                p.detail.c_str());
+  }
+  if (s.problems_total > static_cast<uint64_t>(max_problems)) {
+    std::printf("  ... %s more (driftlab info --json lists up to %zu)\n",
+                thousands(static_cast<int64_t>(s.problems_total) - max_problems).c_str(),
+                LogIndex::kMaxStoredProblems);
+  }
+}
+
+int run_info(const InfoOptions& o) {
+  Progress progress("scanning " + o.log);
+  auto index = LogIndex::load_or_build(o.log, [&](uint64_t done, uint64_t total) { progress.update(done, total); });
+  if (!index) return fail(index.error().message);
+  const LogSummary& s = index->summary();
+  if (s.events == 0 && s.file_bytes > 0 && !s.problems.empty() && s.problems.front().offset == 0 &&
+      s.problems.front().kind == ProblemKind::kGarbage) {
+    return fail(o.log + ": not an LCM event log (no event in " + std::to_string(s.file_bytes) +
+                " bytes; an event starts with the sync word 0xEDA1DA01)");
+  }
+  if (o.json) {
+    std::cout << to_json(o.log, s).dump(2) << "\n";
+  } else {
+    print_table(o.log, s, o.max_problems);
+  }
+  return kExitOk;
+}
+
+}  // namespace
+
+void add_info_command(CLI::App& app, int* exit_code) {
+  auto opts = std::make_shared<InfoOptions>();
+  CLI::App* cmd = app.add_subcommand("info", "Summarise a log: channels, message types, rates, time range and problems.");
+  cmd->add_option("log", opts->log, "LCM event log")->required();
+  cmd->add_flag("--json", opts->json, "Print one JSON object instead of a table");
+  cmd->add_option("--max-problems", opts->max_problems, "Problems listed in the table")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
+  cmd->callback([opts, exit_code] { *exit_code = run_info(*opts); });
+}
+
+}  // namespace driftlab::apps

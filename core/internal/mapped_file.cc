@@ -1,0 +1,75 @@
+#include "core/internal/mapped_file.h"
+
+#include <fcntl.h>
+#include <sys/mman.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
+#include <utility>
+
+namespace driftlab::internal {
+namespace {
+// Release in steps this large, so madvise calls are rare.
+constexpr uint64_t kReleaseStep = 64ull << 20;
+}  // namespace
+
+Result<MappedFile> MappedFile::open(const std::string& path) {
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) return Error{path + ": cannot open: " + std::strerror(errno)};
+  struct stat st {};
+  if (fstat(fd, &st) != 0) {
+    const int err = errno;
+    ::close(fd);
+    return Error{path + ": cannot stat: " + std::strerror(err)};
+  }
+  if (S_ISDIR(st.st_mode)) {
+    ::close(fd);
+    return Error{path + ": is a directory, not a log file"};
+  }
+  if (!S_ISREG(st.st_mode)) {
+    ::close(fd);
+    return Error{path + ": not a regular file"};
+  }
+  MappedFile file;
+  file.size_ = static_cast<uint64_t>(st.st_size);
+  if (file.size_ > 0) {
+    void* p = mmap(nullptr, file.size_, PROT_READ, MAP_PRIVATE, fd, 0);
+    if (p == MAP_FAILED) {
+      const int err = errno;
+      ::close(fd);
+      return Error{path + ": cannot map " + std::to_string(file.size_) + " bytes: " + std::strerror(err)};
+    }
+    madvise(p, file.size_, MADV_SEQUENTIAL);
+    file.data_ = static_cast<const uint8_t*>(p);
+  }
+  ::close(fd);
+  return file;
+}
+
+MappedFile& MappedFile::operator=(MappedFile&& other) noexcept {
+  if (this != &other) {
+    if (data_ != nullptr) munmap(const_cast<uint8_t*>(data_), size_);
+    data_ = std::exchange(other.data_, nullptr);
+    size_ = std::exchange(other.size_, 0);
+    released_ = std::exchange(other.released_, 0);
+  }
+  return *this;
+}
+
+MappedFile::~MappedFile() {
+  if (data_ != nullptr) munmap(const_cast<uint8_t*>(data_), size_);
+}
+
+void MappedFile::release_before(uint64_t offset) {
+  const uint64_t page = static_cast<uint64_t>(sysconf(_SC_PAGESIZE));
+  if (offset < released_) released_ = (offset / page) * page;  // after a seek backwards
+  if (data_ == nullptr || offset < released_ + 2 * kReleaseStep) return;
+  const uint64_t until = ((offset - kReleaseStep) / page) * page;
+  if (until <= released_) return;
+  madvise(const_cast<uint8_t*>(data_) + released_, until - released_, MADV_DONTNEED);
+  released_ = until;
+}
+
+}  // namespace driftlab::internal

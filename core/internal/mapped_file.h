@@ -1,0 +1,36 @@
+// A read-only memory mapping of a whole regular file. Internal to core.
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <string>
+
+#include "core/result.h"
+
+namespace driftlab::internal {
+
+class MappedFile {
+ public:
+  /// Maps path; a directory, a missing or unreadable file gives an error naming the path.
+  static Result<MappedFile> open(const std::string& path);
+
+  MappedFile() = default;
+  MappedFile(MappedFile&& other) noexcept { *this = std::move(other); }
+  MappedFile& operator=(MappedFile&& other) noexcept;
+  MappedFile(const MappedFile&) = delete;
+  MappedFile& operator=(const MappedFile&) = delete;
+  ~MappedFile();
+
+  std::span<const uint8_t> bytes() const { return {data_, size_}; }
+
+  /// Drops the pages before offset from this process (they stay in the page cache, and the bytes stay
+  /// readable: touching them again faults them back in). Keeps resident memory constant while streaming.
+  void release_before(uint64_t offset);
+
+ private:
+  const uint8_t* data_ = nullptr;
+  uint64_t size_ = 0;
+  uint64_t released_ = 0;
+};
+
+}  // namespace driftlab::internal

@@ -1,0 +1,14 @@
+// Transparent string hashing, so maps keyed by std::string can be searched with a string_view.
+#pragma once
+
+#include <functional>
+#include <string_view>
+
+namespace driftlab::internal {
+
+struct StringHash {
+  using is_transparent = void;
+  size_t operator()(std::string_view s) const { return std::hash<std::string_view>{}(s); }
+};
+
+}  // namespace driftlab::internal

@@ -1,0 +1,57 @@
+// LogReader: a streaming, zero-copy reader for LCM event logs.
+// Memory stays constant on logs of any size (the file is mapped and pages behind the cursor are released).
+// Corruption never stops it: each problem goes to the problem callback with its byte offset and reading
+// resumes at the next event. Thread-safety: one reader per thread; events stay valid while the reader lives.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <string>
+
+#include "core/log_event.h"
+#include "core/result.h"
+
+namespace driftlab {
+
+struct ReadOptions {
+  /// Only channels fully matching this ECMAScript regex (as lcm-logger's -c); empty: every channel.
+  std::string channels;
+  /// Called for every problem met while streaming (may be empty).
+  ProblemCallback on_problem;
+};
+
+class LogReader {
+ public:
+  /// Opens a log file. Errors (missing file, a directory, a bad regex) name the file or the regex.
+  static Result<LogReader> open(const std::string& path, ReadOptions options = {});
+  /// Reads a log held in memory (bytes must outlive the reader). Seeking builds an in-memory index.
+  static Result<LogReader> from_memory(std::span<const uint8_t> bytes, ReadOptions options = {});
+
+  LogReader(LogReader&&) noexcept;
+  LogReader& operator=(LogReader&&) noexcept;
+  ~LogReader();
+
+  /// The next intact event whose channel matches; false at the end of the log.
+  bool next(Event& out);
+
+  /// Positions the reader on the first event (in file order) whose timestamp is >= utime [us], using the
+  /// index (loaded from LOG.dlidx, or built in one pass and cached).
+  Status seek(int64_t utime);
+  /// Back to the first event.
+  void rewind();
+
+  const std::string& path() const;
+  uint64_t size_bytes() const;
+  /// Byte offset where the next event is looked for.
+  uint64_t position() const;
+  /// Problems met so far.
+  uint64_t problems() const;
+
+ private:
+  struct Impl;
+  explicit LogReader(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace driftlab

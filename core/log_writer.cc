@@ -1,0 +1,161 @@
+#include "core/log_writer.h"
+
+#include <fcntl.h>
+#include <sys/uio.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
+#include <utility>
+
+#include "core/log_format.h"
+
+namespace driftlab {
+
+Result<LogWriter> LogWriter::create(const std::string& path, WriteOptions options) {
+  LogWriter w;
+  w.path_ = path;
+  w.atomic_ = options.atomic;
+  w.file_path_ = options.atomic ? path + ".partial" : path;
+  w.fd_ = ::open(w.file_path_.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (w.fd_ < 0) return Error{w.file_path_ + ": cannot create log: " + std::strerror(errno)};
+  w.buffer_capacity_ = std::max<size_t>(options.buffer_bytes, 4096);
+  w.buffer_.reserve(w.buffer_capacity_);
+  return w;
+}
+
+LogWriter::LogWriter(LogWriter&& other) noexcept { *this = std::move(other); }
+
+LogWriter& LogWriter::operator=(LogWriter&& other) noexcept {
+  if (this != &other) {
+    (void)close();
+    path_ = std::move(other.path_);
+    file_path_ = std::move(other.file_path_);
+    fd_ = std::exchange(other.fd_, -1);
+    buffer_ = std::move(other.buffer_);
+    buffer_capacity_ = other.buffer_capacity_;
+    committed_ = other.committed_;
+    events_ = other.events_;
+    atomic_ = other.atomic_;
+    error_ = std::move(other.error_);
+  }
+  return *this;
+}
+
+LogWriter::~LogWriter() { (void)close(); }
+
+Status LogWriter::fail(const std::string& what, int err) {
+  error_ = file_path_ + ": " + what + " at byte " + std::to_string(committed_) + ": " + std::strerror(err);
+  // Cut a partially written event off, so the file ends with a complete event.
+  if (fd_ >= 0 && ftruncate(fd_, static_cast<off_t>(committed_)) != 0) {
+    error_ += " (and could not cut the file back to the last complete event)";
+  }
+  buffer_.clear();
+  return Error{error_};
+}
+
+Status LogWriter::write_all(const uint8_t* data, size_t size) {
+  while (size > 0) {
+    const ssize_t n = ::write(fd_, data, size);
+    if (n < 0) {
+      if (errno == EINTR) continue;
+      return fail("write failed", errno);
+    }
+    data += n;
+    size -= static_cast<size_t>(n);
+  }
+  return {};
+}
+
+Status LogWriter::write(int64_t utime, std::string_view channel, std::span<const uint8_t> data) {
+  if (!error_.empty()) return Error{error_};
+  if (fd_ < 0) return Error{path_ + ": write after close"};
+  if (channel.empty() || channel.size() > static_cast<size_t>(logfmt::kMaxWriteChannelLength)) {
+    return Error{path_ + ": channel name must be 1.." + std::to_string(logfmt::kMaxWriteChannelLength) +
+                 " bytes, got " + std::to_string(channel.size())};
+  }
+  if (data.size() > static_cast<size_t>(INT32_MAX)) {
+    return Error{path_ + ": message of " + std::to_string(data.size()) + " bytes is too large for an LCM log"};
+  }
+  const size_t total = logfmt::kEventHeaderSize + channel.size() + data.size();
+  uint8_t header[logfmt::kEventHeaderSize];
+  logfmt::encode_event_header(header, events_, utime, static_cast<int32_t>(channel.size()),
+                              static_cast<int32_t>(data.size()));
+  const bool direct = total > buffer_capacity_ / 2;
+  if (direct || buffer_.size() + total > buffer_capacity_) {
+    if (auto st = flush(); !st) return st;
+  }
+  if (!direct) {
+    buffer_.insert(buffer_.end(), header, header + sizeof(header));
+    buffer_.insert(buffer_.end(), channel.begin(), channel.end());
+    buffer_.insert(buffer_.end(), data.begin(), data.end());
+  } else {
+    // Large event: straight from the caller's memory, no copy.
+    iovec iov[3] = {{header, sizeof(header)},
+                    {const_cast<char*>(channel.data()), channel.size()},
+                    {const_cast<uint8_t*>(data.data()), data.size()}};
+    size_t done = 0;
+    while (done < total) {
+      ssize_t n;
+      if (done == 0) {
+        n = ::writev(fd_, iov, 3);
+      } else {
+        // Rare partial write: finish piece by piece.
+        size_t skip = done;
+        int i = 0;
+        while (skip >= iov[i].iov_len) skip -= iov[i++].iov_len;
+        iovec rest[3];
+        int k = 0;
+        for (; i < 3; ++i, skip = 0) {
+          rest[k++] = {static_cast<uint8_t*>(iov[i].iov_base) + skip, iov[i].iov_len - skip};
+        }
+        n = ::writev(fd_, rest, k);
+      }
+      if (n < 0) {
+        if (errno == EINTR) continue;
+        return fail("write failed", errno);
+      }
+      done += static_cast<size_t>(n);
+    }
+    committed_ += total;
+  }
+  ++events_;
+  return {};
+}
+
+Status LogWriter::flush() {
+  if (!error_.empty()) return Error{error_};
+  if (fd_ < 0 || buffer_.empty()) return {};
+  if (auto st = write_all(buffer_.data(), buffer_.size()); !st) return st;
+  committed_ += buffer_.size();
+  buffer_.clear();
+  return {};
+}
+
+Status LogWriter::sync() {
+  if (auto st = flush(); !st) return st;
+  if (fd_ >= 0 && fdatasync(fd_) != 0) return fail("fdatasync failed", errno);
+  return {};
+}
+
+Status LogWriter::close() {
+  if (fd_ < 0) return error_.empty() ? Status{} : Status{Error{error_}};
+  Status st = flush();
+  if (::close(fd_) != 0 && st.ok()) st = Error{file_path_ + ": close failed: " + std::strerror(errno)};
+  fd_ = -1;
+  if (atomic_ && std::rename(file_path_.c_str(), path_.c_str()) != 0 && st.ok()) {
+    st = Error{path_ + ": cannot rename " + file_path_ + " into place: " + std::strerror(errno)};
+  }
+  return st;
+}
+
+void LogWriter::discard() {
+  if (fd_ < 0) return;
+  ::close(fd_);
+  fd_ = -1;
+  buffer_.clear();
+  if (atomic_) std::remove(file_path_.c_str());
+}
+
+}  // namespace driftlab

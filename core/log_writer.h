@@ -1,0 +1,72 @@
+// LogWriter: writes LCM event logs, readable by every LCM tool.
+// Events are batched in a buffer and written with few system calls; large payloads go straight from the
+// caller's memory to the file. On a write error (full disk) the file is cut back to the last complete
+// event, so everything written before stays readable. Thread-safety: one writer per thread.
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "core/result.h"
+
+namespace driftlab {
+
+struct WriteOptions {
+  /// Size of the write buffer [bytes].
+  size_t buffer_bytes = 1 << 20;
+  /// Write to PATH.partial and rename to PATH on close(), so no half-written log is ever seen under PATH.
+  bool atomic = false;
+};
+
+class LogWriter {
+ public:
+  /// Creates (or truncates) path. Errors name the file.
+  static Result<LogWriter> create(const std::string& path, WriteOptions options = {});
+
+  LogWriter(LogWriter&& other) noexcept;
+  LogWriter& operator=(LogWriter&& other) noexcept;
+  LogWriter(const LogWriter&) = delete;
+  LogWriter& operator=(const LogWriter&) = delete;
+  /// Closes (and, when atomic, commits) the log; use close() to see errors.
+  ~LogWriter();
+
+  /// Appends one event with the next event number (from 0). utime is the log timestamp [us].
+  /// channel must be 1..255 bytes.
+  Status write(int64_t utime, std::string_view channel, std::span<const uint8_t> data);
+  Status write(int64_t utime, std::string_view channel, std::string_view data) {
+    return write(utime, channel, {reinterpret_cast<const uint8_t*>(data.data()), data.size()});
+  }
+  /// Hands buffered events to the kernel.
+  Status flush();
+  /// flush() and fdatasync(): the events survive a power cut.
+  Status sync();
+  /// Flushes, closes and (atomic) renames into place. Idempotent.
+  Status close();
+  /// Atomic mode: closes and removes the partial file; otherwise like close().
+  void discard();
+
+  const std::string& path() const { return path_; }
+  int64_t events() const { return events_; }
+  /// Bytes of log written so far, buffered ones included.
+  uint64_t bytes() const { return committed_ + buffer_.size(); }
+
+ private:
+  LogWriter() = default;
+  Status fail(const std::string& what, int err);
+  Status write_all(const uint8_t* data, size_t size);
+
+  std::string path_;
+  std::string file_path_;  // path_, or path_ + ".partial"
+  int fd_ = -1;
+  std::vector<uint8_t> buffer_;
+  size_t buffer_capacity_ = 0;
+  uint64_t committed_ = 0;  // bytes of complete events in the file
+  int64_t events_ = 0;
+  bool atomic_ = false;
+  std::string error_;  // sticky after a failure
+};
+
+}  // namespace driftlab

@@ -1,0 +1,61 @@
+// Result<T>: a value or an error message, returned at file, network and config boundaries.
+// Thread-safety: plain value types.
+#pragma once
+
+#include <cstdlib>
+#include <string>
+#include <utility>
+#include <variant>
+
+namespace driftlab {
+
+/// A user-facing error: one line that names the file and the place (offset, key, line).
+struct Error {
+  std::string message;
+};
+
+/// Either a T or an Error. Accessing the wrong alternative aborts (a broken invariant).
+template <typename T>
+class [[nodiscard]] Result {
+ public:
+  Result(T value) : v_(std::move(value)) {}  // NOLINT(google-explicit-constructor)
+  Result(Error error) : v_(std::move(error)) {}  // NOLINT(google-explicit-constructor)
+
+  bool ok() const { return v_.index() == 0; }
+  explicit operator bool() const { return ok(); }
+
+  T& value() & { return check(), std::get<0>(v_); }
+  const T& value() const& { return check(), std::get<0>(v_); }
+  T&& value() && { return check(), std::get<0>(std::move(v_)); }
+  T* operator->() { return &value(); }
+  const T* operator->() const { return &value(); }
+  T& operator*() & { return value(); }
+
+  const Error& error() const {
+    if (ok()) std::abort();
+    return std::get<1>(v_);
+  }
+
+ private:
+  void check() const {
+    if (!ok()) std::abort();
+  }
+  std::variant<T, Error> v_;
+};
+
+/// Result of an operation that returns nothing but may fail.
+class [[nodiscard]] Status {
+ public:
+  Status() = default;
+  Status(Error error) : error_(std::move(error.message)), failed_(true) {}  // NOLINT
+
+  bool ok() const { return !failed_; }
+  explicit operator bool() const { return ok(); }
+  const std::string& message() const { return error_; }
+
+ private:
+  std::string error_;
+  bool failed_ = false;
+};
+
+}  // namespace driftlab

@@ -1,0 +1,132 @@
+// Tests for LogWriter: round trips, event numbering, large events, atomic mode and write failures.
+#include "core/log_writer.h"
+
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/resource.h>
+
+#include <filesystem>
+
+#include "core/log_reader.h"
+#include "tests/test_util.h"
+
+namespace driftlab {
+namespace {
+
+using test::OwnedEvent;
+
+TEST(LogWriter, RoundTripsEventsInOrderWithConsecutiveEventNumbers) {
+  test::TempDir dir;
+  const std::string path = dir.file("a.lcm");
+  std::vector<OwnedEvent> written;
+  {
+    auto w = LogWriter::create(path, {.buffer_bytes = 64 << 10});
+    ASSERT_TRUE(w.ok());
+    // Sizes straddle the buffered and the direct (large) write paths, interleaved.
+    const size_t sizes[] = {0, 1, 100, 40000, 5, 100000, 3, 1 << 20, 7};
+    for (int i = 0; i < 90; ++i) {
+      const std::string channel = "CH" + std::to_string(i % 4);
+      auto data = test::payload(i, sizes[i % 9]);
+      ASSERT_TRUE(w->write(1000 + i * 10, channel, data).ok());
+      written.push_back({i, 1000 + i * 10, channel, data, 0});
+    }
+    EXPECT_EQ(w->events(), 90);
+    ASSERT_TRUE(w->close().ok());
+    EXPECT_EQ(w->bytes(), std::filesystem::file_size(path));
+  }
+  std::vector<Problem> problems;
+  auto read = test::read_all(path, &problems);
+  EXPECT_TRUE(problems.empty());
+  ASSERT_EQ(read.size(), written.size());
+  for (size_t i = 0; i < read.size(); ++i) {
+    read[i].offset = 0;
+    EXPECT_EQ(read[i], written[i]) << "event " << i;
+  }
+}
+
+TEST(LogWriter, RejectsEmptyAndOverlongChannelNames) {
+  test::TempDir dir;
+  auto w = LogWriter::create(dir.file("a.lcm"));
+  ASSERT_TRUE(w.ok());
+  EXPECT_FALSE(w->write(0, "", std::string_view("x")).ok());
+  EXPECT_FALSE(w->write(0, std::string(256, 'c'), std::string_view("x")).ok());
+  EXPECT_TRUE(w->write(0, std::string(255, 'c'), std::string_view("x")).ok());
+}
+
+TEST(LogWriter, AtomicModeShowsTheLogOnlyAfterClose) {
+  test::TempDir dir;
+  const std::string path = dir.file("a.lcm");
+  auto w = LogWriter::create(path, {.atomic = true});
+  ASSERT_TRUE(w.ok());
+  ASSERT_TRUE(w->write(1, "A", std::string_view("hello")).ok());
+  ASSERT_TRUE(w->flush().ok());
+  EXPECT_FALSE(std::filesystem::exists(path));
+  EXPECT_TRUE(std::filesystem::exists(path + ".partial"));
+  ASSERT_TRUE(w->close().ok());
+  EXPECT_TRUE(std::filesystem::exists(path));
+  EXPECT_FALSE(std::filesystem::exists(path + ".partial"));
+  EXPECT_EQ(test::read_all(path).size(), 1u);
+}
+
+TEST(LogWriter, DiscardLeavesNothingBehind) {
+  test::TempDir dir;
+  const std::string path = dir.file("a.lcm");
+  auto w = LogWriter::create(path, {.atomic = true});
+  ASSERT_TRUE(w.ok());
+  ASSERT_TRUE(w->write(1, "A", std::string_view("hello")).ok());
+  w->discard();
+  EXPECT_TRUE(std::filesystem::is_empty(dir.path()));
+}
+
+TEST(LogWriter, CreateErrorNamesTheFile) {
+  auto w = LogWriter::create("/nonexistent-dir/x.lcm");
+  ASSERT_FALSE(w.ok());
+  EXPECT_NE(w.error().message.find("/nonexistent-dir/x.lcm"), std::string::npos);
+}
+
+TEST(LogWriter, FullDeviceGivesAnErrorNamingTheFile) {
+  auto w = LogWriter::create("/dev/full");
+  ASSERT_TRUE(w.ok());
+  const auto data = test::payload(1, 2 << 20);
+  Status st = w->write(0, "BIG", data);
+  ASSERT_FALSE(st.ok());
+  EXPECT_NE(st.message().find("/dev/full"), std::string::npos) << st.message();
+  EXPECT_NE(st.message().find("No space left on device"), std::string::npos) << st.message();
+  // The failure is sticky.
+  EXPECT_FALSE(w->write(0, "X", std::string_view("y")).ok());
+}
+
+TEST(LogWriter, AFailedWriteKeepsEveryCompleteEventReadable) {
+  test::TempDir dir;
+  const std::string path = dir.file("a.lcm");
+  // A file-size limit makes write() fail part-way, like a disk that fills up.
+  signal(SIGXFSZ, SIG_IGN);
+  rlimit old{};
+  getrlimit(RLIMIT_FSIZE, &old);
+  rlimit limit = old;
+  limit.rlim_cur = 200000;
+  ASSERT_EQ(setrlimit(RLIMIT_FSIZE, &limit), 0);
+  int64_t accepted = 0;
+  Status failure;
+  {
+    auto w = LogWriter::create(path, {.buffer_bytes = 16 << 10});
+    ASSERT_TRUE(w.ok());
+    for (int i = 0; i < 1000 && failure.ok(); ++i) {
+      failure = w->write(i, "CH", test::payload(i, 700));
+      if (failure.ok()) ++accepted;
+    }
+  }
+  setrlimit(RLIMIT_FSIZE, &old);
+  signal(SIGXFSZ, SIG_DFL);
+  ASSERT_FALSE(failure.ok());
+  EXPECT_NE(failure.message().find(path), std::string::npos);
+  std::vector<Problem> problems;
+  const auto events = test::read_all(path, &problems);
+  EXPECT_TRUE(problems.empty()) << problems.front().detail;
+  EXPECT_GT(events.size(), 200u);
+  EXPECT_LE(static_cast<int64_t>(events.size()), accepted);
+  for (size_t i = 0; i < events.size(); ++i) EXPECT_EQ(events[i].data, test::payload(i, 700));
+}
+
+}  // namespace
+}  // namespace driftlab

@@ -1,0 +1,45 @@
+// Tests for the fingerprint registry generated from lcmtypes/*.lcm.
+#include "lcmtypes/type_registry.h"
+
+#include <gtest/gtest.h>
+
+#include <set>
+#include <string>
+
+#include "driftlab/imu_t.hpp"
+#include "driftlab/laser_scan_t.hpp"
+
+namespace driftlab::lcmtypes {
+namespace {
+
+TEST(TypeRegistry, NamesEncodedMessagesByTheirFingerprint) {
+  driftlab::imu_t imu{};
+  imu.header.frame_id = "imu";
+  std::vector<uint8_t> buf(imu.getEncodedSize());
+  ASSERT_EQ(imu.encode(buf.data(), 0, static_cast<int>(buf.size())), static_cast<int>(buf.size()));
+  int64_t fp = 0;
+  for (int i = 0; i < 8; ++i) fp = (fp << 8) | buf[i];
+  ASSERT_NE(type_name(fp), nullptr);
+  EXPECT_STREQ(type_name(fp), "driftlab.imu_t");
+  EXPECT_STREQ(type_name(driftlab::laser_scan_t::getHash()), "driftlab.laser_scan_t");
+  EXPECT_EQ(type_name(0x1234), nullptr);
+}
+
+TEST(TypeRegistry, ListsEveryTypeWithADistinctFingerprint) {
+  std::set<int64_t> fingerprints;
+  std::set<std::string> names;
+  for (const TypeInfo& t : all_types()) {
+    fingerprints.insert(t.fingerprint);
+    names.insert(t.name);
+  }
+  EXPECT_EQ(fingerprints.size(), all_types().size());
+  for (const char* required : {"driftlab.header_t", "driftlab.imu_t", "driftlab.laser_scan_t",
+                               "driftlab.point_cloud_t", "driftlab.odometry_t", "driftlab.pose_t", "driftlab.tf_t",
+                               "driftlab.velocity_command_t", "driftlab.image_t", "driftlab.joint_state_t",
+                               "driftlab.fault_manifest_t", "driftlab.recorder_stats_t", "driftlab.module_stats_t"}) {
+    EXPECT_TRUE(names.count(required)) << required;
+  }
+}
+
+}  // namespace
+}  // namespace driftlab::lcmtypes

@@ -1,0 +1,88 @@
+#include "tests/test_util.h"
+
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <random>
+
+#include "core/log_reader.h"
+
+namespace driftlab::test {
+
+TempDir::TempDir() {
+  std::string tmpl = (std::filesystem::temp_directory_path() / "driftlab-test-XXXXXX").string();
+  if (mkdtemp(tmpl.data()) == nullptr) std::abort();
+  path_ = tmpl;
+}
+
+TempDir::~TempDir() {
+  std::error_code ec;
+  std::filesystem::remove_all(path_, ec);
+}
+
+std::vector<uint8_t> read_file(const std::string& path) {
+  std::ifstream f(path, std::ios::binary);
+  return {std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>()};
+}
+
+void write_file(const std::string& path, const std::vector<uint8_t>& bytes) {
+  std::ofstream f(path, std::ios::binary);
+  f.write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+}
+
+std::vector<uint8_t> payload(uint64_t seed, size_t size) {
+  std::mt19937_64 rng(seed);
+  std::vector<uint8_t> out(size);
+  for (auto& b : out) b = static_cast<uint8_t>(rng());
+  for (size_t i = 0; i + 4 <= size; i += 97) {
+    out[i] = 0xED;
+    out[i + 1] = 0xA1;
+    out[i + 2] = 0xDA;
+    out[i + 3] = 0x01;
+  }
+  return out;
+}
+
+namespace {
+std::vector<OwnedEvent> drain(Result<LogReader> reader) {
+  std::vector<OwnedEvent> out;
+  EXPECT_TRUE(reader.ok()) << (reader.ok() ? "" : reader.error().message);
+  if (!reader.ok()) return out;
+  Event e;
+  while (reader->next(e)) {
+    out.push_back({e.event_number, e.utime, std::string(e.channel), {e.data.begin(), e.data.end()}, e.offset});
+  }
+  return out;
+}
+ReadOptions collecting(std::vector<Problem>* problems) {
+  ReadOptions o;
+  if (problems != nullptr) o.on_problem = [problems](const Problem& p) { problems->push_back(p); };
+  return o;
+}
+}  // namespace
+
+std::vector<OwnedEvent> read_all(const std::string& path, std::vector<Problem>* problems) {
+  return drain(LogReader::open(path, collecting(problems)));
+}
+
+std::vector<OwnedEvent> read_all_memory(const std::vector<uint8_t>& bytes, std::vector<Problem>* problems) {
+  return drain(LogReader::from_memory(bytes, collecting(problems)));
+}
+
+int run(const std::string& command, std::string* out) {
+  FILE* p = popen(command.c_str(), "r");
+  if (p == nullptr) return -1;
+  std::string text;
+  char buf[4096];
+  size_t n;
+  while ((n = fread(buf, 1, sizeof(buf), p)) > 0) text.append(buf, n);
+  const int status = pclose(p);
+  if (out != nullptr) *out = std::move(text);
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+}  // namespace driftlab::test
