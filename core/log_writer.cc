@@ -12,6 +12,9 @@
 #include "core/log_format.h"
 
 namespace driftlab {
+namespace {
+constexpr size_t kPage = 4096;
+}  // namespace
 
 Result<LogWriter> LogWriter::create(const std::string& path, WriteOptions options) {
   LogWriter w;
@@ -20,8 +23,8 @@ Result<LogWriter> LogWriter::create(const std::string& path, WriteOptions option
   w.file_path_ = options.atomic ? path + ".partial" : path;
   w.fd_ = ::open(w.file_path_.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
   if (w.fd_ < 0) return Error{w.file_path_ + ": cannot create log: " + std::strerror(errno)};
-  w.buffer_capacity_ = std::max<size_t>(options.buffer_bytes, 4096);
-  w.buffer_.reserve(w.buffer_capacity_);
+  w.buffer_capacity_ = std::max<size_t>(options.buffer_bytes, 4 * kPage);
+  w.buffer_ = std::make_unique<uint8_t[]>(w.buffer_capacity_);
   return w;
 }
 
@@ -34,8 +37,10 @@ LogWriter& LogWriter::operator=(LogWriter&& other) noexcept {
     file_path_ = std::move(other.file_path_);
     fd_ = std::exchange(other.fd_, -1);
     buffer_ = std::move(other.buffer_);
+    buffered_ = std::exchange(other.buffered_, 0);
     buffer_capacity_ = other.buffer_capacity_;
     committed_ = other.committed_;
+    written_ = other.written_;
     events_ = other.events_;
     atomic_ = other.atomic_;
     error_ = std::move(other.error_);
@@ -51,11 +56,12 @@ Status LogWriter::fail(const std::string& what, int err) {
   if (fd_ >= 0 && ftruncate(fd_, static_cast<off_t>(committed_)) != 0) {
     error_ += " (and could not cut the file back to the last complete event)";
   }
-  buffer_.clear();
+  written_ = committed_;
+  buffered_ = 0;
   return Error{error_};
 }
 
-Status LogWriter::write_all(const uint8_t* data, size_t size) {
+Status LogWriter::write_raw(const uint8_t* data, size_t size) {
   while (size > 0) {
     const ssize_t n = ::write(fd_, data, size);
     if (n < 0) {
@@ -64,6 +70,7 @@ Status LogWriter::write_all(const uint8_t* data, size_t size) {
     }
     data += n;
     size -= static_cast<size_t>(n);
+    written_ += static_cast<uint64_t>(n);
   }
   return {};
 }
@@ -83,42 +90,31 @@ Status LogWriter::write(int64_t utime, std::string_view channel, std::span<const
   logfmt::encode_event_header(header, events_, utime, static_cast<int32_t>(channel.size()),
                               static_cast<int32_t>(data.size()));
   const bool direct = total > buffer_capacity_ / 2;
-  if (direct || buffer_.size() + total > buffer_capacity_) {
+  if (direct || buffered_ + total > buffer_capacity_) {
     if (auto st = flush(); !st) return st;
   }
   if (!direct) {
-    buffer_.insert(buffer_.end(), header, header + sizeof(header));
-    buffer_.insert(buffer_.end(), channel.begin(), channel.end());
-    buffer_.insert(buffer_.end(), data.begin(), data.end());
+    uint8_t* out = buffer_.get() + buffered_;
+    std::memcpy(out, header, sizeof(header));
+    std::memcpy(out + sizeof(header), channel.data(), channel.size());
+    if (!data.empty()) std::memcpy(out + sizeof(header) + channel.size(), data.data(), data.size());
+    buffered_ += total;
   } else {
-    // Large event: straight from the caller's memory, no copy.
-    iovec iov[3] = {{header, sizeof(header)},
-                    {const_cast<char*>(channel.data()), channel.size()},
-                    {const_cast<uint8_t*>(data.data()), data.size()}};
-    size_t done = 0;
-    while (done < total) {
-      ssize_t n;
-      if (done == 0) {
-        n = ::writev(fd_, iov, 3);
-      } else {
-        // Rare partial write: finish piece by piece.
-        size_t skip = done;
-        int i = 0;
-        while (skip >= iov[i].iov_len) skip -= iov[i++].iov_len;
-        iovec rest[3];
-        int k = 0;
-        for (; i < 3; ++i, skip = 0) {
-          rest[k++] = {static_cast<uint8_t*>(iov[i].iov_base) + skip, iov[i].iov_len - skip};
-        }
-        n = ::writev(fd_, rest, k);
-      }
-      if (n < 0) {
-        if (errno == EINTR) continue;
-        return fail("write failed", errno);
-      }
-      done += static_cast<size_t>(n);
-    }
-    committed_ += total;
+    // Large event: the payload goes from the caller's memory to the file, uncopied, in whole pages.
+    // Header, channel and the first bytes of the payload up to a page boundary of the file go through the
+    // buffer, as does the tail (so the kernel copies whole, aligned pages, as stdio does).
+    const uint64_t at = written_ + sizeof(header) + channel.size();
+    const size_t head = std::min<size_t>(data.size(), (kPage - at % kPage) % kPage);
+    uint8_t* out = buffer_.get();
+    std::memcpy(out, header, sizeof(header));
+    std::memcpy(out + sizeof(header), channel.data(), channel.size());
+    std::memcpy(out + sizeof(header) + channel.size(), data.data(), head);
+    const size_t middle = (data.size() - head) / kPage * kPage;
+    const size_t tail = data.size() - head - middle;
+    if (auto st = write_raw(out, sizeof(header) + channel.size() + head); !st) return st;
+    if (auto st = write_raw(data.data() + head, middle); !st) return st;
+    std::memcpy(out, data.data() + head + middle, tail);
+    buffered_ = tail;
   }
   ++events_;
   return {};
@@ -126,10 +122,11 @@ Status LogWriter::write(int64_t utime, std::string_view channel, std::span<const
 
 Status LogWriter::flush() {
   if (!error_.empty()) return Error{error_};
-  if (fd_ < 0 || buffer_.empty()) return {};
-  if (auto st = write_all(buffer_.data(), buffer_.size()); !st) return st;
-  committed_ += buffer_.size();
-  buffer_.clear();
+  if (fd_ < 0 || buffered_ == 0) return {};
+  if (auto st = write_raw(buffer_.get(), buffered_); !st) return st;
+  // The buffer only ever ends with a complete event.
+  committed_ = written_;
+  buffered_ = 0;
   return {};
 }
 
@@ -154,7 +151,7 @@ void LogWriter::discard() {
   if (fd_ < 0) return;
   ::close(fd_);
   fd_ = -1;
-  buffer_.clear();
+  buffered_ = 0;
   if (atomic_) std::remove(file_path_.c_str());
 }
 

@@ -5,10 +5,10 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <span>
 #include <string>
 #include <string_view>
-#include <vector>
 
 #include "core/result.h"
 
@@ -51,18 +51,21 @@ class LogWriter {
   const std::string& path() const { return path_; }
   int64_t events() const { return events_; }
   /// Bytes of log written so far, buffered ones included.
-  uint64_t bytes() const { return committed_ + buffer_.size(); }
+  uint64_t bytes() const { return written_ + buffered_; }
 
  private:
   LogWriter() = default;
   Status fail(const std::string& what, int err);
-  Status write_all(const uint8_t* data, size_t size);
+  /// write(2) until done; on failure cuts the file back to the last complete event.
+  Status write_raw(const uint8_t* data, size_t size);
 
   std::string path_;
   std::string file_path_;  // path_, or path_ + ".partial"
   int fd_ = -1;
-  std::vector<uint8_t> buffer_;
+  std::unique_ptr<uint8_t[]> buffer_;
+  size_t buffered_ = 0;
   size_t buffer_capacity_ = 0;
+  uint64_t written_ = 0;    // bytes in the file
   uint64_t committed_ = 0;  // bytes of complete events in the file
   int64_t events_ = 0;
   bool atomic_ = false;

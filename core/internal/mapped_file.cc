@@ -12,7 +12,7 @@
 namespace driftlab::internal {
 namespace {
 // Release in steps this large, so madvise calls are rare.
-constexpr uint64_t kReleaseStep = 64ull << 20;
+constexpr uint64_t kReleaseStep = 16ull << 20;
 }  // namespace
 
 Result<MappedFile> MappedFile::open(const std::string& path) {

@@ -1,0 +1,38 @@
+// libFuzzer target: any bytes given to LogReader and LogIndex must neither crash nor yield an event outside
+// the input, and reading must always make progress.
+#include <cstdint>
+#include <cstdlib>
+#include <span>
+
+#include "core/log_index.h"
+#include "core/log_reader.h"
+
+extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
+  const std::span<const uint8_t> bytes(data, size);
+  uint64_t problems = 0;
+  auto reader = driftlab::LogReader::from_memory(bytes, {.on_problem = [&](const driftlab::Problem& p) {
+                                                           if (p.offset > size) std::abort();
+                                                           ++problems;
+                                                         }});
+  if (!reader.ok()) std::abort();
+  driftlab::Event e;
+  uint64_t last_offset = 0;
+  int64_t events = 0, first_utime = 0;
+  bool first = true;
+  while (reader->next(e)) {
+    const auto* begin = e.data.data();
+    if (e.offset >= size || (!first && e.offset <= last_offset)) std::abort();
+    if (e.channel.empty() || begin < data || begin + e.data.size() > data + size) std::abort();
+    if (reinterpret_cast<const uint8_t*>(e.channel.data()) + e.channel.size() != begin) std::abort();
+    if (first) first_utime = e.utime;
+    last_offset = e.offset;
+    first = false;
+    ++events;
+  }
+  const auto index = driftlab::LogIndex::build(bytes);
+  if (index.summary().events != events || index.summary().problems_total != reader->problems()) std::abort();
+  if (events > 0) {
+    if (!reader->seek(first_utime).ok() || !reader->next(e)) std::abort();
+  }
+  return 0;
+}
