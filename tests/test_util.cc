@@ -47,6 +47,11 @@ std::vector<uint8_t> payload(uint64_t seed, size_t size) {
   return out;
 }
 
+std::vector<OwnedEvent> without_offsets(std::vector<OwnedEvent> events) {
+  for (auto& e : events) e.offset = 0;
+  return events;
+}
+
 namespace {
 std::vector<OwnedEvent> drain(Result<LogReader> reader) {
   std::vector<OwnedEvent> out;

@@ -39,6 +39,9 @@ struct OwnedEvent {
   bool operator==(const OwnedEvent&) const = default;
 };
 
+/// The same events with offset set to 0, to compare with events written elsewhere.
+std::vector<OwnedEvent> without_offsets(std::vector<OwnedEvent> events);
+
 /// Every event of a log with LogReader, and the problems met.
 std::vector<OwnedEvent> read_all(const std::string& path, std::vector<Problem>* problems = nullptr);
 std::vector<OwnedEvent> read_all_memory(const std::vector<uint8_t>& bytes, std::vector<Problem>* problems = nullptr);

@@ -35,13 +35,8 @@ TEST(LogWriter, RoundTripsEventsInOrderWithConsecutiveEventNumbers) {
     EXPECT_EQ(w->bytes(), std::filesystem::file_size(path));
   }
   std::vector<Problem> problems;
-  auto read = test::read_all(path, &problems);
+  EXPECT_EQ(test::without_offsets(test::read_all(path, &problems)), written);
   EXPECT_TRUE(problems.empty());
-  ASSERT_EQ(read.size(), written.size());
-  for (size_t i = 0; i < read.size(); ++i) {
-    read[i].offset = 0;
-    EXPECT_EQ(read[i], written[i]) << "event " << i;
-  }
 }
 
 TEST(LogWriter, RejectsEmptyAndOverlongChannelNames) {

@@ -7,13 +7,12 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
-#include <fstream>
-#include <iterator>
 #include <random>
 #include <string>
 #include <vector>
 
 #include "core/log_writer.h"
+#include "tests/test_util.h"
 #include "driftlab/imu_t.hpp"
 #include "driftlab/laser_scan_t.hpp"
 #include "driftlab/odometry_t.hpp"
@@ -175,16 +174,6 @@ void write_clean(const std::string& path, int64_t duration_us) {
   }
 }
 
-std::vector<uint8_t> read_file(const std::string& path) {
-  std::ifstream f(path, std::ios::binary);
-  return {std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>()};
-}
-
-void write_file(const std::string& path, const std::vector<uint8_t>& bytes) {
-  std::ofstream f(path, std::ios::binary);
-  f.write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
-}
-
 /// Offsets of the first n events of a clean log.
 std::vector<size_t> event_offsets(const std::vector<uint8_t>& b, size_t n) {
   std::vector<size_t> out;
@@ -209,11 +198,11 @@ int main(int argc, char** argv) {
   const std::string dir = argv[1];
   const double seconds = argc == 3 ? std::atof(argv[2]) : 5.0;
   write_clean(dir + "/sample.lcm", static_cast<int64_t>(seconds * 1e6));
-  const auto clean = read_file(dir + "/sample.lcm");
+  const auto clean = driftlab::test::read_file(dir + "/sample.lcm");
   const auto ev = event_offsets(clean, 60);
 
   // Truncated: the last event loses its final 100 bytes.
-  write_file(dir + "/truncated.lcm", {clean.begin(), clean.end() - 100});
+  driftlab::test::write_file(dir + "/truncated.lcm", {clean.begin(), clean.end() - 100});
 
   // Garbage: 37 bytes of noise inserted before event 10.
   {
@@ -221,20 +210,20 @@ int main(int argc, char** argv) {
     std::vector<uint8_t> noise(37);
     for (size_t i = 0; i < noise.size(); ++i) noise[i] = static_cast<uint8_t>(i * 73 + 11);
     b.insert(b.begin() + static_cast<long>(ev[10]), noise.begin(), noise.end());
-    write_file(dir + "/garbage.lcm", b);
+    driftlab::test::write_file(dir + "/garbage.lcm", b);
   }
   // Bad lengths: event 20's data length points past the end of the file; event 30's channel length is absurd.
   {
     auto b = clean;
     b[ev[20] + 24] = 0x7f;
     b[ev[30] + 20] = 0x12;
-    write_file(dir + "/bad_lengths.lcm", b);
+    driftlab::test::write_file(dir + "/bad_lengths.lcm", b);
   }
   // Not a log at all.
   {
     std::string text = "This is a text file, not an LCM log.\n";
-    write_file(dir + "/not_a_log.txt", {text.begin(), text.end()});
+    driftlab::test::write_file(dir + "/not_a_log.txt", {text.begin(), text.end()});
   }
-  write_file(dir + "/empty.lcm", {});
+  driftlab::test::write_file(dir + "/empty.lcm", {});
   return 0;
 }
