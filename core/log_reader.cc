@@ -43,6 +43,7 @@ struct LogReader::Impl {
   std::string_view last_channel;  // a key of decisions
   bool last_accepted = false;
   std::optional<LogIndex> index;
+  bool in_memory = false;  // from_memory: no file to index
 };
 
 namespace {
@@ -73,6 +74,7 @@ Result<LogReader> LogReader::open(const std::string& path, ReadOptions options) 
 
 Result<LogReader> LogReader::from_memory(std::span<const uint8_t> bytes, ReadOptions options) {
   auto impl = std::make_unique<Impl>("<memory>", internal::MappedFile(), bytes, std::move(options));
+  impl->in_memory = true;
   if (auto st = compile_filter(impl->options.channels, impl->filter); !st) return Error{st.message()};
   return LogReader(std::move(impl));
 }
@@ -89,7 +91,7 @@ bool LogReader::next(Event& out) {
 Status LogReader::seek(int64_t utime) {
   Impl& d = *impl_;
   if (!d.index) {
-    if (d.path == "<memory>") {
+    if (d.in_memory) {
       d.index = LogIndex::build(d.bytes);
     } else {
       auto index = LogIndex::load_or_build(d.path);
