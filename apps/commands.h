@@ -9,5 +9,6 @@ class App;
 namespace driftlab::apps {
 
 void add_info_command(CLI::App& app, int* exit_code);
+void add_eval_command(CLI::App& app, int* exit_code);
 
 }  // namespace driftlab::apps

@@ -1,0 +1,381 @@
+#include "analyzers/trajectory.h"
+
+#include <Eigen/SVD>
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <numeric>
+
+namespace driftlab::analyzers {
+namespace {
+
+constexpr double kRadToDeg = 180.0 / M_PI;
+
+Eigen::Isometry3d pose(const Trajectory& t, size_t i) {
+  Eigen::Isometry3d p = Eigen::Isometry3d::Identity();
+  p.linear() = t.orientations[i].normalized().toRotationMatrix();
+  p.translation() = t.positions[i];
+  return p;
+}
+
+/// Indices of t's stamps in ascending order of (stamp + shift), ties by index; run_start[k] is the first
+/// position of the run of equal values that position k belongs to.
+struct SortedStamps {
+  std::vector<double> values;
+  std::vector<size_t> index;
+  std::vector<size_t> run_start;
+
+  SortedStamps(const std::vector<double>& stamps, double shift) {
+    const size_t n = stamps.size();
+    std::vector<double> shifted(n);
+    for (size_t k = 0; k < n; ++k) shifted[k] = stamps[k] + shift;  // as numpy: stamps + offset
+    index.resize(n);
+    std::iota(index.begin(), index.end(), 0);
+    if (!std::is_sorted(shifted.begin(), shifted.end())) {
+      std::stable_sort(index.begin(), index.end(), [&](size_t a, size_t b) { return shifted[a] < shifted[b]; });
+    }
+    values.resize(n);
+    run_start.resize(n);
+    for (size_t k = 0; k < n; ++k) {
+      values[k] = shifted[index[k]];
+      run_start[k] = (k > 0 && values[k] == values[k - 1]) ? run_start[k - 1] : k;
+    }
+  }
+
+  /// numpy's argmin(|values - t|) over the original order: the nearest value, the smallest index on ties.
+  /// hint: position to search from (queries in ascending order make this a linear merge).
+  size_t nearest(double t, size_t& hint) const {
+    size_t p = hint;
+    if (p > 0 && values[p - 1] >= t) p = std::lower_bound(values.begin(), values.end(), t) - values.begin();
+    while (p < values.size() && values[p] < t) ++p;
+    hint = p;
+    size_t best = std::numeric_limits<size_t>::max();
+    double best_d = std::numeric_limits<double>::infinity();
+    auto consider = [&](size_t pos) {
+      const size_t first = run_start[pos];  // smallest index among equal values
+      const double d = std::abs(values[first] - t);
+      if (best == std::numeric_limits<size_t>::max() || d < best_d || (d == best_d && index[first] < index[best])) {
+        best_d = d;
+        best = first;
+      }
+    };
+    if (p < values.size()) consider(p);
+    if (p > 0) consider(p - 1);
+    return best;
+  }
+};
+
+void append(Trajectory& out, const Trajectory& in, size_t i) {
+  out.push_back(in.stamps[i], in.positions[i], in.orientations[i]);
+}
+
+double round_2_significant(double x) {
+  if (x <= 0) return x;
+  const double magnitude = std::pow(10.0, std::floor(std::log10(x)) - 1);
+  return std::round(x / magnitude) * magnitude;
+}
+
+}  // namespace
+
+double Trajectory::path_length() const {
+  double length = 0;
+  for (size_t i = 1; i < positions.size(); ++i) length += (positions[i] - positions[i - 1]).norm();
+  return length;
+}
+
+Stats compute_stats(std::vector<double> e) {
+  Stats s;
+  s.count = e.size();
+  if (e.empty()) return s;
+  const double n = static_cast<double>(e.size());
+  double sum = 0, sum_sq = 0;
+  s.min = s.max = e[0];
+  for (double v : e) {
+    sum += v;
+    sum_sq += v * v;
+    s.min = std::min(s.min, v);
+    s.max = std::max(s.max, v);
+  }
+  s.mean = sum / n;
+  s.rmse = std::sqrt(sum_sq / n);
+  double var = 0;
+  for (double v : e) var += (v - s.mean) * (v - s.mean);
+  s.std = std::sqrt(var / n);
+  const size_t mid = e.size() / 2;
+  std::nth_element(e.begin(), e.begin() + static_cast<long>(mid), e.end());
+  s.median = e[mid];
+  if (e.size() % 2 == 0) s.median = (*std::max_element(e.begin(), e.begin() + static_cast<long>(mid)) + s.median) / 2;
+  return s;
+}
+
+Matched match_nearest(const Trajectory& ref, const Trajectory& est, double max_dt, double offset) {
+  Matched m;
+  if (ref.size() == 0 || est.size() == 0) return m;
+  const bool est_longer = est.size() > ref.size();
+  const Trajectory& longer = est_longer ? est : ref;
+  const Trajectory& shorter = est_longer ? ref : est;
+  const SortedStamps sorted(longer.stamps, est_longer ? offset : -offset);
+  size_t hint = 0;
+  for (size_t s = 0; s < shorter.size(); ++s) {
+    const size_t pos = sorted.nearest(shorter.stamps[s], hint);
+    if (!(std::abs(sorted.values[pos] - shorter.stamps[s]) <= max_dt)) continue;
+    const size_t l = sorted.index[pos];
+    append(m.ref, ref, est_longer ? s : l);
+    append(m.est, est, est_longer ? l : s);
+  }
+  return m;
+}
+
+Matched match_interpolated(const Trajectory& ref, const Trajectory& est, double max_gap, double offset) {
+  Matched m;
+  if (ref.size() < 2) return m;
+  const SortedStamps sorted(ref.stamps, 0.0);
+  size_t hint = 0;
+  for (size_t e = 0; e < est.size(); ++e) {
+    const double t = est.stamps[e] + offset;
+    sorted.nearest(t, hint);  // hint: first position with value >= t
+    const size_t p = hint;
+    if (p == sorted.values.size()) continue;
+    size_t a, b;
+    if (sorted.values[p] == t) {
+      a = b = sorted.index[sorted.run_start[p]];
+    } else {
+      if (p == 0) continue;
+      a = sorted.index[p - 1];
+      b = sorted.index[p];
+      if (ref.stamps[b] - ref.stamps[a] > max_gap) continue;
+    }
+    const double alpha = a == b ? 0.0 : (t - ref.stamps[a]) / (ref.stamps[b] - ref.stamps[a]);
+    m.ref.push_back(t, ref.positions[a] + alpha * (ref.positions[b] - ref.positions[a]),
+                    ref.orientations[a].normalized().slerp(alpha, ref.orientations[b].normalized()));
+    m.est.push_back(t, est.positions[e], est.orientations[e]);
+  }
+  return m;
+}
+
+std::string explain_no_match(const Trajectory& ref, const Trajectory& est, double max_dt, double offset) {
+  char buf[512];
+  if (ref.size() == 0 || est.size() == 0) {
+    std::snprintf(buf, sizeof(buf), "the %s trajectory has no poses", ref.size() == 0 ? "reference" : "estimated");
+    return buf;
+  }
+  const auto [r0, r1] = std::minmax_element(ref.stamps.begin(), ref.stamps.end());
+  const auto [e0, e1] = std::minmax_element(est.stamps.begin(), est.stamps.end());
+  const double est_start = *e0 + offset, est_end = *e1 + offset;
+  // The closest pair, over every estimate stamp.
+  const SortedStamps sorted(ref.stamps, 0.0);
+  size_t hint = 0;
+  double best = std::numeric_limits<double>::infinity(), best_ref = 0, best_est = 0;
+  std::vector<double> queries(est.stamps);
+  std::sort(queries.begin(), queries.end());
+  for (double q : queries) {
+    const size_t pos = sorted.nearest(q + offset, hint);
+    const double d = std::abs(sorted.values[pos] - (q + offset));
+    if (d < best) {
+      best = d;
+      best_ref = sorted.values[pos];
+      best_est = q + offset;
+    }
+  }
+  int n = std::snprintf(buf, sizeof(buf),
+                        "no estimated pose is within %g s of a reference pose: reference spans %.6f..%.6f s, "
+                        "estimate (with offset %g s) %.6f..%.6f s; the closest pair is %.6f s apart "
+                        "(reference %.6f s, estimate %.6f s)",
+                        max_dt, *r0, *r1, offset, est_start, est_end, best, best_ref, best_est);
+  if (est_end < *r0 || est_start > *r1) {
+    std::snprintf(buf + n, sizeof(buf) - n, "; the time ranges do not overlap: try --offset %.6f to align the starts",
+                  offset + (*r0 - est_start));
+  } else {
+    std::snprintf(buf + n, sizeof(buf) - n, "; try --max-dt %.3g or --interpolate", best * 1.01);
+  }
+  return buf;
+}
+
+const char* to_string(AlignmentType type) {
+  switch (type) {
+    case AlignmentType::kNone: return "none";
+    case AlignmentType::kSe3: return "se3";
+    case AlignmentType::kSim3: return "sim3";
+    case AlignmentType::kPosYaw: return "posyaw";
+  }
+  return "none";
+}
+
+Alignment align(const Matched& m, AlignmentType type) {
+  Alignment a;
+  a.type = type;
+  const size_t n = m.est.size();
+  if (type == AlignmentType::kNone || n < (type == AlignmentType::kPosYaw ? 2u : 3u)) return a;
+  Eigen::Matrix3Xd src(3, n), dst(3, n);
+  for (size_t i = 0; i < n; ++i) {
+    src.col(static_cast<long>(i)) = m.est.positions[i];
+    dst.col(static_cast<long>(i)) = m.ref.positions[i];
+  }
+  if (type == AlignmentType::kPosYaw) {
+    // Rotation about z only: the yaw that best maps the centred est xy onto the centred ref xy.
+    const Eigen::Vector3d mu_src = src.rowwise().mean(), mu_dst = dst.rowwise().mean();
+    double sin_sum = 0, cos_sum = 0;
+    for (size_t i = 0; i < n; ++i) {
+      const Eigen::Vector3d s = src.col(static_cast<long>(i)) - mu_src, d = dst.col(static_cast<long>(i)) - mu_dst;
+      cos_sum += s.x() * d.x() + s.y() * d.y();
+      sin_sum += s.x() * d.y() - s.y() * d.x();
+    }
+    a.rotation = Eigen::AngleAxisd(std::atan2(sin_sum, cos_sum), Eigen::Vector3d::UnitZ()).toRotationMatrix();
+    a.translation = mu_dst - a.rotation * mu_src;
+    return a;
+  }
+  // Eigen's Umeyama: the same closed form evo uses (SVD of the cross-covariance, reflection fixed).
+  const Eigen::Matrix4d t = Eigen::umeyama(src, dst, type == AlignmentType::kSim3);
+  a.scale = type == AlignmentType::kSim3 ? t.block<3, 3>(0, 0).col(0).norm() : 1.0;
+  a.rotation = t.block<3, 3>(0, 0) / a.scale;
+  a.translation = t.block<3, 1>(0, 3);
+  return a;
+}
+
+Trajectory apply(const Alignment& a, const Trajectory& t) {
+  Trajectory out = t;
+  const Eigen::Quaterniond q(a.rotation);
+  for (size_t i = 0; i < out.size(); ++i) {
+    out.positions[i] = a.scale * (a.rotation * t.positions[i]) + a.translation;
+    out.orientations[i] = q * t.orientations[i].normalized();
+  }
+  return out;
+}
+
+double rotation_angle(const Eigen::Matrix3d& r) {
+  const Eigen::Vector3d axis(r(2, 1) - r(1, 2), r(0, 2) - r(2, 0), r(1, 0) - r(0, 1));
+  return std::atan2(0.5 * axis.norm(), 0.5 * (r.trace() - 1.0));
+}
+
+ApeResult ape(const Matched& m) {
+  ApeResult r;
+  const size_t n = m.ref.size();
+  r.trans_errors.resize(n);
+  r.rot_errors_deg.resize(n);
+  for (size_t i = 0; i < n; ++i) {
+    r.trans_errors[i] = (m.est.positions[i] - m.ref.positions[i]).norm();
+    const Eigen::Matrix3d e = (m.ref.orientations[i].normalized().conjugate() * m.est.orientations[i].normalized())
+                                  .toRotationMatrix();
+    r.rot_errors_deg[i] = rotation_angle(e) * kRadToDeg;
+  }
+  r.trans = compute_stats(r.trans_errors);
+  r.rot_deg = compute_stats(r.rot_errors_deg);
+  return r;
+}
+
+const char* to_string(DeltaUnit unit) {
+  switch (unit) {
+    case DeltaUnit::kFrames: return "frames";
+    case DeltaUnit::kMeters: return "m";
+    case DeltaUnit::kSeconds: return "s";
+  }
+  return "frames";
+}
+
+namespace {
+std::vector<std::pair<size_t, size_t>> rpe_pairs(const Trajectory& ref, double delta, DeltaUnit unit, bool all_pairs) {
+  std::vector<std::pair<size_t, size_t>> pairs;
+  const size_t n = ref.size();
+  if (unit == DeltaUnit::kFrames) {
+    const size_t d = static_cast<size_t>(delta);
+    if (all_pairs) {
+      for (size_t i = 0; i + d < n; ++i) pairs.emplace_back(i, i + d);
+    } else {
+      for (size_t i = 0; i + d < n; i += d) pairs.emplace_back(i, i + d);
+    }
+    return pairs;
+  }
+  // Metres along the reference path, or seconds.
+  std::vector<double> along(n, 0.0);
+  for (size_t i = 1; i < n; ++i) {
+    along[i] = unit == DeltaUnit::kMeters ? along[i - 1] + (ref.positions[i] - ref.positions[i - 1]).norm()
+                                          : ref.stamps[i] - ref.stamps[0];
+  }
+  if (all_pairs) {
+    for (size_t i = 0; i + 1 < n; ++i) {
+      const auto it = std::lower_bound(along.begin() + static_cast<long>(i) + 1, along.end(), along[i] + delta);
+      if (it != along.end()) pairs.emplace_back(i, static_cast<size_t>(it - along.begin()));
+    }
+    return pairs;
+  }
+  // As evo: the ids are the poses where the distance accumulated since the previous id reaches delta.
+  std::vector<size_t> ids;
+  double since = 0.0;
+  for (size_t i = 0; i < n; ++i) {
+    since += i == 0 ? 0.0 : along[i] - along[i - 1];
+    if (since >= delta) {
+      ids.push_back(i);
+      since = 0.0;
+    }
+  }
+  for (size_t k = 1; k < ids.size(); ++k) pairs.emplace_back(ids[k - 1], ids[k]);
+  return pairs;
+}
+
+/// (Q_i^-1 Q_j)^-1 (P_i^-1 P_j): how the estimated motion from i to j differs from the true one.
+Eigen::Isometry3d relative_error(const Matched& m, size_t i, size_t j) {
+  const Eigen::Isometry3d q = pose(m.ref, i).inverse() * pose(m.ref, j);
+  const Eigen::Isometry3d p = pose(m.est, i).inverse() * pose(m.est, j);
+  return q.inverse() * p;
+}
+}  // namespace
+
+RpeResult rpe(const Matched& m, double delta, DeltaUnit unit, bool all_pairs) {
+  RpeResult r;
+  r.delta = delta;
+  r.unit = unit;
+  r.all_pairs = all_pairs;
+  r.pairs = rpe_pairs(m.ref, delta, unit, all_pairs);
+  std::vector<double> trans(r.pairs.size()), rot(r.pairs.size());
+  for (size_t k = 0; k < r.pairs.size(); ++k) {
+    const Eigen::Isometry3d e = relative_error(m, r.pairs[k].first, r.pairs[k].second);
+    trans[k] = e.translation().norm();
+    rot[k] = rotation_angle(e.linear()) * kRadToDeg;
+  }
+  r.trans = compute_stats(std::move(trans));
+  r.rot_deg = compute_stats(std::move(rot));
+  return r;
+}
+
+DriftResult drift(const Matched& m, std::vector<double> lengths, size_t step) {
+  DriftResult r;
+  const size_t n = m.ref.size();
+  std::vector<double> dist(n, 0.0);
+  for (size_t i = 1; i < n; ++i) dist[i] = dist[i - 1] + (m.ref.positions[i] - m.ref.positions[i - 1]).norm();
+  if (lengths.empty() && n > 1) {
+    for (double f : {0.1, 0.2, 0.3, 0.4, 0.5}) {
+      const double l = round_2_significant(f * dist.back());
+      if (l > 0 && (lengths.empty() || l != lengths.back())) lengths.push_back(l);
+    }
+  }
+  double sum_t = 0, sum_r = 0;
+  for (double length : lengths) {
+    DriftSegment seg;
+    seg.length_m = length;
+    for (size_t first = 0; first < n; first += std::max<size_t>(step, 1)) {
+      // KITTI: the first pose strictly more than `length` further along the path.
+      const auto it = std::upper_bound(dist.begin() + static_cast<long>(first), dist.end(), dist[first] + length);
+      if (it == dist.end()) break;
+      const Eigen::Isometry3d e = relative_error(m, first, static_cast<size_t>(it - dist.begin()));
+      seg.trans_pct += 100.0 * e.translation().norm() / length;
+      seg.rot_deg_per_m += rotation_angle(e.linear()) * kRadToDeg / length;
+      ++seg.count;
+    }
+    sum_t += seg.trans_pct;
+    sum_r += seg.rot_deg_per_m;
+    r.count += seg.count;
+    if (seg.count > 0) {
+      seg.trans_pct /= static_cast<double>(seg.count);
+      seg.rot_deg_per_m /= static_cast<double>(seg.count);
+    }
+    r.segments.push_back(seg);
+  }
+  if (r.count > 0) {
+    r.trans_pct = sum_t / static_cast<double>(r.count);
+    r.rot_deg_per_m = sum_r / static_cast<double>(r.count);
+  }
+  return r;
+}
+
+}  // namespace driftlab::analyzers

@@ -1,0 +1,118 @@
+// Trajectory evaluation against a reference: association by time, alignment, absolute and relative pose error,
+// and KITTI-style drift. The semantics follow evo (evo_ape / evo_rpe) so that numbers agree with it; where evo
+// has no equivalent (posyaw alignment, interpolated matching, RPE in seconds, drift), docs/cli.md says what
+// driftlab does. Thread-safety: pure functions over values.
+#pragma once
+
+#include <Eigen/Geometry>
+#include <cstddef>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace driftlab::analyzers {
+
+/// Poses of a body over time.
+struct Trajectory {
+  std::vector<double> stamps;                      ///< [s]
+  std::vector<Eigen::Vector3d> positions;          ///< [m]
+  std::vector<Eigen::Quaterniond> orientations;    ///< unit quaternions
+  size_t size() const { return stamps.size(); }
+  void push_back(double stamp, const Eigen::Vector3d& p, const Eigen::Quaterniond& q) {
+    stamps.push_back(stamp);
+    positions.push_back(p);
+    orientations.push_back(q);
+  }
+  /// Length of the path through all positions [m].
+  double path_length() const;
+};
+
+/// Error statistics; std is the population standard deviation, median as numpy's.
+struct Stats {
+  size_t count = 0;
+  double rmse = 0, mean = 0, median = 0, std = 0, min = 0, max = 0;
+};
+Stats compute_stats(std::vector<double> errors);
+
+/// Two trajectories of equal length whose poses i belong together.
+struct Matched {
+  Trajectory ref;
+  Trajectory est;
+};
+
+/// evo's association: for each stamp of the trajectory with fewer poses, the nearest stamp of the other (the first
+/// on ties; a pose of the longer one may be used twice), kept when at most max_dt [s] apart. offset [s] is added
+/// to the estimate's stamps. A linear merge over stamps sorted once: O((n + m) log m) for unsorted input.
+Matched match_nearest(const Trajectory& ref, const Trajectory& est, double max_dt, double offset);
+
+/// The reference interpolated at each estimate stamp (+ offset): linear in position, slerp in orientation,
+/// between the two reference poses around it when they are at most max_gap [s] apart.
+Matched match_interpolated(const Trajectory& ref, const Trajectory& est, double max_gap, double offset);
+
+/// Why nothing matched, in one line: both time ranges, the closest pair, and a suggested --offset.
+std::string explain_no_match(const Trajectory& ref, const Trajectory& est, double max_dt, double offset);
+
+enum class AlignmentType { kNone, kSe3, kSim3, kPosYaw };
+const char* to_string(AlignmentType type);
+
+/// est -> ref: p' = scale * rotation * p + translation.
+struct Alignment {
+  AlignmentType type = AlignmentType::kNone;
+  Eigen::Matrix3d rotation = Eigen::Matrix3d::Identity();
+  Eigen::Vector3d translation = Eigen::Vector3d::Zero();
+  double scale = 1.0;
+};
+
+/// Least-squares alignment of est's positions onto ref's (Umeyama; posyaw: translation and yaw about z only).
+/// Needs at least 3 matched poses (2 for posyaw); fewer give the identity.
+Alignment align(const Matched& m, AlignmentType type);
+/// est with the alignment applied: positions scaled, rotated and moved; orientations rotated.
+Trajectory apply(const Alignment& a, const Trajectory& t);
+
+/// Absolute pose error per matched pose: translation distance [m] and rotation angle of Q^-1 P [deg].
+struct ApeResult {
+  Stats trans;
+  Stats rot_deg;
+  std::vector<double> trans_errors;
+  std::vector<double> rot_errors_deg;
+};
+ApeResult ape(const Matched& aligned);
+
+enum class DeltaUnit { kFrames, kMeters, kSeconds };
+const char* to_string(DeltaUnit unit);
+
+/// Relative pose error of (Q_i^-1 Q_j)^-1 (P_i^-1 P_j) over pairs (i, j) chosen as evo does: frames: (0, d),
+/// (d, 2d), ...; metres: consecutive poses of the reference where the path since the previous one reaches d;
+/// seconds: the same with time. all_pairs: every (i, i + d) for frames, every i with its first j at d or more
+/// for metres and seconds.
+struct RpeResult {
+  double delta = 1;
+  DeltaUnit unit = DeltaUnit::kFrames;
+  bool all_pairs = false;
+  std::vector<std::pair<size_t, size_t>> pairs;
+  Stats trans;
+  Stats rot_deg;
+};
+RpeResult rpe(const Matched& aligned, double delta, DeltaUnit unit, bool all_pairs);
+
+/// KITTI-style drift: from every step-th pose, the first pose at least L metres further along the reference
+/// path; error of that segment relative to L.
+struct DriftSegment {
+  double length_m = 0;
+  size_t count = 0;
+  double trans_pct = 0;        ///< mean translation error [% of distance travelled]
+  double rot_deg_per_m = 0;    ///< mean rotation error [deg per metre travelled]
+};
+struct DriftResult {
+  std::vector<DriftSegment> segments;
+  size_t count = 0;            ///< segments over all lengths
+  double trans_pct = 0;        ///< mean over all segments [%]
+  double rot_deg_per_m = 0;    ///< mean over all segments [deg/m]
+};
+/// lengths [m]; empty: 10, 20, 30, 40 and 50% of the reference path, to two significant digits.
+DriftResult drift(const Matched& aligned, std::vector<double> lengths, size_t step = 10);
+
+/// Angle of a rotation [rad], accurate near 0 and pi.
+double rotation_angle(const Eigen::Matrix3d& r);
+
+}  // namespace driftlab::analyzers

@@ -1,0 +1,140 @@
+#include "analyzers/trajectory_io.h"
+
+#include <sys/stat.h>
+
+#include <cerrno>
+#include <charconv>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <iterator>
+
+#include "core/log_format.h"
+#include "core/log_index.h"
+#include "core/log_reader.h"
+#include "driftlab/odometry_t.hpp"
+#include "driftlab/pose_t.hpp"
+
+namespace driftlab::analyzers {
+namespace {
+
+bool is_file(const std::string& path) {
+  struct stat st {};
+  return stat(path.c_str(), &st) == 0 && S_ISREG(st.st_mode);
+}
+
+/// Parses the numbers of one line; returns how many it found (at most 9).
+int parse_numbers(const char* p, const char* end, double* out) {
+  int n = 0;
+  while (p < end) {
+    while (p < end && (*p == ' ' || *p == '\t' || *p == ',' || *p == '\r')) ++p;
+    if (p >= end) break;
+    if (n == 9) return n + 1;
+    const auto [next, ec] = std::from_chars(p, end, out[n]);
+    if (ec != std::errc() || next == p) return -1;
+    p = next;
+    ++n;
+  }
+  return n;
+}
+
+}  // namespace
+
+Result<Trajectory> load_tum(const std::string& path) {
+  std::ifstream f(path, std::ios::binary);
+  if (!f) return Error{path + ": cannot open: " + std::strerror(errno)};
+  const std::string text{std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>()};
+  Trajectory t;
+  const char* p = text.data();
+  const char* end = p + text.size();
+  for (size_t line = 1; p < end; ++line) {
+    const char* eol = static_cast<const char*>(std::memchr(p, '\n', static_cast<size_t>(end - p)));
+    if (eol == nullptr) eol = end;
+    const char* q = p;
+    while (q < eol && (*q == ' ' || *q == '\t' || *q == '\r')) ++q;
+    if (q < eol && *q != '#') {
+      double v[9];
+      const int n = parse_numbers(q, eol, v);
+      if (n != 8) {
+        return Error{path + ":" + std::to_string(line) +
+                     (n < 0 ? ": not a number" : ": expected 8 numbers (t x y z qx qy qz qw), found " + std::to_string(n))};
+      }
+      for (int i = 0; i < 8; ++i) {
+        if (!std::isfinite(v[i])) return Error{path + ":" + std::to_string(line) + ": a number is not finite"};
+      }
+      const Eigen::Quaterniond quat(v[7], v[4], v[5], v[6]);
+      if (quat.norm() < 1e-9) return Error{path + ":" + std::to_string(line) + ": the quaternion is zero"};
+      t.push_back(v[0], Eigen::Vector3d(v[1], v[2], v[3]), quat);
+    }
+    p = eol + 1;
+  }
+  if (t.size() == 0) return Error{path + ": no poses (expected lines of \"t x y z qx qy qz qw\")"};
+  return t;
+}
+
+Result<Trajectory> load_log_channel(const std::string& log, const std::string& channel) {
+  auto reader = LogReader::open(log);
+  if (!reader) return reader.error();
+  Trajectory t;
+  Event e;
+  bool seen = false;
+  const int64_t pose_hash = driftlab::pose_t::getHash(), odom_hash = driftlab::odometry_t::getHash();
+  driftlab::pose_t pose;
+  driftlab::odometry_t odom;
+  while (reader->next(e)) {
+    if (e.channel != channel) continue;
+    seen = true;
+    const int64_t fp = logfmt::fingerprint(e.data);
+    const int size = static_cast<int>(e.data.size());
+    if (fp == pose_hash) {
+      if (pose.decode(e.data.data(), 0, size) < 0) {
+        return Error{log + ": event at byte " + std::to_string(e.offset) + " on " + channel + " does not decode as driftlab.pose_t"};
+      }
+      t.push_back(static_cast<double>(pose.header.utime) * 1e-6,
+                  {pose.position.x, pose.position.y, pose.position.z},
+                  {pose.orientation.w, pose.orientation.x, pose.orientation.y, pose.orientation.z});
+    } else if (fp == odom_hash) {
+      if (odom.decode(e.data.data(), 0, size) < 0) {
+        return Error{log + ": event at byte " + std::to_string(e.offset) + " on " + channel + " does not decode as driftlab.odometry_t"};
+      }
+      t.push_back(static_cast<double>(odom.header.utime) * 1e-6,
+                  {odom.position.x, odom.position.y, odom.position.z},
+                  {odom.orientation.w, odom.orientation.x, odom.orientation.y, odom.orientation.z});
+    } else {
+      return Error{log + ": channel " + channel + " carries neither driftlab.pose_t nor driftlab.odometry_t (event at byte " +
+                   std::to_string(e.offset) + ")"};
+    }
+  }
+  if (!seen) {
+    std::string known;
+    if (auto index = LogIndex::load_or_build(log); index.ok()) {
+      for (const auto& c : index->summary().channels) known += (known.empty() ? "" : ", ") + c.name;
+    }
+    return Error{log + ": no channel " + channel + " (channels: " + (known.empty() ? "none" : known) + ")"};
+  }
+  return t;
+}
+
+Result<Trajectory> load_trajectory(const std::string& src) {
+  const size_t colon = src.rfind(':');
+  if (colon != std::string::npos && colon > 0 && colon + 1 < src.size() && is_file(src.substr(0, colon))) {
+    return load_log_channel(src.substr(0, colon), src.substr(colon + 1));
+  }
+  return load_tum(src);
+}
+
+Status write_tum(const std::string& path, const Trajectory& t) {
+  FILE* f = std::fopen(path.c_str(), "w");
+  if (f == nullptr) return Error{path + ": cannot create: " + std::strerror(errno)};
+  for (size_t i = 0; i < t.size(); ++i) {
+    const auto& p = t.positions[i];
+    const auto& q = t.orientations[i];
+    std::fprintf(f, "%.6f %.17g %.17g %.17g %.17g %.17g %.17g %.17g\n", t.stamps[i], p.x(), p.y(), p.z(), q.x(), q.y(), q.z(),
+                 q.w());
+  }
+  if (std::fclose(f) != 0) return Error{path + ": write failed: " + std::strerror(errno)};
+  return {};
+}
+
+}  // namespace driftlab::analyzers
