@@ -12,23 +12,16 @@ namespace {
 
 constexpr double kRadToDeg = 180.0 / M_PI;
 
-Eigen::Isometry3d pose(const Trajectory& t, size_t i) {
-  Eigen::Isometry3d p = Eigen::Isometry3d::Identity();
-  p.linear() = t.orientations[i].normalized().toRotationMatrix();
-  p.translation() = t.positions[i];
-  return p;
-}
-
 /// Indices of t's stamps in ascending order of (stamp + shift), ties by index; run_start[k] is the first
 /// position of the run of equal values that position k belongs to.
 struct SortedStamps {
-  std::vector<double> values;
-  std::vector<size_t> index;
-  std::vector<size_t> run_start;
+  PoseArray<double> values;
+  PoseArray<size_t> index;
+  PoseArray<size_t> run_start;
 
-  SortedStamps(const std::vector<double>& stamps, double shift) {
+  SortedStamps(const PoseArray<double>& stamps, double shift) {
     const size_t n = stamps.size();
-    std::vector<double> shifted(n);
+    PoseArray<double> shifted(n);
     for (size_t k = 0; k < n; ++k) shifted[k] = stamps[k] + shift;  // as numpy: stamps + offset
     index.resize(n);
     std::iota(index.begin(), index.end(), 0);
@@ -66,8 +59,17 @@ struct SortedStamps {
   }
 };
 
+/// Appends pose i of in, its orientation normalised.
 void append(Trajectory& out, const Trajectory& in, size_t i) {
-  out.push_back(in.stamps[i], in.positions[i], in.orientations[i]);
+  out.push_back(in.stamps[i], in.positions[i], in.orientations[i].normalized());
+}
+
+void reserve(Matched& m, size_t n) {
+  for (Trajectory* t : {&m.ref, &m.est}) {
+    t->stamps.reserve(n);
+    t->positions.reserve(n);
+    t->orientations.reserve(n);
+  }
 }
 
 double round_2_significant(double x) {
@@ -84,7 +86,7 @@ double Trajectory::path_length() const {
   return length;
 }
 
-Stats compute_stats(std::vector<double> e) {
+Stats compute_stats(PoseArray<double> e) {
   Stats s;
   s.count = e.size();
   if (e.empty()) return s;
@@ -116,6 +118,7 @@ Matched match_nearest(const Trajectory& ref, const Trajectory& est, double max_d
   const Trajectory& longer = est_longer ? est : ref;
   const Trajectory& shorter = est_longer ? ref : est;
   const SortedStamps sorted(longer.stamps, est_longer ? offset : -offset);
+  reserve(m, shorter.size());
   size_t hint = 0;
   for (size_t s = 0; s < shorter.size(); ++s) {
     const size_t pos = sorted.nearest(shorter.stamps[s], hint);
@@ -149,7 +152,7 @@ Matched match_interpolated(const Trajectory& ref, const Trajectory& est, double 
     const double alpha = a == b ? 0.0 : (t - ref.stamps[a]) / (ref.stamps[b] - ref.stamps[a]);
     m.ref.push_back(t, ref.positions[a] + alpha * (ref.positions[b] - ref.positions[a]),
                     ref.orientations[a].normalized().slerp(alpha, ref.orientations[b].normalized()));
-    m.est.push_back(t, est.positions[e], est.orientations[e]);
+    m.est.push_back(t, est.positions[e], est.orientations[e].normalized());
   }
   return m;
 }
@@ -167,7 +170,7 @@ std::string explain_no_match(const Trajectory& ref, const Trajectory& est, doubl
   const SortedStamps sorted(ref.stamps, 0.0);
   size_t hint = 0;
   double best = std::numeric_limits<double>::infinity(), best_ref = 0, best_est = 0;
-  std::vector<double> queries(est.stamps);
+  PoseArray<double> queries(est.stamps);
   std::sort(queries.begin(), queries.end());
   for (double q : queries) {
     const size_t pos = sorted.nearest(q + offset, hint);
@@ -233,14 +236,13 @@ Alignment align(const Matched& m, AlignmentType type) {
   return a;
 }
 
-Trajectory apply(const Alignment& a, const Trajectory& t) {
-  Trajectory out = t;
+Trajectory apply(const Alignment& a, Trajectory t) {
   const Eigen::Quaterniond q(a.rotation);
-  for (size_t i = 0; i < out.size(); ++i) {
-    out.positions[i] = a.scale * (a.rotation * t.positions[i]) + a.translation;
-    out.orientations[i] = q * t.orientations[i].normalized();
+  for (size_t i = 0; i < t.size(); ++i) {
+    t.positions[i] = a.scale * (a.rotation * t.positions[i]) + a.translation;
+    t.orientations[i] = (q * t.orientations[i]).normalized();
   }
-  return out;
+  return t;
 }
 
 double rotation_angle(const Eigen::Matrix3d& r) {
@@ -255,9 +257,8 @@ ApeResult ape(const Matched& m) {
   r.rot_errors_deg.resize(n);
   for (size_t i = 0; i < n; ++i) {
     r.trans_errors[i] = (m.est.positions[i] - m.ref.positions[i]).norm();
-    const Eigen::Matrix3d e = (m.ref.orientations[i].normalized().conjugate() * m.est.orientations[i].normalized())
-                                  .toRotationMatrix();
-    r.rot_errors_deg[i] = rotation_angle(e) * kRadToDeg;
+    const Eigen::Quaterniond e = m.ref.orientations[i].conjugate() * m.est.orientations[i];
+    r.rot_errors_deg[i] = 2 * std::atan2(e.vec().norm(), std::abs(e.w())) * kRadToDeg;
   }
   r.trans = compute_stats(r.trans_errors);
   r.rot_deg = compute_stats(r.rot_errors_deg);
@@ -313,12 +314,29 @@ std::vector<std::pair<size_t, size_t>> rpe_pairs(const Trajectory& ref, double d
   return pairs;
 }
 
-/// (Q_i^-1 Q_j)^-1 (P_i^-1 P_j): how the estimated motion from i to j differs from the true one.
-Eigen::Isometry3d relative_error(const Matched& m, size_t i, size_t j) {
-  const Eigen::Isometry3d q = pose(m.ref, i).inverse() * pose(m.ref, j);
-  const Eigen::Isometry3d p = pose(m.est, i).inverse() * pose(m.est, j);
-  return q.inverse() * p;
-}
+/// The error (Q_i^-1 Q_j)^-1 (P_i^-1 P_j) of the estimated motion from i to j against the true one, as its
+/// translation norm [m] and rotation angle [rad], with quaternions (cheaper than 4x4 matrices, as exact).
+class RelativeError {
+ public:
+  /// m's orientations must be unit quaternions, as match_* and apply() make them.
+  explicit RelativeError(const Matched& m) : ref_(m.ref), est_(m.est) {}
+
+  std::pair<double, double> operator()(size_t i, size_t j) const {
+    const auto& q = ref_.orientations;
+    const auto& p = est_.orientations;
+    const Eigen::Quaterniond q_rel = q[i].conjugate() * q[j];
+    const Eigen::Vector3d t_rel = q[i].conjugate() * (ref_.positions[j] - ref_.positions[i]);
+    const Eigen::Quaterniond p_rel = p[i].conjugate() * p[j];
+    const Eigen::Vector3d u_rel = p[i].conjugate() * (est_.positions[j] - est_.positions[i]);
+    // E = Q_rel^-1 P_rel: translation Q_rel.R^T (u_rel - t_rel), whose norm is |u_rel - t_rel|.
+    const Eigen::Quaterniond e = q_rel.conjugate() * p_rel;
+    return {(u_rel - t_rel).norm(), 2 * std::atan2(e.vec().norm(), std::abs(e.w()))};
+  }
+
+ private:
+  const Trajectory& ref_;
+  const Trajectory& est_;
+};
 }  // namespace
 
 RpeResult rpe(const Matched& m, double delta, DeltaUnit unit, bool all_pairs) {
@@ -327,11 +345,12 @@ RpeResult rpe(const Matched& m, double delta, DeltaUnit unit, bool all_pairs) {
   r.unit = unit;
   r.all_pairs = all_pairs;
   r.pairs = rpe_pairs(m.ref, delta, unit, all_pairs);
-  std::vector<double> trans(r.pairs.size()), rot(r.pairs.size());
+  PoseArray<double> trans(r.pairs.size()), rot(r.pairs.size());
+  const RelativeError error(m);
   for (size_t k = 0; k < r.pairs.size(); ++k) {
-    const Eigen::Isometry3d e = relative_error(m, r.pairs[k].first, r.pairs[k].second);
-    trans[k] = e.translation().norm();
-    rot[k] = rotation_angle(e.linear()) * kRadToDeg;
+    const auto [t, angle] = error(r.pairs[k].first, r.pairs[k].second);
+    trans[k] = t;
+    rot[k] = angle * kRadToDeg;
   }
   r.trans = compute_stats(std::move(trans));
   r.rot_deg = compute_stats(std::move(rot));
@@ -341,7 +360,7 @@ RpeResult rpe(const Matched& m, double delta, DeltaUnit unit, bool all_pairs) {
 DriftResult drift(const Matched& m, std::vector<double> lengths, size_t step) {
   DriftResult r;
   const size_t n = m.ref.size();
-  std::vector<double> dist(n, 0.0);
+  PoseArray<double> dist(n, 0.0);
   for (size_t i = 1; i < n; ++i) dist[i] = dist[i - 1] + (m.ref.positions[i] - m.ref.positions[i - 1]).norm();
   if (lengths.empty() && n > 1) {
     for (double f : {0.1, 0.2, 0.3, 0.4, 0.5}) {
@@ -350,6 +369,7 @@ DriftResult drift(const Matched& m, std::vector<double> lengths, size_t step) {
     }
   }
   double sum_t = 0, sum_r = 0;
+  const RelativeError error(m);
   for (double length : lengths) {
     DriftSegment seg;
     seg.length_m = length;
@@ -357,9 +377,9 @@ DriftResult drift(const Matched& m, std::vector<double> lengths, size_t step) {
       // KITTI: the first pose strictly more than `length` further along the path.
       const auto it = std::upper_bound(dist.begin() + static_cast<long>(first), dist.end(), dist[first] + length);
       if (it == dist.end()) break;
-      const Eigen::Isometry3d e = relative_error(m, first, static_cast<size_t>(it - dist.begin()));
-      seg.trans_pct += 100.0 * e.translation().norm() / length;
-      seg.rot_deg_per_m += rotation_angle(e.linear()) * kRadToDeg / length;
+      const auto [t, angle] = error(first, static_cast<size_t>(it - dist.begin()));
+      seg.trans_pct += 100.0 * t / length;
+      seg.rot_deg_per_m += angle * kRadToDeg / length;
       ++seg.count;
     }
     sum_t += seg.trans_pct;

@@ -10,13 +10,19 @@
 #include <utility>
 #include <vector>
 
+#include "core/huge_page_allocator.h"
+
 namespace driftlab::analyzers {
+
+/// Arrays of poses can hold millions of entries: they live on huge pages.
+template <typename T>
+using PoseArray = std::vector<T, HugePageAllocator<T>>;
 
 /// Poses of a body over time.
 struct Trajectory {
-  std::vector<double> stamps;                      ///< [s]
-  std::vector<Eigen::Vector3d> positions;          ///< [m]
-  std::vector<Eigen::Quaterniond> orientations;    ///< unit quaternions
+  PoseArray<double> stamps;                      ///< [s]
+  PoseArray<Eigen::Vector3d> positions;          ///< [m]
+  PoseArray<Eigen::Quaterniond> orientations;    ///< unit quaternions
   size_t size() const { return stamps.size(); }
   void push_back(double stamp, const Eigen::Vector3d& p, const Eigen::Quaterniond& q) {
     stamps.push_back(stamp);
@@ -32,9 +38,10 @@ struct Stats {
   size_t count = 0;
   double rmse = 0, mean = 0, median = 0, std = 0, min = 0, max = 0;
 };
-Stats compute_stats(std::vector<double> errors);
+Stats compute_stats(PoseArray<double> errors);
 
-/// Two trajectories of equal length whose poses i belong together.
+/// Two trajectories of equal length whose poses i belong together; match_* and apply() give unit orientations,
+/// which ape, rpe and drift expect.
 struct Matched {
   Trajectory ref;
   Trajectory est;
@@ -67,14 +74,14 @@ struct Alignment {
 /// Needs at least 3 matched poses (2 for posyaw); fewer give the identity.
 Alignment align(const Matched& m, AlignmentType type);
 /// est with the alignment applied: positions scaled, rotated and moved; orientations rotated.
-Trajectory apply(const Alignment& a, const Trajectory& t);
+Trajectory apply(const Alignment& a, Trajectory t);
 
 /// Absolute pose error per matched pose: translation distance [m] and rotation angle of Q^-1 P [deg].
 struct ApeResult {
   Stats trans;
   Stats rot_deg;
-  std::vector<double> trans_errors;
-  std::vector<double> rot_errors_deg;
+  PoseArray<double> trans_errors;
+  PoseArray<double> rot_errors_deg;
 };
 ApeResult ape(const Matched& aligned);
 

@@ -11,7 +11,7 @@
 #include <unordered_map>
 
 #include "core/internal/event_scanner.h"
-#include "core/internal/mapped_file.h"
+#include "core/mapped_file.h"
 #include "core/internal/string_hash.h"
 #include "core/log_format.h"
 
@@ -230,7 +230,7 @@ LogIndex LogIndex::build(std::span<const uint8_t> bytes, const std::function<voi
 Result<LogIndex> LogIndex::load_or_build(const std::string& log_path,
                                          const std::function<void(uint64_t, uint64_t)>& on_progress,
                                          uint64_t cache_min_bytes) {
-  auto mapped = internal::MappedFile::open(log_path);
+  auto mapped = MappedFile::open(log_path);
   if (!mapped) return mapped.error();
   const FileIdentity id = identify(log_path, mapped->bytes());
   const std::string cache = cache_path(log_path);

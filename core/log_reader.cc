@@ -5,14 +5,14 @@
 #include <unordered_map>
 
 #include "core/internal/event_scanner.h"
-#include "core/internal/mapped_file.h"
+#include "core/mapped_file.h"
 #include "core/internal/string_hash.h"
 #include "core/log_index.h"
 
 namespace driftlab {
 
 struct LogReader::Impl {
-  Impl(std::string path_in, internal::MappedFile mapped_in, std::span<const uint8_t> bytes_in, ReadOptions options_in)
+  Impl(std::string path_in, MappedFile mapped_in, std::span<const uint8_t> bytes_in, ReadOptions options_in)
       : path(std::move(path_in)),
         mapped(std::move(mapped_in)),
         bytes(bytes_in),
@@ -34,7 +34,7 @@ struct LogReader::Impl {
   }
 
   std::string path;
-  internal::MappedFile mapped;  // empty for from_memory
+  MappedFile mapped;  // empty for from_memory
   std::span<const uint8_t> bytes;
   ReadOptions options;
   internal::EventScanner scanner;
@@ -64,7 +64,7 @@ LogReader& LogReader::operator=(LogReader&&) noexcept = default;
 LogReader::~LogReader() = default;
 
 Result<LogReader> LogReader::open(const std::string& path, ReadOptions options) {
-  auto mapped = internal::MappedFile::open(path);
+  auto mapped = MappedFile::open(path);
   if (!mapped) return mapped.error();
   const auto bytes = mapped->bytes();
   auto impl = std::make_unique<Impl>(path, std::move(*mapped), bytes, std::move(options));
@@ -73,7 +73,7 @@ Result<LogReader> LogReader::open(const std::string& path, ReadOptions options) 
 }
 
 Result<LogReader> LogReader::from_memory(std::span<const uint8_t> bytes, ReadOptions options) {
-  auto impl = std::make_unique<Impl>("<memory>", internal::MappedFile(), bytes, std::move(options));
+  auto impl = std::make_unique<Impl>("<memory>", MappedFile(), bytes, std::move(options));
   impl->in_memory = true;
   if (auto st = compile_filter(impl->options.channels, impl->filter); !st) return Error{st.message()};
   return LogReader(std::move(impl));

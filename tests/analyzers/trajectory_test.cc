@@ -17,7 +17,7 @@ Trajectory line(const std::vector<double>& stamps, double speed = 1.0) {
   return t;
 }
 
-std::vector<double> stamps_of(const Trajectory& t) { return t.stamps; }
+std::vector<double> stamps_of(const Trajectory& t) { return {t.stamps.begin(), t.stamps.end()}; }
 
 TEST(MatchNearest, IteratesTheShorterTrajectoryAndMayReuseAPoseOfTheLonger) {
   const Trajectory ref = line({0.0, 1.0, 2.0, 3.0});

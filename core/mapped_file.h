@@ -1,4 +1,5 @@
-// A read-only memory mapping of a whole regular file. Internal to core.
+// A read-only memory mapping of a whole regular file: zero-copy access to logs and other inputs.
+// Thread-safety: the bytes may be read from any thread; release_before() from one at a time.
 #pragma once
 
 #include <cstdint>
@@ -7,7 +8,7 @@
 
 #include "core/result.h"
 
-namespace driftlab::internal {
+namespace driftlab {
 
 class MappedFile {
  public:
@@ -33,4 +34,4 @@ class MappedFile {
   uint64_t released_ = 0;
 };
 
-}  // namespace driftlab::internal
+}  // namespace driftlab

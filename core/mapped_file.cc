@@ -1,4 +1,4 @@
-#include "core/internal/mapped_file.h"
+#include "core/mapped_file.h"
 
 #include <fcntl.h>
 #include <sys/mman.h>
@@ -9,7 +9,7 @@
 #include <cstring>
 #include <utility>
 
-namespace driftlab::internal {
+namespace driftlab {
 namespace {
 // Release in steps this large, so madvise calls are rare.
 constexpr uint64_t kReleaseStep = 16ull << 20;
@@ -72,4 +72,4 @@ void MappedFile::release_before(uint64_t offset) {
   released_ = until;
 }
 
-}  // namespace driftlab::internal
+}  // namespace driftlab
