@@ -38,6 +38,7 @@ LogWriter& LogWriter::operator=(LogWriter&& other) noexcept {
     fd_ = std::exchange(other.fd_, -1);
     buffer_ = std::move(other.buffer_);
     buffered_ = std::exchange(other.buffered_, 0);
+    first_event_in_buffer_ = other.first_event_in_buffer_;
     buffer_capacity_ = other.buffer_capacity_;
     committed_ = other.committed_;
     written_ = other.written_;
@@ -50,8 +51,9 @@ LogWriter& LogWriter::operator=(LogWriter&& other) noexcept {
 
 LogWriter::~LogWriter() { (void)close(); }
 
-Status LogWriter::fail(const std::string& what, int err) {
-  error_ = file_path_ + ": " + what + " at byte " + std::to_string(committed_) + ": " + std::strerror(err);
+Status LogWriter::fail(const std::string& what, int err, uint64_t complete) {
+  committed_ = complete;
+  error_ = file_path_ + ": " + what + " at byte " + std::to_string(written_) + ": " + std::strerror(err);
   // Cut a partially written event off, so the file ends with a complete event.
   if (fd_ >= 0 && ftruncate(fd_, static_cast<off_t>(committed_)) != 0) {
     error_ += " (and could not cut the file back to the last complete event)";
@@ -61,18 +63,18 @@ Status LogWriter::fail(const std::string& what, int err) {
   return Error{error_};
 }
 
-Status LogWriter::write_raw(const uint8_t* data, size_t size) {
+int LogWriter::write_raw(const uint8_t* data, size_t size) {
   while (size > 0) {
     const ssize_t n = ::write(fd_, data, size);
     if (n < 0) {
       if (errno == EINTR) continue;
-      return fail("write failed", errno);
+      return errno;
     }
     data += n;
     size -= static_cast<size_t>(n);
     written_ += static_cast<uint64_t>(n);
   }
-  return {};
+  return 0;
 }
 
 Status LogWriter::write(int64_t utime, std::string_view channel, std::span<const uint8_t> data) {
@@ -111,10 +113,13 @@ Status LogWriter::write(int64_t utime, std::string_view channel, std::span<const
     std::memcpy(out + sizeof(header) + channel.size(), data.data(), head);
     const size_t middle = (data.size() - head) / kPage * kPage;
     const size_t tail = data.size() - head - middle;
-    if (auto st = write_raw(out, sizeof(header) + channel.size() + head); !st) return st;
-    if (auto st = write_raw(data.data() + head, middle); !st) return st;
+    if (const int err = write_raw(out, sizeof(header) + channel.size() + head); err != 0) {
+      return fail("write failed", err, committed_);
+    }
+    if (const int err = write_raw(data.data() + head, middle); err != 0) return fail("write failed", err, committed_);
     std::memcpy(out, data.data() + head + middle, tail);
     buffered_ = tail;
+    first_event_in_buffer_ = tail;  // the buffer starts with the end of this event
   }
   ++events_;
   return {};
@@ -123,16 +128,34 @@ Status LogWriter::write(int64_t utime, std::string_view channel, std::span<const
 Status LogWriter::flush() {
   if (!error_.empty()) return Error{error_};
   if (fd_ < 0 || buffered_ == 0) return {};
-  if (auto st = write_raw(buffer_.get(), buffered_); !st) return st;
+  const uint64_t start = written_;
+  if (const int err = write_raw(buffer_.get(), buffered_); err != 0) {
+    // Keep every event the kernel took whole: walk the event headers through the part that was written.
+    const size_t done = written_ - start;
+    uint64_t complete = committed_;
+    size_t p = first_event_in_buffer_;
+    if (done >= p) {
+      complete = start + p;
+      while (p + logfmt::kEventHeaderSize <= done) {
+        const uint8_t* h = buffer_.get() + p;
+        const size_t size = logfmt::kEventHeaderSize + logfmt::load_be32(h + 20) + logfmt::load_be32(h + 24);
+        if (p + size > done) break;
+        p += size;
+        complete = start + p;
+      }
+    }
+    return fail("write failed", err, complete);
+  }
   // The buffer only ever ends with a complete event.
   committed_ = written_;
   buffered_ = 0;
+  first_event_in_buffer_ = 0;
   return {};
 }
 
 Status LogWriter::sync() {
   if (auto st = flush(); !st) return st;
-  if (fd_ >= 0 && fdatasync(fd_) != 0) return fail("fdatasync failed", errno);
+  if (fd_ >= 0 && fdatasync(fd_) != 0) return fail("fdatasync failed", errno, committed_);
   return {};
 }
 

@@ -55,15 +55,17 @@ class LogWriter {
 
  private:
   LogWriter() = default;
-  Status fail(const std::string& what, int err);
-  /// write(2) until done; on failure cuts the file back to the last complete event.
-  Status write_raw(const uint8_t* data, size_t size);
+  /// Records a write error; cuts the file back to complete (the end of the last complete event).
+  Status fail(const std::string& what, int err, uint64_t complete);
+  /// write(2) until done; returns 0 or errno (written_ counts what went through).
+  int write_raw(const uint8_t* data, size_t size);
 
   std::string path_;
   std::string file_path_;  // path_, or path_ + ".partial"
   int fd_ = -1;
   std::unique_ptr<uint8_t[]> buffer_;
   size_t buffered_ = 0;
+  size_t first_event_in_buffer_ = 0;  // bytes before it end an event written around the buffer
   size_t buffer_capacity_ = 0;
   uint64_t written_ = 0;    // bytes in the file
   uint64_t committed_ = 0;  // bytes of complete events in the file

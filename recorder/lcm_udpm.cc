@@ -113,6 +113,11 @@ std::optional<LcmMessage> LcmReassembler::feed(uint64_t sender, std::span<const 
     const uint32_t seqno = logfmt::load_be32(d.data() + 4);
     SenderState& s = state_[sender];
     SenderCounters& c = counters_[sender];
+    if (s.fragments.active && s.fragments.seqno != seqno) {
+      // A sender sends all fragments of a message before its next message: the one in progress is lost.
+      ++c.fragments_incomplete;
+      s.fragments.active = false;
+    }
     observe(s, c, seqno);
     return complete(c, *channel, d.subspan(kShortHeader + channel->size() + 1), seqno, utime);
   }

@@ -1,0 +1,271 @@
+// End-to-end tests of `driftlab record` over real LCM udpm traffic, inside a private network namespace
+// (tests/netns_run.sh): every message captured, statistics channel, clean shutdown, SIGKILL recovery,
+// splitting, channel filters, loss accounting from crafted datagrams, and write errors.
+#include <arpa/inet.h>
+#include <gtest/gtest.h>
+#include <lcm/lcm.h>
+#include <signal.h>
+#include <spawn.h>
+#include <fcntl.h>
+#include <sys/resource.h>
+#include <sys/socket.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <filesystem>
+#include <thread>
+
+#include "core/log_format.h"
+#include "core/log_reader.h"
+#include "driftlab/recorder_stats_t.hpp"
+#include "tests/test_util.h"
+
+extern char** environ;
+
+namespace driftlab {
+namespace {
+
+const char* kUrl = "udpm://239.255.76.67:7667?ttl=0";
+const std::string kDriftlab = std::string(DRIFTLAB_BIN_DIR) + "/driftlab";
+
+struct Process {
+  pid_t pid = -1;
+  int wait() {
+    int status = 0;
+    waitpid(pid, &status, 0);
+    return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+  }
+};
+
+/// Starts driftlab record writing to out, and waits until its socket is listening (it opens the log after).
+Process start_recorder(const std::string& out, std::vector<std::string> extra = {}, const std::string& err = "") {
+  std::vector<std::string> args = {kDriftlab, "record", "--url", kUrl, "-o", out};
+  args.insert(args.end(), extra.begin(), extra.end());
+  std::vector<char*> argv;
+  for (auto& a : args) argv.push_back(a.data());
+  argv.push_back(nullptr);
+  posix_spawn_file_actions_t actions;
+  posix_spawn_file_actions_init(&actions);
+  posix_spawn_file_actions_addopen(&actions, 1, "/dev/null", O_WRONLY, 0);
+  if (!err.empty()) posix_spawn_file_actions_addopen(&actions, 2, err.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  Process p;
+  EXPECT_EQ(posix_spawn(&p.pid, argv[0], &actions, nullptr, argv.data(), environ), 0);
+  posix_spawn_file_actions_destroy(&actions);
+  const std::string first = extra.empty() || std::find(extra.begin(), extra.end(), "--split-mb") == extra.end()
+                                ? out
+                                : out.substr(0, out.rfind('.')) + "_0000.lcm";
+  for (int i = 0; i < 200 && !std::filesystem::exists(first); ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  return p;
+}
+
+struct Sent {
+  std::string channel;
+  std::vector<uint8_t> data;
+  bool operator==(const Sent&) const = default;
+  friend void PrintTo(const Sent& s, std::ostream* os) { *os << s.channel << " (" << s.data.size() << " bytes)"; }
+};
+
+std::vector<Sent> publish(lcm_t* lcm, int n, const std::vector<std::string>& channels, int pause_us = 500) {
+  std::vector<Sent> sent;
+  const size_t sizes[] = {10, 100, 1000, 20000, 70000, 300000};
+  for (int i = 0; i < n; ++i) {
+    Sent s{channels[i % channels.size()], test::payload(i, sizes[i % 6])};
+    EXPECT_EQ(lcm_publish(lcm, s.channel.c_str(), s.data.data(), static_cast<unsigned>(s.data.size())), 0);
+    sent.push_back(std::move(s));
+    std::this_thread::sleep_for(std::chrono::microseconds(s.data.size() > 60000 ? 5000 : pause_us));
+  }
+  return sent;
+}
+
+/// Messages of a log except the recorder's statistics, and the last statistics message.
+std::vector<Sent> recorded(const std::string& path, driftlab::recorder_stats_t* last = nullptr,
+                           std::vector<Problem>* problems = nullptr) {
+  std::vector<Sent> out;
+  for (const auto& e : test::read_all(path, problems)) {
+    if (e.channel == "DRIFTLAB_RECORDER_STATS") {
+      if (last != nullptr) EXPECT_GT(last->decode(e.data.data(), 0, static_cast<int>(e.data.size())), 0);
+      continue;
+    }
+    out.push_back({e.channel, e.data});
+  }
+  return out;
+}
+
+class Record : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    if (std::getenv("DRIFTLAB_IN_NETNS") == nullptr) GTEST_SKIP() << "run through tests/netns_run.sh";
+    lcm_ = lcm_create(kUrl);
+    ASSERT_NE(lcm_, nullptr);
+  }
+  void TearDown() override {
+    if (lcm_ != nullptr) lcm_destroy(lcm_);
+  }
+  lcm_t* lcm_ = nullptr;
+  test::TempDir dir_;
+};
+
+TEST_F(Record, CapturesEveryMessageAndWritesStatistics) {
+  const std::string out = dir_.file("rec.lcm");
+  Process rec = start_recorder(out, {"--stats-interval", "0.2"});
+  const auto sent = publish(lcm_, 300, {"IMU", "SCAN", "CAMERA"});
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  kill(rec.pid, SIGINT);
+  EXPECT_EQ(rec.wait(), 0);
+  driftlab::recorder_stats_t stats{};
+  std::vector<Problem> problems;
+  EXPECT_EQ(recorded(out, &stats, &problems), sent);
+  EXPECT_TRUE(problems.empty());
+  EXPECT_EQ(stats.received, 300);
+  EXPECT_EQ(stats.written, 300);
+  EXPECT_EQ(stats.lost, 0);
+  EXPECT_EQ(stats.queue_dropped, 0);
+  ASSERT_EQ(stats.nsenders, 1);
+  EXPECT_EQ(stats.senders[0].messages, 300);
+  ASSERT_EQ(stats.nchannels, 3);
+  EXPECT_EQ(stats.channels[0].channel, "CAMERA");
+  EXPECT_EQ(stats.channels[0].messages, 100);
+}
+
+TEST_F(Record, ChannelFiltersKeepOnlyMatchingChannels) {
+  const std::string out = dir_.file("rec.lcm");
+  Process rec = start_recorder(out, {"-c", "S.*|IMU", "--exclude", "SCAN_DEBUG"});
+  const auto sent = publish(lcm_, 60, {"IMU", "SCAN", "SCAN_DEBUG", "CAMERA"});
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  kill(rec.pid, SIGTERM);
+  EXPECT_EQ(rec.wait(), 0);
+  std::vector<Sent> expected;
+  for (const auto& s : sent)
+    if (s.channel == "IMU" || s.channel == "SCAN") expected.push_back(s);
+  driftlab::recorder_stats_t stats{};
+  EXPECT_EQ(recorded(out, &stats), expected);
+  EXPECT_EQ(stats.filtered, 30);
+}
+
+TEST_F(Record, SplitsBySizeIntoReadableParts) {
+  const std::string out = dir_.file("rec.lcm");
+  Process rec = start_recorder(out, {"--split-mb", "0.5"});
+  const auto sent = publish(lcm_, 60, {"A", "B"});
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  kill(rec.pid, SIGINT);
+  EXPECT_EQ(rec.wait(), 0);
+  std::vector<Sent> all;
+  int parts = 0;
+  for (int i = 0; std::filesystem::exists(dir_.file("rec_" + std::string(i < 10 ? "000" : "00") + std::to_string(i) + ".lcm")); ++i) {
+    std::vector<Problem> problems;
+    const auto part = recorded(dir_.file("rec_" + std::string(i < 10 ? "000" : "00") + std::to_string(i) + ".lcm"),
+                               nullptr, &problems);
+    EXPECT_TRUE(problems.empty());
+    all.insert(all.end(), part.begin(), part.end());
+    ++parts;
+  }
+  EXPECT_GE(parts, 3);  // 60 messages hold about 3.9 MB
+  EXPECT_EQ(all, sent);
+}
+
+TEST_F(Record, SigkillLeavesAReadableLogMissingAtMostTheLastFlushInterval) {
+  const std::string out = dir_.file("rec.lcm");
+  Process rec = start_recorder(out, {"--flush-interval", "0.1"});
+  std::vector<Sent> sent;
+  const auto start = std::chrono::steady_clock::now();
+  for (int i = 0; std::chrono::steady_clock::now() - start < std::chrono::milliseconds(800); ++i) {
+    Sent s{"IMU", test::payload(i, 200)};
+    lcm_publish(lcm_, "IMU", s.data.data(), static_cast<unsigned>(s.data.size()));
+    sent.push_back(std::move(s));
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  kill(rec.pid, SIGKILL);
+  EXPECT_EQ(rec.wait(), 128 + SIGKILL);
+  std::vector<Problem> problems;
+  const auto got = recorded(out, nullptr, &problems);
+  EXPECT_LE(problems.size(), 1u);  // at most a truncated last event
+  ASSERT_LE(got.size(), sent.size());
+  for (size_t i = 0; i < got.size(); ++i) ASSERT_EQ(got[i], sent[i]) << i;
+  // About 1 message a millisecond, synced every 100 ms: allow twice that, plus scheduling slack.
+  EXPECT_GE(got.size() + 300, sent.size()) << got.size() << " of " << sent.size();
+}
+
+/// Sends a raw datagram to the LCM group, as a misbehaving or lossy sender would.
+void send_raw(int fd, const std::vector<uint8_t>& bytes) {
+  sockaddr_in to{};
+  to.sin_family = AF_INET;
+  to.sin_port = htons(7667);
+  inet_pton(AF_INET, "239.255.76.67", &to.sin_addr);
+  ASSERT_EQ(sendto(fd, bytes.data(), bytes.size(), 0, reinterpret_cast<sockaddr*>(&to), sizeof(to)),
+            static_cast<ssize_t>(bytes.size()));
+  std::this_thread::sleep_for(std::chrono::milliseconds(2));
+}
+
+std::vector<uint8_t> lc02(uint32_t seqno, const std::string& channel) {
+  std::vector<uint8_t> p(8);
+  logfmt::store_be32(p.data(), 0x4c433032);
+  logfmt::store_be32(p.data() + 4, seqno);
+  p.insert(p.end(), channel.begin(), channel.end());
+  p.push_back(0);
+  p.push_back(42);
+  return p;
+}
+
+TEST_F(Record, CountsSequenceGapsIncompleteFragmentsAndGarbage) {
+  const std::string out = dir_.file("rec.lcm");
+  Process rec = start_recorder(out);
+  const int fd = socket(AF_INET, SOCK_DGRAM, 0);
+  for (uint32_t seq : {0u, 1u, 2u, 5u, 6u}) send_raw(fd, lc02(seq, "RAW"));  // 3 and 4 lost
+  send_raw(fd, {'h', 'e', 'l', 'l', 'o', ' ', 'w', 'o', 'r', 'l', 'd'});
+  std::vector<uint8_t> frag(20);  // fragment 0 of 2 of message 7; fragment 1 never comes
+  logfmt::store_be32(frag.data(), 0x4c433033);
+  logfmt::store_be32(frag.data() + 4, 7);
+  logfmt::store_be32(frag.data() + 8, 100);
+  frag[19] = 2;
+  frag.insert(frag.end(), {'B', 'I', 'G', 0, 1, 2, 3});
+  send_raw(fd, frag);
+  send_raw(fd, lc02(8, "RAW"));
+  close(fd);
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  kill(rec.pid, SIGINT);
+  EXPECT_EQ(rec.wait(), 0);
+  driftlab::recorder_stats_t stats{};
+  EXPECT_EQ(recorded(out, &stats).size(), 6u);
+  EXPECT_EQ(stats.received, 6);
+  EXPECT_EQ(stats.lost, 2);
+  EXPECT_EQ(stats.garbage_datagrams, 1);
+  EXPECT_EQ(stats.fragments_incomplete, 1);
+  ASSERT_EQ(stats.nsenders, 1);
+  EXPECT_EQ(stats.senders[0].gaps, 1);
+}
+
+TEST_F(Record, UnwritablePathFailsWithOneLine) {
+  Process rec = start_recorder("/nonexistent/rec.lcm", {}, dir_.file("err"));
+  EXPECT_EQ(rec.wait(), 1);
+  const auto err = test::read_file(dir_.file("err"));
+  const std::string text(err.begin(), err.end());
+  EXPECT_EQ(std::count(text.begin(), text.end(), '\n'), 1) << text;
+  EXPECT_NE(text.find("/nonexistent/rec.lcm"), std::string::npos) << text;
+}
+
+TEST_F(Record, AWriteErrorStopsWithOneLineAndKeepsTheLogReadable) {
+  const std::string out = dir_.file("rec.lcm");
+  // A file-size limit makes writes fail like a full disk.
+  rlimit old{};
+  getrlimit(RLIMIT_FSIZE, &old);
+  rlimit limit = old;
+  limit.rlim_cur = 200000;
+  setrlimit(RLIMIT_FSIZE, &limit);
+  Process rec = start_recorder(out, {}, dir_.file("err"));
+  setrlimit(RLIMIT_FSIZE, &old);
+  publish(lcm_, 30, {"A"});
+  EXPECT_EQ(rec.wait(), 1);
+  const auto err = test::read_file(dir_.file("err"));
+  const std::string text(err.begin(), err.end());
+  EXPECT_EQ(std::count(text.begin(), text.end(), '\n'), 1) << text;
+  EXPECT_NE(text.find(out), std::string::npos) << text;
+  std::vector<Problem> problems;
+  EXPECT_FALSE(recorded(out, nullptr, &problems).empty());
+  EXPECT_TRUE(problems.empty());
+}
+
+}  // namespace
+}  // namespace driftlab
