@@ -145,25 +145,47 @@ TEST_F(Record, ChannelFiltersKeepOnlyMatchingChannels) {
   EXPECT_EQ(stats.filtered, 30);
 }
 
+/// The messages of every part of a split recording, in order; parts counts the files.
+std::vector<Sent> recorded_parts(const test::TempDir& dir, int* parts) {
+  std::vector<Sent> all;
+  *parts = 0;
+  for (;; ++*parts) {
+    char name[32];
+    std::snprintf(name, sizeof(name), "rec_%04d.lcm", *parts);
+    if (!std::filesystem::exists(dir.file(name))) break;
+    std::vector<Problem> problems;
+    const auto part = recorded(dir.file(name), nullptr, &problems);
+    EXPECT_TRUE(problems.empty()) << name;
+    all.insert(all.end(), part.begin(), part.end());
+  }
+  return all;
+}
+
 TEST_F(Record, SplitsBySizeIntoReadableParts) {
-  const std::string out = dir_.file("rec.lcm");
-  Process rec = start_recorder(out, {"--split-mb", "0.5"});
+  Process rec = start_recorder(dir_.file("rec.lcm"), {"--split-mb", "0.5"});
   const auto sent = publish(lcm_, 60, {"A", "B"});
   std::this_thread::sleep_for(std::chrono::milliseconds(300));
   kill(rec.pid, SIGINT);
   EXPECT_EQ(rec.wait(), 0);
-  std::vector<Sent> all;
   int parts = 0;
-  for (int i = 0; std::filesystem::exists(dir_.file("rec_" + std::string(i < 10 ? "000" : "00") + std::to_string(i) + ".lcm")); ++i) {
-    std::vector<Problem> problems;
-    const auto part = recorded(dir_.file("rec_" + std::string(i < 10 ? "000" : "00") + std::to_string(i) + ".lcm"),
-                               nullptr, &problems);
-    EXPECT_TRUE(problems.empty());
-    all.insert(all.end(), part.begin(), part.end());
-    ++parts;
-  }
+  EXPECT_EQ(recorded_parts(dir_, &parts), sent);
   EXPECT_GE(parts, 3);  // 60 messages hold about 3.9 MB
-  EXPECT_EQ(all, sent);
+}
+
+TEST_F(Record, SplitsByTimeIntoReadableParts) {
+  Process rec = start_recorder(dir_.file("rec.lcm"), {"--split-mb", "1000", "--split-s", "0.25"});
+  std::vector<Sent> sent;
+  for (int i = 0; i < 100; ++i) {
+    sent.push_back({"A", test::payload(i, 100)});
+    lcm_publish(lcm_, "A", sent.back().data.data(), 100);
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  kill(rec.pid, SIGINT);
+  EXPECT_EQ(rec.wait(), 0);
+  int parts = 0;
+  EXPECT_EQ(recorded_parts(dir_, &parts), sent);
+  EXPECT_GE(parts, 3);  // about 1.3 s of recording
 }
 
 TEST_F(Record, SigkillLeavesAReadableLogMissingAtMostTheLastFlushInterval) {
