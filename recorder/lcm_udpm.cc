@@ -147,7 +147,7 @@ std::optional<LcmMessage> LcmReassembler::feed(uint64_t sender, std::span<const 
   SenderState& s = state_[sender];
   SenderCounters& c = counters_[sender];
   Fragments& f = s.fragments;
-  if (!f.active || f.seqno != seqno || f.size != size || f.seen.size() != count) {
+  if (!f.active || f.seqno != seqno || f.size != size || f.count != count) {
     if (f.active) ++c.fragments_incomplete;  // a new message began before the last one completed
     if (f.active && f.seqno == seqno) {
       // The same seqno with another shape: not a fragment of the message in progress.
@@ -159,20 +159,29 @@ std::optional<LcmMessage> LcmReassembler::feed(uint64_t sender, std::span<const 
     f.active = true;
     f.seqno = seqno;
     f.size = size;
-    f.received = 0;
+    f.count = count;
+    f.bytes = 0;
     f.first_utime = utime;
     f.channel.clear();
-    f.data.resize(size);
-    f.seen.assign(count, false);
+    f.parts.clear();
   }
-  if (f.seen[number]) return std::nullopt;  // a duplicate fragment
-  f.seen[number] = true;
-  ++f.received;
+  if (f.parts.count(number) != 0) return std::nullopt;  // a duplicate fragment
   if (channel) f.channel.assign(*channel);
-  std::memcpy(f.data.data() + offset, payload.data(), payload.size());
-  if (f.received < count) return std::nullopt;
+  f.parts.emplace(number, std::make_pair(offset, std::vector<uint8_t>(payload.begin(), payload.end())));
+  f.bytes += payload.size();
+  if (f.parts.size() < count) return std::nullopt;
   f.active = false;
-  return complete(c, f.channel, f.data, seqno, f.first_utime);
+  if (f.bytes != size) {  // the fragments do not tile the message
+    ++garbage_;
+    ++c.fragments_incomplete;
+    return std::nullopt;
+  }
+  assembled_.assign(size, 0);
+  for (const auto& [number, part] : f.parts) {
+    std::memcpy(assembled_.data() + part.first, part.second.data(), part.second.size());
+  }
+  f.parts.clear();
+  return complete(c, f.channel, assembled_, seqno, f.first_utime);
 }
 
 }  // namespace driftlab::recorder

@@ -62,15 +62,17 @@ class LcmReassembler {
   int64_t garbage() const { return garbage_; }
 
  private:
+  /// The fragments of the message in progress, kept apart until all have come, so memory follows the bytes
+  /// received rather than the size a (possibly bogus) header claims.
   struct Fragments {
     bool active = false;
     uint32_t seqno = 0;
     uint32_t size = 0;
-    uint32_t received = 0;
+    uint16_t count = 0;
+    uint64_t bytes = 0;
     int64_t first_utime = 0;
     std::string channel;
-    std::vector<uint8_t> data;
-    std::vector<bool> seen;
+    std::map<uint16_t, std::pair<uint32_t, std::vector<uint8_t>>> parts;  // number -> (offset, bytes)
   };
   struct SenderState {
     bool started = false;
@@ -84,6 +86,7 @@ class LcmReassembler {
                                      uint32_t seqno, int64_t utime);
 
   std::map<uint64_t, SenderState> state_;
+  std::vector<uint8_t> assembled_;  // the last fragmented message delivered
   std::map<uint64_t, SenderCounters> counters_;
   int64_t garbage_ = 0;
 };

@@ -14,22 +14,17 @@
 
 #include "core/log_reader.h"
 #include "core/log_writer.h"
-#include "tests/test_util.h"
+#include "tests/lcm_netns_fixture.h"
 
 extern char** environ;
 
 namespace driftlab {
 namespace {
 
-const char* kUrl = "udpm://239.255.76.67:7667?ttl=0";
+const char* kUrl = test::kLcmUrl;
 const char* kSyncChannel = "DRIFTLAB_TEST_SYNC";
 
-struct Message {
-  std::string channel;
-  std::vector<uint8_t> data;
-  bool operator==(const Message&) const = default;
-  friend void PrintTo(const Message& m, std::ostream* os) { *os << m.channel << " (" << m.data.size() << " bytes)"; }
-};
+using Message = test::LcmMessage;
 
 pid_t spawn(std::vector<std::string> args) {
   std::vector<char*> argv;
@@ -93,19 +88,7 @@ std::vector<Message> test_messages() {
   return out;
 }
 
-class LcmInterop : public ::testing::Test {
- protected:
-  void SetUp() override {
-    if (std::getenv("DRIFTLAB_IN_NETNS") == nullptr) GTEST_SKIP() << "run through tests/netns_run.sh";
-    lcm_ = lcm_create(kUrl);
-    ASSERT_NE(lcm_, nullptr);
-  }
-  void TearDown() override {
-    if (lcm_ != nullptr) lcm_destroy(lcm_);
-  }
-  lcm_t* lcm_ = nullptr;
-  test::TempDir dir_;
-};
+using LcmInterop = test::LcmNetnsTest;
 
 TEST_F(LcmInterop, LogWrittenByLcmLoggerReadsBackExactly) {
   const std::string path = dir_.file("lcm-logger.lcm");

@@ -3,7 +3,6 @@
 // splitting, channel filters, loss accounting from crafted datagrams, and write errors.
 #include <arpa/inet.h>
 #include <gtest/gtest.h>
-#include <lcm/lcm.h>
 #include <signal.h>
 #include <spawn.h>
 #include <fcntl.h>
@@ -19,14 +18,14 @@
 #include "core/log_format.h"
 #include "core/log_reader.h"
 #include "driftlab/recorder_stats_t.hpp"
-#include "tests/test_util.h"
+#include "tests/lcm_netns_fixture.h"
 
 extern char** environ;
 
 namespace driftlab {
 namespace {
 
-const char* kUrl = "udpm://239.255.76.67:7667?ttl=0";
+using test::kLcmUrl;
 const std::string kDriftlab = std::string(DRIFTLAB_BIN_DIR) + "/driftlab";
 
 struct Process {
@@ -40,7 +39,7 @@ struct Process {
 
 /// Starts driftlab record writing to out, and waits until its socket is listening (it opens the log after).
 Process start_recorder(const std::string& out, std::vector<std::string> extra = {}, const std::string& err = "") {
-  std::vector<std::string> args = {kDriftlab, "record", "--url", kUrl, "-o", out};
+  std::vector<std::string> args = {kDriftlab, "record", "--url", kLcmUrl, "-o", out};
   args.insert(args.end(), extra.begin(), extra.end());
   std::vector<char*> argv;
   for (auto& a : args) argv.push_back(a.data());
@@ -61,12 +60,7 @@ Process start_recorder(const std::string& out, std::vector<std::string> extra = 
   return p;
 }
 
-struct Sent {
-  std::string channel;
-  std::vector<uint8_t> data;
-  bool operator==(const Sent&) const = default;
-  friend void PrintTo(const Sent& s, std::ostream* os) { *os << s.channel << " (" << s.data.size() << " bytes)"; }
-};
+using Sent = test::LcmMessage;
 
 std::vector<Sent> publish(lcm_t* lcm, int n, const std::vector<std::string>& channels, int pause_us = 500) {
   std::vector<Sent> sent;
@@ -94,19 +88,15 @@ std::vector<Sent> recorded(const std::string& path, driftlab::recorder_stats_t* 
   return out;
 }
 
-class Record : public ::testing::Test {
- protected:
-  void SetUp() override {
-    if (std::getenv("DRIFTLAB_IN_NETNS") == nullptr) GTEST_SKIP() << "run through tests/netns_run.sh";
-    lcm_ = lcm_create(kUrl);
-    ASSERT_NE(lcm_, nullptr);
-  }
-  void TearDown() override {
-    if (lcm_ != nullptr) lcm_destroy(lcm_);
-  }
-  lcm_t* lcm_ = nullptr;
-  test::TempDir dir_;
-};
+using Record = test::LcmNetnsTest;
+
+/// What the recorder wrote to its error file, which must be exactly one line.
+std::string error_text(const std::string& path) {
+  const auto bytes = test::read_file(path);
+  const std::string text(bytes.begin(), bytes.end());
+  EXPECT_EQ(std::count(text.begin(), text.end(), '\n'), 1) << text;
+  return text;
+}
 
 TEST_F(Record, CapturesEveryMessageAndWritesStatistics) {
   const std::string out = dir_.file("rec.lcm");
@@ -262,9 +252,7 @@ TEST_F(Record, CountsSequenceGapsIncompleteFragmentsAndGarbage) {
 TEST_F(Record, UnwritablePathFailsWithOneLine) {
   Process rec = start_recorder("/nonexistent/rec.lcm", {}, dir_.file("err"));
   EXPECT_EQ(rec.wait(), 1);
-  const auto err = test::read_file(dir_.file("err"));
-  const std::string text(err.begin(), err.end());
-  EXPECT_EQ(std::count(text.begin(), text.end(), '\n'), 1) << text;
+  const std::string text = error_text(dir_.file("err"));
   EXPECT_NE(text.find("/nonexistent/rec.lcm"), std::string::npos) << text;
 }
 
@@ -280,9 +268,7 @@ TEST_F(Record, AWriteErrorStopsWithOneLineAndKeepsTheLogReadable) {
   setrlimit(RLIMIT_FSIZE, &old);
   publish(lcm_, 30, {"A"});
   EXPECT_EQ(rec.wait(), 1);
-  const auto err = test::read_file(dir_.file("err"));
-  const std::string text(err.begin(), err.end());
-  EXPECT_EQ(std::count(text.begin(), text.end(), '\n'), 1) << text;
+  const std::string text = error_text(dir_.file("err"));
   EXPECT_NE(text.find(out), std::string::npos) << text;
   std::vector<Problem> problems;
   EXPECT_FALSE(recorded(out, nullptr, &problems).empty());
