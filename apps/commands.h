@@ -11,5 +11,6 @@ namespace driftlab::apps {
 void add_info_command(CLI::App& app, int* exit_code);
 void add_eval_command(CLI::App& app, int* exit_code);
 void add_record_command(CLI::App& app, int* exit_code);
+void add_diagnose_command(CLI::App& app, int* exit_code);
 
 }  // namespace driftlab::apps

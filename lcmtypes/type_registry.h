@@ -10,10 +10,14 @@ namespace driftlab::lcmtypes {
 struct TypeInfo {
   int64_t fingerprint;
   const char* name;  ///< "driftlab.imu_t"
+  bool has_header;   ///< the message starts with driftlab.header_t (a stream message)
 };
 
 /// Every driftlab message type.
 std::span<const TypeInfo> all_types();
+
+/// The type with this fingerprint, or nullptr when unknown.
+const TypeInfo* find_type(int64_t fingerprint);
 
 /// The full name of the type with this fingerprint ("driftlab.imu_t"), or nullptr when unknown.
 const char* type_name(int64_t fingerprint);

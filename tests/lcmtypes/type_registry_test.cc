@@ -33,6 +33,14 @@ TEST(TypeRegistry, ListsEveryTypeWithADistinctFingerprint) {
     names.insert(t.name);
   }
   EXPECT_EQ(fingerprints.size(), all_types().size());
+  EXPECT_TRUE(find_type(driftlab::imu_t::getHash())->has_header);
+  EXPECT_FALSE(find_type(driftlab::laser_scan_t::getHash()) == nullptr);
+  for (const TypeInfo& t : all_types()) {
+    const std::string name = t.name;
+    const bool stream = name != "driftlab.header_t" && name != "driftlab.vector3_t" && name != "driftlab.quaternion_t" &&
+                        name != "driftlab.fault_t" && name != "driftlab.channel_stats_t" && name != "driftlab.sender_stats_t";
+    EXPECT_EQ(t.has_header, stream) << name;
+  }
   for (const char* required : {"driftlab.header_t", "driftlab.imu_t", "driftlab.laser_scan_t",
                                "driftlab.point_cloud_t", "driftlab.odometry_t", "driftlab.pose_t", "driftlab.tf_t",
                                "driftlab.velocity_command_t", "driftlab.image_t", "driftlab.joint_state_t",

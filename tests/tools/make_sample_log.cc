@@ -2,7 +2,7 @@
 // driving a circle for 5 s, with IMU (200 Hz), 2D scans (10 Hz, 360 beams, a round room), wheel odometry
 // (50 Hz), ground truth (100 Hz), TF (50 Hz) and velocity commands (20 Hz). Deterministic: the same
 // binary writes the same bytes. The corrupt variants are the clean log with surgical damage.
-//   make_sample_log OUT_DIR [SECONDS]   (default 5 s)
+//   make_sample_log OUT_DIR [SECONDS [turning]]   (default 5 s, a circle; "turning": a weave)
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -61,7 +61,11 @@ State truth_at(double t) {
   return {r * std::sin(yaw), r * (1 - std::cos(yaw)), yaw};
 }
 
-void write_clean(const std::string& path, int64_t duration_us) {
+/// The yaw rate [rad/s] at time t: constant (a circle), or, when turning, varying (a weave), which gives
+/// `driftlab diagnose` a motion to correlate streams by.
+double yaw_rate_at(double t, bool turning) { return turning ? kYawRate + 0.2 * std::sin(0.7 * t) : kYawRate; }
+
+void write_clean(const std::string& path, int64_t duration_us, bool turning) {
   auto w = driftlab::LogWriter::create(path, {.atomic = true});
   if (!w) {
     std::fprintf(stderr, "%s\n", w.error().message.c_str());
@@ -74,13 +78,22 @@ void write_clean(const std::string& path, int64_t duration_us) {
   };
   std::vector<Arrival> arrivals;
   std::mt19937_64 rng(42);
+  State weave{0, 0, 0};
   std::normal_distribution<double> noise(0.0, 1.0);
   int64_t seq_imu = 0, seq_scan = 0, seq_odom = 0, seq_gt = 0, seq_tf = 0, seq_cmd = 0;
   const int64_t step = 1000;  // 1 ms simulation step [us]
   for (int64_t us = 0; us <= duration_us; us += step) {
     const int64_t t = kStart + us;
     const double ts = static_cast<double>(us) * 1e-6;
-    const State s = truth_at(ts);
+    State s = truth_at(ts);
+    if (turning) {
+      // Integrate the weave (1 ms steps).
+      weave.yaw += yaw_rate_at(ts, true) * 1e-3;
+      weave.x += kSpeed * std::cos(weave.yaw) * 1e-3;
+      weave.y += kSpeed * std::sin(weave.yaw) * 1e-3;
+      s = weave;
+    }
+    const double w = yaw_rate_at(ts, turning);
     // Each stream reaches the logger after its own transport latency: log timestamp = arrival time.
     auto put = [&](const char* channel, std::vector<uint8_t> bytes, int64_t latency_us) {
       arrivals.push_back({t + latency_us, channel, std::move(bytes)});
@@ -89,9 +102,9 @@ void write_clean(const std::string& path, int64_t duration_us) {
       driftlab::imu_t m{};
       m.header = header(seq_imu++, t, "imu_link");
       m.orientation = yaw_quat(s.yaw);
-      m.angular_velocity = {0.0 + 0.002 * noise(rng), 0.0 + 0.002 * noise(rng), kYawRate + 0.002 * noise(rng)};
+      m.angular_velocity = {0.0 + 0.002 * noise(rng), 0.0 + 0.002 * noise(rng), w + 0.002 * noise(rng)};
       // Centripetal acceleration v * omega towards the centre (body +y), plus gravity.
-      m.linear_acceleration = {0.02 * noise(rng), kSpeed * kYawRate + 0.02 * noise(rng), 9.81 + 0.02 * noise(rng)};
+      m.linear_acceleration = {0.02 * noise(rng), kSpeed * w + 0.02 * noise(rng), 9.81 + 0.02 * noise(rng)};
       m.orientation_covariance[0] = -1;
       for (int i = 0; i < 3; ++i) {
         m.angular_velocity_covariance[4 * i] = 4e-6;
@@ -129,7 +142,7 @@ void write_clean(const std::string& path, int64_t duration_us) {
       m.position = {s.x * 1.01, s.y * 1.01, 0};  // 1% scale error: odometry drifts
       m.orientation = yaw_quat(s.yaw * 1.01);
       m.linear_velocity = {kSpeed * 1.01, 0, 0};
-      m.angular_velocity = {0, 0, kYawRate * 1.01};
+      m.angular_velocity = {0, 0, w * 1.01};
       put("ODOM", encode(m), 800);
 
       driftlab::tf_t tf{};
@@ -155,7 +168,7 @@ void write_clean(const std::string& path, int64_t duration_us) {
       driftlab::velocity_command_t m{};
       m.header = header(seq_cmd++, t, "base_link");
       m.linear = {kSpeed, 0, 0};
-      m.angular = {0, 0, kYawRate};
+      m.angular = {0, 0, w};
       put("CMD_VEL", encode(m), 200);
     }
   }
@@ -191,13 +204,14 @@ std::vector<size_t> event_offsets(const std::vector<uint8_t>& b, size_t n) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  if (argc < 2 || argc > 3) {
-    std::fprintf(stderr, "usage: make_sample_log OUT_DIR [SECONDS]\n");
+  if (argc < 2 || argc > 4) {
+    std::fprintf(stderr, "usage: make_sample_log OUT_DIR [SECONDS [turning]]\n");
     return 2;
   }
   const std::string dir = argv[1];
-  const double seconds = argc == 3 ? std::atof(argv[2]) : 5.0;
-  write_clean(dir + "/sample.lcm", static_cast<int64_t>(seconds * 1e6));
+  const double seconds = argc >= 3 ? std::atof(argv[2]) : 5.0;
+  const bool turning = argc == 4 && std::string(argv[3]) == "turning";
+  write_clean(dir + "/sample.lcm", static_cast<int64_t>(seconds * 1e6), turning);
   const auto clean = driftlab::test::read_file(dir + "/sample.lcm");
   const auto ev = event_offsets(clean, 60);
 

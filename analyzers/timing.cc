@@ -1,0 +1,499 @@
+#include "analyzers/timing.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <map>
+#include <numeric>
+#include <unordered_map>
+
+#include "core/huge_page_allocator.h"
+#include "core/internal/string_hash.h"
+#include "core/log_format.h"
+#include "core/log_reader.h"
+#include "driftlab/imu_t.hpp"
+#include "driftlab/odometry_t.hpp"
+#include "driftlab/pose_t.hpp"
+#include "lcmtypes/type_registry.h"
+
+namespace driftlab::analyzers {
+namespace {
+
+template <typename T>
+using Array = std::vector<T, HugePageAllocator<T>>;
+
+/// What one pass over the log keeps of a channel.
+struct Samples {
+  std::string type;
+  bool has_header = false;
+  Array<int64_t> arrival;  // log timestamp [us]
+  Array<int64_t> stamp;    // header.utime [us] (empty without a header)
+  Array<int64_t> seq;      // header.seq
+  Array<uint64_t> digest;  // payload size and first bytes (duplicate detection without a header)
+  // Yaw rate [rad/s] at a stamp [s], for channels that observe the robot's rotation.
+  Array<double> motion_t, motion_w;
+  bool motion_from_pose = false;
+  double last_yaw = 0, last_t = 0;
+  bool have_last = false;
+};
+
+double quantile_sorted(const Array<double>& v, double q) {
+  if (v.empty()) return 0;
+  const double pos = q * static_cast<double>(v.size() - 1);
+  const size_t i = static_cast<size_t>(pos);
+  const double f = pos - static_cast<double>(i);
+  return i + 1 < v.size() ? v[i] * (1 - f) + v[i + 1] * f : v[i];
+}
+
+Distribution distribution(Array<double> v) {
+  Distribution d;
+  if (v.empty()) return d;
+  std::sort(v.begin(), v.end());
+  d.mean = std::accumulate(v.begin(), v.end(), 0.0) / static_cast<double>(v.size());
+  d.p50 = quantile_sorted(v, 0.5);
+  d.p95 = quantile_sorted(v, 0.95);
+  d.p99 = quantile_sorted(v, 0.99);
+  d.max = v.back();
+  return d;
+}
+
+double median(Array<double> v) {
+  if (v.empty()) return 0;
+  std::sort(v.begin(), v.end());
+  return quantile_sorted(v, 0.5);
+}
+
+
+/// Reads fields of an encoded LCM message in place (big-endian), so the hot loop decodes only what it needs.
+/// Offsets follow lcmtypes/*.lcm; tests/analyzers/timing_test.cc checks them against lcm-gen's decoders.
+class FieldReader {
+ public:
+  explicit FieldReader(std::span<const uint8_t> data) : p_(data.data()), end_(data.data() + data.size()) {}
+  void skip(size_t n) { p_ = static_cast<size_t>(end_ - p_) >= n ? p_ + n : end_ + 1; }
+  void skip_string() {
+    if (ok() && end_ - p_ >= 4) {
+      const uint32_t n = logfmt::load_be32(p_);  // length including the terminating NUL
+      skip(4 + static_cast<size_t>(n));
+    } else {
+      p_ = end_ + 1;
+    }
+  }
+  double f64() {
+    if (!ok() || end_ - p_ < 8) {
+      p_ = end_ + 1;
+      return 0;
+    }
+    const uint64_t bits = logfmt::load_be64(p_);
+    p_ += 8;
+    double v;
+    std::memcpy(&v, &bits, 8);
+    return v;
+  }
+  bool ok() const { return p_ <= end_; }
+
+ private:
+  const uint8_t* p_;
+  const uint8_t* end_;
+};
+
+}  // namespace
+
+/// The yaw-rate sample [stamp s, rad/s] a message gives, if its type observes rotation. For poses (ground truth,
+/// estimates) the yaw itself is returned in `yaw` and is_pose set; the caller differentiates.
+bool read_motion(int64_t fingerprint, std::span<const uint8_t> data, double& stamp, double& value, bool& is_pose) {
+  static const int64_t kImu = driftlab::imu_t::getHash(), kOdom = driftlab::odometry_t::getHash(),
+                       kPose = driftlab::pose_t::getHash();
+  if (fingerprint != kImu && fingerprint != kOdom && fingerprint != kPose) return false;
+  FieldReader r(data);
+  r.skip(8 + 8);  // fingerprint, header.seq
+  stamp = static_cast<double>(static_cast<int64_t>(logfmt::load_be64(data.data() + 16))) * 1e-6;
+  r.skip(8);
+  r.skip_string();  // header.frame_id
+  is_pose = fingerprint == kPose;
+  if (fingerprint == kImu) {
+    r.skip(4 * 8 + 9 * 8 + 2 * 8);  // orientation, its covariance, angular_velocity.x and .y
+    value = r.f64();                // angular_velocity.z
+  } else if (fingerprint == kOdom) {
+    r.skip_string();                                   // child_frame_id
+    r.skip(3 * 8 + 4 * 8 + 36 * 8 + 3 * 8 + 2 * 8);   // position, orientation, covariance, linear, angular.x/.y
+    value = r.f64();                                   // angular_velocity.z
+  } else {
+    r.skip_string();  // child_frame_id
+    r.skip(3 * 8);    // position
+    const double w = r.f64(), x = r.f64(), y = r.f64(), z = r.f64();
+    value = std::atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z));  // yaw
+  }
+  return r.ok();
+}
+
+namespace {
+
+void add_motion(Samples& s, int64_t fingerprint, std::span<const uint8_t> data) {
+  double t = 0, value = 0;
+  bool is_pose = false;
+  if (!read_motion(fingerprint, data, t, value, is_pose)) return;
+  if (!is_pose) {
+    s.motion_t.push_back(t);
+    s.motion_w.push_back(value);
+    return;
+  }
+  // Ground truth or an estimate: the yaw rate between consecutive poses, at their midpoint.
+  s.motion_from_pose = true;
+  if (s.have_last && t > s.last_t) {
+    s.motion_t.push_back(0.5 * (t + s.last_t));
+    s.motion_w.push_back(std::remainder(value - s.last_yaw, 2 * M_PI) / (t - s.last_t));
+  }
+  s.last_yaw = value;
+  s.last_t = t;
+  s.have_last = true;
+}
+
+/// The source clock from the lower envelope of latency over time: window minima, then a Theil-Sen line.
+void fit_clock(const Samples& s, int64_t log_start, ChannelTiming& c) {
+  const size_t n = s.stamp.size();
+  if (n < 20) return;
+  const auto [lo, hi] = std::minmax_element(s.stamp.begin(), s.stamp.end());
+  const double span = static_cast<double>(*hi - *lo) * 1e-6;
+  if (span < 10.0) return;  // too short to tell drift from jitter
+  const size_t windows = std::clamp<size_t>(n / 20, 4, 200);
+  std::vector<double> min_lat(windows, INFINITY), at_t(windows, 0);
+  for (size_t i = 0; i < n; ++i) {
+    const double t = static_cast<double>(s.stamp[i] - *lo) * 1e-6;
+    const double lat = static_cast<double>(s.arrival[i] - s.stamp[i]) * 1e-6;
+    const size_t w = std::min(windows - 1, static_cast<size_t>(t / span * static_cast<double>(windows)));
+    if (lat < min_lat[w]) {
+      min_lat[w] = lat;
+      at_t[w] = t;
+    }
+  }
+  std::vector<double> ts, ls;
+  for (size_t w = 0; w < windows; ++w) {
+    if (std::isfinite(min_lat[w])) {
+      ts.push_back(at_t[w]);
+      ls.push_back(min_lat[w]);
+    }
+  }
+  if (ts.size() < 4) return;
+  Array<double> slopes;
+  for (size_t i = 0; i < ts.size(); ++i) {
+    for (size_t j = i + 1; j < ts.size(); ++j) {
+      if (ts[j] - ts[i] > span / static_cast<double>(windows)) slopes.push_back((ls[j] - ls[i]) / (ts[j] - ts[i]));
+    }
+  }
+  if (slopes.empty()) return;
+  const double slope = median(slopes);
+  Array<double> intercepts;
+  for (size_t i = 0; i < ts.size(); ++i) intercepts.push_back(ls[i] - slope * ts[i]);
+  const double intercept = median(intercepts);  // envelope at the first stamp
+  const double t0 = static_cast<double>(log_start - *lo) * 1e-6;
+  c.clock_valid = true;
+  c.clock_drift_ppm = -slope * 1e6;
+  c.clock_offset_s = -(intercept + slope * t0);
+  Array<double> transport(n);
+  for (size_t i = 0; i < n; ++i) {
+    const double t = static_cast<double>(s.stamp[i] - *lo) * 1e-6;
+    transport[i] = static_cast<double>(s.arrival[i] - s.stamp[i]) * 1e-6 - (intercept + slope * t);
+  }
+  c.transport_s = distribution(std::move(transport));
+}
+
+void analyse_sequence(const Samples& s, ChannelTiming& c) {
+  // Order by seq (stable: arrival order among equals), then walk it.
+  Array<size_t> order(s.seq.size());
+  std::iota(order.begin(), order.end(), 0);
+  std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return s.seq[a] < s.seq[b]; });
+  for (size_t k = 1; k < order.size(); ++k) {
+    const int64_t prev = s.seq[order[k - 1]], cur = s.seq[order[k]];
+    if (cur == prev) {
+      ++c.duplicates;
+    } else if (cur > prev + 1) {
+      const int64_t missing = cur - prev - 1;
+      c.seq_gaps += missing;
+      c.gaps.push_back({s.stamp[order[k - 1]], s.stamp[order[k]], missing});
+    }
+  }
+}
+
+void analyse_period(const Samples& s, ChannelTiming& c, bool record_gaps) {
+  const Array<int64_t>& times = s.has_header ? s.stamp : s.arrival;
+  Array<int64_t> sorted(times);
+  std::sort(sorted.begin(), sorted.end());
+  Array<double> intervals;
+  for (size_t i = 1; i < sorted.size(); ++i) {
+    if (sorted[i] > sorted[i - 1]) intervals.push_back(static_cast<double>(sorted[i] - sorted[i - 1]) * 1e-6);
+  }
+  c.expected_period_s = median(intervals);
+  if (c.expected_period_s <= 0) return;
+  for (size_t i = 1; i < sorted.size(); ++i) {
+    const double gap = static_cast<double>(sorted[i] - sorted[i - 1]) * 1e-6;
+    if (gap > 1.5 * c.expected_period_s) {
+      const auto missing = static_cast<int64_t>(std::llround(gap / c.expected_period_s)) - 1;
+      if (missing <= 0) continue;
+      c.missing_by_period += missing;
+      if (record_gaps) c.gaps.push_back({sorted[i - 1], sorted[i], missing});
+    }
+  }
+}
+
+void judge(ChannelTiming& c) {
+  auto add = [&](const char* level, const std::string& why) {
+    if (std::string(level) == "fault" || c.verdict == "ok") c.verdict = level;
+    c.reasons.push_back(why);
+  };
+  char buf[256];
+  if (c.seq_gaps > 0) {
+    std::snprintf(buf, sizeof(buf), "%lld messages missing in %zu gaps of seq",
+                  static_cast<long long>(c.seq_gaps), c.gaps.size());
+    add("fault", buf);
+  } else if (!c.has_header && c.missing_by_period > 0) {
+    std::snprintf(buf, sizeof(buf), "about %lld messages missing from gaps longer than 1.5 periods",
+                  static_cast<long long>(c.missing_by_period));
+    add("warn", buf);
+  }
+  if (c.duplicates > 0) {
+    std::snprintf(buf, sizeof(buf), "%lld duplicated messages", static_cast<long long>(c.duplicates));
+    add("fault", buf);
+  }
+  if (c.out_of_order_stamp > 0) {
+    std::snprintf(buf, sizeof(buf), "%lld messages arrived after a newer one (reordered)",
+                  static_cast<long long>(c.out_of_order_stamp));
+    add("fault", buf);
+  }
+  if (c.has_header && c.latency_s.p50 < -0.001) {
+    std::snprintf(buf, sizeof(buf), "stamps are %.1f ms ahead of arrival: the source clock runs ahead",
+                  -c.latency_s.p50 * 1e3);
+    add("fault", buf);
+  }
+  if (c.clock_valid && std::abs(c.clock_drift_ppm) >= 25) {
+    std::snprintf(buf, sizeof(buf), "source clock drifts %.0f ppm (%.1f ms per minute)", c.clock_drift_ppm,
+                  c.clock_drift_ppm * 60e-3);
+    add(std::abs(c.clock_drift_ppm) >= 100 ? "fault" : "warn", buf);
+  }
+  if (c.has_header && c.latency_s.p99 > 0.005 && c.latency_s.p99 > 5 * std::max(c.latency_s.p50, 0.0005)) {
+    std::snprintf(buf, sizeof(buf), "latency spikes: p99 %.1f ms against a median of %.1f ms",
+                  c.latency_s.p99 * 1e3, c.latency_s.p50 * 1e3);
+    add("warn", buf);
+  }
+}
+
+/// Linear interpolation of (t, v) (t ascending) at time x; false outside.
+bool sample_at(const Array<double>& t, const Array<double>& v, double x, size_t& hint, double& out) {
+  if (t.empty() || x < t.front() || x > t.back()) return false;
+  if (hint == 0 || t[hint] > x) {  // first call, or a jump back: search rather than walk
+    hint = static_cast<size_t>(std::upper_bound(t.begin(), t.end(), x) - t.begin());
+    hint = hint > 0 ? hint - 1 : 0;
+  }
+  while (hint + 1 < t.size() && t[hint + 1] < x) ++hint;
+  if (hint + 1 >= t.size()) {
+    out = v.back();
+    return true;
+  }
+  const double span = t[hint + 1] - t[hint];
+  const double f = span > 0 ? (x - t[hint]) / span : 0;
+  out = v[hint] * (1 - f) + v[hint + 1] * f;
+  return true;
+}
+
+/// The lag (b later than a) maximising the normalised correlation of two yaw-rate signals over [from, to]:
+/// both are resampled on a 1 ms grid; lags are searched every 10 ms, then every 1 ms around the best, and a
+/// parabola through the top three gives the sub-millisecond peak. Long windows use every k-th grid point
+/// (at most 5,000): the signals are smooth, so that loses nothing. Confidence is the peak correlation
+/// (0 when a signal barely moves).
+std::pair<double, double> correlate(const Samples& a, const Samples& b, double from, double to, double max_lag) {
+  constexpr double kStep = 0.001;
+  const int lags = static_cast<int>(std::round(max_lag / kStep));
+  const double lo = from + max_lag, hi = to - max_lag;
+  if (hi - lo < 2.0) return {0, 0};
+  const size_t n = static_cast<size_t>((hi - lo) / kStep);
+  const size_t stride = std::max<size_t>(1, n / 5000);
+  std::vector<double> sa(n), sb(n + 2 * static_cast<size_t>(lags));
+  size_t hint = 0;
+  for (size_t i = 0; i < sa.size(); ++i) {
+    if (!sample_at(a.motion_t, a.motion_w, lo + static_cast<double>(i) * kStep, hint, sa[i])) return {0, 0};
+  }
+  hint = 0;
+  for (size_t i = 0; i < sb.size(); ++i) {
+    if (!sample_at(b.motion_t, b.motion_w, lo - max_lag + static_cast<double>(i) * kStep, hint, sb[i])) return {0, 0};
+  }
+  double mean_a = 0, var_a = 0, count = 0;
+  for (size_t i = 0; i < n; i += stride, ++count) mean_a += sa[i];
+  mean_a /= count;
+  for (size_t i = 0; i < n; i += stride) var_a += (sa[i] - mean_a) * (sa[i] - mean_a);
+  // A robot that barely turns (yaw rate varying by less than 0.01 rad/s) says nothing about skew.
+  if (var_a / count < 1e-4) return {0, 0};
+  auto correlation = [&](int k) {
+    const double* y = sb.data() + k;
+    double sum = 0, sum_sq = 0, dot = 0;
+    for (size_t i = 0; i < n; i += stride) {
+      sum += y[i];
+      sum_sq += y[i] * y[i];
+      dot += (sa[i] - mean_a) * y[i];
+    }
+    const double var_b = sum_sq - sum * sum / count;
+    return var_b > 1e-12 ? dot / std::sqrt(var_a * var_b) : -2.0;
+  };
+  constexpr int kCoarse = 10;
+  int coarse_best = lags;
+  double coarse_value = -3;
+  for (int k = 0; k <= 2 * lags; k += kCoarse) {
+    const double c = correlation(k);
+    if (c > coarse_value) {
+      coarse_value = c;
+      coarse_best = k;
+    }
+  }
+  std::vector<double> corr(2 * static_cast<size_t>(lags) + 1, -2);
+  for (int k = std::max(0, coarse_best - 2 * kCoarse); k <= std::min(2 * lags, coarse_best + 2 * kCoarse); ++k) {
+    corr[static_cast<size_t>(k)] = correlation(k);
+  }
+  const size_t best = static_cast<size_t>(std::max_element(corr.begin(), corr.end()) - corr.begin());
+  double refine = 0;
+  if (best > 0 && best + 1 < corr.size() && corr[best - 1] > -2 && corr[best + 1] > -2) {
+    const double y0 = corr[best - 1], y1 = corr[best], y2 = corr[best + 1];
+    const double denom = y0 - 2 * y1 + y2;
+    if (denom < 0) refine = 0.5 * (y0 - y2) / denom;
+  }
+  const double lag = (static_cast<double>(best) - lags + refine) * kStep;
+  return {lag, std::max(0.0, corr[best])};
+}
+
+}  // namespace
+
+Result<Diagnosis> diagnose(const std::string& log, const DiagnoseOptions& options) {
+  auto reader = LogReader::open(log);
+  if (!reader) return reader.error();
+  Diagnosis d;
+  d.log = log;
+  std::map<std::string, Samples, std::less<>> channels;
+  Samples* last = nullptr;
+  std::string_view last_name;
+  Event e;
+  bool first = true;
+  while (reader->next(e)) {
+    if (first) d.start_utime = d.end_utime = e.utime;
+    first = false;
+    d.start_utime = std::min(d.start_utime, e.utime);
+    d.end_utime = std::max(d.end_utime, e.utime);
+    if (last == nullptr || e.channel != last_name) {
+      auto it = channels.find(e.channel);
+      if (it == channels.end()) {
+        it = channels.emplace(std::string(e.channel), Samples{}).first;
+        const lcmtypes::TypeInfo* type = lcmtypes::find_type(logfmt::fingerprint(e.data));
+        it->second.type = type != nullptr ? type->name : "";
+        it->second.has_header = type != nullptr && type->has_header;
+      }
+      last = &it->second;
+      last_name = it->first;
+    }
+    Samples& s = *last;
+    const int64_t fp = logfmt::fingerprint(e.data);
+    s.arrival.push_back(e.utime);
+    if (s.has_header && e.data.size() >= 24) {
+      s.seq.push_back(static_cast<int64_t>(logfmt::load_be64(e.data.data() + 8)));
+      s.stamp.push_back(static_cast<int64_t>(logfmt::load_be64(e.data.data() + 16)));
+      add_motion(s, fp, e.data);
+    } else if (s.has_header) {
+      s.has_header = false;  // a message too short for a header: treat the channel as untyped
+    }
+    uint64_t digest = e.data.size();
+    for (size_t i = 0; i < std::min<size_t>(e.data.size(), 64); ++i) digest = (digest ^ e.data[i]) * 1099511628211ull;
+    s.digest.push_back(digest);
+  }
+  d.log_problems = reader->problems();
+
+  for (auto& [name, s] : channels) {
+    if (std::find(options.ignore_channels.begin(), options.ignore_channels.end(), name) !=
+        options.ignore_channels.end()) {
+      continue;
+    }
+    if (s.has_header && s.stamp.size() != s.arrival.size()) s.has_header = false;
+    ChannelTiming c;
+    c.name = name;
+    c.type = s.type;
+    c.has_header = s.has_header;
+    c.count = static_cast<int64_t>(s.arrival.size());
+    const auto [a0, a1] = std::minmax_element(s.arrival.begin(), s.arrival.end());
+    if (c.count > 1 && *a1 > *a0) c.rate_hz = static_cast<double>(c.count - 1) / (static_cast<double>(*a1 - *a0) * 1e-6);
+    for (size_t i = 1; i < s.arrival.size(); ++i) {
+      if (s.arrival[i] < s.arrival[i - 1]) ++c.out_of_order_arrival;
+    }
+    if (s.has_header) {
+      analyse_sequence(s, c);
+      analyse_period(s, c, false);
+      int64_t newest = INT64_MIN;
+      Array<double> latency(s.stamp.size());
+      for (size_t i = 0; i < s.stamp.size(); ++i) {
+        if (s.stamp[i] < newest && s.seq[i] != s.seq[i - 1]) ++c.out_of_order_stamp;
+        newest = std::max(newest, s.stamp[i]);
+        latency[i] = static_cast<double>(s.arrival[i] - s.stamp[i]) * 1e-6;
+      }
+      c.latency_s = distribution(std::move(latency));
+      fit_clock(s, d.start_utime, c);
+    } else {
+      analyse_period(s, c, true);
+      // Without a header, a duplicate is the same bytes again well within one period (a steady stream of
+      // identical messages, like a heartbeat, is not duplication).
+      const double window = 0.25 * c.expected_period_s * 1e6;
+      for (size_t i = 1; i < s.digest.size(); ++i) {
+        if (s.digest[i] == s.digest[i - 1] && static_cast<double>(s.arrival[i] - s.arrival[i - 1]) < window) {
+          ++c.duplicates;
+        }
+      }
+    }
+    judge(c);
+    d.channels.push_back(std::move(c));
+  }
+
+  // Skew between every two streams that observe the yaw rate: IMU gyro, wheel odometry, poses.
+  std::vector<const std::pair<const std::string, Samples>*> moving;
+  for (const auto& entry : channels) {
+    const auto& w = entry.second.motion_w;
+    if (w.size() < 20) continue;
+    const double mean = std::accumulate(w.begin(), w.end(), 0.0) / static_cast<double>(w.size());
+    double var = 0;
+    for (double x : w) var += (x - mean) * (x - mean);
+    // A robot that barely turns (yaw rate varying by less than 0.01 rad/s) says nothing about skew.
+    if (var / static_cast<double>(w.size()) >= 1e-4) moving.push_back(&entry);
+  }
+  // Ground truth first, then IMUs: the reference side of each pair.
+  std::stable_sort(moving.begin(), moving.end(), [](const auto* x, const auto* y) {
+    return x->second.motion_from_pose > y->second.motion_from_pose;
+  });
+  const double log_start = static_cast<double>(d.start_utime) * 1e-6;
+  for (size_t i = 0; i < moving.size(); ++i) {
+    for (size_t j = i + 1; j < moving.size(); ++j) {
+      const Samples& a = moving[i]->second;
+      const Samples& b = moving[j]->second;
+      const double from = std::max(a.motion_t.front(), b.motion_t.front());
+      const double to = std::min(a.motion_t.back(), b.motion_t.back());
+      StreamPair p{moving[i]->first, moving[j]->first, 0, 0, "yaw-rate cross-correlation", {}};
+      // Windows (at most 64: long logs get longer ones) show changes along the log; the pair's offset is
+      // their confidence-weighted median, its confidence their median. A short log is one window.
+      const double window = to - from < 2 * options.window_s ? to - from : std::max(options.window_s, (to - from) / 64);
+      for (double w = from; w + window <= to + 1e-9; w += window) {
+        const auto [wl, wc] = correlate(a, b, w, w + window, options.max_lag_s);
+        if (wc > 0) p.windows.push_back({w - log_start, w + window - log_start, wl, wc});
+      }
+      if (p.windows.empty()) continue;
+      std::vector<SkewWindow> by_offset = p.windows;
+      std::sort(by_offset.begin(), by_offset.end(), [](const auto& x, const auto& y) { return x.offset_s < y.offset_s; });
+      double total = 0, acc = 0;
+      for (const auto& w : by_offset) total += w.confidence;
+      for (const auto& w : by_offset) {
+        acc += w.confidence;
+        if (acc >= total / 2) {
+          p.offset_s = w.offset_s;
+          break;
+        }
+      }
+      Array<double> confidences;
+      for (const auto& w : p.windows) confidences.push_back(w.confidence);
+      p.confidence = median(std::move(confidences));
+      d.pairs.push_back(std::move(p));
+    }
+  }
+  return d;
+}
+
+}  // namespace driftlab::analyzers

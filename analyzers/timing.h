@@ -1,0 +1,82 @@
+// Timing diagnosis of a log, from the log alone: per channel rate, drops (sequence gaps, or gaps in the period),
+// duplicates, reordering, latency (arrival - header stamp) split into the source clock's offset and drift and
+// the transport delay; skew between streams that observe the same motion (yaw rate), by cross-correlation.
+// Never reads the injected-fault manifest. Thread-safety: pure function of the log.
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "core/result.h"
+
+namespace driftlab::analyzers {
+
+struct Distribution {
+  double mean = 0, p50 = 0, p95 = 0, p99 = 0, max = 0;
+};
+
+struct Gap {
+  int64_t start_utime = 0;  ///< stamp of the last message before the gap [us]
+  int64_t end_utime = 0;    ///< stamp of the first message after it [us]
+  int64_t missing = 0;      ///< messages missing [count]
+};
+
+struct ChannelTiming {
+  std::string name;
+  std::string type;                 ///< "driftlab.imu_t", or "" when unknown
+  bool has_header = false;          ///< seq and stamps were read from driftlab.header_t
+  int64_t count = 0;
+  double rate_hz = 0;               ///< messages per second of arrival time
+  double expected_period_s = 0;     ///< median interval between stamps (arrivals without a header)
+  int64_t seq_gaps = 0;             ///< messages missing from gaps in seq [count]
+  int64_t missing_by_period = 0;    ///< messages missing from gaps in time longer than 1.5 periods [count]
+  std::vector<Gap> gaps;            ///< seq gaps with a header, time gaps without
+  int64_t duplicates = 0;           ///< extra copies of a message already received (same seq; without a header, the same bytes again within a quarter period) [count]
+  int64_t out_of_order_stamp = 0;   ///< messages whose stamp is older than an earlier-arrived one [count]
+  int64_t out_of_order_arrival = 0; ///< log timestamps that step back [count]
+  Distribution latency_s;           ///< arrival - stamp [s]
+  bool clock_valid = false;         ///< enough data spread over time to fit the clock
+  double clock_offset_s = 0;        ///< source clock ahead of the recorder's at the log's start [s] (fastest delivery taken as instantaneous)
+  double clock_drift_ppm = 0;       ///< source clock running fast [ppm]
+  Distribution transport_s;         ///< latency above the fitted clock line [s]
+  std::string verdict = "ok";       ///< ok, warn or fault
+  std::vector<std::string> reasons; ///< why, in words
+};
+
+struct SkewWindow {
+  double start_s = 0, end_s = 0;   ///< relative to the start of the log [s]
+  double offset_s = 0, confidence = 0;
+};
+
+struct StreamPair {
+  std::string a, b;
+  double offset_s = 0;     ///< how much later b's stamps are than a's for the same physical instant [s]
+                           ///< (the confidence-weighted median over the windows)
+  double confidence = 0;   ///< peak normalised correlation, 0..1 (median over the windows)
+  std::string method;      ///< "yaw-rate cross-correlation"
+  std::vector<SkewWindow> windows;
+};
+
+struct Diagnosis {
+  std::string log;
+  int64_t start_utime = 0, end_utime = 0;
+  std::vector<ChannelTiming> channels;
+  std::vector<StreamPair> pairs;
+  uint64_t log_problems = 0;  ///< corruption met while reading
+};
+
+struct DiagnoseOptions {
+  double max_lag_s = 0.3;    ///< skew search range [s]
+  double window_s = 10.0;    ///< skew window [s] (longer on long logs: at most 64 windows)
+  std::vector<std::string> ignore_channels = {"DRIFTLAB_RECORDER_STATS", "FAULTS"};
+};
+
+Result<Diagnosis> diagnose(const std::string& log, const DiagnoseOptions& options = {});
+
+/// For an encoded driftlab.imu_t or odometry_t: its stamp [s] and yaw rate [rad/s]; for a pose_t: its stamp and
+/// yaw [rad] (is_pose set). False for other types or truncated data. Reads the fields in place, without decoding.
+bool read_motion(int64_t fingerprint, std::span<const uint8_t> data, double& stamp, double& value, bool& is_pose);
+
+}  // namespace driftlab::analyzers

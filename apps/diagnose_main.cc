@@ -1,0 +1,190 @@
+// driftlab diagnose LOG: which stream is late, lossy or on the wrong clock, from the log alone.
+#include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
+
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <iostream>
+#include <memory>
+
+#include "analyzers/timing.h"
+#include "apps/cli_util.h"
+#include "apps/commands.h"
+
+namespace driftlab::apps {
+namespace {
+
+using analyzers::Diagnosis;
+
+struct DiagnoseOptions {
+  std::string log;
+  std::string json;
+  std::string html;
+  analyzers::DiagnoseOptions analysis;
+};
+
+nlohmann::json distribution_json(const analyzers::Distribution& d) {
+  return {{"mean", d.mean}, {"p50", d.p50}, {"p95", d.p95}, {"p99", d.p99}, {"max", d.max}};
+}
+
+nlohmann::json to_json(const Diagnosis& d) {
+  nlohmann::json channels = nlohmann::json::array();
+  for (const auto& c : d.channels) {
+    nlohmann::json gaps = nlohmann::json::array();
+    for (const auto& g : c.gaps) {
+      gaps.push_back({{"start_utime", g.start_utime}, {"end_utime", g.end_utime}, {"missing", g.missing}});
+    }
+    channels.push_back(
+        {{"name", c.name},
+         {"type", c.type.empty() ? nlohmann::json() : nlohmann::json(c.type)},
+         {"count", c.count},
+         {"rate_hz", c.rate_hz},
+         {"expected_period_s", c.expected_period_s},
+         {"drops", {{"seq_gaps", c.has_header ? nlohmann::json(c.seq_gaps) : nlohmann::json()},
+                    {"missing_by_period", c.missing_by_period},
+                    {"gaps", gaps}}},
+         {"duplicates", c.duplicates},
+         {"out_of_order", {{"by_stamp", c.out_of_order_stamp}, {"by_arrival", c.out_of_order_arrival}}},
+         {"latency_s", c.has_header ? distribution_json(c.latency_s) : nlohmann::json()},
+         {"clock", c.clock_valid ? nlohmann::json{{"offset_s", c.clock_offset_s}, {"drift_ppm", c.clock_drift_ppm}}
+                                 : nlohmann::json()},
+         {"transport_s", c.clock_valid ? distribution_json(c.transport_s) : nlohmann::json()},
+         {"verdict", c.verdict},
+         {"reasons", c.reasons}});
+  }
+  nlohmann::json pairs = nlohmann::json::array();
+  for (const auto& p : d.pairs) {
+    nlohmann::json windows = nlohmann::json::array();
+    for (const auto& w : p.windows) {
+      windows.push_back({{"start_s", w.start_s}, {"end_s", w.end_s}, {"offset_s", w.offset_s}, {"confidence", w.confidence}});
+    }
+    pairs.push_back({{"a", p.a}, {"b", p.b}, {"offset_s", p.offset_s}, {"confidence", p.confidence},
+                     {"method", p.method}, {"windows", windows}});
+  }
+  return {{"log", d.log},
+          {"start_utime", d.start_utime},
+          {"end_utime", d.end_utime},
+          {"log_problems", d.log_problems},
+          {"channels", channels},
+          {"pairs", pairs},
+          {"tf", nullptr}};
+}
+
+std::string ms(double seconds) {
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "%.1f", seconds * 1e3);
+  return buf;
+}
+
+/// The report as lines of text: a row per channel, the pairs, then the problems in words.
+std::vector<std::string> report_lines(const Diagnosis& d, std::vector<std::string>* problems) {
+  std::vector<std::string> lines;
+  char buf[512];
+  size_t w = 7;
+  for (const auto& c : d.channels) w = std::max(w, c.name.size());
+  std::snprintf(buf, sizeof(buf), "%-*s  %-7s %8s %8s %6s %5s %5s %9s %9s %9s %8s", static_cast<int>(w), "channel",
+                "verdict", "count", "rate Hz", "drops", "dups", "reord", "lat p50", "lat p99", "offset", "drift");
+  lines.push_back(buf);
+  for (const auto& c : d.channels) {
+    const int64_t drops = c.has_header ? c.seq_gaps : c.missing_by_period;
+    std::snprintf(buf, sizeof(buf), "%-*s  %-7s %8lld %8.2f %6lld %5lld %5lld %9s %9s %9s %8s", static_cast<int>(w),
+                  c.name.c_str(), c.verdict.c_str(), static_cast<long long>(c.count), c.rate_hz,
+                  static_cast<long long>(drops), static_cast<long long>(c.duplicates),
+                  static_cast<long long>(c.out_of_order_stamp),
+                  c.has_header ? (ms(c.latency_s.p50) + " ms").c_str() : "-",
+                  c.has_header ? (ms(c.latency_s.p99) + " ms").c_str() : "-",
+                  c.clock_valid ? (ms(c.clock_offset_s) + " ms").c_str() : "-",
+                  c.clock_valid ? (std::to_string(static_cast<int>(std::lround(c.clock_drift_ppm))) + " ppm").c_str() : "-");
+    lines.push_back(buf);
+    for (const auto& r : c.reasons) problems->push_back(c.name + ": " + r);
+  }
+  if (!d.pairs.empty()) {
+    lines.push_back("");
+    lines.push_back("skew (how much later b's stamps are than a's, from the yaw rate both observe):");
+    for (const auto& p : d.pairs) {
+      std::snprintf(buf, sizeof(buf), "  %s -> %s: %+.1f ms (confidence %.2f)", p.a.c_str(), p.b.c_str(),
+                    p.offset_s * 1e3, p.confidence);
+      lines.push_back(buf);
+      if (std::abs(p.offset_s) >= 0.002 && p.confidence >= 0.8) {
+        std::snprintf(buf, sizeof(buf), "%s is stamped %.1f ms %s than %s for the same motion", p.b.c_str(),
+                      std::abs(p.offset_s) * 1e3, p.offset_s > 0 ? "later" : "earlier", p.a.c_str());
+        problems->push_back(buf);
+      }
+    }
+  }
+  return lines;
+}
+
+void write_html(const std::string& path, const Diagnosis& d, const std::vector<std::string>& lines,
+                const std::vector<std::string>& problems) {
+  auto escape = [](const std::string& s) {
+    std::string out;
+    for (char ch : s) {
+      if (ch == '<') out += "&lt;";
+      else if (ch == '>') out += "&gt;";
+      else if (ch == '&') out += "&amp;";
+      else out += ch;
+    }
+    return out;
+  };
+  std::ofstream f(path);
+  f << "<!doctype html><html><head><meta charset=\"utf-8\"><title>driftlab diagnose: " << escape(d.log)
+    << "</title><style>body{font-family:sans-serif;margin:2em}pre{background:#f6f6f6;padding:1em}"
+       "li.fault{color:#b00}</style></head><body><h1>Timing diagnosis</h1><p>"
+    << escape(d.log) << "</p><pre>";
+  for (const auto& l : lines) f << escape(l) << "\n";
+  f << "</pre><h2>Problems</h2><ul>";
+  for (const auto& p : problems) f << "<li class=\"fault\">" << escape(p) << "</li>";
+  if (problems.empty()) f << "<li>none</li>";
+  f << "</ul></body></html>\n";
+}
+
+int run_diagnose(const DiagnoseOptions& o) {
+  auto result = analyzers::diagnose(o.log, o.analysis);
+  if (!result) return fail(result.error().message);
+  const Diagnosis& d = *result;
+  std::vector<std::string> problems;
+  const auto lines = report_lines(d, &problems);
+  if (!o.html.empty()) {
+    write_html(o.html, d, lines, problems);
+  }
+  if (!o.json.empty()) {
+    const std::string text = to_json(d).dump(2) + "\n";
+    if (o.json == "-") {
+      std::cout << text;
+      return kExitOk;
+    }
+    std::ofstream f(o.json);
+    f << text;
+    if (!f) return fail(o.json + ": cannot write the JSON report", kExitFailure);
+  }
+  for (const auto& l : lines) std::printf("%s\n", l.c_str());
+  std::printf("\n");
+  if (problems.empty()) {
+    std::printf("no timing problems found\n");
+  } else {
+    std::printf("problems:\n");
+    for (size_t i = 0; i < problems.size() && i < 10; ++i) std::printf("  %s\n", problems[i].c_str());
+    if (problems.size() > 10) std::printf("  ... %zu more (--json lists them all)\n", problems.size() - 10);
+  }
+  return kExitOk;
+}
+
+}  // namespace
+
+void add_diagnose_command(CLI::App& app, int* exit_code) {
+  auto o = std::make_shared<DiagnoseOptions>();
+  CLI::App* cmd = app.add_subcommand(
+      "diagnose", "Find skew, clock offset and drift, latency, drops, duplicates and reordering in a log.");
+  cmd->add_option("log", o->log, "LCM event log")->required();
+  cmd->add_option("--json", o->json, "Also write the diagnosis as JSON to this file ('-': print only the JSON)");
+  cmd->add_option("--html", o->html, "Also write the report as an HTML page");
+  cmd->add_option("--max-lag", o->analysis.max_lag_s, "Skew search range [s]")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
+  cmd->add_option("--window", o->analysis.window_s, "Skew window [s]")->capture_default_str()->check(CLI::PositiveNumber);
+  cmd->callback([o, exit_code] { *exit_code = run_diagnose(*o); });
+}
+
+}  // namespace driftlab::apps
