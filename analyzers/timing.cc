@@ -1,5 +1,7 @@
 #include "analyzers/timing.h"
 
+#include "analyzers/tf_check.h"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -15,6 +17,7 @@
 #include "driftlab/imu_t.hpp"
 #include "driftlab/odometry_t.hpp"
 #include "driftlab/pose_t.hpp"
+#include "driftlab/tf_t.hpp"
 #include "lcmtypes/type_registry.h"
 
 namespace driftlab::analyzers {
@@ -34,6 +37,7 @@ struct Samples {
   // Yaw rate [rad/s] at a stamp [s], for channels that observe the robot's rotation.
   Array<double> motion_t, motion_w;
   bool motion_from_pose = false;
+  std::string frame;  // header.frame_id of the first message
   double last_yaw = 0, last_t = 0;
   bool have_last = false;
 };
@@ -366,6 +370,8 @@ Result<Diagnosis> diagnose(const std::string& log, const DiagnoseOptions& option
   Diagnosis d;
   d.log = log;
   std::map<std::string, Samples, std::less<>> channels;
+  internal::TfCheck tf;
+  const int64_t tf_hash = driftlab::tf_t::getHash();
   Samples* last = nullptr;
   std::string_view last_name;
   Event e;
@@ -389,9 +395,16 @@ Result<Diagnosis> diagnose(const std::string& log, const DiagnoseOptions& option
     Samples& s = *last;
     const int64_t fp = logfmt::fingerprint(e.data);
     s.arrival.push_back(e.utime);
+    if (fp == tf_hash) tf.add_tf(e.data, e.utime, last_name.find("STATIC") != std::string_view::npos);
     if (s.has_header && e.data.size() >= 24) {
       s.seq.push_back(static_cast<int64_t>(logfmt::load_be64(e.data.data() + 8)));
       s.stamp.push_back(static_cast<int64_t>(logfmt::load_be64(e.data.data() + 16)));
+      if (s.stamp.size() == 1 && e.data.size() >= 28) {
+        const uint32_t n = logfmt::load_be32(e.data.data() + 24);  // frame_id: length with its NUL, bytes
+        if (n > 0 && 28 + static_cast<size_t>(n) <= e.data.size()) {
+          s.frame.assign(reinterpret_cast<const char*>(e.data.data() + 28), n - 1);
+        }
+      }
       add_motion(s, fp, e.data);
     } else if (s.has_header) {
       s.has_header = false;  // a message too short for a header: treat the channel as untyped
@@ -442,8 +455,10 @@ Result<Diagnosis> diagnose(const std::string& log, const DiagnoseOptions& option
       }
     }
     judge(c);
+    if (s.has_header && s.type != "driftlab.tf_t") tf.add_data(name, s.frame, s.stamp, s.arrival);
     d.channels.push_back(std::move(c));
   }
+  d.tf = tf.finish();
 
   // Skew between every two streams that observe the yaw rate: IMU gyro, wheel odometry, poses.
   std::vector<const std::pair<const std::string, Samples>*> moving;

@@ -59,11 +59,20 @@ struct StreamPair {
   std::vector<SkewWindow> windows;
 };
 
+/// The TF tree seen in the log (channels of driftlab.tf_t; a channel whose name contains "STATIC" holds static
+/// transforms) and what would go wrong when data is transformed with it.
+struct TfDiagnosis {
+  std::vector<std::string> frames;    ///< every frame, sorted
+  std::vector<std::string> roots;     ///< frames that are nobody's child
+  std::vector<std::string> problems;  ///< in words
+};
+
 struct Diagnosis {
   std::string log;
   int64_t start_utime = 0, end_utime = 0;
   std::vector<ChannelTiming> channels;
   std::vector<StreamPair> pairs;
+  TfDiagnosis tf;
   uint64_t log_problems = 0;  ///< corruption met while reading
 };
 

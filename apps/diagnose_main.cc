@@ -68,7 +68,7 @@ nlohmann::json to_json(const Diagnosis& d) {
           {"log_problems", d.log_problems},
           {"channels", channels},
           {"pairs", pairs},
-          {"tf", nullptr}};
+          {"tf", {{"frames", d.tf.frames}, {"roots", d.tf.roots}, {"problems", d.tf.problems}}}};
 }
 
 std::string ms(double seconds) {
@@ -113,6 +113,13 @@ std::vector<std::string> report_lines(const Diagnosis& d, std::vector<std::strin
       }
     }
   }
+  if (!d.tf.frames.empty()) {
+    std::string roots;
+    for (const auto& r : d.tf.roots) roots += (roots.empty() ? "" : ", ") + r;
+    lines.push_back("");
+    lines.push_back("TF: " + std::to_string(d.tf.frames.size()) + " frames, root " + roots);
+  }
+  for (const auto& p : d.tf.problems) problems->push_back("TF: " + p);
   return lines;
 }
 

@@ -16,6 +16,7 @@
 #include "driftlab/laser_scan_t.hpp"
 #include "driftlab/odometry_t.hpp"
 #include "driftlab/pose_t.hpp"
+#include "driftlab/tf_t.hpp"
 #include "tests/test_util.h"
 
 namespace driftlab::analyzers {
@@ -28,6 +29,12 @@ struct Faults {
   std::set<int64_t> scan_duplicates;
   int64_t scan_reorder = -1;   // this scan arrives after the next one
   int raw_gap = 0;             // untyped messages missing in one gap
+  // TF: odom -> base_link at 50 Hz (dynamic), world -> odom and base_link -> imu, laser (static, 1 Hz).
+  double tf_delay_s = 0.001;   // how long after its stamp a dynamic transform arrives
+  double tf_stops_at_s = 1e9;  // no dynamic transforms after this
+  bool tf_future = false;      // dynamic transforms stamped 20 ms ahead of their arrival
+  bool laser_static_missing = false;
+  bool static_changes = false; // base_link -> imu republished with another offset
 };
 
 constexpr int64_t kT0 = 1763776800000000;
@@ -86,6 +93,32 @@ void write_log(const std::string& path, const Faults& f, uint64_t seed) {
     out.push_back({kT0 + us(arrive), "SCAN", encode(m)});
     if (f.scan_duplicates.count(i)) out.push_back({kT0 + us(arrive) + 50, "SCAN", encode(m)});
   }
+  auto transform = [](const char* parent, const char* child, int64_t stamp, double x) {
+    driftlab::transform_t t{};
+    t.header = {0, stamp, parent};
+    t.child_frame_id = child;
+    t.translation = {x, 0, 0};
+    t.rotation = {1, 0, 0, 0};
+    return t;
+  };
+  for (int64_t i = 0; i * 0.02 <= kSeconds && i * 0.02 < f.tf_stops_at_s; ++i) {  // dynamic TF, 50 Hz
+    const double t = i * 0.02;
+    driftlab::tf_t tf{};
+    const int64_t stamp = kT0 + us(t) + (f.tf_future ? 20000 : 0);
+    tf.header = {i, stamp, "odom"};
+    tf.transforms = {transform("odom", "base_link", stamp, t)};
+    tf.ntransforms = 1;
+    out.push_back({kT0 + us(t + f.tf_delay_s), "TF", encode(tf)});
+  }
+  for (int64_t i = 0; i <= static_cast<int64_t>(kSeconds); ++i) {  // static TF, 1 Hz
+    driftlab::tf_t tf{};
+    tf.header = {i, kT0 + i * 1000000, "world"};
+    tf.transforms = {transform("world", "odom", kT0, 0),
+                     transform("base_link", "imu", kT0, f.static_changes && i > 30 ? 0.2 : 0.1)};
+    if (!f.laser_static_missing) tf.transforms.push_back(transform("base_link", "laser", kT0, 0.3));
+    tf.ntransforms = static_cast<int32_t>(tf.transforms.size());
+    out.push_back({kT0 + i * 1000000 + 500, "TF_STATIC", encode(tf)});
+  }
   for (int i = 0; i * (1.0 / 30) <= kSeconds; ++i) {  // an untyped stream at 30 Hz
     if (i >= 300 && i < 300 + f.raw_gap) continue;
     std::vector<uint8_t> raw(16, static_cast<uint8_t>(i));
@@ -118,7 +151,10 @@ TEST(Diagnose, FlagsNothingOnACleanLog) {
   write_log(dir.file("clean.lcm"), {}, 1);
   auto d = diagnose(dir.file("clean.lcm"));
   ASSERT_TRUE(d.ok()) << d.error().message;
-  ASSERT_EQ(d->channels.size(), 5u);
+  ASSERT_EQ(d->channels.size(), 7u);
+  EXPECT_EQ(d->tf.frames, (std::vector<std::string>{"base_link", "imu", "laser", "odom", "world"}));
+  EXPECT_EQ(d->tf.roots, (std::vector<std::string>{"world"}));
+  EXPECT_TRUE(d->tf.problems.empty()) << d->tf.problems.front();
   for (const auto& c : d->channels) {
     EXPECT_EQ(c.verdict, "ok") << c.name << ": " << (c.reasons.empty() ? "" : c.reasons[0]);
   }
@@ -208,6 +244,41 @@ TEST_P(DiagnoseDrift, RecoversClockDriftWithin20ppm) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Ppm, DiagnoseDrift, ::testing::Values(50.0, 300.0, 1000.0));
+
+bool has_problem(const Diagnosis& d, const std::string& text) {
+  for (const auto& p : d.tf.problems)
+    if (p.find(text) != std::string::npos) return true;
+  return false;
+}
+
+TEST(DiagnoseTf, FindsMissingFramesChangedStaticsFutureStampsLagAndStaleness) {
+  test::TempDir dir;
+  Faults f;
+  f.laser_static_missing = true;
+  f.static_changes = true;
+  write_log(dir.file("a.lcm"), f, 6);
+  auto a = diagnose(dir.file("a.lcm"));
+  ASSERT_TRUE(a.ok());
+  EXPECT_TRUE(has_problem(*a, "frame 'laser' of SCAN is not in the TF tree"));
+  EXPECT_TRUE(has_problem(*a, "static transform 'base_link' -> 'imu' was republished with different values"));
+  EXPECT_EQ(a->tf.problems.size(), 2u);
+
+  Faults g;
+  g.tf_delay_s = 0.12;  // transforms arrive 120 ms after their stamp: data waits too long for them
+  g.tf_stops_at_s = 40;
+  write_log(dir.file("b.lcm"), g, 7);
+  auto b = diagnose(dir.file("b.lcm"));
+  ASSERT_TRUE(b.ok());
+  EXPECT_TRUE(has_problem(*b, "IMU messages find no transform 'odom' -> 'base_link' as new as their stamp"));
+  EXPECT_TRUE(has_problem(*b, "transform 'odom' -> 'base_link' goes stale"));
+
+  Faults h;
+  h.tf_future = true;
+  write_log(dir.file("c.lcm"), h, 8);
+  auto c = diagnose(dir.file("c.lcm"));
+  ASSERT_TRUE(c.ok());
+  EXPECT_TRUE(has_problem(*c, "transforms 'odom' -> 'base_link' are stamped in the future of their arrival"));
+}
 
 TEST(ReadMotion, AgreesWithLcmGensDecoders) {
   driftlab::imu_t imu{};

@@ -1,6 +1,6 @@
 // Writes the sample log logs/sample.lcm and the golden logs of tests/data: a differential-drive robot
 // driving a circle for 5 s, with IMU (200 Hz), 2D scans (10 Hz, 360 beams, a round room), wheel odometry
-// (50 Hz), ground truth (100 Hz), TF (50 Hz) and velocity commands (20 Hz). Deterministic: the same
+// (50 Hz), ground truth (100 Hz), TF (50 Hz), static TF (1 Hz) and velocity commands (20 Hz). Deterministic: the same
 // binary writes the same bytes. The corrupt variants are the clean log with surgical damage.
 //   make_sample_log OUT_DIR [SECONDS [turning]]   (default 5 s, a circle; "turning": a weave)
 #include <algorithm>
@@ -80,7 +80,7 @@ void write_clean(const std::string& path, int64_t duration_us, bool turning) {
   std::mt19937_64 rng(42);
   State weave{0, 0, 0};
   std::normal_distribution<double> noise(0.0, 1.0);
-  int64_t seq_imu = 0, seq_scan = 0, seq_odom = 0, seq_gt = 0, seq_tf = 0, seq_cmd = 0;
+  int64_t seq_imu = 0, seq_scan = 0, seq_odom = 0, seq_gt = 0, seq_tf = 0, seq_cmd = 0, seq_static = 0;
   const int64_t step = 1000;  // 1 ms simulation step [us]
   for (int64_t us = 0; us <= duration_us; us += step) {
     const int64_t t = kStart + us;
@@ -155,6 +155,23 @@ void write_clean(const std::string& path, int64_t duration_us, bool turning) {
       tr.rotation = m.orientation;
       tf.transforms.push_back(tr);
       put("TF", encode(tf), 900);
+    }
+    if (us % 1000000 == 0) {
+      // The static frames, republished every second: world -> odom, base_link -> imu_link and laser.
+      driftlab::tf_t tf{};
+      tf.header = header(seq_static++, t, "base_link");
+      const std::pair<const char*, const char*> edges[] = {{"world", "odom"}, {"base_link", "imu_link"},
+                                                           {"base_link", "laser"}};
+      for (const auto& [parent, child] : edges) {
+        driftlab::transform_t tr{};
+        tr.header = header(0, t, parent);
+        tr.child_frame_id = child;
+        tr.translation = {std::string(child) == "laser" ? 0.2 : 0.0, 0, std::string(child) == "laser" ? 0.3 : 0.1};
+        tr.rotation = yaw_quat(0);
+        tf.transforms.push_back(tr);
+      }
+      tf.ntransforms = static_cast<int32_t>(tf.transforms.size());
+      put("TF_STATIC", encode(tf), 500);
     }
     if (us % 10000 == 0) {
       driftlab::pose_t m{};

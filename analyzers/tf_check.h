@@ -1,0 +1,46 @@
+// TF tree checks for `driftlab diagnose`: frames missing or disconnected from the root, frames with two parents,
+// transforms stamped in the future, dynamic transforms that go stale or lag the data they are needed for
+// (no transform as new as a message's stamp within 50 ms of its arrival: "extrapolation into the future"),
+// and static transforms republished with other values.
+// Internal to analyzers (used by timing.cc). Thread-safety: plain values.
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "analyzers/timing.h"
+
+namespace driftlab::analyzers::internal {
+
+class TfCheck {
+ public:
+  /// A driftlab.tf_t message that arrived at arrival [us].
+  void add_tf(std::span<const uint8_t> data, int64_t arrival, bool is_static);
+  /// The messages of a stream channel in frame `frame`: their stamps and arrivals [us], in arrival order.
+  void add_data(const std::string& channel, const std::string& frame, std::span<const int64_t> stamps,
+                std::span<const int64_t> arrivals);
+  TfDiagnosis finish() const;
+
+ private:
+  struct Edge {
+    std::string parent;
+    bool is_static = false;
+    std::vector<int64_t> arrival;     // dynamic: in arrival order
+    std::vector<int64_t> newest;      // newest stamp received by then
+    int64_t future_stamps = 0;        // stamped ahead of their arrival
+    bool static_changed = false;
+    double static_values[7] = {};     // translation, rotation (w, x, y, z)
+    bool have_static = false;
+    std::vector<std::string> other_parents;
+  };
+  struct Use {
+    int64_t stamp, arrival;
+  };
+  std::map<std::string, Edge> edges_;                                     // by child frame
+  std::map<std::pair<std::string, std::string>, std::vector<Use>> uses_;  // (channel, frame) -> messages
+};
+
+}  // namespace driftlab::analyzers::internal
