@@ -42,31 +42,29 @@ struct Samples {
   bool have_last = false;
 };
 
-double quantile_sorted(const Array<double>& v, double q) {
-  if (v.empty()) return 0;
+/// The q-quantile (linear between order statistics, as numpy's default), partially ordering v in place.
+double quantile(Array<double>& v, double q) {
   const double pos = q * static_cast<double>(v.size() - 1);
   const size_t i = static_cast<size_t>(pos);
-  const double f = pos - static_cast<double>(i);
-  return i + 1 < v.size() ? v[i] * (1 - f) + v[i + 1] * f : v[i];
+  std::nth_element(v.begin(), v.begin() + static_cast<long>(i), v.end());
+  const double lo = v[i];
+  if (i + 1 >= v.size()) return lo;
+  const double hi = *std::min_element(v.begin() + static_cast<long>(i) + 1, v.end());
+  return lo + (hi - lo) * (pos - static_cast<double>(i));
 }
 
 Distribution distribution(Array<double> v) {
   Distribution d;
   if (v.empty()) return d;
-  std::sort(v.begin(), v.end());
   d.mean = std::accumulate(v.begin(), v.end(), 0.0) / static_cast<double>(v.size());
-  d.p50 = quantile_sorted(v, 0.5);
-  d.p95 = quantile_sorted(v, 0.95);
-  d.p99 = quantile_sorted(v, 0.99);
-  d.max = v.back();
+  d.max = *std::max_element(v.begin(), v.end());
+  d.p99 = quantile(v, 0.99);
+  d.p95 = quantile(v, 0.95);
+  d.p50 = quantile(v, 0.5);
   return d;
 }
 
-double median(Array<double> v) {
-  if (v.empty()) return 0;
-  std::sort(v.begin(), v.end());
-  return quantile_sorted(v, 0.5);
-}
+double median(Array<double> v) { return v.empty() ? 0 : quantile(v, 0.5); }
 
 
 /// Reads fields of an encoded LCM message in place (big-endian), so the hot loop decodes only what it needs.
@@ -206,7 +204,9 @@ void analyse_sequence(const Samples& s, ChannelTiming& c) {
   // Order by seq (stable: arrival order among equals), then walk it.
   Array<size_t> order(s.seq.size());
   std::iota(order.begin(), order.end(), 0);
-  std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return s.seq[a] < s.seq[b]; });
+  if (!std::is_sorted(s.seq.begin(), s.seq.end())) {
+    std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return s.seq[a] < s.seq[b]; });
+  }
   for (size_t k = 1; k < order.size(); ++k) {
     const int64_t prev = s.seq[order[k - 1]], cur = s.seq[order[k]];
     if (cur == prev) {
@@ -222,7 +222,7 @@ void analyse_sequence(const Samples& s, ChannelTiming& c) {
 void analyse_period(const Samples& s, ChannelTiming& c, bool record_gaps) {
   const Array<int64_t>& times = s.has_header ? s.stamp : s.arrival;
   Array<int64_t> sorted(times);
-  std::sort(sorted.begin(), sorted.end());
+  if (!std::is_sorted(sorted.begin(), sorted.end())) std::sort(sorted.begin(), sorted.end());
   Array<double> intervals;
   for (size_t i = 1; i < sorted.size(); ++i) {
     if (sorted[i] > sorted[i - 1]) intervals.push_back(static_cast<double>(sorted[i] - sorted[i - 1]) * 1e-6);
@@ -409,9 +409,11 @@ Result<Diagnosis> diagnose(const std::string& log, const DiagnoseOptions& option
     } else if (s.has_header) {
       s.has_header = false;  // a message too short for a header: treat the channel as untyped
     }
-    uint64_t digest = e.data.size();
-    for (size_t i = 0; i < std::min<size_t>(e.data.size(), 64); ++i) digest = (digest ^ e.data[i]) * 1099511628211ull;
-    s.digest.push_back(digest);
+    if (!s.has_header) {  // duplicates of untyped messages are told by their bytes
+      uint64_t digest = e.data.size();
+      for (size_t i = 0; i < std::min<size_t>(e.data.size(), 64); ++i) digest = (digest ^ e.data[i]) * 1099511628211ull;
+      s.digest.push_back(digest);
+    }
   }
   d.log_problems = reader->problems();
 
@@ -448,7 +450,7 @@ Result<Diagnosis> diagnose(const std::string& log, const DiagnoseOptions& option
       // Without a header, a duplicate is the same bytes again well within one period (a steady stream of
       // identical messages, like a heartbeat, is not duplication).
       const double window = 0.25 * c.expected_period_s * 1e6;
-      for (size_t i = 1; i < s.digest.size(); ++i) {
+      for (size_t i = 1; i < s.digest.size() && s.digest.size() == s.arrival.size(); ++i) {
         if (s.digest[i] == s.digest[i - 1] && static_cast<double>(s.arrival[i] - s.arrival[i - 1]) < window) {
           ++c.duplicates;
         }

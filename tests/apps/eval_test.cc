@@ -58,6 +58,7 @@ struct Case {
   std::string args;  // shared by driftlab eval and the reference
   bool est_longer = false;
   double scale = 1.0;
+  friend void PrintTo(const Case& c, std::ostream* os) { *os << c.name << ": " << c.args; }
 };
 
 class EvalEqualsEvoReference : public ::testing::TestWithParam<Case> {};
