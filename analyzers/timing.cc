@@ -8,10 +8,8 @@
 #include <cstring>
 #include <map>
 #include <numeric>
-#include <unordered_map>
 
 #include "core/huge_page_allocator.h"
-#include "core/internal/string_hash.h"
 #include "core/log_format.h"
 #include "core/log_reader.h"
 #include "driftlab/imu_t.hpp"
@@ -24,7 +22,7 @@ namespace driftlab::analyzers {
 namespace {
 
 template <typename T>
-using Array = std::vector<T, HugePageAllocator<T>>;
+using Array = HugeVector<T>;
 
 /// What one pass over the log keeps of a channel.
 struct Samples {

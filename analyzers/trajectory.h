@@ -16,7 +16,7 @@ namespace driftlab::analyzers {
 
 /// Arrays of poses can hold millions of entries: they live on huge pages.
 template <typename T>
-using PoseArray = std::vector<T, HugePageAllocator<T>>;
+using PoseArray = HugeVector<T>;
 
 /// Poses of a body over time.
 struct Trajectory {

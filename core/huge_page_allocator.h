@@ -8,6 +8,7 @@
 
 #include <cstddef>
 #include <new>
+#include <vector>
 
 namespace driftlab {
 
@@ -44,5 +45,9 @@ struct HugePageAllocator {
  private:
   static size_t round_up(size_t bytes) { return (bytes + kHugePage - 1) / kHugePage * kHugePage; }
 };
+
+/// A vector for millions of elements, on huge pages.
+template <typename T>
+using HugeVector = std::vector<T, HugePageAllocator<T>>;
 
 }  // namespace driftlab
