@@ -11,7 +11,10 @@
 #include <random>
 #include <set>
 
+#include "core/faults.h"
+#include "core/log_reader.h"
 #include "core/log_writer.h"
+#include "driftlab/fault_manifest_t.hpp"
 #include "driftlab/imu_t.hpp"
 #include "driftlab/laser_scan_t.hpp"
 #include "driftlab/odometry_t.hpp"
@@ -278,6 +281,114 @@ TEST(DiagnoseTf, FindsMissingFramesChangedStaticsFutureStampsLagAndStaleness) {
   auto c = diagnose(dir.file("c.lcm"));
   ASSERT_TRUE(c.ok());
   EXPECT_TRUE(has_problem(*c, "transforms 'odom' -> 'base_link' are stamped in the future of their arrival"));
+}
+
+/// A log made with the fault model the simulator uses, its manifest written to the FAULTS channel; the
+/// diagnosis is scored against that manifest, read back from the log.
+TEST(Diagnose, ScoredAgainstTheFaultManifest) {
+  test::TempDir dir;
+  const std::string path = dir.file("faulty.lcm");
+  auto config = parse_faults(R"(seed: 11
+streams:
+  IMU: {clock_offset_s: 0.015, latency_s: 0.0003, jitter_s: 0.0002}
+  ODOM: {clock_drift_ppm: 300, latency_s: 0.0008, jitter_s: 0.001}
+  SCAN: {drop_probability: 0.03, burst_enter: 0.01, burst_exit: 0.3, duplicate_probability: 0.01, latency_s: 0.004}
+)", "test");
+  ASSERT_TRUE(config.ok()) << config.error().message;
+  struct Arrival {
+    int64_t utime;
+    std::string channel;
+    std::vector<uint8_t> data;
+  };
+  std::vector<Arrival> out;
+  driftlab::fault_manifest_t manifest{};
+  manifest.seed = static_cast<int64_t>(config->seed);
+  auto stream = [&](const std::string& channel, double rate, auto make) {
+    const StreamFaults f = config->streams.count(channel) ? config->streams.at(channel) : StreamFaults{};
+    StreamFaultInjector inj(channel, f, config->seed, kT0);
+    std::vector<Delivery> deliveries;
+    for (int64_t seq = 0; seq / rate <= kSeconds; ++seq) {
+      const double t = static_cast<double>(seq) / rate;
+      const int64_t true_utime = kT0 + static_cast<int64_t>(std::llround(t * 1e6));
+      deliveries.clear();
+      inj.apply(seq, true_utime, deliveries);
+      for (const Delivery& d : deliveries) out.push_back({d.arrival_utime, channel, make(seq, t, d.stamp_utime)});
+    }
+    for (auto& fault : inj.manifest(kT0 + static_cast<int64_t>(kSeconds * 1e6))) manifest.faults.push_back(fault);
+  };
+  stream("GROUND_TRUTH", 100, [](int64_t seq, double t, int64_t stamp) {
+    driftlab::pose_t m{};
+    m.header = {seq, stamp, "world"};
+    m.orientation = {std::cos(yaw(t) / 2), 0, 0, std::sin(yaw(t) / 2)};
+    return encode(m);
+  });
+  stream("IMU", 200, [](int64_t seq, double t, int64_t stamp) {
+    driftlab::imu_t m{};
+    m.header = {seq, stamp, "imu"};
+    m.angular_velocity.z = yaw_rate(t);
+    return encode(m);
+  });
+  stream("ODOM", 50, [](int64_t seq, double t, int64_t stamp) {
+    driftlab::odometry_t m{};
+    m.header = {seq, stamp, "odom"};
+    m.angular_velocity.z = yaw_rate(t);
+    return encode(m);
+  });
+  stream("SCAN", 10, [](int64_t seq, double, int64_t stamp) {
+    driftlab::laser_scan_t m{};
+    m.header = {seq, stamp, "laser"};
+    return encode(m);
+  });
+  manifest.nfaults = static_cast<int32_t>(manifest.faults.size());
+  manifest.header = {0, kT0, ""};
+  out.push_back({kT0, "FAULTS", encode(manifest)});
+  std::stable_sort(out.begin(), out.end(), [](const Arrival& a, const Arrival& b) { return a.utime < b.utime; });
+  {
+    auto w = LogWriter::create(path);
+    ASSERT_TRUE(w.ok());
+    for (const auto& a : out) ASSERT_TRUE(w->write(a.utime, a.channel, a.data).ok());
+    ASSERT_TRUE(w->close().ok());
+  }
+
+  // The truth, from the log's manifest.
+  driftlab::fault_manifest_t truth{};
+  auto reader = LogReader::open(path, {.channels = "FAULTS"});
+  ASSERT_TRUE(reader.ok());
+  Event e;
+  ASSERT_TRUE(reader->next(e));
+  ASSERT_GT(truth.decode(e.data.data(), 0, static_cast<int>(e.data.size())), 0);
+  std::set<int64_t> scan_lost;
+  int64_t scan_duplicated = 0;
+  double imu_offset = 0, odom_drift = 0;
+  for (const auto& f : truth.faults) {
+    if (f.channel == "SCAN" && (f.kind == "drop" || f.kind == "burst_drop")) scan_lost.insert(f.affected_seq.begin(), f.affected_seq.end());
+    if (f.channel == "SCAN" && f.kind == "duplicate") scan_duplicated = f.naffected;
+    if (f.channel == "IMU" && f.kind == "clock_offset") imu_offset = f.param_values[0];
+    if (f.channel == "ODOM" && f.kind == "clock_drift") odom_drift = f.param_values[0];
+  }
+  ASSERT_GT(scan_lost.size(), 5u);
+  ASSERT_GT(scan_duplicated, 0);
+
+  auto d = diagnose(path);
+  ASSERT_TRUE(d.ok());
+  const ChannelTiming& scan = channel(*d, "SCAN");
+  // Gaps are counted between the first and last message received.
+  int64_t lo = 0, hi = static_cast<int64_t>(kSeconds * 10);
+  while (scan_lost.count(lo)) ++lo;
+  while (scan_lost.count(hi)) --hi;
+  int64_t inside = 0;
+  for (int64_t s : scan_lost) inside += s > lo && s < hi;
+  EXPECT_EQ(scan.seq_gaps, inside);
+  EXPECT_EQ(scan.duplicates, scan_duplicated);
+  EXPECT_EQ(scan.verdict, "fault");
+  const StreamPair* p = pair(*d, "GROUND_TRUTH", "IMU");
+  ASSERT_NE(p, nullptr);
+  EXPECT_NEAR(p->offset_s, imu_offset, 0.001);
+  const ChannelTiming& odom = channel(*d, "ODOM");
+  ASSERT_TRUE(odom.clock_valid);
+  EXPECT_NEAR(odom.clock_drift_ppm, odom_drift, 20);
+  EXPECT_EQ(channel(*d, "GROUND_TRUTH").verdict, "ok");
+  for (const auto& c : d->channels) EXPECT_NE(c.name, "FAULTS");  // never read to diagnose
 }
 
 TEST(ReadMotion, AgreesWithLcmGensDecoders) {
