@@ -2,7 +2,9 @@
 
 #include <unistd.h>
 
+#include <cerrno>
 #include <cstdio>
+#include <cstring>
 #include <ctime>
 
 namespace driftlab::apps {
@@ -10,6 +12,18 @@ namespace driftlab::apps {
 int fail(std::string_view message, int code) {
   std::fprintf(stderr, "driftlab: %.*s\n", static_cast<int>(message.size()), message.data());
   return code;
+}
+
+bool write_output(const std::string& path, const std::string& text) {
+  if (path == "-") {
+    std::fwrite(text.data(), 1, text.size(), stdout);
+    return true;
+  }
+  FILE* f = std::fopen(path.c_str(), "w");
+  bool ok = f != nullptr && std::fwrite(text.data(), 1, text.size(), f) == text.size();
+  if (f != nullptr && std::fclose(f) != 0) ok = false;
+  if (!ok) fail(path + ": cannot write: " + std::strerror(errno), kExitFailure);
+  return ok;
 }
 
 std::string human_bytes(double bytes) {

@@ -15,6 +15,10 @@ inline constexpr int kExitBadInput = 2;
 /// Prints "driftlab: message" as one line on stderr and returns code.
 int fail(std::string_view message, int code = kExitBadInput);
 
+/// Writes text to path, or to standard output when path is "-". On failure prints one line naming the file and
+/// returns false.
+bool write_output(const std::string& path, const std::string& text);
+
 /// 1536 -> "1.5 KiB".
 std::string human_bytes(double bytes);
 /// 1234567 -> "1,234,567".

@@ -4,8 +4,6 @@
 
 #include <cmath>
 #include <cstdio>
-#include <fstream>
-#include <iostream>
 #include <memory>
 
 #include "analyzers/timing.h"
@@ -123,8 +121,8 @@ std::vector<std::string> report_lines(const Diagnosis& d, std::vector<std::strin
   return lines;
 }
 
-void write_html(const std::string& path, const Diagnosis& d, const std::vector<std::string>& lines,
-                const std::vector<std::string>& problems) {
+std::string html_page(const Diagnosis& d, const std::vector<std::string>& lines,
+                      const std::vector<std::string>& problems) {
   auto escape = [](const std::string& s) {
     std::string out;
     for (char ch : s) {
@@ -135,16 +133,15 @@ void write_html(const std::string& path, const Diagnosis& d, const std::vector<s
     }
     return out;
   };
-  std::ofstream f(path);
-  f << "<!doctype html><html><head><meta charset=\"utf-8\"><title>driftlab diagnose: " << escape(d.log)
-    << "</title><style>body{font-family:sans-serif;margin:2em}pre{background:#f6f6f6;padding:1em}"
-       "li.fault{color:#b00}</style></head><body><h1>Timing diagnosis</h1><p>"
-    << escape(d.log) << "</p><pre>";
-  for (const auto& l : lines) f << escape(l) << "\n";
-  f << "</pre><h2>Problems</h2><ul>";
-  for (const auto& p : problems) f << "<li class=\"fault\">" << escape(p) << "</li>";
-  if (problems.empty()) f << "<li>none</li>";
-  f << "</ul></body></html>\n";
+  std::string page = "<!doctype html><html><head><meta charset=\"utf-8\"><title>driftlab diagnose: " + escape(d.log) +
+                     "</title><style>body{font-family:sans-serif;margin:2em}pre{background:#f6f6f6;padding:1em}"
+                     "li.fault{color:#b00}</style></head><body><h1>Timing diagnosis</h1><p>" +
+                     escape(d.log) + "</p><pre>";
+  for (const auto& l : lines) page += escape(l) + "\n";
+  page += "</pre><h2>Problems</h2><ul>";
+  for (const auto& p : problems) page += "<li class=\"fault\">" + escape(p) + "</li>";
+  if (problems.empty()) page += "<li>none</li>";
+  return page + "</ul></body></html>\n";
 }
 
 int run_diagnose(const DiagnoseOptions& o) {
@@ -153,18 +150,10 @@ int run_diagnose(const DiagnoseOptions& o) {
   const Diagnosis& d = *result;
   std::vector<std::string> problems;
   const auto lines = report_lines(d, &problems);
-  if (!o.html.empty()) {
-    write_html(o.html, d, lines, problems);
-  }
+  if (!o.html.empty() && !write_output(o.html, html_page(d, lines, problems))) return kExitFailure;
   if (!o.json.empty()) {
-    const std::string text = to_json(d).dump(2) + "\n";
-    if (o.json == "-") {
-      std::cout << text;
-      return kExitOk;
-    }
-    std::ofstream f(o.json);
-    f << text;
-    if (!f) return fail(o.json + ": cannot write the JSON report", kExitFailure);
+    if (!write_output(o.json, to_json(d).dump(2) + "\n")) return kExitFailure;
+    if (o.json == "-") return kExitOk;
   }
   for (const auto& l : lines) std::printf("%s\n", l.c_str());
   std::printf("\n");

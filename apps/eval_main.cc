@@ -4,9 +4,7 @@
 
 #include <cmath>
 #include <cstdio>
-#include <fstream>
 #include <future>
-#include <iostream>
 #include <memory>
 #include <sstream>
 
@@ -155,16 +153,8 @@ int run_eval(const EvalOptions& o) {
     print_table(o, ev);
     return kExitOk;
   }
-  const std::string text = to_json(o, ev).dump(2) + "\n";
-  if (o.json == "-") {
-    std::cout << text;
-    return kExitOk;
-  }
-  std::ofstream f(o.json);
-  f << text;
-  f.close();
-  if (!f) return fail(o.json + ": cannot write the JSON report", kExitFailure);
-  print_table(o, ev);
+  if (!write_output(o.json, to_json(o, ev).dump(2) + "\n")) return kExitFailure;
+  if (o.json != "-") print_table(o, ev);
   return kExitOk;
 }
 
