@@ -244,9 +244,13 @@ class Session {
     LcmReassembler reassembler;
     auto chunk = queue_.take_free();
     auto last_push = Clock::now(), last_publish = Clock::now();
-    while (!stop_.load(std::memory_order_relaxed)) {
-      pollfd pfd{fd_, POLLIN, 0};
-      poll(&pfd, 1, 20);
+    for (;;) {
+      // On stop, one last pass takes what the kernel already holds, then the loop ends.
+      const bool stopping = stop_.load(std::memory_order_relaxed);
+      if (!stopping) {
+        pollfd pfd{fd_, POLLIN, 0};
+        poll(&pfd, 1, 20);
+      }
       for (;;) {
         for (int i = 0; i < kBatch; ++i) {
           iovs[i] = {buffers.data() + i * kDatagram, kDatagram};
@@ -305,6 +309,7 @@ class Session {
         publish(reassembler);
         last_publish = Clock::now();
       }
+      if (stopping) break;
     }
     if (!chunk->records.empty()) queue_.push(std::move(chunk));
     publish(reassembler);
