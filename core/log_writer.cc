@@ -120,6 +120,7 @@ Status LogWriter::write(int64_t utime, std::string_view channel, std::span<const
     std::memcpy(out, data.data() + head + middle, tail);
     buffered_ = tail;
     first_event_in_buffer_ = tail;  // the buffer starts with the end of this event
+    if (tail == 0) committed_ = written_;  // it ended on a page boundary: already whole in the file
   }
   ++events_;
   return {};
