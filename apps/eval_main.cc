@@ -105,13 +105,14 @@ void print_table(const EvalOptions& o, const Evaluation& ev) {
   std::snprintf(label, sizeof(label), "RPE [m]");
   print_stats_row(label, ev.rpe.trans);
   print_stats_row("RPE [deg]", ev.rpe.rot_deg);
-  std::printf("(RPE over %zu pairs %g %s apart%s)\n\n", ev.rpe.pairs.size(), ev.rpe.delta, to_string(ev.rpe.unit),
-              ev.rpe.all_pairs ? ", all pairs" : "");
+  const bool one_frame = ev.rpe.unit == DeltaUnit::kFrames && ev.rpe.delta == 1;
+  std::printf("(RPE over %zu pairs %g %s apart%s)\n\n", ev.rpe.pairs.size(), ev.rpe.delta,
+              one_frame ? "frame" : to_string(ev.rpe.unit), ev.rpe.all_pairs ? ", all pairs" : "");
   if (ev.drift.count == 0) {
     std::printf("drift: no segment fits in the reference path (%.3f m)\n", ev.matched.ref.path_length());
     return;
   }
-  std::printf("drift: %.3f %% of distance, %.5f deg/m (KITTI style, %s segments from every %d-th pose)\n",
+  std::printf("drift: %.3f %% of distance, %.5f deg/m (KITTI style: %s segments, one from every %d poses)\n",
               ev.drift.trans_pct, ev.drift.rot_deg_per_m, thousands(static_cast<int64_t>(ev.drift.count)).c_str(),
               o.segment_step);
   std::printf("%12s %10s %10s %12s\n", "length [m]", "segments", "trans [%]", "rot [deg/m]");
