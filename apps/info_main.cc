@@ -4,12 +4,16 @@
 
 #include <cstdio>
 #include <iostream>
+#include <algorithm>
 #include <memory>
+#include <optional>
 
 #include "apps/cli_util.h"
 #include "apps/commands.h"
 #include "core/log_format.h"
 #include "core/log_index.h"
+#include "core/log_reader.h"
+#include "driftlab/recorder_stats_t.hpp"
 #include "lcmtypes/type_registry.h"
 
 namespace driftlab::apps {
@@ -98,6 +102,29 @@ void print_table(const std::string& path, const LogSummary& s, int max_problems)
   }
 }
 
+/// The last statistics a driftlab recorder wrote into the log (they are cumulative), if it has any.
+std::optional<driftlab::recorder_stats_t> recorder_stats(const std::string& path, const LogSummary& s) {
+  const std::string channel = "DRIFTLAB_RECORDER_STATS";
+  const auto it = std::find_if(s.channels.begin(), s.channels.end(), [&](const auto& c) { return c.name == channel; });
+  if (it == s.channels.end()) return std::nullopt;
+  auto reader = LogReader::open(path, {.channels = channel});
+  if (!reader || !reader->seek(it->last_utime).ok()) return std::nullopt;
+  std::optional<driftlab::recorder_stats_t> last;
+  Event e;
+  while (reader->next(e)) {
+    driftlab::recorder_stats_t stats;
+    if (stats.decode(e.data.data(), 0, static_cast<int>(e.data.size())) > 0) last = std::move(stats);
+  }
+  return last;
+}
+
+nlohmann::json recorder_json(const driftlab::recorder_stats_t& r) {
+  return {{"received", r.received},         {"written", r.written},
+          {"lost", r.lost},                 {"kernel_dropped", r.kernel_dropped},
+          {"queue_dropped", r.queue_dropped}, {"fragments_incomplete", r.fragments_incomplete},
+          {"garbage_datagrams", r.garbage_datagrams}, {"senders", r.nsenders}};
+}
+
 int run_info(const InfoOptions& o) {
   Progress progress("scanning " + o.log);
   auto index = LogIndex::load_or_build(o.log, [&](uint64_t done, uint64_t total) { progress.update(done, total); });
@@ -108,10 +135,21 @@ int run_info(const InfoOptions& o) {
     return fail(o.log + ": not an LCM event log (no event in " + std::to_string(s.file_bytes) +
                 " bytes; an event starts with the sync word 0xEDA1DA01)");
   }
+  const auto recorded = recorder_stats(o.log, s);
   if (o.json) {
-    std::cout << to_json(o.log, s).dump(2) << "\n";
+    auto j = to_json(o.log, s);
+    if (recorded) j["recorder"] = recorder_json(*recorded);
+    std::cout << j.dump(2) << "\n";
   } else {
     print_table(o.log, s, o.max_problems);
+    if (recorded) {
+      const auto& r = *recorded;
+      std::printf("\nrecorded by driftlab record: %s messages received from %d sender%s; lost %s (sequence gaps), "
+                  "%s dropped by the kernel, %s by the recorder's queue, %s fragmented messages incomplete\n",
+                  thousands(r.received).c_str(), r.nsenders, r.nsenders == 1 ? "" : "s", thousands(r.lost).c_str(),
+                  thousands(r.kernel_dropped).c_str(), thousands(r.queue_dropped).c_str(),
+                  thousands(r.fragments_incomplete).c_str());
+    }
   }
   return kExitOk;
 }

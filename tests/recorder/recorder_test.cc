@@ -12,6 +12,7 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cstring>
 #include <filesystem>
 #include <thread>
 
@@ -80,7 +81,9 @@ std::vector<Sent> recorded(const std::string& path, driftlab::recorder_stats_t* 
   std::vector<Sent> out;
   for (const auto& e : test::read_all(path, problems)) {
     if (e.channel == "DRIFTLAB_RECORDER_STATS") {
-      if (last != nullptr) EXPECT_GT(last->decode(e.data.data(), 0, static_cast<int>(e.data.size())), 0);
+      if (last != nullptr) {
+        EXPECT_GT(last->decode(e.data.data(), 0, static_cast<int>(e.data.size())), 0);
+      }
       continue;
     }
     out.push_back({e.channel, e.data});
@@ -118,6 +121,11 @@ TEST_F(Record, CapturesEveryMessageAndWritesStatistics) {
   ASSERT_EQ(stats.nchannels, 3);
   EXPECT_EQ(stats.channels[0].channel, "CAMERA");
   EXPECT_EQ(stats.channels[0].messages, 100);
+  // `driftlab info` reports what the recorder wrote about the recording.
+  std::string info;
+  ASSERT_EQ(test::run(kDriftlab + " info " + out, &info), 0);
+  EXPECT_NE(info.find("recorded by driftlab record: 300 messages received from 1 sender; lost 0"), std::string::npos)
+      << info;
 }
 
 TEST_F(Record, ChannelFiltersKeepOnlyMatchingChannels) {
@@ -212,12 +220,11 @@ void send_raw(int fd, const std::vector<uint8_t>& bytes) {
 }
 
 std::vector<uint8_t> lc02(uint32_t seqno, const std::string& channel) {
-  std::vector<uint8_t> p(8);
+  std::vector<uint8_t> p(8 + channel.size() + 2, 0);  // header, channel, NUL, one byte of data
   logfmt::store_be32(p.data(), 0x4c433032);
   logfmt::store_be32(p.data() + 4, seqno);
-  p.insert(p.end(), channel.begin(), channel.end());
-  p.push_back(0);
-  p.push_back(42);
+  std::memcpy(p.data() + 8, channel.data(), channel.size());
+  p.back() = 42;
   return p;
 }
 
