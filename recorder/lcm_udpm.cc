@@ -178,7 +178,7 @@ std::optional<LcmMessage> LcmReassembler::feed(uint64_t sender, std::span<const 
   }
   assembled_.assign(size, 0);
   for (const auto& [number, part] : f.parts) {
-    std::memcpy(assembled_.data() + part.first, part.second.data(), part.second.size());
+    if (!part.second.empty()) std::memcpy(assembled_.data() + part.first, part.second.data(), part.second.size());
   }
   f.parts.clear();
   return complete(c, f.channel, assembled_, seqno, f.first_utime);

@@ -98,6 +98,14 @@ TEST(LcmReassembler, ReassemblesFragmentsInAnyOrderOnce) {
   EXPECT_EQ(r.senders().at(1).messages, 1);
 }
 
+TEST(LcmReassembler, AcceptsAnEmptyFragment) {
+  LcmReassembler r;
+  EXPECT_FALSE(r.feed(1, fragment(3, 3, 0, 0, 2, "C", "abc"), 0));
+  auto m = r.feed(1, fragment(3, 3, 3, 1, 2, "", ""), 0);
+  ASSERT_TRUE(m.has_value());
+  EXPECT_EQ(text(m->data), "abc");
+}
+
 TEST(LcmReassembler, CountsIncompleteFragmentedMessagesAndGarbage) {
   LcmReassembler r;
   ASSERT_TRUE(r.feed(1, short_packet(0, "C", ""), 0));
