@@ -8,11 +8,14 @@
 #include <cstring>
 #include <map>
 #include <numeric>
+#include <optional>
+#include <thread>
 
 #include "core/huge_page_allocator.h"
 #include "core/log_format.h"
 #include "core/log_reader.h"
 #include "driftlab/imu_t.hpp"
+#include "driftlab/laser_scan_t.hpp"
 #include "driftlab/odometry_t.hpp"
 #include "driftlab/pose_t.hpp"
 #include "driftlab/tf_t.hpp"
@@ -38,6 +41,7 @@ struct Samples {
   std::string frame;  // header.frame_id of the first message
   double last_yaw = 0, last_t = 0;
   bool have_last = false;
+  std::vector<std::span<const uint8_t>> scans;  // 2D scans, as views into the mapped log
 };
 
 /// The q-quantile (linear between order statistics, as numpy's default), partially ordering v in place.
@@ -129,7 +133,103 @@ bool read_motion(int64_t fingerprint, std::span<const uint8_t> data, double& sta
 
 namespace {
 
+/// The rotation between two consecutive 2D scans, as the beam shift that best lines up their range profiles
+/// (a robot turning by +d sees the world at bearings smaller by d: new[j] = old[j + d / increment]), refined to
+/// a fraction of a beam by a parabola. Enough for timing (a yaw rate to correlate), not a scan matcher.
+std::optional<double> scan_rotation(const std::vector<float>& previous, const std::vector<float>& current,
+                                    double increment, bool full_circle) {
+  const int n = static_cast<int>(current.size());
+  if (n < 16 || static_cast<int>(previous.size()) != n || increment <= 0) return std::nullopt;
+  const int max_shift = std::min(n / 4, static_cast<int>(std::ceil(0.35 / increment)));  // 0.35 rad per scan
+  std::vector<double> cost(2 * static_cast<size_t>(max_shift) + 1, INFINITY);
+  // Mean squared range difference at shift k, over every step-th beam.
+  auto cost_at = [&](int k, int step) {
+    double sum = 0;
+    int used = 0, tried = 0;
+    for (int j = 0; j < n; j += step, ++tried) {
+      int i = j + k;
+      if (full_circle) {
+        i = i < 0 ? i + n : (i >= n ? i - n : i);
+      } else if (i < 0 || i >= n) {
+        continue;
+      }
+      const float a = current[static_cast<size_t>(j)], b = previous[static_cast<size_t>(i)];
+      if (!(a > 0 && b > 0 && a < INFINITY && b < INFINITY)) continue;
+      sum += (a - b) * (a - b);
+      ++used;
+    }
+    return used > tried / 2 ? sum / used : INFINITY;
+  };
+  // Coarse (every 3rd shift, every 3rd beam), then every shift around the best (every 2nd beam).
+  int coarse = 0;
+  double coarse_cost = INFINITY;
+  for (int k = -max_shift; k <= max_shift; k += 3) {
+    const double c = cost_at(k, 3);
+    if (c < coarse_cost) {
+      coarse_cost = c;
+      coarse = k;
+    }
+  }
+  for (int k = std::max(-max_shift, coarse - 4); k <= std::min(max_shift, coarse + 4); ++k) {
+    cost[static_cast<size_t>(k + max_shift)] = cost_at(k, 2);
+  }
+  const size_t best = static_cast<size_t>(std::min_element(cost.begin(), cost.end()) - cost.begin());
+  if (!std::isfinite(cost[best])) return std::nullopt;
+  double refine = 0;
+  if (best > 0 && best + 1 < cost.size() && std::isfinite(cost[best - 1]) && std::isfinite(cost[best + 1])) {
+    const double denom = cost[best - 1] - 2 * cost[best] + cost[best + 1];
+    if (denom > 0) refine = 0.5 * (cost[best - 1] - cost[best + 1]) / denom;
+  }
+  return (static_cast<double>(best) - max_shift + refine) * increment;
+}
+
+/// Scans: the yaw rate between consecutive scans (kept as views into the mapped log during the pass), at their
+/// midpoint. Pairs of scans are independent, so two threads share them.
+void add_scan_motion(Samples& s) {
+  const size_t n = s.scans.size();
+  if (n < 2) return;
+  std::vector<double> t(n, NAN), w(n, NAN);
+  auto work = [&](size_t begin, size_t end) {
+    driftlab::laser_scan_t previous, current;
+    bool have_previous = false;
+    for (size_t i = begin; i < end; ++i) {
+      if (current.decode(s.scans[i].data(), 0, static_cast<int>(s.scans[i].size())) < 0) {
+        have_previous = false;
+        continue;
+      }
+      const double ti = static_cast<double>(current.header.utime) * 1e-6;
+      const double tp = static_cast<double>(previous.header.utime) * 1e-6;
+      const double span = static_cast<double>(current.angle_increment) * static_cast<double>(current.nranges);
+      if (have_previous && i > begin && ti > tp) {
+        if (auto d = scan_rotation(previous.ranges, current.ranges, current.angle_increment,
+                                   std::abs(span - 2 * M_PI) < 0.05)) {
+          t[i] = 0.5 * (ti + tp);
+          w[i] = *d / (ti - tp);
+        }
+      }
+      std::swap(previous, current);
+      have_previous = true;
+    }
+  };
+  // The second thread starts one scan early, to have the previous one of its first.
+  const size_t half = n / 2;
+  std::thread helper(work, half - 1, n);
+  work(0, half);
+  helper.join();
+  for (size_t i = 1; i < n; ++i) {
+    if (std::isfinite(t[i])) {
+      s.motion_t.push_back(t[i]);
+      s.motion_w.push_back(w[i]);
+    }
+  }
+  s.scans.clear();
+}
+
 void add_motion(Samples& s, int64_t fingerprint, std::span<const uint8_t> data) {
+  if (fingerprint == driftlab::laser_scan_t::getHash()) {
+    s.scans.push_back(data);  // analysed after the pass, in parallel
+    return;
+  }
   double t = 0, value = 0;
   bool is_pose = false;
   if (!read_motion(fingerprint, data, t, value, is_pose)) return;
@@ -297,67 +397,116 @@ bool sample_at(const Array<double>& t, const Array<double>& v, double x, size_t&
   return true;
 }
 
-/// The lag (b later than a) maximising the normalised correlation of two yaw-rate signals over [from, to]:
-/// both are resampled on a 1 ms grid; lags are searched every 10 ms, then every 1 ms around the best, and a
-/// parabola through the top three gives the sub-millisecond peak. Long windows use every k-th grid point
-/// (at most 5,000): the signals are smooth, so that loses nothing. Confidence is the peak correlation
-/// (0 when a signal barely moves).
-std::pair<double, double> correlate(const Samples& a, const Samples& b, double from, double to, double max_lag) {
-  constexpr double kStep = 0.001;
-  const int lags = static_cast<int>(std::round(max_lag / kStep));
-  const double lo = from + max_lag, hi = to - max_lag;
-  if (hi - lo < 2.0) return {0, 0};
-  const size_t n = static_cast<size_t>((hi - lo) / kStep);
-  const size_t stride = std::max<size_t>(1, n / 5000);
-  std::vector<double> sa(n), sb(n + 2 * static_cast<size_t>(lags));
+/// A channel's yaw rate resampled (linearly) on the log's 1 ms grid, index 0 at the log's start; NaN where the
+/// channel has no data. Built once per channel and shared by every pair and window.
+struct Grid {
+  static constexpr double kStep = 0.001;
+  std::vector<float> v;
+};
+
+Grid make_grid(const Samples& s, double log_start, double log_end) {
+  Grid g;
+  g.v.assign(static_cast<size_t>((log_end - log_start) / Grid::kStep) + 1, NAN);
   size_t hint = 0;
-  for (size_t i = 0; i < sa.size(); ++i) {
-    if (!sample_at(a.motion_t, a.motion_w, lo + static_cast<double>(i) * kStep, hint, sa[i])) return {0, 0};
+  double value = 0;
+  const size_t first = static_cast<size_t>(std::max(0.0, std::ceil((s.motion_t.front() - log_start) / Grid::kStep)));
+  for (size_t i = first; i < g.v.size(); ++i) {
+    if (!sample_at(s.motion_t, s.motion_w, log_start + static_cast<double>(i) * Grid::kStep, hint, value)) break;
+    g.v[i] = static_cast<float>(value);
   }
-  hint = 0;
-  for (size_t i = 0; i < sb.size(); ++i) {
-    if (!sample_at(b.motion_t, b.motion_w, lo - max_lag + static_cast<double>(i) * kStep, hint, sb[i])) return {0, 0};
+  return g;
+}
+
+/// The lag (b later than a) maximising the normalised correlation of two yaw-rate signals over [from, to] (times
+/// relative to the log's start): lags are searched every 10 ms (on half the points), then every 1 ms within 15 ms
+/// of the best, and a parabola through the top three gives the sub-millisecond peak. Long windows use every k-th
+/// grid point (at most 5,000): the signals are smooth, so that loses nothing. Confidence is the peak correlation
+/// (0 when a signal barely moves or has no data there).
+std::pair<double, double> correlate(const Grid& a, const Grid& b, double from, double to, double max_lag) {
+  const int lags = static_cast<int>(std::round(max_lag / Grid::kStep));
+  const long lo = static_cast<long>(std::ceil((from + max_lag) / Grid::kStep));
+  const long hi = static_cast<long>(std::floor((to - max_lag) / Grid::kStep));
+  if ((hi - lo) * Grid::kStep < 2.0 || lo - lags < 0 || hi + lags >= static_cast<long>(b.v.size()) ||
+      hi >= static_cast<long>(a.v.size())) {
+    return {0, 0};
   }
-  double mean_a = 0, var_a = 0, count = 0;
-  for (size_t i = 0; i < n; i += stride, ++count) mean_a += sa[i];
-  mean_a /= count;
+  const size_t n = static_cast<size_t>(hi - lo);
+  const size_t stride = std::max<size_t>(1, n / 5000);
+  const float* sa = a.v.data() + lo;
+  const float* sb = b.v.data() + (lo - lags);
+  double mean_a = 0, var_a = 0, points = 0;
+  for (size_t i = 0; i < n; i += stride, ++points) mean_a += sa[i];
+  mean_a /= points;
   for (size_t i = 0; i < n; i += stride) var_a += (sa[i] - mean_a) * (sa[i] - mean_a);
   // A robot that barely turns (yaw rate varying by less than 0.01 rad/s) says nothing about skew.
-  if (var_a / count < 1e-4) return {0, 0};
-  auto correlation = [&](int k) {
-    const double* y = sb.data() + k;
-    double sum = 0, sum_sq = 0, dot = 0;
-    for (size_t i = 0; i < n; i += stride) {
+  if (!(var_a / points >= 1e-4)) return {0, 0};  // also false for NaN: a has gaps here
+  auto correlation = [&](int k, size_t step) {
+    const float* y = sb + k;
+    double sum = 0, sum_sq = 0, dot = 0, count = 0;
+    for (size_t i = 0; i < n; i += step, ++count) {
       sum += y[i];
-      sum_sq += y[i] * y[i];
+      sum_sq += static_cast<double>(y[i]) * y[i];
       dot += (sa[i] - mean_a) * y[i];
     }
     const double var_b = sum_sq - sum * sum / count;
-    return var_b > 1e-12 ? dot / std::sqrt(var_a * var_b) : -2.0;
+    const double c = dot / std::sqrt(var_a * (count / points) * var_b);
+    return var_b > 1e-12 && std::isfinite(c) ? c : -2.0;
   };
   constexpr int kCoarse = 10;
   int coarse_best = lags;
   double coarse_value = -3;
   for (int k = 0; k <= 2 * lags; k += kCoarse) {
-    const double c = correlation(k);
+    const double c = correlation(k, 2 * stride);
     if (c > coarse_value) {
       coarse_value = c;
       coarse_best = k;
     }
   }
   std::vector<double> corr(2 * static_cast<size_t>(lags) + 1, -2);
-  for (int k = std::max(0, coarse_best - 2 * kCoarse); k <= std::min(2 * lags, coarse_best + 2 * kCoarse); ++k) {
-    corr[static_cast<size_t>(k)] = correlation(k);
+  for (int k = std::max(0, coarse_best - 15); k <= std::min(2 * lags, coarse_best + 15); ++k) {
+    corr[static_cast<size_t>(k)] = correlation(k, stride);
   }
   const size_t best = static_cast<size_t>(std::max_element(corr.begin(), corr.end()) - corr.begin());
+  if (corr[best] <= -2) return {0, 0};
   double refine = 0;
   if (best > 0 && best + 1 < corr.size() && corr[best - 1] > -2 && corr[best + 1] > -2) {
     const double y0 = corr[best - 1], y1 = corr[best], y2 = corr[best + 1];
     const double denom = y0 - 2 * y1 + y2;
     if (denom < 0) refine = 0.5 * (y0 - y2) / denom;
   }
-  const double lag = (static_cast<double>(best) - lags + refine) * kStep;
+  const double lag = (static_cast<double>(best) - lags + refine) * Grid::kStep;
   return {lag, std::max(0.0, corr[best])};
+}
+
+/// The skew of b against a over the windows of their common time.
+std::optional<StreamPair> skew(const std::string& a_name, const Samples& a, const Grid& ga, const std::string& b_name,
+                               const Samples& b, const Grid& gb, double log_start, const DiagnoseOptions& options) {
+  const double from = std::max(a.motion_t.front(), b.motion_t.front()) - log_start;
+  const double to = std::min(a.motion_t.back(), b.motion_t.back()) - log_start;
+  StreamPair p{a_name, b_name, 0, 0, "yaw-rate cross-correlation", {}};
+  // Windows (at most 64: long logs get longer ones) show changes along the log; the pair's offset is their
+  // confidence-weighted median, its confidence their median. A short log is one window.
+  const double window = to - from < 2 * options.window_s ? to - from : std::max(options.window_s, (to - from) / 64);
+  for (double w = from; w + window <= to + 1e-9; w += window) {
+    const auto [wl, wc] = correlate(ga, gb, w, w + window, options.max_lag_s);
+    if (wc > 0) p.windows.push_back({w, w + window, wl, wc});
+  }
+  if (p.windows.empty()) return std::nullopt;
+  std::vector<SkewWindow> by_offset = p.windows;
+  std::sort(by_offset.begin(), by_offset.end(), [](const auto& x, const auto& y) { return x.offset_s < y.offset_s; });
+  double total = 0, acc = 0;
+  for (const auto& w : by_offset) total += w.confidence;
+  for (const auto& w : by_offset) {
+    acc += w.confidence;
+    if (acc >= total / 2) {
+      p.offset_s = w.offset_s;
+      break;
+    }
+  }
+  Array<double> confidences;
+  for (const auto& w : p.windows) confidences.push_back(w.confidence);
+  p.confidence = median(std::move(confidences));
+  return p;
 }
 
 }  // namespace
@@ -461,6 +610,7 @@ Result<Diagnosis> diagnose(const std::string& log, const DiagnoseOptions& option
   d.tf = tf.finish();
 
   // Skew between every two streams that observe the yaw rate: IMU gyro, wheel odometry, poses.
+  for (auto& [name, s] : channels) add_scan_motion(s);
   std::vector<const std::pair<const std::string, Samples>*> moving;
   for (const auto& entry : channels) {
     const auto& w = entry.second.motion_w;
@@ -476,37 +626,32 @@ Result<Diagnosis> diagnose(const std::string& log, const DiagnoseOptions& option
     return x->second.motion_from_pose > y->second.motion_from_pose;
   });
   const double log_start = static_cast<double>(d.start_utime) * 1e-6;
+  // Each pair is independent: two threads share them (this machine has two cores).
+  std::vector<std::pair<size_t, size_t>> jobs;
   for (size_t i = 0; i < moving.size(); ++i) {
-    for (size_t j = i + 1; j < moving.size(); ++j) {
-      const Samples& a = moving[i]->second;
-      const Samples& b = moving[j]->second;
-      const double from = std::max(a.motion_t.front(), b.motion_t.front());
-      const double to = std::min(a.motion_t.back(), b.motion_t.back());
-      StreamPair p{moving[i]->first, moving[j]->first, 0, 0, "yaw-rate cross-correlation", {}};
-      // Windows (at most 64: long logs get longer ones) show changes along the log; the pair's offset is
-      // their confidence-weighted median, its confidence their median. A short log is one window.
-      const double window = to - from < 2 * options.window_s ? to - from : std::max(options.window_s, (to - from) / 64);
-      for (double w = from; w + window <= to + 1e-9; w += window) {
-        const auto [wl, wc] = correlate(a, b, w, w + window, options.max_lag_s);
-        if (wc > 0) p.windows.push_back({w - log_start, w + window - log_start, wl, wc});
-      }
-      if (p.windows.empty()) continue;
-      std::vector<SkewWindow> by_offset = p.windows;
-      std::sort(by_offset.begin(), by_offset.end(), [](const auto& x, const auto& y) { return x.offset_s < y.offset_s; });
-      double total = 0, acc = 0;
-      for (const auto& w : by_offset) total += w.confidence;
-      for (const auto& w : by_offset) {
-        acc += w.confidence;
-        if (acc >= total / 2) {
-          p.offset_s = w.offset_s;
-          break;
-        }
-      }
-      Array<double> confidences;
-      for (const auto& w : p.windows) confidences.push_back(w.confidence);
-      p.confidence = median(std::move(confidences));
-      d.pairs.push_back(std::move(p));
+    for (size_t j = i + 1; j < moving.size(); ++j) jobs.emplace_back(i, j);
+  }
+  const double log_end = static_cast<double>(d.end_utime) * 1e-6;
+  std::vector<Grid> grids(moving.size());
+  std::vector<std::optional<StreamPair>> results(jobs.size());
+  auto work = [&](size_t first, size_t stride) {
+    for (size_t k = first; k < moving.size(); k += stride) grids[k] = make_grid(moving[k]->second, log_start, log_end);
+  };
+  auto pairs = [&](size_t first, size_t stride) {
+    for (size_t k = first; k < jobs.size(); k += stride) {
+      const auto [i, j] = jobs[k];
+      results[k] = skew(moving[i]->first, moving[i]->second, grids[i], moving[j]->first, moving[j]->second, grids[j],
+                        log_start, options);
     }
+  };
+  std::thread helper(work, 1, 2);
+  work(0, 2);
+  helper.join();
+  helper = std::thread(pairs, 1, 2);
+  pairs(0, 2);
+  helper.join();
+  for (auto& r : results) {
+    if (r) d.pairs.push_back(std::move(*r));
   }
   return d;
 }

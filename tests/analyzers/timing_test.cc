@@ -391,6 +391,68 @@ streams:
   for (const auto& c : d->channels) EXPECT_NE(c.name, "FAULTS");  // never read to diagnose
 }
 
+/// Range from the origin along angle a to the walls of the room [-4, 7] x [-3, 5] [m].
+double room_range(double a) {
+  const double c = std::cos(a), s = std::sin(a);
+  double t = INFINITY;
+  if (c > 1e-12) t = std::min(t, 7 / c);
+  if (c < -1e-12) t = std::min(t, -4 / c);
+  if (s > 1e-12) t = std::min(t, 5 / s);
+  if (s < -1e-12) t = std::min(t, -3 / s);
+  return t;
+}
+
+class DiagnoseScanSkew : public ::testing::TestWithParam<double> {};
+
+TEST_P(DiagnoseScanSkew, TellsTheScanClockFromTheRotationScansSee) {
+  // A robot turning in place in a room; its lidar's stamps are late by the parameter.
+  test::TempDir dir;
+  const std::string path = dir.file("scan.lcm");
+  {
+    struct Arrival {
+      int64_t utime;
+      std::string channel;
+      std::vector<uint8_t> data;
+    };
+    std::vector<Arrival> out;
+    for (int64_t i = 0; i * 0.01 <= kSeconds; ++i) {
+      const double t = i * 0.01;
+      driftlab::pose_t m{};
+      m.header = {i, kT0 + static_cast<int64_t>(std::llround(t * 1e6)), "world"};
+      m.orientation = {std::cos(yaw(t) / 2), 0, 0, std::sin(yaw(t) / 2)};
+      out.push_back({m.header.utime + 100, "GROUND_TRUTH", encode(m)});
+    }
+    std::mt19937_64 rng(9);
+    std::normal_distribution<double> noise(0, 0.01);
+    for (int64_t i = 0; i * 0.1 <= kSeconds; ++i) {
+      const double t = i * 0.1;
+      driftlab::laser_scan_t m{};
+      m.header = {i, kT0 + static_cast<int64_t>(std::llround((t + GetParam()) * 1e6)), "laser"};
+      m.nranges = 720;
+      m.angle_min = static_cast<float>(-M_PI);
+      m.angle_increment = static_cast<float>(2 * M_PI / 720);
+      m.angle_max = m.angle_min + 719 * m.angle_increment;
+      for (int b = 0; b < 720; ++b) {
+        m.ranges.push_back(static_cast<float>(room_range(yaw(t) + m.angle_min + b * m.angle_increment) + noise(rng)));
+      }
+      out.push_back({kT0 + static_cast<int64_t>(std::llround((t + 0.004) * 1e6)), "SCAN", encode(m)});
+    }
+    std::stable_sort(out.begin(), out.end(), [](const Arrival& a, const Arrival& b) { return a.utime < b.utime; });
+    auto w = LogWriter::create(path);
+    ASSERT_TRUE(w.ok());
+    for (const auto& a : out) ASSERT_TRUE(w->write(a.utime, a.channel, a.data).ok());
+    ASSERT_TRUE(w->close().ok());
+  }
+  auto d = diagnose(path);
+  ASSERT_TRUE(d.ok());
+  const StreamPair* p = pair(*d, "GROUND_TRUTH", "SCAN");
+  ASSERT_NE(p, nullptr);
+  EXPECT_NEAR(p->offset_s, GetParam(), 0.001);
+  EXPECT_GT(p->confidence, 0.9);
+}
+
+INSTANTIATE_TEST_SUITE_P(Offsets, DiagnoseScanSkew, ::testing::Values(0.0, 0.03));
+
 TEST(ReadMotion, AgreesWithLcmGensDecoders) {
   driftlab::imu_t imu{};
   imu.header = {3, 1234567, "an_imu_frame"};
