@@ -183,6 +183,18 @@ std::optional<double> scan_rotation(const std::vector<float>& previous, const st
   return (static_cast<double>(best) - max_shift + refine) * increment;
 }
 
+/// Whether a message of an unknown type starts, after its fingerprint, with driftlab.header_t: a non-negative
+/// seq, a stamp within a day of its arrival, and a NUL-terminated frame name of sane length.
+bool looks_like_header(std::span<const uint8_t> data, int64_t arrival) {
+  if (data.size() < 8 + 8 + 8 + 4 + 1) return false;
+  const auto seq = static_cast<int64_t>(logfmt::load_be64(data.data() + 8));
+  const auto stamp = static_cast<int64_t>(logfmt::load_be64(data.data() + 16));
+  const uint32_t len = logfmt::load_be32(data.data() + 24);  // with the NUL
+  constexpr int64_t kDay = 86400LL * 1000000;
+  return seq >= 0 && seq < (int64_t{1} << 48) && std::abs(stamp - arrival) < kDay && len >= 1 && len <= 256 &&
+         28 + static_cast<size_t>(len) <= data.size() && data[28 + len - 1] == 0;
+}
+
 /// Scans: the yaw rate between consecutive scans (kept as views into the mapped log during the pass), at their
 /// midpoint. Pairs of scans are independent, so two threads share them.
 void add_scan_motion(Samples& s) {
@@ -534,7 +546,8 @@ Result<Diagnosis> diagnose(const std::string& log, const DiagnoseOptions& option
         it = channels.emplace(std::string(e.channel), Samples{}).first;
         const lcmtypes::TypeInfo* type = lcmtypes::find_type(logfmt::fingerprint(e.data));
         it->second.type = type != nullptr ? type->name : "";
-        it->second.has_header = type != nullptr && type->has_header;
+        // Other programs' types may carry our header too: recognise it by its shape.
+        it->second.has_header = type != nullptr ? type->has_header : looks_like_header(e.data, e.utime);
       }
       last = &it->second;
       last_name = it->first;
@@ -543,6 +556,11 @@ Result<Diagnosis> diagnose(const std::string& log, const DiagnoseOptions& option
     const int64_t fp = logfmt::fingerprint(e.data);
     s.arrival.push_back(e.utime);
     if (fp == tf_hash) tf.add_tf(e.data, e.utime, last_name.find("STATIC") != std::string_view::npos);
+    if (s.has_header && s.type.empty() && !looks_like_header(e.data, e.utime)) {
+      s.has_header = false;  // an unknown type whose header was a coincidence: treat the channel as untyped
+      s.seq.clear();
+      s.stamp.clear();
+    }
     if (s.has_header && e.data.size() >= 24) {
       s.seq.push_back(static_cast<int64_t>(logfmt::load_be64(e.data.data() + 8)));
       s.stamp.push_back(static_cast<int64_t>(logfmt::load_be64(e.data.data() + 16)));

@@ -15,6 +15,7 @@
 #include "core/log_reader.h"
 #include "core/log_writer.h"
 #include "driftlab/fault_manifest_t.hpp"
+#include "driftlab/header_t.hpp"
 #include "driftlab/imu_t.hpp"
 #include "driftlab/laser_scan_t.hpp"
 #include "driftlab/odometry_t.hpp"
@@ -452,6 +453,34 @@ TEST_P(DiagnoseScanSkew, TellsTheScanClockFromTheRotationScansSee) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Offsets, DiagnoseScanSkew, ::testing::Values(0.0, 0.03));
+
+TEST(Diagnose, ReadsOurHeaderInOtherProgramsTypes) {
+  // A foreign type (its own fingerprint) that starts with driftlab.header_t: seq gaps are still found.
+  test::TempDir dir;
+  {
+    auto w = LogWriter::create(dir.file("foreign.lcm"));
+    ASSERT_TRUE(w.ok());
+    for (int64_t seq = 0; seq < 200; ++seq) {
+      if (seq == 50 || seq == 51) continue;
+      driftlab::header_t h{seq, kT0 + seq * 10000, "sensor"};
+      std::vector<uint8_t> data(8 + static_cast<size_t>(h._getEncodedSizeNoHash()) + 16, 0);
+      data[0] = 0x12;  // a fingerprint no driftlab type has
+      h._encodeNoHash(data.data(), 8, static_cast<int>(data.size()) - 8);
+      ASSERT_TRUE(w->write(kT0 + seq * 10000 + 500, "FOREIGN", data).ok());
+    }
+    // An untyped channel whose bytes are not a header.
+    for (int i = 0; i < 100; ++i) ASSERT_TRUE(w->write(kT0 + i * 20000, "BLOB", test::payload(i, 64)).ok());
+    ASSERT_TRUE(w->close().ok());
+  }
+  auto d = diagnose(dir.file("foreign.lcm"));
+  ASSERT_TRUE(d.ok());
+  const ChannelTiming& foreign = channel(*d, "FOREIGN");
+  EXPECT_TRUE(foreign.has_header);
+  EXPECT_EQ(foreign.type, "");
+  EXPECT_EQ(foreign.seq_gaps, 2);
+  EXPECT_NEAR(foreign.latency_s.p50, 0.0005, 1e-9);
+  EXPECT_FALSE(channel(*d, "BLOB").has_header);
+}
 
 TEST(ReadMotion, AgreesWithLcmGensDecoders) {
   driftlab::imu_t imu{};
