@@ -245,10 +245,7 @@ Trajectory apply(const Alignment& a, Trajectory t) {
   return t;
 }
 
-double rotation_angle(const Eigen::Matrix3d& r) {
-  const Eigen::Vector3d axis(r(2, 1) - r(1, 2), r(0, 2) - r(2, 0), r(1, 0) - r(0, 1));
-  return std::atan2(0.5 * axis.norm(), 0.5 * (r.trace() - 1.0));
-}
+double rotation_angle(const Eigen::Quaterniond& q) { return 2 * std::atan2(q.vec().norm(), std::abs(q.w())); }
 
 ApeResult ape(const Matched& m) {
   ApeResult r;
@@ -258,7 +255,7 @@ ApeResult ape(const Matched& m) {
   for (size_t i = 0; i < n; ++i) {
     r.trans_errors[i] = (m.est.positions[i] - m.ref.positions[i]).norm();
     const Eigen::Quaterniond e = m.ref.orientations[i].conjugate() * m.est.orientations[i];
-    r.rot_errors_deg[i] = 2 * std::atan2(e.vec().norm(), std::abs(e.w())) * kRadToDeg;
+    r.rot_errors_deg[i] = rotation_angle(e) * kRadToDeg;
   }
   r.trans = compute_stats(r.trans_errors);
   r.rot_deg = compute_stats(r.rot_errors_deg);
@@ -330,7 +327,7 @@ class RelativeError {
     const Eigen::Vector3d u_rel = p[i].conjugate() * (est_.positions[j] - est_.positions[i]);
     // E = Q_rel^-1 P_rel: translation Q_rel.R^T (u_rel - t_rel), whose norm is |u_rel - t_rel|.
     const Eigen::Quaterniond e = q_rel.conjugate() * p_rel;
-    return {(u_rel - t_rel).norm(), 2 * std::atan2(e.vec().norm(), std::abs(e.w()))};
+    return {(u_rel - t_rel).norm(), rotation_angle(e)};
   }
 
  private:

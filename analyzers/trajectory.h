@@ -119,7 +119,7 @@ struct DriftResult {
 /// lengths [m]; empty: 10, 20, 30, 40 and 50% of the reference path, to two significant digits.
 DriftResult drift(const Matched& aligned, std::vector<double> lengths, size_t step = 10);
 
-/// Angle of a rotation [rad], accurate near 0 and pi.
-double rotation_angle(const Eigen::Matrix3d& r);
+/// Angle of the rotation a unit quaternion represents [rad], in [0, pi], accurate near 0 and pi.
+double rotation_angle(const Eigen::Quaterniond& q);
 
 }  // namespace driftlab::analyzers

@@ -162,7 +162,7 @@ TEST(Drift, IsThePercentOfDistanceForAScaleError) {
 
 TEST(RotationAngle, IsAccurateNearZeroAndPi) {
   for (double angle : {1e-9, 1e-4, 1.0, M_PI - 1e-7}) {
-    EXPECT_NEAR(rotation_angle(Eigen::AngleAxisd(angle, Eigen::Vector3d(1, 1, 0).normalized()).toRotationMatrix()),
+    EXPECT_NEAR(rotation_angle(Eigen::Quaterniond(Eigen::AngleAxisd(angle, Eigen::Vector3d(1, 1, 0).normalized()))),
                 angle, 1e-12);
   }
 }
