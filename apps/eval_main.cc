@@ -6,7 +6,6 @@
 #include <cstdio>
 #include <future>
 #include <memory>
-#include <sstream>
 
 #include "analyzers/trajectory.h"
 #include "analyzers/trajectory_io.h"

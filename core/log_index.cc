@@ -6,7 +6,6 @@
 #include <algorithm>
 #include <cstdio>
 #include <cstring>
-#include <fstream>
 #include <limits>
 #include <unordered_map>
 
@@ -163,12 +162,6 @@ bool deserialise(std::span<const uint8_t> bytes, const FileIdentity& expected, L
   return in.at_end();
 }
 
-std::vector<uint8_t> read_whole(const std::string& path) {
-  std::ifstream f(path, std::ios::binary);
-  if (!f) return {};
-  return std::vector<uint8_t>(std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>());
-}
-
 /// Writes the cache atomically (temporary file, then rename); failures are ignored: the cache is optional.
 void save_cache(const std::string& path, const std::vector<uint8_t>& bytes) {
   const std::string tmp = path + ".tmp." + std::to_string(getpid());
@@ -235,7 +228,7 @@ Result<LogIndex> LogIndex::load_or_build(const std::string& log_path,
   const FileIdentity id = identify(log_path, mapped->bytes());
   const std::string cache = cache_path(log_path);
   LogIndex index;
-  if (deserialise(read_whole(cache), id, index.summary_, index.entries_)) {
+  if (auto cached = MappedFile::open(cache); cached && deserialise(cached->bytes(), id, index.summary_, index.entries_)) {
     index.from_cache_ = true;
     return index;
   }

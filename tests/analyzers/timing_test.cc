@@ -47,6 +47,22 @@ constexpr double kSeconds = 60;
 double yaw_rate(double t) { return 0.5 * std::sin(0.7 * t) + 0.3 * std::sin(1.9 * t + 1); }
 double yaw(double t) { return -0.5 / 0.7 * std::cos(0.7 * t) - 0.3 / 1.9 * std::cos(1.9 * t + 1); }
 
+/// A message as it reaches the logger.
+struct Arrival {
+  int64_t utime;
+  std::string channel;
+  std::vector<uint8_t> data;
+};
+
+/// Writes a log of the messages in the order they arrive, as a logger would.
+void write_in_arrival_order(const std::string& path, std::vector<Arrival> out) {
+  std::stable_sort(out.begin(), out.end(), [](const Arrival& a, const Arrival& b) { return a.utime < b.utime; });
+  auto w = LogWriter::create(path);
+  ASSERT_TRUE(w.ok());
+  for (const auto& a : out) ASSERT_TRUE(w->write(a.utime, a.channel, a.data).ok());
+  ASSERT_TRUE(w->close().ok());
+}
+
 template <typename T>
 std::vector<uint8_t> encode(const T& m) {
   std::vector<uint8_t> b(static_cast<size_t>(m.getEncodedSize()));
@@ -58,11 +74,6 @@ void write_log(const std::string& path, const Faults& f, uint64_t seed) {
   std::mt19937_64 rng(seed);
   std::normal_distribution<double> noise(0, 1);
   std::exponential_distribution<double> jitter(1 / 0.0002);
-  struct Arrival {
-    int64_t utime;
-    std::string channel;
-    std::vector<uint8_t> data;
-  };
   std::vector<Arrival> out;
   auto us = [](double s) { return static_cast<int64_t>(std::llround(s * 1e6)); };
   for (int64_t i = 0; i * 0.01 <= kSeconds; ++i) {  // ground truth, 100 Hz, true clock
@@ -129,11 +140,7 @@ void write_log(const std::string& path, const Faults& f, uint64_t seed) {
     raw[1] = static_cast<uint8_t>(i >> 8);
     out.push_back({kT0 + us(i / 30.0), "RAW", raw});
   }
-  std::stable_sort(out.begin(), out.end(), [](const Arrival& a, const Arrival& b) { return a.utime < b.utime; });
-  auto w = LogWriter::create(path);
-  ASSERT_TRUE(w.ok());
-  for (const auto& a : out) ASSERT_TRUE(w->write(a.utime, a.channel, a.data).ok());
-  ASSERT_TRUE(w->close().ok());
+  write_in_arrival_order(path, out);
 }
 
 const ChannelTiming& channel(const Diagnosis& d, const std::string& name) {
@@ -296,11 +303,6 @@ streams:
   SCAN: {drop_probability: 0.03, burst_enter: 0.01, burst_exit: 0.3, duplicate_probability: 0.01, latency_s: 0.004}
 )", "test");
   ASSERT_TRUE(config.ok()) << config.error().message;
-  struct Arrival {
-    int64_t utime;
-    std::string channel;
-    std::vector<uint8_t> data;
-  };
   std::vector<Arrival> out;
   driftlab::fault_manifest_t manifest{};
   manifest.seed = static_cast<int64_t>(config->seed);
@@ -343,13 +345,7 @@ streams:
   manifest.nfaults = static_cast<int32_t>(manifest.faults.size());
   manifest.header = {0, kT0, ""};
   out.push_back({kT0, "FAULTS", encode(manifest)});
-  std::stable_sort(out.begin(), out.end(), [](const Arrival& a, const Arrival& b) { return a.utime < b.utime; });
-  {
-    auto w = LogWriter::create(path);
-    ASSERT_TRUE(w.ok());
-    for (const auto& a : out) ASSERT_TRUE(w->write(a.utime, a.channel, a.data).ok());
-    ASSERT_TRUE(w->close().ok());
-  }
+  write_in_arrival_order(path, out);
 
   // The truth, from the log's manifest.
   driftlab::fault_manifest_t truth{};
@@ -410,11 +406,6 @@ TEST_P(DiagnoseScanSkew, TellsTheScanClockFromTheRotationScansSee) {
   test::TempDir dir;
   const std::string path = dir.file("scan.lcm");
   {
-    struct Arrival {
-      int64_t utime;
-      std::string channel;
-      std::vector<uint8_t> data;
-    };
     std::vector<Arrival> out;
     for (int64_t i = 0; i * 0.01 <= kSeconds; ++i) {
       const double t = i * 0.01;
@@ -438,11 +429,7 @@ TEST_P(DiagnoseScanSkew, TellsTheScanClockFromTheRotationScansSee) {
       }
       out.push_back({kT0 + static_cast<int64_t>(std::llround((t + 0.004) * 1e6)), "SCAN", encode(m)});
     }
-    std::stable_sort(out.begin(), out.end(), [](const Arrival& a, const Arrival& b) { return a.utime < b.utime; });
-    auto w = LogWriter::create(path);
-    ASSERT_TRUE(w.ok());
-    for (const auto& a : out) ASSERT_TRUE(w->write(a.utime, a.channel, a.data).ok());
-    ASSERT_TRUE(w->close().ok());
+    write_in_arrival_order(path, out);
   }
   auto d = diagnose(path);
   ASSERT_TRUE(d.ok());
