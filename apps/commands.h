@@ -12,5 +12,6 @@ void add_info_command(CLI::App& app, int* exit_code);
 void add_eval_command(CLI::App& app, int* exit_code);
 void add_record_command(CLI::App& app, int* exit_code);
 void add_diagnose_command(CLI::App& app, int* exit_code);
+void add_sim_command(CLI::App& app, int* exit_code);
 
 }  // namespace driftlab::apps

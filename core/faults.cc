@@ -1,4 +1,5 @@
 #include "core/faults.h"
+#include "core/internal/faults_yaml.h"
 
 #include <yaml-cpp/yaml.h>
 
@@ -66,6 +67,10 @@ Result<FaultConfig> parse_faults(const std::string& text, const std::string& ori
   } catch (const YAML::Exception& e) {
     return Error{origin + ":" + std::to_string(e.mark.line + 1) + ": " + e.msg};
   }
+  return parse_faults(root, origin);
+}
+
+Result<FaultConfig> parse_faults(const YAML::Node& root, const std::string& origin) {
   FaultConfig config;
   if (!root || root.IsNull()) return config;
   if (!root.IsMap()) return Error{at(origin, root) + ": expected a map with 'seed' and 'streams'"};

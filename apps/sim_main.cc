@@ -1,0 +1,168 @@
+// driftlab sim: simulate a robot in a Bullet world from a scenario and write every stream to an LCM log, with
+// ground truth and the injected faults.
+#include <CLI/CLI.hpp>
+#include <lcm/lcm.h>
+#include <signal.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <chrono>
+#include <cstdio>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <thread>
+
+#include "apps/cli_util.h"
+#include "apps/commands.h"
+#include "sim/simulator.h"
+
+namespace driftlab::apps {
+namespace {
+
+struct SimArgs {
+  std::string scenario;
+  std::string out = "sim.lcm";
+  double duration = 0;
+  int64_t seed = -1;
+  std::string faults;
+  std::string live_url;
+  double live_rate = 1.0;
+  std::string rays = "grid";
+  bool json = false;
+};
+
+std::atomic<bool> g_stop{false};
+void on_signal(int) { g_stop.store(true); }
+
+/// Publishes the simulated messages on LCM as they arrive, paced against the wall clock at `rate` x real time
+/// (0: as fast as possible).
+class LivePublisher {
+ public:
+  static Result<std::unique_ptr<LivePublisher>> open(const std::string& url, double rate) {
+    lcm_t* lcm = lcm_create(url.c_str());
+    if (lcm == nullptr) return Error{"--live " + url + ": cannot open the LCM URL"};
+    return std::unique_ptr<LivePublisher>(new LivePublisher(lcm, rate));
+  }
+  ~LivePublisher() { lcm_destroy(lcm_); }
+  void publish(const std::string& channel, int64_t utime, std::span<const uint8_t> bytes) {
+    if (first_ < 0) {
+      first_ = utime;
+      start_ = std::chrono::steady_clock::now();
+    }
+    if (rate_ > 0) {
+      const auto due = start_ + std::chrono::microseconds(static_cast<int64_t>(static_cast<double>(utime - first_) / rate_));
+      std::this_thread::sleep_until(due);
+    }
+    lcm_publish(lcm_, channel.c_str(), bytes.data(), static_cast<unsigned int>(bytes.size()));
+  }
+
+ private:
+  LivePublisher(lcm_t* lcm, double rate) : lcm_(lcm), rate_(rate) {}
+  lcm_t* lcm_;
+  double rate_;
+  int64_t first_ = -1;
+  std::chrono::steady_clock::time_point start_;
+};
+
+int run_sim(const SimArgs& a) {
+  const std::string path = a.scenario.empty() ? sim::default_scenario_path() : a.scenario;
+  auto scenario = sim::load_scenario(path);
+  if (!scenario) return fail(scenario.error().message);
+  if (a.duration > 0) scenario->duration = a.duration;
+  if (a.seed >= 0) {
+    scenario->seed = static_cast<uint64_t>(a.seed);
+    scenario->faults.seed = static_cast<uint64_t>(a.seed);
+  }
+  if (!a.faults.empty()) {
+    auto faults = load_faults(a.faults);
+    if (!faults) return fail(faults.error().message);
+    const bool own_seed = faults->seed != 0;
+    scenario->faults = std::move(*faults);
+    if (!own_seed) scenario->faults.seed = scenario->seed;
+  }
+  auto simulation = sim::Simulation::create(*scenario, a.rays == "bullet" ? sim::RayBackend::kBullet : sim::RayBackend::kGrid);
+  if (!simulation) return fail(simulation.error().message);
+
+  std::unique_ptr<LivePublisher> live;
+  if (!a.live_url.empty()) {
+    auto p = LivePublisher::open(a.live_url, a.live_rate);
+    if (!p) return fail(p.error().message);
+    live = std::move(*p);
+  }
+  sim::SimOptions o;
+  o.out = a.out;
+  o.stop = &g_stop;
+  if (live) {
+    o.on_message = [&live](const std::string& c, int64_t t, std::span<const uint8_t> b) { live->publish(c, t, b); };
+  }
+  Progress progress("simulating");
+  o.progress = [&progress](double done, double total) {
+    progress.update(static_cast<uint64_t>(done * 1000), static_cast<uint64_t>(total * 1000));
+  };
+  struct sigaction sa {};
+  sa.sa_handler = on_signal;
+  sigaction(SIGINT, &sa, nullptr);
+  sigaction(SIGTERM, &sa, nullptr);
+  signal(SIGXFSZ, SIG_IGN);  // a file-size limit shows as a write error, like a full disk
+  const auto t0 = std::chrono::steady_clock::now();
+  auto report = (*simulation)->run(o);
+  const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  progress.update(1, 1);
+  if (!report) return fail(report.error().message, kExitFailure);
+  const auto& r = *report;
+  int64_t total = 0;
+  for (const auto& [channel, n] : r.messages) total += n;
+  if (a.json) {
+    nlohmann::json j;
+    j["log"] = a.out;
+    j["faults"] = r.faults_json;
+    j["scenario"] = path;
+    j["simulated_s"] = r.simulated_s;
+    j["wall_s"] = wall;
+    j["real_time_factor"] = wall > 0 ? r.simulated_s / wall : 0;
+    j["interrupted"] = r.interrupted;
+    j["messages"] = r.messages;
+    j["distance_m"] = r.distance_m;
+    j["laps"] = r.laps;
+    j["odometry_error_m"] = r.odometry_error_m;
+    std::printf("%s\n", j.dump(2).c_str());
+    return kExitOk;
+  }
+  std::printf("%s %.1f s of %s in %.2f s (%.0fx real time): %s messages to %s\n",
+              r.interrupted ? "interrupted after" : "simulated", r.simulated_s, scenario->name.c_str(), wall,
+              wall > 0 ? r.simulated_s / wall : 0.0, thousands(total).c_str(), a.out.c_str());
+  for (const auto& [channel, n] : r.messages) std::printf("  %-20s %s\n", channel.c_str(), thousands(n).c_str());
+  std::printf("drove %.1f m (%zu laps); odometry is %.2f m off the truth at the end\n", r.distance_m, r.laps,
+              r.odometry_error_m);
+  std::printf("injected faults: %s\n", r.faults_json.c_str());
+  return kExitOk;
+}
+
+}  // namespace
+
+void add_sim_command(CLI::App& app, int* exit_code) {
+  auto a = std::make_shared<SimArgs>();
+  CLI::App* cmd = app.add_subcommand(
+      "sim", "Simulate a robot (Bullet world, URDF robot, sensors, faults) and write every stream to an LCM log.");
+  cmd->footer(
+      "Without SCENARIO, runs the default indoor scenario (sim/scenarios/indoor.yaml). The same scenario and seed\n"
+      "give a byte-identical log. The log is written as OUT.partial and renamed when complete; Ctrl-C stops the\n"
+      "run and closes a valid log of what was simulated. The injected faults go to the FAULTS channel and to\n"
+      "OUT.faults.json. Scenario format: docs/simulator.md; faults: docs/faults.md.");
+  cmd->add_option("scenario", a->scenario, "Scenario file (YAML)");
+  cmd->add_option("-o,--out", a->out, "Log to write")->capture_default_str();
+  cmd->add_option("--duration", a->duration, "Simulated seconds (default: the scenario's)")->check(CLI::PositiveNumber);
+  cmd->add_option("--seed", a->seed, "Random seed (default: the scenario's)")->check(CLI::NonNegativeNumber);
+  cmd->add_option("--faults", a->faults, "Fault description (YAML) replacing the scenario's faults");
+  cmd->add_option("--live", a->live_url, "Also publish every message on this LCM URL as it arrives");
+  cmd->add_option("--live-rate", a->live_rate, "Pace --live at this multiple of real time (0: as fast as possible)")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
+  cmd->add_option("--rays", a->rays, "Ray casting: grid (fast, exact for the world's shapes) or bullet (Bullet's ray test)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"grid", "bullet"}));
+  cmd->add_flag("--json", a->json, "Print a JSON summary instead of text");
+  cmd->callback([a, exit_code] { *exit_code = run_sim(*a); });
+}
+
+}  // namespace driftlab::apps

@@ -1,0 +1,167 @@
+// The renderer exploits that every obstacle is a vertical prism (a footprint extruded between two heights): along
+// a vertical half-plane from the camera, a horizontal 2D ray crosses the same footprints at the same distances
+// whatever the elevation. So the view is cut into thin azimuth slices (a quarter pixel wide or less); each slice's
+// footprint crossings (RayCaster::spans) are computed once per frame, and each pixel only compares its own height
+// along the slice with the crossings' height ranges: a side, top or bottom face, or the floor. A level camera uses
+// one slice per column; a tilted camera uses whichever slices its pixels fall in, so any orientation works.
+#include "sim/camera_render.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <vector>
+
+namespace driftlab::sim {
+namespace {
+
+/// A cheap monotonic stand-in for the angle of (x, y): 0..4 for 0..2 pi.
+inline double diamond_angle(double x, double y) {
+  if (y >= 0) return x >= 0 ? y / (x + y) : 1 - x / (-x + y);
+  return x < 0 ? 2 - y / (-x - y) : 3 + x / (x - y);
+}
+
+/// The unit 2D direction whose diamond angle is p.
+Eigen::Vector2d diamond_direction(double p) {
+  const int q = static_cast<int>(p);
+  const double f = p - q;
+  Eigen::Vector2d v(1 - f, f);
+  for (int i = 0; i < (q & 3); ++i) v = Eigen::Vector2d(-v.y(), v.x());
+  return v.normalized();
+}
+
+struct SliceRef {
+  uint64_t frame = 0;
+  uint32_t begin = 0, end = 0;  // into Scratch::pool
+  double z_top = 0;             // highest top among the slice's spans [m]
+};
+
+/// Per-thread memory reused from frame to frame.
+struct Scratch {
+  uint64_t frame = 0;
+  std::vector<SliceRef> slices;
+  std::vector<Span> pool, tmp;
+};
+thread_local Scratch scratch;
+
+/// Which floor square (1 m checkerboard) a point is in: light or dark. (Integer floor without a libm call.)
+inline bool light_square(double x, double y) {
+  const int64_t ix = static_cast<int64_t>(x) - (x < static_cast<double>(static_cast<int64_t>(x)));
+  const int64_t iy = static_cast<int64_t>(y) - (y < static_cast<double>(static_cast<int64_t>(y)));
+  return ((ix + iy) & 1) == 0;
+}
+
+constexpr std::array<uint8_t, 3> kFloorLight{190, 190, 180}, kFloorDark{105, 105, 100};
+
+inline void put(uint8_t* px, const std::array<uint8_t, 3>& rgb, double gain) {
+  px[0] = static_cast<uint8_t>(std::min(255.0, rgb[2] * gain + 0.5));
+  px[1] = static_cast<uint8_t>(std::min(255.0, rgb[1] * gain + 0.5));
+  px[2] = static_cast<uint8_t>(std::min(255.0, rgb[0] * gain + 0.5));
+}
+
+/// Distance dimming: 1 at the camera, 0.4 at max_range.
+inline double dim(double t, double max_range) { return t >= max_range ? 0.4 : 1.0 - 0.6 * t * (1.0 / max_range); }
+
+/// Lambertian-like shading from the cosine between the ray and the surface normal.
+inline double shade(double cosine) { return 0.35 + 0.65 * std::abs(cosine); }
+
+}  // namespace
+
+void render_camera(const RayCaster& caster, const CameraModel& model, const Eigen::Isometry3d& camera_in_world,
+                   cv::Mat& bgr) {
+  const int width = std::max(1, model.width), height = std::max(1, model.height);
+  bgr.create(height, width, CV_8UC3);
+  const double max_range = model.max_range;
+  const double f = 0.5 * width / std::tan(0.5 * model.hfov);
+  const Eigen::Matrix3d R = camera_in_world.linear();
+  const Eigen::Vector3d o = camera_in_world.translation();
+  const double ox = o.x(), oy = o.y(), oz = o.z();
+  // Ray of pixel (c, r): a + c * b + r * e (not unit length).
+  const Eigen::Vector3d b = -R.col(1) / f, e = -R.col(2) / f;
+  const Eigen::Vector3d a = R.col(0) + (0.5 - 0.5 * width) * b + (0.5 - 0.5 * height) * e;
+
+  // Slices of equal diamond angle; the widest is at most 8/K rad, a quarter of a pixel's angle at the centre.
+  const int K = std::clamp(static_cast<int>(std::ceil(32.0 * width / std::max(model.hfov, 1e-3))), 64, 1 << 18);
+  const double quarter_k = K / 4.0;
+  Scratch& s = scratch;
+  ++s.frame;
+  if (s.slices.size() < static_cast<size_t>(K)) s.slices.resize(K);
+  s.pool.clear();
+  const Eigen::Vector2d origin2(ox, oy);
+
+  for (int r = 0; r < height; ++r) {
+    uint8_t* row = bgr.ptr<uint8_t>(r);
+    Eigen::Vector3d d = a + r * e;
+    for (int c = 0; c < width; ++c, d += b) {
+      uint8_t* px = row + 3 * c;
+      const double dx = d.x(), dy = d.y(), dz = d.z();
+      const double h2 = dx * dx + dy * dy, n = std::sqrt(h2 + dz * dz);
+      if (h2 < 1e-12 * n * n) {  // looking straight up or down: no azimuth, ask the caster
+        const Eigen::Vector3d unit = d / n;
+        const std::optional<Hit> hit = caster.cast(o, unit, max_range);
+        if (!hit) {
+          put(px, kSkyColor, 1.0);
+        } else if (hit->object < 0) {
+          const Eigen::Vector3d p = o + hit->range * unit;
+          put(px, light_square(p.x(), p.y()) ? kFloorLight : kFloorDark, dim(hit->range, max_range));
+        } else {
+          put(px, hit->color, shade(hit->normal.dot(unit)) * dim(hit->range, max_range));
+        }
+        continue;
+      }
+      const double h = std::sqrt(h2), inv_h = 1.0 / h;
+      const double m = dz * inv_h, scale = n * inv_h;  // height gained and 3D distance per metre of s
+      const int k = std::min(K - 1, static_cast<int>(diamond_angle(dx, dy) * quarter_k));
+      SliceRef& slice = s.slices[k];
+      if (slice.frame != s.frame) {
+        caster.spans(origin2, diamond_direction((k + 0.5) * (4.0 / K)), max_range, s.tmp);
+        slice.frame = s.frame;
+        slice.begin = static_cast<uint32_t>(s.pool.size());
+        s.pool.insert(s.pool.end(), s.tmp.begin(), s.tmp.end());
+        slice.end = static_cast<uint32_t>(s.pool.size());
+        slice.z_top = -std::numeric_limits<double>::infinity();
+        for (const Span& sp : s.tmp) slice.z_top = std::max(slice.z_top, sp.z_max);
+      }
+
+      const double s_max = max_range * h / n;
+      double best = s_max;
+      const Span* hit = nullptr;
+      double cosine = 0;
+      bool floor = false;
+      const double s_floor = (dz < 0 && oz > 0) ? oz * h / -dz : std::numeric_limits<double>::infinity();
+      if (s_floor < best) best = s_floor, floor = true;
+      // A rising ray that is above every obstacle of the slice can stop there.
+      double s_stop = best;
+      if (m > 0) s_stop = std::min(best, std::max(0.0, (slice.z_top - oz) / m));
+      for (uint32_t i = slice.begin; i < slice.end; ++i) {
+        const Span& sp = s.pool[i];
+        if (sp.s_in >= best || sp.s_in > s_stop) break;
+        const double s_in = std::max(sp.s_in, 0.0), z_in = oz + m * s_in;
+        if (z_in >= sp.z_min && z_in <= sp.z_max) {
+          if (sp.s_in <= 0) continue;  // the camera is inside this obstacle: it does not see it
+          best = s_in, hit = &sp, floor = false;
+          cosine = (sp.normal.x() * dx + sp.normal.y() * dy) / n;
+          break;  // every later span starts farther
+        }
+        if (z_in > sp.z_max && m < 0) {
+          const double st = (sp.z_max - oz) / m;
+          if (st <= sp.s_out && st < best) best = st, hit = &sp, floor = false, cosine = dz / n;
+        } else if (z_in < sp.z_min && m > 0) {
+          const double sb = (sp.z_min - oz) / m;
+          if (sb <= sp.s_out && sb < best) best = sb, hit = &sp, floor = false, cosine = dz / n;
+        }
+      }
+      if (hit != nullptr) {
+        put(px, hit->color, shade(cosine) * dim(best * scale, max_range));
+      } else if (floor) {
+        const double x = ox + best * inv_h * dx, y = oy + best * inv_h * dy;
+        put(px, light_square(x, y) ? kFloorLight : kFloorDark, dim(best * scale, max_range));
+      } else if (dz < 0 && oz > 0) {  // floor beyond max_range: the average floor colour, fully dimmed
+        put(px, {148, 148, 140}, dim(max_range, max_range));
+      } else {
+        put(px, kSkyColor, 1.0);
+      }
+    }
+  }
+}
+
+}  // namespace driftlab::sim

@@ -1,0 +1,90 @@
+// The simulator's way out: every stream's messages get their sequence number, pass through the stream's faults
+// (stamp in the source clock, arrival after latency, drops, duplicates, reordering) and are written to the log in
+// arrival order. Internal to sim/.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <memory>
+#include <optional>
+#include <queue>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "core/faults.h"
+#include "core/log_writer.h"
+
+namespace driftlab::sim {
+
+class Output {
+ public:
+  using Listener = std::function<void(const std::string&, int64_t, std::span<const uint8_t>)>;
+  Output(LogWriter& writer, const FaultConfig& faults, int64_t start_utime, Listener listener)
+      : writer_(writer), faults_(faults), start_utime_(start_utime), listener_(std::move(listener)) {}
+
+  /// Registers a stream (once per channel) and returns its id.
+  int add_stream(const std::string& channel);
+  bool has_stream(const std::string& channel) const;
+
+  /// Publishes msg (any LCM type with a driftlab.header_t `header`) measured at true time `stamp_utime` and
+  /// complete at true time `ready_utime` (a lidar's last beam) [us]. Sets header.seq and header.utime.
+  template <typename T>
+  void publish(int stream, T& msg, int64_t stamp_utime, int64_t ready_utime) {
+    Stream& s = streams_[static_cast<std::size_t>(stream)];
+    const int64_t seq = s.seq++;
+    deliveries_.clear();
+    if (s.injector) {
+      s.injector->apply(seq, stamp_utime, deliveries_);
+    } else {
+      deliveries_.push_back({stamp_utime, stamp_utime});
+    }
+    if (deliveries_.empty()) return;
+    msg.header.seq = seq;
+    msg.header.utime = deliveries_.front().stamp_utime;
+    auto bytes = std::make_shared<std::vector<uint8_t>>(static_cast<std::size_t>(msg.getEncodedSize()));
+    msg.encode(bytes->data(), 0, static_cast<int>(bytes->size()));
+    for (const Delivery& d : deliveries_) {
+      // The transport delay counts from when the message is complete.
+      queue_.push({ready_utime + (d.arrival_utime - stamp_utime), order_++, stream, bytes});
+    }
+  }
+
+  /// Writes, in arrival order, every message that arrives before `before` [us, true clock].
+  Status flush(int64_t before);
+  /// Writes a message directly at arrival time `utime` after flushing what arrives before it (the manifest).
+  Status write_now(const std::string& channel, int64_t utime, const std::vector<uint8_t>& bytes);
+
+  std::vector<driftlab::fault_t> manifest(int64_t end_utime) const;
+  const std::map<std::string, int64_t>& written() const { return written_; }
+  int64_t last_arrival() const { return last_arrival_; }
+
+ private:
+  struct Stream {
+    std::string channel;
+    int64_t seq = 0;
+    std::optional<StreamFaultInjector> injector;
+  };
+  struct Pending {
+    int64_t arrival;
+    uint64_t order;
+    int stream;
+    std::shared_ptr<const std::vector<uint8_t>> bytes;
+    bool operator>(const Pending& o) const { return arrival != o.arrival ? arrival > o.arrival : order > o.order; }
+  };
+  Status write(const std::string& channel, int64_t utime, std::span<const uint8_t> bytes);
+
+  LogWriter& writer_;
+  const FaultConfig& faults_;
+  int64_t start_utime_;
+  Listener listener_;
+  std::vector<Stream> streams_;
+  std::vector<Delivery> deliveries_;
+  std::priority_queue<Pending, std::vector<Pending>, std::greater<>> queue_;
+  uint64_t order_ = 0;
+  std::map<std::string, int64_t> written_;
+  int64_t last_arrival_ = 0;
+};
+
+}  // namespace driftlab::sim

@@ -1,0 +1,491 @@
+#include "sim/robot.h"
+
+#include <btBulletDynamicsCommon.h>
+#include <console_bridge/console.h>
+#include <tinyxml.h>
+#include <urdf_parser/urdf_parser.h>
+
+#include <Eigen/Eigenvalues>
+#include <cmath>
+#include <fstream>
+#include <map>
+#include <mutex>
+#include <sstream>
+
+namespace driftlab::sim {
+namespace {
+
+Eigen::Isometry3d to_eigen(const urdf::Pose& p) {
+  Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
+  t.translation() = Eigen::Vector3d(p.position.x, p.position.y, p.position.z);
+  t.linear() = Eigen::Quaterniond(p.rotation.w, p.rotation.x, p.rotation.y, p.rotation.z).normalized().toRotationMatrix();
+  return t;
+}
+
+btTransform to_bt(const Eigen::Isometry3d& t) {
+  const Eigen::Quaterniond q(t.rotation());
+  return btTransform(btQuaternion(static_cast<btScalar>(q.x()), static_cast<btScalar>(q.y()), static_cast<btScalar>(q.z()),
+                                  static_cast<btScalar>(q.w())),
+                     btVector3(static_cast<btScalar>(t.translation().x()), static_cast<btScalar>(t.translation().y()),
+                               static_cast<btScalar>(t.translation().z())));
+}
+
+Eigen::Isometry3d to_eigen(const btTransform& t) {
+  const btQuaternion q = t.getRotation();
+  Eigen::Isometry3d out = Eigen::Isometry3d::Identity();
+  out.linear() = Eigen::Quaterniond(q.w(), q.x(), q.y(), q.z()).normalized().toRotationMatrix();
+  out.translation() = Eigen::Vector3d(t.getOrigin().x(), t.getOrigin().y(), t.getOrigin().z());
+  return out;
+}
+
+Eigen::Vector3d to_eigen(const btVector3& v) { return {v.x(), v.y(), v.z()}; }
+btVector3 to_bt(const Eigen::Vector3d& v) {
+  return btVector3(static_cast<btScalar>(v.x()), static_cast<btScalar>(v.y()), static_cast<btScalar>(v.z()));
+}
+
+/// urdfdom reports parse errors through console_bridge; this keeps the first error of a parse for our message.
+class CaptureErrors : public console_bridge::OutputHandler {
+ public:
+  void log(const std::string& text, console_bridge::LogLevel level, const char*, int) override {
+    if (level >= console_bridge::CONSOLE_BRIDGE_LOG_ERROR && first_.empty()) first_ = text;
+  }
+  std::string first_;
+};
+
+/// Line of the first <tag name="name"> element in the document, for messages; 0 when not found.
+int line_of(const TiXmlDocument& doc, const char* tag, const std::string& name) {
+  const TiXmlElement* robot = doc.RootElement();
+  if (robot == nullptr) return 0;
+  for (const TiXmlElement* e = robot->FirstChildElement(tag); e != nullptr; e = e->NextSiblingElement(tag)) {
+    const char* n = e->Attribute("name");
+    if (n != nullptr && name == n) return e->Row();
+  }
+  return 0;
+}
+
+}  // namespace
+
+struct Robot::Impl {
+  struct Group {
+    std::string root_link;
+    Eigen::Isometry3d com_in_root = Eigen::Isometry3d::Identity();  // principal inertia frame in the root link frame
+    std::unique_ptr<btCompoundShape> shape;
+    std::vector<std::unique_ptr<btCollisionShape>> children;
+    std::unique_ptr<btDefaultMotionState> motion;
+    std::unique_ptr<btRigidBody> body;
+    Eigen::Isometry3d root_pose() const { return to_eigen(body->getWorldTransform()) * com_in_root.inverse(); }
+  };
+  struct LinkInfo {
+    int group = 0;
+    Eigen::Isometry3d in_group = Eigen::Isometry3d::Identity();  // link frame in its group's root link frame
+  };
+  struct Joint {
+    std::string name;
+    int parent_group = 0, child_group = 0;
+    Eigen::Isometry3d origin_in_parent_root = Eigen::Isometry3d::Identity();  // joint frame in the parent group's root
+    Eigen::Vector3d axis = Eigen::Vector3d::UnitX();                         // unit, in the joint frame
+    std::unique_ptr<btHingeConstraint> hinge;
+    btJointFeedback feedback;
+    double angle = 0;     // unwrapped [rad]
+    double raw = 0;       // last wrapped reading [rad]
+    double velocity = 0;  // [rad/s]
+  };
+
+  btDiscreteDynamicsWorld* world = nullptr;
+  std::string name;
+  std::vector<Group> groups;  // groups[0] holds the base link
+  std::map<std::string, LinkInfo> links;
+  std::vector<Joint> joints;
+  int left = -1, right = -1;  // drive joints
+  double left_forward = 1, right_forward = 1;  // joint rate per forward rolling rate
+  double wheel_radius = 0, wheel_separation = 0;
+  double max_wheel_torque = 0;  // [N*m]
+
+  ~Impl() {
+    for (auto& j : joints) {
+      if (j.hinge) world->removeConstraint(j.hinge.get());
+    }
+    for (auto& g : groups) {
+      if (g.body) world->removeRigidBody(g.body.get());
+    }
+  }
+
+  /// Angle of the child group about the joint axis relative to its zero position [rad, wrapped].
+  double measure(const Joint& j) const {
+    const Eigen::Isometry3d joint_world = groups[j.parent_group].root_pose() * j.origin_in_parent_root;
+    const Eigen::Matrix3d rel = joint_world.rotation().transpose() * groups[j.child_group].root_pose().rotation();
+    Eigen::Vector3d u = j.axis.unitOrthogonal();
+    const Eigen::Vector3d v = rel * u;
+    return std::atan2(u.cross(v).dot(j.axis), u.dot(v));
+  }
+  double rate(const Joint& j) const {
+    const Eigen::Vector3d axis_world =
+        (groups[j.parent_group].root_pose() * j.origin_in_parent_root).rotation() * j.axis;
+    const Eigen::Vector3d wa = to_eigen(groups[j.parent_group].body->getAngularVelocity());
+    const Eigen::Vector3d wb = to_eigen(groups[j.child_group].body->getAngularVelocity());
+    return (wb - wa).dot(axis_world);
+  }
+};
+
+Robot::Robot(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+Robot::~Robot() = default;
+
+Result<std::unique_ptr<Robot>> Robot::load(const std::string& urdf_path, btDiscreteDynamicsWorld& world,
+                                           const Eigen::Vector3d& start, const DriveOptions& drive) {
+  std::ifstream f(urdf_path);
+  if (!f) return Error{urdf_path + ": cannot open the URDF file"};
+  std::stringstream text;
+  text << f.rdbuf();
+  return create(text.str(), urdf_path, world, start, drive);
+}
+
+Result<std::unique_ptr<Robot>> Robot::create(const std::string& xml, const std::string& origin,
+                                             btDiscreteDynamicsWorld& world, const Eigen::Vector3d& start,
+                                             const DriveOptions& drive) {
+  TiXmlDocument doc;
+  doc.Parse(xml.c_str());
+  if (doc.Error()) {
+    return Error{origin + ":" + std::to_string(std::max(doc.ErrorRow(), 1)) + ": malformed XML: " + doc.ErrorDesc()};
+  }
+  auto at = [&](const char* tag, const std::string& name) {
+    const int line = line_of(doc, tag, name);
+    return origin + (line > 0 ? ":" + std::to_string(line) : std::string()) + ": " + tag + " '" + name + "'";
+  };
+
+  urdf::ModelInterfaceSharedPtr model;
+  {
+    // console_bridge's output handler is process-wide.
+    static std::mutex mutex;
+    std::lock_guard lock(mutex);
+    CaptureErrors capture;
+    console_bridge::useOutputHandler(&capture);
+    model = urdf::parseURDF(xml);
+    console_bridge::restorePreviousOutputHandler();
+    if (!model) {
+      std::string why = capture.first_.empty() ? "not a valid URDF robot" : capture.first_;
+      while (!why.empty() && (why.back() == '\n' || why.back() == ' ')) why.pop_back();
+      return Error{origin + ": " + why};
+    }
+  }
+
+  auto impl = std::make_unique<Impl>();
+  impl->world = &world;
+  impl->name = model->getName();
+  const urdf::LinkConstSharedPtr root = model->getRoot();
+  if (!root) return Error{origin + ": the URDF has no root link"};
+
+  // Group links joined by fixed joints, depth first from the root; record each moving joint.
+  struct Pending {
+    urdf::LinkConstSharedPtr link;
+    int group;
+    Eigen::Isometry3d in_group;
+  };
+  std::vector<Pending> stack{{root, 0, Eigen::Isometry3d::Identity()}};
+  impl->groups.emplace_back();
+  impl->groups[0].root_link = root->name;
+  std::vector<urdf::JointConstSharedPtr> moving;
+  std::vector<std::pair<int, Eigen::Isometry3d>> moving_parent;  // parent group, joint origin in that group's root
+  while (!stack.empty()) {
+    Pending p = stack.back();
+    stack.pop_back();
+    impl->links[p.link->name] = {p.group, p.in_group};
+    for (const auto& joint : p.link->child_joints) {
+      const urdf::LinkConstSharedPtr child = model->getLink(joint->child_link_name);
+      const Eigen::Isometry3d origin_in_group = p.in_group * to_eigen(joint->parent_to_joint_origin_transform);
+      switch (joint->type) {
+        case urdf::Joint::FIXED:
+          stack.push_back({child, p.group, origin_in_group});
+          break;
+        case urdf::Joint::CONTINUOUS:
+        case urdf::Joint::REVOLUTE: {
+          const int g = static_cast<int>(impl->groups.size());
+          impl->groups.emplace_back();
+          impl->groups[g].root_link = child->name;
+          moving.push_back(joint);
+          moving_parent.emplace_back(p.group, origin_in_group);
+          stack.push_back({child, g, Eigen::Isometry3d::Identity()});
+          break;
+        }
+        default:
+          return Error{at("joint", joint->name) +
+                       ": only fixed, continuous and revolute joints are supported (this one is prismatic, planar or "
+                       "floating)"};
+      }
+    }
+  }
+
+  // Shapes, mass and inertia per group.
+  // Group root poses in the base frame at zero joint angles (groups are created parent first).
+  std::vector<Eigen::Isometry3d> group_in_base(impl->groups.size(), Eigen::Isometry3d::Identity());
+  for (std::size_t j = 0; j < moving.size(); ++j) {
+    group_in_base[j + 1] = group_in_base[moving_parent[j].first] * moving_parent[j].second;
+  }
+  double lowest = INFINITY;
+  for (std::size_t gi = 0; gi < impl->groups.size(); ++gi) {
+    Impl::Group& g = impl->groups[gi];
+    double mass = 0;
+    Eigen::Vector3d com = Eigen::Vector3d::Zero();
+    struct Part {
+      double m;
+      Eigen::Vector3d c;
+      Eigen::Matrix3d inertia;  // about c, in the group root frame
+    };
+    std::vector<Part> parts;
+    struct ShapeAt {
+      std::unique_ptr<btCollisionShape> shape;
+      Eigen::Isometry3d pose;  // in the group root frame
+    };
+    std::vector<ShapeAt> shapes;
+    for (const auto& [link_name, info] : impl->links) {
+      if (info.group != static_cast<int>(gi)) continue;
+      const urdf::LinkConstSharedPtr link = model->getLink(link_name);
+      if (link->inertial && link->inertial->mass > 0) {
+        const urdf::Inertial& in = *link->inertial;
+        const Eigen::Isometry3d frame = info.in_group * to_eigen(in.origin);
+        Eigen::Matrix3d local;
+        local << in.ixx, in.ixy, in.ixz, in.ixy, in.iyy, in.iyz, in.ixz, in.iyz, in.izz;
+        parts.push_back({in.mass, frame.translation(), frame.rotation() * local * frame.rotation().transpose()});
+        mass += in.mass;
+        com += in.mass * frame.translation();
+      } else if (link->inertial && link->inertial->mass < 0) {
+        return Error{at("link", link_name) + ": negative mass"};
+      }
+      for (const auto& collision : link->collision_array) {
+        if (!collision->geometry) continue;
+        const Eigen::Isometry3d pose = info.in_group * to_eigen(collision->origin);
+        std::unique_ptr<btCollisionShape> shape;
+        const Eigen::Isometry3d in_base = group_in_base[gi] * pose;
+        switch (collision->geometry->type) {
+          case urdf::Geometry::BOX: {
+            const auto& b = static_cast<const urdf::Box&>(*collision->geometry);
+            if (!(b.dim.x > 0 && b.dim.y > 0 && b.dim.z > 0)) return Error{at("link", link_name) + ": box size must be positive"};
+            shape = std::make_unique<btBoxShape>(btVector3(b.dim.x / 2, b.dim.y / 2, b.dim.z / 2));
+            for (int c = 0; c < 8; ++c) {
+              const Eigen::Vector3d corner((c & 1 ? 0.5 : -0.5) * b.dim.x, (c & 2 ? 0.5 : -0.5) * b.dim.y,
+                                           (c & 4 ? 0.5 : -0.5) * b.dim.z);
+              lowest = std::min(lowest, (in_base * corner).z());
+            }
+            break;
+          }
+          case urdf::Geometry::CYLINDER: {
+            const auto& c = static_cast<const urdf::Cylinder&>(*collision->geometry);
+            if (!(c.radius > 0 && c.length > 0)) return Error{at("link", link_name) + ": cylinder radius and length must be positive"};
+            shape = std::make_unique<btCylinderShapeZ>(btVector3(c.radius, c.radius, c.length / 2));
+            // Lowest point of the cylinder: its axis end minus the radius across the axis.
+            const Eigen::Vector3d axis = in_base.rotation().col(2);
+            const double across = c.radius * std::sqrt(std::max(0.0, 1 - axis.z() * axis.z()));
+            lowest = std::min(lowest, in_base.translation().z() - std::abs(axis.z()) * c.length / 2 - across);
+            break;
+          }
+          case urdf::Geometry::SPHERE: {
+            const auto& s = static_cast<const urdf::Sphere&>(*collision->geometry);
+            if (!(s.radius > 0)) return Error{at("link", link_name) + ": sphere radius must be positive"};
+            shape = std::make_unique<btSphereShape>(s.radius);
+            lowest = std::min(lowest, in_base.translation().z() - s.radius);
+            break;
+          }
+          default:
+            return Error{at("link", link_name) +
+                         ": mesh collision geometry is not supported (use box, cylinder or sphere shapes)"};
+        }
+        shapes.push_back({std::move(shape), pose});
+      }
+    }
+    if (mass <= 0) {
+      return Error{at("link", g.root_link) + ": has no mass (give it, or a link fixed to it, an <inertial> with mass > 0)"};
+    }
+    if (shapes.empty()) {
+      return Error{at("link", g.root_link) + ": has no collision shape (it, or a link fixed to it, needs a <collision>)"};
+    }
+    com /= mass;
+    Eigen::Matrix3d inertia = Eigen::Matrix3d::Zero();
+    for (const Part& p : parts) {
+      const Eigen::Vector3d d = p.c - com;
+      inertia += p.inertia + p.m * (d.squaredNorm() * Eigen::Matrix3d::Identity() - d * d.transpose());
+    }
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(inertia);
+    Eigen::Matrix3d axes = eig.eigenvectors();
+    if (axes.determinant() < 0) axes.col(2) = -axes.col(2);
+    Eigen::Vector3d principal = eig.eigenvalues().cwiseMax(1e-6 * mass);
+    g.com_in_root.linear() = axes;
+    g.com_in_root.translation() = com;
+
+    g.shape = std::make_unique<btCompoundShape>();
+    const Eigen::Isometry3d root_in_com = g.com_in_root.inverse();
+    for (ShapeAt& s : shapes) {
+      g.shape->addChildShape(to_bt(root_in_com * s.pose), s.shape.get());
+      g.children.push_back(std::move(s.shape));
+    }
+    g.motion = std::make_unique<btDefaultMotionState>();
+    btRigidBody::btRigidBodyConstructionInfo ci(static_cast<btScalar>(mass), g.motion.get(), g.shape.get(),
+                                                to_bt(principal));
+    g.body = std::make_unique<btRigidBody>(ci);
+    g.body->setActivationState(DISABLE_DEACTIVATION);
+    g.body->setFriction(static_cast<btScalar>(drive.body_friction));
+  }
+
+  // Place the base: start x, y, yaw, lowered onto the floor.
+  Eigen::Isometry3d base = Eigen::Isometry3d::Identity();
+  base.linear() = Eigen::AngleAxisd(start.z(), Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  base.translation() = Eigen::Vector3d(start.x(), start.y(), -lowest + 1e-3);
+  for (std::size_t gi = 0; gi < impl->groups.size(); ++gi) {
+    Impl::Group& g = impl->groups[gi];
+    g.body->setWorldTransform(to_bt(base * group_in_base[gi] * g.com_in_root));
+    g.motion->setWorldTransform(g.body->getWorldTransform());
+    world.addRigidBody(g.body.get());
+  }
+
+  // Hinges.
+  for (std::size_t k = 0; k < moving.size(); ++k) {
+    const urdf::Joint& uj = *moving[k];
+    Impl::Joint j;
+    j.name = uj.name;
+    j.parent_group = moving_parent[k].first;
+    j.child_group = static_cast<int>(k + 1);
+    j.origin_in_parent_root = moving_parent[k].second;
+    j.axis = Eigen::Vector3d(uj.axis.x, uj.axis.y, uj.axis.z);
+    if (j.axis.norm() < 1e-9) return Error{at("joint", uj.name) + ": axis is zero"};
+    j.axis.normalize();
+    const Impl::Group& pa = impl->groups[j.parent_group];
+    const Impl::Group& ch = impl->groups[j.child_group];
+    const Eigen::Isometry3d joint_in_pa = pa.com_in_root.inverse() * j.origin_in_parent_root;
+    const Eigen::Isometry3d joint_in_ch = ch.com_in_root.inverse();  // the child root is the joint frame
+    j.hinge = std::make_unique<btHingeConstraint>(*pa.body, *ch.body, to_bt(Eigen::Vector3d(joint_in_pa.translation())),
+                                                  to_bt(Eigen::Vector3d(joint_in_ch.translation())),
+                                                  to_bt(Eigen::Vector3d(joint_in_pa.rotation() * j.axis)),
+                                                  to_bt(Eigen::Vector3d(joint_in_ch.rotation() * j.axis)));
+    if (uj.type == urdf::Joint::REVOLUTE && uj.limits) {
+      j.hinge->setLimit(static_cast<btScalar>(uj.limits->lower), static_cast<btScalar>(uj.limits->upper));
+    }
+    impl->joints.push_back(std::move(j));
+  }
+  for (auto& j : impl->joints) {
+    j.hinge->setJointFeedback(&j.feedback);
+    world.addConstraint(j.hinge.get(), /*disableCollisionsBetweenLinkedBodies=*/true);
+  }
+
+  // The drive.
+  auto find_joint = [&](const std::string& name) -> int {
+    for (std::size_t i = 0; i < impl->joints.size(); ++i) {
+      if (impl->joints[i].name == name) return static_cast<int>(i);
+    }
+    return -1;
+  };
+  impl->left = find_joint(drive.left_joint);
+  impl->right = find_joint(drive.right_joint);
+  for (const auto& [idx, jname] : {std::pair{impl->left, drive.left_joint}, std::pair{impl->right, drive.right_joint}}) {
+    if (idx < 0) {
+      return Error{origin + ": drive joint '" + jname + "' is not a continuous or revolute joint of robot '" +
+                   impl->name + "'"};
+    }
+  }
+  double radius[2] = {0, 0};
+  Eigen::Vector3d axle_point[2];
+  for (int side = 0; side < 2; ++side) {
+    Impl::Joint& j = impl->joints[side == 0 ? impl->left : impl->right];
+    if (j.parent_group != 0) return Error{at("joint", j.name) + ": a drive wheel must be attached to the base"};
+    const Impl::Group& wheel = impl->groups[j.child_group];
+    for (const auto& c : model->getLink(wheel.root_link)->collision_array) {
+      if (c->geometry && c->geometry->type == urdf::Geometry::CYLINDER) {
+        radius[side] = static_cast<const urdf::Cylinder&>(*c->geometry).radius;
+      } else if (c->geometry && c->geometry->type == urdf::Geometry::SPHERE) {
+        radius[side] = static_cast<const urdf::Sphere&>(*c->geometry).radius;
+      }
+    }
+    if (radius[side] <= 0) return Error{at("link", wheel.root_link) + ": a drive wheel needs a cylinder or sphere collision"};
+    // Rolling forward (+x of the base) with the contact point below the axle: which sign of the joint rate?
+    const Eigen::Vector3d axis_base = j.origin_in_parent_root.rotation() * j.axis;
+    // The contact point moves against the rolling direction: forward rolling is -(w x r_contact).x per unit rate.
+    const double forward = -axis_base.cross(Eigen::Vector3d(0, 0, -radius[side])).x();
+    if (std::abs(forward) < 1e-6 * radius[side]) {
+      return Error{at("joint", j.name) + ": a drive wheel's axis must be horizontal and across the base"};
+    }
+    (side == 0 ? impl->left_forward : impl->right_forward) = forward > 0 ? 1.0 : -1.0;
+    axle_point[side] = j.origin_in_parent_root.translation();
+    Impl::Group& wheel_group = impl->groups[j.child_group];
+    wheel_group.body->setFriction(static_cast<btScalar>(drive.wheel_friction));
+    // A drive wheel touches the floor at one point below its axle, like the centre of a tyre's contact patch: a
+    // sphere of the wheel's radius stands in for its cylinder. (A rigid cylinder touches at its two rims, and the
+    // small camber that Bullet's hinge allows under load then shifts the effective track by a few percent.)
+    for (int i = wheel_group.shape->getNumChildShapes() - 1; i >= 0; --i) {
+      if (wheel_group.shape->getChildShape(i)->getShapeType() != CYLINDER_SHAPE_PROXYTYPE) continue;
+      const btTransform t = wheel_group.shape->getChildTransform(i);
+      auto sphere = std::make_unique<btSphereShape>(static_cast<btScalar>(radius[side]));
+      wheel_group.shape->removeChildShapeByIndex(i);
+      wheel_group.shape->addChildShape(t, sphere.get());
+      wheel_group.children.push_back(std::move(sphere));
+    }
+    world.updateSingleAabb(wheel_group.body.get());
+  }
+  impl->max_wheel_torque = drive.max_wheel_torque;
+  impl->wheel_radius = 0.5 * (radius[0] + radius[1]);
+  impl->wheel_separation = std::abs(axle_point[0].y() - axle_point[1].y());
+  if (impl->wheel_separation <= 0) return Error{origin + ": the drive wheels sit at the same y: no separation"};
+  return std::unique_ptr<Robot>(new Robot(std::move(impl)));
+}
+
+const std::string& Robot::name() const { return impl_->name; }
+const std::string& Robot::base_link() const { return impl_->groups[0].root_link; }
+bool Robot::has_link(const std::string& link) const { return impl_->links.count(link) > 0; }
+
+Eigen::Isometry3d Robot::link_pose(const std::string& link) const {
+  const Impl::LinkInfo& info = impl_->links.at(link);
+  return impl_->groups[info.group].root_pose() * info.in_group;
+}
+
+Eigen::Vector3d Robot::link_linear_velocity(const std::string& link) const {
+  const Impl::LinkInfo& info = impl_->links.at(link);
+  const btRigidBody& body = *impl_->groups[info.group].body;
+  const Eigen::Vector3d rel = link_pose(link).translation() - to_eigen(body.getCenterOfMassPosition());
+  return to_eigen(body.getVelocityInLocalPoint(to_bt(rel)));
+}
+
+Eigen::Vector3d Robot::link_angular_velocity(const std::string& link) const {
+  return to_eigen(impl_->groups[impl_->links.at(link).group].body->getAngularVelocity());
+}
+
+std::optional<Eigen::Isometry3d> Robot::fixed_in_base(const std::string& link) const {
+  const Impl::LinkInfo& info = impl_->links.at(link);
+  if (info.group != 0) return std::nullopt;
+  return impl_->links.at(base_link()).in_group.inverse() * info.in_group;
+}
+
+double Robot::wheel_radius() const { return impl_->wheel_radius; }
+double Robot::wheel_separation() const { return impl_->wheel_separation; }
+
+void Robot::set_wheel_rates(double left, double right, double dt) {
+  // Bullet's hinge motor target is the rate of the parent relative to the child about the axis (the opposite
+  // of the URDF's sign convention, checked in tests/sim/robot_test.cc); its limit is an impulse per step.
+  const auto impulse = static_cast<btScalar>(impl_->max_wheel_torque * dt);
+  impl_->joints[impl_->left].hinge->enableAngularMotor(true, static_cast<btScalar>(-left * impl_->left_forward), impulse);
+  impl_->joints[impl_->right].hinge->enableAngularMotor(true, static_cast<btScalar>(-right * impl_->right_forward),
+                                                        impulse);
+}
+
+double Robot::left_wheel_angle() const { return impl_->joints[impl_->left].angle * impl_->left_forward; }
+double Robot::right_wheel_angle() const { return impl_->joints[impl_->right].angle * impl_->right_forward; }
+
+std::vector<JointReading> Robot::joints() const {
+  std::vector<JointReading> out;
+  out.reserve(impl_->joints.size());
+  for (const Impl::Joint& j : impl_->joints) {
+    const Eigen::Vector3d axis_world =
+        (impl_->groups[j.parent_group].root_pose() * j.origin_in_parent_root).rotation() * j.axis;
+    // The torque the constraint applied to the child about the joint axis (the motor's, as the hinge's other
+    // axes are locked and carry none about this one).
+    const double effort = to_eigen(j.feedback.m_appliedTorqueBodyB).dot(axis_world);
+    out.push_back({j.name, j.angle, j.velocity, effort});
+  }
+  return out;
+}
+
+void Robot::after_step(double dt) {
+  for (Impl::Joint& j : impl_->joints) {
+    const double raw = impl_->measure(j);
+    j.angle += std::remainder(raw - j.raw, 2 * M_PI);
+    j.raw = raw;
+    j.velocity = impl_->rate(j);
+  }
+}
+
+}  // namespace driftlab::sim

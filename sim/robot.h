@@ -1,0 +1,85 @@
+// A robot from a URDF file (urdfdom), built in a Bullet world: links joined by fixed joints become one rigid body
+// (a compound of their box, cylinder and sphere collision shapes, with their combined mass and inertia), and
+// continuous and revolute joints become Bullet hinges. A differential-drive base is driven through the motors of
+// its two wheel hinges, so the wheels roll, slip and push against obstacles; poses are never teleported.
+// Thread-safety: a Robot belongs to the thread that steps its world.
+#pragma once
+
+#include <Eigen/Geometry>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "core/result.h"
+
+class btDiscreteDynamicsWorld;
+
+namespace driftlab::sim {
+
+struct DriveOptions {
+  std::string left_joint = "left_wheel_joint";    ///< URDF joint of the left drive wheel
+  std::string right_joint = "right_wheel_joint";  ///< URDF joint of the right drive wheel
+  double max_wheel_torque = 2.5;                  ///< motor torque limit per wheel [N*m]
+  double wheel_friction = 1.0;                    ///< friction of the wheels (multiplied with the floor's)
+  double body_friction = 0.0;                     ///< friction of every other body (casters slide)
+};
+
+struct JointReading {
+  std::string name;
+  double position = 0;  ///< [rad], unwrapped since the start
+  double velocity = 0;  ///< [rad/s]
+  double effort = 0;    ///< motor torque about the joint axis during the last step [N*m]
+};
+
+class Robot {
+ public:
+  /// Parses `urdf_xml` (`origin` names it in errors) and adds the robot to `world`, its base link at
+  /// `start` (x, y, yaw), lowered until its lowest collision shape touches the floor z = 0. Errors name the file
+  /// and the line, link or joint: malformed XML, missing links, mesh shapes, massless bodies, unsupported joints,
+  /// drive joints that are not wheels.
+  static Result<std::unique_ptr<Robot>> create(const std::string& urdf_xml, const std::string& origin,
+                                               btDiscreteDynamicsWorld& world, const Eigen::Vector3d& start,
+                                               const DriveOptions& drive);
+  static Result<std::unique_ptr<Robot>> load(const std::string& urdf_path, btDiscreteDynamicsWorld& world,
+                                             const Eigen::Vector3d& start, const DriveOptions& drive);
+  ~Robot();
+  Robot(const Robot&) = delete;
+  Robot& operator=(const Robot&) = delete;
+
+  const std::string& name() const;
+  const std::string& base_link() const;
+  bool has_link(const std::string& link) const;
+  /// The pose of a link in the world (true, from the physics) [m, unit quaternion].
+  Eigen::Isometry3d link_pose(const std::string& link) const;
+  /// The velocity of a link's origin and the angular velocity of its body, both in the world frame [m/s, rad/s].
+  Eigen::Vector3d link_linear_velocity(const std::string& link) const;
+  Eigen::Vector3d link_angular_velocity(const std::string& link) const;
+  /// The pose of a link in the base link's frame when the link is rigidly attached to the base (static TF);
+  /// nullopt when a moving joint lies between them.
+  std::optional<Eigen::Isometry3d> fixed_in_base(const std::string& link) const;
+
+  /// Wheel geometry, from the URDF: radius of the drive wheels' collision cylinders or spheres, and the
+  /// distance between the wheels along the axle [m].
+  double wheel_radius() const;
+  double wheel_separation() const;
+  /// Motor targets for the drive wheels, as forward rolling rates: positive drives the base forward [rad/s],
+  /// for the next physics step of dt [s] (the torque limit becomes an impulse limit per step).
+  void set_wheel_rates(double left, double right, double dt);
+  /// Forward rolling angle of the drive wheels since the start (what an encoder counts) [rad].
+  double left_wheel_angle() const;
+  double right_wheel_angle() const;
+
+  /// Every continuous and revolute joint (in URDF order).
+  std::vector<JointReading> joints() const;
+
+  /// Call after each physics step of dt [s]: tracks joint angles through full turns.
+  void after_step(double dt);
+
+ private:
+  struct Impl;
+  explicit Robot(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace driftlab::sim

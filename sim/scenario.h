@@ -1,0 +1,121 @@
+// A simulation scenario (YAML, docs/simulator.md): the world, the robot and its drive, the route the controller
+// follows, the sensors with their rates and noise models, the faults and the duration.
+// Thread-safety: plain values; the functions are reentrant.
+#pragma once
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "controller/pure_pursuit.h"
+#include "core/faults.h"
+#include "core/result.h"
+#include "sim/robot.h"
+#include "sim/world.h"
+
+namespace driftlab::sim {
+
+enum class SensorType { kLidar2d, kLidar3d, kImu, kOdometry, kCamera, kGroundTruth, kJointState };
+
+struct Lidar2dParams {
+  int beams = 360;
+  double fov = 2 * M_PI;      ///< [rad], centred on the link's x axis
+  double range_min = 0.1;     ///< [m]
+  double range_max = 30;      ///< [m]
+  double range_noise = 0.01;  ///< standard deviation [m]
+};
+
+struct Lidar3dParams {
+  int rings = 16;
+  int columns = 1800;
+  double vertical_min = -0.2618;  ///< elevation of the lowest ring [rad]
+  double vertical_max = 0.2618;   ///< elevation of the highest ring [rad]
+  double range_min = 0.3;         ///< [m]
+  double range_max = 100;         ///< [m]
+  double range_noise = 0.02;      ///< standard deviation [m]
+};
+
+/// Noise densities as in Kalibr's IMU model: white noise [unit/sqrt(Hz)] and bias random walk [unit/s/sqrt(Hz)].
+struct ImuParams {
+  double gyro_noise_density = 1.7e-4;    ///< [rad/s/sqrt(Hz)]
+  double gyro_random_walk = 2.0e-5;      ///< [rad/s^2/sqrt(Hz)]
+  double accel_noise_density = 2.0e-3;   ///< [m/s^2/sqrt(Hz)]
+  double accel_random_walk = 3.0e-4;     ///< [m/s^3/sqrt(Hz)]
+  double gyro_bias = 0.002;              ///< standard deviation of each axis' initial gyro bias [rad/s]
+  double accel_bias = 0.02;              ///< standard deviation of each axis' initial accelerometer bias [m/s^2]
+};
+
+struct OdometryParams {
+  int ticks_per_rev = 4096;       ///< encoder resolution [ticks per wheel turn]
+  double left_radius_error = 0;   ///< the odometry's belief of the left wheel radius is off by this fraction
+  double right_radius_error = 0;  ///< ... and the right's
+  double separation_error = 0;    ///< ... and of the wheel separation
+  double slip_noise = 0.01;       ///< random slip: each wheel increment is off by this fraction (std. deviation)
+  std::string frame = "odom";
+  std::string tf_channel = "TF";  ///< also publish odom -> base link there ("" to disable)
+};
+
+struct CameraParams {
+  int width = 320;
+  int height = 240;
+  double hfov = 1.2;        ///< horizontal field of view [rad]
+  double max_range = 20;    ///< [m]
+  std::string encoding = "jpeg";  ///< "jpeg" or "png"
+  int quality = 80;         ///< JPEG quality, 1..100
+};
+
+struct SensorConfig {
+  SensorType type = SensorType::kGroundTruth;
+  std::string channel;
+  std::string link;  ///< URDF link the sensor sits on (the base link when not given)
+  double rate = 10;  ///< [Hz]
+  int line = 0;      ///< in the scenario file, for messages
+  Lidar2dParams lidar2d;
+  Lidar3dParams lidar3d;
+  ImuParams imu;
+  OdometryParams odometry;
+  CameraParams camera;
+};
+
+struct ControllerConfig {
+  double rate = 20;  ///< [Hz]
+  std::string channel = "CMD";
+  double footprint_radius = 0.2;  ///< for the reactive obstacle avoidance [m]
+  controller::PurePursuitOptions pursuit;
+};
+
+struct Scenario {
+  std::string path;  ///< the scenario file
+  std::string name;
+  double duration = 600;                       ///< [s]
+  uint64_t seed = 1;
+  int64_t start_utime = 1763776800000000;      ///< true time of the first step [us since the epoch]
+  double physics_step = 0.001;                 ///< [s]
+  int solver_iterations = 6;                   ///< Bullet's constraint solver iterations per step
+  std::string world_path;
+  World world;
+  std::string urdf_path;
+  Eigen::Vector3d start = Eigen::Vector3d::Zero();  ///< x, y [m], yaw [rad]
+  DriveOptions drive;
+  ControllerConfig controller;
+  std::vector<controller::Point2> route;
+  std::string tf_static_channel = "TF_STATIC";
+  double tf_static_rate = 1;                   ///< [Hz]
+  std::string faults_channel = "FAULTS";       ///< the fault manifest (a truth channel)
+  std::vector<SensorConfig> sensors;
+  FaultConfig faults;
+};
+
+/// Parses a scenario; relative paths (world, URDF) are resolved against `base_dir`. Errors: "ORIGIN:LINE: ..."
+/// naming the key (unknown keys, wrong types, negative rates, unknown sensor types, a malformed world file).
+/// The URDF is only read when the simulation starts (links are checked there).
+Result<Scenario> parse_scenario(const std::string& yaml_text, const std::string& origin, const std::string& base_dir);
+Result<Scenario> load_scenario(const std::string& path);
+
+/// The scenario used when none is given (sim/scenarios/indoor.yaml in the source or install tree).
+std::string default_scenario_path();
+
+const char* sensor_type_name(SensorType type);
+
+}  // namespace driftlab::sim

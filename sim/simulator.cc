@@ -1,0 +1,279 @@
+#include "sim/simulator.h"
+
+#include <btBulletDynamicsCommon.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <set>
+
+#include "core/log_writer.h"
+#include "driftlab/fault_manifest_t.hpp"
+#include "driftlab/tf_t.hpp"
+#include "driftlab/velocity_command_t.hpp"
+#include "sim/bullet_world.h"
+#include "sim/internal/output.h"
+#include "sim/internal/sensors.h"
+#include "sim/raycaster.h"
+
+namespace driftlab::sim {
+namespace {
+
+std::string faults_json_path(const std::string& log) {
+  std::filesystem::path p(log);
+  if (p.extension() == ".lcm") p.replace_extension();
+  return p.string() + ".faults.json";
+}
+
+Status write_faults_json(const std::string& path, const Scenario& sc, int64_t end_utime,
+                         const std::vector<driftlab::fault_t>& faults) {
+  nlohmann::json j;
+  j["scenario"] = sc.path;
+  j["seed"] = sc.faults.seed;
+  j["start_utime"] = sc.start_utime;
+  j["end_utime"] = end_utime;
+  j["faults"] = nlohmann::json::array();
+  for (const auto& f : faults) {
+    nlohmann::json params = nlohmann::json::object();
+    for (std::size_t i = 0; i < f.param_names.size(); ++i) params[f.param_names[i]] = f.param_values[i];
+    j["faults"].push_back({{"channel", f.channel},
+                           {"kind", f.kind},
+                           {"start_utime", f.start_utime},
+                           {"end_utime", f.end_utime},
+                           {"params", params},
+                           {"affected_seq", f.affected_seq}});
+  }
+  const std::string tmp = path + ".partial";
+  {
+    std::ofstream out(tmp, std::ios::trunc);
+    out << j.dump(2) << '\n';
+    if (!out.flush()) return Error{tmp + ": cannot write the fault manifest"};
+  }
+  std::error_code ec;
+  std::filesystem::rename(tmp, path, ec);
+  if (ec) return Error{path + ": cannot write the fault manifest: " + ec.message()};
+  return {};
+}
+
+driftlab::vector3_t vec(const Eigen::Vector3d& v) { return {v.x(), v.y(), v.z()}; }
+
+}  // namespace
+
+struct Simulation::Impl {
+  Scenario sc;
+  RayBackend rays;
+  std::unique_ptr<BulletWorld> physics;
+  std::unique_ptr<Robot> robot;
+  std::unique_ptr<RayCaster> caster;
+  bool has_odometry = false;
+};
+
+Simulation::Simulation(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+Simulation::~Simulation() = default;
+
+Result<std::unique_ptr<Simulation>> Simulation::create(const Scenario& scenario, RayBackend rays) {
+  auto impl = std::make_unique<Impl>();
+  impl->sc = scenario;
+  impl->rays = rays;
+  const Scenario& sc = impl->sc;
+  impl->physics = std::make_unique<BulletWorld>(sc.world);
+  impl->physics->dynamics().getSolverInfo().m_numIterations = sc.solver_iterations;
+  auto robot_or = Robot::load(sc.urdf_path, impl->physics->dynamics(), sc.start, sc.drive);
+  if (!robot_or) return robot_or.error();
+  impl->robot = std::move(*robot_or);
+  const Robot& robot = *impl->robot;
+
+  // Every sensor's link must exist; every faulted channel must be published.
+  std::set<std::string> channels{sc.controller.channel, sc.tf_static_channel};
+  for (const SensorConfig& s : sc.sensors) {
+    if (!s.link.empty() && !robot.has_link(s.link)) {
+      return Error{sc.path + ":" + std::to_string(s.line) + ": sensor " + s.channel + " is on link '" + s.link +
+                   "', which robot '" + robot.name() + "' (" + sc.urdf_path + ") does not have"};
+    }
+    channels.insert(s.channel);
+    if (s.type == SensorType::kOdometry) {
+      impl->has_odometry = true;
+      if (!s.odometry.tf_channel.empty()) channels.insert(s.odometry.tf_channel);
+    }
+  }
+  for (const auto& [channel, faults] : sc.faults.streams) {
+    if (!channels.count(channel)) {
+      std::string known;
+      for (const auto& c : channels) known += (known.empty() ? "" : ", ") + c;
+      return Error{sc.path + ": faults name channel '" + channel + "', which this scenario does not publish (" + known +
+                   ")"};
+    }
+  }
+
+  impl->caster = std::make_unique<RayCaster>(sc.world);
+  return std::unique_ptr<Simulation>(new Simulation(std::move(impl)));
+}
+
+Result<SimReport> Simulation::run(const SimOptions& options) {
+  const Scenario& sc = impl_->sc;
+  Robot& robot = *impl_->robot;
+  BulletWorld& physics = *impl_->physics;
+  const RayCaster& caster = *impl_->caster;
+  const bool has_odometry = impl_->has_odometry;
+  auto writer = LogWriter::create(options.out, {.atomic = true});
+  if (!writer) return writer.error();
+  Output out(*writer, sc.faults, sc.start_utime, options.on_message);
+
+  RangeFn range;
+  if (impl_->rays == RayBackend::kBullet) {
+    range = [&physics](const Eigen::Vector3d& o, const Eigen::Vector3d& d, double max) {
+      return physics.ray_test(o, d, max).value_or(INFINITY);
+    };
+  } else {
+    range = [&caster](const Eigen::Vector3d& o, const Eigen::Vector3d& d, double max) { return caster.range(o, d, max); };
+  }
+
+  // The robot's dead reckoning, which the controller follows (published when the scenario has an odometry sensor).
+  OdometryParams hidden;
+  double odom_rate = 50;
+  for (const SensorConfig& s : sc.sensors) {
+    if (s.type == SensorType::kOdometry) {
+      hidden = s.odometry;
+      odom_rate = s.rate;
+    }
+  }
+  WheelOdometry odometry(hidden, robot, stream_seed(sc.seed, "odometry"));
+  std::vector<std::unique_ptr<Sensor>> sensors;
+  for (const SensorConfig& s : sc.sensors) sensors.push_back(make_sensor(s, robot, out, sc.seed, &odometry));
+
+  controller::PurePursuit pursuit(sc.route, sc.controller.pursuit);
+  constexpr int kProximityRays = 36;
+  std::vector<controller::Point2> proximity;
+  controller::AvoidOptions avoid;
+  avoid.radius = sc.controller.footprint_radius;
+  const int cmd_stream = out.add_stream(sc.controller.channel);
+  const int static_stream = out.add_stream(sc.tf_static_channel);
+  std::vector<std::string> static_links;
+  for (const SensorConfig& s : sc.sensors) {
+    if (!s.link.empty() && s.link != robot.base_link() && robot.fixed_in_base(s.link) &&
+        std::find(static_links.begin(), static_links.end(), s.link) == static_links.end()) {
+      static_links.push_back(s.link);
+    }
+  }
+
+  const auto step_us = static_cast<int64_t>(std::llround(sc.physics_step * 1e6));
+  const double dt = static_cast<double>(step_us) * 1e-6;
+  const auto end_us = static_cast<int64_t>(std::llround(sc.duration * 1e6));
+  const double r = robot.wheel_radius(), b = robot.wheel_separation();
+  const double c0 = std::cos(sc.start.z()), s0 = std::sin(sc.start.z());
+  SimReport report;
+  int64_t n_cmd = 0, n_static = 0, n_odom = 0, next_progress = 0;
+  Eigen::Vector3d last_position = robot.link_pose(robot.base_link()).translation();
+
+  int64_t t_us = 0;
+  for (; t_us <= end_us; t_us += step_us) {
+    if (options.stop != nullptr && options.stop->load(std::memory_order_relaxed)) {
+      report.interrupted = true;
+      break;
+    }
+    const int64_t now = sc.start_utime + t_us;
+    if (!has_odometry && t_us >= due_us(n_odom, odom_rate)) {
+      ++n_odom;
+      odometry.update(robot, 1.0 / odom_rate);
+    }
+    SensorContext ctx{robot, caster, range, out, sc.start_utime, now};
+    for (auto& s : sensors) s->step(ctx);
+
+    if (t_us >= due_us(n_static, sc.tf_static_rate)) {
+      ++n_static;
+      driftlab::tf_t tf{};
+      tf.header.frame_id = robot.base_link();
+      for (const std::string& link : static_links) {
+        const Eigen::Isometry3d p = *robot.fixed_in_base(link);
+        driftlab::transform_t t{};
+        t.header.utime = now;
+        t.header.frame_id = robot.base_link();
+        t.child_frame_id = link;
+        t.translation = vec(p.translation());
+        const Eigen::Quaterniond q(p.rotation());
+        t.rotation = {q.w(), q.x(), q.y(), q.z()};
+        tf.transforms.push_back(t);
+      }
+      tf.ntransforms = static_cast<int32_t>(tf.transforms.size());
+      out.publish(static_stream, tf, now, now);
+    }
+
+    // The controller follows the route from the robot's odometry (started at the robot's start pose).
+    if (t_us >= due_us(n_cmd, sc.controller.rate)) {
+      ++n_cmd;
+      const controller::Pose2 estimate{sc.start.x() + c0 * odometry.x() - s0 * odometry.y(),
+                                       sc.start.y() + s0 * odometry.x() + c0 * odometry.y(),
+                                       sc.start.z() + odometry.yaw()};
+      controller::Command cmd = pursuit.update(estimate, 1.0 / sc.controller.rate);
+      // The robot's proximity ring (a bumper-height range-sensor ring) feeds the reactive safety layer.
+      const Eigen::Isometry3d base = robot.link_pose(robot.base_link());
+      const Eigen::Vector3d ring_origin = base * Eigen::Vector3d(0, 0, 0.05);
+      proximity.clear();
+      for (int i = 0; i < kProximityRays; ++i) {
+        const double a = 2 * M_PI * i / kProximityRays;
+        const Eigen::Vector3d local(std::cos(a), std::sin(a), 0);
+        const double d = caster.range(ring_origin, base.rotation() * local, 1.0);
+        if (std::isfinite(d)) proximity.push_back({local.x() * d, local.y() * d});
+      }
+      cmd = controller::avoid_obstacles(cmd, proximity, avoid);
+      robot.set_wheel_rates((cmd.linear - cmd.angular * b / 2) / r, (cmd.linear + cmd.angular * b / 2) / r, dt);
+      driftlab::velocity_command_t m{};
+      m.header.frame_id = robot.base_link();
+      m.linear = {cmd.linear, 0, 0};
+      m.angular = {0, 0, cmd.angular};
+      out.publish(cmd_stream, m, now, now);
+    }
+
+    if (Status s = out.flush(now); !s) {
+      writer->discard();
+      return Error{s.message()};
+    }
+    if (options.progress && t_us >= next_progress) {
+      options.progress(static_cast<double>(t_us) * 1e-6, sc.duration);
+      next_progress += 1000000;
+    }
+
+    physics.dynamics().stepSimulation(static_cast<btScalar>(dt), 0);
+    robot.after_step(dt);
+    const Eigen::Vector3d position = robot.link_pose(robot.base_link()).translation();
+    report.distance_m += (position - last_position).head<2>().norm();
+    last_position = position;
+  }
+
+  // Deliver what is still in flight, then the manifest, then commit the log.
+  const int64_t end_utime = sc.start_utime + std::min(t_us, end_us);
+  if (Status s = out.flush(INT64_MAX); !s) {
+    writer->discard();
+    return Error{s.message()};
+  }
+  const std::vector<driftlab::fault_t> faults = out.manifest(end_utime);
+  driftlab::fault_manifest_t manifest{};
+  manifest.header.seq = 0;
+  manifest.header.utime = end_utime;
+  manifest.header.frame_id = "";
+  manifest.seed = static_cast<int64_t>(sc.faults.seed);
+  manifest.faults = faults;
+  manifest.nfaults = static_cast<int32_t>(faults.size());
+  std::vector<uint8_t> bytes(static_cast<std::size_t>(manifest.getEncodedSize()));
+  manifest.encode(bytes.data(), 0, static_cast<int>(bytes.size()));
+  if (Status s = out.write_now(sc.faults_channel, end_utime, bytes); !s) {
+    writer->discard();
+    return Error{s.message()};
+  }
+  if (Status s = writer->close(); !s) return Error{s.message()};
+  report.faults_json = faults_json_path(options.out);
+  if (Status s = write_faults_json(report.faults_json, sc, end_utime, faults); !s) return Error{s.message()};
+
+  report.simulated_s = static_cast<double>(std::min(t_us, end_us)) * 1e-6;
+  report.messages = out.written();
+  report.laps = pursuit.laps();
+  const Eigen::Vector3d truth = robot.link_pose(robot.base_link()).translation();
+  const Eigen::Vector2d estimate(sc.start.x() + c0 * odometry.x() - s0 * odometry.y(),
+                                 sc.start.y() + s0 * odometry.x() + c0 * odometry.y());
+  report.odometry_error_m = (truth.head<2>() - estimate).norm();
+  return report;
+}
+
+}  // namespace driftlab::sim
