@@ -90,4 +90,13 @@ int run(const std::string& command, std::string* out) {
   return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
 }
 
+CmdResult run_capture(const std::string& command) {
+  TempDir dir;
+  CmdResult r;
+  r.code = run(command + " 2>" + dir.file("err"), &r.out);
+  const auto err = read_file(dir.file("err"));
+  r.err.assign(err.begin(), err.end());
+  return r;
+}
+
 }  // namespace driftlab::test

@@ -49,4 +49,12 @@ std::vector<OwnedEvent> read_all_memory(const std::vector<uint8_t>& bytes, std::
 /// Runs a shell command; returns its exit code and fills out with its standard output.
 int run(const std::string& command, std::string* out = nullptr);
 
+struct CmdResult {
+  int code;
+  std::string out;  ///< standard output
+  std::string err;  ///< standard error
+};
+/// Runs a shell command and keeps both of its outputs.
+CmdResult run_capture(const std::string& command);
+
 }  // namespace driftlab::test

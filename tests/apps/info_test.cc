@@ -11,20 +11,8 @@ namespace {
 const std::string kDriftlab = std::string(DRIFTLAB_BIN_DIR) + "/driftlab";
 const std::string kData = DRIFTLAB_TEST_DATA;
 
-struct CmdResult {
-  int code;
-  std::string out;
-  std::string err;
-};
-
-CmdResult driftlab(const std::string& args) {
-  test::TempDir dir;
-  CmdResult r;
-  r.code = test::run(kDriftlab + " " + args + " 2>" + dir.file("err"), &r.out);
-  auto err = test::read_file(dir.file("err"));
-  r.err.assign(err.begin(), err.end());
-  return r;
-}
+using test::CmdResult;
+CmdResult driftlab(const std::string& args) { return test::run_capture(kDriftlab + " " + args); }
 
 nlohmann::json golden(const std::string& name) {
   auto bytes = test::read_file(kData + "/" + name);

@@ -92,7 +92,6 @@ TEST(Robot, TurnsOnTheSpotAsTheWheelGeometrySays) {
   const double truth = turned_by_wheels + std::remainder(yaw_of(base) - turned_by_wheels, 2 * M_PI);
   EXPECT_GT(truth, 5.0);
   EXPECT_NEAR(truth / turned_by_wheels, 1.0, 0.01) << truth << " " << turned_by_wheels;
-  std::printf("ratio %.5f\n", truth / turned_by_wheels);
 }
 
 TEST(Robot, TorqueLimitSlowsTheStart) {
