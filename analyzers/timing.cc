@@ -42,6 +42,9 @@ struct Samples {
   double last_yaw = 0, last_t = 0;
   bool have_last = false;
   std::vector<std::span<const uint8_t>> scans;  // 2D scans, as views into the mapped log
+  // A spinning lidar stamps its first beam but is complete only at its last: that much later [us] (from the
+  // first scan), which latency and the clock fit add to the stamp.
+  int64_t ready_after_us = 0;
 };
 
 /// The q-quantile (linear between order statistics, as numpy's default), partially ordering v in place.
@@ -215,7 +218,9 @@ void add_scan_motion(Samples& s) {
       if (have_previous && i > begin && ti > tp) {
         if (auto d = scan_rotation(previous.ranges, current.ranges, current.angle_increment,
                                    std::abs(span - 2 * M_PI) < 0.05)) {
-          t[i] = 0.5 * (ti + tp);
+          // Beams are measured through the scan: on average half its duration after the stamp.
+          const double beams = 0.5 * (current.nranges - 1) * std::max(0.0f, current.time_increment);
+          t[i] = 0.5 * (ti + tp) + (beams < 1.0 ? beams : 0.0);
           w[i] = *d / (ti - tp);
         }
       }
@@ -239,6 +244,13 @@ void add_scan_motion(Samples& s) {
 
 void add_motion(Samples& s, int64_t fingerprint, std::span<const uint8_t> data) {
   if (fingerprint == driftlab::laser_scan_t::getHash()) {
+    if (s.scans.empty()) {
+      driftlab::laser_scan_t first;
+      if (first.decode(data.data(), 0, static_cast<int>(data.size())) >= 0 && first.nranges > 1 &&
+          first.time_increment > 0 && first.time_increment < 1) {
+        s.ready_after_us = std::llround((first.nranges - 1) * static_cast<double>(first.time_increment) * 1e6);
+      }
+    }
     s.scans.push_back(data);  // analysed after the pass, in parallel
     return;
   }
@@ -606,10 +618,13 @@ Result<Diagnosis> diagnose(const std::string& log, const DiagnoseOptions& option
       for (size_t i = 0; i < s.stamp.size(); ++i) {
         if (s.stamp[i] < newest && s.seq[i] != s.seq[i - 1]) ++c.out_of_order_stamp;
         newest = std::max(newest, s.stamp[i]);
-        latency[i] = static_cast<double>(s.arrival[i] - s.stamp[i]) * 1e-6;
+        latency[i] = static_cast<double>(s.arrival[i] - s.stamp[i] - s.ready_after_us) * 1e-6;
       }
       c.latency_s = distribution(std::move(latency));
+      // The clock is fitted to when the data was complete (a scan's last beam), then the stamps restored.
+      for (auto& t : s.stamp) t += s.ready_after_us;
       fit_clock(s, d.start_utime, c);
+      for (auto& t : s.stamp) t -= s.ready_after_us;
     } else {
       analyse_period(s, c, true);
       // Without a header, a duplicate is the same bytes again well within one period (a steady stream of

@@ -10,6 +10,7 @@
 #include <cmath>
 #include <limits>
 #include <vector>
+#include <cstdio>
 
 namespace driftlab::sim {
 namespace {
@@ -40,6 +41,9 @@ struct Scratch {
   uint64_t frame = 0;
   std::vector<SliceRef> slices;
   std::vector<Span> pool, tmp;
+  // Level fast path: one column's rows.
+  std::vector<double> best, m;
+  std::vector<int32_t> hit;  // index into tmp; kFloorHit, kNoHit
 };
 thread_local Scratch scratch;
 
@@ -58,6 +62,13 @@ inline void put(uint8_t* px, const std::array<uint8_t, 3>& rgb, double gain) {
   px[2] = static_cast<uint8_t>(std::min(255.0, rgb[0] * gain + 0.5));
 }
 
+/// put() in single precision; rgb in RGB order.
+inline void put_fast(uint8_t* px, const float* rgb, float gain) {
+  px[0] = static_cast<uint8_t>(std::min(255.0f, rgb[2] * gain + 0.5f));
+  px[1] = static_cast<uint8_t>(std::min(255.0f, rgb[1] * gain + 0.5f));
+  px[2] = static_cast<uint8_t>(std::min(255.0f, rgb[0] * gain + 0.5f));
+}
+
 /// Distance dimming: 1 at the camera, 0.4 at max_range.
 inline double dim(double t, double max_range) { return t >= max_range ? 0.4 : 1.0 - 0.6 * t * (1.0 / max_range); }
 
@@ -66,8 +77,10 @@ inline double shade(double cosine) { return 0.35 + 0.65 * std::abs(cosine); }
 
 }  // namespace
 
-void render_camera(const RayCaster& caster, const CameraModel& model, const Eigen::Isometry3d& camera_in_world,
-                   cv::Mat& bgr) {
+namespace detail {
+
+void render_camera_generic(const RayCaster& caster, const CameraModel& model, const Eigen::Isometry3d& camera_in_world,
+                           cv::Mat& bgr) {
   const int width = std::max(1, model.width), height = std::max(1, model.height);
   bgr.create(height, width, CV_8UC3);
   const double max_range = model.max_range;
@@ -162,6 +175,145 @@ void render_camera(const RayCaster& caster, const CameraModel& model, const Eige
       }
     }
   }
+}
+
+}  // namespace detail
+
+namespace {
+
+long g_spans, g_rows, g_live, g_frames;
+constexpr int32_t kNoHit = -1, kFloorHit = -2;
+constexpr int32_t kCapFlag = 1 << 30;  // set on `hit` when the top or bottom face was hit (not the side)
+
+/// The level fast path: with the camera's up axis (nearly) vertical, every image column is a vertical half-plane,
+/// so its footprint crossings are computed once, exactly along the column's own azimuth, and each span paints the
+/// contiguous range of rows that can see it (a per-row depth buffer, spans near to far). Per pixel this makes the
+/// same comparisons as the generic path. Returns false (nothing drawn) when the camera is not level enough: the
+/// column's azimuth may then drift by at most an eighth of a pixel from top to bottom (the generic path's error).
+bool render_level(const RayCaster& caster, const CameraModel& model, const Eigen::Isometry3d& camera_in_world,
+                  cv::Mat& bgr) {
+  const int width = std::max(1, model.width), height = std::max(1, model.height);
+  const double f = 0.5 * width / std::tan(0.5 * model.hfov);
+  const Eigen::Matrix3d R = camera_in_world.linear();
+  const double tilt = std::hypot(R(0, 2), R(1, 2));
+  const double u_max = 0.5 * width / f;
+  if (!(R(2, 2) > 0.5) || !std::isfinite(f) || !(f > 0) || tilt * 0.5 * height * (1 + u_max * u_max) > 0.125) {
+    return false;
+  }
+  bgr.create(height, width, CV_8UC3);
+  const double max_range = model.max_range;
+  const Eigen::Vector3d o = camera_in_world.translation();
+  const double ox = o.x(), oy = o.y(), oz = o.z();
+  const Eigen::Vector3d b = -R.col(1) / f, e = -R.col(2) / f;
+  const Eigen::Vector3d a = R.col(0) + (0.5 - 0.5 * width) * b + (0.5 - 0.5 * height) * e;
+  const double ez = e.z();  // < 0: rows go down
+  const double r_ref = 0.5 * (height - 1);  // the azimuth of a column is taken at the image's middle row
+
+  Scratch& s = scratch;
+  s.best.resize(height), s.m.resize(height), s.hit.resize(height);
+  double* const best = s.best.data();
+  double* const mrow = s.m.data();
+  int32_t* const hit = s.hit.data();
+  const bool floor_visible = oz > 0;
+  const double inv_range = 1.0 / max_range;
+  const float floor_light[3] = {kFloorLight[0], kFloorLight[1], kFloorLight[2]};
+  const float floor_dark[3] = {kFloorDark[0], kFloorDark[1], kFloorDark[2]};
+  uint8_t sky[3], beyond[3];
+  put(sky, kSkyColor, 1.0);
+  put(beyond, {148, 148, 140}, dim(max_range, max_range));
+  const size_t step = bgr.step[0];
+  uint8_t* const image = bgr.data;
+
+  for (int c = 0; c < width; ++c) {
+    const Eigen::Vector3d d0 = a + c * b;  // row 0 of this column
+    const double hx = d0.x() + r_ref * e.x(), hy = d0.y() + r_ref * e.y();
+    const double H = std::sqrt(hx * hx + hy * hy), inv_H = 1.0 / H;
+    const double ux = hx * inv_H, uy = hy * inv_H;
+    const double dz0 = d0.z();
+    caster.spans(Eigen::Vector2d(ox, oy), Eigen::Vector2d(ux, uy), max_range, s.tmp);
+
+    // Per row: the slope m (height gained per metre of s) and the floor's distance. The range limit is applied
+    // at the end (the nearest surface found beyond max_range is not drawn), so it needs no square root here.
+    for (int r = 0; r < height; ++r) {
+      const double m = (dz0 + r * ez) * inv_H;
+      mrow[r] = m;
+      const bool fl = m < 0 && floor_visible;
+      best[r] = fl ? oz / -m : std::numeric_limits<double>::infinity();
+      hit[r] = fl ? kFloorHit : kNoHit;
+    }
+
+    // Spans near to far; each one only visits the rows whose ray passes through its height range.
+    const Span* const spans = s.tmp.data();
+    const int num_spans = static_cast<int>(s.tmp.size());
+    g_spans += num_spans;
+    for (int i = 0; i < num_spans; ++i) {
+      const Span& sp = spans[i];
+      const double s_in = std::max(sp.s_in, 0.0);
+      double lo, hi;  // slopes m of the rays that meet the span's vertical extent within [s_in, s_out]
+      if (s_in <= 0) {
+        if (oz >= sp.z_min && oz <= sp.z_max) continue;  // the camera is inside: invisible
+        lo = oz > sp.z_max ? -std::numeric_limits<double>::infinity() : (sp.z_min - oz) / sp.s_out;
+        hi = oz > sp.z_max ? (sp.z_max - oz) / sp.s_out : std::numeric_limits<double>::infinity();
+      } else {
+        hi = (sp.z_max - oz) / (sp.z_max < oz ? sp.s_out : s_in);
+        lo = (sp.z_min - oz) / (sp.z_min > oz ? sp.s_out : s_in);
+      }
+      // m(r) = (dz0 + r ez) / H decreases with r; one row of margin on each side, the test below is exact.
+      const double r_first = std::ceil((hi * H - dz0) / ez) - 1, r_last = std::floor((lo * H - dz0) / ez) + 1;
+      const int r0 = static_cast<int>(std::clamp(r_first, 0.0, static_cast<double>(height)));
+      const int r1 = static_cast<int>(std::clamp(r_last + 1, 0.0, static_cast<double>(height)));
+      g_rows += r1 - r0;
+      for (int r = r0; r < r1; ++r) {
+        if (sp.s_in >= best[r]) continue;
+        ++g_live;
+        const double m = mrow[r], z_in = oz + m * s_in;
+        if (z_in >= sp.z_min && z_in <= sp.z_max) {
+          if (sp.s_in <= 0) continue;
+          best[r] = s_in, hit[r] = i;
+        } else if (z_in > sp.z_max && m < 0) {
+          const double st = (sp.z_max - oz) / m;
+          if (st <= sp.s_out && st < best[r]) best[r] = st, hit[r] = i | kCapFlag;
+        } else if (z_in < sp.z_min && m > 0) {
+          const double sb = (sp.z_min - oz) / m;
+          if (sb <= sp.s_out && sb < best[r]) best[r] = sb, hit[r] = i | kCapFlag;
+        }
+      }
+    }
+
+    // Colours; t = best * sqrt(1 + m^2) is the 3D distance.
+    uint8_t* px = image + 3 * c;
+    for (int r = 0; r < height; ++r, px += step) {
+      const int32_t h = hit[r];
+      const double m = mrow[r];
+      if (h != kNoHit) {
+        const double q = std::sqrt(1 + m * m), t = best[r] * q;
+        if (t < max_range) {
+          const float g = static_cast<float>(1.0 - 0.6 * inv_range * t);
+          if (h == kFloorHit) {
+            const double x = ox + best[r] * ux, y = oy + best[r] * uy;
+            put_fast(px, light_square(x, y) ? floor_light : floor_dark, g);
+          } else {
+            const Span& sp = spans[h & ~kCapFlag];
+            const double cosine = ((h & kCapFlag) ? m : sp.normal.x() * ux + sp.normal.y() * uy) / q;
+            const float rgb[3] = {float(sp.color[0]), float(sp.color[1]), float(sp.color[2])};
+            put_fast(px, rgb, static_cast<float>(shade(cosine)) * g);
+          }
+          continue;
+        }
+      }
+      const uint8_t* src = (m < 0 && floor_visible) ? beyond : sky;
+      px[0] = src[0], px[1] = src[1], px[2] = src[2];
+    }
+  }
+  if (++g_frames % 1000 == 0) fprintf(stderr, "spans/col %.1f rows/col %.1f live/col %.1f\n", g_spans / (1000.0 * width), g_rows / (1000.0 * width), g_live / (1000.0 * width)), g_spans = g_rows = g_live = 0;
+  return true;
+}
+
+}  // namespace
+
+void render_camera(const RayCaster& caster, const CameraModel& model, const Eigen::Isometry3d& camera_in_world,
+                   cv::Mat& bgr) {
+  if (!render_level(caster, model, camera_in_world, bgr)) detail::render_camera_generic(caster, model, camera_in_world, bgr);
 }
 
 }  // namespace driftlab::sim

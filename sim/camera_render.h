@@ -29,4 +29,10 @@ inline constexpr std::array<uint8_t, 3> kSkyColor{135, 206, 235};
 void render_camera(const RayCaster& caster, const CameraModel& model, const Eigen::Isometry3d& camera_in_world,
                    cv::Mat& bgr);
 
+namespace detail {
+/// render_camera without its level-camera fast path (any orientation; for tests and benchmarks).
+void render_camera_generic(const RayCaster& caster, const CameraModel& model, const Eigen::Isometry3d& camera_in_world,
+                           cv::Mat& bgr);
+}  // namespace detail
+
 }  // namespace driftlab::sim

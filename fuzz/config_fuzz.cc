@@ -1,0 +1,44 @@
+// libFuzzer target: any text given to the simulator's parsers (scenario YAML, world YAML, URDF) must give a value
+// or a one-line error naming the origin, never a crash, an exception or a hang.
+#include <btBulletDynamicsCommon.h>
+
+#include <cstdint>
+#include <cstdlib>
+#include <cstring>
+#include <string>
+
+#include "sim/bullet_world.h"
+#include "sim/robot.h"
+#include "sim/scenario.h"
+#include "sim/world.h"
+
+namespace {
+
+void check(const driftlab::Error& e, const std::string& origin) {
+  if (e.message.rfind(origin, 0) != 0 || e.message.find('\n') != std::string::npos) std::abort();
+}
+
+}  // namespace
+
+extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
+  const std::string text(reinterpret_cast<const char*>(data), size);
+  // Paths into device and process trees could block or read without end; they are not configuration.
+  for (const char* dir : {"/dev", "/proc", "/sys"}) {
+    if (text.find(dir) != std::string::npos) return 0;
+  }
+  if (auto w = driftlab::sim::parse_world(text, "w.yaml", "/nonexistent"); !w) check(w.error(), "w.yaml");
+  if (auto s = driftlab::sim::parse_scenario(text, "s.yaml", "/nonexistent"); !s) check(s.error(), "s.yaml");
+  driftlab::sim::World empty;
+  driftlab::sim::BulletWorld physics(empty);
+  if (auto r = driftlab::sim::Robot::create(text, "r.urdf", physics.dynamics(), {0, 0, 0}, {}); !r) {
+    check(r.error(), "r.urdf");
+  } else {
+    // A robot that loads must also step.
+    for (int i = 0; i < 10; ++i) {
+      (*r)->set_wheel_rates(1, 1, 0.001);
+      physics.dynamics().stepSimulation(0.001f, 0);
+      (*r)->after_step(0.001);
+    }
+  }
+  return 0;
+}

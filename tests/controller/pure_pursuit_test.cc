@@ -1,0 +1,101 @@
+// PurePursuit::update and avoid_obstacles on an ideal unicycle: loops, open routes, limits, obstacles, recovery.
+#include "controller/pure_pursuit.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+namespace driftlab::controller {
+namespace {
+
+/// Integrates a unicycle for dt [s].
+void move(Pose2& p, const Command& c, double dt) {
+  p.yaw += c.angular * dt;
+  p.x += c.linear * std::cos(p.yaw) * dt;
+  p.y += c.linear * std::sin(p.yaw) * dt;
+}
+
+const std::vector<Point2> kSquare = {{0, 0}, {6, 0}, {6, 6}, {0, 6}};
+
+TEST(PurePursuit, FollowsALoopLapAfterLap) {
+  PurePursuit pp(kSquare, {});
+  Pose2 p{0, 0, 0};
+  double worst = 0;
+  for (int i = 0; i < 20 * 150; ++i) {  // 150 s at 20 Hz
+    const Command c = pp.update(p, 0.05);
+    EXPECT_LE(c.linear, 0.6 + 1e-9);
+    EXPECT_LE(std::abs(c.angular), 1.2 + 1e-9);
+    move(p, c, 0.05);
+    if (i > 40) worst = std::max(worst, pp.cross_track());
+  }
+  EXPECT_GE(pp.laps(), 3u);  // 24 m per lap at up to 0.6 m/s, slower in corners
+  EXPECT_LT(worst, 0.5);     // corners are cut by about the lookahead
+  EXPECT_FALSE(pp.finished());
+  EXPECT_EQ(pp.skips(), 0u);
+}
+
+TEST(PurePursuit, OpenRouteEndsAtItsLastPoint) {
+  PurePursuitOptions o;
+  o.loop = false;
+  PurePursuit pp({{0, 0}, {5, 0}, {5, 3}}, o);
+  Pose2 p{0, 0, 0};
+  for (int i = 0; i < 20 * 60 && !pp.finished(); ++i) move(p, pp.update(p, 0.05), 0.05);
+  EXPECT_TRUE(pp.finished());
+  EXPECT_NEAR(p.x, 5, o.goal_tolerance);
+  EXPECT_NEAR(p.y, 3, o.goal_tolerance);
+  const Command stop = pp.update(p, 0.05);
+  EXPECT_EQ(stop.linear, 0);
+  EXPECT_EQ(stop.angular, 0);
+}
+
+TEST(PurePursuit, AccelerationLimitsAndTurningOnTheSpot) {
+  PurePursuit pp(kSquare, {});
+  // Facing away from the route: turn on the spot first, the yaw rate ramping up.
+  Pose2 p{0, 0, M_PI};
+  Command c = pp.update(p, 0.05);
+  EXPECT_EQ(c.linear, 0);
+  EXPECT_NEAR(std::abs(c.angular), 3.0 * 0.05, 1e-9);  // max_angular_accel * dt
+  // Forward speed ramps at max_accel.
+  PurePursuit straight({{0, 0}, {100, 0}}, {.loop = false});
+  Pose2 q{0, 0, 0};
+  c = straight.update(q, 0.1);
+  EXPECT_NEAR(c.linear, 0.1, 1e-9);
+  c = straight.update(q, 0.1);
+  EXPECT_NEAR(c.linear, 0.2, 1e-9);
+}
+
+TEST(PurePursuit, RejectsRoutesWithoutLength) {
+  EXPECT_THROW(PurePursuit({{1, 1}}, {}), std::invalid_argument);
+  EXPECT_THROW(PurePursuit({{1, 1}, {1, 1}}, {}), std::invalid_argument);
+}
+
+TEST(PurePursuit, SkipsAheadWhenStuck) {
+  PurePursuit pp(kSquare, {});
+  Pose2 p{0, 0, 0};
+  for (int i = 0; i < 20 * 9; ++i) pp.update(p, 0.05);  // the robot never moves: 9 s
+  EXPECT_EQ(pp.skips(), 1u);
+}
+
+TEST(AvoidObstacles, SlowsForObstaclesAheadAndSteersAway) {
+  const Command go{0.5, 0};
+  EXPECT_EQ(avoid_obstacles(go, {}, {}).linear, 0.5);
+  // Far obstacles change nothing.
+  const Command far = avoid_obstacles(go, {{2, 0}, {0, 2}}, {});
+  EXPECT_EQ(far.linear, 0.5);
+  EXPECT_EQ(far.angular, 0);
+  // A wall close on the left: steer right, keep going.
+  const Command left = avoid_obstacles(go, {{0.1, 0.3}, {0.3, 0.3}}, {});
+  EXPECT_EQ(left.linear, 0.5);
+  EXPECT_LT(left.angular, 0);
+  // Something 0.3 m ahead of the footprint: slow down.
+  const Command ahead = avoid_obstacles(go, {{0.5, 0.0}}, {});
+  EXPECT_GT(ahead.linear, 0);
+  EXPECT_LT(ahead.linear, 0.5);
+  // Touching ahead: stop and turn on the spot, away from the side it leans to.
+  const Command blocked = avoid_obstacles(go, {{0.22, 0.05}}, {});
+  EXPECT_EQ(blocked.linear, 0);
+  EXPECT_LT(blocked.angular, 0);
+}
+
+}  // namespace
+}  // namespace driftlab::controller
