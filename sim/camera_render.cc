@@ -10,7 +10,9 @@
 #include <cmath>
 #include <limits>
 #include <vector>
-#include <cstdio>
+#include <cstdlib>
+
+#include <opencv2/core.hpp>
 
 namespace driftlab::sim {
 namespace {
@@ -44,6 +46,7 @@ struct Scratch {
   // Level fast path: one column's rows.
   std::vector<double> best, m;
   std::vector<int32_t> hit;  // index into tmp; kFloorHit, kNoHit
+  cv::Mat transposed;        // the image with rows and columns swapped: a column is contiguous
 };
 thread_local Scratch scratch;
 
@@ -181,7 +184,6 @@ void render_camera_generic(const RayCaster& caster, const CameraModel& model, co
 
 namespace {
 
-long g_spans, g_rows, g_live, g_frames;
 constexpr int32_t kNoHit = -1, kFloorHit = -2;
 constexpr int32_t kCapFlag = 1 << 30;  // set on `hit` when the top or bottom face was hit (not the side)
 
@@ -221,8 +223,7 @@ bool render_level(const RayCaster& caster, const CameraModel& model, const Eigen
   uint8_t sky[3], beyond[3];
   put(sky, kSkyColor, 1.0);
   put(beyond, {148, 148, 140}, dim(max_range, max_range));
-  const size_t step = bgr.step[0];
-  uint8_t* const image = bgr.data;
+  s.transposed.create(width, height, CV_8UC3);
 
   for (int c = 0; c < width; ++c) {
     const Eigen::Vector3d d0 = a + c * b;  // row 0 of this column
@@ -245,7 +246,6 @@ bool render_level(const RayCaster& caster, const CameraModel& model, const Eigen
     // Spans near to far; each one only visits the rows whose ray passes through its height range.
     const Span* const spans = s.tmp.data();
     const int num_spans = static_cast<int>(s.tmp.size());
-    g_spans += num_spans;
     for (int i = 0; i < num_spans; ++i) {
       const Span& sp = spans[i];
       const double s_in = std::max(sp.s_in, 0.0);
@@ -262,10 +262,8 @@ bool render_level(const RayCaster& caster, const CameraModel& model, const Eigen
       const double r_first = std::ceil((hi * H - dz0) / ez) - 1, r_last = std::floor((lo * H - dz0) / ez) + 1;
       const int r0 = static_cast<int>(std::clamp(r_first, 0.0, static_cast<double>(height)));
       const int r1 = static_cast<int>(std::clamp(r_last + 1, 0.0, static_cast<double>(height)));
-      g_rows += r1 - r0;
       for (int r = r0; r < r1; ++r) {
         if (sp.s_in >= best[r]) continue;
-        ++g_live;
         const double m = mrow[r], z_in = oz + m * s_in;
         if (z_in >= sp.z_min && z_in <= sp.z_max) {
           if (sp.s_in <= 0) continue;
@@ -280,9 +278,10 @@ bool render_level(const RayCaster& caster, const CameraModel& model, const Eigen
       }
     }
 
+    if (getenv("NOCOLOR")) continue;
     // Colours; t = best * sqrt(1 + m^2) is the 3D distance.
-    uint8_t* px = image + 3 * c;
-    for (int r = 0; r < height; ++r, px += step) {
+    uint8_t* px = s.transposed.ptr<uint8_t>(c);
+    for (int r = 0; r < height; ++r, px += 3) {
       const int32_t h = hit[r];
       const double m = mrow[r];
       if (h != kNoHit) {
@@ -305,7 +304,7 @@ bool render_level(const RayCaster& caster, const CameraModel& model, const Eigen
       px[0] = src[0], px[1] = src[1], px[2] = src[2];
     }
   }
-  if (++g_frames % 1000 == 0) fprintf(stderr, "spans/col %.1f rows/col %.1f live/col %.1f\n", g_spans / (1000.0 * width), g_rows / (1000.0 * width), g_live / (1000.0 * width)), g_spans = g_rows = g_live = 0;
+  cv::transpose(s.transposed, bgr);
   return true;
 }
 

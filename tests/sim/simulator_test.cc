@@ -298,6 +298,26 @@ TEST(Simulation, StopRequestClosesAValidLog) {
   EXPECT_FALSE(std::ifstream(dir.file("cut.lcm.partial")).good());
 }
 
+TEST(Simulation, FloorPlanWorld) {
+  test::TempDir dir;
+  auto sc = load_scenario(std::string(DRIFTLAB_SOURCE_DIR) + "/sim/scenarios/warehouse.yaml");
+  ASSERT_TRUE(sc.ok()) << sc.error().message;
+  EXPECT_GT(sc->world.boxes.size(), 10u);  // walls, shelves and pillars from the image
+  sc->duration = 3;
+  run_ok(*sc, dir.file("w.lcm"));
+  int scans = 0;
+  for (const auto& e : test::read_all(dir.file("w.lcm"))) {
+    if (e.channel != "SCAN") continue;
+    const auto scan = decode<driftlab::laser_scan_t>(e);
+    int valid = 0;
+    for (float r : scan.ranges) valid += std::isfinite(r) ? 1 : 0;
+    EXPECT_EQ(valid, scan.nranges);  // enclosed by the plan's walls: every beam returns
+    // Start (4.5, 2.5) facing +x: the south wall (inner face y = 0.2) is 2.3 m to the right of the laser.
+    if (scans++ == 0) EXPECT_NEAR(scan.ranges[180], 2.3, 0.05);
+  }
+  EXPECT_EQ(scans, 30);
+}
+
 TEST(Simulation, ThreeDimensionalLidar) {
   test::TempDir dir;
   auto sc = load_scenario(std::string(DRIFTLAB_SOURCE_DIR) + "/sim/scenarios/indoor_3d.yaml");
