@@ -360,6 +360,11 @@ Result<std::unique_ptr<Robot>> Robot::create(const std::string& xml, const std::
     impl->joints.push_back(std::move(j));
   }
   for (auto& j : impl->joints) {
+    // Bullet fills the feedback only when it solves a step: zero it for readings before the first one.
+    j.feedback.m_appliedForceBodyA.setZero();
+    j.feedback.m_appliedTorqueBodyA.setZero();
+    j.feedback.m_appliedForceBodyB.setZero();
+    j.feedback.m_appliedTorqueBodyB.setZero();
     j.hinge->setJointFeedback(&j.feedback);
     world.addConstraint(j.hinge.get(), /*disableCollisionsBetweenLinkedBodies=*/true);
   }
