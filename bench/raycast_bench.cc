@@ -131,7 +131,8 @@ void BM_Lidar3D_RayCaster(benchmark::State& s) { run(s, lidar_3d(), ours); }
 void BM_Lidar3D_BulletMesh(benchmark::State& s) { run(s, lidar_3d(), bullet_mesh); }
 void BM_Lidar3D_BulletPrimitives(benchmark::State& s) { run(s, lidar_3d(), bullet_primitives); }
 
-/// One 320x240 frame; arg 0: a level camera 0.3 m up (ground robot), arg 1: pitched down 20 degrees and rolled 5.
+/// One 320x240 frame; arg 0: a level camera 0.3 m up (ground robot), arg 1: pitched down 20 degrees and rolled 5,
+/// arg 2: as arg 0 but without the level fast path (render_camera's generic path, for comparison).
 void BM_RenderCamera(benchmark::State& state) {
   const Fixture& f = fixture();
   const driftlab::sim::CameraModel model;
@@ -140,13 +141,17 @@ void BM_RenderCamera(benchmark::State& state) {
   for (auto _ : state) {
     const Eigen::Vector3d& o = f.origins[k % f.origins.size()];
     Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-    T.translation() = Eigen::Vector3d(o.x(), o.y(), state.range(0) == 0 ? 0.3 : 1.2);
+    T.translation() = Eigen::Vector3d(o.x(), o.y(), state.range(0) == 1 ? 1.2 : 0.3);
     T.linear() = Eigen::AngleAxisd(0.7 * static_cast<double>(k++), Eigen::Vector3d::UnitZ()).toRotationMatrix();
     if (state.range(0) == 1) {
       T.linear() = T.linear() * Eigen::AngleAxisd(0.35, Eigen::Vector3d::UnitY()).toRotationMatrix() *
                    Eigen::AngleAxisd(0.087, Eigen::Vector3d::UnitX()).toRotationMatrix();
     }
-    driftlab::sim::render_camera(f.caster, model, T, img);
+    if (state.range(0) == 2) {
+      driftlab::sim::detail::render_camera_generic(f.caster, model, T, img);
+    } else {
+      driftlab::sim::render_camera(f.caster, model, T, img);
+    }
     benchmark::DoNotOptimize(img.data);
   }
   state.counters["per_frame"] = benchmark::Counter(1, benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
@@ -183,6 +188,6 @@ BENCHMARK(BM_Lidar2D_BulletPrimitives)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_Lidar3D_RayCaster)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_Lidar3D_BulletMesh)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_Lidar3D_BulletPrimitives)->Unit(benchmark::kMillisecond);
-BENCHMARK(BM_RenderCamera)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_RenderCamera)->Arg(0)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_RenderCamera_PerPixelCast)->Unit(benchmark::kMillisecond);
 BENCHMARK_MAIN();

@@ -4,13 +4,14 @@
 // footprint crossings (RayCaster::spans) are computed once per frame, and each pixel only compares its own height
 // along the slice with the crossings' height ranges: a side, top or bottom face, or the floor. A level camera uses
 // one slice per column; a tilted camera uses whichever slices its pixels fall in, so any orientation works.
+// A (nearly) level camera takes a faster path (render_level below): each column is a vertical half-plane, its spans
+// are computed along the column's exact azimuth, and each span fills the run of rows that can see it.
 #include "sim/camera_render.h"
 
 #include <algorithm>
 #include <cmath>
 #include <limits>
 #include <vector>
-#include <cstdlib>
 
 #include <opencv2/core.hpp>
 
@@ -44,7 +45,7 @@ struct Scratch {
   std::vector<SliceRef> slices;
   std::vector<Span> pool, tmp;
   // Level fast path: one column's rows.
-  std::vector<double> best, m;
+  std::vector<double> best;
   std::vector<int32_t> hit;  // index into tmp; kFloorHit, kNoHit
   cv::Mat transposed;        // the image with rows and columns swapped: a column is contiguous
 };
@@ -65,11 +66,16 @@ inline void put(uint8_t* px, const std::array<uint8_t, 3>& rgb, double gain) {
   px[2] = static_cast<uint8_t>(std::min(255.0, rgb[0] * gain + 0.5));
 }
 
-/// put() in single precision; rgb in RGB order.
-inline void put_fast(uint8_t* px, const float* rgb, float gain) {
-  px[0] = static_cast<uint8_t>(std::min(255.0f, rgb[2] * gain + 0.5f));
-  px[1] = static_cast<uint8_t>(std::min(255.0f, rgb[1] * gain + 0.5f));
-  px[2] = static_cast<uint8_t>(std::min(255.0f, rgb[0] * gain + 0.5f));
+/// put() with the gain in 16-bit fixed point, 0 <= g <= 65536.
+inline void put_fixed(uint8_t* px, const std::array<uint8_t, 3>& rgb, uint32_t g) {
+  px[0] = static_cast<uint8_t>((rgb[2] * g + 32768) >> 16);
+  px[1] = static_cast<uint8_t>((rgb[1] * g + 32768) >> 16);
+  px[2] = static_cast<uint8_t>((rgb[0] * g + 32768) >> 16);
+}
+
+/// put() for 0 <= gain <= 1.
+inline void put_unit(uint8_t* px, const std::array<uint8_t, 3>& rgb, float gain) {
+  put_fixed(px, rgb, static_cast<uint32_t>(static_cast<int32_t>(gain * 65536.0f)));
 }
 
 /// Distance dimming: 1 at the camera, 0.4 at max_range.
@@ -212,14 +218,12 @@ bool render_level(const RayCaster& caster, const CameraModel& model, const Eigen
   const double r_ref = 0.5 * (height - 1);  // the azimuth of a column is taken at the image's middle row
 
   Scratch& s = scratch;
-  s.best.resize(height), s.m.resize(height), s.hit.resize(height);
+  s.best.resize(height), s.hit.resize(height);
   double* const best = s.best.data();
-  double* const mrow = s.m.data();
   int32_t* const hit = s.hit.data();
   const bool floor_visible = oz > 0;
-  const double inv_range = 1.0 / max_range;
-  const float floor_light[3] = {kFloorLight[0], kFloorLight[1], kFloorLight[2]};
-  const float floor_dark[3] = {kFloorDark[0], kFloorDark[1], kFloorDark[2]};
+  const double floor_z = floor_visible ? 0.0 : -std::numeric_limits<double>::infinity();
+  const float range_f = static_cast<float>(max_range), k_dim = static_cast<float>(0.6 / max_range);
   uint8_t sky[3], beyond[3];
   put(sky, kSkyColor, 1.0);
   put(beyond, {148, 148, 140}, dim(max_range, max_range));
@@ -233,15 +237,16 @@ bool render_level(const RayCaster& caster, const CameraModel& model, const Eigen
     const double dz0 = d0.z();
     caster.spans(Eigen::Vector2d(ox, oy), Eigen::Vector2d(ux, uy), max_range, s.tmp);
 
-    // Per row: the slope m (height gained per metre of s) and the floor's distance. The range limit is applied
-    // at the end (the nearest surface found beyond max_range is not drawn), so it needs no square root here.
-    for (int r = 0; r < height; ++r) {
-      const double m = (dz0 + r * ez) * inv_H;
-      mrow[r] = m;
-      const bool fl = m < 0 && floor_visible;
-      best[r] = fl ? oz / -m : std::numeric_limits<double>::infinity();
-      hit[r] = fl ? kFloorHit : kNoHit;
-    }
+    // Per row r the ray rises m(r) = (dz0 + r ez) / H per metre of s (decreasing with r). The floor is not a
+    // distance here: a span is behind it when the ray is below z = 0 where it enters the span. The range limit is
+    // applied when colouring (the nearest surface found beyond max_range is not drawn).
+    auto slope = [&](int r) { return (dz0 + r * ez) * inv_H; };
+    int r_floor = 0;  // first row whose ray goes down (and so meets the floor, when oz > 0)
+    if (dz0 >= 0) r_floor = std::clamp(static_cast<int>(dz0 / -ez), 0, height);
+    while (r_floor > 0 && slope(r_floor - 1) < 0) --r_floor;
+    while (r_floor < height && slope(r_floor) >= 0) ++r_floor;
+    std::fill(hit, hit + r_floor, kNoHit);
+    std::fill(hit + r_floor, hit + height, floor_visible ? kFloorHit : kNoHit);
 
     // Spans near to far; each one only visits the rows whose ray passes through its height range.
     const Span* const spans = s.tmp.data();
@@ -258,50 +263,85 @@ bool render_level(const RayCaster& caster, const CameraModel& model, const Eigen
         hi = (sp.z_max - oz) / (sp.z_max < oz ? sp.s_out : s_in);
         lo = (sp.z_min - oz) / (sp.z_min > oz ? sp.s_out : s_in);
       }
-      // m(r) = (dz0 + r ez) / H decreases with r; one row of margin on each side, the test below is exact.
+      // One row of margin on each side; the test below is exact.
       const double r_first = std::ceil((hi * H - dz0) / ez) - 1, r_last = std::floor((lo * H - dz0) / ez) + 1;
       const int r0 = static_cast<int>(std::clamp(r_first, 0.0, static_cast<double>(height)));
       const int r1 = static_cast<int>(std::clamp(r_last + 1, 0.0, static_cast<double>(height)));
       for (int r = r0; r < r1; ++r) {
-        if (sp.s_in >= best[r]) continue;
-        const double m = mrow[r], z_in = oz + m * s_in;
+        if (hit[r] >= 0 && sp.s_in >= best[r]) continue;  // best[r] is set with hit[r]
+        const double m = slope(r), z_in = oz + m * s_in;
+        if (z_in <= floor_z) continue;  // the floor is nearer
         if (z_in >= sp.z_min && z_in <= sp.z_max) {
           if (sp.s_in <= 0) continue;
           best[r] = s_in, hit[r] = i;
         } else if (z_in > sp.z_max && m < 0) {
           const double st = (sp.z_max - oz) / m;
-          if (st <= sp.s_out && st < best[r]) best[r] = st, hit[r] = i | kCapFlag;
+          if (st <= sp.s_out && (hit[r] < 0 || st < best[r])) best[r] = st, hit[r] = i | kCapFlag;
         } else if (z_in < sp.z_min && m > 0) {
           const double sb = (sp.z_min - oz) / m;
-          if (sb <= sp.s_out && sb < best[r]) best[r] = sb, hit[r] = i | kCapFlag;
+          if (sb <= sp.s_out && (hit[r] < 0 || sb < best[r])) best[r] = sb, hit[r] = i | kCapFlag;
         }
       }
     }
 
-    if (getenv("NOCOLOR")) continue;
-    // Colours; t = best * sqrt(1 + m^2) is the 3D distance.
-    uint8_t* px = s.transposed.ptr<uint8_t>(c);
-    for (int r = 0; r < height; ++r, px += 3) {
+    // Colours, run by run of rows that see the same thing; t = s * sqrt(1 + m^2) is the 3D distance.
+    uint8_t* const col = s.transposed.ptr<uint8_t>(c);
+    for (int r = 0; r < height;) {
       const int32_t h = hit[r];
-      const double m = mrow[r];
-      if (h != kNoHit) {
-        const double q = std::sqrt(1 + m * m), t = best[r] * q;
-        if (t < max_range) {
-          const float g = static_cast<float>(1.0 - 0.6 * inv_range * t);
-          if (h == kFloorHit) {
-            const double x = ox + best[r] * ux, y = oy + best[r] * uy;
-            put_fast(px, light_square(x, y) ? floor_light : floor_dark, g);
+      int end = r + 1;
+      while (end < height && hit[end] == h) ++end;
+      if (h == kFloorHit) {
+        for (; r < end; ++r) {
+          const double m = slope(r), sf = oz / -m;
+          const float mf = static_cast<float>(m), t = static_cast<float>(sf) * std::sqrt(1 + mf * mf);
+          uint8_t* px = col + 3 * r;
+          if (t < range_f) {
+            put_unit(px, light_square(ox + sf * ux, oy + sf * uy) ? kFloorLight : kFloorDark, 1 - k_dim * t);
           } else {
-            const Span& sp = spans[h & ~kCapFlag];
-            const double cosine = ((h & kCapFlag) ? m : sp.normal.x() * ux + sp.normal.y() * uy) / q;
-            const float rgb[3] = {float(sp.color[0]), float(sp.color[1]), float(sp.color[2])};
-            put_fast(px, rgb, static_cast<float>(shade(cosine)) * g);
+            px[0] = beyond[0], px[1] = beyond[1], px[2] = beyond[2];
           }
-          continue;
+        }
+      } else if (h >= 0) {
+        const Span& sp = spans[h & ~kCapFlag];
+        const float nu = std::abs(static_cast<float>(sp.normal.x() * ux + sp.normal.y() * uy));
+        // The gain of a row, exactly; -1 beyond max_range.
+        auto gain = [&](int row) -> float {
+          const float m = static_cast<float>(slope(row)), q = std::sqrt(1 + m * m);
+          const float t = static_cast<float>(best[row]) * q;
+          if (!(t < range_f)) return -1;
+          return (0.35f + 0.65f * ((h & kCapFlag) ? std::abs(m) : nu) / q) * (1 - k_dim * t);
+        };
+        if ((h & kCapFlag) == 0 && end - r > 2 && gain(r) >= 0 && gain(end - 1) >= 0) {
+          // A side face: the same s on every row, the gain a smooth function of the row (and t, convex in m,
+          // is below max_range inside the run when it is at both ends). Exact every 8 rows, linear in between:
+          // the difference is far below one grey level.
+          for (; r < end;) {
+            const int n = std::min(8, end - 1 - r);
+            const float g0 = gain(r), g1 = n > 0 ? gain(r + n) : g0;
+            int32_t g = static_cast<int32_t>(g0 * 65536.0f);
+            const int32_t dg = n > 0 ? static_cast<int32_t>((g1 - g0) * 65536.0f) / n : 0;
+            const int stop = n > 0 ? r + n : r + 1;
+            for (; r < stop; ++r, g += dg) put_fixed(col + 3 * r, sp.color, static_cast<uint32_t>(g));
+          }
+        } else {
+          for (; r < end; ++r) {
+            const float g = gain(r);
+            uint8_t* px = col + 3 * r;
+            if (g >= 0) {
+              put_unit(px, sp.color, g);
+            } else {
+              const uint8_t* src = (slope(r) < 0 && floor_visible) ? beyond : sky;
+              px[0] = src[0], px[1] = src[1], px[2] = src[2];
+            }
+          }
+        }
+      } else {
+        for (; r < end; ++r) {
+          const uint8_t* src = (r >= r_floor && floor_visible) ? beyond : sky;
+          uint8_t* px = col + 3 * r;
+          px[0] = src[0], px[1] = src[1], px[2] = src[2];
         }
       }
-      const uint8_t* src = (m < 0 && floor_visible) ? beyond : sky;
-      px[0] = src[0], px[1] = src[1], px[2] = src[2];
     }
   }
   cv::transpose(s.transposed, bgr);

@@ -327,6 +327,7 @@ Result<Scenario> parse_scenario(const std::string& text, const std::string& orig
       if (!route.IsSequence() || route.size() < 2) {
         return Error{at(origin, route) + ": route must be a list of at least two [x, y] points"};
       }
+      double length = 0;
       for (const auto& p : route) {
         if (!p.IsSequence() || p.size() != 2) return Error{at(origin, p) + ": a route point must be [x, y]"};
         try {
@@ -334,7 +335,15 @@ Result<Scenario> parse_scenario(const std::string& text, const std::string& orig
         } catch (const YAML::Exception&) {
           return Error{at(origin, p) + ": a route point must be two numbers [x, y]"};
         }
+        if (!std::isfinite(sc.route.back().x) || !std::isfinite(sc.route.back().y)) {
+          return Error{at(origin, p) + ": a route point must be finite"};
+        }
+        if (sc.route.size() > 1) {
+          const auto& a = sc.route[sc.route.size() - 2];
+          length += std::hypot(sc.route.back().x - a.x, sc.route.back().y - a.y);
+        }
       }
+      if (!(length > 0)) return Error{at(origin, route) + ": the route has no length (its points are all the same)"};
     }
 
     if (top.has("tf")) {
