@@ -64,8 +64,11 @@ std::string format_utime(int64_t utime) {
   return buf;
 }
 
-Progress::Progress(std::string label)
-    : label_(std::move(label)), enabled_(isatty(STDERR_FILENO) == 1), start_(std::chrono::steady_clock::now()) {}
+Progress::Progress(std::string label, Unit unit)
+    : label_(std::move(label)),
+      unit_(unit),
+      enabled_(isatty(STDERR_FILENO) == 1),
+      start_(std::chrono::steady_clock::now()) {}
 
 Progress::~Progress() {
   if (drawn_) std::fprintf(stderr, "\r\033[K");
@@ -79,8 +82,13 @@ void Progress::update(uint64_t done, uint64_t total) {
   last_ = now;
   drawn_ = true;
   const double pct = total > 0 ? 100.0 * static_cast<double>(done) / static_cast<double>(total) : 0.0;
-  std::fprintf(stderr, "\r\033[K%s %5.1f%%  %s of %s", label_.c_str(), pct, human_bytes(done).c_str(),
-               human_bytes(total).c_str());
+  if (unit_ == Unit::kBytes) {
+    std::fprintf(stderr, "\r\033[K%s %5.1f%%  %s of %s", label_.c_str(), pct, human_bytes(done).c_str(),
+                 human_bytes(total).c_str());
+  } else {
+    std::fprintf(stderr, "\r\033[K%s %5.1f%%  %.0f s of %.0f s", label_.c_str(), pct,
+                 static_cast<double>(done) * 1e-3, static_cast<double>(total) * 1e-3);
+  }
   std::fflush(stderr);
 }
 

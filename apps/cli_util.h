@@ -29,12 +29,15 @@ std::string format_utime(int64_t utime);
 /// A one-line progress indicator on stderr, drawn only when stderr is a terminal, at most 10 times a second.
 class Progress {
  public:
-  explicit Progress(std::string label);
+  /// unit: what update() counts, shown as "done of total": bytes, or milliseconds shown as seconds.
+  enum class Unit { kBytes, kMilliseconds };
+  explicit Progress(std::string label, Unit unit = Unit::kBytes);
   ~Progress();
   void update(uint64_t done, uint64_t total);
 
  private:
   std::string label_;
+  Unit unit_;
   bool enabled_;
   bool drawn_ = false;
   std::chrono::steady_clock::time_point start_, last_;

@@ -95,7 +95,7 @@ int run_sim(const SimArgs& a) {
   if (live) {
     o.on_message = [&live](const std::string& c, int64_t t, std::span<const uint8_t> b) { live->publish(c, t, b); };
   }
-  Progress progress("simulating");
+  Progress progress("simulating", Progress::Unit::kMilliseconds);
   o.progress = [&progress](double done, double total) {
     progress.update(static_cast<uint64_t>(done * 1000), static_cast<uint64_t>(total * 1000));
   };

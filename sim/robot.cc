@@ -31,9 +31,11 @@ btTransform to_bt(const Eigen::Isometry3d& t) {
 }
 
 Eigen::Isometry3d to_eigen(const btTransform& t) {
-  const btQuaternion q = t.getRotation();
   Eigen::Isometry3d out = Eigen::Isometry3d::Identity();
-  out.linear() = Eigen::Quaterniond(q.w(), q.x(), q.y(), q.z()).normalized().toRotationMatrix();
+  const btMatrix3x3& basis = t.getBasis();
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) out.linear()(r, c) = basis[r][c];
+  }
   out.translation() = Eigen::Vector3d(t.getOrigin().x(), t.getOrigin().y(), t.getOrigin().z());
   return out;
 }
@@ -69,11 +71,12 @@ struct Robot::Impl {
   struct Group {
     std::string root_link;
     Eigen::Isometry3d com_in_root = Eigen::Isometry3d::Identity();  // principal inertia frame in the root link frame
+    Eigen::Isometry3d root_in_com = Eigen::Isometry3d::Identity();  // its inverse
     std::unique_ptr<btCompoundShape> shape;
     std::vector<std::unique_ptr<btCollisionShape>> children;
     std::unique_ptr<btDefaultMotionState> motion;
     std::unique_ptr<btRigidBody> body;
-    Eigen::Isometry3d root_pose() const { return to_eigen(body->getWorldTransform()) * com_in_root.inverse(); }
+    Eigen::Isometry3d root_pose() const { return to_eigen(body->getWorldTransform()) * root_in_com; }
   };
   struct LinkInfo {
     int group = 0;
@@ -309,11 +312,11 @@ Result<std::unique_ptr<Robot>> Robot::create(const std::string& xml, const std::
     Eigen::Vector3d principal = eig.eigenvalues().cwiseMax(1e-6 * mass);
     g.com_in_root.linear() = axes;
     g.com_in_root.translation() = com;
+    g.root_in_com = g.com_in_root.inverse();
 
     g.shape = std::make_unique<btCompoundShape>();
-    const Eigen::Isometry3d root_in_com = g.com_in_root.inverse();
     for (ShapeAt& s : shapes) {
-      g.shape->addChildShape(to_bt(root_in_com * s.pose), s.shape.get());
+      g.shape->addChildShape(to_bt(g.root_in_com * s.pose), s.shape.get());
       g.children.push_back(std::move(s.shape));
     }
     g.motion = std::make_unique<btDefaultMotionState>();
@@ -348,8 +351,8 @@ Result<std::unique_ptr<Robot>> Robot::create(const std::string& xml, const std::
     j.axis.normalize();
     const Impl::Group& pa = impl->groups[j.parent_group];
     const Impl::Group& ch = impl->groups[j.child_group];
-    const Eigen::Isometry3d joint_in_pa = pa.com_in_root.inverse() * j.origin_in_parent_root;
-    const Eigen::Isometry3d joint_in_ch = ch.com_in_root.inverse();  // the child root is the joint frame
+    const Eigen::Isometry3d joint_in_pa = pa.root_in_com * j.origin_in_parent_root;
+    const Eigen::Isometry3d joint_in_ch = ch.root_in_com;  // the child root is the joint frame
     j.hinge = std::make_unique<btHingeConstraint>(*pa.body, *ch.body, to_bt(Eigen::Vector3d(joint_in_pa.translation())),
                                                   to_bt(Eigen::Vector3d(joint_in_ch.translation())),
                                                   to_bt(Eigen::Vector3d(joint_in_pa.rotation() * j.axis)),
