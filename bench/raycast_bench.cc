@@ -5,9 +5,12 @@
 #include <benchmark/benchmark.h>
 #include <btBulletDynamicsCommon.h>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 #include <vector>
+
+#include <opencv2/imgcodecs.hpp>
 
 #include "sim/bullet_world.h"
 #include "sim/camera_render.h"
@@ -180,6 +183,52 @@ void BM_RenderCamera_PerPixelCast(benchmark::State& state) {
   state.counters["per_frame"] = benchmark::Counter(1, benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
 }
 
+/// The level camera's pose for frame k (as BM_RenderCamera/0).
+Eigen::Isometry3d level_pose(size_t k) {
+  const Fixture& f = fixture();
+  const Eigen::Vector3d& o = f.origins[k % f.origins.size()];
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.translation() = Eigen::Vector3d(o.x(), o.y(), 0.3);
+  T.linear() = Eigen::AngleAxisd(0.7 * static_cast<double>(k), Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  return T;
+}
+
+/// cv::imencode of rendered level 320x240 frames at JPEG quality 80, as sim::Camera calls it (arg 0), with
+/// IMWRITE_JPEG_OPTIMIZE on (arg 1, smaller files), progressive (arg 2); the 64 frames are rendered beforehand.
+void BM_EncodeJpeg(benchmark::State& state) {
+  const Fixture& f = fixture();
+  const driftlab::sim::CameraModel model;
+  std::vector<cv::Mat> frames(f.origins.size());
+  for (size_t k = 0; k < frames.size(); ++k) driftlab::sim::render_camera(f.caster, model, level_pose(k), frames[k]);
+  std::vector<int> params{cv::IMWRITE_JPEG_QUALITY, 80};
+  if (state.range(0) == 1) params.insert(params.end(), {cv::IMWRITE_JPEG_OPTIMIZE, 1});
+  if (state.range(0) == 2) params.insert(params.end(), {cv::IMWRITE_JPEG_PROGRESSIVE, 1});
+  size_t k = 0, bytes = 0;
+  for (auto _ : state) {
+    std::vector<uint8_t> out;  // sim::Camera encodes into a fresh message each frame
+    cv::imencode(".jpg", frames[k++ % frames.size()], out, params);
+    bytes += out.size();
+  }
+  state.counters["per_frame"] = benchmark::Counter(1, benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
+  state.counters["bytes"] = static_cast<double>(bytes) / static_cast<double>(std::max<size_t>(k, 1));
+}
+
+/// What sim::Camera spends per level 320x240 frame: render_camera, then cv::imencode at JPEG quality 80.
+void BM_CameraFrame(benchmark::State& state) {
+  const Fixture& f = fixture();
+  const driftlab::sim::CameraModel model;
+  const std::vector<int> params{cv::IMWRITE_JPEG_QUALITY, 80};
+  cv::Mat img;
+  size_t k = 0;
+  for (auto _ : state) {
+    driftlab::sim::render_camera(f.caster, model, level_pose(k++), img);
+    std::vector<uint8_t> out;
+    cv::imencode(".jpg", img, out, params);
+    benchmark::DoNotOptimize(out.data());
+  }
+  state.counters["per_frame"] = benchmark::Counter(1, benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
+}
+
 }  // namespace
 
 BENCHMARK(BM_Lidar2D_RayCaster)->Unit(benchmark::kMicrosecond);
@@ -190,4 +239,6 @@ BENCHMARK(BM_Lidar3D_BulletMesh)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_Lidar3D_BulletPrimitives)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_RenderCamera)->Arg(0)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_RenderCamera_PerPixelCast)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_EncodeJpeg)->Arg(0)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_CameraFrame)->Unit(benchmark::kMillisecond);
 BENCHMARK_MAIN();

@@ -228,38 +228,10 @@ void RayCaster::spans(const Eigen::Vector2d& origin, const Eigen::Vector2d& dir,
                       std::vector<Span>& out) const {
   out.clear();
   const double ox = origin.x(), oy = origin.y(), dx = dir.x(), dy = dir.y();
-  const int nb = static_cast<int>(boxes_.size());
   walk(ox, oy, dx, dy, 0, max_s, [&](const int32_t* it, const int32_t* end, double) {
+    Span sp;
     for (; it != end; ++it) {
-      const int k = *it;
-      double tn = -kInf, tf = kInf;
-      Eigen::Vector2d normal = Eigen::Vector2d::Zero();
-      double z0, z1;
-      if (k < nb) {
-        const BoxData& b = boxes_[k];
-        const double px = ox - b.cx, py = oy - b.cy;
-        int face = -1;
-        if (!slab(b.c * px + b.s * py, b.c * dx + b.s * dy, b.hx, 0, tn, tf, face) ||
-            !slab(-b.s * px + b.c * py, -b.s * dx + b.c * dy, b.hy, 1, tn, tf, face)) {
-          continue;
-        }
-        if (tn > 0 && face >= 0) {
-          const double sign = (face & 1) ? -1.0 : 1.0;
-          normal = face / 2 == 0 ? Eigen::Vector2d(sign * b.c, sign * b.s) : Eigen::Vector2d(-sign * b.s, sign * b.c);
-        }
-        z0 = b.cz - b.hz, z1 = b.cz + b.hz;
-      } else {
-        const CylData& c = cyls_[k - nb];
-        const double px = ox - c.cx, py = oy - c.cy;
-        const double b = px * dx + py * dy, disc = b * b - (px * px + py * py - c.r * c.r);
-        if (disc < 0) continue;
-        const double sq = std::sqrt(disc);
-        tn = -b - sq, tf = -b + sq;
-        if (tn > 0) normal = Eigen::Vector2d(px + tn * dx, py + tn * dy) / c.r;
-        z0 = c.cz - c.hz, z1 = c.cz + c.hz;
-      }
-      if (tn > tf || tf < 0 || tn > max_s) continue;
-      out.push_back({tn, tf, z0, z1, normal, k, colors_[k]});
+      if (span_of(*it, ox, oy, dx, dy, max_s, sp)) out.push_back(sp);
     }
     return false;
   });
@@ -268,6 +240,76 @@ void RayCaster::spans(const Eigen::Vector2d& origin, const Eigen::Vector2d& dir,
   out.erase(std::unique(out.begin(), out.end(),
                         [](const Span& a, const Span& b) { return a.object == b.object && a.s_in == b.s_in; }),
             out.end());
+}
+
+bool RayCaster::span_of(int k, double ox, double oy, double dx, double dy, double max_s, Span& out) const {
+  const int nb = static_cast<int>(boxes_.size());
+  double tn = -kInf, tf = kInf;
+  Eigen::Vector2d normal = Eigen::Vector2d::Zero();
+  double z0, z1;
+  if (k < nb) {
+    const BoxData& b = boxes_[k];
+    const double px = ox - b.cx, py = oy - b.cy;
+    int face = -1;
+    if (!slab(b.c * px + b.s * py, b.c * dx + b.s * dy, b.hx, 0, tn, tf, face) ||
+        !slab(-b.s * px + b.c * py, -b.s * dx + b.c * dy, b.hy, 1, tn, tf, face)) {
+      return false;
+    }
+    if (tn > 0 && face >= 0) {
+      const double sign = (face & 1) ? -1.0 : 1.0;
+      normal = face / 2 == 0 ? Eigen::Vector2d(sign * b.c, sign * b.s) : Eigen::Vector2d(-sign * b.s, sign * b.c);
+    }
+    z0 = b.cz - b.hz, z1 = b.cz + b.hz;
+  } else {
+    const CylData& c = cyls_[k - nb];
+    const double px = ox - c.cx, py = oy - c.cy;
+    const double b = px * dx + py * dy, disc = b * b - (px * px + py * py - c.r * c.r);
+    if (disc < 0) return false;
+    const double sq = std::sqrt(disc);
+    tn = -b - sq, tf = -b + sq;
+    if (tn > 0) normal = Eigen::Vector2d(px + tn * dx, py + tn * dy) / c.r;
+    z0 = c.cz - c.hz, z1 = c.cz + c.hz;
+  }
+  if (tn > tf || tf < 0 || tn > max_s) return false;
+  out = {tn, tf, z0, z1, normal, k, colors_[k]};
+  return true;
+}
+
+void RayCaster::spans_until(const Eigen::Vector2d& origin, const Eigen::Vector2d& dir, double max_s,
+                            std::vector<Span>& out, std::vector<Span>& pending, SpanSink sink, void* context) const {
+  out.clear();
+  pending.clear();
+  const double ox = origin.x(), oy = origin.y(), dx = dir.x(), dy = dir.y();
+  auto by_s = [](const Span& a, const Span& b) { return a.s_in < b.s_in || (a.s_in == b.s_in && a.object < b.object); };
+  // Moves the pending spans with s_in <= s_done to `out`, sorted; returns the index of the first one moved.
+  auto hand_over = [&](double s_done) {
+    const size_t first = out.size();
+    const auto ready = std::partition(pending.begin(), pending.end(), [&](const Span& p) { return p.s_in <= s_done; });
+    out.insert(out.end(), pending.begin(), ready);
+    pending.erase(pending.begin(), ready);
+    std::sort(out.begin() + static_cast<std::ptrdiff_t>(first), out.end(), by_s);
+    return first;
+  };
+  // A footprint entered at s_in is listed in the cell that holds its entry point (cells list every object within
+  // kPad of them), so a span with s_in before the current cell was found, and handed over, in an earlier cell.
+  double s_enter = -kInf;
+  bool stopped = false;
+  walk(ox, oy, dx, dy, 0, max_s, [&](const int32_t* it, const int32_t* end, double t_exit) {
+    for (; it != end; ++it) {
+      Span sp;
+      if (!span_of(*it, ox, oy, dx, dy, max_s, sp) || sp.s_in <= s_enter) continue;
+      bool seen = false;
+      for (const Span& p : pending) seen = seen || p.object == sp.object;
+      if (!seen) pending.push_back(sp);
+    }
+    s_enter = t_exit;
+    const size_t first = hand_over(t_exit);
+    stopped = !sink(context, out, first, t_exit);
+    return stopped;
+  });
+  if (stopped) return;
+  const size_t first = hand_over(kInf);
+  sink(context, out, first, kInf);
 }
 
 }  // namespace driftlab::sim

@@ -9,7 +9,9 @@
 #include <Eigen/Core>
 #include <array>
 #include <cstdint>
+#include <memory>
 #include <optional>
+#include <type_traits>
 #include <vector>
 
 #include "sim/world.h"
@@ -53,6 +55,33 @@ class RayCaster {
   /// s in [0, max_s], appended to `out` sorted by s_in (out is cleared first; it allocates only when it grows).
   void spans(const Eigen::Vector2d& origin, const Eigen::Vector2d& dir, double max_s, std::vector<Span>& out) const;
 
+  /// The spans() of a ray handed over while the grid is walked, so that a renderer can stop as soon as nearer spans
+  /// hide everything it still needs. After each grid cell, the spans not handed over yet whose s_in is at most
+  /// s_done (where the ray leaves that cell; +infinity once the walk is over) are appended to `out`, sorted as in
+  /// spans(); then sink(context, out, first, s_done) is called, `first` the index of the first new span (there may
+  /// be none). Every span with s_in <= s_done is then in `out`, so `out` is always a prefix of what spans()
+  /// returns (all of it if sink never returns false). The walk stops when sink returns false. `pending` is
+  /// scratch; neither vector allocates unless it grows.
+  using SpanSink = bool (*)(void* context, const std::vector<Span>& out, size_t first, double s_done);
+  void spans_until(const Eigen::Vector2d& origin, const Eigen::Vector2d& dir, double max_s, std::vector<Span>& out,
+                   std::vector<Span>& pending, SpanSink sink, void* context) const;
+  /// spans_until with any callable bool(const std::vector<Span>& out, size_t first, double s_done).
+  template <typename F>
+  void spans_until(const Eigen::Vector2d& origin, const Eigen::Vector2d& dir, double max_s, std::vector<Span>& out,
+                   std::vector<Span>& pending, F&& sink) const {
+    using Fn = std::remove_reference_t<F>;
+    spans_until(
+        origin, dir, max_s, out, pending,
+        [](void* f, const std::vector<Span>& o, size_t first, double s_done) -> bool {
+          return (*static_cast<Fn*>(f))(o, first, s_done);
+        },
+        const_cast<void*>(static_cast<const void*>(std::addressof(sink))));
+  }
+
+  /// Lowest bottom and highest top of all obstacles [m]; +infinity and -infinity when there are none.
+  double z_bottom() const { return z_lo_; }
+  double z_top() const { return z_hi_; }
+
   int num_objects() const { return static_cast<int>(colors_.size()); }
   double cell_size() const { return cell_; }
 
@@ -67,6 +96,10 @@ class RayCaster {
 
   /// 2D DDA over the cells crossed by (ox, oy) + t (dx, dy) for t in [t0, t1], in order; calls
   /// visit(first item, end item, t where the ray leaves the cell) and stops when it returns true.
+  /// The Span of object k along the horizontal ray (ox, oy) + s (dx, dy); false when the ray misses it or
+  /// crosses it outside [0, max_s] (as in spans()).
+  bool span_of(int k, double ox, double oy, double dx, double dy, double max_s, Span& out) const;
+
   template <typename Visit>
   void walk(double ox, double oy, double dx, double dy, double t0, double t1, Visit&& visit) const;
 

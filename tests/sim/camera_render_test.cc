@@ -3,6 +3,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 #include <set>
@@ -13,6 +14,18 @@ namespace {
 std::array<uint8_t, 3> rgb_at(const cv::Mat& bgr, int row, int col) {
   const cv::Vec3b p = bgr.at<cv::Vec3b>(row, col);
   return {p[2], p[1], p[0]};
+}
+
+/// n uniform draws in order (the order in which function arguments are evaluated is unspecified, so drawing
+/// inside one call would give different worlds with different compilers).
+/// kGccOrder: the scenes below were tuned with the draws inside the constructors' arguments, which gcc evaluates
+/// last to first (a braced list is evaluated first to last); the draws are used in that order so that every
+/// compiler builds those same scenes.
+template <int N>
+std::array<double, N> draw(std::uniform_real_distribution<double>& u, std::mt19937_64& rng) {
+  std::array<double, N> a;
+  for (double& x : a) x = u(rng);
+  return a;
 }
 
 bool reddish(const std::array<uint8_t, 3>& c) { return c[0] > 80 && c[1] < 10 && c[2] < 10; }
@@ -84,12 +97,14 @@ TEST(RenderCamera, AgreesWithPerPixelCastingLevelAndTilted) {
   World w;
   const std::array<std::array<uint8_t, 3>, 3> hues{{{255, 0, 0}, {0, 255, 0}, {0, 0, 255}}};
   for (int i = 0; i < 40; ++i) {
-    const Eigen::Vector3d size(0.3 + u(rng), 0.3 + u(rng), 0.3 + 2 * u(rng));
-    w.boxes.push_back({"b", Eigen::Vector3d(-8 + 16 * u(rng), -8 + 16 * u(rng), 0.5 * size.z() + (i % 5 == 0)), size,
-                       3 * u(rng), hues[i % 3]});
+    const auto r = draw<6>(u, rng);  // in the order gcc used to draw them (see kGccOrder)
+    const Eigen::Vector3d size(0.3 + r[2], 0.3 + r[1], 0.3 + 2 * r[0]);
+    w.boxes.push_back({"b", Eigen::Vector3d(-8 + 16 * r[4], -8 + 16 * r[3], 0.5 * size.z() + (i % 5 == 0)), size,
+                       3 * r[5], hues[i % 3]});
   }
   for (int i = 0; i < 15; ++i) {
-    w.cylinders.push_back({"c", Eigen::Vector3d(-8 + 16 * u(rng), -8 + 16 * u(rng), 0.6), 0.1 + 0.3 * u(rng), 1.2,
+    const auto r = draw<3>(u, rng);
+    w.cylinders.push_back({"c", Eigen::Vector3d(-8 + 16 * r[1], -8 + 16 * r[0], 0.6), 0.1 + 0.3 * r[2], 1.2,
                            hues[i % 3]});
   }
   const RayCaster rc(w);
@@ -132,12 +147,14 @@ TEST(RenderCamera, LevelFastPathAgreesWithGenericPath) {
   std::uniform_real_distribution<double> u(0, 1);
   World w;
   for (int i = 0; i < 40; ++i) {
-    const Eigen::Vector3d size(0.3 + u(rng), 0.3 + u(rng), 0.3 + 2 * u(rng));
-    w.boxes.push_back({"b", Eigen::Vector3d(-8 + 16 * u(rng), -8 + 16 * u(rng), 0.5 * size.z() + (i % 5 == 0)), size,
-                       3 * u(rng), {static_cast<uint8_t>(40 + 5 * i), 200, 30}});
+    const auto r = draw<6>(u, rng);  // in the order gcc used to draw them (see kGccOrder)
+    const Eigen::Vector3d size(0.3 + r[2], 0.3 + r[1], 0.3 + 2 * r[0]);
+    w.boxes.push_back({"b", Eigen::Vector3d(-8 + 16 * r[4], -8 + 16 * r[3], 0.5 * size.z() + (i % 5 == 0)), size,
+                       3 * r[5], {static_cast<uint8_t>(40 + 5 * i), 200, 30}});
   }
   for (int i = 0; i < 15; ++i) {
-    w.cylinders.push_back({"c", Eigen::Vector3d(-8 + 16 * u(rng), -8 + 16 * u(rng), 0.6), 0.1 + 0.3 * u(rng), 1.2,
+    const auto r = draw<3>(u, rng);
+    w.cylinders.push_back({"c", Eigen::Vector3d(-8 + 16 * r[1], -8 + 16 * r[0], 0.6), 0.1 + 0.3 * r[2], 1.2,
                            {250, static_cast<uint8_t>(10 * i), 90}});
   }
   w.boxes.push_back({"around the camera", {3, 3, 1}, {1, 1, 2}, 0, {255, 255, 0}});
@@ -170,6 +187,69 @@ TEST(RenderCamera, LevelFastPathAgreesWithGenericPath) {
     // The generic path takes each pixel's azimuth to within an eighth of a pixel, the fast path exactly: they may
     // differ along silhouettes only.
     EXPECT_LT(differ, 0.005 * fast.rows * fast.cols) << "pose " << k.pose.translation().transpose();
+  }
+}
+
+TEST(RenderCamera, SpansUntilHandsOverWhatSpansReturns) {
+  // RayCaster::spans_until (which the level fast path uses to stop early) hands over spans() in order, in prefixes.
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<double> u(0, 1);
+  World w;
+  for (int i = 0; i < 80; ++i) {
+    const auto r = draw<6>(u, rng);
+    w.boxes.push_back({"b", Eigen::Vector3d(-8 + 16 * r[0], -8 + 16 * r[1], 0.5 + r[2]),
+                       Eigen::Vector3d(0.1 + 2 * r[3], 0.1 + r[4], 1), 3 * r[5], {1, 2, 3}});
+  }
+  for (int i = 0; i < 20; ++i) {
+    const auto r = draw<3>(u, rng);
+    w.cylinders.push_back({"c", Eigen::Vector3d(-8 + 16 * r[0], -8 + 16 * r[1], 0.5), 0.05 + 0.5 * r[2], 1, {4, 5, 6}});
+  }
+  const RayCaster rc(w, 0.7);
+  std::vector<Span> expected, got, pending;
+  for (int k = 0; k < 500; ++k) {
+    const auto r = draw<4>(u, rng);
+    const Eigen::Vector2d origin(-10 + 20 * r[0], -10 + 20 * r[1]);
+    // Some rays along the grid's axes and diagonals.
+    const double angle = k % 5 == 0 ? M_PI / 4 * std::floor(8 * r[2]) : 2 * M_PI * r[2];
+    const Eigen::Vector2d dir(std::cos(angle), std::sin(angle));
+    const double max_s = 3 + 25 * r[3];
+    rc.spans(origin, dir, max_s, expected);
+    size_t calls = 0, seen = 0;
+    double last_done = -INFINITY;
+    rc.spans_until(origin, dir, max_s, got, pending, [&](const std::vector<Span>& out, size_t first, double s_done) {
+      EXPECT_EQ(first, seen);
+      EXPECT_GE(s_done, last_done);
+      for (size_t i = first; i < out.size(); ++i) {
+        EXPECT_LE(out[i].s_in, s_done);
+        if (i > 0) {
+          EXPECT_LE(out[i - 1].s_in, out[i].s_in);
+        }
+      }
+      // Nothing left out that starts before s_done.
+      for (const Span& e : expected) {
+        if (e.s_in <= s_done) {
+          EXPECT_TRUE(std::any_of(out.begin(), out.end(), [&](const Span& o) { return o.object == e.object; }));
+        }
+      }
+      seen = out.size(), last_done = s_done, ++calls;
+      return true;
+    });
+    EXPECT_GE(calls, 1u);
+    ASSERT_EQ(got.size(), expected.size()) << k;
+    for (size_t i = 0; i < got.size(); ++i) {
+      EXPECT_EQ(got[i].object, expected[i].object) << k << " " << i;
+      EXPECT_EQ(got[i].s_in, expected[i].s_in);
+      EXPECT_EQ(got[i].s_out, expected[i].s_out);
+    }
+    // Stopping early leaves a prefix.
+    size_t stop_at = 0;
+    rc.spans_until(origin, dir, max_s, got, pending, [&](const std::vector<Span>& out, size_t, double) {
+      stop_at = out.size();
+      return out.size() < 2;
+    });
+    ASSERT_LE(got.size(), expected.size());
+    EXPECT_EQ(got.size(), stop_at);
+    for (size_t i = 0; i < got.size(); ++i) EXPECT_EQ(got[i].object, expected[i].object);
   }
 }
 

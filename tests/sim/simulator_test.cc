@@ -313,7 +313,9 @@ TEST(Simulation, FloorPlanWorld) {
     for (float r : scan.ranges) valid += std::isfinite(r) ? 1 : 0;
     EXPECT_EQ(valid, scan.nranges);  // enclosed by the plan's walls: every beam returns
     // Start (4.5, 2.5) facing +x: the south wall (inner face y = 0.2) is 2.3 m to the right of the laser.
-    if (scans++ == 0) EXPECT_NEAR(scan.ranges[180], 2.3, 0.05);
+    if (scans++ == 0) {
+      EXPECT_NEAR(scan.ranges[180], 2.3, 0.05);
+    }
   }
   EXPECT_EQ(scans, 30);
 }
