@@ -87,6 +87,8 @@ struct BulletWorld::Impl {
     object->setWorldTransform(pose);
     object->setFriction(static_cast<btScalar>(friction));
     object->setCollisionFlags(object->getCollisionFlags() | btCollisionObject::CF_STATIC_OBJECT);
+    // Asleep, so the world does not refresh its bounding box every step (it never moves).
+    object->setActivationState(ISLAND_SLEEPING);
     dynamics.addCollisionObject(object.get(), btBroadphaseProxy::StaticFilter,
                                 btBroadphaseProxy::AllFilter ^ btBroadphaseProxy::StaticFilter);
     shapes.push_back(std::move(shape));

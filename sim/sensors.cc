@@ -198,18 +198,68 @@ class Camera final : public Periodic {
   cv::Mat image_;
 };
 
-/// A spinning 2D lidar: beam i of a scan is measured at scan start + i * time_increment from the pose at that
-/// step, so motion during the revolution distorts the scan as on a real sensor. Published when the last beam is in.
-class Lidar2d final : public Periodic {
+/// A spinning sensor: one revolution per period, its `units` (beams or columns) measured one after the other
+/// through it, each from the pose at its physics step, so motion during the revolution distorts the data as on a
+/// real lidar. Stamped at the first unit, published when the last is in.
+class Spinning : public Periodic {
  public:
-  Lidar2d(const SensorConfig& c, Output& out, uint64_t seed) : Periodic(c, out), rng_(seed) {
+  void step(SensorContext& ctx) override {
+    while (true) {
+      if (unit_ < 0) {
+        if (!due(ctx)) return;
+        start_ = ctx.start_utime + due_us(n_ - 1, config_.rate);
+        unit_ = 0;
+      }
+      const Eigen::Isometry3d pose = ctx.robot.link_pose(link(ctx.robot));
+      for (; unit_ < units_ && unit_time(unit_) <= ctx.now_utime; ++unit_) {
+        measure(ctx, pose, unit_, static_cast<double>(unit_time(unit_) - start_) * 1e-6);
+      }
+      if (unit_ < units_) return;
+      publish(ctx, start_);
+      unit_ = -1;
+    }
+  }
+
+ protected:
+  Spinning(const SensorConfig& c, Output& out, uint64_t seed, int units, double unit_dt_s)
+      : Periodic(c, out), rng_(seed), units_(units), unit_dt_s_(unit_dt_s) {}
+  /// Measures unit i from `pose`, offset_s after the stamp.
+  virtual void measure(SensorContext& ctx, const Eigen::Isometry3d& pose, int i, double offset_s) = 0;
+  virtual void publish(SensorContext& ctx, int64_t stamp) = 0;
+  /// A range with Gaussian noise, or NaN when there is no return within [range_min, range_max].
+  double noisy_range(SensorContext& ctx, const Eigen::Vector3d& origin, const Eigen::Vector3d& dir, double range_min,
+                     double range_max, double noise) {
+    double r = ctx.range(origin, dir, range_max);
+    if (std::isfinite(r)) r += noise * unit_normal_(rng_);
+    return std::isfinite(r) && r >= range_min && r <= range_max ? r : NAN;
+  }
+
+ private:
+  int64_t unit_time(int i) const { return start_ + static_cast<int64_t>(std::llround(i * unit_dt_s_ * 1e6)); }
+  std::mt19937_64 rng_;
+  std::normal_distribution<double> unit_normal_{0, 1};
+  int units_;
+  double unit_dt_s_;
+  int unit_ = -1;  // next unit of the revolution in progress; -1: none
+  int64_t start_ = 0;
+};
+
+/// Beam times for a 2D lidar: one revolution per period, the beams covering the field of view's share of it.
+double beam_dt(const SensorConfig& c) {
+  return 1.0 / c.rate * std::min(1.0, c.lidar2d.fov / (2 * M_PI)) / c.lidar2d.beams;
+}
+
+/// A spinning 2D lidar (laser_scan_t).
+class Lidar2d final : public Spinning {
+ public:
+  Lidar2d(const SensorConfig& c, Output& out, uint64_t seed)
+      : Spinning(c, out, seed, c.lidar2d.beams, static_cast<float>(beam_dt(c))) {
     const Lidar2dParams& p = c.lidar2d;
     const double inc = p.beams > 1 ? p.fov / (p.fov >= 2 * M_PI - 1e-9 ? p.beams : p.beams - 1) : 0;
     msg_.angle_min = static_cast<float>(-p.fov / 2);
     msg_.angle_increment = static_cast<float>(inc);
     msg_.angle_max = static_cast<float>(-p.fov / 2 + inc * (p.beams - 1));
-    // One revolution per period: the beams cover the field of view's share of it.
-    msg_.time_increment = static_cast<float>(1.0 / c.rate * std::min(1.0, p.fov / (2 * M_PI)) / p.beams);
+    msg_.time_increment = static_cast<float>(beam_dt(c));
     msg_.scan_time = static_cast<float>(1.0 / c.rate);
     msg_.range_min = static_cast<float>(p.range_min);
     msg_.range_max = static_cast<float>(p.range_max);
@@ -217,46 +267,28 @@ class Lidar2d final : public Periodic {
     msg_.ranges.resize(static_cast<std::size_t>(p.beams));
     msg_.nintensities = 0;
   }
-  void step(SensorContext& ctx) override {
-    const Lidar2dParams& p = config_.lidar2d;
-    while (true) {
-      if (beam_ < 0) {
-        if (!due(ctx)) return;
-        scan_start_ = ctx.start_utime + due_us(n_ - 1, config_.rate);
-        beam_ = 0;
-      }
-      const Eigen::Isometry3d pose = ctx.robot.link_pose(link(ctx.robot));
-      std::normal_distribution<double> noise(0, p.range_noise);
-      for (; beam_ < p.beams && beam_time(beam_) <= ctx.now_utime; ++beam_) {
-        const double a = msg_.angle_min + beam_ * static_cast<double>(msg_.angle_increment);
-        const Eigen::Vector3d dir = pose.rotation() * Eigen::Vector3d(std::cos(a), std::sin(a), 0);
-        double r = ctx.range(pose.translation(), dir, p.range_max);
-        if (std::isfinite(r)) r += noise(rng_);
-        msg_.ranges[static_cast<std::size_t>(beam_)] =
-            std::isfinite(r) && r >= p.range_min && r <= p.range_max ? static_cast<float>(r) : NAN;
-      }
-      if (beam_ < p.beams) return;
-      msg_.header.frame_id = link(ctx.robot);
-      ctx.out.publish(stream_, msg_, scan_start_, ctx.now_utime);
-      beam_ = -1;
-    }
-  }
 
  private:
-  int64_t beam_time(int i) const {
-    return scan_start_ + static_cast<int64_t>(std::llround(i * static_cast<double>(msg_.time_increment) * 1e6));
+  void measure(SensorContext& ctx, const Eigen::Isometry3d& pose, int i, double) override {
+    const Lidar2dParams& p = config_.lidar2d;
+    const double a = msg_.angle_min + i * static_cast<double>(msg_.angle_increment);
+    const Eigen::Vector3d dir = pose.rotation() * Eigen::Vector3d(std::cos(a), std::sin(a), 0);
+    msg_.ranges[static_cast<std::size_t>(i)] =
+        static_cast<float>(noisy_range(ctx, pose.translation(), dir, p.range_min, p.range_max, p.range_noise));
   }
-  std::mt19937_64 rng_;
+  void publish(SensorContext& ctx, int64_t stamp) override {
+    msg_.header.frame_id = link(ctx.robot);
+    ctx.out.publish(stream_, msg_, stamp, ctx.now_utime);
+  }
   driftlab::laser_scan_t msg_{};
-  int beam_ = -1;  // next beam of the scan in progress; -1: none
-  int64_t scan_start_ = 0;
 };
 
-/// A spinning multi-ring lidar: one column of rings per azimuth step, the columns spread over the period; an
-/// organised cloud (height = rings, width = columns) in the sensor frame with per-point time offsets.
-class Lidar3d final : public Periodic {
+/// A spinning multi-ring lidar: one column of rings per azimuth step; an organised cloud (height = rings,
+/// width = columns) in the sensor frame with per-point time offsets.
+class Lidar3d final : public Spinning {
  public:
-  Lidar3d(const SensorConfig& c, Output& out, uint64_t seed) : Periodic(c, out), rng_(seed) {
+  Lidar3d(const SensorConfig& c, Output& out, uint64_t seed)
+      : Spinning(c, out, seed, c.lidar3d.columns, 1.0 / c.rate / c.lidar3d.columns) {
     const Lidar3dParams& p = c.lidar3d;
     const std::size_t n = static_cast<std::size_t>(p.rings) * static_cast<std::size_t>(p.columns);
     msg_.height = p.rings;
@@ -273,52 +305,30 @@ class Lidar3d final : public Periodic {
       ring_cos_.push_back(std::cos(e));
       ring_sin_.push_back(std::sin(e));
     }
-    column_dt_ = 1.0 / c.rate / p.columns;
-  }
-  void step(SensorContext& ctx) override {
-    const Lidar3dParams& p = config_.lidar3d;
-    while (true) {
-      if (column_ < 0) {
-        if (!due(ctx)) return;
-        scan_start_ = ctx.start_utime + due_us(n_ - 1, config_.rate);
-        column_ = 0;
-      }
-      const Eigen::Isometry3d pose = ctx.robot.link_pose(link(ctx.robot));
-      std::normal_distribution<double> noise(0, p.range_noise);
-      for (; column_ < p.columns && column_time(column_) <= ctx.now_utime; ++column_) {
-        const double az = -M_PI + 2 * M_PI * column_ / p.columns;
-        const double ca = std::cos(az), sa = std::sin(az);
-        const auto offset = static_cast<float>(static_cast<double>(column_time(column_) - scan_start_) * 1e-6);
-        for (int r = 0; r < p.rings; ++r) {
-          const Eigen::Vector3d local(ring_cos_[r] * ca, ring_cos_[r] * sa, ring_sin_[r]);
-          double range = ctx.range(pose.translation(), pose.rotation() * local, p.range_max);
-          if (std::isfinite(range)) range += noise(rng_);
-          const std::size_t i = static_cast<std::size_t>(r) * static_cast<std::size_t>(p.columns) + static_cast<std::size_t>(column_);
-          if (std::isfinite(range) && range >= p.range_min && range <= p.range_max) {
-            msg_.x[i] = static_cast<float>(local.x() * range);
-            msg_.y[i] = static_cast<float>(local.y() * range);
-            msg_.z[i] = static_cast<float>(local.z() * range);
-          } else {
-            msg_.x[i] = msg_.y[i] = msg_.z[i] = NAN;
-          }
-          msg_.time_offsets[i] = offset;
-        }
-      }
-      if (column_ < p.columns) return;
-      msg_.header.frame_id = link(ctx.robot);
-      ctx.out.publish(stream_, msg_, scan_start_, ctx.now_utime);
-      column_ = -1;
-    }
   }
 
  private:
-  int64_t column_time(int c) const { return scan_start_ + static_cast<int64_t>(std::llround(c * column_dt_ * 1e6)); }
-  std::mt19937_64 rng_;
+  void measure(SensorContext& ctx, const Eigen::Isometry3d& pose, int column, double offset_s) override {
+    const Lidar3dParams& p = config_.lidar3d;
+    const double az = -M_PI + 2 * M_PI * column / p.columns;
+    const double ca = std::cos(az), sa = std::sin(az);
+    for (int r = 0; r < p.rings; ++r) {
+      const Eigen::Vector3d local(ring_cos_[r] * ca, ring_cos_[r] * sa, ring_sin_[r]);
+      const double range =
+          noisy_range(ctx, pose.translation(), pose.rotation() * local, p.range_min, p.range_max, p.range_noise);
+      const std::size_t i = static_cast<std::size_t>(r) * static_cast<std::size_t>(p.columns) + static_cast<std::size_t>(column);
+      msg_.x[i] = static_cast<float>(local.x() * range);
+      msg_.y[i] = static_cast<float>(local.y() * range);
+      msg_.z[i] = static_cast<float>(local.z() * range);
+      msg_.time_offsets[i] = static_cast<float>(offset_s);
+    }
+  }
+  void publish(SensorContext& ctx, int64_t stamp) override {
+    msg_.header.frame_id = link(ctx.robot);
+    ctx.out.publish(stream_, msg_, stamp, ctx.now_utime);
+  }
   driftlab::point_cloud_t msg_{};
   std::vector<double> ring_cos_, ring_sin_;
-  double column_dt_ = 0;
-  int column_ = -1;
-  int64_t scan_start_ = 0;
 };
 
 }  // namespace
