@@ -196,6 +196,16 @@ Result<SimReport> Simulation::run(const SimOptions& options) {
         t.rotation = {q.w(), q.x(), q.y(), q.z()};
         tf.transforms.push_back(t);
       }
+      if (has_odometry) {
+        // The odometry frame starts at the robot's start pose in the ground truth's world frame.
+        driftlab::transform_t t{};
+        t.header.utime = now;
+        t.header.frame_id = "world";
+        t.child_frame_id = hidden.frame;
+        t.translation = {sc.start.x(), sc.start.y(), 0};
+        t.rotation = {std::cos(sc.start.z() / 2), 0, 0, std::sin(sc.start.z() / 2)};
+        tf.transforms.push_back(t);
+      }
       tf.ntransforms = static_cast<int32_t>(tf.transforms.size());
       out.publish(static_stream, tf, now, now);
     }

@@ -149,7 +149,7 @@ TEST_F(DefaultRun, GroundTruthFollowsTheRouteAndOdometryDrifts) {
   const auto st = decode<driftlab::tf_t>(*on("TF_STATIC").front());
   std::set<std::string> children;
   for (const auto& t : st.transforms) children.insert(t.child_frame_id);
-  EXPECT_EQ(children, (std::set<std::string>{"laser", "imu_link", "camera_link"}));
+  EXPECT_EQ(children, (std::set<std::string>{"laser", "imu_link", "camera_link", "odom"}));  // world -> odom
 }
 
 TEST_F(DefaultRun, ScansSeeTheWorldFromTheTruePose) {
