@@ -186,18 +186,6 @@ std::optional<double> scan_rotation(const std::vector<float>& previous, const st
   return (static_cast<double>(best) - max_shift + refine) * increment;
 }
 
-/// Whether a message of an unknown type starts, after its fingerprint, with driftlab.header_t: a non-negative
-/// seq, a stamp within a day of its arrival, and a NUL-terminated frame name of sane length.
-bool looks_like_header(std::span<const uint8_t> data, int64_t arrival) {
-  if (data.size() < 8 + 8 + 8 + 4 + 1) return false;
-  const auto seq = static_cast<int64_t>(logfmt::load_be64(data.data() + 8));
-  const auto stamp = static_cast<int64_t>(logfmt::load_be64(data.data() + 16));
-  const uint32_t len = logfmt::load_be32(data.data() + 24);  // with the NUL
-  constexpr int64_t kDay = 86400LL * 1000000;
-  return seq >= 0 && seq < (int64_t{1} << 48) && std::abs(stamp - arrival) < kDay && len >= 1 && len <= 256 &&
-         28 + static_cast<size_t>(len) <= data.size() && data[28 + len - 1] == 0;
-}
-
 /// Scans: the yaw rate between consecutive scans (kept as views into the mapped log during the pass), at their
 /// midpoint. Pairs of scans are independent, so two threads share them.
 void add_scan_motion(Samples& s) {
@@ -534,6 +522,17 @@ std::optional<StreamPair> skew(const std::string& a_name, const Samples& a, cons
 }
 
 }  // namespace
+
+bool looks_like_header(std::span<const uint8_t> data, int64_t arrival) {
+  if (data.size() < 8 + 8 + 8 + 4 + 1) return false;
+  const auto seq = static_cast<int64_t>(logfmt::load_be64(data.data() + 8));
+  const auto stamp = static_cast<int64_t>(logfmt::load_be64(data.data() + 16));
+  const uint32_t len = logfmt::load_be32(data.data() + 24);  // with the NUL
+  constexpr int64_t kDay = 86400LL * 1000000;
+  return seq >= 0 && seq < (int64_t{1} << 48) && std::abs(stamp - arrival) < kDay && len >= 1 && len <= 256 &&
+         28 + static_cast<size_t>(len) <= data.size() && data[28 + len - 1] == 0;
+}
+
 
 Result<Diagnosis> diagnose(const std::string& log, const DiagnoseOptions& options) {
   auto reader = LogReader::open(log);

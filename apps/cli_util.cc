@@ -1,11 +1,13 @@
 #include "apps/cli_util.h"
 
+#include <lcm/lcm.h>
 #include <unistd.h>
 
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
 #include <ctime>
+#include <thread>
 
 namespace driftlab::apps {
 
@@ -90,6 +92,28 @@ void Progress::update(uint64_t done, uint64_t total) {
                  static_cast<double>(done) * 1e-3, static_cast<double>(total) * 1e-3);
   }
   std::fflush(stderr);
+}
+
+Result<std::unique_ptr<LivePublisher>> LivePublisher::open(const std::string& url, double rate,
+                                                          const std::string& option) {
+  lcm_t* lcm = lcm_create(url.c_str());
+  if (lcm == nullptr) return Error{option + " " + url + ": cannot open the LCM URL"};
+  return std::unique_ptr<LivePublisher>(new LivePublisher(lcm, rate));
+}
+
+LivePublisher::~LivePublisher() { lcm_destroy(lcm_); }
+
+void LivePublisher::publish(std::string_view channel, int64_t utime, std::span<const uint8_t> bytes) {
+  if (first_ < 0) {
+    first_ = utime;
+    start_ = std::chrono::steady_clock::now();
+  }
+  if (rate_ > 0) {
+    const auto due = start_ + std::chrono::microseconds(static_cast<int64_t>(static_cast<double>(utime - first_) / rate_));
+    std::this_thread::sleep_until(due);
+  }
+  channel_.assign(channel);
+  lcm_publish(lcm_, channel_.c_str(), bytes.data(), static_cast<unsigned int>(bytes.size()));
 }
 
 }  // namespace driftlab::apps

@@ -3,8 +3,14 @@
 
 #include <chrono>
 #include <cstdint>
+#include <memory>
+#include <span>
 #include <string>
 #include <string_view>
+
+#include "core/result.h"
+
+struct _lcm_t;
 
 namespace driftlab::apps {
 
@@ -41,6 +47,25 @@ class Progress {
   bool enabled_;
   bool drawn_ = false;
   std::chrono::steady_clock::time_point start_, last_;
+};
+
+/// Publishes messages on LCM, paced against the wall clock at `rate` x the messages' own time (0: as fast as
+/// possible), as lcm-logplayer does.
+class LivePublisher {
+ public:
+  /// Errors name the URL and the option it came from.
+  static Result<std::unique_ptr<LivePublisher>> open(const std::string& url, double rate, const std::string& option);
+  ~LivePublisher();
+  /// Sleeps until the message is due, then publishes it.
+  void publish(std::string_view channel, int64_t utime, std::span<const uint8_t> bytes);
+
+ private:
+  LivePublisher(_lcm_t* lcm, double rate) : lcm_(lcm), rate_(rate) {}
+  _lcm_t* lcm_;
+  double rate_;
+  int64_t first_ = -1;
+  std::chrono::steady_clock::time_point start_;
+  std::string channel_;
 };
 
 }  // namespace driftlab::apps

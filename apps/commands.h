@@ -13,5 +13,6 @@ void add_eval_command(CLI::App& app, int* exit_code);
 void add_record_command(CLI::App& app, int* exit_code);
 void add_diagnose_command(CLI::App& app, int* exit_code);
 void add_sim_command(CLI::App& app, int* exit_code);
+void add_replay_command(CLI::App& app, int* exit_code);
 
 }  // namespace driftlab::apps

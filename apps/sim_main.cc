@@ -1,7 +1,6 @@
 // driftlab sim: simulate a robot in a Bullet world from a scenario and write every stream to an LCM log, with
 // ground truth and the injected faults.
 #include <CLI/CLI.hpp>
-#include <lcm/lcm.h>
 #include <signal.h>
 #include <unistd.h>
 
@@ -34,36 +33,6 @@ struct SimArgs {
 std::atomic<bool> g_stop{false};
 void on_signal(int) { g_stop.store(true); }
 
-/// Publishes the simulated messages on LCM as they arrive, paced against the wall clock at `rate` x real time
-/// (0: as fast as possible).
-class LivePublisher {
- public:
-  static Result<std::unique_ptr<LivePublisher>> open(const std::string& url, double rate) {
-    lcm_t* lcm = lcm_create(url.c_str());
-    if (lcm == nullptr) return Error{"--live " + url + ": cannot open the LCM URL"};
-    return std::unique_ptr<LivePublisher>(new LivePublisher(lcm, rate));
-  }
-  ~LivePublisher() { lcm_destroy(lcm_); }
-  void publish(const std::string& channel, int64_t utime, std::span<const uint8_t> bytes) {
-    if (first_ < 0) {
-      first_ = utime;
-      start_ = std::chrono::steady_clock::now();
-    }
-    if (rate_ > 0) {
-      const auto due = start_ + std::chrono::microseconds(static_cast<int64_t>(static_cast<double>(utime - first_) / rate_));
-      std::this_thread::sleep_until(due);
-    }
-    lcm_publish(lcm_, channel.c_str(), bytes.data(), static_cast<unsigned int>(bytes.size()));
-  }
-
- private:
-  LivePublisher(lcm_t* lcm, double rate) : lcm_(lcm), rate_(rate) {}
-  lcm_t* lcm_;
-  double rate_;
-  int64_t first_ = -1;
-  std::chrono::steady_clock::time_point start_;
-};
-
 int run_sim(const SimArgs& a) {
   const std::string path = a.scenario.empty() ? sim::default_scenario_path() : a.scenario;
   auto scenario = sim::load_scenario(path);
@@ -85,7 +54,7 @@ int run_sim(const SimArgs& a) {
 
   std::unique_ptr<LivePublisher> live;
   if (!a.live_url.empty()) {
-    auto p = LivePublisher::open(a.live_url, a.live_rate);
+    auto p = LivePublisher::open(a.live_url, a.live_rate, "--live");
     if (!p) return fail(p.error().message);
     live = std::move(*p);
   }

@@ -9,8 +9,20 @@
 
 namespace driftlab {
 
-/// A user-facing error: one line that names the file and the place (offset, key, line).
+/// A user-facing error: one line that names the file and the place (offset, key, line). Control characters that
+/// came in with user text (a YAML key or value, a parser's quote of the input) are escaped as \xNN, so the message
+/// stays one printable line.
 struct Error {
+  Error() = default;
+  Error(std::string m) : message(std::move(m)) {  // NOLINT(google-explicit-constructor)
+    static constexpr char kHex[] = "0123456789abcdef";
+    for (size_t i = 0; i < message.size(); ++i) {
+      const auto c = static_cast<unsigned char>(message[i]);
+      if (c >= 0x20 && c != 0x7f) continue;
+      message.replace(i, 1, std::string{'\\', 'x', kHex[c >> 4], kHex[c & 15]});
+      i += 3;
+    }
+  }
   std::string message;
 };
 

@@ -3,6 +3,7 @@
 #include <btBulletDynamicsCommon.h>
 
 #include <cstdint>
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <string>
@@ -17,7 +18,10 @@ namespace {
 /// One line naming the file: the origin, or a file the text refers to (a scenario's world).
 void check(const driftlab::Error& e, const std::string& origin) {
   const bool named = e.message.rfind(origin, 0) == 0 || e.message.rfind("/nonexistent/", 0) == 0;
-  if (!named || e.message.find('\n') != std::string::npos) std::abort();
+  if (!named || e.message.find('\n') != std::string::npos) {
+    std::fprintf(stderr, "error not one line naming %s: %s\n", origin.c_str(), e.message.c_str());
+    std::abort();
+  }
 }
 
 }  // namespace

@@ -1,6 +1,10 @@
 // PurePursuit::update and avoid_obstacles on an ideal unicycle: loops, open routes, limits, obstacles, recovery.
 #include "controller/pure_pursuit.h"
 
+#include <yaml-cpp/yaml.h>
+
+#include "controller/controller_module.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -95,6 +99,35 @@ TEST(AvoidObstacles, SlowsForObstaclesAheadAndSteersAway) {
   const Command blocked = avoid_obstacles(go, {{0.22, 0.05}}, {});
   EXPECT_EQ(blocked.linear, 0);
   EXPECT_LT(blocked.angular, 0);
+}
+
+
+TEST(CompareCommands, FindsTheDelayBetweenTwoCommandSeries) {
+  // Logged commands are the recomputed ones 60 ms later (a slow transport, say), sampled at 20 Hz.
+  std::vector<CommandSample> recomputed, logged;
+  const int64_t t0 = 1763776800000000;
+  for (int i = 0; i < 400; ++i) {
+    const int64_t t = t0 + i * 10000;
+    const double w = std::sin(i * 0.02);
+    if (i % 5 == 0) recomputed.push_back({t, 0.4, w});
+    logged.push_back({t + 60000, 0.4, w});
+  }
+  const CommandComparison c = compare_commands(recomputed, logged, 0.5);
+  EXPECT_NEAR(c.delay_s, 0.06, 1e-9);
+  EXPECT_LT(c.angular_rmse_at_delay, 1e-12);
+  EXPECT_GT(c.angular_rmse, 0.01);  // at zero lag the series differ
+  EXPECT_NEAR(c.linear_rmse, 0, 1e-12);
+  EXPECT_EQ(c.matched, 78);         // recomputed commands from the first logged one on (60 ms in): 2 of 80 miss
+}
+
+TEST(ControllerConfig, NamesTheFileLineAndKey) {
+  const YAML::Node node = YAML::Load("route: [[0, 0], [1, 0]]\nlookahed: 0.5\n");
+  auto c = parse_controller_config(node, "c.yaml");
+  ASSERT_FALSE(c);
+  EXPECT_EQ(c.error().message.rfind("c.yaml:2: unknown key 'controller.lookahed'", 0), 0u) << c.error().message;
+  auto none = parse_controller_config(YAML::Load("speed: 0.3\n"), "c.yaml");
+  ASSERT_FALSE(none);
+  EXPECT_NE(none.error().message.find("no route"), std::string::npos);
 }
 
 }  // namespace

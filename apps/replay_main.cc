@@ -1,0 +1,326 @@
+// driftlab replay: re-feed logs, deterministically, to SLAM, the estimator and the controller on a virtual clock;
+// correct clocks or inject faults first, write what the modules publish, re-publish on LCM.
+#include <CLI/CLI.hpp>
+#include <signal.h>
+#include <yaml-cpp/yaml.h>
+
+#include <array>
+#include <atomic>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "analyzers/timing.h"
+#include "apps/cli_util.h"
+#include "apps/commands.h"
+#include "controller/controller_module.h"
+#include "estimator/estimator_module.h"
+#include "replayer/replayer.h"
+#include "sim/scenario.h"
+
+namespace driftlab::apps {
+namespace {
+
+struct ReplayArgs {
+  std::vector<std::string> logs;
+  std::string modules;
+  std::string config;
+  std::string out;
+  double rate = 1.0;
+  bool fast = false;
+  double start = 0, end = 0;
+  std::string channels;
+  std::vector<std::string> remap;
+  std::string order = "received";
+  double reorder_window = 0.5;
+  std::string restamp;
+  std::string inject;
+  std::string publish;
+  bool timing = false;
+  bool no_inputs = false;
+  bool json = false;
+};
+
+std::atomic<bool> g_stop{false};
+void on_signal(int) { g_stop.store(true); }
+
+constexpr std::array<const char*, 2> kModules = {"estimator", "controller"};
+
+std::string known_modules() {
+  std::string s;
+  for (const char* m : kModules) s += (s.empty() ? "" : ", ") + std::string(m);
+  return s;
+}
+
+/// The controller's defaults from a simulator scenario: its route, start pose and follower settings.
+Result<controller::ControllerConfig> controller_base(const std::string& scenario_path) {
+  auto sc = sim::load_scenario(scenario_path);
+  if (!sc) return sc.error();
+  controller::ControllerConfig c;
+  c.route = sc->route;
+  c.start = {sc->start.x(), sc->start.y(), sc->start.z()};
+  c.pursuit = sc->controller.pursuit;
+  c.rate = sc->controller.rate;
+  c.footprint_radius = sc->controller.footprint_radius;
+  c.logged_channel = sc->controller.channel;
+  return c;
+}
+
+Result<std::unique_ptr<Module>> make_module(const std::string& name, const YAML::Node& config,
+                                            const std::string& origin, const std::string& config_dir,
+                                            std::vector<std::string>& notes) {
+  if (name == "estimator") return estimator::make_estimator(config, origin);
+  if (name == "controller") {
+    std::string scenario;
+    if (config.IsMap() && config["scenario"].IsDefined()) {
+      scenario = config["scenario"].as<std::string>();
+      if (!scenario.empty() && scenario[0] != '/') scenario = (std::filesystem::path(config_dir) / scenario).string();
+    } else if (!(config.IsMap() && config["route"].IsDefined())) {
+      scenario = sim::default_scenario_path();
+      notes.push_back("controller: route, start and settings from the default scenario " + scenario);
+    }
+    controller::ControllerConfig base;
+    if (!scenario.empty()) {
+      auto b = controller_base(scenario);
+      if (!b) return b.error();
+      base = std::move(*b);
+    }
+    return controller::make_controller(config, origin, std::move(base));
+  }
+  return Error{"--modules: unknown module '" + name + "' (known: " + known_modules() + ")"};
+}
+
+/// Clock corrections from the timing diagnosis: channels whose stamps run ahead of their arrival (a clock that is
+/// ahead, which no transport can explain) or whose clock drifts.
+Result<replay::Restamp> restamp_from_diagnosis(const std::vector<std::string>& logs, std::vector<std::string>& notes) {
+  replay::Restamp r;
+  for (const auto& log : logs) {
+    auto d = analyzers::diagnose(log);
+    if (!d) return d.error();
+    for (const auto& c : d->channels) {
+      if (!c.clock_valid) continue;
+      const bool ahead = c.clock_offset_s > 0.001;
+      const bool drifts = std::abs(c.clock_drift_ppm) >= 25;
+      if (!ahead && !drifts) continue;
+      r[c.name] = {ahead ? c.clock_offset_s : 0.0, drifts ? c.clock_drift_ppm : 0.0, d->start_utime};
+      char buf[200];
+      std::snprintf(buf, sizeof(buf), "restamp %s: %+.1f ms, %+.0f ppm (from the timing diagnosis of %s)",
+                    c.name.c_str(), r[c.name].offset_s * 1e3, r[c.name].drift_ppm, log.c_str());
+      notes.push_back(buf);
+    }
+  }
+  return r;
+}
+
+int run_replay(const ReplayArgs& a) {
+  replay::ReplayOptions o;
+  o.logs = a.logs;
+  o.channels = a.channels;
+  o.out = a.out;
+  o.timing = a.timing;
+  o.write_inputs = !a.no_inputs;
+  o.order = a.order == "stamp" ? replay::Order::kStamp : replay::Order::kReceived;
+  o.reorder_window_s = a.reorder_window;
+  o.start_s = a.start;
+  if (a.end > 0) o.end_s = a.end;
+  for (const auto& m : a.remap) {
+    const auto eq = m.find('=');
+    if (eq == std::string::npos || eq == 0 || eq + 1 == m.size()) {
+      return fail("--remap " + m + ": expected FROM=TO (channel names)");
+    }
+    o.remap.emplace_back(m.substr(0, eq), m.substr(eq + 1));
+  }
+  for (const auto& log : a.logs) {
+    if (!std::filesystem::is_regular_file(log)) return fail(log + ": no such log file");
+  }
+  std::vector<std::string> notes;
+  if (a.restamp == "auto") {
+    auto r = restamp_from_diagnosis(a.logs, notes);
+    if (!r) return fail(r.error().message);
+    o.restamp = std::move(*r);
+  } else if (!a.restamp.empty()) {
+    auto r = replay::load_restamp(a.restamp);
+    if (!r) return fail(r.error().message);
+    o.restamp = std::move(*r);
+  }
+  if (!a.inject.empty()) {
+    auto f = load_faults(a.inject);
+    if (!f) return fail(f.error().message);
+    o.inject = std::move(*f);
+  }
+
+  // Module configs: one map per module name.
+  YAML::Node config;
+  std::string config_dir = ".";
+  if (!a.config.empty()) {
+    std::ifstream in(a.config);
+    if (!in) return fail(a.config + ": cannot open the module config");
+    std::stringstream text;
+    text << in.rdbuf();
+    try {
+      config = YAML::Load(text.str());
+    } catch (const YAML::Exception& e) {
+      return fail(Error{a.config + ":" + std::to_string(e.mark.line + 1) + ": " + e.msg}.message);
+    }
+    if (!config.IsNull() && !config.IsMap()) return fail(a.config + ":1: expected a map of module name: settings");
+    config_dir = std::filesystem::path(a.config).parent_path().string();
+    if (config_dir.empty()) config_dir = ".";
+  }
+  std::vector<std::string> names;
+  std::stringstream list(a.modules);
+  for (std::string name; std::getline(list, name, ',');) {
+    if (!name.empty()) names.push_back(name);
+  }
+  if (config.IsMap()) {
+    for (const auto& kv : config) {
+      const std::string key = kv.first.as<std::string>();
+      if (std::find_if(kModules.begin(), kModules.end(), [&](const char* m) { return key == m; }) == kModules.end()) {
+        return fail(a.config + ":" + std::to_string(kv.first.Mark().line + 1) + ": unknown module '" + key +
+                    "' (known: " + known_modules() + ")");
+      }
+    }
+  }
+  replay::Replayer replayer(o);
+  for (const auto& name : names) {
+    const YAML::Node node = config.IsMap() ? config[name] : YAML::Node();
+    auto m = make_module(name, node, a.config.empty() ? "--config" : a.config, config_dir, notes);
+    if (!m) return fail(m.error().message);
+    replayer.add_module(std::move(*m));
+  }
+
+  std::unique_ptr<LivePublisher> live;
+  if (!a.publish.empty()) {
+    auto p = LivePublisher::open(a.publish, a.fast ? 0.0 : a.rate, "--publish");
+    if (!p) return fail(p.error().message);
+    live = std::move(*p);
+  }
+  replay::Sink sink;
+  if (live) sink = [&live](const BusMessage& m) { live->publish(m.channel, m.utime, m.data); };
+
+  if (Status s = replayer.open(); !s) return fail(s.message());
+  struct sigaction sa {};
+  sa.sa_handler = on_signal;
+  sigaction(SIGINT, &sa, nullptr);
+  sigaction(SIGTERM, &sa, nullptr);
+  signal(SIGXFSZ, SIG_IGN);
+  const auto t0 = std::chrono::steady_clock::now();
+  auto report = replayer.run(sink, &g_stop);
+  const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  if (!report) return fail(report.error().message, kExitFailure);
+  const auto& r = *report;
+  const double span = static_cast<double>(r.end_utime - r.start_utime) * 1e-6;
+
+  if (a.json) {
+    nlohmann::json j;
+    j["logs"] = a.logs;
+    j["out"] = a.out;
+    j["read"] = r.read;
+    j["dispatched"] = r.dispatched;
+    j["outputs"] = r.outputs;
+    j["replayed_s"] = span;
+    j["wall_s"] = wall;
+    j["real_time_factor"] = wall > 0 ? span / wall : 0;
+    j["interrupted"] = r.interrupted;
+    j["log_problems"] = r.log_problems;
+    j["channels"] = r.channels;
+    j["notes"] = notes;
+    j["restamp"] = nlohmann::json::object();
+    for (const auto& [channel, c] : o.restamp) {
+      j["restamp"][channel] = {{"offset_s", c.offset_s}, {"drift_ppm", c.drift_ppm}};
+    }
+    j["modules"] = nlohmann::json::array();
+    for (const auto& m : r.modules) {
+      j["modules"].push_back({{"name", m.name},
+                              {"inputs", m.inputs},
+                              {"late", m.late},
+                              {"out_of_order", m.out_of_order},
+                              {"dropped", m.dropped},
+                              {"outputs", m.outputs},
+                              {"proc_mean_s", m.proc_mean_s},
+                              {"proc_p95_s", m.proc_p95_s},
+                              {"proc_max_s", m.proc_max_s},
+                              {"queue_depth_max", m.queue_depth_max},
+                              {"warnings", m.warnings},
+                              {"metrics", nlohmann::json(std::map<std::string, double>(m.metrics.begin(), m.metrics.end()))}});
+    }
+    j["injected_faults"] = r.injected.size();
+    std::printf("%s\n", j.dump(2).c_str());
+    return kExitOk;
+  }
+  for (const auto& n : notes) std::printf("%s\n", n.c_str());
+  std::printf("%s %.1f s of log in %.2f s (%.0fx real time): %s events in, %s module outputs%s%s\n",
+              r.interrupted ? "interrupted after" : "replayed", span, wall, wall > 0 ? span / wall : 0.0,
+              thousands(r.dispatched).c_str(), thousands(r.outputs).c_str(), a.out.empty() ? "" : " -> ",
+              a.out.c_str());
+  if (r.log_problems > 0) std::printf("  %llu problems in the logs (see driftlab info)\n",
+                                      static_cast<unsigned long long>(r.log_problems));
+  if (!r.injected.empty()) std::printf("  injected %zu faults (manifest on %s)\n", r.injected.size(),
+                                       o.faults_channel.c_str());
+  for (const auto& m : r.modules) {
+    std::printf("  %-10s %s inputs (%s late, %s out of order, %s dropped), %s outputs", m.name.c_str(),
+                thousands(m.inputs).c_str(), thousands(m.late).c_str(), thousands(m.out_of_order).c_str(),
+                thousands(m.dropped).c_str(), thousands(m.outputs).c_str());
+    if (a.timing) std::printf(", %.3f ms per input (p95 %.3f ms), queue <= %d", m.proc_mean_s * 1e3,
+                              m.proc_p95_s * 1e3, m.queue_depth_max);
+    std::printf("\n");
+    if (!m.metrics.empty()) {
+      std::printf("            ");
+      for (size_t i = 0; i < m.metrics.size(); ++i) {
+        const double v = m.metrics[i].second;
+        std::printf(v == std::floor(v) && std::abs(v) < 1e15 ? "%s%s %.0f" : "%s%s %.4g", i > 0 ? ", " : "", m.metrics[i].first.c_str(), v);
+      }
+      std::printf("\n");
+    }
+    for (const auto& w : m.warnings) std::printf("  warning: %s\n", w.c_str());
+  }
+  return kExitOk;
+}
+
+}  // namespace
+
+void add_replay_command(CLI::App& app, int* exit_code) {
+  auto a = std::make_shared<ReplayArgs>();
+  CLI::App* cmd = app.add_subcommand(
+      "replay", "Replay logs through SLAM, the estimator and the controller on a virtual clock, deterministically.");
+  cmd->footer(
+      "Merges the logs in time order and dispatches every event to the modules through the Bus they use live;\n"
+      "what they publish goes to the other modules and to OUT with per-module statistics (MODULE_STATS). The same\n"
+      "inputs and options give a byte-identical OUT (unless --timing). --restamp corrects clocks before dispatch\n"
+      "(FILE: `channels: {CH: {offset_s, drift_ppm}}`; auto: from the timing diagnosis); --inject adds faults\n"
+      "(the simulator's fault description, docs/faults.md). Module settings: docs/replay.md.");
+  cmd->add_option("logs", a->logs, "Logs to replay")->required();
+  cmd->add_option("--modules", a->modules, "Modules to run, comma-separated (" + known_modules() + ")");
+  cmd->add_option("--config", a->config, "Module settings (YAML: one map per module name)");
+  cmd->add_option("-o,--out", a->out, "Output log: the inputs as dispatched, the module outputs and statistics");
+  cmd->add_option("--rate", a->rate, "With --publish: pace at this multiple of real time")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
+  cmd->add_flag("--fast", a->fast, "With --publish: as fast as possible");
+  cmd->add_option("--start", a->start, "Skip this many seconds from the start of the logs")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
+  cmd->add_option("--end", a->end, "Stop this many seconds after the start of the logs (0: at the end)")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
+  cmd->add_option("-c,--channels", a->channels, "Only channels fully matching this regex (ECMAScript)");
+  cmd->add_option("--remap", a->remap, "Deliver channel FROM as TO (FROM=TO, repeatable)");
+  cmd->add_option("--order", a->order, "Dispatch order: received (log time) or stamp (header stamps)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"received", "stamp"}));
+  cmd->add_option("--reorder-window", a->reorder_window, "With --order stamp: wait this long for stragglers [s]")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
+  cmd->add_option("--restamp", a->restamp, "Clock corrections before dispatch: FILE or auto");
+  cmd->add_option("--inject", a->inject, "Faults to add before dispatch (YAML, as the simulator's --faults)");
+  cmd->add_option("--publish", a->publish, "Re-publish inputs and outputs on this LCM URL, paced by --rate");
+  cmd->add_flag("--timing", a->timing, "Measure processing time per input and the queues it implies");
+  cmd->add_flag("--no-inputs", a->no_inputs, "Write only the module outputs and statistics to OUT");
+  cmd->add_flag("--json", a->json, "Print a JSON summary instead of text");
+  cmd->callback([a, exit_code] { *exit_code = run_replay(*a); });
+}
+
+}  // namespace driftlab::apps

@@ -1,0 +1,250 @@
+#include "controller/controller_module.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "core/internal/yaml_fields.h"
+#include "driftlab/command_comparison_t.hpp"
+#include "driftlab/laser_scan_t.hpp"
+#include "driftlab/odometry_t.hpp"
+#include "driftlab/pose_t.hpp"
+#include "driftlab/tf_t.hpp"
+#include "driftlab/velocity_command_t.hpp"
+
+namespace driftlab::controller {
+namespace {
+
+double yaw_of(const driftlab::quaternion_t& q) {
+  return std::atan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y * q.y + q.z * q.z));
+}
+
+constexpr int kSectors = 36;        // the obstacle layer sees the scan as a ring of sectors, like a bumper ring
+constexpr double kObstacleRange = 1.0;  // [m]
+
+/// The logged value in force at time t (zero-order hold); false before the first.
+bool held_at(const std::vector<CommandSample>& s, int64_t t, size_t& hint, CommandSample& out) {
+  if (s.empty() || t < s.front().utime) return false;
+  if (hint >= s.size() || s[hint].utime > t) hint = 0;
+  while (hint + 1 < s.size() && s[hint + 1].utime <= t) ++hint;
+  out = s[hint];
+  return true;
+}
+
+}  // namespace
+
+Result<ControllerConfig> parse_controller_config(const YAML::Node& node, const std::string& origin,
+                                                 ControllerConfig c) {
+  if (node.IsDefined() && !node.IsNull()) {
+    try {
+      Fields f(node, origin, "controller");
+      DL_TRY(f.is_map());
+      if (f.has("route")) {
+        const YAML::Node route = f.node("route");
+        if (!route.IsSequence() || route.size() < 2) {
+          return Error{f.where("route") + " must be a list of at least two [x, y] points"};
+        }
+        c.route.clear();
+        for (const auto& p : route) {
+          if (!p.IsSequence() || p.size() != 2) return Error{at(origin, p) + ": controller.route: a point is [x, y]"};
+          c.route.push_back({p[0].as<double>(), p[1].as<double>()});
+          if (!std::isfinite(c.route.back().x) || !std::isfinite(c.route.back().y)) {
+            return Error{at(origin, p) + ": controller.route: points must be finite"};
+          }
+        }
+      }
+      std::vector<double> start;
+      DL_TRY(f.vector("start", start, 3));
+      if (!start.empty()) c.start = {start[0], start[1], start[2]};
+      DL_TRY(f.positive("rate", c.rate));
+      DL_TRY(f.positive("lookahead", c.pursuit.lookahead));
+      DL_TRY(f.positive("speed", c.pursuit.speed));
+      DL_TRY(f.positive("max_angular", c.pursuit.max_angular));
+      DL_TRY(f.boolean("loop", c.pursuit.loop));
+      DL_TRY(f.text("estimate_channel", c.estimate_channel));
+      DL_TRY(f.boolean("estimate_in_world", c.estimate_in_world));
+      DL_TRY(f.text("scan_channel", c.scan_channel));
+      DL_TRY(f.positive("footprint_radius", c.footprint_radius));
+      DL_TRY(f.text("command_channel", c.command_channel));
+      DL_TRY(f.text("logged_channel", c.logged_channel));
+      DL_TRY(f.text("comparison_channel", c.comparison_channel));
+      DL_TRY(f.number("max_delay_s", c.max_delay_s, 0, 10));
+      std::string scenario;  // read by the caller, which fills `base` from the scenario
+      DL_TRY(f.text("scenario", scenario));
+      DL_TRY(f.finish("scenario, route, start, rate, lookahead, speed, max_angular, loop, estimate_channel, estimate_in_world, "
+                      "scan_channel, footprint_radius, command_channel, logged_channel, comparison_channel, "
+                      "max_delay_s"));
+      if (c.estimate_channel.empty()) return Error{f.where("estimate_channel") + " must not be empty"};
+      if (c.command_channel.empty()) return Error{f.where("command_channel") + " must not be empty"};
+    } catch (const YAML::Exception& e) {
+      return Error{origin + ":" + std::to_string(e.mark.line + 1) + ": " + e.msg};
+    }
+  }
+  if (c.route.size() < 2) {
+    return Error{origin + ": controller: no route (give controller.route, or controller.scenario with a route)"};
+  }
+  return c;
+}
+
+CommandComparison compare_commands(const std::vector<CommandSample>& recomputed,
+                                   const std::vector<CommandSample>& logged, double max_delay_s) {
+  CommandComparison out;
+  if (recomputed.empty() || logged.empty()) return out;
+  auto rmse_at = [&](int64_t lag, CommandComparison* fill) {
+    double se_l = 0, se_a = 0, max_l = 0, max_a = 0;
+    int32_t n = 0;
+    size_t hint = 0;
+    CommandSample held;
+    for (const CommandSample& r : recomputed) {
+      if (!held_at(logged, r.utime + lag, hint, held)) continue;
+      const double dl = r.linear - held.linear, da = r.angular - held.angular;
+      se_l += dl * dl;
+      se_a += da * da;
+      max_l = std::max(max_l, std::abs(dl));
+      max_a = std::max(max_a, std::abs(da));
+      ++n;
+    }
+    if (fill != nullptr && n > 0) {
+      fill->matched = n;
+      fill->linear_rmse = std::sqrt(se_l / n);
+      fill->angular_rmse = std::sqrt(se_a / n);
+      fill->linear_max_abs = max_l;
+      fill->angular_max_abs = max_a;
+    }
+    return n > 0 ? std::sqrt(se_a / n) : INFINITY;
+  };
+  out.angular_rmse_at_delay = rmse_at(0, &out);
+  const auto steps = static_cast<int64_t>(std::floor(max_delay_s / 0.01));
+  for (int64_t k = -steps; k <= steps; ++k) {
+    const double e = rmse_at(k * 10000, nullptr);
+    if (e < out.angular_rmse_at_delay - 1e-12) {
+      out.angular_rmse_at_delay = e;
+      out.delay_s = static_cast<double>(k) * 0.01;
+    }
+  }
+  return out;
+}
+
+ControllerModule::ControllerModule(ControllerConfig config)
+    : c_(std::move(config)), pursuit_(c_.route, c_.pursuit) {}
+
+Status ControllerModule::start(Bus& bus) {
+  bus.subscribe(c_.estimate_channel, [this](const BusMessage& m) {
+    Pose2 p;
+    driftlab::odometry_t o;
+    driftlab::pose_t pose;
+    if (decode_message(m, o)) {
+      p = {o.position.x, o.position.y, yaw_of(o.orientation)};
+    } else if (decode_message(m, pose)) {
+      p = {pose.position.x, pose.position.y, yaw_of(pose.orientation)};
+    } else {
+      ++undecodable_;
+      return;
+    }
+    if (!c_.estimate_in_world) {  // the estimate's frame starts at the robot's start pose
+      const double c = std::cos(c_.start.yaw), s = std::sin(c_.start.yaw);
+      p = {c_.start.x + c * p.x - s * p.y, c_.start.y + s * p.x + c * p.y, c_.start.yaw + p.yaw};
+    }
+    estimate_ = p;
+  });
+  if (!c_.scan_channel.empty()) {
+    bus.subscribe(c_.scan_channel, [this](const BusMessage& m) {
+      driftlab::laser_scan_t scan;
+      if (!decode_message(m, scan)) return void(++undecodable_);
+      // The nearest return per sector within reach, in the scan's frame (taken as the base's: the obstacle layer
+      // only needs directions and distances to within the laser's offset).
+      double nearest[kSectors];
+      std::fill(std::begin(nearest), std::end(nearest), INFINITY);
+      for (int i = 0; i < scan.nranges; ++i) {
+        const float r = scan.ranges[static_cast<size_t>(i)];
+        if (!(r >= scan.range_min && r <= scan.range_max) || r > kObstacleRange) continue;
+        const double a = scan.angle_min + i * static_cast<double>(scan.angle_increment);
+        int k = static_cast<int>(std::floor((a + M_PI) / (2 * M_PI) * kSectors)) % kSectors;
+        if (k < 0) k += kSectors;
+        nearest[k] = std::min(nearest[k], static_cast<double>(r));
+      }
+      obstacles_.clear();
+      for (int k = 0; k < kSectors; ++k) {
+        if (!std::isfinite(nearest[k])) continue;
+        const double a = -M_PI + (k + 0.5) * 2 * M_PI / kSectors;
+        obstacles_.push_back({nearest[k] * std::cos(a), nearest[k] * std::sin(a)});
+      }
+    });
+  }
+  if (!c_.logged_channel.empty()) {
+    bus.subscribe(c_.logged_channel, [this](const BusMessage& m) {
+      driftlab::velocity_command_t cmd;
+      if (!decode_message(m, cmd)) return void(++undecodable_);
+      logged_.push_back({m.utime, cmd.linear.x, cmd.angular.z});
+    });
+  }
+  bus.every(static_cast<int64_t>(std::llround(1e6 / c_.rate)), [this, &bus] { tick(bus); });
+  return {};
+}
+
+void ControllerModule::tick(Bus& bus) {
+  if (!estimate_) return;  // nothing to follow yet
+  Command cmd = pursuit_.update(*estimate_, 1.0 / c_.rate);
+  AvoidOptions avoid;
+  avoid.radius = c_.footprint_radius;
+  cmd = avoid_obstacles(cmd, obstacles_, avoid);
+  driftlab::velocity_command_t m{};
+  m.header.seq = seq_++;
+  m.header.utime = bus.now();
+  m.header.frame_id = "base_link";
+  m.linear = {cmd.linear, 0, 0};
+  m.angular = {0, 0, cmd.angular};
+  bus.publish_message(c_.command_channel, m);
+  recomputed_.push_back({bus.now(), cmd.linear, cmd.angular});
+}
+
+void ControllerModule::finish(Bus& bus) {
+  if (c_.logged_channel.empty() || logged_.empty() || recomputed_.empty()) return;
+  std::stable_sort(logged_.begin(), logged_.end(),
+                   [](const CommandSample& a, const CommandSample& b) { return a.utime < b.utime; });
+  comparison_ = compare_commands(recomputed_, logged_, c_.max_delay_s);
+  driftlab::command_comparison_t r{};
+  r.header.utime = bus.now();
+  r.recomputed_channel = c_.command_channel;
+  r.logged_channel = c_.logged_channel;
+  r.matched = comparison_->matched;
+  r.linear_rmse = comparison_->linear_rmse;
+  r.angular_rmse = comparison_->angular_rmse;
+  r.linear_max_abs = comparison_->linear_max_abs;
+  r.angular_max_abs = comparison_->angular_max_abs;
+  r.delay_s = comparison_->delay_s;
+  r.angular_rmse_at_delay = comparison_->angular_rmse_at_delay;
+  bus.publish_message(c_.comparison_channel, r);
+}
+
+ModuleCounters ControllerModule::counters() const {
+  ModuleCounters c;
+  c.dropped = undecodable_;
+  if (comparison_) {
+    c.metrics = {{"compared_commands", comparison_->matched},
+                 {"linear_rmse_m_s", comparison_->linear_rmse},
+                 {"angular_rmse_rad_s", comparison_->angular_rmse},
+                 {"angular_max_abs_rad_s", comparison_->angular_max_abs},
+                 {"delay_s", comparison_->delay_s},
+                 {"angular_rmse_at_delay_rad_s", comparison_->angular_rmse_at_delay}};
+  }
+  if (recomputed_.empty()) {
+    c.warnings.push_back("controller: no driftlab.odometry_t or pose_t on " + c_.estimate_channel +
+                         ": no commands computed");
+  } else if (!c_.logged_channel.empty() && logged_.empty()) {
+    c.warnings.push_back("controller: no driftlab.velocity_command_t on " + c_.logged_channel +
+                         ": nothing to compare the commands with");
+  }
+  if (undecodable_ > 0) {
+    c.warnings.push_back("controller: " + std::to_string(undecodable_) + " messages of the wrong type ignored");
+  }
+  return c;
+}
+
+Result<std::unique_ptr<Module>> make_controller(const YAML::Node& config, const std::string& origin,
+                                                ControllerConfig base) {
+  auto c = parse_controller_config(config, origin, std::move(base));
+  if (!c) return c.error();
+  return std::unique_ptr<Module>(new ControllerModule(std::move(*c)));
+}
+
+}  // namespace driftlab::controller

@@ -1,0 +1,127 @@
+#include "estimator/ekf.h"
+
+#include <Eigen/Dense>
+
+#include <algorithm>
+#include <cmath>
+
+namespace driftlab::estimator {
+
+double wrap_angle(double a) {
+  a = std::remainder(a, 2 * M_PI);
+  return a <= -M_PI ? a + 2 * M_PI : a;
+}
+
+void Ekf::init(int64_t utime, const Pose2& pose, double v, double w) {
+  initialized_ = true;
+  t_ = utime;
+  x_ << pose.x, pose.y, wrap_angle(pose.yaw), v, w, 0;
+  P_.setZero();
+  P_(kX, kX) = P_(kY, kY) = pose.var_xy > 0 ? pose.var_xy : noise_.pose_xy * noise_.pose_xy;
+  P_(kYaw, kYaw) = pose.var_yaw > 0 ? pose.var_yaw : noise_.pose_yaw * noise_.pose_yaw;
+  P_(kV, kV) = P_(kW, kW) = 0.01;
+  P_(kBias, kBias) = noise_.initial_bias * noise_.initial_bias;
+}
+
+void Ekf::predict(int64_t utime) {
+  if (utime <= t_) return;
+  const double dt = static_cast<double>(utime - t_) * 1e-6;
+  t_ = utime;
+  const double v = x_(kV), w = x_(kW);
+  const double heading = x_(kYaw) + 0.5 * w * dt;  // midpoint heading
+  const double c = std::cos(heading), s = std::sin(heading);
+  x_(kX) += v * c * dt;
+  x_(kY) += v * s * dt;
+  x_(kYaw) = wrap_angle(x_(kYaw) + w * dt);
+  Cov F = Cov::Identity();
+  F(kX, kYaw) = -v * s * dt;
+  F(kX, kV) = c * dt;
+  F(kX, kW) = -v * s * 0.5 * dt * dt;
+  F(kY, kYaw) = v * c * dt;
+  F(kY, kV) = s * dt;
+  F(kY, kW) = v * c * 0.5 * dt * dt;
+  F(kYaw, kW) = dt;
+  P_ = F * P_ * F.transpose();
+  P_(kV, kV) += noise_.accel * noise_.accel * dt;
+  P_(kW, kW) += noise_.angular_accel * noise_.angular_accel * dt;
+  P_(kBias, kBias) += noise_.gyro_bias_walk * noise_.gyro_bias_walk * dt;
+}
+
+template <int N>
+void Ekf::correct(const Eigen::Matrix<double, N, 1>& innovation, const Eigen::Matrix<double, N, 6>& H,
+                  const Eigen::Matrix<double, N, N>& R) {
+  const Eigen::Matrix<double, N, N> S = H * P_ * H.transpose() + R;
+  const Eigen::Matrix<double, 6, N> K = P_ * H.transpose() * S.inverse();
+  x_ += K * innovation;
+  x_(kYaw) = wrap_angle(x_(kYaw));
+  // Joseph form: stays symmetric and positive with large gains.
+  const Cov I_KH = Cov::Identity() - K * H;
+  P_ = I_KH * P_ * I_KH.transpose() + K * R * K.transpose();
+}
+
+void Ekf::update(int64_t utime, const Measurement& m) {
+  predict(utime);
+  if (const auto* g = std::get_if<GyroZ>(&m)) {
+    Eigen::Matrix<double, 1, 6> H = Eigen::Matrix<double, 1, 6>::Zero();
+    H(0, kW) = 1;
+    H(0, kBias) = 1;
+    Eigen::Matrix<double, 1, 1> z(g->w - x_(kW) - x_(kBias));
+    Eigen::Matrix<double, 1, 1> R(g->var > 0 ? g->var : noise_.gyro * noise_.gyro);
+    correct<1>(z, H, R);
+  } else if (const auto* t = std::get_if<Twist>(&m)) {
+    Eigen::Matrix<double, 2, 6> H = Eigen::Matrix<double, 2, 6>::Zero();
+    H(0, kV) = 1;
+    H(1, kW) = 1;
+    const Eigen::Vector2d z(t->v - x_(kV), t->w - x_(kW));
+    Eigen::Matrix2d R = Eigen::Matrix2d::Zero();
+    R(0, 0) = t->var_v > 0 ? t->var_v : noise_.odom_v * noise_.odom_v;
+    R(1, 1) = t->var_w > 0 ? t->var_w : noise_.odom_w * noise_.odom_w;
+    correct<2>(z, H, R);
+  } else if (const auto* p = std::get_if<Pose2>(&m)) {
+    Eigen::Matrix<double, 3, 6> H = Eigen::Matrix<double, 3, 6>::Zero();
+    H(0, kX) = H(1, kY) = H(2, kYaw) = 1;
+    const Eigen::Vector3d z(p->x - x_(kX), p->y - x_(kY), wrap_angle(p->yaw - x_(kYaw)));
+    Eigen::Matrix3d R = Eigen::Matrix3d::Zero();
+    R(0, 0) = R(1, 1) = p->var_xy > 0 ? p->var_xy : noise_.pose_xy * noise_.pose_xy;
+    R(2, 2) = p->var_yaw > 0 ? p->var_yaw : noise_.pose_yaw * noise_.pose_yaw;
+    correct<3>(z, H, R);
+  }
+}
+
+void DelayedEkf::init(int64_t utime, const Pose2& pose, double v, double w) {
+  ekf_.init(utime, pose, v, w);
+  base_ = ekf_;
+  history_.clear();
+}
+
+bool DelayedEkf::add(int64_t utime, const Measurement& m) {
+  if (utime >= ekf_.time()) {  // in order: the common case
+    ekf_.update(utime, m);
+    history_.push_back({utime, m, ekf_});
+    ++counters_.applied;
+  } else {
+    if (utime < ekf_.time() - window_ || utime < base_.time()) {
+      ++counters_.rejected;
+      return false;
+    }
+    // Rewind to the state before the first entry stamped after this one, insert it, and re-apply the rest.
+    auto pos = std::upper_bound(history_.begin(), history_.end(), utime,
+                                [](int64_t t, const Entry& e) { return t < e.utime; });
+    ekf_ = pos == history_.begin() ? base_ : std::prev(pos)->after;
+    pos = history_.insert(pos, {utime, m, ekf_});
+    for (auto it = pos; it != history_.end(); ++it) {
+      ekf_.update(it->utime, it->m);
+      it->after = ekf_;
+    }
+    counters_.replays += static_cast<int64_t>(std::distance(pos, history_.end())) - 1;
+    ++counters_.reapplied;
+  }
+  // Forget what is older than the window; the last forgotten state becomes the base.
+  while (!history_.empty() && history_.front().utime < ekf_.time() - window_) {
+    base_ = history_.front().after;
+    history_.pop_front();
+  }
+  return true;
+}
+
+}  // namespace driftlab::estimator

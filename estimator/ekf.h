@@ -1,0 +1,112 @@
+// A planar EKF for a wheeled robot: state (x, y, yaw, v, w, gyro bias) in the odometry or map frame, a constant
+// velocity motion model, and updates from the IMU's gyro, wheel odometry's twist and absolute poses (SLAM).
+// Measurements are applied at their header stamps; DelayedEkf handles the ones that arrive after later ones
+// (timestamp skew, latency, reordering): within a window it rewinds to the state before the late measurement and
+// re-applies everything after it in stamp order, and older ones it rejects and counts.
+// Thread-safety: plain values; one thread.
+#pragma once
+
+#include <Eigen/Core>
+
+#include <cstdint>
+#include <deque>
+#include <variant>
+
+namespace driftlab::estimator {
+
+/// Process and measurement noise (standard deviations).
+struct EkfNoise {
+  double accel = 0.5;           ///< linear acceleration, as process noise on v [m/s^2 / sqrt(s)... per sqrt(s)]
+  double angular_accel = 1.0;   ///< angular acceleration, as process noise on w [rad/s^2 per sqrt(s)]
+  double gyro_bias_walk = 2e-4; ///< gyro bias random walk [rad/s per sqrt(s)]
+  double gyro = 0.003;          ///< gyro white noise per sample [rad/s]
+  double odom_v = 0.02;         ///< odometry linear velocity [m/s], when the message has no covariance
+  double odom_w = 0.02;         ///< odometry angular velocity [rad/s], when the message has no covariance
+  double pose_xy = 0.05;        ///< absolute pose position [m], when the message has no covariance
+  double pose_yaw = 0.02;       ///< absolute pose yaw [rad], when the message has no covariance
+  double initial_bias = 0.01;   ///< initial gyro bias uncertainty [rad/s]
+};
+
+/// A gyro z rate [rad/s], with its variance (<= 0: the configured noise).
+struct GyroZ {
+  double w = 0, var = 0;
+};
+/// Body velocities from odometry [m/s, rad/s] with variances (<= 0: configured).
+struct Twist {
+  double v = 0, w = 0, var_v = 0, var_w = 0;
+};
+/// An absolute pose [m, m, rad] with variances (<= 0: configured).
+struct Pose2 {
+  double x = 0, y = 0, yaw = 0, var_xy = 0, var_yaw = 0;
+};
+using Measurement = std::variant<GyroZ, Twist, Pose2>;
+
+class Ekf {
+ public:
+  using State = Eigen::Matrix<double, 6, 1>;  ///< x, y, yaw, v, w, gyro bias
+  using Cov = Eigen::Matrix<double, 6, 6>;
+  enum Index { kX = 0, kY, kYaw, kV, kW, kBias };
+
+  explicit Ekf(const EkfNoise& noise = {}) : noise_(noise) {}
+
+  /// Starts at a pose and velocity, at time utime [us].
+  void init(int64_t utime, const Pose2& pose, double v, double w);
+  bool initialized() const { return initialized_; }
+
+  /// Moves the state to utime (no-op for earlier times).
+  void predict(int64_t utime);
+  /// Predicts to utime and applies a measurement.
+  void update(int64_t utime, const Measurement& m);
+
+  int64_t time() const { return t_; }
+  const State& state() const { return x_; }
+  const Cov& covariance() const { return P_; }
+
+ private:
+  template <int N>
+  void correct(const Eigen::Matrix<double, N, 1>& innovation, const Eigen::Matrix<double, N, 6>& H,
+               const Eigen::Matrix<double, N, N>& R);
+  EkfNoise noise_;
+  bool initialized_ = false;
+  int64_t t_ = 0;
+  State x_ = State::Zero();
+  Cov P_ = Cov::Identity();
+};
+
+/// An Ekf that accepts measurements in any order within a window.
+class DelayedEkf {
+ public:
+  struct Counters {
+    int64_t applied = 0;     ///< measurements applied in stamp order
+    int64_t reapplied = 0;   ///< late measurements inserted into the past (the ones after them re-applied)
+    int64_t rejected = 0;    ///< measurements older than the window
+    int64_t replays = 0;     ///< measurements re-applied because of late ones
+  };
+
+  DelayedEkf(const EkfNoise& noise, double window_s) : ekf_(noise), window_(static_cast<int64_t>(window_s * 1e6)) {}
+
+  void init(int64_t utime, const Pose2& pose, double v, double w);
+  bool initialized() const { return ekf_.initialized(); }
+  /// Applies a measurement stamped utime [us]; false when it was older than the window and rejected.
+  bool add(int64_t utime, const Measurement& m);
+
+  const Ekf& filter() const { return ekf_; }
+  const Counters& counters() const { return counters_; }
+
+ private:
+  struct Entry {
+    int64_t utime;
+    Measurement m;
+    Ekf after;  ///< the filter after applying m
+  };
+  Ekf ekf_;
+  int64_t window_;
+  Ekf base_;                  ///< the filter before the first entry in the history
+  std::deque<Entry> history_; ///< applied measurements within the window, by stamp
+  Counters counters_;
+};
+
+/// Wraps an angle to (-pi, pi].
+double wrap_angle(double a);
+
+}  // namespace driftlab::estimator

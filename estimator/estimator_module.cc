@@ -1,0 +1,175 @@
+#include "estimator/estimator_module.h"
+
+#include <cmath>
+
+#include "core/internal/yaml_fields.h"
+#include "driftlab/imu_t.hpp"
+#include "driftlab/odometry_t.hpp"
+#include "driftlab/pose_t.hpp"
+
+namespace driftlab::estimator {
+namespace {
+
+double yaw_of(const driftlab::quaternion_t& q) {
+  return std::atan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y * q.y + q.z * q.z));
+}
+
+}  // namespace
+
+Result<EstimatorConfig> parse_estimator_config(const YAML::Node& node, const std::string& origin) {
+  EstimatorConfig c;
+  if (!node.IsDefined() || node.IsNull()) return c;
+  try {
+    Fields f(node, origin, "estimator");
+    DL_TRY(f.is_map());
+    DL_TRY(f.text("imu_channel", c.imu_channel));
+    DL_TRY(f.text("odom_channel", c.odom_channel));
+    DL_TRY(f.text("pose_channel", c.pose_channel));
+    DL_TRY(f.text("output_channel", c.output_channel));
+    DL_TRY(f.text("frame_id", c.frame_id));
+    DL_TRY(f.text("child_frame_id", c.child_frame_id));
+    DL_TRY(f.number("window_s", c.window_s, 0, 60));
+    DL_TRY(f.positive("publish_rate", c.publish_rate));
+    EkfNoise& n = c.noise;
+    DL_TRY(f.positive("accel_noise", n.accel));
+    DL_TRY(f.positive("angular_accel_noise", n.angular_accel));
+    DL_TRY(f.positive("gyro_bias_walk", n.gyro_bias_walk));
+    DL_TRY(f.positive("gyro_noise", n.gyro));
+    DL_TRY(f.positive("odom_v_noise", n.odom_v));
+    DL_TRY(f.positive("odom_w_noise", n.odom_w));
+    DL_TRY(f.positive("pose_xy_noise", n.pose_xy));
+    DL_TRY(f.positive("pose_yaw_noise", n.pose_yaw));
+    DL_TRY(f.positive("initial_bias", n.initial_bias));
+    DL_TRY(f.finish("imu_channel, odom_channel, pose_channel, output_channel, frame_id, child_frame_id, window_s, "
+                    "publish_rate, accel_noise, angular_accel_noise, gyro_bias_walk, gyro_noise, odom_v_noise, "
+                    "odom_w_noise, pose_xy_noise, pose_yaw_noise, initial_bias"));
+    if (c.odom_channel.empty() && c.pose_channel.empty()) {
+      return Error{at(origin, node) + ": estimator needs odom_channel or pose_channel to start from"};
+    }
+  } catch (const YAML::Exception& e) {
+    return Error{origin + ":" + std::to_string(e.mark.line + 1) + ": " + e.msg};
+  }
+  return c;
+}
+
+EstimatorModule::EstimatorModule(EstimatorConfig config)
+    : c_(std::move(config)), ekf_(c_.noise, c_.window_s) {}
+
+Status EstimatorModule::start(Bus& bus) {
+  if (!c_.imu_channel.empty()) {
+    bus.subscribe(c_.imu_channel, [this, &bus](const BusMessage& m) {
+      driftlab::imu_t imu;
+      if (!decode_message(m, imu)) return void(++undecodable_);
+      ++imu_;
+      const double var = imu.angular_velocity_covariance[0] > 0 ? imu.angular_velocity_covariance[8] : 0;
+      add(bus, imu.header.utime, GyroZ{imu.angular_velocity.z, var});
+    });
+  }
+  if (!c_.odom_channel.empty()) {
+    bus.subscribe(c_.odom_channel, [this, &bus](const BusMessage& m) {
+      driftlab::odometry_t o;
+      if (!decode_message(m, o)) return void(++undecodable_);
+      ++odom_;
+      if (!ekf_.initialized() && (c_.pose_channel.empty() || poses_ == 0)) {
+        if (frame_.empty()) frame_ = c_.frame_id.empty() ? o.header.frame_id : c_.frame_id;
+        ekf_.init(o.header.utime, {o.position.x, o.position.y, yaw_of(o.orientation), 0, 0}, o.linear_velocity.x,
+                  o.angular_velocity.z);
+        return;
+      }
+      // Twist covariance over (vx, vy, vz, wx, wy, wz): vx is [0], wz is [35]; 0 or -1: not given.
+      add(bus, o.header.utime,
+          Twist{o.linear_velocity.x, o.angular_velocity.z, o.twist_covariance[0], o.twist_covariance[35]});
+    });
+  }
+  if (!c_.pose_channel.empty()) {
+    bus.subscribe(c_.pose_channel, [this, &bus](const BusMessage& m) {
+      driftlab::pose_t p;
+      if (!decode_message(m, p)) return void(++undecodable_);
+      ++poses_;
+      const Pose2 pose{p.position.x, p.position.y, yaw_of(p.orientation),
+                       std::max(p.covariance[0], p.covariance[7]), p.covariance[35]};
+      if (!ekf_.initialized()) {
+        frame_ = c_.frame_id.empty() ? p.header.frame_id : c_.frame_id;
+        ekf_.init(p.header.utime, pose, 0, 0);
+        return;
+      }
+      if (frame_ != p.header.frame_id && c_.frame_id.empty()) frame_ = p.header.frame_id;
+      add(bus, p.header.utime, pose);
+    });
+  }
+  return {};
+}
+
+void EstimatorModule::add(Bus& bus, int64_t stamp, const Measurement& m) {
+  if (!ekf_.initialized()) {
+    ++before_init_;
+    return;
+  }
+  ekf_.add(stamp, m);
+  const int64_t t = ekf_.filter().time();
+  if (next_publish_ == 0) next_publish_ = t;
+  if (t >= next_publish_) {
+    publish(bus);
+    const auto period = static_cast<int64_t>(std::llround(1e6 / c_.publish_rate));
+    while (next_publish_ <= t) next_publish_ += period;
+  }
+}
+
+void EstimatorModule::publish(Bus& bus) {
+  const Ekf& f = ekf_.filter();
+  const Ekf::State& x = f.state();
+  const Ekf::Cov& P = f.covariance();
+  driftlab::odometry_t o{};
+  o.header.seq = seq_++;
+  o.header.utime = f.time();
+  o.header.frame_id = frame_;
+  o.child_frame_id = c_.child_frame_id;
+  o.position = {x(Ekf::kX), x(Ekf::kY), 0};
+  o.orientation = {std::cos(x(Ekf::kYaw) / 2), 0, 0, std::sin(x(Ekf::kYaw) / 2)};
+  // Pose covariance over (x, y, z, roll, pitch, yaw), twist over (vx, vy, vz, wx, wy, wz).
+  const int pose_index[3] = {0, 1, 5};
+  const int state_index[3] = {Ekf::kX, Ekf::kY, Ekf::kYaw};
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 3; ++j) o.pose_covariance[pose_index[i] * 6 + pose_index[j]] = P(state_index[i], state_index[j]);
+  }
+  o.linear_velocity = {x(Ekf::kV), 0, 0};
+  o.angular_velocity = {0, 0, x(Ekf::kW)};
+  o.twist_covariance[0] = P(Ekf::kV, Ekf::kV);
+  o.twist_covariance[5] = o.twist_covariance[30] = P(Ekf::kV, Ekf::kW);
+  o.twist_covariance[35] = P(Ekf::kW, Ekf::kW);
+  bus.publish_message(c_.output_channel, o);
+}
+
+void EstimatorModule::finish(Bus& bus) {
+  if (ekf_.initialized()) publish(bus);
+}
+
+ModuleCounters EstimatorModule::counters() const {
+  ModuleCounters c;
+  const DelayedEkf::Counters& k = ekf_.counters();
+  c.dropped = k.rejected + undecodable_;
+  c.metrics = {{"applied_in_order", static_cast<double>(k.applied)},
+               {"late_reapplied", static_cast<double>(k.reapplied)},
+               {"late_rejected", static_cast<double>(k.rejected)},
+               {"measurements_replayed", static_cast<double>(k.replays)}};
+  if (!ekf_.initialized()) {
+    c.warnings.push_back("estimator: no driftlab.odometry_t on " + (c_.odom_channel.empty() ? "-" : c_.odom_channel) +
+                         " and no driftlab.pose_t on " + (c_.pose_channel.empty() ? "-" : c_.pose_channel) +
+                         ": nothing estimated");
+  }
+  if (!c_.imu_channel.empty() && imu_ == 0 && ekf_.initialized()) {
+    c.warnings.push_back("estimator: no driftlab.imu_t on " + c_.imu_channel + ": odometry and poses only");
+  }
+  if (undecodable_ > 0) {
+    c.warnings.push_back("estimator: " + std::to_string(undecodable_) + " messages of the wrong type ignored");
+  }
+  return c;
+}
+
+Result<std::unique_ptr<Module>> make_estimator(const YAML::Node& config, const std::string& origin) {
+  auto c = parse_estimator_config(config, origin);
+  if (!c) return c.error();
+  return std::unique_ptr<Module>(new EstimatorModule(std::move(*c)));
+}
+
+}  // namespace driftlab::estimator

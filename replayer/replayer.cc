@@ -1,0 +1,661 @@
+#include "replayer/replayer.h"
+
+#include <yaml-cpp/yaml.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <deque>
+#include <fstream>
+#include <queue>
+#include <regex>
+#include <sstream>
+#include <unordered_map>
+#include <unordered_set>
+
+#include "analyzers/timing.h"
+#include "core/internal/yaml_fields.h"
+#include "core/log_format.h"
+#include "core/log_reader.h"
+#include "core/log_writer.h"
+#include "driftlab/fault_manifest_t.hpp"
+#include "driftlab/module_stats_t.hpp"
+#include "driftlab/tf_t.hpp"
+#include "lcmtypes/type_registry.h"
+
+namespace driftlab::replay {
+
+Result<Restamp> load_restamp(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) return Error{path + ": cannot open the restamp file"};
+  std::stringstream text;
+  text << in.rdbuf();
+  try {
+    const YAML::Node root = YAML::Load(text.str());
+    Fields top(root, path, "");
+    DL_TRY(top.is_map());
+    Restamp r;
+    const YAML::Node channels = top.node("channels");
+    if (!channels.IsDefined() || !channels.IsMap()) {
+      return Error{at(path, root) + ": a restamp file needs 'channels: {CHANNEL: {offset_s: ..., drift_ppm: ...}}'"};
+    }
+    for (const auto& kv : channels) {
+      const std::string channel = kv.first.as<std::string>();
+      Fields f(kv.second, path, "channels." + channel);
+      DL_TRY(f.is_map());
+      ClockCorrection c;
+      DL_TRY(f.number("offset_s", c.offset_s, -86400, 86400));
+      DL_TRY(f.number("drift_ppm", c.drift_ppm, -1e5, 1e5));
+      double ref = 0;
+      DL_TRY(f.number("reference_utime", ref, 0, 1e19));
+      c.reference_utime = static_cast<int64_t>(ref);
+      DL_TRY(f.finish("offset_s, drift_ppm, reference_utime"));
+      r[channel] = c;
+    }
+    DL_TRY(top.finish("channels"));
+    return r;
+  } catch (const YAML::Exception& e) {
+    return Error{path + ":" + std::to_string(e.mark.line + 1) + ": " + e.msg};
+  }
+}
+
+std::optional<int64_t> header_stamp(std::span<const uint8_t> data, int64_t arrival) {
+  if (data.size() < 24) return std::nullopt;
+  const auto* type = lcmtypes::find_type(logfmt::fingerprint(data));
+  if (type != nullptr ? !type->has_header : !analyzers::looks_like_header(data, arrival)) return std::nullopt;
+  return static_cast<int64_t>(logfmt::load_be64(data.data() + 16));
+}
+
+namespace {
+
+constexpr int64_t kUs = 1000000;
+
+/// Rewrites every header stamp of an encoded message with f (a tf_t's transforms carry their own). False when the
+/// message has no header to rewrite.
+template <typename F>
+bool map_stamps(std::vector<uint8_t>& bytes, int64_t arrival, F f) {
+  if (logfmt::fingerprint(bytes) == driftlab::tf_t::getHash()) {
+    driftlab::tf_t tf;
+    if (tf.decode(bytes.data(), 0, static_cast<int>(bytes.size())) < 0) return false;
+    tf.header.utime = f(tf.header.utime);
+    for (auto& t : tf.transforms) t.header.utime = f(t.header.utime);
+    bytes.resize(static_cast<size_t>(tf.getEncodedSize()));
+    tf.encode(bytes.data(), 0, static_cast<int>(bytes.size()));
+    return true;
+  }
+  const auto stamp = header_stamp(bytes, arrival);
+  if (!stamp) return false;
+  logfmt::store_be64(bytes.data() + 16, static_cast<uint64_t>(f(*stamp)));
+  return true;
+}
+
+/// An input on its way to the modules.
+struct Item {
+  int64_t time = 0;      ///< delivery time [us]
+  int64_t order = 0;     ///< creation order: ties keep it
+  const std::string* channel = nullptr;  ///< the delivered (remapped) name, interned
+  std::vector<uint8_t> owned;            ///< the bytes when changed (restamped, injected)
+  std::span<const uint8_t> view;         ///< else the bytes in the mapped log
+  std::span<const uint8_t> data() const { return owned.empty() ? view : std::span<const uint8_t>(owned); }
+};
+struct Later {
+  bool operator()(const Item& a, const Item& b) const {
+    return a.time != b.time ? a.time > b.time : a.order > b.order;
+  }
+};
+using ItemHeap = std::priority_queue<Item, std::vector<Item>, Later>;
+
+/// Percentile of unsorted values (p in 0..1), by selection.
+double percentile(std::vector<double> v, double p) {
+  if (v.empty()) return 0;
+  const auto k = static_cast<size_t>(std::ceil(p * static_cast<double>(v.size()))) - (p > 0 ? 1 : 0);
+  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(k), v.end());
+  return v[k];
+}
+
+class Engine;
+
+/// One module's view of the bus, and what the replayer measures about it.
+class ModuleBus final : public Bus {
+ public:
+  ModuleBus(Engine& engine, Module& module, size_t index) : engine_(engine), module_(module), index_(index) {}
+  void subscribe(const std::string& channel_regex, BusHandler handler) override;
+  void publish(std::string_view channel, std::span<const uint8_t> data) override;
+  int64_t now() const override;
+  void every(int64_t period_us, std::function<void()> fn) override;
+  std::string artifact_prefix() const override;
+
+  struct Subscription {
+    std::regex regex;
+    BusHandler handler;
+  };
+  Engine& engine_;
+  Module& module_;
+  size_t index_;
+  std::vector<Subscription> subs_;
+  // Statistics.
+  int64_t inputs_ = 0, late_ = 0, out_of_order_ = 0, outputs_ = 0;
+  int64_t latest_stamp_ = std::numeric_limits<int64_t>::min();
+  std::unordered_map<const std::string*, int64_t> last_stamp_;
+  std::vector<double> proc_s_;
+  std::deque<int64_t> busy_until_;  ///< completion times of queued inputs (timing model) [us]
+  int32_t queue_max_ = 0;
+};
+
+class Engine {
+ public:
+  explicit Engine(const ReplayOptions& o) : o_(o) {}
+  void set_sink(Sink sink) { sink_ = std::move(sink); }
+
+  Status start(std::vector<std::unique_ptr<Module>>& modules) {
+    for (size_t i = 0; i < modules.size(); ++i) buses_.push_back(std::make_unique<ModuleBus>(*this, *modules[i], i));
+    if (!o_.out.empty()) {
+      std::string prefix = o_.out;
+      if (prefix.size() > 4 && prefix.compare(prefix.size() - 4, 4, ".lcm") == 0) prefix.resize(prefix.size() - 4);
+      prefix_ = prefix;
+    }
+    for (auto& b : buses_) {
+      if (Status s = b->module_.start(*b); !s) return Error{"module " + b->module_.name() + ": " + s.message()};
+    }
+    if (!o_.out.empty()) {
+      auto w = LogWriter::create(o_.out, {.atomic = true});
+      if (!w) return w.error();
+      writer_.emplace(std::move(*w));
+    }
+    return {};
+  }
+
+  void add_timer(int64_t period, std::function<void()> fn) { timers_.push_back({period, 0, std::move(fn)}); }
+
+  /// Delivers one input at its time, then everything it caused.
+  Status deliver(const Item& item) {
+    if (Status s = fire_timers(item.time); !s) return s;
+    now_ = std::max(now_, item.time);
+    if (report_.dispatched == 0) report_.start_utime = now_;
+    report_.end_utime = now_;
+    ++report_.dispatched;
+    ++report_.channels[*item.channel];
+    if (Status s = maybe_stats(); !s) return s;
+    if (o_.write_inputs) {
+      if (Status s = write(*item.channel, item.data()); !s) return s;
+    }
+    emit(*item.channel, item.data());
+    dispatch(*item.channel, item.data());
+    return drain();
+  }
+
+  /// Calls every module's finish(), the last statistics and the manifest of injected faults.
+  Status finish(const std::vector<driftlab::fault_t>& injected) {
+    for (auto& b : buses_) {
+      b->module_.finish(*b);
+      if (Status s = drain(); !s) return s;
+    }
+    if (Status s = publish_stats(); !s) return s;
+    if (!injected.empty()) {
+      driftlab::fault_manifest_t m;
+      m.header.utime = now_;
+      m.header.seq = 0;
+      m.seed = static_cast<int64_t>(o_.inject ? o_.inject->seed : 0);
+      m.faults = injected;
+      m.nfaults = static_cast<int32_t>(m.faults.size());
+      std::vector<uint8_t> bytes(static_cast<size_t>(m.getEncodedSize()));
+      m.encode(bytes.data(), 0, static_cast<int>(bytes.size()));
+      if (Status s = write(o_.faults_channel, bytes); !s) return s;
+    }
+    return {};
+  }
+
+  Status close() {
+    if (!writer_) return {};
+    Status s = writer_->close();
+    writer_.reset();
+    return s;
+  }
+
+  std::vector<ModuleReport> module_reports() const {
+    std::vector<ModuleReport> out;
+    for (const auto& b : buses_) {
+      ModuleReport r = report_of(*b);
+      ModuleCounters c = b->module_.counters();
+      r.warnings = std::move(c.warnings);
+      r.metrics = std::move(c.metrics);
+      out.push_back(std::move(r));
+    }
+    return out;
+  }
+
+  ReplayReport& report() { return report_; }
+  int64_t now() const { return now_; }
+  const std::string& prefix() const { return prefix_; }
+  void invalidate_routes() { routes_.clear(); }
+
+  void publish(ModuleBus& from, std::string_view channel, std::span<const uint8_t> data) {
+    ++from.outputs_;
+    ++report_.outputs;
+    pending_.push_back({std::string(channel), std::vector<uint8_t>(data.begin(), data.end())});
+  }
+
+ private:
+  struct Route {
+    ModuleBus* bus;
+    size_t sub;
+  };
+  struct Pending {
+    std::string channel;
+    std::vector<uint8_t> data;
+  };
+
+  struct Timer {
+    int64_t period;
+    int64_t next;  ///< 0: not yet placed
+    std::function<void()> fn;
+  };
+
+  /// Fires, in time order, every timer tick before time t (and the ones at t, before the message at t).
+  Status fire_timers(int64_t t) {
+    for (;;) {
+      Timer* due = nullptr;
+      for (Timer& timer : timers_) {
+        if (timer.next == 0) {
+          const int64_t from = std::max(now_, t);
+          timer.next = (from / timer.period + (from % timer.period != 0 ? 1 : 0)) * timer.period;
+        }
+        if (timer.next <= t && (due == nullptr || timer.next < due->next)) due = &timer;
+      }
+      if (due == nullptr) return {};
+      now_ = std::max(now_, due->next);
+      due->next += due->period;
+      due->fn();
+      if (Status s = drain(); !s) return s;
+    }
+  }
+
+  const std::vector<Route>& routes(const std::string& channel) {
+    auto it = routes_.find(channel);
+    if (it != routes_.end()) return it->second;
+    std::vector<Route> r;
+    for (auto& b : buses_) {
+      for (size_t i = 0; i < b->subs_.size(); ++i) {
+        if (std::regex_match(channel, b->subs_[i].regex)) r.push_back({b.get(), i});
+      }
+    }
+    return routes_.emplace(channel, std::move(r)).first->second;
+  }
+
+  /// The interned name of a channel, stable for the run (statistics key on it).
+  const std::string* intern(const std::string& channel) {
+    return &*names_.insert(channel).first;
+  }
+
+  void dispatch(const std::string& channel, std::span<const uint8_t> data) {
+    const std::vector<Route> targets = routes(channel);  // a copy: handlers may subscribe (and clear the cache)
+    if (targets.empty()) return;
+    const std::string* name = intern(channel);
+    const auto stamp = header_stamp(data, now_);
+    BusMessage m{channel, now_, data};
+    for (const Route& r : targets) {
+      ModuleBus& b = *r.bus;
+      ++b.inputs_;
+      if (stamp) {
+        if (*stamp < b.latest_stamp_) ++b.late_;
+        b.latest_stamp_ = std::max(b.latest_stamp_, *stamp);
+        auto [it, fresh] = b.last_stamp_.emplace(name, *stamp);
+        if (!fresh) {
+          if (*stamp < it->second) ++b.out_of_order_;
+          it->second = std::max(it->second, *stamp);
+        }
+      }
+      if (o_.timing) {
+        const auto t0 = std::chrono::steady_clock::now();
+        b.subs_[r.sub].handler(m);
+        const double dt = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        b.proc_s_.push_back(dt);
+        // The queue a live module would have had with these processing times: inputs wait for the busy module.
+        while (!b.busy_until_.empty() && b.busy_until_.front() <= now_) b.busy_until_.pop_front();
+        const int64_t begin = b.busy_until_.empty() ? now_ : b.busy_until_.back();
+        b.busy_until_.push_back(begin + static_cast<int64_t>(std::llround(dt * 1e6)));
+        b.queue_max_ = std::max(b.queue_max_, static_cast<int32_t>(b.busy_until_.size()));
+      } else {
+        b.subs_[r.sub].handler(m);
+        b.queue_max_ = std::max(b.queue_max_, int32_t{1});
+      }
+    }
+  }
+
+  /// Delivers what the modules published, in publication order, at the current time.
+  Status drain() {
+    while (!pending_.empty()) {
+      Pending p = std::move(pending_.front());
+      pending_.pop_front();
+      if (Status s = write(p.channel, p.data); !s) return s;
+      emit(p.channel, p.data);
+      dispatch(p.channel, p.data);
+    }
+    return {};
+  }
+
+  Status write(const std::string& channel, std::span<const uint8_t> data) {
+    if (!writer_) return {};
+    return writer_->write(now_, channel, data);
+  }
+
+  void emit(std::string_view channel, std::span<const uint8_t> data) {
+    if (sink_) sink_(BusMessage{channel, now_, data});
+  }
+
+  Status maybe_stats() {
+    const auto period = static_cast<int64_t>(o_.stats_period_s * kUs);
+    if (period <= 0) return {};
+    if (next_stats_ == 0) next_stats_ = now_ + period;
+    if (now_ < next_stats_) return {};
+    while (next_stats_ <= now_) next_stats_ += period;
+    if (Status s = publish_stats(); !s) return s;
+    return drain();
+  }
+
+  ModuleReport report_of(const ModuleBus& b) const {
+    ModuleReport r;
+    r.name = b.module_.name();
+    r.inputs = b.inputs_;
+    r.late = b.late_;
+    r.out_of_order = b.out_of_order_;
+    r.dropped = b.module_.counters().dropped;
+    r.outputs = b.outputs_;
+    if (!b.proc_s_.empty()) {
+      double sum = 0, max = 0;
+      for (double v : b.proc_s_) sum += v, max = std::max(max, v);
+      r.proc_mean_s = sum / static_cast<double>(b.proc_s_.size());
+      r.proc_p95_s = percentile(b.proc_s_, 0.95);
+      r.proc_max_s = max;
+    }
+    r.queue_depth_max = b.queue_max_;
+    return r;
+  }
+
+  Status publish_stats() {
+    if (buses_.empty()) return {};
+    for (auto& b : buses_) {
+      const ModuleReport r = report_of(*b);
+      driftlab::module_stats_t m;
+      m.header.seq = stats_seq_;
+      m.header.utime = now_;
+      m.header.frame_id = "";
+      m.module = r.name;
+      m.inputs = r.inputs;
+      m.late = r.late;
+      m.out_of_order = r.out_of_order;
+      m.dropped = r.dropped;
+      m.proc_time_mean_s = r.proc_mean_s;
+      m.proc_time_p95_s = r.proc_p95_s;
+      m.proc_time_max_s = r.proc_max_s;
+      m.queue_depth_max = r.queue_depth_max;
+      std::vector<uint8_t> bytes(static_cast<size_t>(m.getEncodedSize()));
+      m.encode(bytes.data(), 0, static_cast<int>(bytes.size()));
+      if (Status s = write(o_.stats_channel, bytes); !s) return s;
+      emit(o_.stats_channel, bytes);
+    }
+    ++stats_seq_;
+    return {};
+  }
+
+  const ReplayOptions& o_;
+  Sink sink_;
+  std::vector<std::unique_ptr<ModuleBus>> buses_;
+  std::unordered_map<std::string, std::vector<Route>> routes_;
+  std::unordered_set<std::string> names_;
+  std::deque<Pending> pending_;
+  std::vector<Timer> timers_;
+  std::optional<LogWriter> writer_;
+  std::string prefix_;
+  int64_t now_ = std::numeric_limits<int64_t>::min();
+  int64_t next_stats_ = 0;
+  int64_t stats_seq_ = 0;
+  ReplayReport report_;
+};
+
+void ModuleBus::subscribe(const std::string& channel_regex, BusHandler handler) {
+  subs_.push_back({std::regex(channel_regex, std::regex::ECMAScript | std::regex::optimize), std::move(handler)});
+  engine_.invalidate_routes();
+}
+void ModuleBus::publish(std::string_view channel, std::span<const uint8_t> data) {
+  engine_.publish(*this, channel, data);
+}
+int64_t ModuleBus::now() const { return engine_.now(); }
+void ModuleBus::every(int64_t period_us, std::function<void()> fn) {
+  if (period_us <= 0) std::abort();  // a broken invariant: modules validate their rates
+  engine_.add_timer(period_us, std::move(fn));
+}
+std::string ModuleBus::artifact_prefix() const { return engine_.prefix(); }
+
+/// The logs merged by log time, with -c, --start and --end applied.
+class Merger {
+ public:
+  static Result<Merger> open(const ReplayOptions& o, std::function<void(const Problem&)> on_problem) {
+    Merger m;
+    for (const auto& path : o.logs) {
+      ReadOptions ro;
+      ro.channels = o.channels;
+      ro.on_problem = on_problem;
+      auto r = LogReader::open(path, ro);
+      if (!r) return r.error();
+      m.sources_.push_back({std::move(*r), {}, false});
+    }
+    int64_t first = std::numeric_limits<int64_t>::max();
+    for (auto& s : m.sources_) {
+      s.has = s.reader.next(s.event);
+      if (s.has) first = std::min(first, s.event.utime);
+    }
+    if (first == std::numeric_limits<int64_t>::max()) return m;  // nothing to replay
+    m.base_ = first;
+    if (o.start_s > 0) {
+      const int64_t from = first + static_cast<int64_t>(std::llround(o.start_s * kUs));
+      for (auto& s : m.sources_) {
+        if (s.has && s.event.utime >= from) continue;
+        if (Status st = s.reader.seek(from); !st) return Error{st.message()};
+        s.has = s.reader.next(s.event);
+      }
+    }
+    if (std::isfinite(o.end_s)) m.end_ = first + static_cast<int64_t>(std::llround(o.end_s * kUs));
+    return m;
+  }
+
+  /// The time of the next event, or nullopt at the end.
+  std::optional<int64_t> peek() {
+    const Source* s = best();
+    if (s == nullptr) return std::nullopt;
+    return s->event.utime;
+  }
+  bool next(Event& out) {
+    Source* s = best();
+    if (s == nullptr) return false;
+    out = s->event;
+    s->has = s->reader.next(s->event);
+    return true;
+  }
+  int64_t base() const { return base_; }
+  uint64_t problems() const {
+    uint64_t n = 0;
+    for (const auto& s : sources_) n += s.reader.problems();
+    return n;
+  }
+
+ private:
+  struct Source {
+    LogReader reader;
+    Event event;
+    bool has;
+  };
+  Source* best() {
+    Source* b = nullptr;
+    for (auto& s : sources_) {
+      if (s.has && s.event.utime > end_) s.has = false;
+      if (s.has && (b == nullptr || s.event.utime < b->event.utime)) b = &s;
+    }
+    return b;
+  }
+  Merger() = default;
+  std::vector<Source> sources_;
+  int64_t base_ = 0;
+  int64_t end_ = std::numeric_limits<int64_t>::max();
+};
+
+}  // namespace
+
+struct Replayer::Prepared {
+  std::optional<Merger> merger;
+  std::unique_ptr<Engine> engine;
+};
+
+Replayer::Replayer(ReplayOptions options) : options_(std::move(options)) {}
+Replayer::~Replayer() = default;
+void Replayer::add_module(std::unique_ptr<Module> module) { modules_.push_back(std::move(module)); }
+
+Status Replayer::open() {
+  if (prepared_) return {};
+  const ReplayOptions& o = options_;
+  for (const auto& [from, to] : o.remap) {
+    if (from.empty() || to.empty()) return Error{"--remap " + from + "=" + to + ": both names must be non-empty"};
+  }
+  auto merger = Merger::open(o, nullptr);
+  if (!merger) return merger.error();
+  auto engine = std::make_unique<Engine>(o);
+  if (Status s = engine->start(modules_); !s) return s;
+  prepared_ = std::make_unique<Prepared>();
+  prepared_->merger.emplace(std::move(*merger));
+  prepared_->engine = std::move(engine);
+  return {};
+}
+
+Result<ReplayReport> Replayer::run(const Sink& sink, const std::atomic<bool>* stop) {
+  if (Status s = open(); !s) return Error{s.message()};
+  const ReplayOptions& o = options_;
+  auto& merger = prepared_->merger;
+  Engine& engine = *prepared_->engine;
+  engine.set_sink(sink);
+
+  // The delivered (remapped) name of each input channel; nodes are stable, so items point at the names.
+  std::unordered_map<std::string, std::string> delivered_name;
+  auto deliver_as = [&](const std::string& input) -> const std::string* {
+    auto it = delivered_name.find(input);
+    if (it == delivered_name.end()) {
+      std::string name = input;
+      for (const auto& [from, to] : o.remap) {
+        if (name == from) {
+          name = to;
+          break;
+        }
+      }
+      it = delivered_name.emplace(input, std::move(name)).first;
+    }
+    return &it->second;
+  };
+
+  std::unordered_map<std::string, StreamFaultInjector> injectors;
+  std::unordered_map<std::string, int64_t> unstamped_seq;
+  if (o.inject) {
+    for (const auto& [channel, f] : o.inject->streams) {
+      injectors.emplace(channel, StreamFaultInjector(channel, f, o.inject->seed, merger->base()));
+    }
+  }
+
+  ItemHeap arrivals;  // inputs delayed by injected latency, by arrival
+  ItemHeap stamped;   // --order stamp: inputs waiting for stragglers, by stamp
+  int64_t order = 0;
+  int64_t latest_arrival = std::numeric_limits<int64_t>::min();
+  const auto window = static_cast<int64_t>(std::llround(o.reorder_window_s * kUs));
+  std::vector<Delivery> deliveries;
+  Status failure;
+
+  auto to_modules = [&](Item&& item) -> Status {
+    if (o.order == Order::kReceived) return engine.deliver(item);
+    latest_arrival = std::max(latest_arrival, item.time);
+    if (auto stamp = header_stamp(item.data(), item.time)) item.time = *stamp;
+    stamped.push(std::move(item));
+    while (!stamped.empty() && stamped.top().time <= latest_arrival - window) {
+      if (Status s = engine.deliver(stamped.top()); !s) return s;
+      stamped.pop();
+    }
+    return {};
+  };
+  // Delayed inputs whose arrival has come, up to time t.
+  auto release = [&](int64_t t) -> Status {
+    while (!arrivals.empty() && arrivals.top().time <= t) {
+      Item item = std::move(const_cast<Item&>(arrivals.top()));
+      arrivals.pop();
+      if (Status s = to_modules(std::move(item)); !s) return s;
+    }
+    return {};
+  };
+
+  Event e;
+  while (!(stop != nullptr && stop->load()) && merger->next(e)) {
+    ++engine.report().read;
+    const std::string input(e.channel);
+    Item item;
+    item.time = e.utime;
+    item.order = order++;
+    item.channel = deliver_as(input);
+    item.view = e.data;
+    if (auto r = o.restamp.find(input); r != o.restamp.end()) {
+      const ClockCorrection& c = r->second;
+      const int64_t ref = c.reference_utime != 0 ? c.reference_utime : merger->base();
+      item.owned.assign(e.data.begin(), e.data.end());
+      const bool stamped_msg = map_stamps(item.owned, e.utime, [&](int64_t s) {
+        const double correction = c.offset_s + c.drift_ppm * 1e-6 * static_cast<double>(s - ref) * 1e-6;
+        return s - static_cast<int64_t>(std::llround(correction * kUs));
+      });
+      if (!stamped_msg) item.owned.clear();
+    }
+    if (auto inj = injectors.find(input); inj != injectors.end()) {
+      const auto stamp = header_stamp(item.data(), e.utime);
+      int64_t seq = stamp ? static_cast<int64_t>(logfmt::load_be64(item.data().data() + 8)) : unstamped_seq[input]++;
+      deliveries.clear();
+      inj->second.apply(seq, e.utime, deliveries);
+      for (const Delivery& d : deliveries) {
+        Item copy;
+        copy.time = d.arrival_utime;
+        copy.order = order++;
+        copy.channel = item.channel;
+        copy.owned = item.owned;
+        copy.view = item.view;
+        if (const int64_t shift = d.stamp_utime - e.utime; shift != 0) {  // the injected clock offset and drift
+          if (copy.owned.empty()) copy.owned.assign(e.data.begin(), e.data.end());
+          if (!map_stamps(copy.owned, e.utime, [&](int64_t s) { return s + shift; })) copy.owned = item.owned;
+        }
+        arrivals.push(std::move(copy));
+      }
+    } else {
+      arrivals.push(std::move(item));
+    }
+    const auto next = merger->peek();
+    if (Status s = release(next ? *next : std::numeric_limits<int64_t>::max()); !s) {
+      failure = s;
+      break;
+    }
+  }
+  const bool interrupted = stop != nullptr && stop->load();
+  if (failure.ok() && !interrupted) failure = release(std::numeric_limits<int64_t>::max());
+  while (failure.ok() && !stamped.empty()) {
+    failure = engine.deliver(stamped.top());
+    stamped.pop();
+  }
+  std::vector<driftlab::fault_t> injected;
+  for (const auto& [channel, inj] : injectors) {
+    for (auto& f : inj.manifest(engine.report().end_utime)) injected.push_back(std::move(f));
+  }
+  std::sort(injected.begin(), injected.end(), [](const fault_t& a, const fault_t& b) {
+    return a.channel != b.channel ? a.channel < b.channel : a.kind < b.kind;
+  });
+  if (failure.ok()) failure = engine.finish(injected);
+  Status closed = engine.close();
+  if (!failure.ok()) return Error{failure.message()};
+  if (!closed.ok()) return Error{closed.message()};
+  ReplayReport report = std::move(engine.report());
+  report.log_problems = merger->problems();
+  report.interrupted = interrupted;
+  report.modules = engine.module_reports();
+  report.injected = std::move(injected);
+  return report;
+}
+
+}  // namespace driftlab::replay

@@ -1,0 +1,112 @@
+// The replayer: merges one or more logs in time order and dispatches every event to modules (SLAM, estimator,
+// controller) through the Bus they also use live, on a virtual clock: a module's "now" is the time of the message it
+// handles. Before dispatch it can filter and rename channels, correct clocks (restamp) and inject faults; what the
+// modules publish goes back on the bus (to the other modules, in publication order) and into the output log, with
+// per-module statistics. The same inputs and options give a byte-identical output log.
+// Thread-safety: a Replayer runs on one thread; modules are called from it only.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <functional>
+#include <limits>
+#include <map>
+#include <memory>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "core/bus.h"
+#include "core/faults.h"
+#include "core/result.h"
+
+namespace driftlab::replay {
+
+/// A clock correction for one channel: the source clock ran ahead of the log's clock by
+/// offset_s + drift_ppm * 1e-6 * (stamp - reference_utime); the replayer subtracts that from header stamps.
+struct ClockCorrection {
+  double offset_s = 0;
+  double drift_ppm = 0;
+  int64_t reference_utime = 0;  ///< 0: the first event of the replay
+};
+
+/// Per channel (as named in the input logs), e.g. from `driftlab diagnose`.
+using Restamp = std::map<std::string, ClockCorrection>;
+
+/// Reads a restamp file: `channels: {IMU: {offset_s: 0.015, drift_ppm: 0, reference_utime: 0}}`. Errors name the
+/// file, line and key.
+Result<Restamp> load_restamp(const std::string& path);
+
+enum class Order {
+  kReceived,  ///< by log time (arrival at the recorder), as the robot's software saw them
+  kStamp,     ///< by header stamp, re-sorted within a window; later stragglers are delivered late
+};
+
+struct ReplayOptions {
+  std::vector<std::string> logs;
+  std::string channels;                                   ///< ECMAScript regex of input channels; empty: all
+  std::vector<std::pair<std::string, std::string>> remap; ///< input channel A is delivered as B
+  Order order = Order::kReceived;
+  double reorder_window_s = 0.5;  ///< how long kStamp waits for stragglers [s]
+  double start_s = 0;             ///< skip the first start_s of the logs [s, from the first event]
+  double end_s = std::numeric_limits<double>::infinity();  ///< stop after end_s [s, from the first event]
+  Restamp restamp;                ///< clock corrections applied before dispatch
+  std::optional<FaultConfig> inject;  ///< faults added at replay, before dispatch (after restamp)
+  bool timing = false;            ///< measure processing time (and the queues it implies); makes the output vary
+  double stats_period_s = 1.0;    ///< module statistics interval [s of log time]
+  std::string out;                ///< output log; empty: none
+  bool write_inputs = true;       ///< the output log holds the dispatched inputs as well as the outputs
+  std::string stats_channel = "MODULE_STATS";
+  std::string faults_channel = "REPLAY_FAULTS";  ///< where the manifest of injected faults goes
+};
+
+struct ModuleReport {
+  std::string name;
+  int64_t inputs = 0, late = 0, out_of_order = 0, dropped = 0, outputs = 0;
+  double proc_mean_s = 0, proc_p95_s = 0, proc_max_s = 0;  ///< 0 unless ReplayOptions::timing
+  int32_t queue_depth_max = 0;
+  std::vector<std::string> warnings;
+  std::vector<std::pair<std::string, double>> metrics;  ///< the module's own (ModuleCounters::metrics)
+};
+
+struct ReplayReport {
+  int64_t read = 0;        ///< events read from the logs (after -c, --start, --end)
+  int64_t dispatched = 0;  ///< input deliveries (after injected drops and duplicates)
+  int64_t outputs = 0;     ///< messages the modules published
+  int64_t start_utime = 0, end_utime = 0;  ///< virtual time of the first and last delivery [us]
+  uint64_t log_problems = 0;               ///< corruption met while reading
+  bool interrupted = false;
+  std::map<std::string, int64_t> channels;  ///< deliveries per (remapped) input channel
+  std::vector<ModuleReport> modules;
+  std::vector<driftlab::fault_t> injected;  ///< what --inject did
+};
+
+/// A message leaving the replayer (an input as delivered, or a module's output), for re-publication.
+using Sink = std::function<void(const BusMessage&)>;
+
+class Replayer {
+ public:
+  explicit Replayer(ReplayOptions options);
+  ~Replayer();
+  void add_module(std::unique_ptr<Module> module);
+
+  /// Opens the logs, starts the modules and creates the output log. Errors (bad input: unreadable logs, a bad
+  /// channel regex, a module that fails to start) leave no output behind. Once only; run() calls it if needed.
+  Status open();
+  /// Runs to the end of the logs (or until *stop). Errors: those of open(), and a write failure of the output log
+  /// (which then keeps what was written, as a valid log).
+  Result<ReplayReport> run(const Sink& sink = {}, const std::atomic<bool>* stop = nullptr);
+
+ private:
+  struct Prepared;
+  ReplayOptions options_;
+  std::vector<std::unique_ptr<Module>> modules_;
+  std::unique_ptr<Prepared> prepared_;
+};
+
+/// The header stamp of an encoded stream message (driftlab.header_t first, in a driftlab type or one shaped like it),
+/// or nullopt.
+std::optional<int64_t> header_stamp(std::span<const uint8_t> data, int64_t arrival);
+
+}  // namespace driftlab::replay
