@@ -57,6 +57,9 @@ void Ekf::correct(const Eigen::Matrix<double, N, 1>& innovation, const Eigen::Ma
   // Joseph form: stays symmetric and positive with large gains.
   const Cov I_KH = Cov::Identity() - K * H;
   P_ = I_KH * P_ * I_KH.transpose() + K * R * K.transpose();
+  // Correlations between states no measurement couples decay geometrically, into subnormal numbers after some
+  // million updates, where arithmetic is tens of times slower: flush them to zero.
+  P_ = (P_.array().abs() < 1e-150).select(0.0, P_);
 }
 
 void Ekf::update(int64_t utime, const Measurement& m) {
