@@ -20,6 +20,7 @@
 #include "controller/controller_module.h"
 #include "estimator/estimator_module.h"
 #include "replayer/replayer.h"
+#include "slam/slam_module.h"
 #include "sim/scenario.h"
 
 namespace driftlab::apps {
@@ -48,7 +49,7 @@ struct ReplayArgs {
 std::atomic<bool> g_stop{false};
 void on_signal(int) { g_stop.store(true); }
 
-constexpr std::array<const char*, 2> kModules = {"estimator", "controller"};
+constexpr std::array<const char*, 3> kModules = {"slam", "estimator", "controller"};
 
 std::string known_modules() {
   std::string s;
@@ -74,6 +75,7 @@ Result<std::unique_ptr<Module>> make_module(const std::string& name, const YAML:
                                             const std::string& origin, const std::string& config_dir,
                                             std::vector<std::string>& notes) {
   if (name == "estimator") return estimator::make_estimator(config, origin);
+  if (name == "slam") return slam::make_slam(config, origin);
   if (name == "controller") {
     std::string scenario;
     if (config.IsMap() && config["scenario"].IsDefined()) {

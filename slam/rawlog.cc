@@ -1,0 +1,300 @@
+#include "slam/rawlog.h"
+
+#include <mrpt/io/CFileGZInputStream.h>
+#include <mrpt/io/CFileOutputStream.h>
+#include <mrpt/obs/CActionCollection.h>
+#include <mrpt/obs/CActionRobotMovement2D.h>
+#include <mrpt/obs/CObservation2DRangeScan.h>
+#include <mrpt/obs/CObservationIMU.h>
+#include <mrpt/obs/CObservationOdometry.h>
+#include <mrpt/obs/CObservationRobotPose.h>
+#include <mrpt/obs/CSensoryFrame.h>
+#include <mrpt/serialization/CArchive.h>
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <optional>
+
+#include "core/log_reader.h"
+#include "core/log_writer.h"
+#include "driftlab/imu_t.hpp"
+#include "driftlab/odometry_t.hpp"
+#include "driftlab/pose_t.hpp"
+#include "driftlab/tf_t.hpp"
+#include "slam/internal/mrpt_scan.h"
+
+namespace driftlab::slam {
+namespace {
+
+int64_t to_utime(mrpt::Clock::time_point t) {
+  return static_cast<int64_t>(std::llround(mrpt::Clock::toDouble(t) * 1e6));
+}
+
+driftlab::quaternion_t yaw_quaternion(double yaw) { return {std::cos(yaw / 2), 0, 0, std::sin(yaw / 2)}; }
+
+double yaw_of(const driftlab::quaternion_t& q) {
+  return std::atan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y * q.y + q.z * q.z));
+}
+
+std::string first_line(const std::exception& e) {
+  std::string what = e.what();
+  const auto nl = what.find('\n');
+  return nl == std::string::npos ? what : what.substr(0, nl);
+}
+
+template <typename T>
+Status put(LogWriter& w, int64_t utime, const std::string& channel, const T& msg) {
+  std::vector<uint8_t> bytes(static_cast<size_t>(msg.getEncodedSize()));
+  msg.encode(bytes.data(), 0, static_cast<int>(bytes.size()));
+  return w.write(utime, channel, bytes);
+}
+
+/// Writes one rawlog's observations into a log.
+class Importer {
+ public:
+  Importer(LogWriter& w, RawlogCounts& counts) : w_(w), counts_(counts) {}
+
+  Status observation(const mrpt::obs::CObservation& o) {
+    using namespace mrpt::obs;
+    const int64_t t = to_utime(o.timestamp);
+    last_utime_ = t;
+    if (const auto* scan = dynamic_cast<const CObservation2DRangeScan*>(&o)) {
+      const std::string frame = o.sensorLabel.empty() ? "laser" : o.sensorLabel;
+      const mrpt::poses::CPose3D& p = scan->sensorPose;
+      auto known = sensors_.find(frame);
+      if (known == sensors_.end() || !(known->second == p)) {
+        sensors_[frame] = p;
+        driftlab::tf_t tf{};
+        tf.header.seq = seq_["TF_STATIC"]++;
+        tf.header.utime = t;
+        tf.header.frame_id = "base_link";
+        for (const auto& [name, pose] : sensors_) {
+          driftlab::transform_t x{};
+          x.header.utime = t;
+          x.header.frame_id = "base_link";
+          x.child_frame_id = name;
+          x.translation = {pose.x(), pose.y(), pose.z()};
+          x.rotation = yaw_quaternion(pose.yaw());
+          tf.transforms.push_back(x);
+        }
+        tf.ntransforms = static_cast<int32_t>(tf.transforms.size());
+        if (Status s = emit(t, "TF_STATIC", tf); !s) return s;
+      }
+      driftlab::laser_scan_t s = internal::from_mrpt(*scan);
+      s.header.utime = t;
+      s.header.frame_id = frame;
+      return emit(t, "SCAN", s);
+    }
+    if (const auto* odo = dynamic_cast<const CObservationOdometry*>(&o)) {
+      return odometry(t, odo->odometry, odo->hasVelocities ? odo->velocityLocal.vx : 0.0,
+                      odo->hasVelocities ? odo->velocityLocal.omega : 0.0);
+    }
+    if (const auto* imu = dynamic_cast<const CObservationIMU*>(&o)) {
+      driftlab::imu_t m{};
+      m.header.utime = t;
+      m.header.frame_id = o.sensorLabel.empty() ? "imu" : o.sensorLabel;
+      m.orientation = {1, 0, 0, 0};
+      m.orientation_covariance[0] = -1;  // not provided
+      auto get = [&](TIMUDataIndex i) { return imu->has(i) ? imu->get(i) : 0.0; };
+      m.angular_velocity = {get(IMU_WX), get(IMU_WY), get(IMU_WZ)};
+      m.linear_acceleration = {get(IMU_X_ACC), get(IMU_Y_ACC), get(IMU_Z_ACC)};
+      return emit(t, "IMU", m);
+    }
+    if (const auto* gt = dynamic_cast<const CObservationRobotPose*>(&o)) {
+      driftlab::pose_t m{};
+      m.header.utime = t;
+      m.header.frame_id = "world";
+      m.child_frame_id = "base_link";
+      const mrpt::poses::CPose3D& p = gt->pose.mean;
+      m.position = {p.x(), p.y(), p.z()};
+      mrpt::math::CQuaternionDouble q;
+      p.getAsQuaternion(q);
+      m.orientation = {q.r(), q.x(), q.y(), q.z()};
+      return emit(t, "GROUND_TRUTH", m);
+    }
+    ++counts_.skipped[o.GetRuntimeClass()->className];
+    return {};
+  }
+
+  /// Action/sensory-frame rawlogs: the odometry increments are integrated and stamped with the frame's time.
+  Status frame(const mrpt::obs::CActionCollection* actions, const mrpt::obs::CSensoryFrame& sf) {
+    std::optional<int64_t> t;
+    for (const auto& o : sf) {
+      if (o) t = t ? std::min(*t, to_utime(o->timestamp)) : to_utime(o->timestamp);
+    }
+    if (actions != nullptr) {
+      if (auto move = actions->getBestMovementEstimation()) {
+        odom_ = odom_ + move->poseChange->getMeanVal();
+        if (Status s = odometry(t.value_or(last_utime_), odom_, 0, 0); !s) return s;
+      }
+    }
+    for (const auto& o : sf) {
+      if (!o) continue;
+      if (Status s = observation(*o); !s) return s;
+    }
+    return {};
+  }
+
+ private:
+  Status odometry(int64_t t, const mrpt::poses::CPose2D& pose, double v, double w) {
+    driftlab::odometry_t m{};
+    m.header.utime = t;
+    m.header.frame_id = "odom";
+    m.child_frame_id = "base_link";
+    m.position = {pose.x(), pose.y(), 0};
+    m.orientation = yaw_quaternion(pose.phi());
+    m.linear_velocity = {v, 0, 0};
+    m.angular_velocity = {0, 0, w};
+    return emit(t, "ODOM", m);
+  }
+
+  template <typename T>
+  Status emit(int64_t t, const std::string& channel, T& msg) {
+    msg.header.seq = seq_[channel]++;
+    ++counts_.written[channel];
+    return put(w_, t, channel, msg);
+  }
+
+  LogWriter& w_;
+  RawlogCounts& counts_;
+  std::map<std::string, int64_t> seq_;
+  std::map<std::string, mrpt::poses::CPose3D> sensors_;
+  mrpt::poses::CPose2D odom_;
+  int64_t last_utime_ = 0;
+};
+
+}  // namespace
+
+Result<RawlogCounts> import_rawlog(const std::string& rawlog, const std::string& out_log) {
+  if (!std::filesystem::is_regular_file(rawlog)) return Error{rawlog + ": no such rawlog file"};
+  mrpt::io::CFileGZInputStream in;
+  if (!in.open(rawlog)) return Error{rawlog + ": cannot open the rawlog"};
+  const uint64_t compressed = std::filesystem::file_size(rawlog);
+  auto w = LogWriter::create(out_log, {.atomic = true});
+  if (!w) return w.error();
+  RawlogCounts counts;
+  Importer importer(*w, counts);
+  auto archive = mrpt::serialization::archiveFrom(in);
+  mrpt::obs::CActionCollection::Ptr pending_actions;
+  for (size_t entry = 0;; ++entry) {
+    mrpt::serialization::CSerializable::Ptr object;
+    const uint64_t before = in.getPosition();
+    try {
+      archive >> object;
+    } catch (const mrpt::serialization::CExceptionEOF&) {
+      if (in.getPosition() == before) break;  // the end, between entries
+      w->discard();
+      return Error{rawlog + ": entry " + std::to_string(entry) + " (byte " + std::to_string(before) +
+                   " uncompressed) is cut off: the rawlog is truncated"};
+    } catch (const std::exception& e) {
+      w->discard();
+      if (in.getPosition() >= compressed && entry > 0 && before > 0 && in.checkEOF()) {
+        return Error{rawlog + ": entry " + std::to_string(entry) + " is cut off: the rawlog is truncated"};
+      }
+      return Error{rawlog + ": entry " + std::to_string(entry) + " (byte " + std::to_string(before) +
+                   " uncompressed): not an MRPT object: " + first_line(e)};
+    }
+    Status s;
+    if (auto actions = std::dynamic_pointer_cast<mrpt::obs::CActionCollection>(object)) {
+      pending_actions = actions;
+    } else if (auto sf = std::dynamic_pointer_cast<mrpt::obs::CSensoryFrame>(object)) {
+      s = importer.frame(pending_actions.get(), *sf);
+      pending_actions.reset();
+    } else if (auto obs = std::dynamic_pointer_cast<mrpt::obs::CObservation>(object)) {
+      s = importer.observation(*obs);
+    } else if (object) {
+      ++counts.skipped[object->GetRuntimeClass()->className];
+    }
+    if (!s) {
+      (void)w->close();
+      return Error{s.message()};
+    }
+  }
+  if (Status s = w->close(); !s) return Error{s.message()};
+  if (counts.written.empty()) {
+    std::filesystem::remove(out_log);
+    return Error{rawlog + ": no observations driftlab can convert (2D scans, odometry, IMU, robot poses)"};
+  }
+  return counts;
+}
+
+Result<RawlogCounts> export_rawlog(const std::string& log, const std::string& out_rawlog) {
+  auto reader = LogReader::open(log);
+  if (!reader) return reader.error();
+  const std::string tmp = out_rawlog + ".partial";
+  RawlogCounts counts;
+  try {
+    mrpt::io::CFileOutputStream out;
+    if (!out.open(tmp)) return Error{out_rawlog + ": cannot create the rawlog"};
+    auto archive = mrpt::serialization::archiveFrom(out);
+    std::map<std::string, mrpt::poses::CPose2D> sensors;  // base_link -> frame, from TF_STATIC
+    Event e;
+    while (reader->next(e)) {
+      const std::string channel(e.channel);
+      const auto* bytes = e.data.data();
+      const int size = static_cast<int>(e.data.size());
+      driftlab::laser_scan_t scan;
+      driftlab::odometry_t odo;
+      driftlab::imu_t imu;
+      driftlab::pose_t pose;
+      driftlab::tf_t tf;
+      if (tf.decode(bytes, 0, size) >= 0) {
+        for (const auto& t : tf.transforms) {
+          if (t.header.frame_id == "base_link") {
+            sensors[t.child_frame_id] = mrpt::poses::CPose2D(t.translation.x, t.translation.y, yaw_of(t.rotation));
+          }
+        }
+        continue;
+      }
+      if (scan.decode(bytes, 0, size) >= 0 && scan.nranges >= 2) {
+        auto it = sensors.find(scan.header.frame_id);
+        auto obs = internal::to_mrpt(scan, it != sensors.end() ? it->second : mrpt::poses::CPose2D());
+        obs->sensorLabel = channel;
+        archive << *obs;
+        ++counts.written["CObservation2DRangeScan"];
+      } else if (odo.decode(bytes, 0, size) >= 0) {
+        mrpt::obs::CObservationOdometry obs;
+        obs.timestamp = mrpt::Clock::fromDouble(static_cast<double>(odo.header.utime) * 1e-6);
+        obs.sensorLabel = channel;
+        obs.odometry = mrpt::poses::CPose2D(odo.position.x, odo.position.y, yaw_of(odo.orientation));
+        obs.hasVelocities = true;
+        obs.velocityLocal = {odo.linear_velocity.x, odo.linear_velocity.y, odo.angular_velocity.z};
+        archive << obs;
+        ++counts.written["CObservationOdometry"];
+      } else if (imu.decode(bytes, 0, size) >= 0) {
+        mrpt::obs::CObservationIMU obs;
+        obs.timestamp = mrpt::Clock::fromDouble(static_cast<double>(imu.header.utime) * 1e-6);
+        obs.sensorLabel = channel;
+        obs.set(mrpt::obs::IMU_WX, imu.angular_velocity.x);
+        obs.set(mrpt::obs::IMU_WY, imu.angular_velocity.y);
+        obs.set(mrpt::obs::IMU_WZ, imu.angular_velocity.z);
+        obs.set(mrpt::obs::IMU_X_ACC, imu.linear_acceleration.x);
+        obs.set(mrpt::obs::IMU_Y_ACC, imu.linear_acceleration.y);
+        obs.set(mrpt::obs::IMU_Z_ACC, imu.linear_acceleration.z);
+        archive << obs;
+        ++counts.written["CObservationIMU"];
+      } else if (channel == "GROUND_TRUTH" && pose.decode(bytes, 0, size) >= 0) {
+        mrpt::obs::CObservationRobotPose obs;
+        obs.timestamp = mrpt::Clock::fromDouble(static_cast<double>(pose.header.utime) * 1e-6);
+        obs.sensorLabel = channel;
+        const auto& q = pose.orientation;
+        obs.pose.mean = mrpt::poses::CPose3D(mrpt::math::CQuaternionDouble(q.w, q.x, q.y, q.z), pose.position.x,
+                                             pose.position.y, pose.position.z);
+        archive << obs;
+        ++counts.written["CObservationRobotPose"];
+      } else {
+        ++counts.skipped[channel];
+      }
+    }
+  } catch (const std::exception& e) {
+    std::filesystem::remove(tmp);
+    return Error{out_rawlog + ": cannot write the rawlog: " + first_line(e)};
+  }
+  std::error_code ec;
+  std::filesystem::rename(tmp, out_rawlog, ec);
+  if (ec) return Error{out_rawlog + ": cannot rename " + tmp + " into place: " + ec.message()};
+  return counts;
+}
+
+}  // namespace driftlab::slam

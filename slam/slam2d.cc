@@ -1,0 +1,329 @@
+#include "slam/slam2d.h"
+
+#include <mrpt/config/CConfigFileMemory.h>
+#include <mrpt/maps/COccupancyGridMap2D.h>
+#include <mrpt/maps/CSimpleMap.h>
+#include <mrpt/obs/CActionCollection.h>
+#include <mrpt/obs/CActionRobotMovement2D.h>
+#include <mrpt/obs/CObservation2DRangeScan.h>
+#include <mrpt/obs/CSensoryFrame.h>
+#include <mrpt/poses/CPose3DPDF.h>
+#include <mrpt/slam/CMetricMapBuilderICP.h>
+#include <mrpt/system/COutputLogger.h>
+
+#include <opencv2/imgcodecs.hpp>
+
+#include <cmath>
+#include <deque>
+#include <fstream>
+#include <map>
+#include <optional>
+#include <set>
+#include <sstream>
+
+#include "core/internal/yaml_fields.h"
+#include "slam/internal/mrpt_scan.h"
+#include "driftlab/image_t.hpp"
+#include "driftlab/laser_scan_t.hpp"
+#include "driftlab/odometry_t.hpp"
+#include "driftlab/pose_t.hpp"
+#include "driftlab/tf_t.hpp"
+
+namespace driftlab::slam {
+namespace {
+
+double yaw_of(const driftlab::quaternion_t& q) {
+  return std::atan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y * q.y + q.z * q.z));
+}
+
+/// An MRPT icp-slam configuration from ours: [MappingApplication] (map building, a single planar point map, as in
+/// icp-slam_demo_classic.ini) and [ICP]. With an .ini file, its values replace the defaults, and the keys given
+/// in YAML replace those.
+std::string ini_text(const Slam2dConfig& c, const std::set<std::string>& given, const std::string& base) {
+  std::ostringstream s;
+  auto put = [&](const char* ours, const char* key, double value) {
+    if (base.empty() || given.count(ours)) s << key << "=" << value << "\n";
+  };
+  s << "[MappingApplication]\n";
+  if (base.empty()) {
+    s << "matchAgainstTheGrid=0\noccupancyGrid_count=0\ngasGrid_count=0\nlandmarksMap_count=0\nbeaconMap_count=0\n"
+         "pointsMap_count=1\nlikelihoodMapSelection=-1\n";
+  }
+  put("insertion_lin_distance", "insertionLinDistance", c.insertion_lin_distance);
+  put("insertion_ang_distance", "insertionAngDistance", c.insertion_ang_distance);
+  put("localization_lin_distance", "localizationLinDistance", c.localization_lin_distance);
+  put("localization_ang_distance", "localizationAngDistance", c.localization_ang_distance);
+  put("min_icp_goodness", "minICPgoodnessToAccept", c.min_icp_goodness);
+  s << "[MappingApplication_pointsMap_00_insertOpts]\n";
+  put("min_dist_between_points", "minDistBetweenLaserPoints", c.min_dist_between_points);
+  if (base.empty() || given.count("fuse_points")) s << "fuseWithExisting=" << (c.fuse_points ? "true" : "false") << "\n";
+  if (base.empty()) s << "isPlanarMap=1\n";
+  s << "[ICP]\n";
+  put("max_iterations", "maxIterations", c.max_iterations);
+  put("threshold_dist", "thresholdDist", c.threshold_dist);
+  put("threshold_ang", "thresholdAng_DEG", c.threshold_ang);
+  put("alfa", "ALFA", c.alfa);
+  put("smallest_threshold_dist", "smallestThresholdDist", c.smallest_threshold_dist);
+  put("decimation", "corresponding_points_decimation", c.decimation);
+  if (base.empty()) {
+    s << "minAbsStep_trans=1e-6\nminAbsStep_rot=1e-6\nonlyClosestCorrespondences=true\nonlyUniqueRobust=true\n"
+         "ICP_algorithm=icpClassic\n";
+  }
+  return s.str();
+}
+
+struct OdomSample {
+  int64_t stamp;
+  mrpt::poses::CPose2D pose;
+};
+
+}  // namespace
+
+Result<Slam2dConfig> parse_slam2d_config(const YAML::Node& node, const std::string& origin) {
+  Slam2dConfig c;
+  if (!node.IsDefined() || node.IsNull()) return c;
+  try {
+    Fields f(node, origin, "slam.2d");
+    DL_TRY(f.is_map());
+    DL_TRY(f.text("scan_channel", c.scan_channel));
+    DL_TRY(f.text("odom_channel", c.odom_channel));
+    DL_TRY(f.text("tf_static_channel", c.tf_static_channel));
+    DL_TRY(f.text("pose_channel", c.pose_channel));
+    DL_TRY(f.text("map_channel", c.map_channel));
+    DL_TRY(f.text("base_frame", c.base_frame));
+    std::vector<double> pose;
+    DL_TRY(f.vector("sensor_pose", pose, 3));
+    if (!pose.empty()) c.sensor_pose = {pose[0], pose[1], pose[2]};
+    DL_TRY(f.text("ini", c.ini));
+    DL_TRY(f.positive("insertion_lin_distance", c.insertion_lin_distance));
+    DL_TRY(f.positive("insertion_ang_distance", c.insertion_ang_distance));
+    DL_TRY(f.positive("localization_lin_distance", c.localization_lin_distance));
+    DL_TRY(f.positive("localization_ang_distance", c.localization_ang_distance));
+    DL_TRY(f.number("min_icp_goodness", c.min_icp_goodness, 0, 1));
+    DL_TRY(f.positive("min_dist_between_points", c.min_dist_between_points));
+    DL_TRY(f.boolean("fuse_points", c.fuse_points));
+    DL_TRY(f.integer("max_iterations", c.max_iterations, 1, 100000));
+    DL_TRY(f.positive("threshold_dist", c.threshold_dist));
+    DL_TRY(f.positive("threshold_ang", c.threshold_ang));
+    DL_TRY(f.number("alfa", c.alfa, 0.01, 1));
+    DL_TRY(f.positive("smallest_threshold_dist", c.smallest_threshold_dist));
+    DL_TRY(f.integer("decimation", c.decimation, 1, 1000));
+    DL_TRY(f.positive("map_resolution", c.map_resolution));
+    DL_TRY(f.finish("scan_channel, odom_channel, tf_static_channel, pose_channel, map_channel, base_frame, "
+                    "sensor_pose, ini, insertion_lin_distance, insertion_ang_distance, localization_lin_distance, "
+                    "localization_ang_distance, min_icp_goodness, min_dist_between_points, fuse_points, max_iterations, "
+                    "threshold_dist, threshold_ang, alfa, smallest_threshold_dist, decimation, map_resolution"));
+    if (c.scan_channel.empty()) return Error{f.where("scan_channel") + " must not be empty"};
+    for (const auto& kv : node) c.given.insert(kv.first.as<std::string>());
+    if (!c.ini.empty()) {
+      if (c.ini[0] != '/' && origin.find('/') != std::string::npos) {
+        c.ini = origin.substr(0, origin.rfind('/') + 1) + c.ini;  // relative to the config file
+      }
+      std::ifstream in(c.ini);
+      if (!in) return Error{f.where("ini") + ": cannot open " + c.ini};
+    }
+  } catch (const YAML::Exception& e) {
+    return Error{origin + ":" + std::to_string(e.mark.line + 1) + ": " + e.msg};
+  }
+  return c;
+}
+
+struct Slam2d::Impl {
+  Slam2dConfig c;
+  mrpt::slam::CMetricMapBuilderICP builder;
+  mrpt::obs::CActionRobotMovement2D::TMotionModelOptions motion;
+  std::map<std::string, mrpt::poses::CPose2D> sensor_on_base;  ///< by scan frame, from TF_STATIC
+  std::deque<OdomSample> odom;                                 ///< recent odometry, by stamp
+  std::optional<mrpt::poses::CPose2D> last_odom_at_scan;
+  int64_t scans = 0, odometry = 0, undecodable = 0, seq = 0, keyframes = 0, before_odometry = 0;
+  int64_t first_scan = -1;  ///< stamp of the first scan [us]
+  bool tf_missing_warned = false;
+  std::vector<std::string> warnings;
+
+  /// The odometry pose at a stamp: interpolated between the samples around it, or the nearest at the ends.
+  std::optional<mrpt::poses::CPose2D> odom_at(int64_t stamp) const {
+    if (odom.empty()) return std::nullopt;
+    if (stamp <= odom.front().stamp) return odom.front().pose;
+    if (stamp >= odom.back().stamp) return odom.back().pose;
+    auto hi = std::lower_bound(odom.begin(), odom.end(), stamp,
+                               [](const OdomSample& s, int64_t t) { return s.stamp < t; });
+    auto lo = std::prev(hi);
+    const double f = static_cast<double>(stamp - lo->stamp) / static_cast<double>(hi->stamp - lo->stamp);
+    const mrpt::poses::CPose2D d = hi->pose - lo->pose;
+    return lo->pose + mrpt::poses::CPose2D(d.x() * f, d.y() * f, d.phi() * f);
+  }
+};
+
+Slam2d::Slam2d(Slam2dConfig config) : impl_(std::make_unique<Impl>()) { impl_->c = std::move(config); }
+Slam2d::~Slam2d() = default;
+
+Status Slam2d::start(Bus& bus) {
+  Impl& d = *impl_;
+  const Slam2dConfig& c = d.c;
+  try {
+    std::string base;
+    if (!c.ini.empty()) {
+      std::ifstream in(c.ini);
+      std::stringstream text;
+      text << in.rdbuf();
+      base = text.str();
+    }
+    mrpt::config::CConfigFileMemory cfg(base.empty() ? ini_text(c, c.given, "") : base);
+    if (!base.empty()) {  // the YAML keys given override the .ini file's
+      mrpt::config::CConfigFileMemory overrides(ini_text(c, c.given, base));
+      for (const char* section : {"MappingApplication", "MappingApplication_pointsMap_00_insertOpts", "ICP"}) {
+        std::vector<std::string> keys;
+        overrides.getAllKeys(section, keys);
+        for (const auto& k : keys) cfg.write(section, k, overrides.read_string(section, k, ""));
+      }
+    }
+    d.builder.setMinLoggingLevel(mrpt::system::LVL_ERROR);
+    d.builder.ICP_options.loadFromConfigFile(cfg, "MappingApplication");
+    d.builder.ICP_params.loadFromConfigFile(cfg, "ICP");
+    d.builder.initialize();
+  } catch (const std::exception& e) {
+    std::string what = e.what();
+    what = what.substr(0, what.find('\n'));
+    return Error{(c.ini.empty() ? std::string("slam.2d") : c.ini) + ": MRPT rejected the ICP settings: " + what};
+  }
+
+  if (!c.tf_static_channel.empty()) {
+    bus.subscribe(c.tf_static_channel, [this](const BusMessage& m) {
+      driftlab::tf_t tf;
+      if (!decode_message(m, tf)) return void(++impl_->undecodable);
+      for (const auto& t : tf.transforms) {
+        if (t.header.frame_id != impl_->c.base_frame) continue;
+        impl_->sensor_on_base[t.child_frame_id] = mrpt::poses::CPose2D(t.translation.x, t.translation.y, yaw_of(t.rotation));
+      }
+    });
+  }
+  if (!c.odom_channel.empty()) {
+    bus.subscribe(c.odom_channel, [this](const BusMessage& m) {
+      driftlab::odometry_t o;
+      if (!decode_message(m, o)) return void(++impl_->undecodable);
+      ++impl_->odometry;
+      auto& q = impl_->odom;
+      const OdomSample s{o.header.utime, mrpt::poses::CPose2D(o.position.x, o.position.y, yaw_of(o.orientation))};
+      // Keep them sorted by stamp (late ones are inserted in place) and a few seconds deep.
+      auto at = std::upper_bound(q.begin(), q.end(), s.stamp,
+                                 [](int64_t t, const OdomSample& x) { return t < x.stamp; });
+      q.insert(at, s);
+      while (q.size() > 2 && q.back().stamp - q.front().stamp > 5000000) q.pop_front();
+    });
+  }
+  bus.subscribe(c.scan_channel, [this, &bus](const BusMessage& m) {
+    Impl& d = *impl_;
+    driftlab::laser_scan_t scan;
+    if (!decode_message(m, scan) || scan.nranges < 2) return void(++d.undecodable);
+    // With odometry configured, the map starts where the odometry does (as icp-slam starts at its first
+    // odometry/scan pair): scans in the first second before any odometry are counted and left out.
+    if (d.first_scan < 0) d.first_scan = scan.header.utime;
+    if (!d.c.odom_channel.empty() && d.odom.empty() && scan.header.utime - d.first_scan < 1000000) {
+      ++d.before_odometry;
+      return;
+    }
+    ++d.scans;
+    mrpt::poses::CPose2D sensor(d.c.sensor_pose[0], d.c.sensor_pose[1], d.c.sensor_pose[2]);
+    if (auto it = d.sensor_on_base.find(scan.header.frame_id); it != d.sensor_on_base.end()) {
+      sensor = it->second;
+    } else if (!d.tf_missing_warned && !d.c.tf_static_channel.empty()) {
+      d.tf_missing_warned = true;
+      d.warnings.push_back("slam: no " + d.c.base_frame + " -> " + scan.header.frame_id + " on " +
+                           d.c.tf_static_channel + " before the first scan: the sensor_pose setting was used");
+    }
+    auto obs = internal::to_mrpt(scan, sensor);
+    obs->sensorLabel = m.channel;
+
+    mrpt::obs::CActionCollection actions;
+    if (auto now = d.odom_at(scan.header.utime)) {
+      if (d.last_odom_at_scan) {
+        mrpt::obs::CActionRobotMovement2D act;
+        act.computeFromOdometry(*now - *d.last_odom_at_scan, d.motion);
+        act.timestamp = obs->timestamp;
+        actions.insert(act);
+      }
+      d.last_odom_at_scan = now;
+    }
+    mrpt::obs::CSensoryFrame frame;
+    frame.insert(obs);
+    d.builder.processActionObservation(actions, frame);
+    d.keyframes = d.builder.getCurrentlyBuiltMapSize();
+
+    mrpt::math::CMatrixDouble66 cov;
+    mrpt::poses::CPose3D mean;
+    d.builder.getCurrentPoseEstimation()->getCovarianceAndMean(cov, mean);
+    driftlab::pose_t p{};
+    p.header.seq = d.seq++;
+    p.header.utime = scan.header.utime;
+    p.header.frame_id = "map";
+    p.child_frame_id = d.c.base_frame;
+    p.position = {mean.x(), mean.y(), 0};
+    p.orientation = {std::cos(mean.yaw() / 2), 0, 0, std::sin(mean.yaw() / 2)};
+    // MRPT orders (x, y, z, yaw, pitch, roll); ours (x, y, z, roll, pitch, yaw).
+    const int ours[6] = {0, 1, 2, 5, 4, 3};
+    for (int i = 0; i < 6; ++i) {
+      for (int j = 0; j < 6; ++j) p.covariance[ours[i] * 6 + ours[j]] = cov(i, j);
+    }
+    bus.publish_message(d.c.pose_channel, p);
+  });
+  return {};
+}
+
+void Slam2d::finish(Bus& bus) {
+  Impl& d = *impl_;
+  if (d.scans == 0) return;
+  mrpt::maps::CSimpleMap keyframes;
+  d.builder.getCurrentlyBuiltMap(keyframes);
+  mrpt::maps::COccupancyGridMap2D grid(-10, 10, -10, 10, static_cast<float>(d.c.map_resolution));
+  for (size_t i = 0; i < keyframes.size(); ++i) {
+    mrpt::poses::CPose3DPDF::Ptr pose;
+    mrpt::obs::CSensoryFrame::Ptr frame;
+    keyframes.get(i, pose, frame);
+    frame->insertObservationsInto(grid, pose->getMeanVal());
+  }
+  // Free space white, obstacles black, unknown grey; north up.
+  const int w = static_cast<int>(grid.getSizeX()), h = static_cast<int>(grid.getSizeY());
+  cv::Mat img(h, w, CV_8UC1);
+  for (int y = 0; y < h; ++y) {
+    for (int x = 0; x < w; ++x) img.at<uint8_t>(h - 1 - y, x) = static_cast<uint8_t>(std::lround(grid.getCell(x, y) * 255));
+  }
+  std::vector<uint8_t> png;
+  cv::imencode(".png", img, png);
+  driftlab::image_t m{};
+  m.header.utime = bus.now();
+  m.header.frame_id = "map";
+  m.width = w;
+  m.height = h;
+  m.encoding = "png";
+  m.data = png;
+  m.size = static_cast<int32_t>(png.size());
+  bus.publish_message(d.c.map_channel, m);
+  const std::string prefix = bus.artifact_prefix();
+  if (!prefix.empty()) {
+    const std::string image = prefix + "-map.png";
+    std::ofstream(image, std::ios::binary).write(reinterpret_cast<const char*>(png.data()), static_cast<std::streamsize>(png.size()));
+    std::ofstream yaml(prefix + "-map.yaml");
+    yaml << "image: " << image.substr(image.rfind('/') + 1) << "\nresolution: " << d.c.map_resolution
+         << "\norigin: [" << grid.getXMin() << ", " << grid.getYMin() << ", 0.0]\nnegate: 0\n"
+         << "occupied_thresh: 0.65\nfree_thresh: 0.196\n";
+    if (!yaml) d.warnings.push_back("slam: cannot write " + prefix + "-map.yaml");
+  }
+}
+
+ModuleCounters Slam2d::counters() const {
+  const Impl& d = *impl_;
+  ModuleCounters c;
+  c.dropped = d.undecodable;
+  c.warnings = d.warnings;
+  if (d.scans == 0) {
+    c.warnings.push_back("slam: no driftlab.laser_scan_t on " + d.c.scan_channel + ": no map built");
+  } else if (!d.c.odom_channel.empty() && d.odometry == 0) {
+    c.warnings.push_back("slam: no driftlab.odometry_t on " + d.c.odom_channel + ": scans matched without a prior");
+  }
+  c.metrics = {{"scans", static_cast<double>(d.scans)},
+               {"scans_before_odometry", static_cast<double>(d.before_odometry)},
+               {"keyframes", static_cast<double>(d.keyframes)}};
+  return c;
+}
+
+}  // namespace driftlab::slam

@@ -1,0 +1,65 @@
+// 2D lidar SLAM with MRPT's ICP map builder (mrpt::slam::CMetricMapBuilderICP, the engine of MRPT's icp-slam),
+// behind the Bus: laser scans in, wheel odometry as the prior when present, a pose per scan out, and at the end
+// the occupancy map as a PNG (on the bus and beside the output log, with a map_server-style YAML).
+// Thread-safety: a module is called from its bus's thread only. MRPT stays inside slam2d.cc.
+#pragma once
+
+#include <yaml-cpp/yaml.h>
+
+#include <array>
+#include <memory>
+#include <set>
+#include <string>
+
+#include "core/bus.h"
+#include "core/result.h"
+
+namespace driftlab::slam {
+
+struct Slam2dConfig {
+  std::string scan_channel = "SCAN";            ///< driftlab.laser_scan_t
+  std::string odom_channel = "ODOM";            ///< driftlab.odometry_t prior; "" to ignore
+  std::string tf_static_channel = "TF_STATIC";  ///< where base_link -> scan frame is found
+  std::string pose_channel = "SLAM_POSE";       ///< driftlab.pose_t out
+  std::string map_channel = "SLAM_MAP";         ///< driftlab.image_t (png) at the end
+  std::string base_frame = "base_link";
+  std::array<double, 3> sensor_pose = {0, 0, 0};  ///< x, y, yaw of the scanner on the base when TF has none
+  std::string ini;  ///< an MRPT icp-slam .ini file ([MappingApplication] and [ICP]); the keys below override it
+  // Map building (icp-slam's [MappingApplication]); defaults are MRPT's icp-slam_demo_classic.ini but fuse_points.
+  double insertion_lin_distance = 1.2;    ///< [m]
+  double insertion_ang_distance = 45;     ///< [deg]
+  double localization_lin_distance = 0.2; ///< [m]
+  double localization_ang_distance = 5;   ///< [deg]
+  double min_icp_goodness = 0.4;          ///< [0, 1]
+  double min_dist_between_points = 0.05;  ///< point-map insertion [m]
+  bool fuse_points = true;                ///< fuse new points with the map's (keeps the map, and ICP, fast on long
+                                          ///< sessions that revisit places; icp-slam's demo .ini has false)
+  // ICP ([ICP]).
+  int max_iterations = 80;
+  double threshold_dist = 0.3;            ///< [m]
+  double threshold_ang = 5;               ///< [deg]
+  double alfa = 0.8;
+  double smallest_threshold_dist = 0.05;  ///< [m]
+  int decimation = 5;                     ///< corresponding_points_decimation
+  double map_resolution = 0.05;           ///< of the occupancy image [m]
+  std::set<std::string> given;            ///< the keys set in YAML (they override the .ini file's)
+};
+
+/// Reads the `slam.2d` map; an undefined node gives the defaults. Errors name the file, line and key.
+Result<Slam2dConfig> parse_slam2d_config(const YAML::Node& node, const std::string& origin);
+
+class Slam2d final : public Module {
+ public:
+  explicit Slam2d(Slam2dConfig config);
+  ~Slam2d() override;
+  std::string name() const override { return "slam"; }
+  Status start(Bus& bus) override;
+  void finish(Bus& bus) override;
+  ModuleCounters counters() const override;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace driftlab::slam

@@ -1,0 +1,248 @@
+// The 2D SLAM module and the rawlog import/export, end to end on MRPT's SENA dataset (Debian's mrpt-common): our
+// SLAM on the imported log agrees with MRPT's icp-slam application on the rawlog; the map is written; round trips
+// keep the data; bad input names the file.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "core/log_reader.h"
+#include "driftlab/laser_scan_t.hpp"
+#include "driftlab/odometry_t.hpp"
+#include "driftlab/pose_t.hpp"
+#include "replayer/replayer.h"
+#include "slam/rawlog.h"
+#include "slam/slam2d.h"
+#include "tests/test_util.h"
+
+namespace driftlab::slam {
+namespace {
+
+const std::string kSena = "/usr/share/mrpt/datasets/2006-01ENE-21-SENA_Telecom Faculty_one_loop_only.rawlog";
+const std::string kIcpIni = "/usr/share/mrpt/config_files/icp-slam/icp-slam_demo_classic.ini";
+
+struct Pose {
+  int64_t utime;
+  double x, y, yaw;
+};
+
+double yaw_of(const driftlab::quaternion_t& q) {
+  return std::atan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y * q.y + q.z * q.z));
+}
+
+/// The poses on a channel of a log, and the stamps of the messages on another.
+std::vector<Pose> poses(const std::string& log, const std::string& channel) {
+  std::vector<Pose> out;
+  auto r = LogReader::open(log, {.channels = channel});
+  EXPECT_TRUE(r);
+  Event e;
+  while (r->next(e)) {
+    driftlab::pose_t p;
+    EXPECT_GE(p.decode(e.data.data(), 0, static_cast<int>(e.data.size())), 0);
+    out.push_back({p.header.utime, p.position.x, p.position.y, yaw_of(p.orientation)});
+  }
+  return out;
+}
+
+std::vector<int64_t> odometry_stamps(const std::string& log) {
+  std::vector<int64_t> out;
+  auto r = LogReader::open(log, {.channels = "ODOM"});
+  Event e;
+  while (r->next(e)) {
+    driftlab::odometry_t o;
+    EXPECT_GE(o.decode(e.data.data(), 0, static_cast<int>(e.data.size())), 0);
+    out.push_back(o.header.utime);
+  }
+  return out;
+}
+
+/// icp-slam's estimated path (x, y, yaw per step), run on the rawlog with the demo configuration, windows off.
+std::vector<Pose> icp_slam_path(const test::TempDir& dir) {
+  std::ifstream in(kIcpIni);
+  std::stringstream ini;
+  for (std::string line; std::getline(in, line);) {
+    if (line.rfind("SHOW_PROGRESS_3D_REAL_TIME=", 0) == 0) line = "SHOW_PROGRESS_3D_REAL_TIME=0";
+    if (line.rfind("SAVE_3D_SCENE=", 0) == 0) line = "SAVE_3D_SCENE=0";
+    if (line.rfind("LOG_FREQUENCY=", 0) == 0) line = "LOG_FREQUENCY=0";
+    if (line.rfind("logOutput_dir=", 0) == 0) line = "logOutput_dir=" + dir.file("icp");
+    ini << line << "\n";
+  }
+  std::ofstream(dir.file("icp.ini")) << ini.str();
+  EXPECT_EQ(test::run("cd " + dir.path() + " && icp-slam icp.ini '" + kSena + "' >icp.out 2>&1"), 0);
+  std::vector<Pose> out;
+  std::ifstream path(dir.file("icp/log_estimated_path.txt"));
+  int step;
+  Pose p{};
+  while (path >> step >> p.x >> p.y >> p.yaw) out.push_back(p);
+  return out;
+}
+
+TEST(Slam2d, AgreesWithMrptIcpSlamOnTheSenaDataset) {
+  test::TempDir dir;
+  auto counts = import_rawlog(kSena, dir.file("sena.lcm"));
+  ASSERT_TRUE(counts) << counts.error().message;
+  EXPECT_EQ(counts->written.at("SCAN"), 225);
+  EXPECT_EQ(counts->written.at("ODOM"), 224);
+
+  replay::ReplayOptions o;
+  o.logs = {dir.file("sena.lcm")};
+  o.out = dir.file("slam.lcm");
+  replay::Replayer r(o);
+  // The same configuration as icp-slam's.
+  auto config = parse_slam2d_config(YAML::Load("ini: " + kIcpIni), "test");
+  ASSERT_TRUE(config);
+  r.add_module(std::make_unique<Slam2d>(*config));
+  auto report = r.run();
+  ASSERT_TRUE(report) << report.error().message;
+  EXPECT_TRUE(report->modules[0].warnings.empty());
+  const auto ours = poses(dir.file("slam.lcm"), "SLAM_POSE");
+  ASSERT_EQ(ours.size(), 224u);  // the first scan comes before any odometry
+
+  // icp-slam steps through (odometry, scan) pairs: the imported log marks each with an odometry message at the
+  // scan's time. Compare our pose at those scans with icp-slam's, step by step.
+  const auto icp = icp_slam_path(dir);
+  const auto pairs = odometry_stamps(dir.file("sena.lcm"));
+  ASSERT_EQ(icp.size(), pairs.size());
+  double worst = 0, sum_sq = 0, worst_yaw = 0;
+  size_t k = 0;
+  for (const Pose& p : ours) {
+    if (k < pairs.size() && p.utime == pairs[k]) {
+      const double d = std::hypot(p.x - icp[k].x, p.y - icp[k].y);
+      worst = std::max(worst, d);
+      worst_yaw = std::max(worst_yaw, std::abs(std::remainder(p.yaw - icp[k].yaw, 2 * M_PI)));
+      sum_sq += d * d;
+      ++k;
+    }
+  }
+  ASSERT_EQ(k, pairs.size());
+  const double rms = std::sqrt(sum_sq / static_cast<double>(k));
+  std::printf("SENA: %zu steps; path difference to icp-slam: rms %.4f m, max %.4f m, max yaw %.4f rad; "
+              "icp-slam ends at (%.2f, %.2f)\n", k, rms, worst, worst_yaw, icp.back().x, icp.back().y);
+  // The loop is about 40 m long and ends some 18 m from the start: a different map would differ by metres.
+  EXPECT_GT(std::hypot(icp.back().x, icp.back().y), 10);
+  EXPECT_LT(rms, 0.03);
+  EXPECT_LT(worst, 0.15);
+  EXPECT_LT(worst_yaw, 0.02);
+  // The occupancy map beside the output log.
+  EXPECT_GT(std::filesystem::file_size(dir.file("slam-map.png")), 1000u);
+  std::ifstream yaml(dir.file("slam-map.yaml"));
+  std::stringstream text;
+  text << yaml.rdbuf();
+  EXPECT_NE(text.str().find("resolution: 0.05"), std::string::npos) << text.str();
+}
+
+TEST(Rawlog, ImportExportImportKeepsScansAndOdometry) {
+  test::TempDir dir;
+  ASSERT_TRUE(import_rawlog(kSena, dir.file("a.lcm")));
+  auto exported = export_rawlog(dir.file("a.lcm"), dir.file("a.rawlog"));
+  ASSERT_TRUE(exported) << exported.error().message;
+  EXPECT_EQ(exported->written.at("CObservation2DRangeScan"), 225);
+  EXPECT_EQ(exported->written.at("CObservationOdometry"), 224);
+  EXPECT_FALSE(std::filesystem::exists(dir.file("a.rawlog.partial")));
+  ASSERT_TRUE(import_rawlog(dir.file("a.rawlog"), dir.file("b.lcm")));
+  const auto a = test::read_all(dir.file("a.lcm")), b = test::read_all(dir.file("b.lcm"));
+  auto of = [](const std::vector<test::OwnedEvent>& events, const std::string& channel) {
+    std::vector<test::OwnedEvent> out;
+    for (const auto& e : events) {
+      if (e.channel == channel) out.push_back(e);
+    }
+    return out;
+  };
+  const auto scans_a = of(a, "SCAN"), scans_b = of(b, "SCAN");
+  ASSERT_EQ(scans_a.size(), scans_b.size());
+  for (size_t i = 0; i < scans_a.size(); ++i) {
+    driftlab::laser_scan_t x, y;
+    ASSERT_GE(x.decode(scans_a[i].data.data(), 0, static_cast<int>(scans_a[i].data.size())), 0);
+    ASSERT_GE(y.decode(scans_b[i].data.data(), 0, static_cast<int>(scans_b[i].data.size())), 0);
+    EXPECT_EQ(scans_a[i].utime, scans_b[i].utime);
+    ASSERT_EQ(x.nranges, y.nranges);
+    EXPECT_NEAR(x.angle_min, y.angle_min, 1e-6);
+    for (int k = 0; k < x.nranges; ++k) {
+      if (std::isnan(x.ranges[k])) {
+        EXPECT_TRUE(std::isnan(y.ranges[k]));
+      } else {
+        EXPECT_FLOAT_EQ(x.ranges[k], y.ranges[k]);
+      }
+    }
+  }
+  const auto odo_a = of(a, "ODOM"), odo_b = of(b, "ODOM");
+  ASSERT_EQ(odo_a.size(), odo_b.size());
+  for (size_t i = 0; i < odo_a.size(); ++i) {
+    driftlab::odometry_t x, y;
+    ASSERT_GE(x.decode(odo_a[i].data.data(), 0, static_cast<int>(odo_a[i].data.size())), 0);
+    ASSERT_GE(y.decode(odo_b[i].data.data(), 0, static_cast<int>(odo_b[i].data.size())), 0);
+    EXPECT_NEAR(x.position.x, y.position.x, 1e-9);
+    EXPECT_NEAR(x.position.y, y.position.y, 1e-9);
+    EXPECT_NEAR(yaw_of(x.orientation), yaw_of(y.orientation), 1e-9);
+  }
+}
+
+TEST(Rawlog, AnExportedSimulatorSessionRunsThroughIcpSlam) {
+  test::TempDir dir;
+  ASSERT_EQ(test::run(std::string(DRIFTLAB_BIN_DIR) + "/driftlab sim --duration 20 -o " + dir.file("s.lcm") +
+                      " >/dev/null"),
+            0);
+  auto exported = export_rawlog(dir.file("s.lcm"), dir.file("s.rawlog"));
+  ASSERT_TRUE(exported) << exported.error().message;
+  EXPECT_GT(exported->written.at("CObservation2DRangeScan"), 150);
+  EXPECT_GT(exported->written.at("CObservationIMU"), 3000);
+  EXPECT_GT(exported->written.at("CObservationRobotPose"), 1500);
+  std::ifstream in(kIcpIni);
+  std::stringstream ini;
+  for (std::string line; std::getline(in, line);) {
+    if (line.rfind("SHOW_PROGRESS_3D_REAL_TIME=", 0) == 0) line = "SHOW_PROGRESS_3D_REAL_TIME=0";
+    if (line.rfind("SAVE_3D_SCENE=", 0) == 0) line = "SAVE_3D_SCENE=0";
+    if (line.rfind("LOG_FREQUENCY=", 0) == 0) line = "LOG_FREQUENCY=0";
+    if (line.rfind("logOutput_dir=", 0) == 0) line = "logOutput_dir=" + dir.file("icp");
+    ini << line << "\n";
+  }
+  std::ofstream(dir.file("icp.ini")) << ini.str();
+  ASSERT_EQ(test::run("cd " + dir.path() + " && icp-slam icp.ini s.rawlog >icp.out 2>&1"), 0);
+  std::ifstream path(dir.file("icp/log_estimated_path.txt"));
+  int steps = 0;
+  double last_x = 0;
+  for (std::string line; std::getline(path, line); ++steps) {
+    std::istringstream(line) >> last_x >> last_x;
+  }
+  EXPECT_GT(steps, 1000);  // scans, odometry, IMU and poses each make a step in an observations-only rawlog
+  EXPECT_GT(std::abs(last_x), 1.0);  // the robot drove along the corridor: icp-slam followed it
+}
+
+TEST(Rawlog, BadInputNamesTheFileAndLeavesNothingBehind) {
+  test::TempDir dir;
+  const auto sena = test::read_file(kSena);
+  test::write_file(dir.file("cut.rawlog"), std::vector<uint8_t>(sena.begin(), sena.begin() + 60000));
+  auto cut = import_rawlog(dir.file("cut.rawlog"), dir.file("cut.lcm"));
+  ASSERT_FALSE(cut);
+  EXPECT_EQ(cut.error().message.rfind(dir.file("cut.rawlog") + ": entry ", 0), 0u) << cut.error().message;
+  EXPECT_NE(cut.error().message.find("truncated"), std::string::npos) << cut.error().message;
+  EXPECT_FALSE(std::filesystem::exists(dir.file("cut.lcm")));
+  EXPECT_FALSE(std::filesystem::exists(dir.file("cut.lcm.partial")));
+  test::write_file(dir.file("junk.rawlog"), test::payload(3, 5000));
+  auto junk = import_rawlog(dir.file("junk.rawlog"), dir.file("junk.lcm"));
+  ASSERT_FALSE(junk);
+  EXPECT_EQ(junk.error().message.rfind(dir.file("junk.rawlog") + ": ", 0), 0u) << junk.error().message;
+  EXPECT_EQ(junk.error().message.find('\n'), std::string::npos);
+  EXPECT_FALSE(std::filesystem::exists(dir.file("junk.lcm")));
+  auto missing = import_rawlog(dir.file("none.rawlog"), dir.file("none.lcm"));
+  ASSERT_FALSE(missing);
+  EXPECT_EQ(missing.error().message, dir.file("none.rawlog") + ": no such rawlog file");
+}
+
+TEST(Slam2dConfig, UnknownKeysAndBadValuesNameTheFileLineAndKey) {
+  auto bad = parse_slam2d_config(YAML::Load("scan_channel: SCAN\nthreshold_distance: 0.3\n"), "r.yaml");
+  ASSERT_FALSE(bad);
+  EXPECT_EQ(bad.error().message.rfind("r.yaml:2: unknown key 'slam.2d.threshold_distance'", 0), 0u)
+      << bad.error().message;
+  auto negative = parse_slam2d_config(YAML::Load("threshold_dist: -1\n"), "r.yaml");
+  ASSERT_FALSE(negative);
+  EXPECT_EQ(negative.error().message, "r.yaml:1: slam.2d.threshold_dist = -1 must be > 0");
+  auto ini = parse_slam2d_config(YAML::Load("ini: /nonexistent.ini\n"), "r.yaml");
+  ASSERT_FALSE(ini);
+  EXPECT_NE(ini.error().message.find("cannot open /nonexistent.ini"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace driftlab::slam
