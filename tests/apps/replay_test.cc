@@ -81,7 +81,7 @@ TEST_F(ReplayCli, RestampAutoFindsTheImuClockAndLowersTheError) {
 TEST_F(ReplayCli, TheSameInputsAndOptionsGiveAByteIdenticalLog) {
   std::ofstream(file("inject.yaml")) << "seed: 9\nstreams:\n  ODOM: {drop_probability: 0.05, jitter_s: 0.01}\n";
   for (const char* out : {"d1.lcm", "d2.lcm"}) {
-    const auto r = driftlab("replay " + log() + " --modules estimator,controller --inject " + file("inject.yaml") +
+    const auto r = driftlab("replay " + log() + " --modules slam,estimator,controller --inject " + file("inject.yaml") +
                             " --restamp auto -o " + file(out));
     ASSERT_EQ(r.code, 0) << r.err;
   }
@@ -112,6 +112,37 @@ TEST_F(ReplayCli, AModuleWithoutItsInputsWarnsAndStillWritesALog) {
   EXPECT_NE(driftlab("info " + file("w.lcm")).out.find("MODULE_STATS"), std::string::npos);
 }
 
+TEST_F(ReplayCli, SlamMapsTheSessionAndFeedsTheEstimator) {
+  const auto r = driftlab("replay " + log() + " --modules slam,estimator --json -o " + file("slam.lcm"));
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  const auto& slam = j["modules"][0];
+  EXPECT_EQ(slam["name"], "slam");
+  EXPECT_GT(slam["metrics"]["scans"].get<double>(), 550);  // 10 Hz for 60 s, less the injected drops
+  EXPECT_TRUE(slam["warnings"].empty()) << slam["warnings"];
+  EXPECT_GT(std::filesystem::file_size(file("slam-map.png")), 1000u);
+  EXPECT_TRUE(std::filesystem::exists(file("slam-map.yaml")));
+  EXPECT_NE(driftlab("info " + file("slam.lcm")).out.find("SLAM_MAP"), std::string::npos);
+  EXPECT_LT(ate(file("slam.lcm") + ":SLAM_POSE"), 0.05);
+  EXPECT_LT(ate(file("slam.lcm") + ":EKF_ODOM"), 0.05);
+}
+
+TEST_F(ReplayCli, MrptRawlogsComeInAndGoOut) {
+  const std::string sena = "'/usr/share/mrpt/datasets/2006-01ENE-21-SENA_Telecom Faculty_one_loop_only.rawlog'";
+  const auto in = driftlab("import rawlog " + sena + " -o " + file("sena.lcm"));
+  ASSERT_EQ(in.code, 0) << in.err;
+  EXPECT_NE(in.out.find("SCAN                         225"), std::string::npos) << in.out;
+  const auto replay = driftlab("replay " + file("sena.lcm") + " --modules slam --json -o " + file("sena_slam.lcm"));
+  ASSERT_EQ(replay.code, 0) << replay.err;
+  EXPECT_EQ(nlohmann::json::parse(replay.out)["modules"][0]["outputs"].get<int64_t>(), 224 + 1);  // poses and map
+  const auto out = driftlab("export rawlog " + log() + " -o " + file("session.rawlog"));
+  ASSERT_EQ(out.code, 0) << out.err;
+  EXPECT_NE(out.out.find("CObservation2DRangeScan"), std::string::npos);
+  const auto missing = driftlab("import rawlog " + file("none.rawlog") + " -o " + file("none.lcm"));
+  EXPECT_EQ(missing.code, 2);
+  EXPECT_EQ(missing.err, "driftlab: " + file("none.rawlog") + ": no such rawlog file\n");
+}
+
 TEST_F(ReplayCli, BadInputGetsOneLineAndExitCode2) {
   struct Case {
     std::string args, message;
@@ -119,11 +150,13 @@ TEST_F(ReplayCli, BadInputGetsOneLineAndExitCode2) {
   std::ofstream(file("bad_key.yaml")) << "estimator:\n  window_s: 0.2\n  gyro_nosie: 0.01\n";
   std::ofstream(file("bad_module.yaml")) << "slamm: {}\n";
   std::ofstream(file("bad_restamp.yaml")) << "channels: [IMU]\n";
+  std::ofstream(file("bad_slam.yaml")) << "slam:\n  2d:\n    icp_iterations: 3\n";
   const std::vector<Case> cases = {
-      {"--modules estimater", "--modules: unknown module 'estimater' (known: estimator, controller"},
+      {"--modules estimater", "--modules: unknown module 'estimater' (known: slam, estimator, controller)"},
       {"--modules estimator --config " + file("bad_key.yaml"),
        file("bad_key.yaml") + ":3: unknown key 'estimator.gyro_nosie'"},
       {"--modules estimator --config " + file("bad_module.yaml"), file("bad_module.yaml") + ":1: unknown module 'slamm'"},
+      {"--modules slam --config " + file("bad_slam.yaml"), file("bad_slam.yaml") + ":3: unknown key 'slam.2d.icp_iterations'"},
       {"--restamp " + file("bad_restamp.yaml"), file("bad_restamp.yaml") + ":1: a restamp file needs"},
       {"--restamp " + file("missing.yaml"), file("missing.yaml") + ": cannot open"},
       {"--remap SCAN", "--remap SCAN: expected FROM=TO"},
