@@ -12,6 +12,7 @@
 #include <fstream>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <regex>
 #include <sstream>
 
 #include "analyzers/timing.h"
@@ -19,6 +20,9 @@
 #include "apps/commands.h"
 #include "controller/controller_module.h"
 #include "estimator/estimator_module.h"
+#include "core/log_format.h"
+#include "core/log_reader.h"
+#include "lcmtypes/type_registry.h"
 #include "replayer/replayer.h"
 #include "slam/slam_module.h"
 #include "sim/scenario.h"
@@ -73,9 +77,14 @@ Result<controller::ControllerConfig> controller_base(const std::string& scenario
 
 Result<std::unique_ptr<Module>> make_module(const std::string& name, const YAML::Node& config,
                                             const std::string& origin, const std::string& config_dir,
-                                            std::vector<std::string>& notes) {
+                                            const slam::HasData& has_data, std::vector<std::string>& notes) {
   if (name == "estimator") return estimator::make_estimator(config, origin);
-  if (name == "slam") return slam::make_slam(config, origin);
+  if (name == "slam") {
+    std::string backend;
+    auto m = slam::make_slam(config, origin, has_data, &backend);
+    if (m) notes.push_back("slam: " + backend + " backend");
+    return m;
+  }
   if (name == "controller") {
     std::string scenario;
     if (config.IsMap() && config["scenario"].IsDefined()) {
@@ -139,6 +148,11 @@ int run_replay(const ReplayArgs& a) {
   for (const auto& log : a.logs) {
     if (!std::filesystem::is_regular_file(log)) return fail(log + ": no such log file");
   }
+  try {
+    std::regex check(a.channels);
+  } catch (const std::regex_error& e) {
+    return fail("invalid channel regex '" + a.channels + "': " + e.what());
+  }
   std::vector<std::string> notes;
   if (a.restamp == "auto") {
     auto r = restamp_from_diagnosis(a.logs, notes);
@@ -186,10 +200,25 @@ int run_replay(const ReplayArgs& a) {
       }
     }
   }
+  // Whether the logs hold a message type on a channel (the slam module's `auto` backend asks): the channel's first
+  // message tells.
+  const slam::HasData has_data = [&a](const std::string& channel, const std::string& type) {
+    if (!a.channels.empty() && !std::regex_match(channel, std::regex(a.channels))) return false;  // filtered out
+    static const std::regex special(R"([.^$|()\[\]{}*+?\\])");
+    for (const auto& log : a.logs) {
+      auto r = LogReader::open(log, {.channels = std::regex_replace(channel, special, R"(\$&)")});
+      Event e;
+      if (r && r->next(e)) {
+        const char* name = lcmtypes::type_name(logfmt::fingerprint(e.data));
+        if (name != nullptr && type == name) return true;
+      }
+    }
+    return false;
+  };
   replay::Replayer replayer(o);
   for (const auto& name : names) {
     const YAML::Node node = config.IsMap() ? config[name] : YAML::Node();
-    auto m = make_module(name, node, a.config.empty() ? "--config" : a.config, config_dir, notes);
+    auto m = make_module(name, node, a.config.empty() ? "--config" : a.config, config_dir, has_data, notes);
     if (!m) return fail(m.error().message);
     replayer.add_module(std::move(*m));
   }

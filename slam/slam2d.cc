@@ -14,7 +14,6 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include <cmath>
-#include <deque>
 #include <fstream>
 #include <map>
 #include <optional>
@@ -23,6 +22,7 @@
 
 #include "core/internal/yaml_fields.h"
 #include "slam/internal/mrpt_scan.h"
+#include "slam/internal/odometry_buffer.h"
 #include "driftlab/image_t.hpp"
 #include "driftlab/laser_scan_t.hpp"
 #include "driftlab/odometry_t.hpp"
@@ -71,11 +71,6 @@ std::string ini_text(const Slam2dConfig& c, const std::set<std::string>& given, 
   }
   return s.str();
 }
-
-struct OdomSample {
-  int64_t stamp;
-  mrpt::poses::CPose2D pose;
-};
 
 }  // namespace
 
@@ -133,25 +128,12 @@ struct Slam2d::Impl {
   mrpt::slam::CMetricMapBuilderICP builder;
   mrpt::obs::CActionRobotMovement2D::TMotionModelOptions motion;
   std::map<std::string, mrpt::poses::CPose2D> sensor_on_base;  ///< by scan frame, from TF_STATIC
-  std::deque<OdomSample> odom;                                 ///< recent odometry, by stamp
+  internal::OdometryBuffer odom;
   std::optional<mrpt::poses::CPose2D> last_odom_at_scan;
   int64_t scans = 0, odometry = 0, undecodable = 0, seq = 0, keyframes = 0, before_odometry = 0;
   int64_t first_scan = -1;  ///< stamp of the first scan [us]
   bool tf_missing_warned = false;
   std::vector<std::string> warnings;
-
-  /// The odometry pose at a stamp: interpolated between the samples around it, or the nearest at the ends.
-  std::optional<mrpt::poses::CPose2D> odom_at(int64_t stamp) const {
-    if (odom.empty()) return std::nullopt;
-    if (stamp <= odom.front().stamp) return odom.front().pose;
-    if (stamp >= odom.back().stamp) return odom.back().pose;
-    auto hi = std::lower_bound(odom.begin(), odom.end(), stamp,
-                               [](const OdomSample& s, int64_t t) { return s.stamp < t; });
-    auto lo = std::prev(hi);
-    const double f = static_cast<double>(stamp - lo->stamp) / static_cast<double>(hi->stamp - lo->stamp);
-    const mrpt::poses::CPose2D d = hi->pose - lo->pose;
-    return lo->pose + mrpt::poses::CPose2D(d.x() * f, d.y() * f, d.phi() * f);
-  }
 };
 
 Slam2d::Slam2d(Slam2dConfig config) : impl_(std::make_unique<Impl>()) { impl_->c = std::move(config); }
@@ -202,13 +184,7 @@ Status Slam2d::start(Bus& bus) {
       driftlab::odometry_t o;
       if (!decode_message(m, o)) return void(++impl_->undecodable);
       ++impl_->odometry;
-      auto& q = impl_->odom;
-      const OdomSample s{o.header.utime, mrpt::poses::CPose2D(o.position.x, o.position.y, yaw_of(o.orientation))};
-      // Keep them sorted by stamp (late ones are inserted in place) and a few seconds deep.
-      auto at = std::upper_bound(q.begin(), q.end(), s.stamp,
-                                 [](int64_t t, const OdomSample& x) { return t < x.stamp; });
-      q.insert(at, s);
-      while (q.size() > 2 && q.back().stamp - q.front().stamp > 5000000) q.pop_front();
+      impl_->odom.add(o.header.utime, {o.position.x, o.position.y, yaw_of(o.orientation)});
     });
   }
   bus.subscribe(c.scan_channel, [this, &bus](const BusMessage& m) {
@@ -235,10 +211,11 @@ Status Slam2d::start(Bus& bus) {
     obs->sensorLabel = m.channel;
 
     mrpt::obs::CActionCollection actions;
-    if (auto now = d.odom_at(scan.header.utime)) {
+    if (auto at = d.odom.at(scan.header.utime)) {
+      const mrpt::poses::CPose2D now(at->x, at->y, at->yaw);
       if (d.last_odom_at_scan) {
         mrpt::obs::CActionRobotMovement2D act;
-        act.computeFromOdometry(*now - *d.last_odom_at_scan, d.motion);
+        act.computeFromOdometry(now - *d.last_odom_at_scan, d.motion);
         act.timestamp = obs->timestamp;
         actions.insert(act);
       }

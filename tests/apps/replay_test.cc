@@ -127,6 +127,20 @@ TEST_F(ReplayCli, SlamMapsTheSessionAndFeedsTheEstimator) {
   EXPECT_LT(ate(file("slam.lcm") + ":EKF_ODOM"), 0.05);
 }
 
+TEST_F(ReplayCli, SlamPicksTheBackendTheDataCallsFor) {
+  ASSERT_EQ(driftlab("sim " + std::string(DRIFTLAB_SOURCE_DIR) + "/sim/scenarios/indoor_3d.yaml --duration 3 -o " +
+                     file("p.lcm")).code,
+            0);
+  // Laser scans and clouds: 2D, unless asked; clouds only: 3D.
+  EXPECT_NE(driftlab("replay " + file("p.lcm") + " --modules slam").out.find("slam: 2d backend"), std::string::npos);
+  const auto three = driftlab("replay " + file("p.lcm") + " -c 'POINTS|ODOM|TF_STATIC' --modules slam -o " +
+                              file("p3.lcm"));
+  ASSERT_EQ(three.code, 0) << three.err;
+  EXPECT_NE(three.out.find("slam: 3d backend"), std::string::npos) << three.out;
+  EXPECT_NE(three.out.find("clouds 30"), std::string::npos) << three.out;
+  EXPECT_TRUE(std::filesystem::exists(file("p3-map.pcd")));
+}
+
 TEST_F(ReplayCli, MrptRawlogsComeInAndGoOut) {
   const std::string sena = "'/usr/share/mrpt/datasets/2006-01ENE-21-SENA_Telecom Faculty_one_loop_only.rawlog'";
   const auto in = driftlab("import rawlog " + sena + " -o " + file("sena.lcm"));
@@ -151,16 +165,19 @@ TEST_F(ReplayCli, BadInputGetsOneLineAndExitCode2) {
   std::ofstream(file("bad_module.yaml")) << "slamm: {}\n";
   std::ofstream(file("bad_restamp.yaml")) << "channels: [IMU]\n";
   std::ofstream(file("bad_slam.yaml")) << "slam:\n  2d:\n    icp_iterations: 3\n";
+  std::ofstream(file("bad_backend.yaml")) << "slam:\n  backend: lidar\n";
   const std::vector<Case> cases = {
       {"--modules estimater", "--modules: unknown module 'estimater' (known: slam, estimator, controller)"},
       {"--modules estimator --config " + file("bad_key.yaml"),
        file("bad_key.yaml") + ":3: unknown key 'estimator.gyro_nosie'"},
       {"--modules estimator --config " + file("bad_module.yaml"), file("bad_module.yaml") + ":1: unknown module 'slamm'"},
       {"--modules slam --config " + file("bad_slam.yaml"), file("bad_slam.yaml") + ":3: unknown key 'slam.2d.icp_iterations'"},
+      {"--modules slam --config " + file("bad_backend.yaml"),
+       file("bad_backend.yaml") + ":2: slam.backend = lidar must be auto, 2d or 3d"},
       {"--restamp " + file("bad_restamp.yaml"), file("bad_restamp.yaml") + ":1: a restamp file needs"},
       {"--restamp " + file("missing.yaml"), file("missing.yaml") + ": cannot open"},
       {"--remap SCAN", "--remap SCAN: expected FROM=TO"},
-      {"-c '('", "invalid channel regex '('"},
+      {"-c '(' --modules slam", "invalid channel regex '('"},
       {"--inject " + file("bad_key.yaml"), file("bad_key.yaml") + ":1:"},
   };
   for (const auto& c : cases) {
