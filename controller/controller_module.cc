@@ -10,13 +10,10 @@
 #include "driftlab/pose_t.hpp"
 #include "driftlab/tf_t.hpp"
 #include "driftlab/velocity_command_t.hpp"
+#include "lcmtypes/planar.h"
 
 namespace driftlab::controller {
 namespace {
-
-double yaw_of(const driftlab::quaternion_t& q) {
-  return std::atan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y * q.y + q.z * q.z));
-}
 
 constexpr int kSectors = 36;        // the obstacle layer sees the scan as a ring of sectors, like a bumper ring
 constexpr double kObstacleRange = 1.0;  // [m]

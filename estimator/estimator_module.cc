@@ -6,16 +6,9 @@
 #include "driftlab/imu_t.hpp"
 #include "driftlab/odometry_t.hpp"
 #include "driftlab/pose_t.hpp"
+#include "lcmtypes/planar.h"
 
 namespace driftlab::estimator {
-namespace {
-
-double yaw_of(const driftlab::quaternion_t& q) {
-  return std::atan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y * q.y + q.z * q.z));
-}
-
-}  // namespace
-
 Result<EstimatorConfig> parse_estimator_config(const YAML::Node& node, const std::string& origin) {
   EstimatorConfig c;
   if (!node.IsDefined() || node.IsNull()) return c;
@@ -125,7 +118,7 @@ void EstimatorModule::publish(Bus& bus) {
   o.header.frame_id = frame_;
   o.child_frame_id = c_.child_frame_id;
   o.position = {x(Ekf::kX), x(Ekf::kY), 0};
-  o.orientation = {std::cos(x(Ekf::kYaw) / 2), 0, 0, std::sin(x(Ekf::kYaw) / 2)};
+  o.orientation = yaw_quaternion(x(Ekf::kYaw));
   // Pose covariance over (x, y, z, roll, pitch, yaw), twist over (vx, vy, vz, wx, wy, wz).
   const int pose_index[3] = {0, 1, 5};
   const int state_index[3] = {Ekf::kX, Ekf::kY, Ekf::kYaw};

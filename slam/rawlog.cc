@@ -23,18 +23,13 @@
 #include "driftlab/pose_t.hpp"
 #include "driftlab/tf_t.hpp"
 #include "slam/internal/mrpt_scan.h"
+#include "lcmtypes/planar.h"
 
 namespace driftlab::slam {
 namespace {
 
 int64_t to_utime(mrpt::Clock::time_point t) {
   return static_cast<int64_t>(std::llround(mrpt::Clock::toDouble(t) * 1e6));
-}
-
-driftlab::quaternion_t yaw_quaternion(double yaw) { return {std::cos(yaw / 2), 0, 0, std::sin(yaw / 2)}; }
-
-double yaw_of(const driftlab::quaternion_t& q) {
-  return std::atan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y * q.y + q.z * q.z));
 }
 
 std::string first_line(const std::exception& e) {

@@ -28,13 +28,10 @@
 #include "driftlab/odometry_t.hpp"
 #include "driftlab/pose_t.hpp"
 #include "driftlab/tf_t.hpp"
+#include "lcmtypes/planar.h"
 
 namespace driftlab::slam {
 namespace {
-
-double yaw_of(const driftlab::quaternion_t& q) {
-  return std::atan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y * q.y + q.z * q.z));
-}
 
 /// An MRPT icp-slam configuration from ours: [MappingApplication] (map building, a single planar point map, as in
 /// icp-slam_demo_classic.ini) and [ICP]. With an .ini file, its values replace the defaults, and the keys given
@@ -235,7 +232,7 @@ Status Slam2d::start(Bus& bus) {
     p.header.frame_id = "map";
     p.child_frame_id = d.c.base_frame;
     p.position = {mean.x(), mean.y(), 0};
-    p.orientation = {std::cos(mean.yaw() / 2), 0, 0, std::sin(mean.yaw() / 2)};
+    p.orientation = yaw_quaternion(mean.yaw());
     // MRPT orders (x, y, z, yaw, pitch, roll); ours (x, y, z, roll, pitch, yaw).
     const int ours[6] = {0, 1, 2, 5, 4, 3};
     for (int i = 0; i < 6; ++i) {

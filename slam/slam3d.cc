@@ -20,15 +20,12 @@
 #include "driftlab/pose_t.hpp"
 #include "driftlab/tf_t.hpp"
 #include "slam/internal/odometry_buffer.h"
+#include "lcmtypes/planar.h"
 
 namespace driftlab::slam {
 namespace {
 
 using Cloud = pcl::PointCloud<pcl::PointXYZ>;
-
-double yaw_of(const driftlab::quaternion_t& q) {
-  return std::atan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y * q.y + q.z * q.z));
-}
 
 Eigen::Isometry3d planar(const internal::Pose2d& p) {
   Eigen::Isometry3d t = Eigen::Isometry3d::Identity();

@@ -23,6 +23,7 @@
 #include "driftlab/tf_t.hpp"
 #include "sim/raycaster.h"
 #include "tests/test_util.h"
+#include "lcmtypes/planar.h"
 
 namespace driftlab::sim {
 namespace {
@@ -51,10 +52,6 @@ SimReport run_ok(const Scenario& sc, const std::string& out) {
   auto r = (*sim)->run(o);
   EXPECT_TRUE(r.ok()) << (r.ok() ? "" : r.error().message);
   return *r;
-}
-
-double yaw_of(const driftlab::quaternion_t& q) {
-  return std::atan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y * q.y + q.z * q.z));
 }
 
 /// One 20 s run of the default scenario, shared by the tests that only read it.

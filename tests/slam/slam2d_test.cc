@@ -16,6 +16,7 @@
 #include "slam/rawlog.h"
 #include "slam/slam2d.h"
 #include "tests/test_util.h"
+#include "lcmtypes/planar.h"
 
 namespace driftlab::slam {
 namespace {
@@ -27,10 +28,6 @@ struct Pose {
   int64_t utime;
   double x, y, yaw;
 };
-
-double yaw_of(const driftlab::quaternion_t& q) {
-  return std::atan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y * q.y + q.z * q.z));
-}
 
 /// The poses on a channel of a log, and the stamps of the messages on another.
 std::vector<Pose> poses(const std::string& log, const std::string& channel) {
@@ -58,8 +55,9 @@ std::vector<int64_t> odometry_stamps(const std::string& log) {
   return out;
 }
 
-/// icp-slam's estimated path (x, y, yaw per step), run on the rawlog with the demo configuration, windows off.
-std::vector<Pose> icp_slam_path(const test::TempDir& dir) {
+/// Runs MRPT's icp-slam on a rawlog in dir with the demo configuration (windows and scene dumps off), its output
+/// in dir/icp; its exit code.
+int run_icp_slam(const test::TempDir& dir, const std::string& rawlog) {
   std::ifstream in(kIcpIni);
   std::stringstream ini;
   for (std::string line; std::getline(in, line);) {
@@ -70,7 +68,12 @@ std::vector<Pose> icp_slam_path(const test::TempDir& dir) {
     ini << line << "\n";
   }
   std::ofstream(dir.file("icp.ini")) << ini.str();
-  EXPECT_EQ(test::run("cd " + dir.path() + " && icp-slam icp.ini '" + kSena + "' >icp.out 2>&1"), 0);
+  return test::run("cd " + dir.path() + " && icp-slam icp.ini '" + rawlog + "' >icp.out 2>&1");
+}
+
+/// icp-slam's estimated path (x, y, yaw per step) on the SENA rawlog.
+std::vector<Pose> icp_slam_path(const test::TempDir& dir) {
+  EXPECT_EQ(run_icp_slam(dir, kSena), 0);
   std::vector<Pose> out;
   std::ifstream path(dir.file("icp/log_estimated_path.txt"));
   int step;
@@ -189,17 +192,7 @@ TEST(Rawlog, AnExportedSimulatorSessionRunsThroughIcpSlam) {
   EXPECT_GT(exported->written.at("CObservation2DRangeScan"), 150);
   EXPECT_GT(exported->written.at("CObservationIMU"), 3000);
   EXPECT_GT(exported->written.at("CObservationRobotPose"), 1500);
-  std::ifstream in(kIcpIni);
-  std::stringstream ini;
-  for (std::string line; std::getline(in, line);) {
-    if (line.rfind("SHOW_PROGRESS_3D_REAL_TIME=", 0) == 0) line = "SHOW_PROGRESS_3D_REAL_TIME=0";
-    if (line.rfind("SAVE_3D_SCENE=", 0) == 0) line = "SAVE_3D_SCENE=0";
-    if (line.rfind("LOG_FREQUENCY=", 0) == 0) line = "LOG_FREQUENCY=0";
-    if (line.rfind("logOutput_dir=", 0) == 0) line = "logOutput_dir=" + dir.file("icp");
-    ini << line << "\n";
-  }
-  std::ofstream(dir.file("icp.ini")) << ini.str();
-  ASSERT_EQ(test::run("cd " + dir.path() + " && icp-slam icp.ini s.rawlog >icp.out 2>&1"), 0);
+  ASSERT_EQ(run_icp_slam(dir, dir.file("s.rawlog")), 0);
   std::ifstream path(dir.file("icp/log_estimated_path.txt"));
   int steps = 0;
   double last_x = 0;
