@@ -14,6 +14,7 @@ void add_record_command(CLI::App& app, int* exit_code);
 void add_diagnose_command(CLI::App& app, int* exit_code);
 void add_sim_command(CLI::App& app, int* exit_code);
 void add_replay_command(CLI::App& app, int* exit_code);
+void add_run_command(CLI::App& app, int* exit_code);
 void add_rawlog_commands(CLI::App& app, int* exit_code);  // import rawlog, export rawlog
 
 }  // namespace driftlab::apps

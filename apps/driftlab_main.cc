@@ -16,6 +16,7 @@ int main(int argc, char** argv) {
   driftlab::apps::add_diagnose_command(app, &exit_code);
   driftlab::apps::add_sim_command(app, &exit_code);
   driftlab::apps::add_replay_command(app, &exit_code);
+  driftlab::apps::add_run_command(app, &exit_code);
   driftlab::apps::add_rawlog_commands(app, &exit_code);
   try {
     app.parse(argc, argv);

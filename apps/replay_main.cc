@@ -23,6 +23,7 @@
 #include "core/log_format.h"
 #include "core/log_reader.h"
 #include "lcmtypes/type_registry.h"
+#include "replayer/live_runner.h"
 #include "replayer/replayer.h"
 #include "slam/slam_module.h"
 #include "sim/scenario.h"
@@ -127,6 +128,90 @@ Result<replay::Restamp> restamp_from_diagnosis(const std::vector<std::string>& l
   return r;
 }
 
+/// The modules named in `list` (comma-separated), with their settings from the config file (one map per module
+/// name). Errors are one line naming the file, line and key.
+Result<std::vector<std::unique_ptr<Module>>> load_modules(const std::string& list, const std::string& config_path,
+                                                          const slam::HasData& has_data,
+                                                          std::vector<std::string>& notes) {
+  YAML::Node config;
+  std::string config_dir = ".";
+  if (!config_path.empty()) {
+    std::ifstream in(config_path);
+    if (!in) return Error{config_path + ": cannot open the module config"};
+    std::stringstream text;
+    text << in.rdbuf();
+    try {
+      config = YAML::Load(text.str());
+    } catch (const YAML::Exception& e) {
+      return Error{config_path + ":" + std::to_string(e.mark.line + 1) + ": " + e.msg};
+    }
+    if (!config.IsNull() && !config.IsMap()) return Error{config_path + ":1: expected a map of module name: settings"};
+    config_dir = std::filesystem::path(config_path).parent_path().string();
+    if (config_dir.empty()) config_dir = ".";
+  }
+  if (config.IsMap()) {
+    for (const auto& kv : config) {
+      const std::string key = kv.first.as<std::string>();
+      if (std::find_if(kModules.begin(), kModules.end(), [&](const char* m) { return key == m; }) == kModules.end()) {
+        return Error{config_path + ":" + std::to_string(kv.first.Mark().line + 1) + ": unknown module '" + key +
+                     "' (known: " + known_modules() + ")"};
+      }
+    }
+  }
+  std::vector<std::unique_ptr<Module>> modules;
+  std::stringstream names(list);
+  for (std::string name; std::getline(names, name, ',');) {
+    if (name.empty()) continue;
+    const YAML::Node node = config.IsMap() ? config[name] : YAML::Node();
+    auto m = make_module(name, node, config_path.empty() ? "--config" : config_path, config_dir, has_data, notes);
+    if (!m) return m.error();
+    modules.push_back(std::move(*m));
+  }
+  return modules;
+}
+
+nlohmann::json modules_json(const std::vector<replay::ModuleReport>& reports) {
+  nlohmann::json out = nlohmann::json::array();
+  for (const auto& m : reports) {
+    out.push_back({{"name", m.name},
+                   {"inputs", m.inputs},
+                   {"late", m.late},
+                   {"out_of_order", m.out_of_order},
+                   {"dropped", m.dropped},
+                   {"outputs", m.outputs},
+                   {"proc_mean_s", m.proc_mean_s},
+                   {"proc_p95_s", m.proc_p95_s},
+                   {"proc_max_s", m.proc_max_s},
+                   {"queue_depth_max", m.queue_depth_max},
+                   {"warnings", m.warnings},
+                   {"metrics", nlohmann::json(std::map<std::string, double>(m.metrics.begin(), m.metrics.end()))}});
+  }
+  return out;
+}
+
+void print_modules(const std::vector<replay::ModuleReport>& reports, bool timing) {
+  for (const auto& m : reports) {
+    std::printf("  %-10s %s inputs (%s late, %s out of order, %s dropped), %s outputs", m.name.c_str(),
+                thousands(m.inputs).c_str(), thousands(m.late).c_str(), thousands(m.out_of_order).c_str(),
+                thousands(m.dropped).c_str(), thousands(m.outputs).c_str());
+    if (timing) {
+      std::printf(", %.3f ms per input (p95 %.3f ms), queue <= %d", m.proc_mean_s * 1e3, m.proc_p95_s * 1e3,
+                  m.queue_depth_max);
+    }
+    std::printf("\n");
+    if (!m.metrics.empty()) {
+      std::printf("            ");
+      for (size_t i = 0; i < m.metrics.size(); ++i) {
+        const double v = m.metrics[i].second;
+        const bool whole = v == std::floor(v) && std::abs(v) < 1e15;
+        std::printf(whole ? "%s%s %.0f" : "%s%s %.4g", i > 0 ? ", " : "", m.metrics[i].first.c_str(), v);
+      }
+      std::printf("\n");
+    }
+    for (const auto& w : m.warnings) std::printf("  warning: %s\n", w.c_str());
+  }
+}
+
 int run_replay(const ReplayArgs& a) {
   replay::ReplayOptions o;
   o.logs = a.logs;
@@ -169,37 +254,6 @@ int run_replay(const ReplayArgs& a) {
     o.inject = std::move(*f);
   }
 
-  // Module configs: one map per module name.
-  YAML::Node config;
-  std::string config_dir = ".";
-  if (!a.config.empty()) {
-    std::ifstream in(a.config);
-    if (!in) return fail(a.config + ": cannot open the module config");
-    std::stringstream text;
-    text << in.rdbuf();
-    try {
-      config = YAML::Load(text.str());
-    } catch (const YAML::Exception& e) {
-      return fail(Error{a.config + ":" + std::to_string(e.mark.line + 1) + ": " + e.msg}.message);
-    }
-    if (!config.IsNull() && !config.IsMap()) return fail(a.config + ":1: expected a map of module name: settings");
-    config_dir = std::filesystem::path(a.config).parent_path().string();
-    if (config_dir.empty()) config_dir = ".";
-  }
-  std::vector<std::string> names;
-  std::stringstream list(a.modules);
-  for (std::string name; std::getline(list, name, ',');) {
-    if (!name.empty()) names.push_back(name);
-  }
-  if (config.IsMap()) {
-    for (const auto& kv : config) {
-      const std::string key = kv.first.as<std::string>();
-      if (std::find_if(kModules.begin(), kModules.end(), [&](const char* m) { return key == m; }) == kModules.end()) {
-        return fail(a.config + ":" + std::to_string(kv.first.Mark().line + 1) + ": unknown module '" + key +
-                    "' (known: " + known_modules() + ")");
-      }
-    }
-  }
   // Whether the logs hold a message type on a channel (the slam module's `auto` backend asks): the channel's first
   // message tells.
   const slam::HasData has_data = [&a](const std::string& channel, const std::string& type) {
@@ -215,13 +269,10 @@ int run_replay(const ReplayArgs& a) {
     }
     return false;
   };
+  auto modules = load_modules(a.modules, a.config, has_data, notes);
+  if (!modules) return fail(modules.error().message);
   replay::Replayer replayer(o);
-  for (const auto& name : names) {
-    const YAML::Node node = config.IsMap() ? config[name] : YAML::Node();
-    auto m = make_module(name, node, a.config.empty() ? "--config" : a.config, config_dir, has_data, notes);
-    if (!m) return fail(m.error().message);
-    replayer.add_module(std::move(*m));
-  }
+  for (auto& m : *modules) replayer.add_module(std::move(m));
 
   std::unique_ptr<LivePublisher> live;
   if (!a.publish.empty()) {
@@ -263,21 +314,7 @@ int run_replay(const ReplayArgs& a) {
     for (const auto& [channel, c] : o.restamp) {
       j["restamp"][channel] = {{"offset_s", c.offset_s}, {"drift_ppm", c.drift_ppm}};
     }
-    j["modules"] = nlohmann::json::array();
-    for (const auto& m : r.modules) {
-      j["modules"].push_back({{"name", m.name},
-                              {"inputs", m.inputs},
-                              {"late", m.late},
-                              {"out_of_order", m.out_of_order},
-                              {"dropped", m.dropped},
-                              {"outputs", m.outputs},
-                              {"proc_mean_s", m.proc_mean_s},
-                              {"proc_p95_s", m.proc_p95_s},
-                              {"proc_max_s", m.proc_max_s},
-                              {"queue_depth_max", m.queue_depth_max},
-                              {"warnings", m.warnings},
-                              {"metrics", nlohmann::json(std::map<std::string, double>(m.metrics.begin(), m.metrics.end()))}});
-    }
+    j["modules"] = modules_json(r.modules);
     j["injected_faults"] = r.injected.size();
     std::printf("%s\n", j.dump(2).c_str());
     return kExitOk;
@@ -291,27 +328,71 @@ int run_replay(const ReplayArgs& a) {
                                       static_cast<unsigned long long>(r.log_problems));
   if (!r.injected.empty()) std::printf("  injected %zu faults (manifest on %s)\n", r.injected.size(),
                                        o.faults_channel.c_str());
-  for (const auto& m : r.modules) {
-    std::printf("  %-10s %s inputs (%s late, %s out of order, %s dropped), %s outputs", m.name.c_str(),
-                thousands(m.inputs).c_str(), thousands(m.late).c_str(), thousands(m.out_of_order).c_str(),
-                thousands(m.dropped).c_str(), thousands(m.outputs).c_str());
-    if (a.timing) std::printf(", %.3f ms per input (p95 %.3f ms), queue <= %d", m.proc_mean_s * 1e3,
-                              m.proc_p95_s * 1e3, m.queue_depth_max);
-    std::printf("\n");
-    if (!m.metrics.empty()) {
-      std::printf("            ");
-      for (size_t i = 0; i < m.metrics.size(); ++i) {
-        const double v = m.metrics[i].second;
-        std::printf(v == std::floor(v) && std::abs(v) < 1e15 ? "%s%s %.0f" : "%s%s %.4g", i > 0 ? ", " : "", m.metrics[i].first.c_str(), v);
-      }
-      std::printf("\n");
-    }
-    for (const auto& w : m.warnings) std::printf("  warning: %s\n", w.c_str());
+  print_modules(r.modules, a.timing);
+  return kExitOk;
+}
+
+struct RunArgs {
+  std::string modules, config, url, out;
+  double duration = 0;
+  bool json = false;
+};
+
+int run_live(const RunArgs& a) {
+  std::vector<std::string> notes;
+  auto modules = load_modules(a.modules, a.config, [](const std::string&, const std::string&) { return false; }, notes);
+  if (!modules) return fail(modules.error().message);
+  if (modules->empty()) return fail("--modules: name at least one module (" + known_modules() + ")");
+  replay::LiveRunner runner({.url = a.url, .out = a.out, .duration_s = a.duration});
+  for (auto& m : *modules) runner.add_module(std::move(m));
+  if (Status s = runner.open(); !s) return fail(s.message());
+  struct sigaction sa {};
+  sa.sa_handler = on_signal;
+  sigaction(SIGINT, &sa, nullptr);
+  sigaction(SIGTERM, &sa, nullptr);
+  signal(SIGXFSZ, SIG_IGN);
+  auto report = runner.run(&g_stop);
+  if (!report) return fail(report.error().message, kExitFailure);
+  if (a.json) {
+    nlohmann::json j;
+    j["url"] = a.url;
+    j["out"] = a.out;
+    j["received"] = report->received;
+    j["outputs"] = report->outputs;
+    j["wall_s"] = report->wall_s;
+    j["notes"] = notes;
+    j["modules"] = modules_json(report->modules);
+    std::printf("%s\n", j.dump(2).c_str());
+    return kExitOk;
   }
+  for (const auto& n : notes) std::printf("%s\n", n.c_str());
+  std::printf("ran %.1f s on %s: %s messages handled, %s module outputs%s%s\n", report->wall_s, a.url.c_str(),
+              thousands(report->received).c_str(), thousands(report->outputs).c_str(), a.out.empty() ? "" : " -> ",
+              a.out.c_str());
+  print_modules(report->modules, true);
   return kExitOk;
 }
 
 }  // namespace
+
+void add_run_command(CLI::App& app, int* exit_code) {
+  auto a = std::make_shared<RunArgs>();
+  CLI::App* cmd = app.add_subcommand("run", "Run SLAM, the estimator and the controller live, on an LCM bus.");
+  cmd->footer(
+      "The same modules as `driftlab replay`, behind the same Bus, with the wall clock as their clock: they\n"
+      "subscribe on the LCM URL and publish there. OUT gets what they published and their statistics\n"
+      "(MODULE_STATS, every second, with processing times); record the inputs with `driftlab record`. Ctrl-C or\n"
+      "--duration stops, finishes the modules (maps are written) and closes a valid log.");
+  cmd->add_option("--modules", a->modules, "Modules to run, comma-separated (" + known_modules() + ")")->required();
+  cmd->add_option("--config", a->config, "Module settings (YAML: one map per module name)");
+  cmd->add_option("--url", a->url, "LCM URL")->required();
+  cmd->add_option("-o,--out", a->out, "Log of the module outputs and statistics");
+  cmd->add_option("--duration", a->duration, "Stop after this many seconds (0: at Ctrl-C)")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
+  cmd->add_flag("--json", a->json, "Print a JSON summary instead of text");
+  cmd->callback([a, exit_code] { *exit_code = run_live(*a); });
+}
 
 void add_replay_command(CLI::App& app, int* exit_code) {
   auto a = std::make_shared<ReplayArgs>();

@@ -19,9 +19,9 @@
 #include "core/log_reader.h"
 #include "core/log_writer.h"
 #include "driftlab/fault_manifest_t.hpp"
-#include "driftlab/module_stats_t.hpp"
 #include "driftlab/tf_t.hpp"
 #include "lcmtypes/type_registry.h"
+#include "replayer/internal/module_tally.h"
 
 namespace driftlab::replay {
 
@@ -105,14 +105,6 @@ struct Later {
 };
 using ItemHeap = std::priority_queue<Item, std::vector<Item>, Later>;
 
-/// Percentile of unsorted values (p in 0..1), by selection.
-double percentile(std::vector<double> v, double p) {
-  if (v.empty()) return 0;
-  const auto k = static_cast<size_t>(std::ceil(p * static_cast<double>(v.size()))) - (p > 0 ? 1 : 0);
-  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(k), v.end());
-  return v[k];
-}
-
 class Engine;
 
 /// One module's view of the bus, and what the replayer measures about it.
@@ -133,13 +125,7 @@ class ModuleBus final : public Bus {
   Module& module_;
   size_t index_;
   std::vector<Subscription> subs_;
-  // Statistics.
-  int64_t inputs_ = 0, late_ = 0, out_of_order_ = 0, outputs_ = 0;
-  int64_t latest_stamp_ = std::numeric_limits<int64_t>::min();
-  std::unordered_map<const std::string*, int64_t> last_stamp_;
-  std::vector<double> proc_s_;
-  std::deque<int64_t> busy_until_;  ///< completion times of queued inputs (timing model) [us]
-  int32_t queue_max_ = 0;
+  internal::ModuleTally tally_;
 };
 
 class Engine {
@@ -215,7 +201,7 @@ class Engine {
   std::vector<ModuleReport> module_reports() const {
     std::vector<ModuleReport> out;
     for (const auto& b : buses_) {
-      ModuleReport r = report_of(*b);
+      ModuleReport r = b->tally_.report(b->module_);
       ModuleCounters c = b->module_.counters();
       r.warnings = std::move(c.warnings);
       r.metrics = std::move(c.metrics);
@@ -230,7 +216,7 @@ class Engine {
   void invalidate_routes() { routes_.clear(); }
 
   void publish(ModuleBus& from, std::string_view channel, std::span<const uint8_t> data) {
-    ++from.outputs_;
+    from.tally_.output();
     ++report_.outputs;
     pending_.push_back({std::string(channel), std::vector<uint8_t>(data.begin(), data.end())});
   }
@@ -295,29 +281,14 @@ class Engine {
     BusMessage m{channel, now_, data};
     for (const Route& r : targets) {
       ModuleBus& b = *r.bus;
-      ++b.inputs_;
-      if (stamp) {
-        if (*stamp < b.latest_stamp_) ++b.late_;
-        b.latest_stamp_ = std::max(b.latest_stamp_, *stamp);
-        auto [it, fresh] = b.last_stamp_.emplace(name, *stamp);
-        if (!fresh) {
-          if (*stamp < it->second) ++b.out_of_order_;
-          it->second = std::max(it->second, *stamp);
-        }
-      }
+      b.tally_.input(name, stamp);
       if (o_.timing) {
         const auto t0 = std::chrono::steady_clock::now();
         b.subs_[r.sub].handler(m);
-        const double dt = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-        b.proc_s_.push_back(dt);
-        // The queue a live module would have had with these processing times: inputs wait for the busy module.
-        while (!b.busy_until_.empty() && b.busy_until_.front() <= now_) b.busy_until_.pop_front();
-        const int64_t begin = b.busy_until_.empty() ? now_ : b.busy_until_.back();
-        b.busy_until_.push_back(begin + static_cast<int64_t>(std::llround(dt * 1e6)));
-        b.queue_max_ = std::max(b.queue_max_, static_cast<int32_t>(b.busy_until_.size()));
+        b.tally_.processed(now_, std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
       } else {
         b.subs_[r.sub].handler(m);
-        b.queue_max_ = std::max(b.queue_max_, int32_t{1});
+        b.tally_.unmeasured();
       }
     }
   }
@@ -353,44 +324,10 @@ class Engine {
     return drain();
   }
 
-  ModuleReport report_of(const ModuleBus& b) const {
-    ModuleReport r;
-    r.name = b.module_.name();
-    r.inputs = b.inputs_;
-    r.late = b.late_;
-    r.out_of_order = b.out_of_order_;
-    r.dropped = b.module_.counters().dropped;
-    r.outputs = b.outputs_;
-    if (!b.proc_s_.empty()) {
-      double sum = 0, max = 0;
-      for (double v : b.proc_s_) sum += v, max = std::max(max, v);
-      r.proc_mean_s = sum / static_cast<double>(b.proc_s_.size());
-      r.proc_p95_s = percentile(b.proc_s_, 0.95);
-      r.proc_max_s = max;
-    }
-    r.queue_depth_max = b.queue_max_;
-    return r;
-  }
-
   Status publish_stats() {
     if (buses_.empty()) return {};
     for (auto& b : buses_) {
-      const ModuleReport r = report_of(*b);
-      driftlab::module_stats_t m;
-      m.header.seq = stats_seq_;
-      m.header.utime = now_;
-      m.header.frame_id = "";
-      m.module = r.name;
-      m.inputs = r.inputs;
-      m.late = r.late;
-      m.out_of_order = r.out_of_order;
-      m.dropped = r.dropped;
-      m.proc_time_mean_s = r.proc_mean_s;
-      m.proc_time_p95_s = r.proc_p95_s;
-      m.proc_time_max_s = r.proc_max_s;
-      m.queue_depth_max = r.queue_depth_max;
-      std::vector<uint8_t> bytes(static_cast<size_t>(m.getEncodedSize()));
-      m.encode(bytes.data(), 0, static_cast<int>(bytes.size()));
+      const auto bytes = internal::encode_stats(b->tally_.report(b->module_), stats_seq_, now_);
       if (Status s = write(o_.stats_channel, bytes); !s) return s;
       emit(o_.stats_channel, bytes);
     }

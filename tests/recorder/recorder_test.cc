@@ -14,7 +14,10 @@
 #include <chrono>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <thread>
+
+#include <nlohmann/json.hpp>
 
 #include "core/log_format.h"
 #include "core/log_reader.h"
@@ -162,6 +165,43 @@ TEST_F(Record, ReplayRepublishesWhatItWrites) {
   for (const auto& e : test::read_all(dir_.file("replay.lcm"))) written.push_back({e.channel, e.data});
   EXPECT_GT(written.size(), 500u);
   EXPECT_EQ(recorded(out), written);
+}
+
+TEST_F(Record, ModulesRunLiveOnWhatTheSimulatorPublishes) {
+  // driftlab run: the estimator and the controller on a live bus, fed by a simulated robot, publish on the bus
+  // and log what they published with their statistics.
+  const std::string out = dir_.file("live.lcm");
+  std::vector<std::string> args = {kDriftlab, "run", "--modules", "estimator,controller", "--url", kLcmUrl,
+                                   "--duration", "6", "--json", "-o", out};
+  std::vector<char*> argv;
+  for (auto& a : args) argv.push_back(a.data());
+  argv.push_back(nullptr);
+  posix_spawn_file_actions_t actions;
+  posix_spawn_file_actions_init(&actions);
+  posix_spawn_file_actions_addopen(&actions, 1, dir_.file("run.json").c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  Process run;
+  ASSERT_EQ(posix_spawn(&run.pid, argv[0], &actions, nullptr, argv.data(), environ), 0);
+  posix_spawn_file_actions_destroy(&actions);
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));  // subscribed
+  ASSERT_EQ(test::run(kDriftlab + " sim --duration 4 --live '" + kLcmUrl + "' --live-rate 2 -o " +
+                      dir_.file("sim.lcm") + " >/dev/null"),
+            0);
+  ASSERT_EQ(run.wait(), 0);
+  std::ifstream summary(dir_.file("run.json"));
+  const auto j = nlohmann::json::parse(summary);
+  ASSERT_EQ(j["modules"].size(), 2u);
+  EXPECT_EQ(j["modules"][0]["name"], "estimator");
+  EXPECT_GT(j["modules"][0]["inputs"].get<int64_t>(), 900);   // IMU at 200 Hz and odometry at 50 Hz for 4 s
+  EXPECT_GT(j["modules"][0]["outputs"].get<int64_t>(), 150);  // estimates at 50 Hz of stamp time
+  EXPECT_GT(j["modules"][0]["proc_mean_s"].get<double>(), 0);
+  EXPECT_GT(j["modules"][1]["outputs"].get<int64_t>(), 20);   // commands at 20 Hz of wall time while odometry came
+  int64_t estimates = 0, stats = 0;
+  for (const auto& e : test::read_all(out)) {
+    estimates += e.channel == "EKF_ODOM";
+    stats += e.channel == "MODULE_STATS";
+  }
+  EXPECT_EQ(estimates + 0, j["modules"][0]["outputs"].get<int64_t>());
+  EXPECT_GE(stats, 2 * 5);  // both modules, every second
 }
 
 TEST_F(Record, ChannelFiltersKeepOnlyMatchingChannels) {

@@ -1,0 +1,99 @@
+// What the runners (replay and live) count about each module: inputs, late and out-of-order inputs by their header
+// stamps, outputs, processing time and the queue it implies; and the driftlab.module_stats_t that reports it.
+#pragma once
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <deque>
+#include <limits>
+#include <optional>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+#include "core/bus.h"
+#include "driftlab/module_stats_t.hpp"
+#include "replayer/replayer.h"
+
+namespace driftlab::replay::internal {
+
+class ModuleTally {
+ public:
+  /// An input on a channel (an interned name, stable for the run) with its header stamp, if it has one [us].
+  void input(const std::string* channel, std::optional<int64_t> stamp) {
+    ++inputs_;
+    if (!stamp) return;
+    if (*stamp < latest_stamp_) ++late_;  // older than the newest the module has seen
+    latest_stamp_ = std::max(latest_stamp_, *stamp);
+    auto [it, fresh] = last_stamp_.emplace(channel, *stamp);
+    if (!fresh) {
+      if (*stamp < it->second) ++out_of_order_;  // older than the previous one on its channel
+      it->second = std::max(it->second, *stamp);
+    }
+  }
+  void output() { ++outputs_; }
+  /// An input that arrived at `at` [us] took `seconds` to process: the queue a module with these processing times
+  /// has (inputs wait while it is busy).
+  void processed(int64_t at, double seconds) {
+    proc_s_.push_back(seconds);
+    while (!busy_until_.empty() && busy_until_.front() <= at) busy_until_.pop_front();
+    const int64_t begin = busy_until_.empty() ? at : busy_until_.back();
+    busy_until_.push_back(begin + static_cast<int64_t>(std::llround(seconds * 1e6)));
+    queue_max_ = std::max(queue_max_, static_cast<int32_t>(busy_until_.size()));
+  }
+  /// An input handled without measuring its time (a queue of one).
+  void unmeasured() { queue_max_ = std::max(queue_max_, int32_t{1}); }
+
+  ModuleReport report(const Module& module) const {
+    ModuleReport r;
+    r.name = module.name();
+    r.inputs = inputs_;
+    r.late = late_;
+    r.out_of_order = out_of_order_;
+    r.dropped = module.counters().dropped;
+    r.outputs = outputs_;
+    if (!proc_s_.empty()) {
+      double sum = 0, max = 0;
+      for (double v : proc_s_) sum += v, max = std::max(max, v);
+      r.proc_mean_s = sum / static_cast<double>(proc_s_.size());
+      std::vector<double> sorted = proc_s_;
+      const auto k = static_cast<size_t>(std::ceil(0.95 * static_cast<double>(sorted.size()))) - 1;
+      std::nth_element(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(k), sorted.end());
+      r.proc_p95_s = sorted[k];
+      r.proc_max_s = max;
+    }
+    r.queue_depth_max = queue_max_;
+    return r;
+  }
+
+ private:
+  int64_t inputs_ = 0, late_ = 0, out_of_order_ = 0, outputs_ = 0;
+  int64_t latest_stamp_ = std::numeric_limits<int64_t>::min();
+  std::unordered_map<const std::string*, int64_t> last_stamp_;
+  std::vector<double> proc_s_;
+  std::deque<int64_t> busy_until_;  ///< completion times of queued inputs [us]
+  int32_t queue_max_ = 0;
+};
+
+/// A module's statistics as an encoded driftlab.module_stats_t.
+inline std::vector<uint8_t> encode_stats(const ModuleReport& r, int64_t seq, int64_t utime) {
+  driftlab::module_stats_t m;
+  m.header.seq = seq;
+  m.header.utime = utime;
+  m.header.frame_id = "";
+  m.module = r.name;
+  m.inputs = r.inputs;
+  m.late = r.late;
+  m.out_of_order = r.out_of_order;
+  m.dropped = r.dropped;
+  m.proc_time_mean_s = r.proc_mean_s;
+  m.proc_time_p95_s = r.proc_p95_s;
+  m.proc_time_max_s = r.proc_max_s;
+  m.queue_depth_max = r.queue_depth_max;
+  std::vector<uint8_t> bytes(static_cast<size_t>(m.getEncodedSize()));
+  m.encode(bytes.data(), 0, static_cast<int>(bytes.size()));
+  return bytes;
+}
+
+}  // namespace driftlab::replay::internal
