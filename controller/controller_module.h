@@ -68,7 +68,7 @@ class ControllerModule final : public Module {
   PurePursuit pursuit_;
   std::optional<Pose2> estimate_;
   std::vector<Point2> obstacles_;
-  int64_t next_tick_ = 0, seq_ = 0, undecodable_ = 0;
+  int64_t seq_ = 0, undecodable_ = 0;
   std::vector<CommandSample> recomputed_, logged_;
   std::optional<CommandComparison> comparison_;
 };

@@ -19,12 +19,6 @@ int64_t wall_utime() {
   return static_cast<int64_t>(tv.tv_sec) * 1000000 + tv.tv_usec;
 }
 
-}  // namespace
-
-struct LiveRunner::Impl;
-
-namespace {
-
 /// One module's view of the live bus.
 class LiveBus final : public Bus {
  public:

@@ -235,7 +235,9 @@ TEST(Replayer, InjectedFaultsDropDelayAndAreWrittenToTheManifest) {
   bool manifest = false;
   for (size_t i = 0; i < events.size(); ++i) {
     const auto& e = events[i];
-    if (i > 0) EXPECT_LE(events[i - 1].utime, e.utime);  // delays re-sort the arrivals
+    if (i > 0) {
+      EXPECT_LE(events[i - 1].utime, e.utime);  // delays re-sort the arrivals
+    }
     if (e.channel == "IMU") {
       ++imu;
       const int64_t delay = e.utime - stamp_of(e);
