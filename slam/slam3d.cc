@@ -10,8 +10,11 @@
 #include <pcl/registration/ndt.h>
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <cmath>
 #include <deque>
+#include <filesystem>
+#include <limits>
 #include <map>
 
 #include "core/internal/yaml_fields.h"
@@ -33,6 +36,9 @@ Eigen::Isometry3d planar(const internal::Pose2d& p) {
   t.rotate(Eigen::AngleAxisd(p.yaw, Eigen::Vector3d::UnitZ()));
   return t;
 }
+
+/// Fewer returns than this in range and the cloud is not registered.
+constexpr size_t kMinPoints = 100;
 
 Cloud::Ptr downsample(const Cloud::ConstPtr& in, double leaf) {
   auto out = std::make_shared<Cloud>();
@@ -59,6 +65,7 @@ Result<Slam3dConfig> parse_slam3d_config(const YAML::Node& node, const std::stri
     std::vector<double> pose;
     DL_TRY(f.vector("sensor_pose", pose, 4));
     if (!pose.empty()) c.sensor_pose = {pose[0], pose[1], pose[2], pose[3]};
+    DL_TRY(f.boolean("deskew", c.deskew));
     DL_TRY(f.text("method", c.method));
     if (c.method != "icp" && c.method != "ndt" && c.method != "gicp") {
       return Error{f.where("method") + " = " + c.method + " must be icp, ndt or gicp"};
@@ -70,13 +77,14 @@ Result<Slam3dConfig> parse_slam3d_config(const YAML::Node& node, const std::stri
     DL_TRY(f.positive("ndt_resolution", c.ndt_resolution));
     DL_TRY(f.positive("ndt_step", c.ndt_step));
     DL_TRY(f.integer("max_iterations", c.max_iterations, 1, 10000));
+    DL_TRY(f.positive("max_fitness", c.max_fitness));
     DL_TRY(f.positive("keyframe_distance", c.keyframe_distance));
     DL_TRY(f.positive("keyframe_angle", c.keyframe_angle));
     DL_TRY(f.integer("local_map_keyframes", c.local_map_keyframes, 1, 10000));
     DL_TRY(f.positive("map_voxel", c.map_voxel));
-    DL_TRY(f.finish("cloud_channel, odom_channel, tf_static_channel, pose_channel, base_frame, sensor_pose, method, "
-                    "min_range, max_range, voxel, max_correspondence, ndt_resolution, ndt_step, max_iterations, "
-                    "keyframe_distance, keyframe_angle, local_map_keyframes, map_voxel"));
+    DL_TRY(f.finish("cloud_channel, odom_channel, tf_static_channel, pose_channel, base_frame, sensor_pose, deskew, "
+                    "method, min_range, max_range, voxel, max_correspondence, ndt_resolution, ndt_step, max_iterations, "
+                    "max_fitness, keyframe_distance, keyframe_angle, local_map_keyframes, map_voxel"));
     if (c.cloud_channel.empty()) return Error{f.where("cloud_channel") + " must not be empty"};
   } catch (const YAML::Exception& e) {
     return Error{origin + ":" + std::to_string(e.mark.line + 1) + ": " + e.msg};
@@ -94,10 +102,12 @@ struct Slam3d::Impl {
   Eigen::Isometry3d last_motion = Eigen::Isometry3d::Identity();   ///< between the last two clouds
   std::optional<internal::Pose2d> odom_at_last;
   Eigen::Isometry3d last_keyframe = Eigen::Isometry3d::Identity();
-  std::deque<Cloud::Ptr> local;       ///< recent keyframes in the map frame
-  std::vector<Cloud::Ptr> keyframes;  ///< every keyframe in the map frame (for the final map)
-  int64_t clouds = 0, unconverged = 0, undecodable = 0, odometry = 0, seq = 0;
-  double fitness_sum = 0;
+  std::deque<Cloud::Ptr> local;  ///< recent keyframes in the map frame, at `voxel`
+  Cloud::Ptr map = std::make_shared<Cloud>();  ///< every keyframe in the map frame, at about `map_voxel`
+  size_t map_filtered = 0;                     ///< map's size after its last voxel filtering
+  int64_t clouds = 0, not_clouds = 0, unusable = 0, unconverged = 0, rejected = 0, undecodable = 0;
+  int64_t odometry = 0, keyframes = 0, registered = 0, seq = 0;
+  double fitness_sum = 0, fitness_max = 0;
   bool tf_missing_warned = false;
   std::vector<std::string> warnings;
 
@@ -106,7 +116,140 @@ struct Slam3d::Impl {
     for (const auto& k : local) *target += *k;
     reg->setInputTarget(downsample(target, c.voxel));
   }
+
+  void on_cloud(Bus& bus, const BusMessage& m);
 };
+
+void Slam3d::Impl::on_cloud(Bus& bus, const BusMessage& m) {
+  driftlab::point_cloud_t pc;
+  if (!decode_message(m, pc)) return void(++not_clouds);
+  ++clouds;
+  const int64_t stamp = pc.header.utime;
+  Eigen::Isometry3d sensor = Eigen::Isometry3d::Identity();
+  sensor.translate(Eigen::Vector3d(c.sensor_pose[0], c.sensor_pose[1], c.sensor_pose[2]));
+  sensor.rotate(Eigen::AngleAxisd(c.sensor_pose[3], Eigen::Vector3d::UnitZ()));
+  if (auto it = sensor_on_base.find(pc.header.frame_id); it != sensor_on_base.end()) {
+    sensor = it->second;
+  } else if (!tf_missing_warned && !c.tf_static_channel.empty()) {
+    tf_missing_warned = true;
+    warnings.push_back("slam3d: no " + c.base_frame + " -> " + pc.header.frame_id + " on " + c.tf_static_channel +
+                       " before the first cloud: the sensor_pose setting was used");
+  }
+
+  // The base's motion from the stamp to `s` seconds after it, from the wheel odometry, for undoing the motion
+  // during the sweep. Without odometry the sweep is left as it is: deskewing with the velocity registration itself
+  // found feeds each cloud's error into the next (tried: on the simulated corridor the pose then oscillated from
+  // cloud to cloud, growing until registration failed).
+  const auto odo = odom.at(stamp);
+  auto motion_after = [&](double s) -> Eigen::Isometry3d {
+    return planar(*odo).inverse() * planar(*odom.at(stamp + std::llround(s * 1e6)));
+  };
+
+  // The returns within range, in the base frame at the stamp. An organised cloud is walked column by column, so
+  // the points of one column (one time offset) share one transform.
+  const size_t n = std::min({pc.x.size(), pc.y.size(), pc.z.size()});
+  const bool deskew = c.deskew && odo && pc.time_offsets.size() == n;
+  const size_t rows = pc.height > 1 ? static_cast<size_t>(pc.height) : 1;
+  const size_t cols = pc.width > 0 ? static_cast<size_t>(pc.width) : 0;
+  const bool organised = rows > 1 && rows * cols == n;
+  auto raw = std::make_shared<Cloud>();
+  raw->reserve(n);
+  Eigen::Matrix4f to_base = sensor.matrix().cast<float>();
+  float offset = 0;
+  bool have_offset = false;
+  const double min2 = c.min_range * c.min_range, max2 = c.max_range * c.max_range;
+  for (size_t k = 0; k < n; ++k) {
+    const size_t i = organised ? (k % rows) * cols + k / rows : k;
+    const float x = pc.x[i], y = pc.y[i], z = pc.z[i];
+    const double r2 = double(x) * x + double(y) * y + double(z) * z;
+    if (!std::isfinite(r2) || r2 < min2 || r2 > max2) continue;
+    if (deskew) {
+      // Offsets beyond a second are not a sweep: they are treated as 0 rather than trusted.
+      float s = pc.time_offsets[i];
+      if (!std::isfinite(s) || std::abs(s) > 1) s = 0;
+      if (!have_offset || s != offset) {
+        have_offset = true;
+        offset = s;
+        to_base = (motion_after(s) * sensor).matrix().cast<float>();
+      }
+    }
+    const Eigen::Vector4f p = to_base * Eigen::Vector4f(x, y, z, 1);
+    raw->push_back(pcl::PointXYZ(p.x(), p.y(), p.z()));
+  }
+  if (raw->size() < kMinPoints) return void(++unusable);
+  Cloud::Ptr scan = downsample(raw, c.voxel);
+
+  // The prior: the odometry's motion since the last cloud, else the last motion again.
+  Eigen::Isometry3d motion = last_motion;
+  if (odo && odom_at_last) motion = planar(*odom_at_last).inverse() * planar(*odo);
+  bool matched = true;
+  if (!have_pose) {
+    have_pose = true;  // the first cloud's base is the map's origin
+  } else {
+    const Eigen::Isometry3d guess = pose * motion;
+    reg->setInputSource(scan);
+    Cloud aligned;
+    reg->align(aligned, guess.matrix().cast<float>());
+    Eigen::Isometry3d found = guess;
+    if (!reg->hasConverged() || !reg->getFinalTransformation().allFinite()) {
+      ++unconverged;
+      matched = false;
+    } else {
+      // Over the points within max_correspondence of the map only: a cloud that sees a room the map has not seen
+      // yet (through a door) is not a bad match, and counting those points rejected good registrations.
+      const double fitness = reg->getFitnessScore(c.max_correspondence);
+      if (!(fitness <= c.max_fitness)) {
+        ++rejected;
+        matched = false;
+      } else {
+        found.matrix() = reg->getFinalTransformation().cast<double>();
+        // PCL works in float: re-orthonormalise the rotation so the error does not pile up pose after pose.
+        found.linear() = Eigen::Quaterniond(found.rotation()).normalized().toRotationMatrix();
+        ++registered;
+        fitness_sum += fitness;
+        fitness_max = std::max(fitness_max, fitness);
+      }
+    }
+    last_motion = pose.inverse() * found;
+    pose = found;
+  }
+  if (odo) odom_at_last = odo;
+
+  // A keyframe after enough motion (from matched clouds only): it joins the local map (the registration target)
+  // and the final map.
+  const Eigen::Isometry3d since = last_keyframe.inverse() * pose;
+  const double angle = Eigen::AngleAxisd(since.rotation()).angle() * 180 / M_PI;
+  if (matched &&
+      (keyframes == 0 || since.translation().norm() > c.keyframe_distance || angle > c.keyframe_angle)) {
+    ++keyframes;
+    const Eigen::Matrix4f to_map = pose.matrix().cast<float>();
+    auto in_map = std::make_shared<Cloud>();
+    pcl::transformPointCloud(*scan, *in_map, to_map);
+    local.push_back(in_map);
+    while (static_cast<int>(local.size()) > c.local_map_keyframes) local.pop_front();
+    last_keyframe = pose;
+    set_target();
+    // The map keeps finer points than registration needs, filtered again whenever it has doubled.
+    Cloud fine;
+    pcl::transformPointCloud(c.map_voxel < c.voxel ? *downsample(raw, c.map_voxel) : *scan, fine, to_map);
+    *map += fine;
+    if (map->size() > 2 * map_filtered + 100000) {
+      map = downsample(map, c.map_voxel);
+      map_filtered = map->size();
+    }
+  }
+
+  driftlab::pose_t p{};
+  p.header.seq = seq++;
+  p.header.utime = stamp;
+  p.header.frame_id = "map";
+  p.child_frame_id = c.base_frame;
+  p.position = {pose.translation().x(), pose.translation().y(), pose.translation().z()};
+  const Eigen::Quaterniond q(pose.rotation());
+  p.orientation = {q.w(), q.x(), q.y(), q.z()};
+  for (double& v : p.covariance) v = 0;
+  bus.publish_message(c.pose_channel, p);
+}
 
 Slam3d::Slam3d(Slam3dConfig config) : impl_(std::make_unique<Impl>()) { impl_->c = std::move(config); }
 Slam3d::~Slam3d() = default;
@@ -122,11 +265,13 @@ Status Slam3d::start(Bus& bus) {
     auto gicp = std::make_unique<pcl::GeneralizedIterativeClosestPoint<pcl::PointXYZ, pcl::PointXYZ>>();
     gicp->setMaxCorrespondenceDistance(c.max_correspondence);
     d.reg = std::move(gicp);
-  } else {
+  } else if (c.method == "ndt") {
     auto ndt = std::make_unique<pcl::NormalDistributionsTransform<pcl::PointXYZ, pcl::PointXYZ>>();
     ndt->setResolution(static_cast<float>(c.ndt_resolution));
     ndt->setStepSize(c.ndt_step);
     d.reg = std::move(ndt);
+  } else {
+    return Error{"slam3d: method = " + c.method + " must be icp, ndt or gicp"};
   }
   d.reg->setMaximumIterations(c.max_iterations);
   d.reg->setTransformationEpsilon(1e-6);
@@ -152,113 +297,61 @@ Status Slam3d::start(Bus& bus) {
       impl_->odom.add(o.header.utime, {o.position.x, o.position.y, yaw_of(o.orientation)});
     });
   }
-  bus.subscribe(c.cloud_channel, [this, &bus](const BusMessage& m) {
-    Impl& d = *impl_;
-    driftlab::point_cloud_t pc;
-    if (!decode_message(m, pc)) return void(++d.undecodable);
-    ++d.clouds;
-    Eigen::Isometry3d sensor = Eigen::Isometry3d::Identity();
-    sensor.translate(Eigen::Vector3d(d.c.sensor_pose[0], d.c.sensor_pose[1], d.c.sensor_pose[2]));
-    sensor.rotate(Eigen::AngleAxisd(d.c.sensor_pose[3], Eigen::Vector3d::UnitZ()));
-    if (auto it = d.sensor_on_base.find(pc.header.frame_id); it != d.sensor_on_base.end()) {
-      sensor = it->second;
-    } else if (!d.tf_missing_warned && !d.c.tf_static_channel.empty()) {
-      d.tf_missing_warned = true;
-      d.warnings.push_back("slam: no " + d.c.base_frame + " -> " + pc.header.frame_id + " on " +
-                           d.c.tf_static_channel + " before the first cloud: the sensor_pose setting was used");
-    }
-    // The returns within range, in the base frame.
-    auto raw = std::make_shared<Cloud>();
-    raw->reserve(pc.x.size());
-    const Eigen::Matrix4f to_base = sensor.matrix().cast<float>();
-    const double min2 = d.c.min_range * d.c.min_range, max2 = d.c.max_range * d.c.max_range;
-    for (size_t i = 0; i < pc.x.size(); ++i) {
-      const float x = pc.x[i], y = pc.y[i], z = pc.z[i];
-      const double r2 = double(x) * x + double(y) * y + double(z) * z;
-      if (!std::isfinite(r2) || r2 < min2 || r2 > max2) continue;
-      const Eigen::Vector4f p = to_base * Eigen::Vector4f(x, y, z, 1);
-      raw->push_back(pcl::PointXYZ(p.x(), p.y(), p.z()));
-    }
-    if (raw->size() < 100) return void(++d.unconverged);
-    Cloud::Ptr scan = downsample(raw, d.c.voxel);
-
-    // The prior: the odometry's motion since the last cloud, else the last motion again.
-    Eigen::Isometry3d motion = d.last_motion;
-    const auto odo = d.odom.at(pc.header.utime);
-    if (odo && d.odom_at_last) motion = planar(*d.odom_at_last).inverse() * planar(*odo);
-    if (odo) d.odom_at_last = odo;
-
-    if (!d.have_pose) {
-      d.have_pose = true;
-    } else {
-      const Eigen::Isometry3d guess = d.pose * motion;
-      d.reg->setInputSource(scan);
-      Cloud aligned;
-      d.reg->align(aligned, guess.matrix().cast<float>());
-      Eigen::Isometry3d found = guess;
-      if (d.reg->hasConverged()) {
-        found.matrix() = d.reg->getFinalTransformation().cast<double>();
-        d.fitness_sum += d.reg->getFitnessScore();
-      } else {
-        ++d.unconverged;
-      }
-      d.last_motion = d.pose.inverse() * found;
-      d.pose = found;
-    }
-    // A keyframe after enough motion: it joins the local map (the registration target) and the final map.
-    const Eigen::Isometry3d since = d.last_keyframe.inverse() * d.pose;
-    const double angle = Eigen::AngleAxisd(since.rotation()).angle() * 180 / M_PI;
-    if (d.keyframes.empty() || since.translation().norm() > d.c.keyframe_distance || angle > d.c.keyframe_angle) {
-      auto in_map = std::make_shared<Cloud>();
-      pcl::transformPointCloud(*scan, *in_map, d.pose.matrix().cast<float>());
-      d.keyframes.push_back(in_map);
-      d.local.push_back(in_map);
-      while (static_cast<int>(d.local.size()) > d.c.local_map_keyframes) d.local.pop_front();
-      d.last_keyframe = d.pose;
-      d.set_target();
-    }
-    driftlab::pose_t p{};
-    p.header.seq = d.seq++;
-    p.header.utime = pc.header.utime;
-    p.header.frame_id = "map";
-    p.child_frame_id = d.c.base_frame;
-    p.position = {d.pose.translation().x(), d.pose.translation().y(), d.pose.translation().z()};
-    const Eigen::Quaterniond q(d.pose.rotation());
-    p.orientation = {q.w(), q.x(), q.y(), q.z()};
-    for (int i = 0; i < 36; ++i) p.covariance[i] = 0;
-    bus.publish_message(d.c.pose_channel, p);
-  });
+  bus.subscribe(c.cloud_channel, [this, &bus](const BusMessage& m) { impl_->on_cloud(bus, m); });
   return {};
 }
 
 void Slam3d::finish(Bus& bus) {
   Impl& d = *impl_;
   const std::string prefix = bus.artifact_prefix();
-  if (d.keyframes.empty() || prefix.empty()) return;
-  auto all = std::make_shared<Cloud>();
-  for (const auto& k : d.keyframes) *all += *k;
-  Cloud::Ptr map = downsample(all, d.c.map_voxel);
-  if (pcl::io::savePCDFileBinary(prefix + "-map.pcd", *map) != 0) {
-    d.warnings.push_back("slam: cannot write " + prefix + "-map.pcd");
+  if (d.map->empty() || prefix.empty()) return;
+  d.map = downsample(d.map, d.c.map_voxel);
+  d.map_filtered = d.map->size();
+  // Written aside and renamed, so a failed write leaves no half a map behind.
+  const std::string path = prefix + "-map.pcd", partial = path + ".partial";
+  std::error_code ec;
+  if (pcl::io::savePCDFileBinary(partial, *d.map) != 0) {
+    std::filesystem::remove(partial, ec);
+    d.warnings.push_back("slam3d: cannot write " + partial);
+  } else if (std::filesystem::rename(partial, path, ec); ec) {
+    std::filesystem::remove(partial, ec);
+    d.warnings.push_back("slam3d: cannot rename " + partial + " to " + path);
   }
 }
 
 ModuleCounters Slam3d::counters() const {
   const Impl& d = *impl_;
   ModuleCounters c;
-  c.dropped = d.undecodable + d.unconverged;
+  c.dropped = d.not_clouds + d.undecodable + d.unusable + d.unconverged + d.rejected;
   c.warnings = d.warnings;
   if (d.clouds == 0) {
-    c.warnings.push_back("slam: no driftlab.point_cloud_t on " + d.c.cloud_channel + ": no map built");
-  } else if (!d.c.odom_channel.empty() && d.odometry == 0) {
-    c.warnings.push_back("slam: no driftlab.odometry_t on " + d.c.odom_channel + ": registered without a prior");
+    std::string w = "slam3d: no driftlab.point_cloud_t on " + d.c.cloud_channel;
+    if (d.not_clouds > 0) w += " (" + std::to_string(d.not_clouds) + " messages of another type)";
+    c.warnings.push_back(w + ": no poses, no map");
+  } else {
+    if (d.unusable == d.clouds) {
+      c.warnings.push_back("slam3d: no cloud on " + d.c.cloud_channel + " had " + std::to_string(kMinPoints) +
+                           " returns within [min_range, max_range]: no poses, no map");
+    }
+    if (!d.c.odom_channel.empty() && d.odometry == 0) {
+      c.warnings.push_back("slam3d: no driftlab.odometry_t on " + d.c.odom_channel + ": registered without a prior");
+    }
   }
-  const int64_t registered = d.clouds - d.unconverged - (d.have_pose ? 1 : 0);
   c.metrics = {{"clouds", static_cast<double>(d.clouds)},
+               {"unusable", static_cast<double>(d.unusable)},
                {"unconverged", static_cast<double>(d.unconverged)},
-               {"keyframes", static_cast<double>(d.keyframes.size())},
-               {"mean_fitness_m2", registered > 0 ? d.fitness_sum / static_cast<double>(registered) : 0.0}};
+               {"rejected", static_cast<double>(d.rejected)},
+               {"keyframes", static_cast<double>(d.keyframes)},
+               {"map_points", static_cast<double>(d.map->size())},
+               {"mean_fitness_m2", d.registered > 0 ? d.fitness_sum / static_cast<double>(d.registered) : 0.0},
+               {"max_fitness_m2", d.fitness_max}};
   return c;
+}
+
+Result<std::unique_ptr<Module>> make_slam3d(const YAML::Node& config, const std::string& origin) {
+  auto c = parse_slam3d_config(config, origin);
+  if (!c) return c.error();
+  return std::unique_ptr<Module>(std::make_unique<Slam3d>(std::move(*c)));
 }
 
 }  // namespace driftlab::slam
