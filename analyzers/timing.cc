@@ -433,8 +433,10 @@ Grid make_grid(const Samples& s, double log_start, double log_end) {
 /// relative to the log's start): lags are searched every 10 ms (on half the points), then every 1 ms within 15 ms
 /// of the best, and a parabola through the top three gives the sub-millisecond peak. Long windows use every k-th
 /// grid point (at most 5,000): the signals are smooth, so that loses nothing. Confidence is the peak correlation
-/// (0 when a signal barely moves or has no data there).
-std::pair<double, double> correlate(const Grid& a, const Grid& b, double from, double to, double max_lag) {
+/// (0 when a signal barely moves or has no data there). `coarse`, when given, receives the correlation at every
+/// 10 ms of lag from -max_lag (NaN where it is undefined).
+std::pair<double, double> correlate(const Grid& a, const Grid& b, double from, double to, double max_lag,
+                                    std::vector<double>* coarse = nullptr) {
   const int lags = static_cast<int>(std::round(max_lag / Grid::kStep));
   const long lo = static_cast<long>(std::ceil((from + max_lag) / Grid::kStep));
   const long hi = static_cast<long>(std::floor((to - max_lag) / Grid::kStep));
@@ -469,6 +471,7 @@ std::pair<double, double> correlate(const Grid& a, const Grid& b, double from, d
   double coarse_value = -3;
   for (int k = 0; k <= 2 * lags; k += kCoarse) {
     const double c = correlation(k, 2 * stride);
+    if (coarse != nullptr) coarse->push_back(c > -2 ? c : NAN);
     if (c > coarse_value) {
       coarse_value = c;
       coarse_best = k;
@@ -495,15 +498,29 @@ std::optional<StreamPair> skew(const std::string& a_name, const Samples& a, cons
                                const Samples& b, const Grid& gb, double log_start, const DiagnoseOptions& options) {
   const double from = std::max(a.motion_t.front(), b.motion_t.front()) - log_start;
   const double to = std::min(a.motion_t.back(), b.motion_t.back()) - log_start;
-  StreamPair p{a_name, b_name, 0, 0, "yaw-rate cross-correlation", {}};
+  StreamPair p{a_name, b_name, 0, 0, "yaw-rate cross-correlation", {}, {}};
   // Windows (at most 64: long logs get longer ones) show changes along the log; the pair's offset is their
   // confidence-weighted median, its confidence their median. A short log is one window.
   const double window = to - from < 2 * options.window_s ? to - from : std::max(options.window_s, (to - from) / 64);
+  std::vector<double> sum, weight, curve;
   for (double w = from; w + window <= to + 1e-9; w += window) {
-    const auto [wl, wc] = correlate(ga, gb, w, w + window, options.max_lag_s);
-    if (wc > 0) p.windows.push_back({w, w + window, wl, wc});
+    curve.clear();
+    const auto [wl, wc] = correlate(ga, gb, w, w + window, options.max_lag_s, &curve);
+    if (wc <= 0) continue;
+    p.windows.push_back({w, w + window, wl, wc});
+    sum.resize(curve.size(), 0);
+    weight.resize(curve.size(), 0);
+    for (size_t k = 0; k < curve.size(); ++k) {
+      if (std::isnan(curve[k])) continue;
+      sum[k] += wc * curve[k];
+      weight[k] += wc;
+    }
   }
   if (p.windows.empty()) return std::nullopt;
+  const int lags = static_cast<int>(std::round(options.max_lag_s / Grid::kStep));
+  for (size_t k = 0; k < sum.size(); ++k) {
+    if (weight[k] > 0) p.curve.emplace_back((static_cast<double>(k) * 10 - lags) * Grid::kStep, sum[k] / weight[k]);
+  }
   std::vector<SkewWindow> by_offset = p.windows;
   std::sort(by_offset.begin(), by_offset.end(), [](const auto& x, const auto& y) { return x.offset_s < y.offset_s; });
   double total = 0, acc = 0;

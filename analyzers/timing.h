@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <span>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "core/result.h"
@@ -57,6 +58,8 @@ struct StreamPair {
   double confidence = 0;   ///< peak normalised correlation, 0..1 (median over the windows)
   std::string method;      ///< "yaw-rate cross-correlation"
   std::vector<SkewWindow> windows;
+  /// (lag [s], correlation) every 10 ms of lag over the search range, the windows' confidence-weighted mean
+  std::vector<std::pair<double, double>> curve;
 };
 
 /// The TF tree seen in the log (channels of driftlab.tf_t; a channel whose name contains "STATIC" holds static

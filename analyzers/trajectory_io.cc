@@ -107,37 +107,42 @@ Result<Trajectory> load_tum(const std::string& path) {
   return t;
 }
 
+bool append_pose(std::span<const uint8_t> data, Trajectory& t) {
+  const int64_t fp = logfmt::fingerprint(data);
+  const int size = static_cast<int>(data.size());
+  auto add = [&](const auto& m) {
+    t.push_back(static_cast<double>(m.header.utime) * 1e-6, {m.position.x, m.position.y, m.position.z},
+                {m.orientation.w, m.orientation.x, m.orientation.y, m.orientation.z});
+    return true;
+  };
+  if (fp == driftlab::pose_t::getHash()) {
+    driftlab::pose_t pose;
+    return pose.decode(data.data(), 0, size) >= 0 && add(pose);
+  }
+  if (fp == driftlab::odometry_t::getHash()) {
+    driftlab::odometry_t odom;
+    return odom.decode(data.data(), 0, size) >= 0 && add(odom);
+  }
+  return false;
+}
+
 Result<Trajectory> load_log_channel(const std::string& log, const std::string& channel) {
   auto reader = LogReader::open(log);
   if (!reader) return reader.error();
   Trajectory t;
   Event e;
   bool seen = false;
-  const int64_t pose_hash = driftlab::pose_t::getHash(), odom_hash = driftlab::odometry_t::getHash();
-  driftlab::pose_t pose;
-  driftlab::odometry_t odom;
   while (reader->next(e)) {
     if (e.channel != channel) continue;
     seen = true;
     const int64_t fp = logfmt::fingerprint(e.data);
-    const int size = static_cast<int>(e.data.size());
-    if (fp == pose_hash) {
-      if (pose.decode(e.data.data(), 0, size) < 0) {
-        return Error{log + ": event at byte " + std::to_string(e.offset) + " on " + channel + " does not decode as driftlab.pose_t"};
-      }
-      t.push_back(static_cast<double>(pose.header.utime) * 1e-6,
-                  {pose.position.x, pose.position.y, pose.position.z},
-                  {pose.orientation.w, pose.orientation.x, pose.orientation.y, pose.orientation.z});
-    } else if (fp == odom_hash) {
-      if (odom.decode(e.data.data(), 0, size) < 0) {
-        return Error{log + ": event at byte " + std::to_string(e.offset) + " on " + channel + " does not decode as driftlab.odometry_t"};
-      }
-      t.push_back(static_cast<double>(odom.header.utime) * 1e-6,
-                  {odom.position.x, odom.position.y, odom.position.z},
-                  {odom.orientation.w, odom.orientation.x, odom.orientation.y, odom.orientation.z});
-    } else {
+    if (fp != driftlab::pose_t::getHash() && fp != driftlab::odometry_t::getHash()) {
       return Error{log + ": channel " + channel + " carries neither driftlab.pose_t nor driftlab.odometry_t (event at byte " +
                    std::to_string(e.offset) + ")"};
+    }
+    if (!append_pose(e.data, t)) {
+      return Error{log + ": event at byte " + std::to_string(e.offset) + " on " + channel + " does not decode as " +
+                   (fp == driftlab::pose_t::getHash() ? "driftlab.pose_t" : "driftlab.odometry_t")};
     }
   }
   if (!seen) {

@@ -7,6 +7,7 @@
 #include <span>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "core/result.h"
 
@@ -24,6 +25,12 @@ int fail(std::string_view message, int code = kExitBadInput);
 /// Writes text to path, or to standard output when path is "-". On failure prints one line naming the file and
 /// returns false.
 bool write_output(const std::string& path, const std::string& text);
+
+/// Runs argv[0] (looked up in PATH) with argv, waits for it and returns its exit code: 128 + N when signal N ended
+/// it, 127 when it could not be started. Its standard output and error go to the files given (truncated), else to
+/// ours.
+int run_program(const std::vector<std::string>& argv, const std::string& stdout_path,
+                const std::string& stderr_path = "");
 
 /// 1536 -> "1.5 KiB".
 std::string human_bytes(double bytes);

@@ -18,6 +18,8 @@ int main(int argc, char** argv) {
   driftlab::apps::add_replay_command(app, &exit_code);
   driftlab::apps::add_run_command(app, &exit_code);
   driftlab::apps::add_rawlog_commands(app, &exit_code);
+  driftlab::apps::add_report_command(app, &exit_code);
+  driftlab::apps::add_demo_command(app, &exit_code);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {

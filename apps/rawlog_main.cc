@@ -62,6 +62,7 @@ void add_rawlog_commands(CLI::App& app, int* exit_code) {
     }
     print_counts(*r, out->in, out->out);
   });
+  add_export_commands(*exp, exit_code);
 }
 
 }  // namespace driftlab::apps

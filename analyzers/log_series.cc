@@ -1,0 +1,86 @@
+#include "analyzers/log_series.h"
+
+#include <algorithm>
+
+#include "analyzers/timing.h"
+#include "analyzers/trajectory_io.h"
+#include "core/log_format.h"
+#include "core/log_reader.h"
+#include "driftlab/image_t.hpp"
+#include "driftlab/odometry_t.hpp"
+#include "driftlab/pose_t.hpp"
+#include "lcmtypes/type_registry.h"
+
+namespace driftlab::analyzers {
+
+Result<LogSeries> read_log_series(const std::string& log) {
+  auto reader = LogReader::open(log);
+  if (!reader) return reader.error();
+  LogSeries out;
+  out.log = log;
+  std::map<std::string, size_t, std::less<>> index;  // channel -> streams[i]
+  std::vector<std::vector<int64_t>> arrivals, stamps;
+  const int64_t image_hash = driftlab::image_t::getHash();
+  Event e;
+  bool first = true;
+  while (reader->next(e)) {
+    if (first) out.start_utime = out.end_utime = e.utime;
+    first = false;
+    out.start_utime = std::min(out.start_utime, e.utime);
+    out.end_utime = std::max(out.end_utime, e.utime);
+    auto it = index.find(e.channel);
+    if (it == index.end()) {
+      StreamSeries s;
+      s.channel = std::string(e.channel);
+      const lcmtypes::TypeInfo* type = lcmtypes::find_type(logfmt::fingerprint(e.data));
+      s.type = type != nullptr ? type->name : "";
+      s.has_header = type != nullptr ? type->has_header : looks_like_header(e.data, e.utime);
+      it = index.emplace(s.channel, out.streams.size()).first;
+      out.streams.push_back(std::move(s));
+      arrivals.emplace_back();
+      stamps.emplace_back();
+    }
+    const size_t k = it->second;
+    StreamSeries& s = out.streams[k];
+    arrivals[k].push_back(e.utime);
+    if (s.has_header && e.data.size() >= 24) {
+      stamps[k].push_back(static_cast<int64_t>(logfmt::load_be64(e.data.data() + 16)));
+    } else {
+      s.has_header = false;  // a message too short for a header: the channel is untyped
+    }
+    const int64_t fp = logfmt::fingerprint(e.data);
+    if (fp == driftlab::pose_t::getHash() || fp == driftlab::odometry_t::getHash()) {
+      append_pose(e.data, out.poses[s.channel]);
+    } else if (fp == image_hash) {
+      driftlab::image_t image;
+      if (image.decode(e.data.data(), 0, static_cast<int>(e.data.size())) < 0 || image.encoding != "png" ||
+          image.header.frame_id != "map") {
+        continue;
+      }
+      auto m = std::find_if(out.maps.begin(), out.maps.end(), [&](const MapImage& x) { return x.channel == s.channel; });
+      if (m == out.maps.end()) m = out.maps.insert(out.maps.end(), MapImage{s.channel});
+      m->width = image.width;
+      m->height = image.height;
+      m->png = std::move(image.data);
+    }
+  }
+  out.problems = reader->problems();
+  for (size_t k = 0; k < out.streams.size(); ++k) {
+    StreamSeries& s = out.streams[k];
+    s.arrival.reserve(arrivals[k].size());
+    for (int64_t t : arrivals[k]) s.arrival.push_back(static_cast<double>(t - out.start_utime) * 1e-6);
+    if (!s.has_header || stamps[k].size() != arrivals[k].size()) {
+      s.has_header = false;
+      continue;
+    }
+    s.latency.reserve(stamps[k].size());
+    for (size_t i = 0; i < stamps[k].size(); ++i) {
+      s.latency.push_back(static_cast<double>(arrivals[k][i] - stamps[k][i]) * 1e-6);
+    }
+  }
+  std::sort(out.streams.begin(), out.streams.end(),
+            [](const StreamSeries& a, const StreamSeries& b) { return a.channel < b.channel; });
+  return out;
+}
+
+}  // namespace driftlab::analyzers

@@ -1,0 +1,42 @@
+// What a log holds, as series to plot: per stream the arrival time and latency of every message, every pose
+// channel as a trajectory, and the last map image of each channel that carries one. Read in one pass.
+// Thread-safety: pure function of the log.
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "analyzers/trajectory.h"
+#include "core/result.h"
+
+namespace driftlab::analyzers {
+
+struct StreamSeries {
+  std::string channel;
+  std::string type;             ///< "driftlab.imu_t", or "" when unknown
+  bool has_header = false;      ///< stamps were read from driftlab.header_t (latency is meaningful)
+  std::vector<double> arrival;  ///< log time of each message [s from the log's first event]
+  std::vector<double> latency;  ///< arrival - header stamp [s]; empty without a header
+};
+
+struct MapImage {
+  std::string channel;
+  int32_t width = 0, height = 0;
+  std::vector<uint8_t> png;  ///< the image as sent (driftlab.image_t with encoding "png")
+};
+
+struct LogSeries {
+  std::string log;
+  int64_t start_utime = 0, end_utime = 0;      ///< first and last log time [us]
+  std::vector<StreamSeries> streams;           ///< by channel name
+  std::map<std::string, Trajectory> poses;     ///< driftlab.pose_t and odometry_t channels (stamps: header [s])
+  std::vector<MapImage> maps;                  ///< image_t channels whose frame is "map"
+  uint64_t problems = 0;                       ///< corruption met while reading
+};
+
+/// Reads the whole log. Errors name the log (missing, unreadable); corruption is counted, not fatal.
+Result<LogSeries> read_log_series(const std::string& log);
+
+}  // namespace driftlab::analyzers

@@ -1,0 +1,417 @@
+#!/usr/bin/env python3
+"""Draws the plots of `driftlab report` and writes its HTML page.
+
+Usage: report_page.py REPORT_JSON OUT_DIR
+
+REPORT_JSON is what `driftlab report` gathered from the logs (docs/report.md lists its fields). Every plot is
+written to OUT_DIR as a PNG and embedded in OUT_DIR/index.html, so the page opens offline on its own.
+Exit codes: 0 done, 2 bad input, 3 matplotlib missing.
+"""
+
+import base64
+import html
+import json
+import math
+import os
+import sys
+
+try:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+except ImportError:
+    sys.exit(3)  # driftlab report says so, or tries another python3
+
+COLORS = ["#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#17becf", "#8c564b", "#e377c2", "#7f7f7f"]
+STYLE = {
+    "figure.dpi": 100,
+    "savefig.dpi": 110,
+    "font.size": 9.5,
+    "axes.titlesize": 11,
+    "axes.titleweight": "bold",
+    "axes.spines.top": False,
+    "axes.spines.right": False,
+    "axes.grid": True,
+    "grid.color": "#e6e6e6",
+    "grid.linewidth": 0.8,
+    "legend.frameon": False,
+}
+
+
+def ms(seconds):
+    return seconds * 1e3
+
+
+def quantile(values, q):
+    if not values:
+        return 0.0
+    s = sorted(values)
+    return s[min(len(s) - 1, int(q * (len(s) - 1) + 0.5))]
+
+
+class Page:
+    """The plots drawn so far, in page order: (file, title, caption)."""
+
+    def __init__(self, out_dir):
+        self.out_dir = out_dir
+        self.figures = []
+
+    def save(self, fig, name, title, caption):
+        path = os.path.join(self.out_dir, name)
+        fig.savefig(path, bbox_inches="tight", facecolor="white")
+        plt.close(fig)
+        self.figures.append((name, title, caption))
+
+
+def plot_trajectories(page, data):
+    ref = data.get("reference")
+    estimates = [e for e in data["estimates"] if e["x"]]
+    if not ref and not estimates:
+        return
+    fig, ax = plt.subplots(figsize=(8.5, 7))
+    if ref:
+        ax.plot(ref["x"], ref["y"], color="black", lw=2.2, alpha=0.85, label=f"{ref['label']} (reference)")
+        ax.plot(ref["x"][0], ref["y"][0], "o", color="black", ms=7)
+    for i, e in enumerate(estimates):
+        label = e["label"]
+        if "ate_rmse" in e:
+            label += f"  (ATE {e['ate_rmse']:.3f} m)"
+        ax.plot(e["x"], e["y"], color=COLORS[i % len(COLORS)], lw=1.2, alpha=0.9, label=label)
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.set_title("Trajectories in the plane")
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=1)
+    aligned = " Estimates are aligned to the reference in position and yaw." if ref else ""
+    page.save(fig, "trajectories.png", "Trajectories",
+              "Every pose channel, seen from above; the dot marks the reference's start." + aligned)
+
+
+def plot_error_timeline(page, data):
+    estimates = [e for e in data["estimates"] if e.get("error")]
+    streams = data["streams"]
+    if not estimates and not streams:
+        return
+    rows = [s for s in streams if s["gaps"] or s["spikes"]] or streams
+    height = 3.2 + 0.32 * max(1, len(rows))
+    fig, (top, bottom) = plt.subplots(
+        2, 1, figsize=(11, height + (3.2 if estimates else 0)), sharex=True,
+        gridspec_kw={"height_ratios": [3.2 if estimates else 0.01, 0.45 * max(1, len(rows)) + 0.6]})
+    if estimates:
+        for i, e in enumerate(estimates):
+            top.plot(e["t"], e["error"], color=COLORS[i % len(COLORS)], lw=1.1,
+                     label=f"{e['label']}  (RMS {e['ate_rmse']:.3f} m)")
+        top.set_ylabel("position error [m]")
+        top.set_ylim(bottom=0)
+        top.set_title("Position error over time, with what went wrong in the streams")
+        top.legend(loc="upper left")
+    else:
+        top.set_visible(False)
+        bottom.set_title("Drops and latency spikes over time")
+    # One row per stream: drops as red bars over their gap, latency spikes as orange ticks.
+    spans_drawn = spikes_drawn = False
+    for row, s in enumerate(rows):
+        y = len(rows) - 1 - row
+        gaps = [(g[0], max(g[1] - g[0], 0.02)) for g in s["gaps"]]
+        if gaps:
+            bottom.broken_barh(gaps, (y - 0.35, 0.7), facecolors="#d62728", alpha=0.85,
+                               label=None if spans_drawn else "dropped messages (gap)")
+            spans_drawn = True
+            if estimates:
+                for start, width in gaps:
+                    top.axvspan(start, start + width, color="#d62728", alpha=0.08, lw=0)
+        if s["spikes"]:
+            bottom.plot([p[0] for p in s["spikes"]], [y] * len(s["spikes"]), "|", color="#ff7f0e", ms=11, mew=1.6,
+                        label=None if spikes_drawn else "latency spike")
+            spikes_drawn = True
+    bottom.set_yticks(range(len(rows)))
+    bottom.set_yticklabels([s["channel"] for s in reversed(rows)])
+    bottom.set_ylim(-0.7, len(rows) - 0.3)
+    bottom.set_xlabel("time since the start of the log [s]")
+    bottom.grid(axis="y", visible=False)
+    if spans_drawn or spikes_drawn:
+        bottom.legend(loc="upper center", bbox_to_anchor=(0.5, -0.35 if len(rows) < 4 else -0.15), ncol=2)
+    else:
+        bottom.text(0.5, 0.5, "no drops and no latency spikes", transform=bottom.transAxes, ha="center",
+                    va="center", color="#555")
+    page.save(fig, "error_timeline.png", "Error over time",
+              "Top: each estimate's position error against the reference (aligned in position and yaw); red bands "
+              "are drops in any stream. Bottom: per stream, the gaps left by dropped messages (red) and latency "
+              "spikes (orange: above the median by more than 10 ms and three times the p99's distance from it).")
+
+
+def grid_of(n, width=11, row_height=2.3):
+    cols = min(3, max(1, n))
+    rows_n = math.ceil(n / cols)
+    fig, axes = plt.subplots(rows_n, cols, figsize=(width, row_height * rows_n + 0.6), squeeze=False)
+    flat = [a for row in axes for a in row]
+    for a in flat[n:]:
+        a.set_visible(False)
+    return fig, flat
+
+
+def plot_latency(page, data):
+    streams = [s for s in data["streams"] if s["latency"]]
+    if not streams:
+        return
+    fig, axes = grid_of(len(streams))
+    for ax, s in zip(axes, streams):
+        lat = [ms(v) for v in s["latency"]]
+        p50 = quantile(lat, 0.5)
+        lo, hi = min(lat), max(lat)
+        span = max(hi - lo, 1.0)  # a constant latency still gets a visible bar, 1/60 ms wide at least
+        edges = [lo - 0.02 * span + k * span * 1.04 / 60 for k in range(61)]
+        ax.hist(lat, bins=edges, color="#1f77b4", alpha=0.85)
+        ax.axvline(p50, color="black", lw=1, ls="--")
+        threshold = ms(s.get("spike_threshold", 0))
+        if "spike_threshold" in s and threshold <= hi:
+            ax.axvline(threshold, color="#ff7f0e", lw=1.2)
+        ax.set_yscale("log")
+        what = "constant" if hi - lo < 0.01 else "median"
+        ax.set_title(f"{s['channel']}  ({what} {p50:.1f} ms)", fontsize=9.5)
+        ax.set_xlabel("arrival - stamp [ms]")
+    fig.suptitle("Latency per stream", fontweight="bold")
+    fig.tight_layout()
+    page.save(fig, "latency.png", "Latency histograms",
+              "Arrival time minus header stamp per message (log scale counts): a clock offset moves the whole "
+              "histogram, transport jitter widens it. Dashed: median; orange: the spike threshold.")
+
+
+def plot_interarrival(page, data):
+    streams = [s for s in data["streams"] if len(s["arrival"]) > 2]
+    if not streams:
+        return
+    fig, axes = grid_of(len(streams))
+    for ax, s in zip(axes, streams):
+        t = s["arrival"]
+        dt = [round(ms(b - a), 3) for a, b in zip(t, t[1:])]  # arrivals are whole microseconds
+        ax.plot(t[1:], dt, ".", ms=2.5, color="#2ca02c", alpha=0.6, rasterized=True)
+        period = ms(s.get("expected_period_s") or 0)
+        if period:
+            ax.axhline(period, color="black", lw=1, ls="--")
+        ax.set_ylim(0, max(max(dt) * 1.08, 2.2 * period, 1.0))
+        ax.set_title(s["channel"], fontsize=9.5)
+        ax.set_xlabel("time [s]")
+        ax.set_ylabel("interval [ms]")
+    fig.suptitle("Inter-arrival time per stream", fontweight="bold")
+    fig.tight_layout()
+    page.save(fig, "interarrival.png", "Inter-arrival times",
+              "Time between consecutive arrivals: drops show as steps of whole periods above the dashed expected "
+              "period, bursts as clusters, reordering and duplicates as points near zero.")
+
+
+def plot_skew(page, data):
+    pairs = [p for p in (data.get("diagnosis") or {}).get("pairs", []) if p.get("curve")]
+    if not pairs:
+        return
+    fig, ax = plt.subplots(figsize=(10, 4.8))
+    for i, p in enumerate(pairs):
+        lags = [ms(c[0]) for c in p["curve"]]
+        corr = [c[1] for c in p["curve"]]
+        color = COLORS[i % len(COLORS)]
+        ax.plot(lags, corr, color=color, lw=1.4,
+                label=f"{p['a']} -> {p['b']}: {ms(p['offset_s']):+.1f} ms (confidence {p['confidence']:.2f})")
+        ax.axvline(ms(p["offset_s"]), color=color, lw=0.9, ls=":")
+    ax.axvline(0, color="black", lw=0.8)
+    ax.set_xlabel("lag: how much later b is stamped than a [ms]")
+    ax.set_ylabel("correlation of yaw rates")
+    ax.set_title("Skew between streams that see the same motion")
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.15), ncol=1)
+    page.save(fig, "skew.png", "Skew correlation curves",
+              "Correlation of the yaw rate two streams observe, against the lag between them; the peak (dotted) is "
+              "the skew. A sharp single peak is trustworthy; a flat or double-peaked curve is not.")
+
+
+def plot_maps(page, data, out_dir):
+    for i, m in enumerate(data["maps"]):
+        image = plt.imread(os.path.join(out_dir, m["file"]))
+        fig, ax = plt.subplots(figsize=(8, 8 * image.shape[0] / max(1, image.shape[1])))
+        ax.imshow(image, cmap="gray", vmin=0, vmax=1, interpolation="nearest")
+        ax.set_axis_off()
+        ax.set_title(f"SLAM map: {m['label']}")
+        page.save(fig, f"slam_map_{i}.png", f"SLAM map ({m['label']})",
+                  "The occupancy grid the SLAM built (free white, occupied black, unknown grey; north up).")
+
+
+# --- the page -------------------------------------------------------------------------------------------------
+
+CSS = """
+body{font-family:system-ui,-apple-system,'Segoe UI',Roboto,sans-serif;margin:0;color:#222;background:#fafafa}
+header{background:#263238;color:#fff;padding:1.2em 2em}header h1{margin:0 0 .3em;font-size:1.5em}
+header p{margin:0;color:#cfd8dc;font-size:.9em}main{padding:1em 2em;max-width:1250px}
+section{background:#fff;border:1px solid #e0e0e0;border-radius:6px;padding:1em 1.4em;margin:1em 0}
+h2{font-size:1.15em;margin:.2em 0 .6em}table{border-collapse:collapse;font-size:.88em}
+th,td{padding:.3em .7em;border-bottom:1px solid #eee;text-align:right}th{background:#f5f5f5}
+td:first-child,th:first-child{text-align:left}.fault{color:#b71c1c;font-weight:600}.warn{color:#e65100}
+.ok{color:#2e7d32}figure{margin:1em 0}figure img{max-width:100%;border:1px solid #eee}
+figcaption{color:#555;font-size:.88em;max-width:900px}ul.problems li{margin:.2em 0}
+.cards{display:flex;flex-wrap:wrap;gap:1em}.card{flex:1 1 200px;border-left:4px solid #546e7a;padding:.3em .8em}
+.card b{display:block;font-size:1.25em}
+"""
+
+CHECK = """
+<script>
+// Marks the page once every plot has decoded and drawn something (more than 1% of its pixels not white), for the
+// headless-browser test and for anyone curious: body[data-plots], [data-plots-drawn], [data-plots-blank].
+window.addEventListener('load', function () {
+  var imgs = document.querySelectorAll('figure img');
+  var drawn = 0, blank = 0;
+  imgs.forEach(function (img) {
+    if (!img.complete || img.naturalWidth === 0) return;
+    var c = document.createElement('canvas');
+    c.width = 200;
+    c.height = Math.max(1, Math.round(200 * img.naturalHeight / img.naturalWidth));
+    var g = c.getContext('2d');
+    g.drawImage(img, 0, 0, c.width, c.height);
+    var px = g.getImageData(0, 0, c.width, c.height).data, ink = 0;
+    for (var i = 0; i < px.length; i += 4) if (px[i] + px[i + 1] + px[i + 2] < 600) ink++;
+    if (ink > 0.01 * c.width * c.height) drawn++; else blank++;
+  });
+  document.body.setAttribute('data-plots', imgs.length);
+  document.body.setAttribute('data-plots-drawn', drawn);
+  document.body.setAttribute('data-plots-blank', blank);
+});
+</script>
+"""
+
+
+def esc(x):
+    return html.escape(str(x))
+
+
+def fmt_ms(seconds):
+    return "-" if seconds is None else f"{seconds * 1e3:.1f} ms"
+
+
+def summary_cards(data):
+    d = data.get("diagnosis") or {}
+    channels = d.get("channels", [])
+    order = {"fault": 0, "warn": 1, "ok": 2}
+
+    def wrong_clock(c):  # a wrong clock touches every message: it ranks first among equal verdicts
+        k = c.get("clock")
+        return bool(k) and (k["offset_s"] >= 0.001 or abs(k["drift_ppm"]) >= 25)
+
+    worst = sorted(channels, key=lambda c: (order.get(c["verdict"], 3), not wrong_clock(c), -len(c["reasons"])))
+    cards = []
+    if worst and worst[0]["verdict"] != "ok":
+        w = worst[0]
+        cards.append(("worst stream", f"{w['name']} ({w['verdict']})", "; ".join(w["reasons"][:2])))
+    else:
+        cards.append(("worst stream", "none", "no stream was flagged"))
+    offsets = [f"{c['name']} {c['clock']['offset_s'] * 1e3:+.1f} ms" for c in channels
+               if c.get("clock") and c["clock"]["offset_s"] >= 0.001]
+    cards.append(("clocks ahead", ", ".join(offsets[:3]) or "none by more than 1 ms",
+                  "source clocks ahead of the recorder's"))
+    drops = [(c["name"], c["drops"]["seq_gaps"] if c["drops"]["seq_gaps"] is not None
+              else c["drops"]["missing_by_period"]) for c in channels]
+    drops = [f"{n} {k}" for n, k in drops if k]
+    cards.append(("dropped messages", ", ".join(drops[:3]) or "none", "from sequence gaps"))
+    for e in data.get("estimates", []):
+        if "ate_rmse" in e:
+            cards.append((f"ATE {e['label']}", f"{e['ate_rmse']:.3f} m", f"max {e['ate_max']:.3f} m, posyaw"))
+    return "<div class='cards'>" + "".join(
+        f"<div class='card'>{esc(t)}<b>{esc(v)}</b><small>{esc(n)}</small></div>" for t, v, n in cards) + "</div>"
+
+
+def channel_table(d):
+    rows = []
+    for c in d.get("channels", []):
+        drops = c["drops"]["seq_gaps"] if c["drops"]["seq_gaps"] is not None else c["drops"]["missing_by_period"]
+        lat = c.get("latency_s") or {}
+        clock = c.get("clock") or {}
+        rows.append(
+            f"<tr><td>{esc(c['name'])}</td><td class='{esc(c['verdict'])}'>{esc(c['verdict'])}</td>"
+            f"<td>{c['count']:,}</td><td>{c['rate_hz']:.2f}</td><td>{drops:,}</td><td>{c['duplicates']:,}</td>"
+            f"<td>{c['out_of_order']['by_stamp']:,}</td><td>{fmt_ms(lat.get('p50'))}</td>"
+            f"<td>{fmt_ms(lat.get('p99'))}</td><td>{fmt_ms(clock.get('offset_s'))}</td>"
+            f"<td>{'-' if not clock else format(clock['drift_ppm'], '.0f') + ' ppm'}</td></tr>")
+    return ("<table><tr><th>channel</th><th>verdict</th><th>count</th><th>rate Hz</th><th>drops</th><th>dups</th>"
+            "<th>reordered</th><th>latency p50</th><th>p99</th><th>clock offset</th><th>drift</th></tr>"
+            + "".join(rows) + "</table>")
+
+
+def problems_list(d):
+    items = []
+    for c in d.get("channels", []):
+        for r in c["reasons"]:
+            items.append(f"<li class='{esc(c['verdict'])}'><b>{esc(c['name'])}</b>: {esc(r)}</li>")
+    for p in d.get("pairs", []):
+        if abs(p["offset_s"]) >= 0.002 and p["confidence"] >= 0.8:
+            later = "later" if p["offset_s"] > 0 else "earlier"
+            items.append(f"<li class='warn'><b>{esc(p['b'])}</b> is stamped {abs(p['offset_s']) * 1e3:.1f} ms "
+                         f"{later} than {esc(p['a'])} for the same motion</li>")
+    for t in (d.get("tf") or {}).get("problems", []):
+        items.append(f"<li class='warn'><b>TF</b>: {esc(t)}</li>")
+    return "<ul class='problems'>" + ("".join(items) or "<li class='ok'>no timing problems found</li>") + "</ul>"
+
+
+def eval_table(evals):
+    if not evals:
+        return ""
+    rows = []
+    for e in evals:
+        r = e["result"]
+        rows.append(
+            f"<tr><td>{esc(e['file'])}</td><td>{esc(r['estimate']['source'])}</td>"
+            f"<td>{esc(r['alignment']['type'])}</td><td>{r['matched']:,}</td><td>{r['ate']['rmse']:.4f}</td>"
+            f"<td>{r['ate']['max']:.4f}</td><td>{r['rpe']['trans']['rmse']:.4f}</td>"
+            f"<td>{r['drift']['trans_pct']:.2f} %</td></tr>")
+    return ("<section><h2>Trajectory evaluation</h2><table><tr><th>file</th><th>estimate</th><th>alignment</th>"
+            "<th>matched</th><th>ATE rmse [m]</th><th>ATE max [m]</th><th>RPE rmse [m]</th><th>drift</th></tr>"
+            + "".join(rows) + "</table></section>")
+
+
+def write_page(page, data, out_dir):
+    d = data.get("diagnosis") or {}
+    logs = "".join(f"<li>{esc(l['path'])}: {l['duration_s']:.1f} s"
+                   + (f", {l['problems']} damaged spots" if l["problems"] else "") + "</li>" for l in data["logs"])
+    figures = []
+    for name, title, caption in page.figures:
+        with open(os.path.join(out_dir, name), "rb") as f:
+            b64 = base64.b64encode(f.read()).decode("ascii")
+        figures.append(f"<section><h2>{esc(title)}</h2><figure><a href='{esc(name)}'>"
+                       f"<img alt='{esc(title)}' src='data:image/png;base64,{b64}'></a>"
+                       f"<figcaption>{esc(caption)}</figcaption></figure></section>")
+    unmatched = ""
+    if data.get("unmatched"):
+        unmatched = ("<p class='warn'>No time overlap with the reference: "
+                     + esc(", ".join(data["unmatched"])) + "</p>")
+    text = f"""<!doctype html>
+<html lang="en"><head><meta charset="utf-8"><meta name="viewport" content="width=device-width, initial-scale=1">
+<title>{esc(data['title'])}</title><style>{CSS}</style></head>
+<body><header><h1>{esc(data['title'])}</h1><p>made by driftlab report from:</p><ul>{logs}</ul></header><main>
+<section><h2>Summary</h2>{summary_cards(data)}{unmatched}</section>
+<section><h2>Streams</h2>{channel_table(d)}<h2 style="margin-top:1em">Problems</h2>{problems_list(d)}</section>
+{eval_table(data.get('evals', []))}
+{''.join(figures)}
+</main>{CHECK}</body></html>
+"""
+    path = os.path.join(out_dir, "index.html")
+    with open(path + ".partial", "w", encoding="utf-8") as f:
+        f.write(text)
+    os.replace(path + ".partial", path)
+
+
+def main(argv):
+    if len(argv) != 3:
+        sys.stderr.write(__doc__)
+        return 2
+    with open(argv[1], encoding="utf-8") as f:
+        data = json.load(f)
+    out_dir = argv[2]
+    plt.rcParams.update(STYLE)
+    page = Page(out_dir)
+    plot_trajectories(page, data)
+    plot_error_timeline(page, data)
+    plot_latency(page, data)
+    plot_interarrival(page, data)
+    plot_skew(page, data)
+    plot_maps(page, data, out_dir)
+    write_page(page, data, out_dir)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv))

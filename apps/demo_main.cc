@@ -1,0 +1,309 @@
+// driftlab demo: the first thing a new user runs. Simulates the default scenario with its faults, diagnoses the
+// log, replays it through SLAM, the estimator and the controller as logged and again with the clocks the
+// diagnosis found corrected, scores both estimates against ground truth and writes the report. Each stage is this
+// program run again with the stage's subcommand (as `git` runs its own), its JSON kept in the output folder, so
+// every number the demo prints can be reproduced with the command it shows.
+#include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
+#include <unistd.h>
+
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <thread>
+
+#include "apps/cli_util.h"
+#include "apps/commands.h"
+#include "apps/report.h"
+
+namespace driftlab::apps {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct DemoArgs {
+  std::string scenario;
+  std::string out = "logs/demo";
+  double duration = 120;
+  int64_t seed = -1;
+  std::string estimate = "EKF_ODOM";
+  double estimator_window = 0;
+  bool json = false;
+};
+
+/// "[3/7] replay ... 4 s", redrawn on a terminal while a stage runs; nothing when stderr is not a terminal.
+class StageLine {
+ public:
+  StageLine(int index, int total, std::string what) : what_(std::move(what)), enabled_(isatty(STDERR_FILENO) == 1) {
+    what_ = "[" + std::to_string(index) + "/" + std::to_string(total) + "] " + what_;
+    if (!enabled_) return;
+    ticker_ = std::thread([this] {
+      const auto start = std::chrono::steady_clock::now();
+      while (!done_) {
+        const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+        std::fprintf(stderr, "\r\033[K%s ... %.0f s", what_.c_str(), s);
+        std::fflush(stderr);
+        for (int i = 0; i < 5 && !done_; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(100));
+      }
+    });
+  }
+  ~StageLine() { finish(); }
+  void finish() {
+    done_ = true;
+    if (ticker_.joinable()) {
+      ticker_.join();
+      std::fprintf(stderr, "\r\033[K");
+    }
+  }
+
+ private:
+  std::string what_;
+  bool enabled_;
+  std::atomic<bool> done_{false};
+  std::thread ticker_;
+};
+
+struct Stage {
+  std::string name;
+  double seconds = 0;
+};
+
+/// The path of this program, to run its subcommands.
+std::string self_path() {
+  std::error_code ec;
+  const auto p = fs::read_symlink("/proc/self/exe", ec);
+  return ec ? "driftlab" : p.string();
+}
+
+std::string last_line_of(const std::string& path) {
+  std::ifstream in(path);
+  std::string line, last;
+  while (std::getline(in, line)) {
+    if (!line.empty()) last = line;
+  }
+  return last;
+}
+
+std::string join_args(const std::vector<std::string>& args) {
+  std::string s = "driftlab";
+  for (size_t i = 1; i < args.size(); ++i) s += " " + args[i];
+  return s;
+}
+
+nlohmann::json read_json(const std::string& path) {
+  std::ifstream in(path);
+  return nlohmann::json::parse(in);
+}
+
+/// Late measurements the estimator dropped, from `driftlab replay --json`.
+int64_t late_rejected(const nlohmann::json& replay) {
+  for (const auto& m : replay["modules"]) {
+    if (m["name"] == "estimator") return static_cast<int64_t>(m["metrics"].value("late_rejected", 0.0));
+  }
+  return 0;
+}
+
+int run_demo(const DemoArgs& a) {
+  std::error_code ec;
+  fs::create_directories(a.out, ec);
+  if (ec) return fail(a.out + ": cannot create the demo folder: " + ec.message());
+  const fs::path dir(a.out);
+  const std::string exe = self_path();
+  auto file = [&](const char* name) { return (dir / name).string(); };
+  const std::string sim = file("sim.lcm"), replay = file("replay.lcm"), restamped = file("restamped.lcm");
+  const std::string report_dir = file("report");
+
+  std::vector<std::string> sim_args = {exe, "sim"};
+  if (!a.scenario.empty()) sim_args.push_back(a.scenario);
+  sim_args.insert(sim_args.end(), {"--duration", std::to_string(a.duration), "-o", sim, "--json"});
+  if (a.seed >= 0) sim_args.insert(sim_args.end(), {"--seed", std::to_string(a.seed)});
+  // The estimator as robot_localization runs by default (smooth_lagged_data: false): a measurement stamped before
+  // the filter's last update is dropped, not re-applied. That is where a skewed clock hurts a real robot.
+  const std::string config = file("replay.yaml");
+  {
+    std::ofstream c(config);
+    c << "# Written by driftlab demo: the estimator re-applies late measurements within window_s [s]; 0 drops them,\n"
+         "# as robot_localization does by default (smooth_lagged_data: false).\n"
+         "estimator:\n  window_s: "
+      << a.estimator_window << "\n";
+    if (!c) return fail(config + ": cannot write", kExitFailure);
+  }
+  const std::string modules = "slam,estimator,controller";
+  const std::string gt = sim + ":GROUND_TRUTH";
+  struct Step {
+    const char* what;
+    std::vector<std::string> args;
+    std::string stdout_file;
+  };
+  const std::vector<Step> steps = {
+      {"simulating the robot", sim_args, file("sim.json")},
+      {"diagnosing the log", {exe, "diagnose", sim, "--json", file("diagnosis.json")}, file("diagnosis.txt")},
+      {"replaying as logged", {exe, "replay", sim, "--modules", modules, "--config", config, "-o", replay, "--json"}, file("replay.json")},
+      {"replaying with corrected clocks",
+       {exe, "replay", sim, "--modules", modules, "--config", config, "--restamp", "auto", "-o", restamped, "--json"},
+       file("restamped.json")},
+      {"scoring the estimates",
+       {exe, "eval", "--gt", gt, "--est", replay + ":" + a.estimate, "--align", "posyaw", "--json",
+        file("eval-before.json")},
+       file("eval-before.txt")},
+      {"scoring the estimates",
+       {exe, "eval", "--gt", gt, "--est", restamped + ":" + a.estimate, "--align", "posyaw", "--json",
+        file("eval-after.json")},
+       file("eval-after.txt")},
+  };
+  const int total = static_cast<int>(steps.size()) + 1;
+  std::vector<Stage> stages;
+  const std::string errors = file("stage.err");
+  for (size_t i = 0; i < steps.size(); ++i) {
+    const Step& s = steps[i];
+    if (!a.json) std::printf("== %s\n", join_args(s.args).c_str());
+    std::fflush(stdout);
+    const auto t0 = std::chrono::steady_clock::now();
+    int code = 0;
+    {
+      StageLine line(static_cast<int>(i) + 1, total, s.what);
+      // The stage's errors go to a file (its progress would fight with ours): the last line is the one to show.
+      code = run_program(s.args, s.stdout_file, errors);
+    }
+    stages.push_back({s.args[1], std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count()});
+    if (code != 0) {
+      const std::string why = last_line_of(errors);
+      return fail("demo: " + join_args(s.args) + " failed (exit " + std::to_string(code) + ")" +
+                      (why.empty() ? "" : ": " + why),
+                  kExitFailure);
+    }
+  }
+  fs::remove(errors, ec);
+
+  ReportOptions r;
+  r.logs = {sim, replay, restamped};
+  r.out = report_dir;
+  r.diagnosis = file("diagnosis.json");
+  r.evals = {file("eval-before.json"), file("eval-after.json")};
+  r.title = "driftlab demo: " + std::to_string(static_cast<int>(a.duration)) + " s of " +
+            (a.scenario.empty() ? std::string("the default scenario") : fs::path(a.scenario).stem().string());
+  if (!a.json) {
+    std::printf("== driftlab report %s %s %s --diagnosis %s --eval %s --eval %s -o %s\n", sim.c_str(), replay.c_str(),
+                restamped.c_str(), r.diagnosis.c_str(), r.evals[0].c_str(), r.evals[1].c_str(), report_dir.c_str());
+  }
+  std::fflush(stdout);
+  const auto t0 = std::chrono::steady_clock::now();
+  Result<std::string> page = Error{""};
+  {
+    StageLine line(total, total, "drawing the report");
+    page = make_report(r);
+  }
+  if (!page) return fail("demo: " + page.error().message, kExitFailure);
+  stages.push_back({"report", std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count()});
+
+  // The summary, from the stages' JSON.
+  nlohmann::json diagnosis;
+  double before = 0, after = 0;
+  int64_t rejected_before = 0, rejected_after = 0;
+  try {
+    diagnosis = read_json(r.diagnosis);
+    before = read_json(r.evals[0])["ate"]["rmse"].get<double>();
+    after = read_json(r.evals[1])["ate"]["rmse"].get<double>();
+    rejected_before = late_rejected(read_json(file("replay.json")));
+    rejected_after = late_rejected(read_json(file("restamped.json")));
+  } catch (const nlohmann::json::exception& e) {
+    return fail("demo: reading the stages' JSON in " + a.out + ": " + e.what(), kExitFailure);
+  }
+  const nlohmann::json* worst = nullptr;
+  // Worst: faults before warnings; among them a wrong clock first (it touches every message), then the most reasons.
+  auto wrong_clock = [](const nlohmann::json& c) {
+    return c["clock"].is_object() && (c["clock"]["offset_s"].get<double>() >= 0.001 ||
+                                      std::abs(c["clock"]["drift_ppm"].get<double>()) >= 25);
+  };
+  auto rank = [&](const nlohmann::json& c) {
+    const std::string v = c["verdict"];
+    const int level = v == "fault" ? 2 : v == "warn" ? 1 : 0;
+    return level == 0 ? 0 : level * 100000 + (wrong_clock(c) ? 10000 : 0) + static_cast<int>(c["reasons"].size());
+  };
+  nlohmann::json offsets = nlohmann::json::object(), drops = nlohmann::json::object();
+  for (const auto& c : diagnosis["channels"]) {
+    if (rank(c) > 0 && (worst == nullptr || rank(c) > rank(*worst))) worst = &c;
+    // Only clocks ahead: one behind cannot be told from latency in one log (docs/diagnosis.md).
+    if (c["clock"].is_object() && c["clock"]["offset_s"].get<double>() >= 0.001) {
+      offsets[c["name"].get<std::string>()] = c["clock"]["offset_s"];
+    }
+    const auto& d = c["drops"];
+    const int64_t n = d["seq_gaps"].is_number() ? d["seq_gaps"].get<int64_t>() : d["missing_by_period"].get<int64_t>();
+    if (n > 0) drops[c["name"].get<std::string>()] = n;
+  }
+  if (a.json) {
+    nlohmann::json j;
+    j["report"] = *page;
+    j["dir"] = a.out;
+    j["estimate"] = a.estimate;
+    j["ate_before"] = before;
+    j["ate_after"] = after;
+    j["late_rejected_before"] = rejected_before;
+    j["late_rejected_after"] = rejected_after;
+    j["worst_stream"] = worst ? nlohmann::json{{"name", (*worst)["name"]}, {"verdict", (*worst)["verdict"]},
+                                               {"reasons", (*worst)["reasons"]}}
+                              : nlohmann::json();
+    j["clock_offsets_s"] = offsets;
+    j["drops"] = drops;
+    j["stages"] = nlohmann::json::array();
+    for (const auto& s : stages) j["stages"].push_back({{"name", s.name}, {"seconds", s.seconds}});
+    std::printf("%s\n", j.dump(2).c_str());
+    return kExitOk;
+  }
+  std::string worst_text = "none: no stream was flagged";
+  if (worst != nullptr) {
+    worst_text = (*worst)["name"].get<std::string>() + " (" + (*worst)["verdict"].get<std::string>() + ")";
+    if (!(*worst)["reasons"].empty()) worst_text += ": " + (*worst)["reasons"][0].get<std::string>();
+  }
+  std::string offset_text, drop_text;
+  char buf[128];
+  for (const auto& [name, v] : offsets.items()) {
+    std::snprintf(buf, sizeof(buf), "%s%s %+.1f ms", offset_text.empty() ? "" : ", ", name.c_str(), v.get<double>() * 1e3);
+    offset_text += buf;
+  }
+  for (const auto& [name, v] : drops.items()) {
+    drop_text += (drop_text.empty() ? "" : ", ") + name + " " + thousands(v.get<int64_t>());
+  }
+  std::printf("\nworst stream:  %s\n", worst_text.c_str());
+  std::printf("clocks ahead:  %s\n", offset_text.empty() ? "none by more than 1 ms" : offset_text.c_str());
+  std::printf("drops:         %s\n", drop_text.empty() ? "none" : drop_text.c_str());
+  std::printf("ATE:           %s %.3f m as logged, %.3f m with corrected clocks (%+.0f%%; late measurements "
+              "dropped: %s, then %s)\n",
+              a.estimate.c_str(), before, after, before > 0 ? (after - before) / before * 100 : 0.0,
+              thousands(rejected_before).c_str(), thousands(rejected_after).c_str());
+  std::printf("report:        %s\n", page->c_str());
+  return kExitOk;
+}
+
+}  // namespace
+
+void add_demo_command(CLI::App& app, int* exit_code) {
+  auto a = std::make_shared<DemoArgs>();
+  CLI::App* cmd = app.add_subcommand(
+      "demo", "Simulate, diagnose, replay (as logged and with corrected clocks), score and report, in one go.");
+  cmd->footer(
+      "Runs: driftlab sim, diagnose, replay --modules slam,estimator,controller (twice: as logged and with\n"
+      "--restamp auto), eval --align posyaw of the estimator's output against ground truth for both, and report.\n"
+      "The estimator runs as robot_localization does by default: late measurements are dropped, not re-applied\n"
+      "(--estimator-window 0.5 re-applies them, and a skewed clock then costs little: try both).\n"
+      "Every stage's output stays in OUT (sim.lcm, diagnosis.json, replay.lcm, restamped.lcm, eval-*.json,\n"
+      "report/index.html). Ends with five lines: the worst stream, the clock offsets found, the drops, the ATE\n"
+      "before and after correction, and where the report is; --json prints one JSON object instead.");
+  cmd->add_option("scenario", a->scenario, "Scenario file (default: the default indoor scenario)");
+  cmd->add_option("-o,--out", a->out, "Folder for the logs, JSON and report")->capture_default_str();
+  cmd->add_option("--duration", a->duration, "Simulated seconds")->capture_default_str()->check(CLI::PositiveNumber);
+  cmd->add_option("--seed", a->seed, "Random seed (default: the scenario's)")->check(CLI::NonNegativeNumber);
+  cmd->add_option("--estimate", a->estimate, "Channel of the replays scored against ground truth")->capture_default_str();
+  cmd->add_option("--estimator-window", a->estimator_window,
+                  "How far back the estimator re-applies late measurements [s] (0: drops them, as robot_localization)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 60.0));
+  cmd->add_flag("--json", a->json, "Print one JSON object (report path, ate_before, ate_after in metres, ...)");
+  cmd->callback([a, exit_code] { *exit_code = run_demo(*a); });
+}
+
+}  // namespace driftlab::apps

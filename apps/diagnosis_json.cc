@@ -1,0 +1,59 @@
+// The JSON of `driftlab diagnose --json`, also read by `driftlab report` and `driftlab demo`.
+#include "apps/diagnosis_json.h"
+
+namespace driftlab::apps {
+
+namespace {
+
+nlohmann::json distribution_json(const analyzers::Distribution& d) {
+  return {{"mean", d.mean}, {"p50", d.p50}, {"p95", d.p95}, {"p99", d.p99}, {"max", d.max}};
+}
+
+}  // namespace
+
+nlohmann::json to_json(const analyzers::Diagnosis& d) {
+  nlohmann::json channels = nlohmann::json::array();
+  for (const auto& c : d.channels) {
+    nlohmann::json gaps = nlohmann::json::array();
+    for (const auto& g : c.gaps) {
+      gaps.push_back({{"start_utime", g.start_utime}, {"end_utime", g.end_utime}, {"missing", g.missing}});
+    }
+    channels.push_back(
+        {{"name", c.name},
+         {"type", c.type.empty() ? nlohmann::json() : nlohmann::json(c.type)},
+         {"count", c.count},
+         {"rate_hz", c.rate_hz},
+         {"expected_period_s", c.expected_period_s},
+         {"drops", {{"seq_gaps", c.has_header ? nlohmann::json(c.seq_gaps) : nlohmann::json()},
+                    {"missing_by_period", c.missing_by_period},
+                    {"gaps", gaps}}},
+         {"duplicates", c.duplicates},
+         {"out_of_order", {{"by_stamp", c.out_of_order_stamp}, {"by_arrival", c.out_of_order_arrival}}},
+         {"latency_s", c.has_header ? distribution_json(c.latency_s) : nlohmann::json()},
+         {"clock", c.clock_valid ? nlohmann::json{{"offset_s", c.clock_offset_s}, {"drift_ppm", c.clock_drift_ppm}}
+                                 : nlohmann::json()},
+         {"transport_s", c.clock_valid ? distribution_json(c.transport_s) : nlohmann::json()},
+         {"verdict", c.verdict},
+         {"reasons", c.reasons}});
+  }
+  nlohmann::json pairs = nlohmann::json::array();
+  for (const auto& p : d.pairs) {
+    nlohmann::json windows = nlohmann::json::array();
+    for (const auto& w : p.windows) {
+      windows.push_back({{"start_s", w.start_s}, {"end_s", w.end_s}, {"offset_s", w.offset_s}, {"confidence", w.confidence}});
+    }
+    nlohmann::json curve = nlohmann::json::array();
+    for (const auto& [lag, c] : p.curve) curve.push_back({lag, c});
+    pairs.push_back({{"a", p.a}, {"b", p.b}, {"offset_s", p.offset_s}, {"confidence", p.confidence},
+                     {"method", p.method}, {"windows", windows}, {"curve", curve}});
+  }
+  return {{"log", d.log},
+          {"start_utime", d.start_utime},
+          {"end_utime", d.end_utime},
+          {"log_problems", d.log_problems},
+          {"channels", channels},
+          {"pairs", pairs},
+          {"tf", {{"frames", d.tf.frames}, {"roots", d.tf.roots}, {"problems", d.tf.problems}}}};
+}
+
+}  // namespace driftlab::apps

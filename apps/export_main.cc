@@ -1,0 +1,191 @@
+// driftlab export tum / export csv: trajectories for evo, every channel as a table for PlotJuggler and
+// spreadsheets. (export rawlog lives with import rawlog in rawlog_main.cc.)
+#include <CLI/CLI.hpp>
+
+#include <cstdio>
+#include <filesystem>
+#include <map>
+#include <memory>
+
+#include "analyzers/trajectory_io.h"
+#include "apps/cli_util.h"
+#include "apps/commands.h"
+#include "core/log_format.h"
+#include "core/log_reader.h"
+#include "lcmtypes/schema.h"
+#include "lcmtypes/type_registry.h"
+
+namespace driftlab::apps {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct TumArgs {
+  std::string log, channel, out;
+};
+
+struct CsvArgs {
+  std::string log, out, channels;
+  size_t max_array = 1024;
+  bool bytes = false;
+};
+
+std::string csv_quote(const std::string& s) {
+  if (s.find_first_of(",\"\n\r") == std::string::npos) return s;
+  std::string q = "\"";
+  for (char c : s) q += c == '"' ? std::string("\"\"") : std::string(1, c);
+  return q + "\"";
+}
+
+/// One channel's CSV, written as OUT/CHANNEL.csv.partial and renamed when the log has been read. The columns
+/// are those of its first message; a later message with more elements (a longer scan) gets only those columns,
+/// one with fewer leaves the rest empty.
+struct CsvFile {
+  FILE* f = nullptr;
+  std::string path;
+  std::map<std::string, size_t> column;  // name -> index
+  std::vector<std::string> row;
+  int64_t rows = 0, short_rows = 0;
+};
+
+int run_csv(const CsvArgs& a) {
+  ReadOptions ro;
+  ro.channels = a.channels;
+  auto reader = LogReader::open(a.log, ro);
+  if (!reader) return fail(reader.error().message);
+  std::error_code ec;
+  fs::create_directories(a.out, ec);
+  if (ec) return fail(a.out + ": cannot create: " + ec.message());
+  std::map<std::string, CsvFile, std::less<>> files;
+  std::map<std::string, int64_t> unknown;  // channel -> messages of a type without a definition here
+  lcmtypes::FlattenOptions fo;
+  fo.max_array = a.max_array;
+  fo.bytes = a.bytes;
+  auto close_all = [&](bool keep) {
+    for (auto& [name, f] : files) {
+      if (f.f != nullptr) std::fclose(f.f);
+      f.f = nullptr;
+      if (!keep) fs::remove(f.path + ".partial", ec);
+    }
+  };
+  Event e;
+  std::vector<std::pair<std::string, std::string>> values;
+  while (reader->next(e)) {
+    const char* type = lcmtypes::type_name(logfmt::fingerprint(e.data));
+    const lcmtypes::StructDef* def = type != nullptr ? lcmtypes::find_struct(type) : nullptr;
+    if (def == nullptr) {
+      ++unknown[std::string(e.channel)];
+      continue;
+    }
+    values.clear();
+    const bool complete =
+        lcmtypes::flatten(*def, e.data, [&](const std::string& c, const std::string& v) { values.emplace_back(c, v); }, fo);
+    auto it = files.find(e.channel);
+    if (it == files.end()) {
+      CsvFile f;
+      std::string name(e.channel);
+      for (char& c : name) {
+        if (c == '/' || c == '\\' || c == '\0') c = '_';
+      }
+      f.path = (fs::path(a.out) / (name + ".csv")).string();
+      f.f = std::fopen((f.path + ".partial").c_str(), "w");
+      if (f.f == nullptr) {
+        close_all(false);
+        return fail(f.path + ".partial: cannot create", kExitFailure);
+      }
+      std::fprintf(f.f, "log_time_s");
+      for (const auto& [c, v] : values) {
+        f.column.emplace(c, f.column.size());
+        std::fprintf(f.f, ",%s", csv_quote(c).c_str());
+      }
+      std::fprintf(f.f, "\n");
+      f.row.resize(f.column.size());
+      it = files.emplace(std::string(e.channel), std::move(f)).first;
+    }
+    CsvFile& f = it->second;
+    for (auto& cell : f.row) cell.clear();
+    for (const auto& [c, v] : values) {
+      if (auto k = f.column.find(c); k != f.column.end()) f.row[k->second] = csv_quote(v);
+    }
+    if (!complete) ++f.short_rows;
+    std::fprintf(f.f, "%.6f", static_cast<double>(e.utime) * 1e-6);
+    for (const auto& cell : f.row) {
+      std::fputc(',', f.f);
+      std::fputs(cell.c_str(), f.f);
+    }
+    std::fputc('\n', f.f);
+    ++f.rows;
+    if (std::ferror(f.f)) {
+      close_all(false);
+      return fail(f.path + ".partial: write failed (disk full?)", kExitFailure);
+    }
+  }
+  for (auto& [name, f] : files) {
+    const bool ok = std::fclose(f.f) == 0;
+    f.f = nullptr;
+    if (!ok) {
+      close_all(false);
+      return fail(f.path + ".partial: write failed (disk full?)", kExitFailure);
+    }
+    fs::rename(f.path + ".partial", f.path, ec);
+    if (ec) return fail(f.path + ": cannot rename into place: " + ec.message(), kExitFailure);
+  }
+  for (const auto& [name, f] : files) {
+    std::printf("%-24s %10s rows  %s%s\n", name.c_str(), thousands(f.rows).c_str(), f.path.c_str(),
+                f.short_rows ? (" (" + thousands(f.short_rows) + " messages shorter than their type)").c_str() : "");
+  }
+  for (const auto& [name, n] : unknown) {
+    std::printf("%-24s %10s messages of a type that is not driftlab's: skipped\n", name.c_str(), thousands(n).c_str());
+  }
+  if (reader->problems() > 0) {
+    std::printf("%s: %llu damaged spots skipped (driftlab info lists them)\n", a.log.c_str(),
+                static_cast<unsigned long long>(reader->problems()));
+  }
+  if (files.empty()) return fail(a.log + ": no channel of a driftlab type to export");
+  return kExitOk;
+}
+
+int run_tum(const TumArgs& a) {
+  auto t = analyzers::load_log_channel(a.log, a.channel);
+  if (!t) return fail(t.error().message);
+  const std::string partial = a.out + ".partial";
+  if (auto s = analyzers::write_tum(partial, *t); !s) {
+    std::error_code ec;
+    fs::remove(partial, ec);
+    return fail(s.message(), kExitFailure);
+  }
+  std::error_code ec;
+  fs::rename(partial, a.out, ec);
+  if (ec) return fail(a.out + ": cannot rename into place: " + ec.message(), kExitFailure);
+  std::printf("%s:%s -> %s: %s poses\n", a.log.c_str(), a.channel.c_str(), a.out.c_str(),
+              thousands(static_cast<int64_t>(t->size())).c_str());
+  return kExitOk;
+}
+
+}  // namespace
+
+void add_export_commands(CLI::App& exp, int* exit_code) {
+  auto tum = std::make_shared<TumArgs>();
+  CLI::App* t = exp.add_subcommand("tum", "A pose or odometry channel to a TUM trajectory file (for evo).");
+  t->footer("One line per pose: \"t x y z qx qy qz qw\", t the header stamp in seconds; evo_ape and evo_traj read it.");
+  t->add_option("log", tum->log, "Log to read")->required();
+  t->add_option("-c,--channel", tum->channel, "Channel (driftlab.pose_t or driftlab.odometry_t)")->required();
+  t->add_option("-o,--out", tum->out, "TUM file to write")->required();
+  t->callback([tum, exit_code] { *exit_code = run_tum(*tum); });
+
+  auto csv = std::make_shared<CsvArgs>();
+  CLI::App* c = exp.add_subcommand("csv", "Every channel to a CSV file of its own (for PlotJuggler, spreadsheets).");
+  c->footer(
+      "OUT/CHANNEL.csv per channel of a driftlab type: log_time_s (arrival), then every field flattened by its\n"
+      "definition in lcmtypes/ (header.seq, header.utime, orientation.w, ranges[0], ...). Columns come from each\n"
+      "channel's first message. Files are written as .partial and renamed when complete.");
+  c->add_option("log", csv->log, "Log to read")->required();
+  c->add_option("-o,--out", csv->out, "Folder to write the CSV files into")->required();
+  c->add_option("-c,--channels", csv->channels, "Only channels fully matching this regex (ECMAScript)");
+  c->add_option("--max-array", csv->max_array, "Arrays with more elements are left out (their length stays)")
+      ->capture_default_str();
+  c->add_flag("--bytes", csv->bytes, "Also write byte arrays (image data) as columns of numbers");
+  c->callback([csv, exit_code] { *exit_code = run_csv(*csv); });
+}
+
+}  // namespace driftlab::apps

@@ -1,0 +1,278 @@
+// driftlab report LOG... --out DIR: one self-contained HTML page (and a PNG of each plot) that shows what the
+// logs say: trajectories against ground truth, error over time with drops, gaps and latency spikes on the same
+// axis, latency histograms, inter-arrival times, skew correlation curves and the SLAM map.
+//
+// This file gathers the data (analyzers/log_series.h, the timing diagnosis, trajectory error) into DIR/report.json;
+// matplotlib draws it (analyzers/report_page.py, compiled into the program), since a maintained plotting library
+// draws better plots than we would by hand.
+#include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+
+#include "analyzers/log_series.h"
+#include "analyzers/timing.h"
+#include "analyzers/trajectory.h"
+#include "apps/cli_util.h"
+#include "apps/commands.h"
+#include "apps/diagnosis_json.h"
+#include "apps/report.h"
+
+namespace driftlab::apps {
+
+extern const char kReportPageScript[];  // analyzers/report_page.py, generated into report_page_script.cc
+
+namespace {
+
+namespace fs = std::filesystem;
+using namespace analyzers;
+
+/// Rounds to the microsecond (seconds) or micrometre (metres): the JSON stays a third of the size.
+double r6(double v) { return std::round(v * 1e6) / 1e6; }
+
+nlohmann::json rounded(const std::vector<double>& v) {
+  nlohmann::json a = nlohmann::json::array();
+  for (double x : v) a.push_back(r6(x));
+  return a;
+}
+
+Status write_file(const std::string& path, const std::string& bytes) {
+  std::ofstream out(path, std::ios::binary);
+  out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+  out.close();
+  if (!out) return Error{path + ": cannot write"};
+  return {};
+}
+
+std::string label_of(const std::string& log, const std::string& channel) {
+  return fs::path(log).filename().string() + ":" + channel;
+}
+
+Result<nlohmann::json> read_json(const std::string& path, const char* option) {
+  std::ifstream in(path);
+  if (!in) return Error{std::string(option) + " " + path + ": cannot open"};
+  try {
+    return nlohmann::json::parse(in);
+  } catch (const nlohmann::json::parse_error& e) {
+    return Error{std::string(option) + " " + path + ": not JSON (byte " + std::to_string(e.byte) + ")"};
+  }
+}
+
+double quantile(std::vector<double> v, double q) {
+  if (v.empty()) return 0;
+  const size_t k = std::min(v.size() - 1, static_cast<size_t>(q * static_cast<double>(v.size() - 1) + 0.5));
+  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(k), v.end());
+  return v[k];
+}
+
+/// A stream's plot data: arrivals, latency, its latency spikes (above the median by more than 10 ms and three
+/// times the p99's distance from it) and its drop gaps from the diagnosis.
+nlohmann::json stream_json(const StreamSeries& s, const nlohmann::json& diagnosed, double origin_s) {
+  nlohmann::json j = {{"channel", s.channel}, {"type", s.type}, {"has_header", s.has_header},
+                      {"arrival", rounded(s.arrival)}, {"latency", rounded(s.latency)}};
+  nlohmann::json spikes = nlohmann::json::array();
+  if (!s.latency.empty()) {
+    const double p50 = quantile(s.latency, 0.5), p99 = quantile(s.latency, 0.99);
+    const double threshold = p50 + std::max(0.010, 3 * (p99 - p50));
+    for (size_t i = 0; i < s.latency.size(); ++i) {
+      if (s.latency[i] > threshold) spikes.push_back({r6(s.arrival[i]), r6(s.latency[i])});
+    }
+    j["spike_threshold"] = r6(threshold);
+  }
+  j["spikes"] = spikes;
+  nlohmann::json gaps = nlohmann::json::array();
+  if (diagnosed.is_object()) {
+    for (const auto& g : diagnosed["drops"]["gaps"]) {
+      gaps.push_back({r6(g["start_utime"].get<double>() * 1e-6 - origin_s), r6(g["end_utime"].get<double>() * 1e-6 - origin_s),
+                      g["missing"]});
+    }
+    j["verdict"] = diagnosed["verdict"];
+    j["expected_period_s"] = diagnosed["expected_period_s"];
+  }
+  j["gaps"] = gaps;
+  return j;
+}
+
+/// An estimate aligned onto the reference (posyaw: it may start anywhere in the map frame) and its error over time.
+std::optional<nlohmann::json> estimate_json(const std::string& label, const Trajectory& gt, const Trajectory& est,
+                                            double origin_s) {
+  Matched m = match_interpolated(gt, est, 0.1, 0);
+  if (m.ref.size() < 2) return std::nullopt;
+  const Alignment a = align(m, AlignmentType::kPosYaw);
+  m.est = apply(a, std::move(m.est));
+  const ApeResult e = ape(m);
+  nlohmann::json t = nlohmann::json::array(), x = nlohmann::json::array(), y = nlohmann::json::array();
+  nlohmann::json err = nlohmann::json::array();
+  for (size_t i = 0; i < m.est.size(); ++i) {
+    t.push_back(r6(m.est.stamps[i] - origin_s));
+    x.push_back(r6(m.est.positions[i].x()));
+    y.push_back(r6(m.est.positions[i].y()));
+    err.push_back(r6(e.trans_errors[i]));
+  }
+  return nlohmann::json{{"label", label}, {"alignment", "posyaw"}, {"t", t}, {"x", x}, {"y", y}, {"error", err},
+                        {"ate_rmse", e.trans.rmse}, {"ate_max", e.trans.max}, {"matched", m.est.size()}};
+}
+
+nlohmann::json path_json(const std::string& label, const Trajectory& t, double origin_s) {
+  nlohmann::json ts = nlohmann::json::array(), x = nlohmann::json::array(), y = nlohmann::json::array();
+  for (size_t i = 0; i < t.size(); ++i) {
+    ts.push_back(r6(t.stamps[i] - origin_s));
+    x.push_back(r6(t.positions[i].x()));
+    y.push_back(r6(t.positions[i].y()));
+  }
+  return {{"label", label}, {"t", ts}, {"x", x}, {"y", y}};
+}
+
+}  // namespace
+
+Result<std::string> make_report(const ReportOptions& o) {
+  if (o.logs.empty()) return Error{"report: no log given"};
+  std::vector<LogSeries> logs;
+  for (const auto& path : o.logs) {
+    auto s = read_log_series(path);
+    if (!s) return s.error();
+    if (s->streams.empty()) return Error{path + ": no events"};
+    logs.push_back(std::move(*s));
+  }
+  const LogSeries& first = logs.front();
+  const double origin_s = static_cast<double>(first.start_utime) * 1e-6;
+
+  nlohmann::json diagnosis;
+  if (!o.diagnosis.empty()) {
+    auto d = read_json(o.diagnosis, "--diagnosis");
+    if (!d) return d.error();
+    diagnosis = std::move(*d);
+    if (!diagnosis.is_object() || !diagnosis.contains("channels")) {
+      return Error{"--diagnosis " + o.diagnosis + ": not the JSON of driftlab diagnose --json (no \"channels\")"};
+    }
+  } else {
+    auto d = diagnose(first.log);
+    if (!d) return d.error();
+    diagnosis = to_json(*d);
+  }
+  nlohmann::json evals = nlohmann::json::array();
+  for (const auto& path : o.evals) {
+    auto e = read_json(path, "--eval");
+    if (!e) return e.error();
+    if (!e->is_object() || !e->contains("ate")) {
+      return Error{"--eval " + path + ": not the JSON of driftlab eval --json (no \"ate\")"};
+    }
+    evals.push_back({{"file", fs::path(path).filename().string()}, {"result", std::move(*e)}});
+  }
+
+  nlohmann::json data;
+  data["title"] = o.title.empty() ? "driftlab report: " + fs::path(first.log).filename().string() : o.title;
+  data["logs"] = nlohmann::json::array();
+  for (const auto& l : logs) {
+    data["logs"].push_back({{"path", l.log},
+                            {"start_utime", l.start_utime},
+                            {"duration_s", static_cast<double>(l.end_utime - l.start_utime) * 1e-6},
+                            {"problems", l.problems}});
+  }
+  data["diagnosis"] = diagnosis;
+  data["evals"] = evals;
+
+  // Streams of the first log (the recording); later logs are replays whose inputs repeat it.
+  std::map<std::string, nlohmann::json> diagnosed;
+  for (const auto& c : diagnosis["channels"]) diagnosed[c["name"].get<std::string>()] = c;
+  data["streams"] = nlohmann::json::array();
+  for (const auto& s : first.streams) {
+    if (!diagnosed.count(s.channel)) continue;  // what the diagnosis leaves out (fault manifests, statistics)
+    data["streams"].push_back(stream_json(s, diagnosed[s.channel], origin_s));
+  }
+
+  // Trajectories: the reference from the first log that has it; estimates: every pose channel of the first log
+  // and those of later logs that the first does not have (the replays' outputs).
+  const Trajectory* gt = nullptr;
+  for (const auto& l : logs) {
+    if (auto it = l.poses.find(o.gt_channel); it != l.poses.end() && it->second.size() > 0) {
+      gt = &it->second;
+      data["reference"] = path_json(label_of(l.log, o.gt_channel), *gt, origin_s);
+      break;
+    }
+  }
+  data["estimates"] = nlohmann::json::array();
+  data["unmatched"] = nlohmann::json::array();
+  for (size_t k = 0; k < logs.size(); ++k) {
+    for (const auto& [channel, t] : logs[k].poses) {
+      if (channel == o.gt_channel || t.size() < 2) continue;
+      if (k > 0 && first.poses.count(channel)) continue;
+      const std::string label = label_of(logs[k].log, channel);
+      if (gt == nullptr) {
+        data["estimates"].push_back(path_json(label, t, origin_s));
+      } else if (auto e = estimate_json(label, *gt, t, origin_s)) {
+        data["estimates"].push_back(std::move(*e));
+      } else {
+        data["unmatched"].push_back(label);
+      }
+    }
+  }
+
+  std::error_code ec;
+  fs::create_directories(o.out, ec);
+  if (ec) return Error{o.out + ": cannot create the report folder: " + ec.message()};
+  data["maps"] = nlohmann::json::array();
+  for (const auto& l : logs) {
+    for (const auto& m : l.maps) {
+      const std::string file = "map-" + fs::path(l.log).stem().string() + "-" + m.channel + ".png";
+      if (auto st = write_file((fs::path(o.out) / file).string(), std::string(m.png.begin(), m.png.end())); !st) return Error{st.message()};
+      data["maps"].push_back({{"label", label_of(l.log, m.channel)}, {"file", file}, {"width", m.width},
+                              {"height", m.height}});
+    }
+  }
+
+  const std::string json_path = (fs::path(o.out) / "report.json").string();
+  if (auto st = write_file(json_path, data.dump() + "\n"); !st) return Error{st.message()};
+  const std::string script = (fs::path(o.out) / ".report_page.py").string();
+  if (auto st = write_file(script, kReportPageScript); !st) return Error{st.message()};
+  // The first Python that has matplotlib: $DRIFTLAB_PYTHON, the one on PATH, then Debian's (where
+  // python3-matplotlib installs, should PATH lead to another, like pyenv's).
+  std::vector<std::string> pythons = {"python3", "/usr/bin/python3"};
+  if (const char* p = std::getenv("DRIFTLAB_PYTHON"); p != nullptr && *p != 0) pythons.insert(pythons.begin(), p);
+  int code = 127;
+  for (const auto& python : pythons) {
+    code = run_program({python, script, json_path, o.out}, "");
+    if (code != 3 && code != 127) break;
+  }
+  fs::remove(script, ec);
+  if (code == 3 || code == 127) {
+    return Error{"report: no python3 with matplotlib (Debian: apt-get install python3-matplotlib, or run scripts/bootstrap)"};
+  }
+  if (code != 0) return Error{"report: drawing the plots failed (python3 exited with " + std::to_string(code) + ")"};
+  return (fs::path(o.out) / "index.html").string();
+}
+
+void add_report_command(CLI::App& app, int* exit_code) {
+  auto o = std::make_shared<ReportOptions>();
+  CLI::App* cmd = app.add_subcommand(
+      "report", "Write one self-contained HTML page with plots (and a PNG of each) of what the logs say.");
+  cmd->footer(
+      "The first LOG is the recording (a simulator or recorder log); later logs are replays of it, whose new pose\n"
+      "channels are shown as estimates. Plots: trajectories in the plane (estimates aligned in position and yaw);\n"
+      "error over time with drops, gaps and latency spikes on the same axis; latency histograms; inter-arrival times;\n"
+      "skew correlation curves; SLAM maps. Without --diagnosis the first log is diagnosed. Needs python3 with\n"
+      "matplotlib. DIR gets index.html, a PNG per plot and report.json (the data plotted).");
+  cmd->add_option("logs", o->logs, "Logs: the recording first, then replays of it")->required()->check(CLI::ExistingFile);
+  cmd->add_option("-o,--out", o->out, "Folder to write the report into")->required();
+  cmd->add_option("--diagnosis", o->diagnosis, "Diagnosis of the first log (driftlab diagnose --json)");
+  cmd->add_option("--eval", o->evals, "Trajectory evaluation to tabulate (driftlab eval --json; repeatable)");
+  cmd->add_option("--gt", o->gt_channel, "Ground-truth channel")->capture_default_str();
+  cmd->add_option("--title", o->title, "Page title (default: from the first log)");
+  cmd->callback([o, exit_code] {
+    auto page = make_report(*o);
+    if (!page) {
+      *exit_code = fail(page.error().message);
+      return;
+    }
+    std::printf("%s\n", page->c_str());
+    *exit_code = kExitOk;
+  });
+}
+
+}  // namespace driftlab::apps

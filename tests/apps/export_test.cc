@@ -1,0 +1,138 @@
+// `driftlab export tum` and `driftlab export csv` end to end on the golden sample log: what they write must read
+// back as the log's own messages.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "analyzers/trajectory_io.h"
+#include "core/log_reader.h"
+#include "driftlab/imu_t.hpp"
+#include "driftlab/laser_scan_t.hpp"
+#include "tests/test_util.h"
+
+namespace driftlab {
+namespace {
+
+const std::string kDriftlab = std::string(DRIFTLAB_BIN_DIR) + "/driftlab";
+const std::string kSample = std::string(DRIFTLAB_TEST_DATA) + "/sample.lcm";
+
+test::CmdResult driftlab(const std::string& args) { return test::run_capture(kDriftlab + " " + args); }
+
+std::vector<std::vector<std::string>> read_csv(const std::string& path) {
+  std::ifstream in(path);
+  std::vector<std::vector<std::string>> rows;
+  std::string line;
+  while (std::getline(in, line)) {
+    std::vector<std::string> cells;
+    std::stringstream ss(line);
+    std::string cell;
+    while (std::getline(ss, cell, ',')) cells.push_back(cell);
+    if (!line.empty() && line.back() == ',') cells.emplace_back();
+    rows.push_back(std::move(cells));
+  }
+  return rows;
+}
+
+size_t column(const std::vector<std::string>& header, const std::string& name) {
+  for (size_t i = 0; i < header.size(); ++i) {
+    if (header[i] == name) return i;
+  }
+  ADD_FAILURE() << "no column " << name;
+  return 0;
+}
+
+TEST(ExportTum, WritesTheChannelsPosesAsEvoReadsThem) {
+  test::TempDir dir;
+  const auto r = driftlab("export tum " + kSample + " -c GROUND_TRUTH -o " + dir.file("gt.tum"));
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("101 poses"), std::string::npos) << r.out;
+  auto tum = analyzers::load_tum(dir.file("gt.tum"));
+  auto log = analyzers::load_log_channel(kSample, "GROUND_TRUTH");
+  ASSERT_TRUE(tum.ok() && log.ok());
+  ASSERT_EQ(tum->size(), log->size());
+  for (size_t i = 0; i < log->size(); ++i) {
+    EXPECT_NEAR(tum->stamps[i], log->stamps[i], 1e-6);
+    EXPECT_EQ(tum->positions[i], log->positions[i]);
+    EXPECT_NEAR(tum->orientations[i].angularDistance(log->orientations[i]), 0, 1e-12);
+  }
+  EXPECT_FALSE(std::filesystem::exists(dir.file("gt.tum.partial")));
+}
+
+TEST(ExportTum, AnUnknownChannelIsOneLineNamingItAndWritesNothing) {
+  test::TempDir dir;
+  const auto r = driftlab("export tum " + kSample + " -c NOPE -o " + dir.file("x.tum"));
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("no channel NOPE"), std::string::npos) << r.err;
+  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1);
+  EXPECT_FALSE(std::filesystem::exists(dir.file("x.tum")));
+  const auto wrong = driftlab("export tum " + kSample + " -c IMU -o " + dir.file("x.tum"));
+  EXPECT_EQ(wrong.code, 2);
+  EXPECT_NE(wrong.err.find("neither driftlab.pose_t nor driftlab.odometry_t"), std::string::npos) << wrong.err;
+}
+
+TEST(ExportCsv, EveryChannelBecomesATableOfItsFields) {
+  test::TempDir dir;
+  const auto r = driftlab("export csv " + kSample + " -o " + dir.path());
+  ASSERT_EQ(r.code, 0) << r.err;
+  for (const char* channel : {"CMD_VEL", "GROUND_TRUTH", "IMU", "ODOM", "SCAN", "TF", "TF_STATIC"}) {
+    EXPECT_TRUE(std::filesystem::exists(dir.file(std::string(channel) + ".csv"))) << channel;
+  }
+
+  // IMU: one row per message, each value that of the decoded message.
+  const auto imu = read_csv(dir.file("IMU.csv"));
+  ASSERT_EQ(imu.size(), 1u + 201);
+  const auto& h = imu[0];
+  EXPECT_EQ(h[0], "log_time_s");
+  const size_t seq = column(h, "header.seq"), stamp = column(h, "header.utime"), wz = column(h, "angular_velocity.z"),
+               az = column(h, "linear_acceleration.z"), cov = column(h, "angular_velocity_covariance[8]");
+  auto reader = LogReader::open(kSample, {.channels = "IMU"});
+  ASSERT_TRUE(reader.ok());
+  Event e;
+  size_t row = 1;
+  while (reader->next(e)) {
+    driftlab::imu_t m;
+    ASSERT_GE(m.decode(e.data.data(), 0, static_cast<int>(e.data.size())), 0);
+    const auto& cells = imu[row++];
+    ASSERT_EQ(cells.size(), h.size());
+    EXPECT_NEAR(std::stod(cells[0]), static_cast<double>(e.utime) * 1e-6, 1e-6);
+    EXPECT_EQ(std::stoll(cells[seq]), m.header.seq);
+    EXPECT_EQ(std::stoll(cells[stamp]), m.header.utime);
+    EXPECT_EQ(std::stod(cells[wz]), m.angular_velocity.z);  // %.17g: doubles read back exactly
+    EXPECT_EQ(std::stod(cells[az]), m.linear_acceleration.z);
+    EXPECT_EQ(std::stod(cells[cov]), m.angular_velocity_covariance[8]);
+  }
+
+  // SCAN: the ranges as columns, as many as the first scan has.
+  const auto scan = read_csv(dir.file("SCAN.csv"));
+  ASSERT_EQ(scan.size(), 1u + 11);
+  const size_t n = column(scan[0], "nranges");
+  const int beams = std::stoi(scan[1][n]);
+  EXPECT_GT(beams, 0);
+  column(scan[0], "ranges[" + std::to_string(beams - 1) + "]");
+}
+
+TEST(ExportCsv, ChannelFilterAndLongArraysLeftOut) {
+  test::TempDir dir;
+  const auto r = driftlab("export csv " + kSample + " -c SCAN --max-array 4 -o " + dir.path());
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_FALSE(std::filesystem::exists(dir.file("IMU.csv")));
+  const auto scan = read_csv(dir.file("SCAN.csv"));
+  for (const auto& c : scan[0]) EXPECT_EQ(c.rfind("ranges[", 0), std::string::npos) << c;
+  column(scan[0], "nranges");
+}
+
+TEST(ExportCsv, ADamagedLogExportsEveryIntactEventAndGarbageIsOneLine) {
+  test::TempDir dir;
+  const auto r = driftlab("export csv " + std::string(DRIFTLAB_TEST_DATA) + "/truncated.lcm -o " + dir.path());
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("damaged"), std::string::npos) << r.out;
+  const auto bad = driftlab("export csv " + std::string(DRIFTLAB_TEST_DATA) + "/not_a_log.txt -o " + dir.file("none"));
+  EXPECT_EQ(bad.code, 2);
+  EXPECT_NE(bad.err.find("not_a_log.txt"), std::string::npos) << bad.err;
+  EXPECT_EQ(std::count(bad.err.begin(), bad.err.end(), '\n'), 1);
+}
+
+}  // namespace
+}  // namespace driftlab

@@ -1,0 +1,156 @@
+// `driftlab demo` and `driftlab report` end to end: a short run of the default scenario, its faults scored
+// against the simulator's manifest, the ATE before and after restamping, and the report rendered in headless
+// Chromium with every plot drawn.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <regex>
+
+#include "tests/test_util.h"
+
+namespace driftlab {
+namespace {
+
+const std::string kDriftlab = std::string(DRIFTLAB_BIN_DIR) + "/driftlab";
+
+test::CmdResult driftlab(const std::string& args) { return test::run_capture(kDriftlab + " " + args); }
+
+nlohmann::json read_json(const std::string& path) {
+  std::ifstream in(path);
+  return nlohmann::json::parse(in);
+}
+
+/// The page's body attribute `name` after headless Chromium loaded it and ran its scripts; -1 when absent.
+int rendered_attribute(const std::string& page, const std::string& name, std::string* dom_out = nullptr) {
+  test::TempDir profile;
+  const auto r = test::run_capture(
+      "chromium --headless --no-sandbox --disable-gpu --disable-quic --no-first-run --disable-background-networking "
+      "--disable-component-update --disable-sync --user-data-dir=" + profile.path() +
+      " --virtual-time-budget=10000 --dump-dom file://" + page + " 2>/dev/null");
+  EXPECT_EQ(r.code, 0) << "chromium failed";
+  if (dom_out != nullptr) *dom_out = r.out;
+  std::smatch m;
+  if (!std::regex_search(r.out, m, std::regex(name + "=\"(\\d+)\""))) return -1;
+  return std::stoi(m[1]);
+}
+
+class DemoCli : public ::testing::Test {
+ protected:
+  /// 40 s of the default scenario through the whole demo, once.
+  static void SetUpTestSuite() {
+    dir_ = new test::TempDir;
+    const auto r = driftlab("demo --duration 40 --json -o " + dir_->path());
+    ASSERT_EQ(r.code, 0) << r.err;
+    summary_ = new nlohmann::json(nlohmann::json::parse(r.out));
+  }
+  static void TearDownTestSuite() {
+    delete summary_;
+    delete dir_;
+  }
+  static std::string file(const std::string& name) { return dir_->file(name); }
+  static test::TempDir* dir_;
+  static nlohmann::json* summary_;
+};
+test::TempDir* DemoCli::dir_ = nullptr;
+nlohmann::json* DemoCli::summary_ = nullptr;
+
+TEST_F(DemoCli, FindsTheInjectedFaultsAndRestampingLowersTheError) {
+  const auto& s = *summary_;
+  // The faults the simulator injected, from its manifest (the analyzers never read it).
+  const auto manifest = read_json(file("sim.faults.json"));
+  double imu_offset = 0;
+  int64_t scan_dropped = 0;
+  for (const auto& f : manifest["faults"]) {
+    if (f["channel"] == "IMU" && f["kind"] == "clock_offset") imu_offset = f["params"]["offset_s"];
+    if (f["channel"] == "SCAN" && (f["kind"] == "drop" || f["kind"] == "burst_drop")) {
+      scan_dropped += static_cast<int64_t>(f["affected_seq"].size());
+    }
+  }
+  ASSERT_GT(imu_offset, 0);
+  ASSERT_GT(scan_dropped, 0);
+  EXPECT_EQ(s["worst_stream"]["name"], "IMU");
+  EXPECT_NEAR(s["clock_offsets_s"]["IMU"].get<double>(), imu_offset, 0.001);
+  EXPECT_EQ(s["drops"]["SCAN"].get<int64_t>(), scan_dropped);
+  EXPECT_FALSE(s["clock_offsets_s"].contains("ODOM"));  // latency and jitter, not a clock
+
+  // The IMU's clock ahead makes the estimator drop the odometry as late; corrected, the error falls.
+  const double before = s["ate_before"], after = s["ate_after"];
+  EXPECT_LT(after, 0.5 * before);
+  EXPECT_LT(after, 0.1);
+  EXPECT_GT(s["late_rejected_before"].get<int64_t>(), s["late_rejected_after"].get<int64_t>());
+  EXPECT_EQ(read_json(file("eval-before.json"))["ate"]["rmse"].get<double>(), before);
+  EXPECT_EQ(s["report"], file("report/index.html"));
+}
+
+TEST_F(DemoCli, ReportRendersEveryPlotInChromium) {
+  const std::string page = file("report/index.html");
+  for (const char* png : {"trajectories.png", "error_timeline.png", "latency.png", "interarrival.png", "skew.png",
+                          "slam_map_0.png"}) {
+    EXPECT_TRUE(std::filesystem::exists(file(std::string("report/") + png))) << png;
+  }
+  std::string dom;
+  const int plots = rendered_attribute(page, "data-plots", &dom);
+  EXPECT_GE(plots, 7) << dom.substr(0, 2000);  // trajectories, error, latency, inter-arrival, skew, two maps
+  EXPECT_EQ(rendered_attribute(page, "data-plots-drawn"), plots);
+  EXPECT_EQ(rendered_attribute(page, "data-plots-blank"), 0);
+  // The page names the fault in words and opens offline: nothing is fetched from elsewhere.
+  EXPECT_NE(dom.find("IMU"), std::string::npos);
+  EXPECT_NE(dom.find("ahead of arrival"), std::string::npos);
+  EXPECT_EQ(dom.find("src=\"http"), std::string::npos);
+  EXPECT_EQ(dom.find("href=\"http"), std::string::npos);
+  // The data behind the plots is kept: the error over time of both replays' estimates.
+  const auto data = read_json(file("report/report.json"));
+  int estimates_with_error = 0;
+  for (const auto& e : data["estimates"]) estimates_with_error += e.contains("error") ? 1 : 0;
+  EXPECT_GE(estimates_with_error, 4);  // ODOM, both EKF_ODOM and both SLAM_POSE
+}
+
+TEST_F(DemoCli, TextModeEndsWithTheFiveLineSummary) {
+  test::TempDir dir;
+  const auto r = driftlab("demo --duration 20 -o " + dir.path());
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto tail = r.out.substr(r.out.rfind("\n\n") + 2);
+  EXPECT_EQ(std::count(tail.begin(), tail.end(), '\n'), 5) << tail;
+  for (const char* line : {"worst stream:", "clocks ahead:", "drops:", "ATE:", "report:"}) {
+    EXPECT_NE(tail.find(line), std::string::npos) << line << " in\n" << tail;
+  }
+}
+
+TEST(ReportCli, DiagnosesTheLogItselfWhenGivenNoJson) {
+  test::TempDir dir;
+  const auto r = driftlab("report " + std::string(DRIFTLAB_TEST_DATA) + "/sample.lcm -o " + dir.path());
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto data = read_json(dir.file("report.json"));
+  EXPECT_EQ(data["diagnosis"]["channels"].size(), 7u);
+  EXPECT_EQ(data["reference"]["label"], "sample.lcm:GROUND_TRUTH");
+  ASSERT_EQ(data["estimates"].size(), 1u);  // ODOM
+  EXPECT_EQ(data["estimates"][0]["label"], "sample.lcm:ODOM");
+  const int plots = rendered_attribute(dir.file("index.html"), "data-plots");
+  EXPECT_GE(plots, 4);
+  EXPECT_EQ(rendered_attribute(dir.file("index.html"), "data-plots-drawn"), plots);
+}
+
+TEST(ReportCli, BadInputIsOneLineNamingTheFile) {
+  test::TempDir dir;
+  const std::string sample = std::string(DRIFTLAB_TEST_DATA) + "/sample.lcm";
+  test::write_file(dir.file("bad.json"), {'{', 'x'});
+  auto r = driftlab("report " + sample + " --diagnosis " + dir.file("bad.json") + " -o " + dir.file("out"));
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("bad.json: not JSON"), std::string::npos) << r.err;
+  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1);
+  test::write_file(dir.file("other.json"), {'{', '}'});
+  r = driftlab("report " + sample + " --eval " + dir.file("other.json") + " -o " + dir.file("out"));
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("not the JSON of driftlab eval"), std::string::npos) << r.err;
+  r = driftlab("report " + std::string(DRIFTLAB_TEST_DATA) + "/empty.lcm -o " + dir.file("out"));
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("empty.lcm"), std::string::npos) << r.err;
+  r = driftlab("report " + dir.file("missing.lcm") + " -o " + dir.file("out"));
+  EXPECT_EQ(r.code, 2);
+  EXPECT_FALSE(std::filesystem::exists(dir.file("out/index.html")));
+}
+
+}  // namespace
+}  // namespace driftlab
