@@ -82,7 +82,9 @@ struct Diagnosis {
 struct DiagnoseOptions {
   double max_lag_s = 0.3;    ///< skew search range [s]
   double window_s = 10.0;    ///< skew window [s] (longer on long logs: at most 64 windows)
-  std::vector<std::string> ignore_channels = {"DRIFTLAB_RECORDER_STATS", "FAULTS"};
+  /// Bookkeeping, not streams: the recorder's and the replayer's statistics (one seq per module, so they would
+  /// look duplicated) and the fault manifests.
+  std::vector<std::string> ignore_channels = {"DRIFTLAB_RECORDER_STATS", "FAULTS", "MODULE_STATS", "REPLAY_FAULTS"};
 };
 
 Result<Diagnosis> diagnose(const std::string& log, const DiagnoseOptions& options = {});

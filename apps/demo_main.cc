@@ -45,7 +45,7 @@ class StageLine {
       const auto start = std::chrono::steady_clock::now();
       while (!done_) {
         const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-        std::fprintf(stderr, "\r\033[K%s ... %.0f s", what_.c_str(), s);
+        std::fprintf(stderr, "\r\033[K%s ... %.1f s", what_.c_str(), s);
         std::fflush(stderr);
         for (int i = 0; i < 5 && !done_; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(100));
       }
@@ -119,7 +119,9 @@ int run_demo(const DemoArgs& a) {
 
   std::vector<std::string> sim_args = {exe, "sim"};
   if (!a.scenario.empty()) sim_args.push_back(a.scenario);
-  sim_args.insert(sim_args.end(), {"--duration", std::to_string(a.duration), "-o", sim, "--json"});
+  char duration[32];
+  std::snprintf(duration, sizeof(duration), "%g", a.duration);
+  sim_args.insert(sim_args.end(), {"--duration", duration, "-o", sim, "--json"});
   if (a.seed >= 0) sim_args.insert(sim_args.end(), {"--seed", std::to_string(a.seed)});
   // The estimator as robot_localization runs by default (smooth_lagged_data: false): a measurement stamped before
   // the filter's last update is dropped, not re-applied. That is where a skewed clock hurts a real robot.
@@ -184,7 +186,7 @@ int run_demo(const DemoArgs& a) {
   r.out = report_dir;
   r.diagnosis = file("diagnosis.json");
   r.evals = {file("eval-before.json"), file("eval-after.json")};
-  r.title = "driftlab demo: " + std::to_string(static_cast<int>(a.duration)) + " s of " +
+  r.title = std::string("driftlab demo: ") + duration + " s of " +
             (a.scenario.empty() ? std::string("the default scenario") : fs::path(a.scenario).stem().string());
   if (!a.json) {
     std::printf("== driftlab report %s %s %s --diagnosis %s --eval %s --eval %s -o %s\n", sim.c_str(), replay.c_str(),
