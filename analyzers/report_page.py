@@ -151,6 +151,12 @@ def grid_of(n, width=11, row_height=2.3):
     return fig, flat
 
 
+def save_grid(page, fig, suptitle, name, title, caption):
+    fig.suptitle(suptitle, fontweight="bold")
+    fig.tight_layout()
+    page.save(fig, name, title, caption)
+
+
 def plot_latency(page, data):
     streams = [s for s in data["streams"] if s["latency"]]
     if not streams:
@@ -171,9 +177,7 @@ def plot_latency(page, data):
         what = "constant" if hi - lo < 0.01 else "median"
         ax.set_title(f"{s['channel']}  ({what} {p50:.1f} ms)", fontsize=9.5)
         ax.set_xlabel("arrival - stamp [ms]")
-    fig.suptitle("Latency per stream", fontweight="bold")
-    fig.tight_layout()
-    page.save(fig, "latency.png", "Latency histograms",
+    save_grid(page, fig, "Latency per stream", "latency.png", "Latency histograms",
               "Arrival time minus header stamp per message (log scale counts): a clock offset moves the whole "
               "histogram, transport jitter widens it. Dashed: median; orange: the spike threshold.")
 
@@ -194,9 +198,7 @@ def plot_interarrival(page, data):
         ax.set_title(s["channel"], fontsize=9.5)
         ax.set_xlabel("time [s]")
         ax.set_ylabel("interval [ms]")
-    fig.suptitle("Inter-arrival time per stream", fontweight="bold")
-    fig.tight_layout()
-    page.save(fig, "interarrival.png", "Inter-arrival times",
+    save_grid(page, fig, "Inter-arrival time per stream", "interarrival.png", "Inter-arrival times",
               "Time between consecutive arrivals: drops show as steps of whole periods above the dashed expected "
               "period, bursts as clusters, reordering and duplicates as points near zero.")
 

@@ -38,10 +38,10 @@ int rendered_attribute(const std::string& page, const std::string& name, std::st
 
 class DemoCli : public ::testing::Test {
  protected:
-  /// 40 s of the default scenario through the whole demo, once.
+  /// 30 s of the default scenario through the whole demo, once per test process.
   static void SetUpTestSuite() {
     dir_ = new test::TempDir;
-    const auto r = driftlab("demo --duration 40 --json -o " + dir_->path());
+    const auto r = driftlab("demo --duration 30 --json -o " + dir_->path());
     ASSERT_EQ(r.code, 0) << r.err;
     summary_ = new nlohmann::json(nlohmann::json::parse(r.out));
   }
@@ -107,9 +107,9 @@ TEST_F(DemoCli, ReportRendersEveryPlotInChromium) {
   EXPECT_GE(estimates_with_error, 4);  // ODOM, both EKF_ODOM and both SLAM_POSE
 }
 
-TEST_F(DemoCli, TextModeEndsWithTheFiveLineSummary) {
+TEST(DemoText, EndsWithTheFiveLineSummary) {
   test::TempDir dir;
-  const auto r = driftlab("demo --duration 20 -o " + dir.path());
+  const auto r = driftlab("demo --duration 15 -o " + dir.path());
   ASSERT_EQ(r.code, 0) << r.err;
   const auto tail = r.out.substr(r.out.rfind("\n\n") + 2);
   EXPECT_EQ(std::count(tail.begin(), tail.end(), '\n'), 5) << tail;
