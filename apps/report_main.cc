@@ -88,12 +88,12 @@ nlohmann::json stream_json(const StreamSeries& s, const nlohmann::json& diagnose
   j["spikes"] = spikes;
   nlohmann::json gaps = nlohmann::json::array();
   if (diagnosed.is_object()) {
-    for (const auto& g : diagnosed["drops"]["gaps"]) {
-      gaps.push_back({r6(g["start_utime"].get<double>() * 1e-6 - origin_s), r6(g["end_utime"].get<double>() * 1e-6 - origin_s),
-                      g["missing"]});
+    for (const auto& g : diagnosed.at("drops").at("gaps")) {
+      gaps.push_back({r6(g.at("start_utime").get<double>() * 1e-6 - origin_s),
+                      r6(g.at("end_utime").get<double>() * 1e-6 - origin_s), g.at("missing")});
     }
-    j["verdict"] = diagnosed["verdict"];
-    j["expected_period_s"] = diagnosed["expected_period_s"];
+    j["verdict"] = diagnosed.at("verdict");
+    j["expected_period_s"] = diagnosed.at("expected_period_s");
   }
   j["gaps"] = gaps;
   return j;
@@ -180,11 +180,15 @@ Result<std::string> make_report(const ReportOptions& o) {
 
   // Streams of the first log (the recording); later logs are replays whose inputs repeat it.
   std::map<std::string, nlohmann::json> diagnosed;
-  for (const auto& c : diagnosis["channels"]) diagnosed[c["name"].get<std::string>()] = c;
   data["streams"] = nlohmann::json::array();
-  for (const auto& s : first.streams) {
-    if (!diagnosed.count(s.channel)) continue;  // what the diagnosis leaves out (fault manifests, statistics)
-    data["streams"].push_back(stream_json(s, diagnosed[s.channel], origin_s));
+  try {
+    for (const auto& c : diagnosis.at("channels")) diagnosed[c.at("name").get<std::string>()] = c;
+    for (const auto& s : first.streams) {
+      if (!diagnosed.count(s.channel)) continue;  // what the diagnosis leaves out (fault manifests, statistics)
+      data["streams"].push_back(stream_json(s, diagnosed[s.channel], origin_s));
+    }
+  } catch (const nlohmann::json::exception& e) {
+    return Error{"--diagnosis " + o.diagnosis + ": not the JSON of driftlab diagnose --json (" + e.what() + ")"};
   }
 
   // Trajectories: the reference from the first log that has it; estimates: every pose channel of the first log

@@ -100,6 +100,15 @@ struct Walker {
     return v;
   }
 
+  /// Bytes of one element of a fixed-size primitive type; 0 for strings and structs.
+  static size_t fixed_size(const std::string& type) {
+    if (type == "double" || type == "int64_t") return 8;
+    if (type == "float" || type == "int32_t") return 4;
+    if (type == "int16_t") return 2;
+    if (type == "int8_t" || type == "byte" || type == "boolean") return 1;
+    return 0;
+  }
+
   /// One primitive; `value` receives its integer value (for array lengths). emit = false skips the visit.
   bool primitive(const std::string& type, const std::string& column, int64_t* value, bool emit) {
     const uint8_t* p = nullptr;
@@ -125,7 +134,7 @@ struct Walker {
       if (n == 0 || !take(n, p)) return false;
       text.assign(reinterpret_cast<const char*>(p), n - 1);
     } else {
-      const size_t size = type == "int64_t" ? 8 : type == "int32_t" ? 4 : type == "int16_t" ? 2 : 1;
+      const size_t size = fixed_size(type);
       if (!take(size, p)) return false;
       const uint64_t raw = be(p, size);
       const int shift = static_cast<int>(64 - 8 * size);
@@ -147,7 +156,7 @@ struct Walker {
   bool array(const FieldDef& f, size_t d, const std::vector<int64_t>& sizes, const std::string& column, bool emit) {
     if (d == sizes.size()) return element(f, column, nullptr, emit);
     for (int64_t k = 0; k < sizes[d]; ++k) {
-      if (!array(f, d + 1, sizes, column + "[" + std::to_string(k) + "]", emit)) return false;
+      if (!array(f, d + 1, sizes, emit ? column + "[" + std::to_string(k) + "]" : column, emit)) return false;
     }
     return true;
   }
@@ -171,12 +180,12 @@ struct Walker {
         total *= n;
       }
       const bool keep = emit && static_cast<size_t>(total) <= options.max_array && (f.type != "byte" || options.bytes);
-      if (f.type == "byte" && f.dims.size() == 1) {  // bytes are skipped in one step
+      if (const size_t size = fixed_size(f.type); !keep && size > 0) {  // skipped in one step
         const uint8_t* p = nullptr;
-        if (!keep) {
-          if (!take(static_cast<size_t>(total), p)) return false;
-          continue;
+        if (static_cast<uint64_t>(total) > (data.size() - pos) / size || !take(static_cast<size_t>(total) * size, p)) {
+          return false;
         }
+        continue;
       }
       if (!array(f, 0, sizes, column, keep)) return false;
     }

@@ -140,6 +140,11 @@ TEST(ReportCli, BadInputIsOneLineNamingTheFile) {
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("bad.json: not JSON"), std::string::npos) << r.err;
   EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1);
+  const std::string odd = R"({"channels": [{"name": "IMU", "drops": 3}]})";
+  test::write_file(dir.file("odd.json"), std::vector<uint8_t>(odd.begin(), odd.end()));
+  r = driftlab("report " + sample + " --diagnosis " + dir.file("odd.json") + " -o " + dir.file("out"));
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("odd.json: not the JSON of driftlab diagnose"), std::string::npos) << r.err;
   test::write_file(dir.file("other.json"), {'{', '}'});
   r = driftlab("report " + sample + " --eval " + dir.file("other.json") + " -o " + dir.file("out"));
   EXPECT_EQ(r.code, 2);
