@@ -282,8 +282,13 @@ def esc(x):
     return html.escape(str(x))
 
 
+def nozero(text):
+    """"-0.0" and "-0" read as a sign that is not there."""
+    return text[1:] if text.startswith("-") and not text.strip("-0.") else text
+
+
 def fmt_ms(seconds):
-    return "-" if seconds is None else f"{seconds * 1e3:.1f} ms"
+    return "-" if seconds is None else nozero(f"{seconds * 1e3:.1f}") + " ms"
 
 
 def summary_cards(data):
@@ -328,7 +333,7 @@ def channel_table(d):
             f"<td>{c['count']:,}</td><td>{c['rate_hz']:.2f}</td><td>{drops:,}</td><td>{c['duplicates']:,}</td>"
             f"<td>{c['out_of_order']['by_stamp']:,}</td><td>{fmt_ms(lat.get('p50'))}</td>"
             f"<td>{fmt_ms(lat.get('p99'))}</td><td>{fmt_ms(clock.get('offset_s'))}</td>"
-            f"<td>{'-' if not clock else format(clock['drift_ppm'], '.0f') + ' ppm'}</td></tr>")
+            f"<td>{'-' if not clock else nozero(format(clock['drift_ppm'], '.0f')) + ' ppm'}</td></tr>")
     return ("<table><tr><th>channel</th><th>verdict</th><th>count</th><th>rate Hz</th><th>drops</th><th>dups</th>"
             "<th>reordered</th><th>latency p50</th><th>p99</th><th>clock offset</th><th>drift</th></tr>"
             + "".join(rows) + "</table>")
