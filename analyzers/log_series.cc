@@ -20,6 +20,7 @@ Result<LogSeries> read_log_series(const std::string& log) {
   out.log = log;
   std::map<std::string, size_t, std::less<>> index;  // channel -> streams[i]
   std::vector<std::vector<int64_t>> arrivals, stamps;
+  std::vector<int64_t> ready_after;  // per stream, from its first message (a scan's sweep)
   const int64_t image_hash = driftlab::image_t::getHash();
   Event e;
   bool first = true;
@@ -39,6 +40,7 @@ Result<LogSeries> read_log_series(const std::string& log) {
       out.streams.push_back(std::move(s));
       arrivals.emplace_back();
       stamps.emplace_back();
+      ready_after.push_back(ready_after_us(logfmt::fingerprint(e.data), e.data));
     }
     const size_t k = it->second;
     StreamSeries& s = out.streams[k];
@@ -75,7 +77,7 @@ Result<LogSeries> read_log_series(const std::string& log) {
     }
     s.latency.reserve(stamps[k].size());
     for (size_t i = 0; i < stamps[k].size(); ++i) {
-      s.latency.push_back(static_cast<double>(arrivals[k][i] - stamps[k][i]) * 1e-6);
+      s.latency.push_back(static_cast<double>(arrivals[k][i] - stamps[k][i] - ready_after[k]) * 1e-6);
     }
   }
   std::sort(out.streams.begin(), out.streams.end(),

@@ -18,7 +18,8 @@ struct StreamSeries {
   std::string type;             ///< "driftlab.imu_t", or "" when unknown
   bool has_header = false;      ///< stamps were read from driftlab.header_t (latency is meaningful)
   std::vector<double> arrival;  ///< log time of each message [s from the log's first event]
-  std::vector<double> latency;  ///< arrival - header stamp [s]; empty without a header
+  std::vector<double> latency;  ///< arrival - header stamp [s], as diagnose measures it (a scan from its last
+                                ///< beam: ready_after_us); empty without a header
 };
 
 struct MapImage {

@@ -178,7 +178,8 @@ def plot_latency(page, data):
         ax.set_title(f"{s['channel']}  ({what} {p50:.1f} ms)", fontsize=9.5)
         ax.set_xlabel("arrival - stamp [ms]")
     save_grid(page, fig, "Latency per stream", "latency.png", "Latency histograms",
-              "Arrival time minus header stamp per message (log scale counts): a clock offset moves the whole "
+              "Arrival time minus header stamp per message (a scan's from its last beam, as the diagnosis "
+              "measures it; log scale counts): a clock offset moves the whole "
               "histogram, transport jitter widens it. Dashed: median; orange: the spike threshold.")
 
 
@@ -292,29 +293,18 @@ def fmt_ms(seconds):
 
 
 def summary_cards(data):
-    d = data.get("diagnosis") or {}
-    channels = d.get("channels", [])
-    order = {"fault": 0, "warn": 1, "ok": 2}
-
-    def wrong_clock(c):  # a wrong clock touches every message: it ranks first among equal verdicts
-        k = c.get("clock")
-        return bool(k) and (k["offset_s"] >= 0.001 or abs(k["drift_ppm"]) >= 25)
-
-    worst = sorted(channels, key=lambda c: (order.get(c["verdict"], 3), not wrong_clock(c), -len(c["reasons"])))
+    summary = data.get("summary") or {}  # made by driftlab report (diagnosis_summary), as the demo prints it
     cards = []
-    if worst and worst[0]["verdict"] != "ok":
-        w = worst[0]
+    w = summary.get("worst_stream")
+    if w:
         cards.append(("worst stream", f"{w['name']} ({w['verdict']})", "; ".join(w["reasons"][:2])))
     else:
         cards.append(("worst stream", "none", "no stream was flagged"))
-    offsets = [f"{c['name']} {c['clock']['offset_s'] * 1e3:+.1f} ms" for c in channels
-               if c.get("clock") and c["clock"]["offset_s"] >= 0.001]
-    cards.append(("clocks ahead", ", ".join(offsets[:3]) or "none by more than 1 ms",
+    ahead = [f"{name} {offset * 1e3:+.1f} ms" for name, offset in summary.get("clocks_ahead_s", {}).items()]
+    cards.append(("clocks ahead", ", ".join(ahead[:3]) or "none by more than 1 ms",
                   "source clocks ahead of the recorder's"))
-    drops = [(c["name"], c["drops"]["seq_gaps"] if c["drops"]["seq_gaps"] is not None
-              else c["drops"]["missing_by_period"]) for c in channels]
-    drops = [f"{n} {k}" for n, k in drops if k]
-    cards.append(("dropped messages", ", ".join(drops[:3]) or "none", "from sequence gaps"))
+    drops = [f"{name} {n}" for name, n in summary.get("drops", {}).items()]
+    cards.append(("dropped messages", ", ".join(drops[:3]) or "none", "from sequence gaps, or gaps in time"))
     for e in data.get("estimates", []):
         if "ate_rmse" in e:
             cards.append((f"ATE {e['label']}", f"{e['ate_rmse']:.3f} m", f"max {e['ate_max']:.3f} m, posyaw"))

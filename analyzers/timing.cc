@@ -232,13 +232,7 @@ void add_scan_motion(Samples& s) {
 
 void add_motion(Samples& s, int64_t fingerprint, std::span<const uint8_t> data) {
   if (fingerprint == driftlab::laser_scan_t::getHash()) {
-    if (s.scans.empty()) {
-      driftlab::laser_scan_t first;
-      if (first.decode(data.data(), 0, static_cast<int>(data.size())) >= 0 && first.nranges > 1 &&
-          first.time_increment > 0 && first.time_increment < 1) {
-        s.ready_after_us = std::llround((first.nranges - 1) * static_cast<double>(first.time_increment) * 1e6);
-      }
-    }
+    if (s.scans.empty()) s.ready_after_us = ready_after_us(fingerprint, data);
     s.scans.push_back(data);  // analysed after the pass, in parallel
     return;
   }
@@ -539,6 +533,16 @@ std::optional<StreamPair> skew(const std::string& a_name, const Samples& a, cons
 }
 
 }  // namespace
+
+int64_t ready_after_us(int64_t fingerprint, std::span<const uint8_t> data) {
+  if (fingerprint != driftlab::laser_scan_t::getHash()) return 0;
+  driftlab::laser_scan_t scan;
+  if (scan.decode(data.data(), 0, static_cast<int>(data.size())) < 0 || scan.nranges <= 1 ||
+      !(scan.time_increment > 0 && scan.time_increment < 1)) {
+    return 0;
+  }
+  return std::llround((scan.nranges - 1) * static_cast<double>(scan.time_increment) * 1e6);
+}
 
 bool looks_like_header(std::span<const uint8_t> data, int64_t arrival) {
   if (data.size() < 8 + 8 + 8 + 4 + 1) return false;

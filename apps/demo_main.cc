@@ -18,6 +18,7 @@
 
 #include "apps/cli_util.h"
 #include "apps/commands.h"
+#include "apps/diagnosis_json.h"
 #include "apps/report.h"
 
 namespace driftlab::apps {
@@ -203,39 +204,17 @@ int run_demo(const DemoArgs& a) {
   stages.push_back({"report", std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count()});
 
   // The summary, from the stages' JSON.
-  nlohmann::json diagnosis;
+  nlohmann::json summary;
   double before = 0, after = 0;
   int64_t rejected_before = 0, rejected_after = 0;
   try {
-    diagnosis = read_json(r.diagnosis);
+    summary = diagnosis_summary(read_json(r.diagnosis));
     before = read_json(r.evals[0])["ate"]["rmse"].get<double>();
     after = read_json(r.evals[1])["ate"]["rmse"].get<double>();
     rejected_before = late_rejected(read_json(file("replay.json")));
     rejected_after = late_rejected(read_json(file("restamped.json")));
   } catch (const nlohmann::json::exception& e) {
     return fail("demo: reading the stages' JSON in " + a.out + ": " + e.what(), kExitFailure);
-  }
-  const nlohmann::json* worst = nullptr;
-  // Worst: faults before warnings; among them a wrong clock first (it touches every message), then the most reasons.
-  auto wrong_clock = [](const nlohmann::json& c) {
-    return c["clock"].is_object() && (c["clock"]["offset_s"].get<double>() >= 0.001 ||
-                                      std::abs(c["clock"]["drift_ppm"].get<double>()) >= 25);
-  };
-  auto rank = [&](const nlohmann::json& c) {
-    const std::string v = c["verdict"];
-    const int level = v == "fault" ? 2 : v == "warn" ? 1 : 0;
-    return level == 0 ? 0 : level * 100000 + (wrong_clock(c) ? 10000 : 0) + static_cast<int>(c["reasons"].size());
-  };
-  nlohmann::json offsets = nlohmann::json::object(), drops = nlohmann::json::object();
-  for (const auto& c : diagnosis["channels"]) {
-    if (rank(c) > 0 && (worst == nullptr || rank(c) > rank(*worst))) worst = &c;
-    // Only clocks ahead: one behind cannot be told from latency in one log (docs/diagnosis.md).
-    if (c["clock"].is_object() && c["clock"]["offset_s"].get<double>() >= 0.001) {
-      offsets[c["name"].get<std::string>()] = c["clock"]["offset_s"];
-    }
-    const auto& d = c["drops"];
-    const int64_t n = d["seq_gaps"].is_number() ? d["seq_gaps"].get<int64_t>() : d["missing_by_period"].get<int64_t>();
-    if (n > 0) drops[c["name"].get<std::string>()] = n;
   }
   if (a.json) {
     nlohmann::json j;
@@ -246,28 +225,26 @@ int run_demo(const DemoArgs& a) {
     j["ate_after"] = after;
     j["late_rejected_before"] = rejected_before;
     j["late_rejected_after"] = rejected_after;
-    j["worst_stream"] = worst ? nlohmann::json{{"name", (*worst)["name"]}, {"verdict", (*worst)["verdict"]},
-                                               {"reasons", (*worst)["reasons"]}}
-                              : nlohmann::json();
-    j["clock_offsets_s"] = offsets;
-    j["drops"] = drops;
+    j["worst_stream"] = summary["worst_stream"];
+    j["clock_offsets_s"] = summary["clocks_ahead_s"];
+    j["drops"] = summary["drops"];
     j["stages"] = nlohmann::json::array();
     for (const auto& s : stages) j["stages"].push_back({{"name", s.name}, {"seconds", s.seconds}});
     std::printf("%s\n", j.dump(2).c_str());
     return kExitOk;
   }
   std::string worst_text = "none: no stream was flagged";
-  if (worst != nullptr) {
-    worst_text = (*worst)["name"].get<std::string>() + " (" + (*worst)["verdict"].get<std::string>() + ")";
-    if (!(*worst)["reasons"].empty()) worst_text += ": " + (*worst)["reasons"][0].get<std::string>();
+  if (const auto& worst = summary["worst_stream"]; worst.is_object()) {
+    worst_text = worst["name"].get<std::string>() + " (" + worst["verdict"].get<std::string>() + ")";
+    if (!worst["reasons"].empty()) worst_text += ": " + worst["reasons"][0].get<std::string>();
   }
   std::string offset_text, drop_text;
   char buf[128];
-  for (const auto& [name, v] : offsets.items()) {
+  for (const auto& [name, v] : summary["clocks_ahead_s"].items()) {
     std::snprintf(buf, sizeof(buf), "%s%s %+.1f ms", offset_text.empty() ? "" : ", ", name.c_str(), v.get<double>() * 1e3);
     offset_text += buf;
   }
-  for (const auto& [name, v] : drops.items()) {
+  for (const auto& [name, v] : summary["drops"].items()) {
     drop_text += (drop_text.empty() ? "" : ", ") + name + " " + thousands(v.get<int64_t>());
   }
   std::printf("\nworst stream:  %s\n", worst_text.c_str());

@@ -1,6 +1,8 @@
 // The JSON of `driftlab diagnose --json`, also read by `driftlab report` and `driftlab demo`.
 #include "apps/diagnosis_json.h"
 
+#include <cmath>
+
 namespace driftlab::apps {
 
 namespace {
@@ -54,6 +56,36 @@ nlohmann::json to_json(const analyzers::Diagnosis& d) {
           {"channels", channels},
           {"pairs", pairs},
           {"tf", {{"frames", d.tf.frames}, {"roots", d.tf.roots}, {"problems", d.tf.problems}}}};
+}
+
+nlohmann::json diagnosis_summary(const nlohmann::json& diagnosis) {
+  auto wrong_clock = [](const nlohmann::json& c) {
+    const auto& clock = c.at("clock");
+    return clock.is_object() &&
+           (clock.at("offset_s").get<double>() >= 0.001 || std::abs(clock.at("drift_ppm").get<double>()) >= 25);
+  };
+  auto rank = [&](const nlohmann::json& c) {
+    const std::string v = c.at("verdict");
+    const int level = v == "fault" ? 2 : v == "warn" ? 1 : 0;
+    return level == 0 ? 0 : level * 100000 + (wrong_clock(c) ? 10000 : 0) + static_cast<int>(c.at("reasons").size());
+  };
+  const nlohmann::json* worst = nullptr;
+  nlohmann::json ahead = nlohmann::json::object(), drops = nlohmann::json::object();
+  for (const auto& c : diagnosis.at("channels")) {
+    const std::string name = c.at("name");
+    if (rank(c) > 0 && (worst == nullptr || rank(c) > rank(*worst))) worst = &c;
+    const auto& clock = c.at("clock");
+    if (clock.is_object() && clock.at("offset_s").get<double>() >= 0.001) ahead[name] = clock.at("offset_s");
+    const auto& d = c.at("drops");
+    const int64_t n = d.at("seq_gaps").is_number() ? d.at("seq_gaps").get<int64_t>() : d.at("missing_by_period").get<int64_t>();
+    if (n > 0) drops[name] = n;
+  }
+  return {{"worst_stream", worst == nullptr ? nlohmann::json()
+                                            : nlohmann::json{{"name", worst->at("name")},
+                                                             {"verdict", worst->at("verdict")},
+                                                             {"reasons", worst->at("reasons")}}},
+          {"clocks_ahead_s", ahead},
+          {"drops", drops}};
 }
 
 }  // namespace driftlab::apps

@@ -64,21 +64,15 @@ Result<nlohmann::json> read_json(const std::string& path, const char* option) {
   }
 }
 
-double quantile(std::vector<double> v, double q) {
-  if (v.empty()) return 0;
-  const size_t k = std::min(v.size() - 1, static_cast<size_t>(q * static_cast<double>(v.size() - 1) + 0.5));
-  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(k), v.end());
-  return v[k];
-}
-
-/// A stream's plot data: arrivals, latency, its latency spikes (above the median by more than 10 ms and three
-/// times the p99's distance from it) and its drop gaps from the diagnosis.
+/// A stream's plot data: arrivals, latency, its latency spikes (above the diagnosed median by more than 10 ms and
+/// three times the p99's distance from it) and its drop gaps, from the diagnosis of its channel.
 nlohmann::json stream_json(const StreamSeries& s, const nlohmann::json& diagnosed, double origin_s) {
   nlohmann::json j = {{"channel", s.channel}, {"type", s.type}, {"has_header", s.has_header},
-                      {"arrival", rounded(s.arrival)}, {"latency", rounded(s.latency)}};
+                      {"arrival", rounded(s.arrival)}, {"latency", rounded(s.latency)},
+                      {"verdict", diagnosed.at("verdict")}, {"expected_period_s", diagnosed.at("expected_period_s")}};
   nlohmann::json spikes = nlohmann::json::array();
-  if (!s.latency.empty()) {
-    const double p50 = quantile(s.latency, 0.5), p99 = quantile(s.latency, 0.99);
+  if (const auto& latency = diagnosed.at("latency_s"); !s.latency.empty() && latency.is_object()) {
+    const double p50 = latency.at("p50"), p99 = latency.at("p99");
     const double threshold = p50 + std::max(0.010, 3 * (p99 - p50));
     for (size_t i = 0; i < s.latency.size(); ++i) {
       if (s.latency[i] > threshold) spikes.push_back({r6(s.arrival[i]), r6(s.latency[i])});
@@ -87,13 +81,9 @@ nlohmann::json stream_json(const StreamSeries& s, const nlohmann::json& diagnose
   }
   j["spikes"] = spikes;
   nlohmann::json gaps = nlohmann::json::array();
-  if (diagnosed.is_object()) {
-    for (const auto& g : diagnosed.at("drops").at("gaps")) {
-      gaps.push_back({r6(g.at("start_utime").get<double>() * 1e-6 - origin_s),
-                      r6(g.at("end_utime").get<double>() * 1e-6 - origin_s), g.at("missing")});
-    }
-    j["verdict"] = diagnosed.at("verdict");
-    j["expected_period_s"] = diagnosed.at("expected_period_s");
+  for (const auto& g : diagnosed.at("drops").at("gaps")) {
+    gaps.push_back({r6(g.at("start_utime").get<double>() * 1e-6 - origin_s),
+                    r6(g.at("end_utime").get<double>() * 1e-6 - origin_s), g.at("missing")});
   }
   j["gaps"] = gaps;
   return j;
@@ -187,6 +177,7 @@ Result<std::string> make_report(const ReportOptions& o) {
       if (!diagnosed.count(s.channel)) continue;  // what the diagnosis leaves out (fault manifests, statistics)
       data["streams"].push_back(stream_json(s, diagnosed[s.channel], origin_s));
     }
+    data["summary"] = diagnosis_summary(diagnosis);
   } catch (const nlohmann::json::exception& e) {
     return Error{"--diagnosis " + o.diagnosis + ": not the JSON of driftlab diagnose --json (" + e.what() + ")"};
   }
