@@ -4,6 +4,7 @@
 #include <sys/wait.h>
 
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
@@ -22,6 +23,22 @@ TempDir::TempDir() {
 TempDir::~TempDir() {
   std::error_code ec;
   std::filesystem::remove_all(path_, ec);
+}
+
+std::string shared_data(const std::string& relative) {
+#ifdef DRIFTLAB_SHARED_DATA
+  const std::string path = std::string(DRIFTLAB_SHARED_DATA) + "/" + relative;
+#else
+  const std::string path = "../shared/data/" + relative;
+#endif
+  if (std::filesystem::exists(path)) return path;
+  const char* ci = std::getenv("CI");
+  if (ci != nullptr && std::string(ci) == "true") {
+    ADD_FAILURE() << "shared data missing under CI: " << path;
+  } else {
+    [&] { GTEST_SKIP() << "shared data missing: " << path; }();
+  }
+  return "";
 }
 
 std::vector<uint8_t> read_file(const std::string& path) {

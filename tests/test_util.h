@@ -46,6 +46,12 @@ std::vector<OwnedEvent> without_offsets(std::vector<OwnedEvent> events);
 std::vector<OwnedEvent> read_all(const std::string& path, std::vector<Problem>* problems = nullptr);
 std::vector<OwnedEvent> read_all_memory(const std::vector<uint8_t>& bytes, std::vector<Problem>* problems = nullptr);
 
+/// The path of a file of the shared real data (DRIFTLAB_SHARED_DATA, ../shared/data beside the checkout), e.g.
+/// shared_data("carmen/intel.orig.bag"). When it is missing the calling test is skipped, except under CI
+/// (CI=true), where a missing shared file is a failure: CI always has ../shared beside the clone.
+/// Use as: `auto bag = shared_data("..."); if (bag.empty()) return;`
+std::string shared_data(const std::string& relative);
+
 /// Runs a shell command; returns its exit code and fills out with its standard output.
 int run(const std::string& command, std::string* out = nullptr);
 
