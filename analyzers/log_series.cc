@@ -9,6 +9,7 @@
 #include "driftlab/image_t.hpp"
 #include "driftlab/odometry_t.hpp"
 #include "driftlab/pose_t.hpp"
+#include "lcmtypes/stream_header.h"
 #include "lcmtypes/type_registry.h"
 
 namespace driftlab::analyzers {
@@ -35,20 +36,22 @@ Result<LogSeries> read_log_series(const std::string& log) {
       s.channel = std::string(e.channel);
       const lcmtypes::TypeInfo* type = lcmtypes::find_type(logfmt::fingerprint(e.data));
       s.type = type != nullptr ? type->name : "";
-      s.has_header = type != nullptr ? type->has_header : looks_like_header(e.data, e.utime);
+      s.has_header = lcmtypes::has_header(e.data, e.utime);
       it = index.emplace(s.channel, out.streams.size()).first;
       out.streams.push_back(std::move(s));
       arrivals.emplace_back();
       stamps.emplace_back();
-      ready_after.push_back(ready_after_us(logfmt::fingerprint(e.data), e.data));
+      ready_after.push_back(lcmtypes::ready_after_us(e.data));
     }
     const size_t k = it->second;
     StreamSeries& s = out.streams[k];
     arrivals[k].push_back(e.utime);
-    if (s.has_header && e.data.size() >= 24) {
-      stamps[k].push_back(static_cast<int64_t>(logfmt::load_be64(e.data.data() + 16)));
-    } else {
-      s.has_header = false;  // a message too short for a header: the channel is untyped
+    if (s.has_header) {
+      if (const auto stamp = lcmtypes::header_stamp(e.data, e.utime)) {
+        stamps[k].push_back(*stamp);
+      } else {
+        s.has_header = false;  // a message without a header (too short, or a coincidence): the channel is untyped
+      }
     }
     const int64_t fp = logfmt::fingerprint(e.data);
     if (fp == driftlab::pose_t::getHash() || fp == driftlab::odometry_t::getHash()) {

@@ -17,6 +17,7 @@ import sys
 
 try:
     import matplotlib
+    import numpy
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -44,10 +45,10 @@ def ms(seconds):
 
 
 def quantile(values, q):
-    if not values:
+    """numpy's default quantile (linear between order statistics), the one definition core/quantile.h also uses."""
+    if len(values) == 0:
         return 0.0
-    s = sorted(values)
-    return s[min(len(s) - 1, int(q * (len(s) - 1) + 0.5))]
+    return float(numpy.quantile(values, q))
 
 
 class Page:

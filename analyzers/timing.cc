@@ -14,11 +14,13 @@
 #include "core/huge_page_allocator.h"
 #include "core/log_format.h"
 #include "core/log_reader.h"
+#include "core/quantile.h"
 #include "driftlab/imu_t.hpp"
 #include "driftlab/laser_scan_t.hpp"
 #include "driftlab/odometry_t.hpp"
 #include "driftlab/pose_t.hpp"
 #include "driftlab/tf_t.hpp"
+#include "lcmtypes/stream_header.h"
 #include "lcmtypes/type_registry.h"
 
 namespace driftlab::analyzers {
@@ -47,16 +49,7 @@ struct Samples {
   int64_t ready_after_us = 0;
 };
 
-/// The q-quantile (linear between order statistics, as numpy's default), partially ordering v in place.
-double quantile(Array<double>& v, double q) {
-  const double pos = q * static_cast<double>(v.size() - 1);
-  const size_t i = static_cast<size_t>(pos);
-  std::nth_element(v.begin(), v.begin() + static_cast<long>(i), v.end());
-  const double lo = v[i];
-  if (i + 1 >= v.size()) return lo;
-  const double hi = *std::min_element(v.begin() + static_cast<long>(i) + 1, v.end());
-  return lo + (hi - lo) * (pos - static_cast<double>(i));
-}
+double quantile(Array<double>& v, double q) { return quantile_in_place(v, q); }
 
 Distribution distribution(Array<double> v) {
   Distribution d;
@@ -72,67 +65,7 @@ Distribution distribution(Array<double> v) {
 double median(Array<double> v) { return v.empty() ? 0 : quantile(v, 0.5); }
 
 
-/// Reads fields of an encoded LCM message in place (big-endian), so the hot loop decodes only what it needs.
-/// Offsets follow lcmtypes/*.lcm; tests/analyzers/timing_test.cc checks them against lcm-gen's decoders.
-class FieldReader {
- public:
-  explicit FieldReader(std::span<const uint8_t> data) : p_(data.data()), end_(data.data() + data.size()) {}
-  void skip(size_t n) { p_ = static_cast<size_t>(end_ - p_) >= n ? p_ + n : end_ + 1; }
-  void skip_string() {
-    if (ok() && end_ - p_ >= 4) {
-      const uint32_t n = logfmt::load_be32(p_);  // length including the terminating NUL
-      skip(4 + static_cast<size_t>(n));
-    } else {
-      p_ = end_ + 1;
-    }
-  }
-  double f64() {
-    if (!ok() || end_ - p_ < 8) {
-      p_ = end_ + 1;
-      return 0;
-    }
-    const uint64_t bits = logfmt::load_be64(p_);
-    p_ += 8;
-    double v;
-    std::memcpy(&v, &bits, 8);
-    return v;
-  }
-  bool ok() const { return p_ <= end_; }
-
- private:
-  const uint8_t* p_;
-  const uint8_t* end_;
-};
-
 }  // namespace
-
-/// The yaw-rate sample [stamp s, rad/s] a message gives, if its type observes rotation. For poses (ground truth,
-/// estimates) the yaw itself is returned in `yaw` and is_pose set; the caller differentiates.
-bool read_motion(int64_t fingerprint, std::span<const uint8_t> data, double& stamp, double& value, bool& is_pose) {
-  static const int64_t kImu = driftlab::imu_t::getHash(), kOdom = driftlab::odometry_t::getHash(),
-                       kPose = driftlab::pose_t::getHash();
-  if (fingerprint != kImu && fingerprint != kOdom && fingerprint != kPose) return false;
-  FieldReader r(data);
-  r.skip(8 + 8);  // fingerprint, header.seq
-  stamp = static_cast<double>(static_cast<int64_t>(logfmt::load_be64(data.data() + 16))) * 1e-6;
-  r.skip(8);
-  r.skip_string();  // header.frame_id
-  is_pose = fingerprint == kPose;
-  if (fingerprint == kImu) {
-    r.skip(4 * 8 + 9 * 8 + 2 * 8);  // orientation, its covariance, angular_velocity.x and .y
-    value = r.f64();                // angular_velocity.z
-  } else if (fingerprint == kOdom) {
-    r.skip_string();                                   // child_frame_id
-    r.skip(3 * 8 + 4 * 8 + 36 * 8 + 3 * 8 + 2 * 8);   // position, orientation, covariance, linear, angular.x/.y
-    value = r.f64();                                   // angular_velocity.z
-  } else {
-    r.skip_string();  // child_frame_id
-    r.skip(3 * 8);    // position
-    const double w = r.f64(), x = r.f64(), y = r.f64(), z = r.f64();
-    value = std::atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z));  // yaw
-  }
-  return r.ok();
-}
 
 namespace {
 
@@ -232,14 +165,14 @@ void add_scan_motion(Samples& s) {
 
 void add_motion(Samples& s, int64_t fingerprint, std::span<const uint8_t> data) {
   if (fingerprint == driftlab::laser_scan_t::getHash()) {
-    if (s.scans.empty()) s.ready_after_us = ready_after_us(fingerprint, data);
+    if (s.scans.empty()) s.ready_after_us = lcmtypes::ready_after_us(data);
     s.scans.push_back(data);  // analysed after the pass, in parallel
     return;
   }
-  double t = 0, value = 0;
-  bool is_pose = false;
-  if (!read_motion(fingerprint, data, t, value, is_pose)) return;
-  if (!is_pose) {
+  const auto motion = lcmtypes::read_motion(data);
+  if (!motion) return;
+  const double t = motion->stamp_s, value = motion->value;
+  if (!motion->is_pose) {
     s.motion_t.push_back(t);
     s.motion_w.push_back(value);
     return;
@@ -534,27 +467,6 @@ std::optional<StreamPair> skew(const std::string& a_name, const Samples& a, cons
 
 }  // namespace
 
-int64_t ready_after_us(int64_t fingerprint, std::span<const uint8_t> data) {
-  if (fingerprint != driftlab::laser_scan_t::getHash()) return 0;
-  driftlab::laser_scan_t scan;
-  if (scan.decode(data.data(), 0, static_cast<int>(data.size())) < 0 || scan.nranges <= 1 ||
-      !(scan.time_increment > 0 && scan.time_increment < 1)) {
-    return 0;
-  }
-  return std::llround((scan.nranges - 1) * static_cast<double>(scan.time_increment) * 1e6);
-}
-
-bool looks_like_header(std::span<const uint8_t> data, int64_t arrival) {
-  if (data.size() < 8 + 8 + 8 + 4 + 1) return false;
-  const auto seq = static_cast<int64_t>(logfmt::load_be64(data.data() + 8));
-  const auto stamp = static_cast<int64_t>(logfmt::load_be64(data.data() + 16));
-  const uint32_t len = logfmt::load_be32(data.data() + 24);  // with the NUL
-  constexpr int64_t kDay = 86400LL * 1000000;
-  return seq >= 0 && seq < (int64_t{1} << 48) && std::abs(stamp - arrival) < kDay && len >= 1 && len <= 256 &&
-         28 + static_cast<size_t>(len) <= data.size() && data[28 + len - 1] == 0;
-}
-
-
 Result<Diagnosis> diagnose(const std::string& log, const DiagnoseOptions& options) {
   auto reader = LogReader::open(log);
   if (!reader) return reader.error();
@@ -579,7 +491,7 @@ Result<Diagnosis> diagnose(const std::string& log, const DiagnoseOptions& option
         const lcmtypes::TypeInfo* type = lcmtypes::find_type(logfmt::fingerprint(e.data));
         it->second.type = type != nullptr ? type->name : "";
         // Other programs' types may carry our header too: recognise it by its shape.
-        it->second.has_header = type != nullptr ? type->has_header : looks_like_header(e.data, e.utime);
+        it->second.has_header = lcmtypes::has_header(e.data, e.utime);
       }
       last = &it->second;
       last_name = it->first;
@@ -588,23 +500,18 @@ Result<Diagnosis> diagnose(const std::string& log, const DiagnoseOptions& option
     const int64_t fp = logfmt::fingerprint(e.data);
     s.arrival.push_back(e.utime);
     if (fp == tf_hash) tf.add_tf(e.data, e.utime, last_name.find("STATIC") != std::string_view::npos);
-    if (s.has_header && s.type.empty() && !looks_like_header(e.data, e.utime)) {
-      s.has_header = false;  // an unknown type whose header was a coincidence: treat the channel as untyped
-      s.seq.clear();
-      s.stamp.clear();
-    }
-    if (s.has_header && e.data.size() >= 24) {
-      s.seq.push_back(static_cast<int64_t>(logfmt::load_be64(e.data.data() + 8)));
-      s.stamp.push_back(static_cast<int64_t>(logfmt::load_be64(e.data.data() + 16)));
-      if (s.stamp.size() == 1 && e.data.size() >= 28) {
-        const uint32_t n = logfmt::load_be32(e.data.data() + 24);  // frame_id: length with its NUL, bytes
-        if (n > 0 && 28 + static_cast<size_t>(n) <= e.data.size()) {
-          s.frame.assign(reinterpret_cast<const char*>(e.data.data() + 28), n - 1);
-        }
+    if (s.has_header) {
+      if (const auto h = lcmtypes::read_header(e.data, e.utime)) {
+        s.seq.push_back(h->seq);
+        s.stamp.push_back(h->utime);
+        if (s.stamp.size() == 1) s.frame.assign(h->frame_id);
+        add_motion(s, fp, e.data);
+      } else {
+        // An unknown type whose header was a coincidence, or a message too short for one: the channel is untyped.
+        s.has_header = false;
+        s.seq.clear();
+        s.stamp.clear();
       }
-      add_motion(s, fp, e.data);
-    } else if (s.has_header) {
-      s.has_header = false;  // a message too short for a header: treat the channel as untyped
     }
     if (!s.has_header) {  // duplicates of untyped messages are told by their bytes
       uint64_t digest = e.data.size();

@@ -89,16 +89,4 @@ struct DiagnoseOptions {
 
 Result<Diagnosis> diagnose(const std::string& log, const DiagnoseOptions& options = {});
 
-/// For an encoded driftlab.imu_t or odometry_t: its stamp [s] and yaw rate [rad/s]; for a pose_t: its stamp and
-/// yaw [rad] (is_pose set). False for other types or truncated data. Reads the fields in place, without decoding.
-bool read_motion(int64_t fingerprint, std::span<const uint8_t> data, double& stamp, double& value, bool& is_pose);
-
-/// How long after its header stamp a message's data was complete [us]: a laser scan's sweep to its last beam
-/// (stamps mark the first); 0 for other types. Latency is measured from there.
-int64_t ready_after_us(int64_t fingerprint, std::span<const uint8_t> data);
-
-/// Whether a message of an unknown type starts, after its fingerprint, with driftlab.header_t: a non-negative
-/// seq, a stamp within a day of its arrival [us], and a NUL-terminated frame name of sane length.
-bool looks_like_header(std::span<const uint8_t> data, int64_t arrival);
-
 }  // namespace driftlab::analyzers

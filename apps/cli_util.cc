@@ -6,10 +6,12 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <cctype>
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
 #include <ctime>
+#include <filesystem>
 #include <thread>
 
 namespace driftlab::apps {
@@ -54,6 +56,43 @@ int run_program(const std::vector<std::string>& argv, const std::string& stdout_
   }
   if (WIFSIGNALED(status)) return 128 + WTERMSIG(status);
   return WIFEXITED(status) ? WEXITSTATUS(status) : 127;
+}
+
+bool split_log_channel(const std::string& src, std::string* log, std::string* channel) {
+  const size_t colon = src.rfind(':');
+  if (colon == std::string::npos || colon == 0 || colon + 1 == src.size()) return false;
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(src.substr(0, colon), ec)) return false;
+  std::string whole = src;  // log or channel may alias src
+  *log = whole.substr(0, colon);
+  *channel = whole.substr(colon + 1);
+  return true;
+}
+
+std::string channel_file_name(std::string_view channel) {
+  static const char* kHex = "0123456789ABCDEF";
+  std::string out;
+  for (size_t i = 0; i < channel.size(); ++i) {
+    const auto c = static_cast<unsigned char>(channel[i]);
+    const bool plain = std::isalnum(c) || c == '_' || c == '-' || (c == '.' && i > 0);
+    if (plain) {
+      out += static_cast<char>(c);
+    } else {
+      out += '%';
+      out += kHex[c >> 4];
+      out += kHex[c & 15];
+    }
+  }
+  if (out.empty()) out = "%00";  // the empty channel name
+  constexpr size_t kMax = 200;
+  if (out.size() > kMax) {
+    uint64_t h = 1469598103934665603ull;  // FNV-1a of the whole name
+    for (const char c : channel) h = (h ^ static_cast<unsigned char>(c)) * 1099511628211ull;
+    char tail[24];
+    std::snprintf(tail, sizeof(tail), "~%016llx", static_cast<unsigned long long>(h));
+    out = out.substr(0, kMax - 17) + tail;
+  }
+  return out;
 }
 
 std::string human_bytes(double bytes) {

@@ -32,6 +32,15 @@ bool write_output(const std::string& path, const std::string& text);
 int run_program(const std::vector<std::string>& argv, const std::string& stdout_path,
                 const std::string& stderr_path = "");
 
+/// Splits "LOG:CHANNEL" at its last ':' when the part before it is an existing file; false (log and channel
+/// untouched) otherwise. Channel names may hold ':' only if the log's name has none after its last one.
+bool split_log_channel(const std::string& src, std::string* log, std::string* channel);
+
+/// A file name for a channel that no other channel maps to: bytes other than [A-Za-z0-9_-] and a leading '.' are
+/// percent-encoded ("a/b" -> "a%2Fb", "a_b" stays), and names longer than 200 bytes are cut and given a hash of the
+/// whole name, so every channel gets a file of its own within the file system's 255-byte limit.
+std::string channel_file_name(std::string_view channel);
+
 /// 1536 -> "1.5 KiB".
 std::string human_bytes(double bytes);
 /// 1234567 -> "1,234,567".

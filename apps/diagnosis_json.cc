@@ -1,6 +1,8 @@
 // The JSON of `driftlab diagnose --json`, also read by `driftlab report` and `driftlab demo`.
 #include "apps/diagnosis_json.h"
 
+#include "analyzers/clock_corrections.h"
+
 #include <cmath>
 
 namespace driftlab::apps {
@@ -61,8 +63,8 @@ nlohmann::json to_json(const analyzers::Diagnosis& d) {
 nlohmann::json diagnosis_summary(const nlohmann::json& diagnosis) {
   auto wrong_clock = [](const nlohmann::json& c) {
     const auto& clock = c.at("clock");
-    return clock.is_object() &&
-           (clock.at("offset_s").get<double>() >= 0.001 || std::abs(clock.at("drift_ppm").get<double>()) >= 25);
+    return clock.is_object() && (analyzers::clock_ahead(clock.at("offset_s").get<double>()) ||
+                                 analyzers::clock_drifts(clock.at("drift_ppm").get<double>()));
   };
   auto rank = [&](const nlohmann::json& c) {
     const std::string v = c.at("verdict");
@@ -75,7 +77,7 @@ nlohmann::json diagnosis_summary(const nlohmann::json& diagnosis) {
     const std::string name = c.at("name");
     if (rank(c) > 0 && (worst == nullptr || rank(c) > rank(*worst))) worst = &c;
     const auto& clock = c.at("clock");
-    if (clock.is_object() && clock.at("offset_s").get<double>() >= 0.001) ahead[name] = clock.at("offset_s");
+    if (clock.is_object() && analyzers::clock_ahead(clock.at("offset_s").get<double>())) ahead[name] = clock.at("offset_s");
     const auto& d = c.at("drops");
     const int64_t n = d.at("seq_gaps").is_number() ? d.at("seq_gaps").get<int64_t>() : d.at("missing_by_period").get<int64_t>();
     if (n > 0) drops[name] = n;

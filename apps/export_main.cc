@@ -83,11 +83,7 @@ int run_csv(const CsvArgs& a) {
     auto it = files.find(e.channel);
     if (it == files.end()) {
       CsvFile f;
-      std::string name(e.channel);
-      for (char& c : name) {
-        if (c == '/' || c == '\\' || c == '\0') c = '_';
-      }
-      f.path = (fs::path(a.out) / (name + ".csv")).string();
+      f.path = (fs::path(a.out) / (channel_file_name(e.channel) + ".csv")).string();
       f.f = std::fopen((f.path + ".partial").c_str(), "w");
       if (f.f == nullptr) {
         close_all(false);
@@ -145,7 +141,10 @@ int run_csv(const CsvArgs& a) {
   return kExitOk;
 }
 
-int run_tum(const TumArgs& a) {
+int run_tum(TumArgs a) {
+  if (a.channel.empty() && !split_log_channel(a.log, &a.log, &a.channel)) {
+    return fail(a.log + ": name the channel as LOG:CHANNEL (or with -c CHANNEL)");
+  }
   auto t = analyzers::load_log_channel(a.log, a.channel);
   if (!t) return fail(t.error().message);
   const std::string partial = a.out + ".partial";
@@ -168,15 +167,16 @@ void add_export_commands(CLI::App& exp, int* exit_code) {
   auto tum = std::make_shared<TumArgs>();
   CLI::App* t = exp.add_subcommand("tum", "A pose or odometry channel to a TUM trajectory file (for evo).");
   t->footer("One line per pose: \"t x y z qx qy qz qw\", t the header stamp in seconds; evo_ape and evo_traj read it.");
-  t->add_option("log", tum->log, "Log to read")->required();
-  t->add_option("-c,--channel", tum->channel, "Channel (driftlab.pose_t or driftlab.odometry_t)")->required();
+  t->add_option("log", tum->log, "Log to read, as LOG:CHANNEL (or LOG with -c)")->required();
+  t->add_option("-c,--channel", tum->channel, "Channel (driftlab.pose_t or driftlab.odometry_t)");
   t->add_option("-o,--out", tum->out, "TUM file to write")->required();
   t->callback([tum, exit_code] { *exit_code = run_tum(*tum); });
 
   auto csv = std::make_shared<CsvArgs>();
   CLI::App* c = exp.add_subcommand("csv", "Every channel to a CSV file of its own (for PlotJuggler, spreadsheets).");
   c->footer(
-      "OUT/CHANNEL.csv per channel of a driftlab type: log_time_s (arrival), then every field flattened by its\n"
+      "OUT/CHANNEL.csv per channel of a driftlab type (characters other than letters, digits, '_' and '-'\n"
+      "percent-encoded: /odom -> %2Fodom.csv): log_time_s (arrival), then every field flattened by its\n"
       "definition in lcmtypes/ (header.seq, header.utime, orientation.w, ranges[0], ...). Columns come from each\n"
       "channel's first message. Files are written as .partial and renamed when complete.");
   c->add_option("log", csv->log, "Log to read")->required();

@@ -28,11 +28,9 @@ void print_counts(const slam::RawlogCounts& c, const std::string& from, const st
 
 }  // namespace
 
-void add_rawlog_commands(CLI::App& app, int* exit_code) {
-  CLI::App* import = app.add_subcommand("import", "Convert another format into a driftlab log.");
-  import->require_subcommand(1);
+void add_rawlog_commands(CLI::App& import, CLI::App& exp, int* exit_code) {
   auto in = std::make_shared<RawlogArgs>();
-  CLI::App* from = import->add_subcommand("rawlog", "An MRPT rawlog (either format, plain or gzip) to a driftlab log.");
+  CLI::App* from = import.add_subcommand("rawlog", tool_description("import", "rawlog"));
   from->footer("2D scans go to SCAN (sensor poses on TF_STATIC), odometry to ODOM, IMU to IMU, robot poses to\n"
                "GROUND_TRUTH; event times are the observation timestamps. See docs/slam.md.");
   from->add_option("rawlog", in->in, "Rawlog to read")->required();
@@ -46,10 +44,8 @@ void add_rawlog_commands(CLI::App& app, int* exit_code) {
     print_counts(*r, in->in, in->out);
   });
 
-  CLI::App* exp = app.add_subcommand("export", "Convert a driftlab log into another format.");
-  exp->require_subcommand(1);
   auto out = std::make_shared<RawlogArgs>();
-  CLI::App* to = exp->add_subcommand("rawlog", "A driftlab log to an MRPT rawlog (observations only).");
+  CLI::App* to = exp.add_subcommand("rawlog", tool_description("export", "rawlog"));
   to->footer("Laser scans, odometry, IMU and GROUND_TRUTH poses become MRPT observations, stamped with their header\n"
              "stamps, in log order; icp-slam and RawLogViewer read the result.");
   to->add_option("log", out->in, "Log to read")->required();
@@ -62,7 +58,6 @@ void add_rawlog_commands(CLI::App& app, int* exit_code) {
     }
     print_counts(*r, out->in, out->out);
   });
-  add_export_commands(*exp, exit_code);
 }
 
 }  // namespace driftlab::apps

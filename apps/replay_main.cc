@@ -2,31 +2,22 @@
 // correct clocks or inject faults first, write what the modules publish, re-publish on LCM.
 #include <CLI/CLI.hpp>
 #include <signal.h>
-#include <yaml-cpp/yaml.h>
 
-#include <array>
 #include <atomic>
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
-#include <fstream>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <regex>
-#include <sstream>
 
+#include "analyzers/clock_corrections.h"
 #include "analyzers/timing.h"
 #include "apps/cli_util.h"
 #include "apps/commands.h"
-#include "controller/controller_module.h"
-#include "estimator/estimator_module.h"
-#include "core/log_format.h"
-#include "core/log_reader.h"
-#include "lcmtypes/type_registry.h"
+#include "modules/registry.h"
 #include "replayer/live_runner.h"
 #include "replayer/replayer.h"
-#include "slam/slam_module.h"
-#include "sim/scenario.h"
 
 namespace driftlab::apps {
 namespace {
@@ -54,120 +45,15 @@ struct ReplayArgs {
 std::atomic<bool> g_stop{false};
 void on_signal(int) { g_stop.store(true); }
 
-constexpr std::array<const char*, 3> kModules = {"slam", "estimator", "controller"};
-
-std::string known_modules() {
-  std::string s;
-  for (const char* m : kModules) s += (s.empty() ? "" : ", ") + std::string(m);
-  return s;
-}
-
-/// The controller's defaults from a simulator scenario: its route, start pose and follower settings.
-Result<controller::ControllerConfig> controller_base(const std::string& scenario_path) {
-  auto sc = sim::load_scenario(scenario_path);
-  if (!sc) return sc.error();
-  controller::ControllerConfig c;
-  c.route = sc->route;
-  c.start = {sc->start.x(), sc->start.y(), sc->start.z()};
-  c.pursuit = sc->controller.pursuit;
-  c.rate = sc->controller.rate;
-  c.footprint_radius = sc->controller.footprint_radius;
-  c.logged_channel = sc->controller.channel;
-  return c;
-}
-
-Result<std::unique_ptr<Module>> make_module(const std::string& name, const YAML::Node& config,
-                                            const std::string& origin, const std::string& config_dir,
-                                            const slam::HasData& has_data, std::vector<std::string>& notes) {
-  if (name == "estimator") return estimator::make_estimator(config, origin);
-  if (name == "slam") {
-    std::string backend;
-    auto m = slam::make_slam(config, origin, has_data, &backend);
-    if (m) notes.push_back("slam: " + backend + " backend");
-    return m;
-  }
-  if (name == "controller") {
-    std::string scenario;
-    if (config.IsMap() && config["scenario"].IsDefined()) {
-      scenario = config["scenario"].as<std::string>();
-      if (!scenario.empty() && scenario[0] != '/') scenario = (std::filesystem::path(config_dir) / scenario).string();
-    } else if (!(config.IsMap() && config["route"].IsDefined())) {
-      scenario = sim::default_scenario_path();
-      notes.push_back("controller: route, start and settings from the default scenario " + scenario);
-    }
-    controller::ControllerConfig base;
-    if (!scenario.empty()) {
-      auto b = controller_base(scenario);
-      if (!b) return b.error();
-      base = std::move(*b);
-    }
-    return controller::make_controller(config, origin, std::move(base));
-  }
-  return Error{"--modules: unknown module '" + name + "' (known: " + known_modules() + ")"};
-}
-
-/// Clock corrections from the timing diagnosis: channels whose stamps run ahead of their arrival (a clock that is
-/// ahead, which no transport can explain) or whose clock drifts.
+/// Clock corrections from the timing diagnosis of each log (analyzers/clock_corrections.h holds the rule).
 Result<replay::Restamp> restamp_from_diagnosis(const std::vector<std::string>& logs, std::vector<std::string>& notes) {
   replay::Restamp r;
   for (const auto& log : logs) {
     auto d = analyzers::diagnose(log);
     if (!d) return d.error();
-    for (const auto& c : d->channels) {
-      if (!c.clock_valid) continue;
-      const bool ahead = c.clock_offset_s > 0.001;
-      const bool drifts = std::abs(c.clock_drift_ppm) >= 25;
-      if (!ahead && !drifts) continue;
-      r[c.name] = {ahead ? c.clock_offset_s : 0.0, drifts ? c.clock_drift_ppm : 0.0, d->start_utime};
-      char buf[200];
-      std::snprintf(buf, sizeof(buf), "restamp %s: %+.1f ms, %+.0f ppm (from the timing diagnosis of %s)",
-                    c.name.c_str(), r[c.name].offset_s * 1e3, r[c.name].drift_ppm, log.c_str());
-      notes.push_back(buf);
-    }
+    r.merge(analyzers::clock_corrections(*d, &notes));
   }
   return r;
-}
-
-/// The modules named in `list` (comma-separated), with their settings from the config file (one map per module
-/// name). Errors are one line naming the file, line and key.
-Result<std::vector<std::unique_ptr<Module>>> load_modules(const std::string& list, const std::string& config_path,
-                                                          const slam::HasData& has_data,
-                                                          std::vector<std::string>& notes) {
-  YAML::Node config;
-  std::string config_dir = ".";
-  if (!config_path.empty()) {
-    std::ifstream in(config_path);
-    if (!in) return Error{config_path + ": cannot open the module config"};
-    std::stringstream text;
-    text << in.rdbuf();
-    try {
-      config = YAML::Load(text.str());
-    } catch (const YAML::Exception& e) {
-      return Error{config_path + ":" + std::to_string(e.mark.line + 1) + ": " + e.msg};
-    }
-    if (!config.IsNull() && !config.IsMap()) return Error{config_path + ":1: expected a map of module name: settings"};
-    config_dir = std::filesystem::path(config_path).parent_path().string();
-    if (config_dir.empty()) config_dir = ".";
-  }
-  if (config.IsMap()) {
-    for (const auto& kv : config) {
-      const std::string key = kv.first.as<std::string>();
-      if (std::find_if(kModules.begin(), kModules.end(), [&](const char* m) { return key == m; }) == kModules.end()) {
-        return Error{config_path + ":" + std::to_string(kv.first.Mark().line + 1) + ": unknown module '" + key +
-                     "' (known: " + known_modules() + ")"};
-      }
-    }
-  }
-  std::vector<std::unique_ptr<Module>> modules;
-  std::stringstream names(list);
-  for (std::string name; std::getline(names, name, ',');) {
-    if (name.empty()) continue;
-    const YAML::Node node = config.IsMap() ? config[name] : YAML::Node();
-    auto m = make_module(name, node, config_path.empty() ? "--config" : config_path, config_dir, has_data, notes);
-    if (!m) return m.error();
-    modules.push_back(std::move(*m));
-  }
-  return modules;
 }
 
 nlohmann::json modules_json(const std::vector<replay::ModuleReport>& reports) {
@@ -254,22 +140,11 @@ int run_replay(const ReplayArgs& a) {
     o.inject = std::move(*f);
   }
 
-  // Whether the logs hold a message type on a channel (the slam module's `auto` backend asks): the channel's first
-  // message tells.
-  const slam::HasData has_data = [&a](const std::string& channel, const std::string& type) {
-    if (!a.channels.empty() && !std::regex_match(channel, std::regex(a.channels))) return false;  // filtered out
-    static const std::regex special(R"([.^$|()\[\]{}*+?\\])");
-    for (const auto& log : a.logs) {
-      auto r = LogReader::open(log, {.channels = std::regex_replace(channel, special, R"(\$&)")});
-      Event e;
-      if (r && r->next(e)) {
-        const char* name = lcmtypes::type_name(logfmt::fingerprint(e.data));
-        if (name != nullptr && type == name) return true;
-      }
-    }
-    return false;
+  // The slam module's `auto` backend asks what the replay delivers (after the filter and --remap).
+  const modules::HasData has_data = [&o](const std::string& channel, const std::string& type) {
+    return replay::delivers(o, channel, type);
   };
-  auto modules = load_modules(a.modules, a.config, has_data, notes);
+  auto modules = modules::load_modules(a.modules, a.config, has_data, notes);
   if (!modules) return fail(modules.error().message);
   replay::Replayer replayer(o);
   for (auto& m : *modules) replayer.add_module(std::move(m));
@@ -340,9 +215,10 @@ struct RunArgs {
 
 int run_live(const RunArgs& a) {
   std::vector<std::string> notes;
-  auto modules = load_modules(a.modules, a.config, [](const std::string&, const std::string&) { return false; }, notes);
+  auto modules =
+      modules::load_modules(a.modules, a.config, [](const std::string&, const std::string&) { return false; }, notes);
   if (!modules) return fail(modules.error().message);
-  if (modules->empty()) return fail("--modules: name at least one module (" + known_modules() + ")");
+  if (modules->empty()) return fail("--modules: name at least one module (" + modules::known_modules() + ")");
   replay::LiveRunner runner({.url = a.url, .out = a.out, .duration_s = a.duration});
   for (auto& m : *modules) runner.add_module(std::move(m));
   if (Status s = runner.open(); !s) return fail(s.message());
@@ -377,13 +253,13 @@ int run_live(const RunArgs& a) {
 
 void add_run_command(CLI::App& app, int* exit_code) {
   auto a = std::make_shared<RunArgs>();
-  CLI::App* cmd = app.add_subcommand("run", "Run SLAM, the estimator and the controller live, on an LCM bus.");
+  CLI::App* cmd = app.add_subcommand("run", tool_description("run"));
   cmd->footer(
       "The same modules as `driftlab replay`, behind the same Bus, with the wall clock as their clock: they\n"
       "subscribe on the LCM URL and publish there. OUT gets what they published and their statistics\n"
       "(MODULE_STATS, every second, with processing times); record the inputs with `driftlab record`. Ctrl-C or\n"
       "--duration stops, finishes the modules (maps are written) and closes a valid log.");
-  cmd->add_option("--modules", a->modules, "Modules to run, comma-separated (" + known_modules() + ")")->required();
+  cmd->add_option("--modules", a->modules, "Modules to run, comma-separated (" + modules::known_modules() + ")")->required();
   cmd->add_option("--config", a->config, "Module settings (YAML: one map per module name)");
   cmd->add_option("--url", a->url, "LCM URL")->required();
   cmd->add_option("-o,--out", a->out, "Log of the module outputs and statistics");
@@ -396,8 +272,7 @@ void add_run_command(CLI::App& app, int* exit_code) {
 
 void add_replay_command(CLI::App& app, int* exit_code) {
   auto a = std::make_shared<ReplayArgs>();
-  CLI::App* cmd = app.add_subcommand(
-      "replay", "Replay logs through SLAM, the estimator and the controller on a virtual clock, deterministically.");
+  CLI::App* cmd = app.add_subcommand("replay", tool_description("replay"));
   cmd->footer(
       "Merges the logs in time order and dispatches every event to the modules through the Bus they use live;\n"
       "what they publish goes to the other modules and to OUT with per-module statistics (MODULE_STATS). The same\n"
@@ -405,7 +280,7 @@ void add_replay_command(CLI::App& app, int* exit_code) {
       "(FILE: `channels: {CH: {offset_s, drift_ppm}}`; auto: from the timing diagnosis); --inject adds faults\n"
       "(the simulator's fault description, docs/faults.md). Module settings: docs/replay.md.");
   cmd->add_option("logs", a->logs, "Logs to replay")->required();
-  cmd->add_option("--modules", a->modules, "Modules to run, comma-separated (" + known_modules() + ")");
+  cmd->add_option("--modules", a->modules, "Modules to run, comma-separated (" + modules::known_modules() + ")");
   cmd->add_option("--config", a->config, "Module settings (YAML: one map per module name)");
   cmd->add_option("-o,--out", a->out, "Output log: the inputs as dispatched, the module outputs and statistics");
   cmd->add_option("--rate", a->rate, "With --publish: pace at this multiple of real time")

@@ -111,8 +111,7 @@ int run_sim(const SimArgs& a) {
 
 void add_sim_command(CLI::App& app, int* exit_code) {
   auto a = std::make_shared<SimArgs>();
-  CLI::App* cmd = app.add_subcommand(
-      "sim", "Simulate a robot (Bullet world, URDF robot, sensors, faults) and write every stream to an LCM log.");
+  CLI::App* cmd = app.add_subcommand("sim", tool_description("sim"));
   cmd->footer(
       "Without SCENARIO, runs the default indoor scenario (sim/scenarios/indoor.yaml). The same scenario and seed\n"
       "give a byte-identical log. The log is written as OUT.partial and renamed when complete; Ctrl-C stops the\n"

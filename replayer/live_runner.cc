@@ -8,6 +8,7 @@
 #include <unordered_set>
 
 #include "core/log_writer.h"
+#include "lcmtypes/stream_header.h"
 #include "replayer/internal/module_tally.h"
 
 namespace driftlab::replay {
@@ -87,7 +88,7 @@ void on_message(const lcm_recv_buf_t* rbuf, const char* channel, void* user) {
   ++r.received;
   const std::span<const uint8_t> data(static_cast<const uint8_t*>(rbuf->data), rbuf->data_size);
   const std::string* name = &*r.names.insert(channel).first;
-  b.tally_.input(name, header_stamp(data, rbuf->recv_utime));
+  b.tally_.input(name, lcmtypes::header_stamp(data, rbuf->recv_utime));
   b.handling_ = rbuf->recv_utime;
   const auto t0 = std::chrono::steady_clock::now();
   sub->handler(BusMessage{channel, rbuf->recv_utime, data});

@@ -13,13 +13,12 @@
 #include <unordered_map>
 #include <unordered_set>
 
-#include "analyzers/timing.h"
 #include "core/internal/yaml_fields.h"
 #include "core/log_format.h"
 #include "core/log_reader.h"
 #include "core/log_writer.h"
 #include "driftlab/fault_manifest_t.hpp"
-#include "driftlab/tf_t.hpp"
+#include "lcmtypes/stream_header.h"
 #include "lcmtypes/type_registry.h"
 #include "replayer/internal/module_tally.h"
 
@@ -59,35 +58,9 @@ Result<Restamp> load_restamp(const std::string& path) {
   }
 }
 
-std::optional<int64_t> header_stamp(std::span<const uint8_t> data, int64_t arrival) {
-  if (data.size() < 24) return std::nullopt;
-  const auto* type = lcmtypes::find_type(logfmt::fingerprint(data));
-  if (type != nullptr ? !type->has_header : !analyzers::looks_like_header(data, arrival)) return std::nullopt;
-  return static_cast<int64_t>(logfmt::load_be64(data.data() + 16));
-}
-
 namespace {
 
 constexpr int64_t kUs = 1000000;
-
-/// Rewrites every header stamp of an encoded message with f (a tf_t's transforms carry their own). False when the
-/// message has no header to rewrite.
-template <typename F>
-bool map_stamps(std::vector<uint8_t>& bytes, int64_t arrival, F f) {
-  if (logfmt::fingerprint(bytes) == driftlab::tf_t::getHash()) {
-    driftlab::tf_t tf;
-    if (tf.decode(bytes.data(), 0, static_cast<int>(bytes.size())) < 0) return false;
-    tf.header.utime = f(tf.header.utime);
-    for (auto& t : tf.transforms) t.header.utime = f(t.header.utime);
-    bytes.resize(static_cast<size_t>(tf.getEncodedSize()));
-    tf.encode(bytes.data(), 0, static_cast<int>(bytes.size()));
-    return true;
-  }
-  const auto stamp = header_stamp(bytes, arrival);
-  if (!stamp) return false;
-  logfmt::store_be64(bytes.data() + 16, static_cast<uint64_t>(f(*stamp)));
-  return true;
-}
 
 /// An input on its way to the modules.
 struct Item {
@@ -277,7 +250,7 @@ class Engine {
     const std::vector<Route> targets = routes(channel);  // a copy: handlers may subscribe (and clear the cache)
     if (targets.empty()) return;
     const std::string* name = intern(channel);
-    const auto stamp = header_stamp(data, now_);
+    const auto stamp = lcmtypes::header_stamp(data, now_);
     BusMessage m{channel, now_, data};
     for (const Route& r : targets) {
       ModuleBus& b = *r.bus;
@@ -443,6 +416,39 @@ struct Replayer::Prepared {
   std::unique_ptr<Engine> engine;
 };
 
+bool delivers(const ReplayOptions& o, const std::string& channel, const std::string& type) {
+  // The input channels delivered as `channel`: those remapped to it, and itself unless remapped away. The first
+  // rule naming an input applies, as in run().
+  auto delivered_as = [&o](const std::string& input) {
+    for (const auto& [from, to] : o.remap) {
+      if (input == from) return to;
+    }
+    return input;
+  };
+  std::vector<std::string> sources;
+  if (delivered_as(channel) == channel) sources.push_back(channel);
+  for (const auto& [from, to] : o.remap) {
+    if (to == channel && delivered_as(from) == channel) sources.push_back(from);
+  }
+  static const std::regex special(R"([.^$|()\[\]{}*+?\\])");
+  for (const auto& source : sources) {
+    try {
+      if (!o.channels.empty() && !std::regex_match(source, std::regex(o.channels))) continue;  // filtered out
+    } catch (const std::regex_error&) {
+      return false;  // open() reports the bad regex
+    }
+    for (const auto& log : o.logs) {
+      auto r = LogReader::open(log, {.channels = std::regex_replace(source, special, R"(\$&)")});
+      Event e;
+      if (r && r->next(e)) {
+        const char* name = lcmtypes::type_name(logfmt::fingerprint(e.data));
+        if (name != nullptr && type == name) return true;
+      }
+    }
+  }
+  return false;
+}
+
 Replayer::Replayer(ReplayOptions options) : options_(std::move(options)) {}
 Replayer::~Replayer() = default;
 void Replayer::add_module(std::unique_ptr<Module> module) { modules_.push_back(std::move(module)); }
@@ -506,7 +512,7 @@ Result<ReplayReport> Replayer::run(const Sink& sink, const std::atomic<bool>* st
   auto to_modules = [&](Item&& item) -> Status {
     if (o.order == Order::kReceived) return engine.deliver(item);
     latest_arrival = std::max(latest_arrival, item.time);
-    if (auto stamp = header_stamp(item.data(), item.time)) item.time = *stamp;
+    if (auto stamp = lcmtypes::header_stamp(item.data(), item.time)) item.time = *stamp;
     stamped.push(std::move(item));
     while (!stamped.empty() && stamped.top().time <= latest_arrival - window) {
       if (Status s = engine.deliver(stamped.top()); !s) return s;
@@ -537,14 +543,14 @@ Result<ReplayReport> Replayer::run(const Sink& sink, const std::atomic<bool>* st
       const ClockCorrection& c = r->second;
       const int64_t ref = c.reference_utime != 0 ? c.reference_utime : merger->base();
       item.owned.assign(e.data.begin(), e.data.end());
-      const bool stamped_msg = map_stamps(item.owned, e.utime, [&](int64_t s) {
+      const bool stamped_msg = lcmtypes::map_stamps(item.owned, e.utime, [&](int64_t s) {
         const double correction = c.offset_s + c.drift_ppm * 1e-6 * static_cast<double>(s - ref) * 1e-6;
         return s - static_cast<int64_t>(std::llround(correction * kUs));
       });
       if (!stamped_msg) item.owned.clear();
     }
     if (auto inj = injectors.find(input); inj != injectors.end()) {
-      const auto stamp = header_stamp(item.data(), e.utime);
+      const auto stamp = lcmtypes::header_stamp(item.data(), e.utime);
       int64_t seq = stamp ? static_cast<int64_t>(logfmt::load_be64(item.data().data() + 8)) : unstamped_seq[input]++;
       deliveries.clear();
       inj->second.apply(seq, e.utime, deliveries);
@@ -557,7 +563,7 @@ Result<ReplayReport> Replayer::run(const Sink& sink, const std::atomic<bool>* st
         copy.view = item.view;
         if (const int64_t shift = d.stamp_utime - e.utime; shift != 0) {  // the injected clock offset and drift
           if (copy.owned.empty()) copy.owned.assign(e.data.begin(), e.data.end());
-          if (!map_stamps(copy.owned, e.utime, [&](int64_t s) { return s + shift; })) copy.owned = item.owned;
+          if (!lcmtypes::map_stamps(copy.owned, e.utime, [&](int64_t s) { return s + shift; })) copy.owned = item.owned;
         }
         arrivals.push(std::move(copy));
       }

@@ -18,21 +18,15 @@
 #include <vector>
 
 #include "core/bus.h"
+#include "core/clock_correction.h"
 #include "core/faults.h"
 #include "core/result.h"
 
 namespace driftlab::replay {
 
-/// A clock correction for one channel: the source clock ran ahead of the log's clock by
-/// offset_s + drift_ppm * 1e-6 * (stamp - reference_utime); the replayer subtracts that from header stamps.
-struct ClockCorrection {
-  double offset_s = 0;
-  double drift_ppm = 0;
-  int64_t reference_utime = 0;  ///< 0: the first event of the replay
-};
-
-/// Per channel (as named in the input logs), e.g. from `driftlab diagnose`.
-using Restamp = std::map<std::string, ClockCorrection>;
+using ClockCorrection = driftlab::ClockCorrection;
+/// Per channel (as named in the input logs), e.g. from `driftlab diagnose` (analyzers/clock_corrections.h).
+using Restamp = ClockCorrections;
 
 /// Reads a restamp file: `channels: {IMU: {offset_s: 0.015, drift_ppm: 0, reference_utime: 0}}`. Errors name the
 /// file, line and key.
@@ -85,6 +79,11 @@ struct ReplayReport {
 /// A message leaving the replayer (an input as delivered, or a module's output), for re-publication.
 using Sink = std::function<void(const BusMessage&)>;
 
+/// Whether the replay the options describe delivers messages of `type` ("driftlab.laser_scan_t") on `channel` (a
+/// delivered name: after --remap), among the channels the filter lets through. The first message of each log on
+/// the source channel tells. Unreadable logs deliver nothing (open() reports them).
+bool delivers(const ReplayOptions& options, const std::string& channel, const std::string& type);
+
 class Replayer {
  public:
   explicit Replayer(ReplayOptions options);
@@ -104,9 +103,5 @@ class Replayer {
   std::vector<std::unique_ptr<Module>> modules_;
   std::unique_ptr<Prepared> prepared_;
 };
-
-/// The header stamp of an encoded stream message (driftlab.header_t first, in a driftlab type or one shaped like it),
-/// or nullopt.
-std::optional<int64_t> header_stamp(std::span<const uint8_t> data, int64_t arrival);
 
 }  // namespace driftlab::replay

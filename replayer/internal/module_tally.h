@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "core/bus.h"
+#include "core/quantile.h"
 #include "driftlab/module_stats_t.hpp"
 #include "replayer/replayer.h"
 
@@ -58,9 +59,7 @@ class ModuleTally {
       for (double v : proc_s_) sum += v, max = std::max(max, v);
       r.proc_mean_s = sum / static_cast<double>(proc_s_.size());
       std::vector<double> sorted = proc_s_;
-      const auto k = static_cast<size_t>(std::ceil(0.95 * static_cast<double>(sorted.size()))) - 1;
-      std::nth_element(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(k), sorted.end());
-      r.proc_p95_s = sorted[k];
+      r.proc_p95_s = quantile_in_place(sorted, 0.95);
       r.proc_max_s = max;
     }
     r.queue_depth_max = queue_max_;

@@ -469,41 +469,6 @@ TEST(Diagnose, ReadsOurHeaderInOtherProgramsTypes) {
   EXPECT_FALSE(channel(*d, "BLOB").has_header);
 }
 
-TEST(ReadMotion, AgreesWithLcmGensDecoders) {
-  driftlab::imu_t imu{};
-  imu.header = {3, 1234567, "an_imu_frame"};
-  imu.angular_velocity = {0.1, 0.2, 0.3};
-  imu.orientation_covariance[8] = 9;
-  driftlab::odometry_t odom{};
-  odom.header = {4, 7654321, "odom"};
-  odom.child_frame_id = "base_link_with_a_long_name";
-  odom.angular_velocity = {1, 2, -0.7};
-  odom.linear_velocity = {5, 6, 7};
-  driftlab::pose_t pose{};
-  pose.header = {5, 42, "world"};
-  pose.child_frame_id = "robot";
-  const double yaw = 2.5;
-  pose.orientation = {std::cos(yaw / 2), 0, 0, std::sin(yaw / 2)};
-  double t = 0, v = 0;
-  bool is_pose = false;
-  const auto b1 = encode(imu);
-  ASSERT_TRUE(read_motion(driftlab::imu_t::getHash(), b1, t, v, is_pose));
-  EXPECT_EQ(t, 1.234567);
-  EXPECT_EQ(v, 0.3);
-  EXPECT_FALSE(is_pose);
-  const auto b2 = encode(odom);
-  ASSERT_TRUE(read_motion(driftlab::odometry_t::getHash(), b2, t, v, is_pose));
-  EXPECT_EQ(v, -0.7);
-  const auto b3 = encode(pose);
-  ASSERT_TRUE(read_motion(driftlab::pose_t::getHash(), b3, t, v, is_pose));
-  EXPECT_TRUE(is_pose);
-  EXPECT_NEAR(v, yaw, 1e-12);
-  // Truncated data is refused, not read past its end.
-  // (cut 2 bytes into angular_velocity.z, which the 36 doubles of twist_covariance follow)
-  EXPECT_FALSE(read_motion(driftlab::odometry_t::getHash(), std::span(b2).first(b2.size() - 36 * 8 - 2), t, v, is_pose));
-  EXPECT_FALSE(read_motion(driftlab::laser_scan_t::getHash(), b1, t, v, is_pose));
-}
-
 TEST(Diagnose, MissingFileIsAnErrorNamingIt) {
   auto d = diagnose("/nonexistent/x.lcm");
   ASSERT_FALSE(d.ok());

@@ -8,6 +8,7 @@
 
 #include "analyzers/trajectory_io.h"
 #include "core/log_reader.h"
+#include "core/log_writer.h"
 #include "driftlab/imu_t.hpp"
 #include "driftlab/laser_scan_t.hpp"
 #include "tests/test_util.h"
@@ -45,7 +46,8 @@ size_t column(const std::vector<std::string>& header, const std::string& name) {
 
 TEST(ExportTum, WritesTheChannelsPosesAsEvoReadsThem) {
   test::TempDir dir;
-  const auto r = driftlab("export tum " + kSample + " -c GROUND_TRUTH -o " + dir.file("gt.tum"));
+  // LOG:CHANNEL, as eval takes it (-c CHANNEL works too, below).
+  const auto r = driftlab("export tum " + kSample + ":GROUND_TRUTH -o " + dir.file("gt.tum"));
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.out.find("101 poses"), std::string::npos) << r.out;
   auto tum = analyzers::load_tum(dir.file("gt.tum"));
@@ -121,6 +123,36 @@ TEST(ExportCsv, ChannelFilterAndLongArraysLeftOut) {
   const auto scan = read_csv(dir.file("SCAN.csv"));
   for (const auto& c : scan[0]) EXPECT_EQ(c.rfind("ranges[", 0), std::string::npos) << c;
   column(scan[0], "nranges");
+}
+
+TEST(ExportCsv, ChannelsThatDifferOnlyInPunctuationGetFilesOfTheirOwn) {
+  // a/b and a_b used to share a_b.csv (the second truncating the first); a long name, percent-encoded, is beyond
+  // a file name's 255 bytes.
+  test::TempDir dir;
+  const std::string log = dir.file("names.lcm");
+  const std::string long_name(250, '/');
+  {
+    auto w = LogWriter::create(log);
+    ASSERT_TRUE(w.ok());
+    driftlab::imu_t m{};
+    std::vector<uint8_t> b(static_cast<size_t>(m.getEncodedSize()));
+    m.encode(b.data(), 0, static_cast<int>(b.size()));
+    for (const std::string channel : {"a/b", "a_b", "/odom", ".hidden", long_name.c_str()}) {
+      ASSERT_TRUE(w->write(1000, channel, b).ok());
+    }
+    ASSERT_TRUE(w->close().ok());
+  }
+  const auto r = driftlab("export csv " + log + " -o " + dir.file("csv"));
+  ASSERT_EQ(r.code, 0) << r.err;
+  for (const std::string name : {"a%2Fb", "a_b", "%2Fodom", "%2Ehidden"}) {
+    EXPECT_EQ(read_csv(dir.file("csv/" + name + ".csv")).size(), 2u) << name;
+  }
+  int files = 0;
+  for (const auto& f : std::filesystem::directory_iterator(dir.file("csv"))) {
+    ++files;
+    EXPECT_LE(f.path().filename().string().size(), 255u);
+  }
+  EXPECT_EQ(files, 5);
 }
 
 TEST(ExportCsv, ADamagedLogExportsEveryIntactEventAndGarbageIsOneLine) {

@@ -139,6 +139,13 @@ TEST_F(ReplayCli, SlamPicksTheBackendTheDataCallsFor) {
   EXPECT_NE(three.out.find("slam: 3d backend"), std::string::npos) << three.out;
   EXPECT_NE(three.out.find("clouds 30"), std::string::npos) << three.out;
   EXPECT_TRUE(std::filesystem::exists(file("p3-map.pcd")));
+  // The backend is chosen from what the modules receive after --remap: clouds delivered on the 2D scan channel's
+  // name do not make a 2D session, and scans remapped away from it leave only the clouds. (Before, the check
+  // looked the remapped names up in the raw logs and chose 2D.)
+  const auto remapped = driftlab("replay " + file("p.lcm") + " --remap SCAN=OLD_SCAN --modules slam -o " +
+                                 file("p4.lcm"));
+  ASSERT_EQ(remapped.code, 0) << remapped.err;
+  EXPECT_NE(remapped.out.find("slam: 3d backend"), std::string::npos) << remapped.out;
 }
 
 TEST_F(ReplayCli, MrptRawlogsComeInAndGoOut) {
@@ -166,6 +173,8 @@ TEST_F(ReplayCli, BadInputGetsOneLineAndExitCode2) {
   std::ofstream(file("bad_restamp.yaml")) << "channels: [IMU]\n";
   std::ofstream(file("bad_slam.yaml")) << "slam:\n  2d:\n    icp_iterations: 3\n";
   std::ofstream(file("bad_backend.yaml")) << "slam:\n  backend: lidar\n";
+  std::ofstream(file("bad_scenario.yaml")) << "controller:\n  scenario: [a, b]\n";
+  std::ofstream(file("bad_module_key.yaml")) << "? [slam]\n: {}\n";
   const std::vector<Case> cases = {
       {"--modules estimater", "--modules: unknown module 'estimater' (known: slam, estimator, controller)"},
       {"--modules estimator --config " + file("bad_key.yaml"),
@@ -174,6 +183,10 @@ TEST_F(ReplayCli, BadInputGetsOneLineAndExitCode2) {
       {"--modules slam --config " + file("bad_slam.yaml"), file("bad_slam.yaml") + ":3: unknown key 'slam.2d.icp_iterations'"},
       {"--modules slam --config " + file("bad_backend.yaml"),
        file("bad_backend.yaml") + ":2: slam.backend = lidar must be auto, 2d or 3d"},
+      // Non-scalar values where a name is expected: one line, not std::terminate (YAML::BadConversion).
+      {"--modules controller --config " + file("bad_scenario.yaml"),
+       file("bad_scenario.yaml") + ":2: controller.scenario: expected a file name"},
+      {"--modules slam --config " + file("bad_module_key.yaml"), file("bad_module_key.yaml") + ":1: expected a module name"},
       {"--restamp " + file("bad_restamp.yaml"), file("bad_restamp.yaml") + ":1: a restamp file needs"},
       {"--restamp " + file("missing.yaml"), file("missing.yaml") + ": cannot open"},
       {"--remap SCAN", "--remap SCAN: expected FROM=TO"},

@@ -34,10 +34,22 @@ const std::string kDriftlab = std::string(DRIFTLAB_BIN_DIR) + "/driftlab";
 
 struct Process {
   pid_t pid = -1;
+  int status = -1;  ///< once it has exited
   int wait() {
-    int status = 0;
-    waitpid(pid, &status, 0);
+    if (status < 0) {
+      int s = 0;
+      waitpid(pid, &s, 0);
+      status = s;
+    }
     return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+  }
+  /// Whether it has exited (reaping it), without blocking.
+  bool exited() {
+    if (status >= 0) return true;
+    int s = 0;
+    if (waitpid(pid, &s, WNOHANG) != pid) return false;
+    status = s;
+    return true;
   }
 };
 
@@ -58,9 +70,12 @@ Process start_recorder(const std::string& out, std::vector<std::string> extra = 
   const std::string first = extra.empty() || std::find(extra.begin(), extra.end(), "--split-mb") == extra.end()
                                 ? out
                                 : out.substr(0, out.rfind('.')) + "_0000.lcm";
-  for (int i = 0; i < 200 && !std::filesystem::exists(first); ++i) {
+  for (int i = 0; i < 200 && !std::filesystem::exists(first) && !p.exited(); ++i) {
     std::this_thread::sleep_for(std::chrono::milliseconds(10));
   }
+  // A recorder still running without its log after 2 s is broken: say so here rather than losing messages later.
+  // (One that exited, as on an unwritable path, is the caller's to judge through wait().)
+  EXPECT_TRUE(std::filesystem::exists(first) || p.exited()) << "driftlab record did not start within 2 s: " << first;
   return p;
 }
 
@@ -72,8 +87,9 @@ std::vector<Sent> publish(lcm_t* lcm, int n, const std::vector<std::string>& cha
   for (int i = 0; i < n; ++i) {
     Sent s{channels[i % channels.size()], test::payload(i, sizes[i % 6])};
     EXPECT_EQ(lcm_publish(lcm, s.channel.c_str(), s.data.data(), static_cast<unsigned>(s.data.size())), 0);
+    const bool large = s.data.size() > 60000;  // read before the move below
     sent.push_back(std::move(s));
-    std::this_thread::sleep_for(std::chrono::microseconds(s.data.size() > 60000 ? 5000 : pause_us));
+    std::this_thread::sleep_for(std::chrono::microseconds(large ? 5000 : pause_us));
   }
   return sent;
 }

@@ -12,6 +12,7 @@
 #include "driftlab/fault_manifest_t.hpp"
 #include "driftlab/imu_t.hpp"
 #include "driftlab/module_stats_t.hpp"
+#include "lcmtypes/stream_header.h"
 #include "driftlab/tf_t.hpp"
 #include "tests/test_util.h"
 
@@ -284,7 +285,7 @@ TEST(Replayer, StampOrderResortsWithinTheWindow) {
     struct Stamps : Module {
       std::string name() const override { return "stamps"; }
       Status start(Bus& bus) override {
-        bus.subscribe("IMU", [this](const BusMessage& m) { stamps.push_back(*header_stamp(m.data, m.utime)); });
+        bus.subscribe("IMU", [this](const BusMessage& m) { stamps.push_back(*lcmtypes::header_stamp(m.data, m.utime)); });
         return {};
       }
       std::vector<int64_t> stamps;

@@ -1,0 +1,97 @@
+// The dispatch from `driftlab` to the programs that hold the heavy commands, and what every driftlab program shares
+// around CLI11.
+#include <CLI/CLI.hpp>
+#include <unistd.h>
+
+#include <array>
+#include <cerrno>
+#include <cstring>
+#include <filesystem>
+#include <string>
+
+#include "apps/cli_util.h"
+#include "apps/commands.h"
+
+namespace driftlab::apps {
+namespace {
+
+constexpr std::array<ToolCommand, 5> kTools = {{
+    {"sim", nullptr, "driftlab-sim",
+     "Simulate a robot (Bullet world, URDF robot, sensors, faults) and write every stream to an LCM log."},
+    {"replay", nullptr, "driftlab-replay",
+     "Replay logs through SLAM, the estimator and the controller on a virtual clock, deterministically."},
+    {"run", nullptr, "driftlab-replay", "Run SLAM, the estimator and the controller live, on an LCM bus."},
+    {"import", "rawlog", "driftlab-rawlog", "An MRPT rawlog (either format, plain or gzip) to a driftlab log."},
+    {"export", "rawlog", "driftlab-rawlog", "A driftlab log to an MRPT rawlog (observations only)."},
+}};
+
+}  // namespace
+
+std::span<const ToolCommand> tool_commands() { return kTools; }
+
+const char* tool_description(const char* word, const char* sub) {
+  for (const auto& t : kTools) {
+    if (std::strcmp(t.word, word) == 0 && (t.sub == nullptr) == (sub == nullptr) &&
+        (sub == nullptr || std::strcmp(t.sub, sub) == 0)) {
+      return t.description;
+    }
+  }
+  return "";
+}
+
+const ToolCommand* find_tool(int argc, char** argv) {
+  if (argc < 2) return nullptr;
+  for (const auto& t : kTools) {
+    if (std::strcmp(argv[1], t.word) != 0) continue;
+    if (t.sub == nullptr || (argc > 2 && std::strcmp(argv[2], t.sub) == 0)) return &t;
+  }
+  return nullptr;
+}
+
+int exec_tool(const ToolCommand& tool, char** argv) {
+  std::error_code ec;
+  const auto self = std::filesystem::read_symlink("/proc/self/exe", ec);
+  if (!ec) {
+    const std::string beside = (self.parent_path() / tool.program).string();
+    if (::access(beside.c_str(), X_OK) == 0) {
+      argv[0] = const_cast<char*>(beside.c_str());
+      ::execv(beside.c_str(), argv);
+      return fail(beside + ": cannot run: " + std::strerror(errno), kExitFailure);
+    }
+  }
+  argv[0] = const_cast<char*>(tool.program);
+  ::execvp(tool.program, argv);
+  return fail(std::string(tool.program) + " (which runs 'driftlab " + tool.word +
+                  "') is neither beside driftlab nor on PATH: " + std::strerror(errno),
+              kExitFailure);
+}
+
+int parse_and_run(CLI::App& app, int argc, char** argv, const int& exit_code) {
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::CallForHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::CallForAllHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::CallForVersion& e) {
+    return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    // One line naming the problem, then where to look; exit 2 like other usage errors.
+    return fail(std::string(e.what()) + " (see 'driftlab --help')");
+  }
+  return exit_code;
+}
+
+CLI::App& add_import_command(CLI::App& app) {
+  CLI::App* import = app.add_subcommand("import", "Convert another format into a driftlab log.");
+  import->require_subcommand(1);
+  return *import;
+}
+
+CLI::App& add_export_command(CLI::App& app) {
+  CLI::App* exp = app.add_subcommand("export", "Convert a driftlab log into another format.");
+  exp->require_subcommand(1);
+  return *exp;
+}
+
+}  // namespace driftlab::apps

@@ -1,0 +1,35 @@
+// One definition of a sample quantile for the whole project: linear interpolation between order statistics, as
+// numpy's default (`np.quantile(v, q)`, method "linear", Hyndman and Fan type 7). The diagnosis, the module
+// statistics, the trajectory errors and the report (numpy) all give the same p50/p95/p99 for the same data.
+// Thread-safety: pure functions.
+#pragma once
+
+#include <algorithm>
+#include <cmath>
+#include <cstddef>
+#include <iterator>
+
+namespace driftlab {
+
+/// The q-quantile (0 <= q <= 1) of [first, last), partially reordering the range; NaN when it is empty.
+template <typename RandomIt>
+double quantile_in_place(RandomIt first, RandomIt last, double q) {
+  const auto n = static_cast<size_t>(std::distance(first, last));
+  if (n == 0) return NAN;
+  const double pos = std::clamp(q, 0.0, 1.0) * static_cast<double>(n - 1);
+  const auto i = static_cast<size_t>(pos);
+  const auto at = first + static_cast<std::ptrdiff_t>(i);
+  std::nth_element(first, at, last);
+  const double lo = static_cast<double>(*at);
+  if (i + 1 >= n) return lo;
+  const double hi = static_cast<double>(*std::min_element(at + 1, last));
+  return lo + (hi - lo) * (pos - static_cast<double>(i));
+}
+
+/// The q-quantile of a container, partially reordering it; NaN when it is empty.
+template <typename Container>
+double quantile_in_place(Container& v, double q) {
+  return quantile_in_place(std::begin(v), std::end(v), q);
+}
+
+}  // namespace driftlab

@@ -1,0 +1,130 @@
+#include "modules/registry.h"
+
+#include <yaml-cpp/yaml.h>
+
+#include <algorithm>
+#include <array>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "controller/controller_module.h"
+#include "estimator/estimator_module.h"
+#include "sim/scenario.h"
+#include "slam/slam_module.h"
+
+namespace driftlab::modules {
+namespace {
+
+constexpr std::array<const char*, 3> kModules = {"slam", "estimator", "controller"};
+
+std::string line_of(const std::string& file, const YAML::Mark& mark) {
+  return file + ":" + std::to_string(mark.line + 1);
+}
+
+/// The controller's defaults from a simulator scenario: its route, start pose and follower settings.
+Result<controller::ControllerConfig> controller_base(const std::string& scenario_path) {
+  auto sc = sim::load_scenario(scenario_path);
+  if (!sc) return sc.error();
+  controller::ControllerConfig c;
+  c.route = sc->route;
+  c.start = {sc->start.x(), sc->start.y(), sc->start.z()};
+  c.pursuit = sc->controller.pursuit;
+  c.rate = sc->controller.rate;
+  c.footprint_radius = sc->controller.footprint_radius;
+  c.logged_channel = sc->controller.channel;
+  return c;
+}
+
+Result<std::unique_ptr<Module>> make_controller(const YAML::Node& config, const std::string& origin,
+                                                const std::string& config_dir, std::vector<std::string>& notes) {
+  std::string scenario;
+  if (config.IsMap() && config["scenario"].IsDefined()) {
+    const YAML::Node node = config["scenario"];
+    if (!node.IsScalar()) return Error{line_of(origin, node.Mark()) + ": controller.scenario: expected a file name"};
+    scenario = node.Scalar();
+    if (!scenario.empty() && scenario[0] != '/') scenario = (std::filesystem::path(config_dir) / scenario).string();
+  } else if (!(config.IsMap() && config["route"].IsDefined())) {
+    scenario = sim::default_scenario_path();
+    notes.push_back("controller: route, start and settings from the default scenario " + scenario);
+  }
+  controller::ControllerConfig base;
+  if (!scenario.empty()) {
+    auto b = controller_base(scenario);
+    if (!b) return b.error();
+    base = std::move(*b);
+  }
+  return controller::make_controller(config, origin, std::move(base));
+}
+
+Result<std::unique_ptr<Module>> make_module(const std::string& name, const YAML::Node& config,
+                                            const std::string& origin, const std::string& config_dir,
+                                            const HasData& has_data, std::vector<std::string>& notes) {
+  if (name == "estimator") return estimator::make_estimator(config, origin);
+  if (name == "slam") {
+    std::string backend;
+    auto m = slam::make_slam(config, origin, has_data, &backend);
+    if (m) notes.push_back("slam: " + backend + " backend");
+    return m;
+  }
+  if (name == "controller") return make_controller(config, origin, config_dir, notes);
+  return Error{"--modules: unknown module '" + name + "' (known: " + known_modules() + ")"};
+}
+
+}  // namespace
+
+std::string known_modules() {
+  std::string s;
+  for (const char* m : kModules) s += (s.empty() ? "" : ", ") + std::string(m);
+  return s;
+}
+
+Result<std::vector<std::unique_ptr<Module>>> load_modules(const std::string& list, const std::string& config_path,
+                                                          const HasData& has_data, std::vector<std::string>& notes) {
+  YAML::Node config;
+  std::string config_dir = ".";
+  if (!config_path.empty()) {
+    std::ifstream in(config_path);
+    if (!in) return Error{config_path + ": cannot open the module config"};
+    std::stringstream text;
+    text << in.rdbuf();
+    try {
+      config = YAML::Load(text.str());
+    } catch (const YAML::Exception& e) {
+      return Error{config_path + ":" + std::to_string(e.mark.line + 1) + ": " + e.msg};
+    }
+    if (!config.IsNull() && !config.IsMap()) return Error{config_path + ":1: expected a map of module name: settings"};
+    config_dir = std::filesystem::path(config_path).parent_path().string();
+    if (config_dir.empty()) config_dir = ".";
+  }
+  if (config.IsMap()) {
+    for (const auto& kv : config) {
+      if (!kv.first.IsScalar()) {
+        return Error{line_of(config_path, kv.first.Mark()) + ": expected a module name (" + known_modules() + ")"};
+      }
+      const std::string& key = kv.first.Scalar();
+      if (std::find_if(kModules.begin(), kModules.end(), [&](const char* m) { return key == m; }) == kModules.end()) {
+        return Error{line_of(config_path, kv.first.Mark()) + ": unknown module '" + key + "' (known: " +
+                     known_modules() + ")"};
+      }
+    }
+  }
+  std::vector<std::unique_ptr<Module>> modules;
+  std::stringstream names(list);
+  for (std::string name; std::getline(names, name, ',');) {
+    if (name.empty()) continue;
+    const YAML::Node node = config.IsMap() ? config[name] : YAML::Node();
+    try {
+      auto m = make_module(name, node, config_path.empty() ? "--config" : config_path, config_dir, has_data, notes);
+      if (!m) return m.error();
+      modules.push_back(std::move(*m));
+    } catch (const YAML::Exception& e) {
+      // A value of the wrong kind that a module's reader did not expect: one line, never a crash.
+      return Error{(config_path.empty() ? std::string("--config") : config_path) + ":" +
+                   std::to_string(e.mark.line + 1) + ": " + name + ": " + e.msg};
+    }
+  }
+  return modules;
+}
+
+}  // namespace driftlab::modules

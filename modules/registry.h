@@ -1,0 +1,29 @@
+// The processing modules `driftlab replay` and `driftlab run` can host (slam, estimator, controller), made from one
+// YAML config (a map of module name -> settings, docs/replay.md) in one place, so both commands offer the same
+// modules with the same settings and the same errors. Thread-safety: pure functions.
+#pragma once
+
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "core/bus.h"
+#include "core/result.h"
+
+namespace driftlab::modules {
+
+/// The module names, comma-separated, in the order they are listed ("slam, estimator, controller").
+std::string known_modules();
+
+/// Whether the input holds messages of the named type ("driftlab.laser_scan_t") on a channel, as delivered to the
+/// modules; the slam module's `auto` backend asks. Live, nothing is known in advance: answer false.
+using HasData = std::function<bool(const std::string& channel, const std::string& type)>;
+
+/// The modules named in `list` (comma-separated) with their settings from the YAML file at `config_path` (empty:
+/// every module with its defaults). `notes` receives what was chosen for the user ("slam: 2d backend"). Errors
+/// (an unknown module, a bad file, a bad key or value) are one line naming the file, line and key.
+Result<std::vector<std::unique_ptr<Module>>> load_modules(const std::string& list, const std::string& config_path,
+                                                          const HasData& has_data, std::vector<std::string>& notes);
+
+}  // namespace driftlab::modules
