@@ -3,6 +3,7 @@
 #include <cctype>
 #include <cstdio>
 #include <cstdlib>
+#include <charconv>
 #include <cstring>
 #include <map>
 
@@ -119,15 +120,14 @@ struct Walker {
       const uint64_t bits = be(p, 8);
       double d;
       std::memcpy(&d, &bits, 8);
-      std::snprintf(buf, sizeof(buf), "%.17g", d);
-      text = buf;
+      // The shortest text that reads back as the same double (std::to_chars), several times faster than "%.17g".
+      text.assign(buf, std::to_chars(buf, buf + sizeof(buf), d).ptr);
     } else if (type == "float") {
       if (!take(4, p)) return false;
       const auto bits = static_cast<uint32_t>(be(p, 4));
       float f;
       std::memcpy(&f, &bits, 4);
-      std::snprintf(buf, sizeof(buf), "%.9g", static_cast<double>(f));
-      text = buf;
+      text.assign(buf, std::to_chars(buf, buf + sizeof(buf), f).ptr);
     } else if (type == "string") {
       if (!take(4, p)) return false;
       const auto n = static_cast<uint32_t>(be(p, 4));  // with its NUL
