@@ -11,6 +11,7 @@
 #include "driftlab/pose_t.hpp"
 #include "lcmtypes/stream_header.h"
 #include "lcmtypes/type_registry.h"
+#include "lcmtypes/validate.h"
 
 namespace driftlab::analyzers {
 
@@ -58,7 +59,7 @@ Result<LogSeries> read_log_series(const std::string& log) {
       append_pose(e.data, out.poses[s.channel]);
     } else if (fp == image_hash) {
       driftlab::image_t image;
-      if (image.decode(e.data.data(), 0, static_cast<int>(e.data.size())) < 0 || image.encoding != "png" ||
+      if (!lcmtypes::decode(e.data, image) || image.encoding != "png" ||
           image.header.frame_id != "map") {
         continue;
       }

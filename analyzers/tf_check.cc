@@ -6,6 +6,7 @@
 #include <set>
 
 #include "driftlab/tf_t.hpp"
+#include "lcmtypes/validate.h"
 
 namespace driftlab::analyzers::internal {
 namespace {
@@ -17,7 +18,7 @@ std::string quoted(const std::string& frame) { return "'" + frame + "'"; }
 
 void TfCheck::add_tf(std::span<const uint8_t> data, int64_t arrival, bool is_static) {
   driftlab::tf_t tf;
-  if (tf.decode(data.data(), 0, static_cast<int>(data.size())) < 0) return;
+  if (!lcmtypes::decode(data, tf)) return;
   for (const auto& t : tf.transforms) {
     Edge& e = edges_[t.child_frame_id];
     if (e.parent.empty()) {

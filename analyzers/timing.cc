@@ -22,6 +22,7 @@
 #include "driftlab/tf_t.hpp"
 #include "lcmtypes/stream_header.h"
 #include "lcmtypes/type_registry.h"
+#include "lcmtypes/validate.h"
 
 namespace driftlab::analyzers {
 namespace {
@@ -129,7 +130,7 @@ void add_scan_motion(Samples& s) {
     driftlab::laser_scan_t previous, current;
     bool have_previous = false;
     for (size_t i = begin; i < end; ++i) {
-      if (current.decode(s.scans[i].data(), 0, static_cast<int>(s.scans[i].size())) < 0) {
+      if (!lcmtypes::decode(s.scans[i], current)) {
         have_previous = false;
         continue;
       }

@@ -14,6 +14,7 @@
 #include "core/mapped_file.h"
 #include "driftlab/odometry_t.hpp"
 #include "driftlab/pose_t.hpp"
+#include "lcmtypes/validate.h"
 
 namespace driftlab::analyzers {
 namespace {
@@ -109,7 +110,6 @@ Result<Trajectory> load_tum(const std::string& path) {
 
 bool append_pose(std::span<const uint8_t> data, Trajectory& t) {
   const int64_t fp = logfmt::fingerprint(data);
-  const int size = static_cast<int>(data.size());
   auto add = [&](const auto& m) {
     t.push_back(static_cast<double>(m.header.utime) * 1e-6, {m.position.x, m.position.y, m.position.z},
                 {m.orientation.w, m.orientation.x, m.orientation.y, m.orientation.z});
@@ -117,11 +117,11 @@ bool append_pose(std::span<const uint8_t> data, Trajectory& t) {
   };
   if (fp == driftlab::pose_t::getHash()) {
     driftlab::pose_t pose;
-    return pose.decode(data.data(), 0, size) >= 0 && add(pose);
+    return lcmtypes::decode(data, pose) && add(pose);
   }
   if (fp == driftlab::odometry_t::getHash()) {
     driftlab::odometry_t odom;
-    return odom.decode(data.data(), 0, size) >= 0 && add(odom);
+    return lcmtypes::decode(data, odom) && add(odom);
   }
   return false;
 }

@@ -15,6 +15,7 @@
 #include "core/log_reader.h"
 #include "driftlab/recorder_stats_t.hpp"
 #include "lcmtypes/type_registry.h"
+#include "lcmtypes/validate.h"
 
 namespace driftlab::apps {
 namespace {
@@ -113,7 +114,7 @@ std::optional<driftlab::recorder_stats_t> recorder_stats(const std::string& path
   Event e;
   while (reader->next(e)) {
     driftlab::recorder_stats_t stats;
-    if (stats.decode(e.data.data(), 0, static_cast<int>(e.data.size())) > 0) last = std::move(stats);
+    if (lcmtypes::decode(e.data, stats)) last = std::move(stats);
   }
   return last;
 }

@@ -52,11 +52,6 @@ class Bus {
   }
 };
 
-/// Decodes an LCM message from a bus message; false when the bytes are not a T (wrong fingerprint, truncated).
-template <typename T>
-bool decode_message(const BusMessage& m, T& out) {
-  return out.decode(m.data.data(), 0, static_cast<int>(m.data.size())) >= 0;
-}
 
 /// What a module counts itself, beyond what the replayer measures around its handlers (processing time, queue
 /// depth, and late or out-of-order inputs read from their header stamps).

@@ -7,6 +7,7 @@
 #include "driftlab/odometry_t.hpp"
 #include "driftlab/pose_t.hpp"
 #include "lcmtypes/planar.h"
+#include "lcmtypes/validate.h"
 
 namespace driftlab::estimator {
 Result<EstimatorConfig> parse_estimator_config(const YAML::Node& node, const std::string& origin) {

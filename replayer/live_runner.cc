@@ -9,6 +9,7 @@
 
 #include "core/log_writer.h"
 #include "lcmtypes/stream_header.h"
+#include "lcmtypes/validate.h"
 #include "replayer/internal/module_tally.h"
 
 namespace driftlab::replay {
@@ -87,11 +88,17 @@ void on_message(const lcm_recv_buf_t* rbuf, const char* channel, void* user) {
   LiveRunner::Impl& r = b.runner_;
   ++r.received;
   const std::span<const uint8_t> data(static_cast<const uint8_t*>(rbuf->data), rbuf->data_size);
+  // Any peer can publish: a message that does not hold its type's layout is counted and dropped, never decoded.
+  if (const auto why = lcmtypes::layout_problem(data)) return b.tally_.malformed(channel, *why);
   const std::string* name = &*r.names.insert(channel).first;
   b.tally_.input(name, lcmtypes::header_stamp(data, rbuf->recv_utime));
   b.handling_ = rbuf->recv_utime;
   const auto t0 = std::chrono::steady_clock::now();
-  sub->handler(BusMessage{channel, rbuf->recv_utime, data});
+  try {
+    sub->handler(BusMessage{channel, rbuf->recv_utime, data});
+  } catch (const std::exception& e) {  // an exception must not unwind through LCM's C code and end the run
+    b.tally_.failed(channel, e.what());
+  }
   b.tally_.processed(rbuf->recv_utime, std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
   b.handling_ = 0;
 }
@@ -173,13 +180,7 @@ Result<LiveReport> LiveRunner::run(const std::atomic<bool>* stop) {
   report.received = d.received;
   report.outputs = d.outputs;
   report.wall_s = elapsed();
-  for (auto& b : d.buses) {
-    ModuleReport r = b->tally_.report(b->module_);
-    ModuleCounters c = b->module_.counters();
-    r.warnings = std::move(c.warnings);
-    r.metrics = std::move(c.metrics);
-    report.modules.push_back(std::move(r));
-  }
+  for (auto& b : d.buses) report.modules.push_back(b->tally_.report(b->module_));
   Status closed = d.writer ? d.writer->close() : Status{};
   if (!d.failure.ok()) return Error{d.failure.message()};
   if (!closed.ok()) return Error{closed.message()};

@@ -20,6 +20,7 @@
 #include "driftlab/fault_manifest_t.hpp"
 #include "lcmtypes/stream_header.h"
 #include "lcmtypes/type_registry.h"
+#include "lcmtypes/validate.h"
 #include "replayer/internal/module_tally.h"
 
 namespace driftlab::replay {
@@ -173,13 +174,7 @@ class Engine {
 
   std::vector<ModuleReport> module_reports() const {
     std::vector<ModuleReport> out;
-    for (const auto& b : buses_) {
-      ModuleReport r = b->tally_.report(b->module_);
-      ModuleCounters c = b->module_.counters();
-      r.warnings = std::move(c.warnings);
-      r.metrics = std::move(c.metrics);
-      out.push_back(std::move(r));
-    }
+    for (const auto& b : buses_) out.push_back(b->tally_.report(b->module_));
     return out;
   }
 
@@ -250,17 +245,25 @@ class Engine {
     const std::vector<Route> targets = routes(channel);  // a copy: handlers may subscribe (and clear the cache)
     if (targets.empty()) return;
     const std::string* name = intern(channel);
+    // A message that does not hold its type's layout never reaches a decoder: it is counted and dropped.
+    if (const auto why = lcmtypes::layout_problem(data)) {
+      for (const Route& r : targets) r.bus->tally_.malformed(channel, *why);
+      return;
+    }
     const auto stamp = lcmtypes::header_stamp(data, now_);
     BusMessage m{channel, now_, data};
     for (const Route& r : targets) {
       ModuleBus& b = *r.bus;
       b.tally_.input(name, stamp);
-      if (o_.timing) {
-        const auto t0 = std::chrono::steady_clock::now();
+      const auto t0 = o_.timing ? std::chrono::steady_clock::now() : std::chrono::steady_clock::time_point{};
+      try {
         b.subs_[r.sub].handler(m);
+      } catch (const std::exception& e) {  // one message a module cannot take must not end the run
+        b.tally_.failed(channel, e.what());
+      }
+      if (o_.timing) {
         b.tally_.processed(now_, std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
       } else {
-        b.subs_[r.sub].handler(m);
         b.tally_.unmeasured();
       }
     }

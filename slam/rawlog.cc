@@ -24,6 +24,7 @@
 #include "driftlab/tf_t.hpp"
 #include "slam/internal/mrpt_scan.h"
 #include "lcmtypes/planar.h"
+#include "lcmtypes/validate.h"
 
 namespace driftlab::slam {
 namespace {
@@ -227,14 +228,13 @@ Result<RawlogCounts> export_rawlog(const std::string& log, const std::string& ou
     Event e;
     while (reader->next(e)) {
       const std::string channel(e.channel);
-      const auto* bytes = e.data.data();
-      const int size = static_cast<int>(e.data.size());
+      const std::span<const uint8_t> data = e.data;
       driftlab::laser_scan_t scan;
       driftlab::odometry_t odo;
       driftlab::imu_t imu;
       driftlab::pose_t pose;
       driftlab::tf_t tf;
-      if (tf.decode(bytes, 0, size) >= 0) {
+      if (lcmtypes::decode(data, tf)) {
         for (const auto& t : tf.transforms) {
           if (t.header.frame_id == "base_link") {
             sensors[t.child_frame_id] = mrpt::poses::CPose2D(t.translation.x, t.translation.y, yaw_of(t.rotation));
@@ -242,13 +242,13 @@ Result<RawlogCounts> export_rawlog(const std::string& log, const std::string& ou
         }
         continue;
       }
-      if (scan.decode(bytes, 0, size) >= 0 && scan.nranges >= 2) {
+      if (lcmtypes::decode(data, scan) && scan.nranges >= 2) {
         auto it = sensors.find(scan.header.frame_id);
         auto obs = internal::to_mrpt(scan, it != sensors.end() ? it->second : mrpt::poses::CPose2D());
         obs->sensorLabel = channel;
         archive << *obs;
         ++counts.written["CObservation2DRangeScan"];
-      } else if (odo.decode(bytes, 0, size) >= 0) {
+      } else if (lcmtypes::decode(data, odo)) {
         mrpt::obs::CObservationOdometry obs;
         obs.timestamp = mrpt::Clock::fromDouble(static_cast<double>(odo.header.utime) * 1e-6);
         obs.sensorLabel = channel;
@@ -257,7 +257,7 @@ Result<RawlogCounts> export_rawlog(const std::string& log, const std::string& ou
         obs.velocityLocal = {odo.linear_velocity.x, odo.linear_velocity.y, odo.angular_velocity.z};
         archive << obs;
         ++counts.written["CObservationOdometry"];
-      } else if (imu.decode(bytes, 0, size) >= 0) {
+      } else if (lcmtypes::decode(data, imu)) {
         mrpt::obs::CObservationIMU obs;
         obs.timestamp = mrpt::Clock::fromDouble(static_cast<double>(imu.header.utime) * 1e-6);
         obs.sensorLabel = channel;
@@ -269,7 +269,7 @@ Result<RawlogCounts> export_rawlog(const std::string& log, const std::string& ou
         obs.set(mrpt::obs::IMU_Z_ACC, imu.linear_acceleration.z);
         archive << obs;
         ++counts.written["CObservationIMU"];
-      } else if (channel == "GROUND_TRUTH" && pose.decode(bytes, 0, size) >= 0) {
+      } else if (channel == "GROUND_TRUTH" && lcmtypes::decode(data, pose)) {
         mrpt::obs::CObservationRobotPose obs;
         obs.timestamp = mrpt::Clock::fromDouble(static_cast<double>(pose.header.utime) * 1e-6);
         obs.sensorLabel = channel;

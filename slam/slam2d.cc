@@ -29,6 +29,7 @@
 #include "driftlab/pose_t.hpp"
 #include "driftlab/tf_t.hpp"
 #include "lcmtypes/planar.h"
+#include "lcmtypes/validate.h"
 
 namespace driftlab::slam {
 namespace {

@@ -24,6 +24,7 @@
 #include "driftlab/tf_t.hpp"
 #include "slam/internal/odometry_buffer.h"
 #include "lcmtypes/planar.h"
+#include "lcmtypes/validate.h"
 
 namespace driftlab::slam {
 namespace {

@@ -34,6 +34,14 @@ class ModuleTally {
     }
   }
   void output() { ++outputs_; }
+  /// An input that was not delivered: its bytes are not a well-formed message of its type (why says how).
+  void malformed(const std::string& channel, const std::string& why) {
+    if (malformed_++ == 0) first_malformed_ = channel + ": " + why;
+  }
+  /// An input whose handler threw: the module skipped it (what() says why).
+  void failed(const std::string& channel, const char* what) {
+    if (failed_++ == 0) first_failure_ = channel + ": " + what;
+  }
   /// An input that arrived at `at` [us] took `seconds` to process: the queue a module with these processing times
   /// has (inputs wait while it is busy).
   void processed(int64_t at, double seconds) {
@@ -52,7 +60,18 @@ class ModuleTally {
     r.inputs = inputs_;
     r.late = late_;
     r.out_of_order = out_of_order_;
-    r.dropped = module.counters().dropped;
+    const ModuleCounters counters = module.counters();
+    r.dropped = counters.dropped + malformed_ + failed_;
+    r.warnings = counters.warnings;
+    r.metrics = counters.metrics;
+    if (malformed_ > 0) {
+      r.warnings.push_back(std::to_string(malformed_) + " malformed messages dropped before delivery (first: " +
+                           first_malformed_ + ")");
+    }
+    if (failed_ > 0) {
+      r.warnings.push_back(std::to_string(failed_) + " messages the module failed on and skipped (first: " +
+                           first_failure_ + ")");
+    }
     r.outputs = outputs_;
     if (!proc_s_.empty()) {
       double sum = 0, max = 0;
@@ -67,7 +86,8 @@ class ModuleTally {
   }
 
  private:
-  int64_t inputs_ = 0, late_ = 0, out_of_order_ = 0, outputs_ = 0;
+  int64_t inputs_ = 0, late_ = 0, out_of_order_ = 0, outputs_ = 0, malformed_ = 0, failed_ = 0;
+  std::string first_malformed_, first_failure_;
   int64_t latest_stamp_ = std::numeric_limits<int64_t>::min();
   std::unordered_map<const std::string*, int64_t> last_stamp_;
   std::vector<double> proc_s_;
