@@ -17,11 +17,15 @@
 #include <fstream>
 #include <thread>
 
+#include <atomic>
 #include <nlohmann/json.hpp>
 
 #include "core/log_format.h"
 #include "core/log_reader.h"
 #include "driftlab/recorder_stats_t.hpp"
+#include "driftlab/laser_scan_t.hpp"
+#include "driftlab/odometry_t.hpp"
+#include "driftlab/imu_t.hpp"
 #include "tests/lcm_netns_fixture.h"
 
 extern char** environ;
@@ -218,6 +222,75 @@ TEST_F(Record, ModulesRunLiveOnWhatTheSimulatorPublishes) {
   }
   EXPECT_EQ(estimates + 0, j["modules"][0]["outputs"].get<int64_t>());
   EXPECT_GE(stats, 2 * 5);  // both modules, every second
+}
+
+TEST_F(Record, ModulesRunLiveThroughAFloodOfHostileMessages) {
+  // Any LCM peer can publish: one sends 10k malformed messages a second on the channels the modules read (an IMU
+  // whose frame name has length -3, odometry cut short, a scan with -5 beams) while a simulated robot publishes.
+  // The live modules keep running, drop and count the bad ones, and still process the good ones.
+  const std::string out = dir_.file("live.lcm");
+  std::vector<std::string> args = {kDriftlab, "run", "--modules", "estimator,controller", "--url", kLcmUrl,
+                                   "--duration", "7", "--json", "-o", out};
+  std::vector<char*> argv;
+  for (auto& a : args) argv.push_back(a.data());
+  argv.push_back(nullptr);
+  posix_spawn_file_actions_t actions;
+  posix_spawn_file_actions_init(&actions);
+  posix_spawn_file_actions_addopen(&actions, 1, dir_.file("run.json").c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  Process run;
+  ASSERT_EQ(posix_spawn(&run.pid, argv[0], &actions, nullptr, argv.data(), environ), 0);
+  posix_spawn_file_actions_destroy(&actions);
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));  // subscribed
+
+  auto encoded = [](const auto& m) {
+    std::vector<uint8_t> b(static_cast<size_t>(m.getEncodedSize()));
+    m.encode(b.data(), 0, static_cast<int>(b.size()));
+    return b;
+  };
+  driftlab::imu_t imu{};
+  imu.header.frame_id = "imu";
+  auto bad_imu = encoded(imu);
+  bad_imu[24] = bad_imu[25] = bad_imu[26] = 0xff, bad_imu[27] = 0xfd;  // header.frame_id length -3
+  driftlab::odometry_t odom{};
+  odom.header.frame_id = "odom";
+  auto bad_odom = encoded(odom);
+  bad_odom.resize(40);
+  driftlab::laser_scan_t scan{};
+  scan.header.frame_id = "l";
+  auto bad_scan = encoded(scan);
+  bad_scan[58] = bad_scan[59] = bad_scan[60] = 0xff, bad_scan[61] = 0xfb;  // nranges = -5 (after 7 floats)
+  std::atomic<bool> flooding{true};
+  std::atomic<int64_t> flooded{0};
+  std::thread flood([&] {
+    lcm_t* peer = lcm_create(kLcmUrl);
+    const std::pair<const char*, std::vector<uint8_t>*> bad[] = {{"IMU", &bad_imu}, {"ODOM", &bad_odom},
+                                                                 {"SCAN", &bad_scan}};
+    auto next = std::chrono::steady_clock::now();
+    for (int64_t i = 0; flooding; ++i) {
+      const auto& [channel, bytes] = bad[i % 3];
+      lcm_publish(peer, channel, bytes->data(), static_cast<unsigned>(bytes->size()));
+      ++flooded;
+      next += std::chrono::microseconds(100);  // 10k msg/s
+      std::this_thread::sleep_until(next);
+    }
+    lcm_destroy(peer);
+  });
+  const int sim = test::run(kDriftlab + " sim --duration 4 --live '" + kLcmUrl + "' --live-rate 2 -o " +
+                            dir_.file("sim.lcm") + " >/dev/null");
+  flooding = false;
+  flood.join();
+  ASSERT_EQ(sim, 0);
+  ASSERT_EQ(run.wait(), 0) << "driftlab run did not survive the flood";
+  std::ifstream summary(dir_.file("run.json"));
+  const auto j = nlohmann::json::parse(summary);
+  EXPECT_GT(flooded.load(), 15000);  // the simulation's 2 s of wall time (and its start) at 10k msg/s
+  const auto& estimator = j["modules"][0];
+  EXPECT_GT(estimator["inputs"].get<int64_t>(), 900);   // the good IMU and odometry of 4 s, as without the flood
+  EXPECT_GT(estimator["outputs"].get<int64_t>(), 150);
+  EXPECT_GT(estimator["dropped"].get<int64_t>(), 5000);  // the malformed IMU and odometry (2 in 3), counted
+  bool warned = false;
+  for (const auto& w : estimator["warnings"]) warned |= w.get<std::string>().find("malformed") != std::string::npos;
+  EXPECT_TRUE(warned) << estimator.dump();
 }
 
 TEST_F(Record, ChannelFiltersKeepOnlyMatchingChannels) {
