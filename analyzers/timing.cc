@@ -42,6 +42,8 @@ struct Samples {
   Array<double> motion_t, motion_w;
   bool motion_from_pose = false;
   std::string frame;  // header.frame_id of the first message
+  int64_t malformed = 0;          // messages that do not hold their type's layout: counted, nothing else read
+  std::string malformed_example;
   double last_yaw = 0, last_t = 0;
   bool have_last = false;
   std::vector<std::span<const uint8_t>> scans;  // 2D scans, as views into the mapped log
@@ -284,6 +286,11 @@ void judge(ChannelTiming& c) {
     c.reasons.push_back(why);
   };
   char buf[256];
+  if (c.malformed > 0) {
+    std::snprintf(buf, sizeof(buf), "%lld messages do not decode as %s (first: %s)", static_cast<long long>(c.malformed),
+                  c.type.c_str(), c.malformed_example.c_str());
+    add("fault", buf);
+  }
   if (c.seq_gaps > 0) {
     std::snprintf(buf, sizeof(buf), "%lld messages missing in %zu gaps of seq",
                   static_cast<long long>(c.seq_gaps), c.gaps.size());
@@ -498,6 +505,12 @@ Result<Diagnosis> diagnose(const std::string& log, const DiagnoseOptions& option
       last_name = it->first;
     }
     Samples& s = *last;
+    if (!s.type.empty()) {
+      if (auto why = lcmtypes::layout_problem(e.data)) {
+        if (s.malformed++ == 0) s.malformed_example = *why;
+        continue;
+      }
+    }
     const int64_t fp = logfmt::fingerprint(e.data);
     s.arrival.push_back(e.utime);
     if (fp == tf_hash) tf.add_tf(e.data, e.utime, last_name.find("STATIC") != std::string_view::npos);
@@ -532,6 +545,8 @@ Result<Diagnosis> diagnose(const std::string& log, const DiagnoseOptions& option
     c.name = name;
     c.type = s.type;
     c.has_header = s.has_header;
+    c.malformed = s.malformed;
+    c.malformed_example = s.malformed_example;
     c.count = static_cast<int64_t>(s.arrival.size());
     const auto [a0, a1] = std::minmax_element(s.arrival.begin(), s.arrival.end());
     if (c.count > 1 && *a1 > *a0) c.rate_hz = static_cast<double>(c.count - 1) / (static_cast<double>(*a1 - *a0) * 1e-6);

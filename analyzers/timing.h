@@ -29,6 +29,8 @@ struct ChannelTiming {
   std::string type;                 ///< "driftlab.imu_t", or "" when unknown
   bool has_header = false;          ///< seq and stamps were read from driftlab.header_t
   int64_t count = 0;
+  int64_t malformed = 0;            ///< messages that do not hold their type's layout (left out of the rest) [count]
+  std::string malformed_example;    ///< why the first of them is malformed
   double rate_hz = 0;               ///< messages per second of arrival time
   double expected_period_s = 0;     ///< median interval between stamps (arrivals without a header)
   int64_t seq_gaps = 0;             ///< messages missing from gaps in seq [count]

@@ -26,6 +26,7 @@ nlohmann::json to_json(const analyzers::Diagnosis& d) {
         {{"name", c.name},
          {"type", c.type.empty() ? nlohmann::json() : nlohmann::json(c.type)},
          {"count", c.count},
+         {"malformed", c.malformed},
          {"rate_hz", c.rate_hz},
          {"expected_period_s", c.expected_period_s},
          {"drops", {{"seq_gaps", c.has_header ? nlohmann::json(c.seq_gaps) : nlohmann::json()},

@@ -16,7 +16,9 @@ constexpr uint64_t kReleaseStep = 16ull << 20;
 }  // namespace
 
 Result<MappedFile> MappedFile::open(const std::string& path) {
-  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  // O_NONBLOCK: a FIFO without a writer would block open() forever; with it, fstat below refuses the FIFO at once
+  // (it has no effect on regular files).
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK);
   if (fd < 0) return Error{path + ": cannot open: " + std::strerror(errno)};
   struct stat st {};
   if (fstat(fd, &st) != 0) {
@@ -30,7 +32,7 @@ Result<MappedFile> MappedFile::open(const std::string& path) {
   }
   if (!S_ISREG(st.st_mode)) {
     ::close(fd);
-    return Error{path + ": not a regular file"};
+    return Error{path + ": not a regular file (a FIFO, device or socket): give a log file"};
   }
   MappedFile file;
   file.size_ = static_cast<uint64_t>(st.st_size);

@@ -46,11 +46,21 @@ size_t fixed_size(const std::string& type) {
 class Plans {
  public:
   const Plan* find(int64_t fingerprint) {
+    // Messages come in runs of one type: the last answer of this thread, without the lock.
+    thread_local int64_t last_fingerprint = 0;
+    thread_local const Plan* last_plan = nullptr;
+    if (fingerprint == last_fingerprint && last_plan != nullptr) return last_plan;
     std::lock_guard lock(mutex_);
-    if (auto it = by_fingerprint_.find(fingerprint); it != by_fingerprint_.end()) return it->second;
+    if (auto it = by_fingerprint_.find(fingerprint); it != by_fingerprint_.end()) {
+      last_fingerprint = fingerprint;
+      last_plan = it->second;
+      return it->second;
+    }
     const char* name = type_name(fingerprint);
     const Plan* p = name != nullptr ? compile(name) : nullptr;
     by_fingerprint_[fingerprint] = p;
+    last_fingerprint = fingerprint;
+    last_plan = p;
     return p;
   }
 

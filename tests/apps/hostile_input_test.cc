@@ -1,0 +1,149 @@
+// Every command on hostile logs: messages with valid framing whose payloads lie (negative and impossible lengths,
+// cut short), and inputs that are not files. Nothing may crash, hang, or leave a partial file behind; the bad
+// messages are counted and named, and every good one is still used.
+#include <gtest/gtest.h>
+#include <sys/stat.h>
+
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+
+#include "core/log_reader.h"
+#include "core/log_writer.h"
+#include "driftlab/imu_t.hpp"
+#include "driftlab/laser_scan_t.hpp"
+#include "driftlab/pose_t.hpp"
+#include "driftlab/tf_t.hpp"
+#include "lcmtypes/stream_header.h"
+#include "tests/test_util.h"
+
+namespace driftlab {
+namespace {
+
+namespace fs = std::filesystem;
+const std::string kDriftlab = std::string(DRIFTLAB_BIN_DIR) + "/driftlab";
+const std::string kSample = std::string(DRIFTLAB_TEST_DATA) + "/sample.lcm";
+
+test::CmdResult driftlab(const std::string& args) { return test::run_capture("timeout 60 " + kDriftlab + " " + args); }
+
+template <typename T>
+std::vector<uint8_t> encode(const T& m) {
+  std::vector<uint8_t> b(static_cast<size_t>(m.getEncodedSize()));
+  m.encode(b.data(), 0, static_cast<int>(b.size()));
+  return b;
+}
+void put_be32(std::vector<uint8_t>& b, size_t at, int32_t v) {
+  const auto u = static_cast<uint32_t>(v);
+  for (int i = 0; i < 4; ++i) b[at + static_cast<size_t>(i)] = static_cast<uint8_t>(u >> (24 - 8 * i));
+}
+
+/// The golden sample log with hostile messages among its own: a scan with -5 beams, an IMU whose frame name has
+/// length -3, a TF message claiming 0x7fffffff transforms in 1.5 KB, and a ground-truth pose cut to 40 bytes.
+/// Returns how many of each it wrote (one set every 50 events).
+int write_hostile_log(const std::string& path) {
+  int sets = 0;
+  auto w = LogWriter::create(path);
+  auto r = LogReader::open(kSample);
+  if (!w.ok() || !r.ok()) return -1;
+  Event e;
+  int64_t n = 0, last = 0;
+  while (r->next(e)) {
+    if (!w->write(e.utime, e.channel, e.data).ok()) return -1;
+    last = e.utime;
+    if (++n % 50 != 0) continue;
+    driftlab::laser_scan_t scan{};
+    scan.header = {n, e.utime, "laser"};
+    auto bad_scan = encode(scan);
+    put_be32(bad_scan, lcmtypes::kHeaderFrameOffset + 4 + 6 + 7 * 4, -5);
+    driftlab::imu_t imu{};
+    imu.header = {n, e.utime, "imu"};
+    auto bad_imu = encode(imu);
+    put_be32(bad_imu, lcmtypes::kHeaderFrameOffset, -3);
+    driftlab::tf_t tf{};
+    tf.header = {n, e.utime, ""};
+    auto bad_tf = encode(tf);
+    put_be32(bad_tf, lcmtypes::kHeaderFrameOffset + 4 + 1, 0x7fffffff);
+    bad_tf.resize(1500);
+    driftlab::pose_t pose{};
+    pose.header = {n, e.utime, "world"};
+    auto cut = encode(pose);
+    cut.resize(40);
+    for (const auto& [channel, bytes] : {std::pair{"SCAN", &bad_scan}, {"IMU", &bad_imu}, {"TF", &bad_tf},
+                                         {"GROUND_TRUTH", &cut}}) {
+      if (!w->write(e.utime, channel, *bytes).ok()) return -1;
+    }
+    ++sets;
+  }
+  if (last == 0 || !w->close().ok()) return -1;
+  return sets;
+}
+
+bool crashed(const test::CmdResult& r) {
+  return r.code >= 124 || r.err.find("terminate") != std::string::npos ||
+         r.err.find("runtime error") != std::string::npos;  // UBSan
+}
+
+void expect_no_partial_files(const std::string& dir) {
+  for (const auto& f : fs::recursive_directory_iterator(dir)) {
+    EXPECT_EQ(f.path().string().find(".partial"), std::string::npos) << f.path();
+  }
+}
+
+TEST(HostileLog, EveryCommandCountsTheLiesAndUsesTheRest) {
+  test::TempDir dir;
+  const std::string log = dir.file("hostile.lcm");
+  const int sets = write_hostile_log(log);
+  ASSERT_GT(sets, 5);
+  int64_t imu = 0;
+  for (const auto& e : test::read_all(kSample)) imu += e.channel == "IMU";
+
+  const auto d = driftlab("diagnose --json " + dir.file("d.json") + " " + log);
+  ASSERT_FALSE(crashed(d)) << d.err;
+  EXPECT_EQ(d.code, 0) << d.err;
+  std::ifstream in(dir.file("d.json"));
+  const auto j = nlohmann::json::parse(in);
+  std::map<std::string, nlohmann::json> by_name;
+  for (const auto& c : j["channels"]) by_name[c["name"]] = c;
+  for (const char* channel : {"SCAN", "IMU", "TF", "GROUND_TRUTH"}) EXPECT_EQ(by_name[channel]["malformed"], sets);
+  EXPECT_EQ(by_name["IMU"]["count"], imu);  // every good message still analysed
+  EXPECT_EQ(by_name["GROUND_TRUTH"]["verdict"], "fault");
+  EXPECT_NE(by_name["SCAN"]["reasons"].dump().find("ranges: length -5"), std::string::npos) << by_name["SCAN"];
+
+  const auto rep = driftlab("report " + log + " -o " + dir.file("report"));
+  EXPECT_FALSE(crashed(rep)) << rep.err;
+  const auto replay = driftlab("replay " + log + " --modules slam,estimator --json -o " + dir.file("replay.lcm"));
+  ASSERT_FALSE(crashed(replay)) << replay.err;
+  ASSERT_EQ(replay.code, 0) << replay.err;
+  const auto rj = nlohmann::json::parse(replay.out);
+  for (const auto& m : rj["modules"]) {
+    EXPECT_GT(m["dropped"].get<int64_t>(), 0) << m;
+    EXPECT_NE(m["warnings"].dump().find("malformed"), std::string::npos) << m;
+  }
+  EXPECT_GE(rj["modules"][1]["outputs"].get<int64_t>(), 45);  // the estimator ran on the good ones (50 Hz, 1 s)
+
+  const auto csv = driftlab("export csv " + log + " -o " + dir.file("csv"));
+  EXPECT_FALSE(crashed(csv)) << csv.err;
+  const auto rawlog = driftlab("export rawlog " + log + " -o " + dir.file("x.rawlog"));
+  EXPECT_FALSE(crashed(rawlog)) << rawlog.err;
+  const auto tum = driftlab("export tum " + log + ":GROUND_TRUTH -o " + dir.file("gt.tum"));
+  EXPECT_FALSE(crashed(tum)) << tum.err;
+  const auto eval = driftlab("eval --gt " + log + ":GROUND_TRUTH --est " + log + ":ODOM");
+  EXPECT_FALSE(crashed(eval)) << eval.err;
+  expect_no_partial_files(dir.path());
+}
+
+TEST(HostileLog, AFifoIsRefusedAtOnceNotWaitedOn) {
+  // Opening a FIFO with no writer for reading blocks forever; every command must refuse it with one line instead.
+  test::TempDir dir;
+  const std::string fifo = dir.file("pipe.lcm");
+  ASSERT_EQ(mkfifo(fifo.c_str(), 0600), 0);
+  for (const std::string& cmd : std::vector<std::string>{"info ", "diagnose ", "export csv -o " + dir.file("csv") + " "}) {
+    const auto r = driftlab(cmd + fifo);
+    EXPECT_EQ(r.code, 2) << cmd << r.err;
+    EXPECT_NE(r.err.find("not a regular file"), std::string::npos) << cmd << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+  }
+}
+
+}  // namespace
+}  // namespace driftlab
