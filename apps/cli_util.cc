@@ -26,10 +26,17 @@ bool write_output(const std::string& path, const std::string& text) {
     std::fwrite(text.data(), 1, text.size(), stdout);
     return true;
   }
-  FILE* f = std::fopen(path.c_str(), "w");
+  // Beside the target, renamed when whole: a failure leaves what PATH held and no partial file.
+  const std::string partial = path + ".partial";
+  FILE* f = std::fopen(partial.c_str(), "w");
   bool ok = f != nullptr && std::fwrite(text.data(), 1, text.size(), f) == text.size();
   if (f != nullptr && std::fclose(f) != 0) ok = false;
-  if (!ok) fail(path + ": cannot write: " + std::strerror(errno), kExitFailure);
+  const int err = errno;
+  if (ok && std::rename(partial.c_str(), path.c_str()) != 0) ok = false;
+  if (!ok) {
+    std::remove(partial.c_str());
+    fail(path + ": cannot write: " + std::strerror(err != 0 ? err : errno), kExitFailure);
+  }
   return ok;
 }
 

@@ -14,6 +14,7 @@
 #include "core/log_reader.h"
 #include "lcmtypes/schema.h"
 #include "lcmtypes/type_registry.h"
+#include "core/same_file.h"
 
 namespace driftlab::apps {
 namespace {
@@ -145,6 +146,7 @@ int run_tum(TumArgs a) {
   if (a.channel.empty() && !split_log_channel(a.log, &a.log, &a.channel)) {
     return fail(a.log + ": name the channel as LOG:CHANNEL (or with -c CHANNEL)");
   }
+  if (Status s = refuse_same_file(a.out, {a.log}); !s) return fail(s.message());
   auto t = analyzers::load_log_channel(a.log, a.channel);
   if (!t) return fail(t.error().message);
   const std::string partial = a.out + ".partial";

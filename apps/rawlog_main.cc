@@ -8,6 +8,7 @@
 #include "apps/cli_util.h"
 #include "apps/commands.h"
 #include "slam/rawlog.h"
+#include "core/same_file.h"
 
 namespace driftlab::apps {
 namespace {
@@ -36,6 +37,10 @@ void add_rawlog_commands(CLI::App& import, CLI::App& exp, int* exit_code) {
   from->add_option("rawlog", in->in, "Rawlog to read")->required();
   from->add_option("-o,--out", in->out, "Log to write")->required();
   from->callback([in, exit_code] {
+    if (Status s = refuse_same_file(in->out, {in->in}); !s) {
+      *exit_code = fail(s.message());
+      return;
+    }
     auto r = slam::import_rawlog(in->in, in->out);
     if (!r) {
       *exit_code = fail(r.error().message);
@@ -51,6 +56,10 @@ void add_rawlog_commands(CLI::App& import, CLI::App& exp, int* exit_code) {
   to->add_option("log", out->in, "Log to read")->required();
   to->add_option("-o,--out", out->out, "Rawlog to write")->required();
   to->callback([out, exit_code] {
+    if (Status s = refuse_same_file(out->out, {out->in}); !s) {
+      *exit_code = fail(s.message());
+      return;
+    }
     auto r = slam::export_rawlog(out->in, out->out);
     if (!r) {
       *exit_code = fail(r.error().message);

@@ -18,6 +18,7 @@
 #include "modules/registry.h"
 #include "replayer/live_runner.h"
 #include "replayer/replayer.h"
+#include "core/same_file.h"
 
 namespace driftlab::apps {
 namespace {
@@ -119,6 +120,7 @@ int run_replay(const ReplayArgs& a) {
   for (const auto& log : a.logs) {
     if (!std::filesystem::is_regular_file(log)) return fail(log + ": no such log file");
   }
+  if (Status s = refuse_same_file(a.out, a.logs); !s) return fail(s.message());
   try {
     std::regex check(a.channels);
   } catch (const std::regex_error& e) {

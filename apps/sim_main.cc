@@ -14,6 +14,7 @@
 #include "apps/cli_util.h"
 #include "apps/commands.h"
 #include "sim/simulator.h"
+#include "core/same_file.h"
 
 namespace driftlab::apps {
 namespace {
@@ -35,6 +36,7 @@ void on_signal(int) { g_stop.store(true); }
 
 int run_sim(const SimArgs& a) {
   const std::string path = a.scenario.empty() ? sim::default_scenario_path() : a.scenario;
+  if (Status s = refuse_same_file(a.out, {path}); !s) return fail(s.message());
   auto scenario = sim::load_scenario(path);
   if (!scenario) return fail(scenario.error().message);
   if (a.duration > 0) scenario->duration = a.duration;

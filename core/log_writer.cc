@@ -165,8 +165,15 @@ Status LogWriter::close() {
   Status st = flush();
   if (::close(fd_) != 0 && st.ok()) st = Error{file_path_ + ": close failed: " + std::strerror(errno)};
   fd_ = -1;
-  if (atomic_ && std::rename(file_path_.c_str(), path_.c_str()) != 0 && st.ok()) {
+  if (!atomic_) return st;
+  if (!st.ok() || !error_.empty()) {
+    // A log cut short (a full disk) never replaces what PATH held: the partial file goes, PATH stays untouched.
+    std::remove(file_path_.c_str());
+    return st.ok() ? Status{Error{error_}} : st;
+  }
+  if (std::rename(file_path_.c_str(), path_.c_str()) != 0) {
     st = Error{path_ + ": cannot rename " + file_path_ + " into place: " + std::strerror(errno)};
+    std::remove(file_path_.c_str());
   }
   return st;
 }

@@ -17,7 +17,8 @@ namespace driftlab {
 struct WriteOptions {
   /// Size of the write buffer [bytes].
   size_t buffer_bytes = 1 << 20;
-  /// Write to PATH.partial and rename to PATH on close(), so no half-written log is ever seen under PATH.
+  /// Write to PATH.partial and rename to PATH on close(), so no half-written log is ever seen under PATH. After a
+  /// write error close() removes the partial file and leaves PATH as it was.
   bool atomic = false;
 };
 

@@ -145,5 +145,23 @@ TEST(HostileLog, AFifoIsRefusedAtOnceNotWaitedOn) {
   }
 }
 
+TEST(OutputOverInput, IsRefusedBeforeAnythingIsWritten) {
+  // The same file by another name (a hard link) is caught too: the check is by inode.
+  test::TempDir dir;
+  const std::string log = dir.file("x.lcm"), link = dir.file("y.lcm");
+  fs::copy_file(kSample, log);
+  fs::create_hard_link(log, link);
+  const auto before = test::read_file(log);
+  for (const std::string& cmd : std::vector<std::string>{
+           "replay " + log + " -o " + link, "diagnose --json " + link + " " + log, "export tum " + log +
+           ":GROUND_TRUTH -o " + link, "import rawlog " + log + " -o " + log, "export rawlog " + log + " -o " + log}) {
+    const auto r = driftlab(cmd);
+    EXPECT_EQ(r.code, 2) << cmd << "\n" << r.err;
+    EXPECT_NE(r.err.find("is the input"), std::string::npos) << cmd << "\n" << r.err;
+    EXPECT_EQ(test::read_file(log), before) << cmd;
+  }
+  expect_no_partial_files(dir.path());
+}
+
 }  // namespace
 }  // namespace driftlab

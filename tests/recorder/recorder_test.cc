@@ -202,7 +202,11 @@ TEST_F(Record, ModulesRunLiveOnWhatTheSimulatorPublishes) {
   Process run;
   ASSERT_EQ(posix_spawn(&run.pid, argv[0], &actions, nullptr, argv.data(), environ), 0);
   posix_spawn_file_actions_destroy(&actions);
-  std::this_thread::sleep_for(std::chrono::milliseconds(500));  // subscribed
+  // Subscribed once its log exists (LiveRunner opens it after the modules start); loaded machines take a while.
+  for (int i = 0; i < 500 && !std::filesystem::exists(out + ".partial"); ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  ASSERT_TRUE(std::filesystem::exists(out + ".partial")) << "driftlab run did not start within 5 s";
   ASSERT_EQ(test::run(kDriftlab + " sim --duration 4 --live '" + kLcmUrl + "' --live-rate 2 -o " +
                       dir_.file("sim.lcm") + " >/dev/null"),
             0);
@@ -240,7 +244,11 @@ TEST_F(Record, ModulesRunLiveThroughAFloodOfHostileMessages) {
   Process run;
   ASSERT_EQ(posix_spawn(&run.pid, argv[0], &actions, nullptr, argv.data(), environ), 0);
   posix_spawn_file_actions_destroy(&actions);
-  std::this_thread::sleep_for(std::chrono::milliseconds(500));  // subscribed
+  // Subscribed once its log exists (LiveRunner opens it after the modules start); loaded machines take a while.
+  for (int i = 0; i < 500 && !std::filesystem::exists(out + ".partial"); ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  ASSERT_TRUE(std::filesystem::exists(out + ".partial")) << "driftlab run did not start within 5 s";
 
   auto encoded = [](const auto& m) {
     std::vector<uint8_t> b(static_cast<size_t>(m.getEncodedSize()));
