@@ -41,6 +41,9 @@ bool split_log_channel(const std::string& src, std::string* log, std::string* ch
 /// whole name, so every channel gets a file of its own within the file system's 255-byte limit.
 std::string channel_file_name(std::string_view channel);
 
+/// A number as a person writes it: "2", "0.25", "1e+308" (never 309 digits).
+std::string short_number(double v);
+
 /// 1536 -> "1.5 KiB".
 std::string human_bytes(double bytes);
 /// 1234567 -> "1,234,567".

@@ -7,6 +7,7 @@
 #include <memory>
 
 #include "analyzers/timing.h"
+#include "apps/cli_checks.h"
 #include "apps/cli_util.h"
 #include "apps/commands.h"
 #include "apps/diagnosis_json.h"
@@ -136,8 +137,8 @@ void add_diagnose_command(CLI::App& app, int* exit_code) {
   cmd->add_option("--html", o->html, "Also write the report as an HTML page");
   cmd->add_option("--max-lag", o->analysis.max_lag_s, "Skew search range [s]")
       ->capture_default_str()
-      ->check(CLI::PositiveNumber);
-  cmd->add_option("--window", o->analysis.window_s, "Skew window [s]")->capture_default_str()->check(CLI::PositiveNumber);
+      ->check(positive());
+  cmd->add_option("--window", o->analysis.window_s, "Skew window [s]")->capture_default_str()->check(positive());
   cmd->callback([o, exit_code] { *exit_code = run_diagnose(*o); });
 }
 

@@ -9,6 +9,7 @@
 
 #include "analyzers/trajectory.h"
 #include "analyzers/trajectory_io.h"
+#include "apps/cli_checks.h"
 #include "apps/cli_util.h"
 #include "apps/commands.h"
 
@@ -175,15 +176,15 @@ void add_eval_command(CLI::App& app, int* exit_code) {
       ->check(CLI::IsMember({"none", "se3", "sim3", "posyaw"}));
   cmd->add_option("--max-dt", o->max_dt, "Largest stamp difference of a matched pair [s]")
       ->capture_default_str()
-      ->check(CLI::NonNegativeNumber);
+      ->check(non_negative());
   cmd->add_option("--offset", o->offset, "Added to the estimate's stamps before matching [s]")->capture_default_str();
   cmd->add_flag("--interpolate", o->interpolate, "Interpolate the reference at the estimate's stamps");
   cmd->add_option("--max-gap", o->max_gap, "With --interpolate: largest gap between reference poses to interpolate across [s]")
       ->capture_default_str()
-      ->check(CLI::PositiveNumber);
+      ->check(positive());
   cmd->add_option("--delta", o->delta, "RPE: distance between the poses of a pair")
       ->capture_default_str()
-      ->check(CLI::PositiveNumber);
+      ->check(positive());
   cmd->add_option("--delta-unit", o->delta_unit, "RPE: unit of --delta")
       ->capture_default_str()
       ->check(CLI::IsMember({"frames", "m", "s"}));
@@ -191,10 +192,10 @@ void add_eval_command(CLI::App& app, int* exit_code) {
   cmd->add_option("--segments", o->segments,
                   "Drift: segment lengths [m], comma separated (default: 10..50% of the reference path)")
       ->delimiter(',')
-      ->check(CLI::PositiveNumber);
+      ->check(positive());
   cmd->add_option("--segment-step", o->segment_step, "Drift: a segment starts at every N-th matched pose")
       ->capture_default_str()
-      ->check(CLI::PositiveNumber);
+      ->check(positive());
   cmd->add_option("--json", o->json, "Also write the results as JSON to this file ('-': print only the JSON)");
   cmd->callback([o, exit_code] {
     if (o->delta_unit == "frames" && std::floor(o->delta) != o->delta) {

@@ -8,6 +8,7 @@
 #include <memory>
 #include <optional>
 
+#include "apps/cli_checks.h"
 #include "apps/cli_util.h"
 #include "apps/commands.h"
 #include "core/log_format.h"
@@ -164,7 +165,7 @@ void add_info_command(CLI::App& app, int* exit_code) {
   cmd->add_flag("--json", opts->json, "Print one JSON object instead of a table");
   cmd->add_option("--max-problems", opts->max_problems, "Problems listed in the table")
       ->capture_default_str()
-      ->check(CLI::NonNegativeNumber);
+      ->check(non_negative());
   cmd->callback([opts, exit_code] { *exit_code = run_info(*opts); });
 }
 

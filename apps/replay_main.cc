@@ -13,6 +13,7 @@
 
 #include "analyzers/clock_corrections.h"
 #include "analyzers/timing.h"
+#include "apps/cli_checks.h"
 #include "apps/cli_util.h"
 #include "apps/commands.h"
 #include "modules/registry.h"
@@ -121,6 +122,11 @@ int run_replay(const ReplayArgs& a) {
     if (!std::filesystem::is_regular_file(log)) return fail(log + ": no such log file");
   }
   if (Status s = refuse_same_file(a.out, a.logs); !s) return fail(s.message());
+  if (a.end > 0 && a.end <= a.start) {
+    return fail("--end " + short_number(a.end) + " must be after --start " + short_number(a.start) +
+                " (both in seconds from the start of the logs)");
+  }
+  if (a.fast && a.rate != 1.0) std::fprintf(stderr, "driftlab: warning: --fast ignores --rate\n");
   try {
     std::regex check(a.channels);
   } catch (const std::regex_error& e) {
@@ -171,6 +177,9 @@ int run_replay(const ReplayArgs& a) {
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   if (!report) return fail(report.error().message, kExitFailure);
   const auto& r = *report;
+  if (r.read == 0 && a.start > 0) {
+    return fail("--start " + short_number(a.start) + ": nothing to replay after it (past the end of the logs)");
+  }
   const double span = static_cast<double>(r.end_utime - r.start_utime) * 1e-6;
 
   if (a.json) {
@@ -267,7 +276,7 @@ void add_run_command(CLI::App& app, int* exit_code) {
   cmd->add_option("-o,--out", a->out, "Log of the module outputs and statistics");
   cmd->add_option("--duration", a->duration, "Stop after this many seconds (0: at Ctrl-C)")
       ->capture_default_str()
-      ->check(CLI::NonNegativeNumber);
+      ->check(non_negative());
   cmd->add_flag("--json", a->json, "Print a JSON summary instead of text");
   cmd->callback([a, exit_code] { *exit_code = run_live(*a); });
 }
@@ -287,14 +296,14 @@ void add_replay_command(CLI::App& app, int* exit_code) {
   cmd->add_option("-o,--out", a->out, "Output log: the inputs as dispatched, the module outputs and statistics");
   cmd->add_option("--rate", a->rate, "With --publish: pace at this multiple of real time")
       ->capture_default_str()
-      ->check(CLI::PositiveNumber);
+      ->check(positive());
   cmd->add_flag("--fast", a->fast, "With --publish: as fast as possible");
   cmd->add_option("--start", a->start, "Skip this many seconds from the start of the logs")
       ->capture_default_str()
-      ->check(CLI::NonNegativeNumber);
+      ->check(non_negative());
   cmd->add_option("--end", a->end, "Stop this many seconds after the start of the logs (0: at the end)")
       ->capture_default_str()
-      ->check(CLI::NonNegativeNumber);
+      ->check(non_negative());
   cmd->add_option("-c,--channels", a->channels, "Only channels fully matching this regex (ECMAScript)");
   cmd->add_option("--remap", a->remap, "Deliver channel FROM as TO (FROM=TO, repeatable)");
   cmd->add_option("--order", a->order, "Dispatch order: received (log time) or stamp (header stamps)")
@@ -302,7 +311,7 @@ void add_replay_command(CLI::App& app, int* exit_code) {
       ->check(CLI::IsMember({"received", "stamp"}));
   cmd->add_option("--reorder-window", a->reorder_window, "With --order stamp: wait this long for stragglers [s]")
       ->capture_default_str()
-      ->check(CLI::NonNegativeNumber);
+      ->check(non_negative());
   cmd->add_option("--restamp", a->restamp, "Clock corrections before dispatch: FILE or auto");
   cmd->add_option("--inject", a->inject, "Faults to add before dispatch (YAML, as the simulator's --faults)");
   cmd->add_option("--publish", a->publish, "Re-publish inputs and outputs on this LCM URL, paced by --rate");

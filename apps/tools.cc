@@ -5,6 +5,9 @@
 
 #include <array>
 #include <cerrno>
+#include <charconv>
+#include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <string>
@@ -66,7 +69,53 @@ int exec_tool(const ToolCommand& tool, char** argv) {
               kExitFailure);
 }
 
+namespace {
+
+/// Checks what CLI11's own conversions let through: NaN, infinities and overflowing numbers ("1e309") for
+/// floating options, and integers beyond their type (which CLI11 2.1 clamps silently).
+void harden(CLI::App& app) {
+  for (CLI::Option* opt : app.get_options()) {
+    if (opt->get_type_size() == 0) continue;  // a flag
+    const std::string full = opt->get_type_name();  // "FLOAT", or "FLOAT:POSITIVE" with validators
+    const std::string type = full.substr(0, full.find(':'));
+    if (type == "FLOAT") {
+      opt->check(CLI::Validator(
+          [](std::string& v) -> std::string {
+            char* end = nullptr;
+            errno = 0;
+            const double d = std::strtod(v.c_str(), &end);
+            if (end == v.c_str() || *end != '\0') return "";  // not a number: CLI11's conversion says so
+            if (!std::isfinite(d) || errno == ERANGE) return "must be a finite number, got " + v;
+            return "";
+          },
+          ""));
+    } else if (type == "INT" || type == "UINT") {
+      const bool is_unsigned = type == "UINT";
+      opt->check(CLI::Validator(
+          [is_unsigned](std::string& v) -> std::string {
+            const char* begin = v.c_str();
+            const char* end = begin + v.size();
+            std::from_chars_result r{};
+            if (is_unsigned) {
+              uint64_t x = 0;
+              r = std::from_chars(begin, end, x);
+            } else {
+              int64_t x = 0;
+              r = std::from_chars(begin, end, x);
+            }
+            if (r.ec == std::errc::result_out_of_range) return "is out of range: " + v;
+            return "";
+          },
+          ""));
+    }
+  }
+  for (CLI::App* sub : app.get_subcommands([](CLI::App*) { return true; })) harden(*sub);
+}
+
+}  // namespace
+
 int parse_and_run(CLI::App& app, int argc, char** argv, const int& exit_code) {
+  harden(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {

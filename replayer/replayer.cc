@@ -360,15 +360,21 @@ class Merger {
     }
     if (first == std::numeric_limits<int64_t>::max()) return m;  // nothing to replay
     m.base_ = first;
+    // Offsets from the first event, saturated: 1e308 s is past any log, not an overflow back before its start.
+    auto after_first = [first](double seconds) {
+      const double us = seconds * kUs;
+      const double room = static_cast<double>(std::numeric_limits<int64_t>::max() - first);
+      return us >= room ? std::numeric_limits<int64_t>::max() : first + static_cast<int64_t>(std::llround(us));
+    };
     if (o.start_s > 0) {
-      const int64_t from = first + static_cast<int64_t>(std::llround(o.start_s * kUs));
+      const int64_t from = after_first(o.start_s);
       for (auto& s : m.sources_) {
         if (s.has && s.event.utime >= from) continue;
         if (Status st = s.reader.seek(from); !st) return Error{st.message()};
         s.has = s.reader.next(s.event);
       }
     }
-    if (std::isfinite(o.end_s)) m.end_ = first + static_cast<int64_t>(std::llround(o.end_s * kUs));
+    if (std::isfinite(o.end_s)) m.end_ = after_first(o.end_s);
     return m;
   }
 

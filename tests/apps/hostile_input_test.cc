@@ -145,6 +145,33 @@ TEST(HostileLog, AFifoIsRefusedAtOnceNotWaitedOn) {
   }
 }
 
+TEST(NonsenseOptions, AreRefusedWithOneReadableLine) {
+  // NaN, infinities, overflowing numbers and contradictions used to pass (sim --duration nan ran 600 s, the seed
+  // was clamped, CLI11 printed the largest double in full).
+  struct Case {
+    std::string args, message;
+  };
+  const std::vector<Case> cases = {
+      {"replay " + kSample + " --rate nan", "--rate: must be a finite number, got nan"},
+      {"replay " + kSample + " --rate -1", "--rate: must be > 0, got -1"},
+      {"replay " + kSample + " --start 5 --end 2", "--end 2 must be after --start 5"},
+      {"replay " + kSample + " --start 1e308", "--start 1e+308: nothing to replay after it"},
+      {"replay " + kSample + " --start 1e309", "--start: must be a finite number, got 1e309"},
+      {"sim --duration nan", "--duration: must be a finite number, got nan"},
+      {"sim --seed 18446744073709551615", "--seed: is out of range: 18446744073709551615"},
+      {"diagnose --max-lag inf " + kSample, "--max-lag: must be a finite number, got inf"},
+      {"record --flush-interval nan -o x.lcm", "--flush-interval: must be a finite number, got nan"},
+      {"record --flush-interval -1 -o x.lcm", "--flush-interval: must be > 0, got -1"},
+  };
+  for (const auto& c : cases) {
+    const auto r = driftlab(c.args);
+    EXPECT_EQ(r.code, 2) << c.args << "\n" << r.err;
+    EXPECT_EQ(r.err.rfind("driftlab: " + c.message, 0), 0u) << c.args << "\n" << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+    EXPECT_LT(r.err.size(), 200u) << r.err;
+  }
+}
+
 TEST(OutputOverInput, IsRefusedBeforeAnythingIsWritten) {
   // The same file by another name (a hard link) is caught too: the check is by inode.
   test::TempDir dir;
