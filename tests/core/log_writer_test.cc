@@ -123,5 +123,31 @@ TEST(LogWriter, AFailedWriteKeepsEveryCompleteEventReadable) {
   for (size_t i = 0; i < events.size(); ++i) EXPECT_EQ(events[i].data, test::payload(i, 700));
 }
 
+TEST(LogWriter, AnAtomicLogCutShortNeverReplacesItsTarget) {
+  // sim and replay write atomically; a full disk used to move the cut-short log over the user's file.
+  test::TempDir dir;
+  const std::string path = dir.file("a.lcm");
+  test::write_file(path, {1, 2, 3});
+  signal(SIGXFSZ, SIG_IGN);
+  rlimit old{};
+  getrlimit(RLIMIT_FSIZE, &old);
+  rlimit limit = old;
+  limit.rlim_cur = 100000;
+  ASSERT_EQ(setrlimit(RLIMIT_FSIZE, &limit), 0);
+  Status failure, closed;
+  {
+    auto w = LogWriter::create(path, {.buffer_bytes = 16 << 10, .atomic = true});
+    ASSERT_TRUE(w.ok());
+    for (int i = 0; i < 1000 && failure.ok(); ++i) failure = w->write(i, "CH", test::payload(i, 700));
+    closed = w->close();
+  }
+  setrlimit(RLIMIT_FSIZE, &old);
+  signal(SIGXFSZ, SIG_DFL);
+  ASSERT_FALSE(failure.ok());
+  EXPECT_FALSE(closed.ok());
+  EXPECT_EQ(test::read_file(path), (std::vector<uint8_t>{1, 2, 3}));
+  EXPECT_FALSE(std::filesystem::exists(path + ".partial"));
+}
+
 }  // namespace
 }  // namespace driftlab
