@@ -52,6 +52,20 @@ std::vector<OwnedEvent> read_all_memory(const std::vector<uint8_t>& bytes, std::
 /// Use as: `auto bag = shared_data("..."); if (bag.empty()) return;`
 std::string shared_data(const std::string& relative);
 
+/// An LCM message encoded by its lcm-gen class.
+template <typename T>
+std::vector<uint8_t> encode(const T& m) {
+  std::vector<uint8_t> b(static_cast<size_t>(m.getEncodedSize()));
+  m.encode(b.data(), 0, static_cast<int>(b.size()));
+  return b;
+}
+
+/// Overwrites 4 bytes at `at` with v, big-endian (as LCM encodes an int32_t): to forge hostile lengths.
+inline void put_be32(std::vector<uint8_t>& b, size_t at, int32_t v) {
+  const auto u = static_cast<uint32_t>(v);
+  for (int i = 0; i < 4; ++i) b[at + static_cast<size_t>(i)] = static_cast<uint8_t>(u >> (24 - 8 * i));
+}
+
 /// Runs a shell command; returns its exit code and fills out with its standard output.
 int run(const std::string& command, std::string* out = nullptr);
 

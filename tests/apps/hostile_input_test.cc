@@ -26,16 +26,8 @@ const std::string kSample = std::string(DRIFTLAB_TEST_DATA) + "/sample.lcm";
 
 test::CmdResult driftlab(const std::string& args) { return test::run_capture("timeout 60 " + kDriftlab + " " + args); }
 
-template <typename T>
-std::vector<uint8_t> encode(const T& m) {
-  std::vector<uint8_t> b(static_cast<size_t>(m.getEncodedSize()));
-  m.encode(b.data(), 0, static_cast<int>(b.size()));
-  return b;
-}
-void put_be32(std::vector<uint8_t>& b, size_t at, int32_t v) {
-  const auto u = static_cast<uint32_t>(v);
-  for (int i = 0; i < 4; ++i) b[at + static_cast<size_t>(i)] = static_cast<uint8_t>(u >> (24 - 8 * i));
-}
+using test::encode;
+using test::put_be32;
 
 /// The golden sample log with hostile messages among its own: a scan with -5 beams, an IMU whose frame name has
 /// length -3, a TF message claiming 0x7fffffff transforms in 1.5 KB, and a ground-truth pose cut to 40 bytes.

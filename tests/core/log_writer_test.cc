@@ -91,19 +91,32 @@ TEST(LogWriter, FullDeviceGivesAnErrorNamingTheFile) {
   EXPECT_FALSE(w->write(0, "X", std::string_view("y")).ok());
 }
 
+/// A file-size limit makes write() fail part-way, like a disk that fills up; lifted on destruction.
+class FileSizeLimit {
+ public:
+  explicit FileSizeLimit(rlim_t bytes) {
+    signal(SIGXFSZ, SIG_IGN);
+    getrlimit(RLIMIT_FSIZE, &old_);
+    rlimit limit = old_;
+    limit.rlim_cur = bytes;
+    EXPECT_EQ(setrlimit(RLIMIT_FSIZE, &limit), 0);
+  }
+  ~FileSizeLimit() {
+    setrlimit(RLIMIT_FSIZE, &old_);
+    signal(SIGXFSZ, SIG_DFL);
+  }
+
+ private:
+  rlimit old_{};
+};
+
 TEST(LogWriter, AFailedWriteKeepsEveryCompleteEventReadable) {
   test::TempDir dir;
   const std::string path = dir.file("a.lcm");
-  // A file-size limit makes write() fail part-way, like a disk that fills up.
-  signal(SIGXFSZ, SIG_IGN);
-  rlimit old{};
-  getrlimit(RLIMIT_FSIZE, &old);
-  rlimit limit = old;
-  limit.rlim_cur = 200000;
-  ASSERT_EQ(setrlimit(RLIMIT_FSIZE, &limit), 0);
   int64_t accepted = 0;
   Status failure;
   {
+    FileSizeLimit full(200000);
     auto w = LogWriter::create(path, {.buffer_bytes = 16 << 10});
     ASSERT_TRUE(w.ok());
     for (int i = 0; i < 1000 && failure.ok(); ++i) {
@@ -111,8 +124,6 @@ TEST(LogWriter, AFailedWriteKeepsEveryCompleteEventReadable) {
       if (failure.ok()) ++accepted;
     }
   }
-  setrlimit(RLIMIT_FSIZE, &old);
-  signal(SIGXFSZ, SIG_DFL);
   ASSERT_FALSE(failure.ok());
   EXPECT_NE(failure.message().find(path), std::string::npos);
   std::vector<Problem> problems;
@@ -128,21 +139,14 @@ TEST(LogWriter, AnAtomicLogCutShortNeverReplacesItsTarget) {
   test::TempDir dir;
   const std::string path = dir.file("a.lcm");
   test::write_file(path, {1, 2, 3});
-  signal(SIGXFSZ, SIG_IGN);
-  rlimit old{};
-  getrlimit(RLIMIT_FSIZE, &old);
-  rlimit limit = old;
-  limit.rlim_cur = 100000;
-  ASSERT_EQ(setrlimit(RLIMIT_FSIZE, &limit), 0);
   Status failure, closed;
   {
+    FileSizeLimit full(100000);
     auto w = LogWriter::create(path, {.buffer_bytes = 16 << 10, .atomic = true});
     ASSERT_TRUE(w.ok());
     for (int i = 0; i < 1000 && failure.ok(); ++i) failure = w->write(i, "CH", test::payload(i, 700));
     closed = w->close();
   }
-  setrlimit(RLIMIT_FSIZE, &old);
-  signal(SIGXFSZ, SIG_DFL);
   ASSERT_FALSE(failure.ok());
   EXPECT_FALSE(closed.ok());
   EXPECT_EQ(test::read_file(path), (std::vector<uint8_t>{1, 2, 3}));

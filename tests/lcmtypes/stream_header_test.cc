@@ -12,16 +12,12 @@
 #include "driftlab/odometry_t.hpp"
 #include "driftlab/pose_t.hpp"
 #include "driftlab/tf_t.hpp"
+#include "tests/test_util.h"
 
 namespace driftlab::lcmtypes {
 namespace {
 
-template <typename T>
-std::vector<uint8_t> encode(const T& m) {
-  std::vector<uint8_t> b(static_cast<size_t>(m.getEncodedSize()));
-  m.encode(b.data(), 0, static_cast<int>(b.size()));
-  return b;
-}
+using test::encode;
 
 /// A foreign type (not in the registry) that starts with our header: a different fingerprint, same bytes after it.
 std::vector<uint8_t> as_foreign(std::vector<uint8_t> b) {

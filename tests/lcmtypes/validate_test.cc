@@ -13,21 +13,14 @@
 #include "driftlab/pose_t.hpp"
 #include "driftlab/tf_t.hpp"
 #include "lcmtypes/stream_header.h"
+#include "tests/test_util.h"
 
 namespace driftlab::lcmtypes {
 namespace {
 
-template <typename T>
-std::vector<uint8_t> encode(const T& m) {
-  std::vector<uint8_t> b(static_cast<size_t>(m.getEncodedSize()));
-  m.encode(b.data(), 0, static_cast<int>(b.size()));
-  return b;
-}
+using test::encode;
 
-void put_be32(std::vector<uint8_t>& b, size_t at, int32_t v) {
-  const auto u = static_cast<uint32_t>(v);
-  for (int i = 0; i < 4; ++i) b[at + static_cast<size_t>(i)] = static_cast<uint8_t>(u >> (24 - 8 * i));
-}
+using test::put_be32;
 
 driftlab::laser_scan_t scan_of(int n) {
   driftlab::laser_scan_t s{};

@@ -187,26 +187,37 @@ TEST_F(Record, ReplayRepublishesWhatItWrites) {
   EXPECT_EQ(recorded(out), written);
 }
 
-TEST_F(Record, ModulesRunLiveOnWhatTheSimulatorPublishes) {
-  // driftlab run: the estimator and the controller on a live bus, fed by a simulated robot, publish on the bus
-  // and log what they published with their statistics.
-  const std::string out = dir_.file("live.lcm");
+/// Starts `driftlab run --modules estimator,controller` for `duration` seconds, its JSON summary going to json,
+/// and waits until it has subscribed (LiveRunner opens its log after the modules start; loaded machines take a
+/// while). pid -1 with a test failure when it did not start within 5 s.
+Process start_run(const std::string& out, const std::string& duration, const std::string& json) {
   std::vector<std::string> args = {kDriftlab, "run", "--modules", "estimator,controller", "--url", kLcmUrl,
-                                   "--duration", "6", "--json", "-o", out};
+                                   "--duration", duration, "--json", "-o", out};
   std::vector<char*> argv;
   for (auto& a : args) argv.push_back(a.data());
   argv.push_back(nullptr);
   posix_spawn_file_actions_t actions;
   posix_spawn_file_actions_init(&actions);
-  posix_spawn_file_actions_addopen(&actions, 1, dir_.file("run.json").c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  posix_spawn_file_actions_addopen(&actions, 1, json.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
   Process run;
-  ASSERT_EQ(posix_spawn(&run.pid, argv[0], &actions, nullptr, argv.data(), environ), 0);
+  EXPECT_EQ(posix_spawn(&run.pid, argv[0], &actions, nullptr, argv.data(), environ), 0);
   posix_spawn_file_actions_destroy(&actions);
-  // Subscribed once its log exists (LiveRunner opens it after the modules start); loaded machines take a while.
   for (int i = 0; i < 500 && !std::filesystem::exists(out + ".partial"); ++i) {
     std::this_thread::sleep_for(std::chrono::milliseconds(10));
   }
-  ASSERT_TRUE(std::filesystem::exists(out + ".partial")) << "driftlab run did not start within 5 s";
+  if (!std::filesystem::exists(out + ".partial")) {
+    ADD_FAILURE() << "driftlab run did not start within 5 s";
+    run.pid = -1;
+  }
+  return run;
+}
+
+TEST_F(Record, ModulesRunLiveOnWhatTheSimulatorPublishes) {
+  // driftlab run: the estimator and the controller on a live bus, fed by a simulated robot, publish on the bus
+  // and log what they published with their statistics.
+  const std::string out = dir_.file("live.lcm");
+  Process run = start_run(out, "6", dir_.file("run.json"));
+  ASSERT_GT(run.pid, 0);
   ASSERT_EQ(test::run(kDriftlab + " sim --duration 4 --live '" + kLcmUrl + "' --live-rate 2 -o " +
                       dir_.file("sim.lcm") + " >/dev/null"),
             0);
@@ -233,22 +244,8 @@ TEST_F(Record, ModulesRunLiveThroughAFloodOfHostileMessages) {
   // whose frame name has length -3, odometry cut short, a scan with -5 beams) while a simulated robot publishes.
   // The live modules keep running, drop and count the bad ones, and still process the good ones.
   const std::string out = dir_.file("live.lcm");
-  std::vector<std::string> args = {kDriftlab, "run", "--modules", "estimator,controller", "--url", kLcmUrl,
-                                   "--duration", "7", "--json", "-o", out};
-  std::vector<char*> argv;
-  for (auto& a : args) argv.push_back(a.data());
-  argv.push_back(nullptr);
-  posix_spawn_file_actions_t actions;
-  posix_spawn_file_actions_init(&actions);
-  posix_spawn_file_actions_addopen(&actions, 1, dir_.file("run.json").c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-  Process run;
-  ASSERT_EQ(posix_spawn(&run.pid, argv[0], &actions, nullptr, argv.data(), environ), 0);
-  posix_spawn_file_actions_destroy(&actions);
-  // Subscribed once its log exists (LiveRunner opens it after the modules start); loaded machines take a while.
-  for (int i = 0; i < 500 && !std::filesystem::exists(out + ".partial"); ++i) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(10));
-  }
-  ASSERT_TRUE(std::filesystem::exists(out + ".partial")) << "driftlab run did not start within 5 s";
+  Process run = start_run(out, "7", dir_.file("run.json"));
+  ASSERT_GT(run.pid, 0);
 
   auto encoded = [](const auto& m) {
     std::vector<uint8_t> b(static_cast<size_t>(m.getEncodedSize()));
