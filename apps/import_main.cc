@@ -1,0 +1,90 @@
+// driftlab import FILE -o OUT.lcm: another tool's log into a driftlab log, the format taken from the content.
+#include <CLI/CLI.hpp>
+
+#include <cstdio>
+#include <memory>
+
+#include "apps/cli_util.h"
+#include "apps/commands.h"
+#include "core/same_file.h"
+#include "formats/import.h"
+
+namespace driftlab::apps {
+namespace {
+
+struct ImportArgs {
+  std::string in, out;
+};
+
+constexpr int kProblemLines = 20;  // problems printed one by one; the rest counted
+
+void print_summary(const formats::ImportSummary& s, const std::string& from, const std::string& to) {
+  std::printf("%s (%s) -> %s: %s messages\n", from.c_str(), s.format.c_str(), to.c_str(),
+              thousands(s.messages).c_str());
+  size_t width = 8;
+  for (const auto& t : s.topics) width = std::max(width, t.channel.size());
+  for (const auto& t : s.topics) {
+    std::printf("  %-*s %-34s -> %-28s %10s", static_cast<int>(width), t.channel.c_str(), t.source_type.c_str(),
+                t.driftlab_type.c_str(), thousands(t.messages).c_str());
+    if (t.malformed) std::printf("  (%s malformed, left out)", thousands(t.malformed).c_str());
+    if (t.driftlab_type == "driftlab.foreign_message_t") std::printf("  (no mapping: carried as recorded)");
+    std::printf("\n");
+  }
+  for (const auto& [name, n] : s.skipped) {
+    std::printf("  skipped %-20s %s lines (no driftlab type)\n", name.c_str(), thousands(n).c_str());
+  }
+}
+
+}  // namespace
+
+void add_import_file_command(CLI::App& import, int* exit_code) {
+  auto args = std::make_shared<ImportArgs>();
+  import.require_subcommand(0, 1);
+  import.footer(
+      "The format is recognised from the content: ROS 1 bags (format 2.0; uncompressed, bz2 or lz4 chunks; indexed\n"
+      "or not), CARMEN logs (.log/.clf, plain or gzip) and MRPT rawlogs. Header stamps become header.utime, the\n"
+      "recording's receive times the event times. Topics keep their names as channels. See docs/import.md.");
+  import.add_option("file", args->in, "Log to convert");
+  import.add_option("-o,--out", args->out, "Log to write");
+  import.callback([&import, args, exit_code] {
+    if (import.get_subcommands().size() > 0) return;  // import rawlog
+    if (args->in.empty() || args->out.empty()) {
+      *exit_code = fail("import: give a FILE and -o OUT.lcm (see 'driftlab import --help')");
+      return;
+    }
+    if (Status s = refuse_same_file(args->out, {args->in}); !s) {
+      *exit_code = fail(s.message());
+      return;
+    }
+    if (formats::detect_format(args->in).format == formats::Format::kMrptRawlog) {
+      // MRPT's rawlogs are read by MRPT itself, in the program that links it.
+      std::vector<std::string> argv = {"driftlab", "import", "rawlog", args->in, "-o", args->out};
+      std::vector<char*> c;
+      for (auto& a : argv) c.push_back(a.data());
+      c.push_back(nullptr);
+      if (const ToolCommand* tool = find_tool(static_cast<int>(argv.size()), c.data())) {
+        *exit_code = exec_tool(*tool, c.data());
+      }
+      return;
+    }
+    int printed = 0;
+    int64_t problems = 0;
+    auto r = formats::import_log(args->in, args->out, [&](const std::string& line) {
+      ++problems;
+      if (printed++ < kProblemLines) std::fprintf(stderr, "driftlab: %s\n", line.c_str());
+    });
+    if (!r) {
+      *exit_code = fail(r.error().message);
+      return;
+    }
+    if (problems > kProblemLines) {
+      std::fprintf(stderr, "driftlab: %s: %s more problems\n", args->in.c_str(),
+                   thousands(problems - kProblemLines).c_str());
+    }
+    print_summary(*r, args->in, args->out);
+    // Everything intact is in the log; the exit code still says that not all of the file was.
+    if (r->problems > 0) *exit_code = kExitBadInput;
+  });
+}
+
+}  // namespace driftlab::apps

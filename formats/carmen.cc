@@ -1,0 +1,341 @@
+// CARMEN's log format, as carmen/src/logger writes it (and as the Radish and Freiburg datasets use it):
+//   ODOM x y theta tv rv accel                                                    ipc_timestamp host logger_timestamp
+//   FLASER n r1..rn x y theta odom_x odom_y odom_theta                             (same three)
+//   RLASER (as FLASER, the rear laser)
+//   RAWLASERk type start_angle fov resolution max_range accuracy remission_mode n r1..rn m e1..em      (same three)
+//   ROBOTLASERk (as RAWLASERk) laser_x laser_y laser_theta robot_x robot_y robot_theta tv rv
+//               forward_safety side_safety turn_axis                                                  (same three)
+//   TRUEPOS x y theta odom_x odom_y odom_theta                                     (same three)
+//   PARAM name value [host timestamp]
+// Metres and radians; FLASER/RLASER angles are implied: n beams over 180 degrees starting at -90 (180 beams:
+// -90..+89, 1 degree apart; 181: -90..+90), unless PARAM laser_*_resolution / laser_*_fov say otherwise. The
+// laser's longest possible reading means "no return".
+#include "formats/carmen.h"
+
+#include <algorithm>
+#include <charconv>
+#include <cmath>
+#include <map>
+#include <numbers>
+#include <optional>
+
+#include "core/mapped_file.h"
+#include "lcmtypes/encode.h"
+#include "driftlab/laser_scan_t.hpp"
+#include "driftlab/odometry_t.hpp"
+#include "driftlab/pose_t.hpp"
+#include "driftlab/tf_t.hpp"
+#include "formats/internal/decompress.h"
+
+namespace driftlab::formats {
+namespace {
+
+using lcmtypes::encode;
+
+using Tokens = std::vector<std::string_view>;
+
+void split(std::string_view line, Tokens& out) {
+  out.clear();
+  size_t i = 0;
+  while (i < line.size()) {
+    while (i < line.size() && (line[i] == ' ' || line[i] == '\t' || line[i] == '\r')) ++i;
+    const size_t start = i;
+    while (i < line.size() && line[i] != ' ' && line[i] != '\t' && line[i] != '\r') ++i;
+    if (i > start) out.push_back(line.substr(start, i - start));
+  }
+}
+
+std::optional<double> number(std::string_view s) {
+  double v = 0;
+  auto [p, ec] = std::from_chars(s.data(), s.data() + s.size(), v);
+  if (ec != std::errc{} || p != s.data() + s.size() || !std::isfinite(v)) return std::nullopt;
+  return v;
+}
+
+quaternion_t yaw_quaternion(double yaw) {
+  quaternion_t q;
+  q.w = std::cos(yaw / 2);
+  q.x = q.y = 0;
+  q.z = std::sin(yaw / 2);
+  return q;
+}
+
+int64_t to_utime(double s) { return static_cast<int64_t>(std::llround(s * 1e6)); }
+
+bool is_laser(std::string_view name) {
+  return name == "FLASER" || name == "RLASER" || name.starts_with("RAWLASER") || name.starts_with("ROBOTLASER");
+}
+
+/// The TF frame of a laser: the front one (FLASER, RAWLASER1, ROBOTLASER1) is "laser", the rear one
+/// (RLASER, RAWLASER2, ROBOTLASER2) "rear_laser", others "laserK".
+std::string laser_frame(std::string_view name) {
+  if (name == "FLASER") return "laser";
+  if (name == "RLASER") return "rear_laser";
+  const char k = name.back();
+  return k == '1' ? "laser" : k == '2' ? "rear_laser" : "laser" + std::string(1, k);
+}
+
+/// What a pass over the log learns before converting: the PARAM values and, for FLASER/RLASER (which do not
+/// carry their maximum range), the largest reading and how often it occurs.
+struct Preamble {
+  std::map<std::string, double, std::less<>> params;
+  std::map<std::string, std::pair<double, int64_t>, std::less<>> longest;  // laser -> (reading, count)
+  std::map<std::string, int64_t, std::less<>> readings;                   // laser -> readings seen
+
+  std::optional<double> param(std::string_view name) const {
+    auto it = params.find(name);
+    return it == params.end() ? std::nullopt : std::optional<double>(it->second);
+  }
+  /// The reading that means "no return" for FLASER/RLASER: PARAM robot_{front,rear}_laser_max, else the longest
+  /// reading when the laser clamps to it (a SICK reports its maximum, 81.83 m or 50 m, for every beam without a
+  /// return: at least 0.1% of the readings, where a real hit at the far limit is a handful).
+  std::optional<double> no_return(std::string_view laser) const {
+    if (auto p = param(laser == "RLASER" ? "robot_rear_laser_max" : "robot_front_laser_max")) return *p;
+    auto it = longest.find(laser);
+    if (it == longest.end()) return std::nullopt;
+    const int64_t total = readings.find(laser)->second;
+    return it->second.second * 1000 >= total ? std::optional<double>(it->second.first) : std::nullopt;
+  }
+};
+
+}  // namespace
+
+bool CarmenReader::looks_like(std::string_view head) {
+  static constexpr std::string_view kWords[] = {"PARAM", "ODOM", "FLASER", "RLASER", "RAWLASER", "ROBOTLASER",
+                                                "TRUEPOS", "SYNC", "NEFF", "GPSNMEA", "SONAR", "BUMPER"};
+  Tokens t;
+  int known = 0;
+  size_t pos = 0;
+  for (int lines = 0; lines < 20 && pos < head.size(); ++lines) {
+    size_t eol = head.find('\n', pos);
+    if (eol == std::string_view::npos) eol = head.size();
+    std::string_view line = head.substr(pos, eol - pos);
+    pos = eol + 1;
+    if (line.empty() || line[0] == '#') continue;
+    split(line, t);
+    if (t.empty()) continue;
+    const bool word = std::any_of(std::begin(kWords), std::end(kWords),
+                                  [&](std::string_view w) { return t[0].starts_with(w); });
+    if (!word) return false;
+    ++known;
+  }
+  return known > 0;
+}
+
+Result<CarmenReader> CarmenReader::open(const std::string& path) {
+  auto file = MappedFile::open(path);
+  if (!file) return file.error();
+  auto bytes = file->bytes();
+  CarmenReader r;
+  if (bytes.size() >= 2 && bytes[0] == 0x1f && bytes[1] == 0x8b) {
+    std::vector<uint8_t> out;
+    const std::string error = internal::decompress(internal::Codec::kGzip, bytes, bytes.size() * 4, out);
+    if (!error.empty()) return Error(path + ": " + error + " after " + std::to_string(out.size()) + " bytes");
+    r.text_.assign(out.begin(), out.end());
+  } else {
+    r.text_.assign(bytes.begin(), bytes.end());
+  }
+  if (!looks_like(r.text_)) return Error(path + ": not a CARMEN log (its first lines are not CARMEN messages)");
+  return r;
+}
+
+int64_t CarmenReader::read(const std::function<void(const CarmenMessage&)>& on_message,
+                           const std::function<void(size_t, const std::string&)>& on_problem) {
+  const std::string_view text = text_;
+  auto for_lines = [&](auto&& fn) {
+    Tokens t;
+    size_t pos = 0;
+    for (size_t line = 1; pos < text.size(); ++line) {
+      size_t eol = text.find('\n', pos);
+      if (eol == std::string_view::npos) eol = text.size();
+      split(text.substr(pos, eol - pos), t);
+      pos = eol + 1;
+      if (!t.empty()) fn(line, t);
+    }
+  };
+
+  Preamble pre;
+  for_lines([&](size_t, const Tokens& t) {
+    if (t[0] == "PARAM" && t.size() >= 3) {
+      if (auto v = number(t[2])) pre.params[std::string(t[1])] = *v;
+    } else if ((t[0] == "FLASER" || t[0] == "RLASER") && t.size() > 2) {
+      auto n = number(t[1]);
+      if (!n || *n < 0 || *n + 2 > static_cast<double>(t.size())) return;
+      auto& [longest, count] = pre.longest[std::string(t[0])];
+      pre.readings[std::string(t[0])] += static_cast<int64_t>(*n);
+      for (size_t i = 0; i < static_cast<size_t>(*n); ++i) {
+        const double v = number(t[2 + i]).value_or(0);
+        if (v > longest) longest = v, count = 0;
+        if (v == longest) ++count;
+      }
+    }
+  });
+
+  std::map<std::string, int64_t, std::less<>> seq;
+  std::map<std::string, int64_t, std::less<>> skipped;
+  std::vector<double> v;
+  int64_t messages = 0;
+  bool tf_written = false;
+
+  auto emit = [&](size_t line, std::string_view channel, const char* type, int64_t log_utime, auto&& msg) {
+    msg.header.seq = seq[std::string(channel)]++;
+    CarmenMessage m{channel, type, log_utime, encode(msg), line};
+    on_message(m);
+    ++messages;
+  };
+  auto write_tf = [&](size_t line, int64_t stamp, int64_t log_utime) {
+    tf_t tf;
+    tf.header.utime = stamp;
+    tf.header.frame_id = "base_link";
+    for (const auto& [frame, offset, yaw] :
+         {std::tuple{"laser", pre.param("robot_frontlaser_offset").value_or(0), 0.0},
+          std::tuple{"rear_laser", pre.param("robot_rearlaser_offset").value_or(0), std::numbers::pi}}) {
+      transform_t x;
+      x.header.utime = stamp;
+      x.header.frame_id = "base_link";
+      x.child_frame_id = frame;
+      x.translation = {offset, 0, 0};
+      x.rotation = yaw_quaternion(yaw);
+      tf.transforms.push_back(x);
+    }
+    tf.ntransforms = static_cast<int32_t>(tf.transforms.size());
+    emit(line, "TF_STATIC", "driftlab.tf_t", log_utime, tf);
+  };
+
+  for_lines([&](size_t line, const Tokens& t) {
+    const std::string_view name = t[0];
+    if (name[0] == '#' || name == "PARAM") return;
+    const bool known = name == "ODOM" || name == "TRUEPOS" || is_laser(name);
+    if (!known) {
+      ++skipped[std::string(name)];
+      return;
+    }
+    // The trailer: "ipc_timestamp host logger_timestamp" (older logs: only the timestamp).
+    auto bad = [&](const std::string& what) { on_problem(line, std::string(name) + ": " + what); };
+    v.clear();
+    size_t body_end = t.size();
+    std::optional<double> ipc, logger;
+    if (t.size() >= 4 && number(t[t.size() - 1]) && !number(t[t.size() - 2]) && number(t[t.size() - 3])) {
+      ipc = number(t[t.size() - 3]);
+      logger = number(t[t.size() - 1]);
+      body_end = t.size() - 3;
+    } else if (t.size() >= 2 && number(t.back())) {
+      ipc = logger = number(t.back());
+      body_end = t.size() - 1;
+    }
+    if (!ipc) return bad("no timestamp at the end of the line");
+    for (size_t i = 1; i < body_end; ++i) {
+      auto x = number(t[i]);
+      if (!x) return bad("\"" + std::string(t[i].substr(0, 20)) + "\" is not a number");
+      v.push_back(*x);
+    }
+    const int64_t stamp = to_utime(*ipc);
+    const int64_t arrival = to_utime(*logger);
+
+    if (name == "ODOM") {
+      if (v.size() < 5) return bad("expected x y theta tv rv accel, got " + std::to_string(v.size()) + " numbers");
+      odometry_t o{};
+      o.header.utime = stamp;
+      o.header.frame_id = "odom";
+      o.child_frame_id = "base_link";
+      o.position = {v[0], v[1], 0};
+      o.orientation = yaw_quaternion(v[2]);
+      o.linear_velocity = {v[3], 0, 0};
+      o.angular_velocity = {0, 0, v[4]};
+      return emit(line, "ODOM", "driftlab.odometry_t", arrival, o);
+    }
+    if (name == "TRUEPOS") {
+      if (v.size() < 3) return bad("expected x y theta, got " + std::to_string(v.size()) + " numbers");
+      pose_t p{};
+      p.header.utime = stamp;
+      p.header.frame_id = "world";
+      p.child_frame_id = "base_link";
+      p.position = {v[0], v[1], 0};
+      p.orientation = yaw_quaternion(v[2]);
+      return emit(line, "TRUEPOS", "driftlab.pose_t", arrival, p);
+    }
+
+    // Lasers.
+    laser_scan_t s{};
+    s.header.utime = stamp;
+    s.header.frame_id = laser_frame(name);
+    size_t at = 0;
+    double max_reading = std::numeric_limits<double>::infinity();
+    std::optional<double> no_return;
+    const bool flaser = name == "FLASER" || name == "RLASER";
+    if (flaser) {
+      if (v.empty() || v[0] < 0 || v[0] != std::floor(v[0])) return bad("no reading count");
+      const auto n = static_cast<size_t>(v[0]);
+      if (v.size() != 1 + n + 6) {
+        return bad(std::to_string(n) + " readings and a pose need " + std::to_string(n + 7) + " numbers, got " +
+                   std::to_string(v.size()));
+      }
+      const bool front = name == "FLASER";
+      const double fov =
+          pre.param(front ? "laser_front_laser_fov" : "laser_rear_laser_fov").value_or(180.0) * std::numbers::pi / 180;
+      auto res_deg = pre.param(front ? "laser_front_laser_resolution" : "laser_rear_laser_resolution");
+      // n beams over the field of view: an odd count includes both ends (181: -90..+90), an even one starts at
+      // the right end and stops one step short of the left (180: -90..+89).
+      const double res = res_deg ? *res_deg * std::numbers::pi / 180
+                                 : fov / static_cast<double>(n % 2 == 1 ? std::max<size_t>(n - 1, 1) : n);
+      s.angle_min = static_cast<float>(-fov / 2);
+      s.angle_increment = static_cast<float>(res);
+      s.angle_max = static_cast<float>(-fov / 2 + res * static_cast<double>(n == 0 ? 0 : n - 1));
+      s.nranges = static_cast<int32_t>(n);
+      at = 1;
+      no_return = pre.no_return(name);
+    } else {
+      // RAWLASER/ROBOTLASER: type start fov resolution max_range accuracy remission_mode n ... m ...
+      if (v.size() < 8 || v[7] < 0 || v[7] != std::floor(v[7])) return bad("no reading count");
+      const auto n = static_cast<size_t>(v[7]);
+      if (v.size() < 8 + n + 1) return bad(std::to_string(n) + " readings announced, fewer given");
+      const double m = v[8 + n];
+      if (m < 0 || m != std::floor(m)) return bad("no remission count");
+      const size_t need = 9 + n + static_cast<size_t>(m) + (name.starts_with("ROBOTLASER") ? 11 : 0);
+      if (v.size() != need) {
+        return bad("expected " + std::to_string(need) + " numbers, got " + std::to_string(v.size()));
+      }
+      s.angle_min = static_cast<float>(v[1]);
+      s.angle_increment = static_cast<float>(v[3]);
+      s.angle_max = static_cast<float>(v[1] + v[3] * static_cast<double>(n == 0 ? 0 : n - 1));
+      s.nranges = static_cast<int32_t>(n);
+      no_return = v[4];
+      if (static_cast<size_t>(m) == n) {
+        s.intensities.assign(v.begin() + 9 + static_cast<ptrdiff_t>(n), v.begin() + 9 + 2 * static_cast<ptrdiff_t>(n));
+        s.nintensities = static_cast<int32_t>(n);
+      }
+      at = 8;
+    }
+    s.ranges.assign(v.begin() + static_cast<ptrdiff_t>(at), v.begin() + static_cast<ptrdiff_t>(at) + s.nranges);
+    if (no_return) max_reading = *no_return;
+    s.range_min = 0;
+    // Readings at the maximum mean "no return": range_max sits just below it, so they fall outside.
+    s.range_max = std::isfinite(max_reading) ? std::nextafter(static_cast<float>(max_reading), 0.0F)
+                                             : std::numeric_limits<float>::max();
+    if (!tf_written) {
+      write_tf(line, stamp, arrival);
+      tf_written = true;
+    }
+    emit(line, name, "driftlab.laser_scan_t", arrival, s);
+
+    // The pose the line carries (FLASER: x y theta after the readings; ROBOTLASER: the laser pose): in raw logs
+    // the odometry's, in corrected logs (GMapping's output) the corrected one.
+    const size_t pose_at = flaser ? 1 + static_cast<size_t>(s.nranges)
+                                  : name.starts_with("ROBOTLASER") ? v.size() - 11 : v.size();
+    if (pose_at + 3 <= v.size()) {
+      pose_t p{};
+      p.header.utime = stamp;
+      p.header.frame_id = "world";
+      p.child_frame_id = s.header.frame_id;
+      p.position = {v[pose_at], v[pose_at + 1], 0};
+      p.orientation = yaw_quaternion(v[pose_at + 2]);
+      static thread_local std::string pose_channel;
+      pose_channel = std::string(name) + "_POSE";
+      emit(line, pose_channel, "driftlab.pose_t", arrival, p);
+    }
+  });
+  skipped_.assign(skipped.begin(), skipped.end());
+  return messages;
+}
+
+}  // namespace driftlab::formats

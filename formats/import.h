@@ -1,0 +1,51 @@
+// Other people's logs into driftlab logs: the format is recognised from the content (never the extension) and
+// every message becomes a log event, stamped the way driftlab's time model wants: the message's own stamp
+// (header.stamp, ipc_timestamp) in header.utime, its arrival at the recorder (ROS 1 record time, CARMEN's
+// logger_timestamp) as the event time. Topics keep their names as channels ("/scan"); messages of types without a
+// mapping are carried as driftlab.foreign_message_t with their definition on FOREIGN_SCHEMAS.
+// Thread-safety: plain functions.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "core/result.h"
+
+namespace driftlab::formats {
+
+enum class Format { kUnknown, kLcmLog, kRos1Bag, kCarmen, kMrptRawlog };
+
+/// What the file holds, from its first bytes; `description` says what an unknown file looks like in words
+/// ("text starting \"hello\"", "gzip data that is not a CARMEN log", "an empty file").
+struct Detected {
+  Format format = Format::kUnknown;
+  std::string name;         ///< "ROS 1 bag", "CARMEN log", ...
+  std::string description;  ///< for kUnknown
+};
+Detected detect_format(const std::string& path);
+
+struct TopicCount {
+  std::string channel;
+  std::string source_type;    ///< the type in the source file ("sensor_msgs/LaserScan", "FLASER")
+  std::string driftlab_type;  ///< "driftlab.laser_scan_t", or "driftlab.foreign_message_t" when not mapped
+  int64_t messages = 0;       ///< written
+  int64_t malformed = 0;      ///< not written: the payload does not hold a message of its type
+};
+
+struct ImportSummary {
+  std::string format;  ///< Detected::name
+  std::vector<TopicCount> topics;
+  std::vector<std::pair<std::string, int64_t>> skipped;  ///< CARMEN lines without a driftlab type, by name
+  int64_t messages = 0;  ///< events written
+  int64_t problems = 0;  ///< unreadable parts and malformed messages, each reported through on_problem
+};
+
+/// Converts in into the LCM log out (written atomically). Unreadable parts and malformed messages go, one line
+/// each naming the file, the topic and the offset or line, to on_problem; everything intact is converted. An
+/// Error only when nothing can be converted (unknown format, unreadable file, output not writable).
+Result<ImportSummary> import_log(const std::string& in, const std::string& out,
+                                 const std::function<void(const std::string&)>& on_problem);
+
+}  // namespace driftlab::formats

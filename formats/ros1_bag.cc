@@ -1,0 +1,251 @@
+// ROS 1 bag format 2.0 (wiki.ros.org/Bags/Format/2.0): "#ROSBAG V2.0\n", then records, each
+//   uint32 header_len, header (fields: uint32 len, "name=value"), uint32 data_len, data.
+// op 0x03 bag header, 0x05 chunk (its data holds connection and message records), 0x07 connection, 0x02 message
+// data, 0x04 index data and 0x06 chunk info (the index, not needed when reading front to back).
+#include "formats/ros1_bag.h"
+
+#include <algorithm>
+#include <cstring>
+#include <optional>
+#include <string_view>
+#include <vector>
+
+#include "formats/internal/decompress.h"
+
+namespace driftlab::formats {
+namespace {
+
+constexpr std::string_view kMagic = "#ROSBAG V2.0\n";
+constexpr uint8_t kOpMessage = 0x02, kOpChunk = 0x05, kOpConnection = 0x07;
+// A record header holds a few short fields (a connection's, its topic); more than this is not a header.
+constexpr uint32_t kMaxHeader = 1 << 20;
+
+uint32_t le32(const uint8_t* p) {
+  uint32_t v;
+  std::memcpy(&v, p, 4);
+  return v;
+}
+
+struct Record {
+  uint8_t op = 0;
+  std::vector<std::pair<std::string_view, std::string_view>> fields;
+  std::span<const uint8_t> data;
+  size_t end = 0;  // offset just past the record
+
+  std::optional<std::string_view> field(std::string_view name) const {
+    for (const auto& [k, v] : fields)
+      if (k == name) return v;
+    return std::nullopt;
+  }
+  std::optional<uint32_t> u32(std::string_view name) const {
+    auto v = field(name);
+    if (!v || v->size() != 4) return std::nullopt;
+    return le32(reinterpret_cast<const uint8_t*>(v->data()));
+  }
+};
+
+/// Parses "len name=value ..." fields filling exactly bytes.
+bool parse_fields_into(std::span<const uint8_t> bytes,
+                       std::vector<std::pair<std::string_view, std::string_view>>& out) {
+  out.clear();
+  size_t p = 0;
+  while (p < bytes.size()) {
+    if (bytes.size() - p < 4) return false;
+    const uint32_t n = le32(bytes.data() + p);
+    p += 4;
+    if (n > bytes.size() - p) return false;
+    std::string_view f(reinterpret_cast<const char*>(bytes.data() + p), n);
+    p += n;
+    const size_t eq = f.find('=');
+    if (eq == std::string_view::npos) return false;
+    out.emplace_back(f.substr(0, eq), f.substr(eq + 1));
+  }
+  return true;
+}
+
+/// The record at pos of bytes, or why it is not one. A record whose data runs past the end is returned with
+/// its data cut at the end and `truncated` set.
+std::optional<Record> parse_record(std::span<const uint8_t> bytes, size_t pos, std::string* why, bool* truncated) {
+  *truncated = false;
+  const size_t left = bytes.size() - pos;
+  if (left < 4) {
+    *why = "a record cut off in its length";
+    return std::nullopt;
+  }
+  const uint32_t header_len = le32(bytes.data() + pos);
+  if (header_len > kMaxHeader || header_len < 4) {
+    *why = "a record header length of " + std::to_string(header_len);
+    return std::nullopt;
+  }
+  if (header_len > left - 4 || left - 4 - header_len < 4) {
+    *why = "a record cut off in its header";
+    return std::nullopt;
+  }
+  Record r;
+  if (!parse_fields_into(bytes.subspan(pos + 4, header_len), r.fields)) {
+    *why = "a record header whose fields do not parse";
+    return std::nullopt;
+  }
+  auto op = r.field("op");
+  if (!op || op->size() != 1) {
+    *why = "a record without an op field";
+    return std::nullopt;
+  }
+  r.op = static_cast<uint8_t>((*op)[0]);
+  const size_t data_at = pos + 4 + header_len + 4;
+  const uint32_t data_len = le32(bytes.data() + data_at - 4);
+  if (data_len > bytes.size() - data_at) {
+    *truncated = true;
+    r.data = bytes.subspan(data_at);
+    r.end = bytes.size();
+  } else {
+    r.data = bytes.subspan(data_at, data_len);
+    r.end = data_at + data_len;
+  }
+  return r;
+}
+
+/// The first offset at or after `from` where a whole record parses: a record's header carries an "op=" field
+/// (length 4), so look for that, and for the record's start up to a header's reach before it.
+size_t resync(std::span<const uint8_t> bytes, size_t from) {
+  static constexpr uint8_t kOpField[] = {4, 0, 0, 0, 'o', 'p', '='};
+  constexpr size_t kReach = 4096;  // the op field sits among a record's first fields, well within this
+  const uint8_t* begin = bytes.data();
+  const uint8_t* end = begin + bytes.size();
+  for (const uint8_t* hit = begin + from;; ++hit) {
+    hit = std::search(hit, end, std::begin(kOpField), std::end(kOpField));
+    if (hit == end) return bytes.size();
+    const auto p = static_cast<size_t>(hit - begin);
+    for (size_t back = 4; back <= kReach && back <= p - from; ++back) {
+      const size_t q = p - back;
+      std::string why;
+      bool truncated = false;
+      if (parse_record(bytes, q, &why, &truncated) && !truncated && q + 4 + le32(begin + q) > p) return q;
+    }
+  }
+}
+
+}  // namespace
+
+bool Ros1BagReader::looks_like(std::span<const uint8_t> head) {
+  return head.size() >= 9 && std::memcmp(head.data(), "#ROSBAG V", 9) == 0;
+}
+
+Result<Ros1BagReader> Ros1BagReader::open(const std::string& path) {
+  auto file = MappedFile::open(path);
+  if (!file) return file.error();
+  auto bytes = file->bytes();
+  if (!looks_like(bytes)) return Error(path + ": not a ROS 1 bag (no #ROSBAG magic)");
+  if (bytes.size() < kMagic.size() || std::memcmp(bytes.data(), kMagic.data(), kMagic.size()) != 0) {
+    const auto* p = reinterpret_cast<const char*>(bytes.data());
+    const std::string version(p + 9, std::min<size_t>(3, bytes.size() - 9));
+    return Error(path + ": ROS bag format " + version + " is not supported (2.0 is; `rosbag fix` converts older bags)");
+  }
+  Ros1BagReader r;
+  r.file_ = std::move(*file);
+  return r;
+}
+
+int64_t Ros1BagReader::read(const std::function<void(const BagMessage&)>& on_message,
+                            const std::function<void(const BagProblem&)>& on_problem) {
+  const auto bytes = file_.bytes();
+  int64_t delivered = 0;
+  std::vector<uint8_t> chunk;
+
+  auto connection = [&](const Record& r, uint64_t where) {
+    auto id = r.u32("conn");
+    auto topic = r.field("topic");
+    Record fields;
+    if (!id || !topic || !parse_fields_into(r.data, fields.fields)) {
+      on_problem({where, "a connection record without its id, topic or fields"});
+      return;
+    }
+    if (connections_.count(*id)) return;  // each connection is written again after the chunks
+    RosConnection c;
+    c.id = *id;
+    c.topic = std::string(*topic);
+    c.type = std::string(fields.field("type").value_or(""));
+    c.md5sum = std::string(fields.field("md5sum").value_or(""));
+    c.definition = std::string(fields.field("message_definition").value_or(""));
+    c.callerid = std::string(fields.field("callerid").value_or(""));
+    c.latching = fields.field("latching").value_or("0") == "1";
+    connections_.emplace(c.id, std::move(c));
+  };
+  auto message = [&](const Record& r, uint64_t where) {
+    auto id = r.u32("conn");
+    auto time = r.field("time");
+    if (!id || !time || time->size() != 8) {
+      on_problem({where, "a message record without its connection or time"});
+      return;
+    }
+    auto c = connections_.find(*id);
+    if (c == connections_.end()) {
+      on_problem({where, "a message on connection " + std::to_string(*id) + ", which no record defines"});
+      return;
+    }
+    const auto* t = reinterpret_cast<const uint8_t*>(time->data());
+    const int64_t ns = int64_t{le32(t)} * 1'000'000'000 + le32(t + 4);
+    on_message({&c->second, ns, r.data, where});
+    ++delivered;
+  };
+
+  size_t pos = kMagic.size();
+  while (pos < bytes.size()) {
+    std::string why;
+    bool truncated = false;
+    auto rec = parse_record(bytes, pos, &why, &truncated);
+    if (!rec) {
+      const size_t next = resync(bytes, pos + 1);
+      on_problem({pos, why + (next < bytes.size() ? "; " + std::to_string(next - pos) + " bytes skipped"
+                                                  : "; nothing readable after it")});
+      pos = next;
+      continue;
+    }
+    if (truncated) {
+      on_problem({pos, "the file ends inside this record (" + std::to_string(rec->data.size()) + " of its bytes)"});
+    }
+    if (rec->op == kOpConnection) {
+      connection(*rec, pos);
+    } else if (rec->op == kOpMessage) {
+      if (!truncated) message(*rec, pos);
+    } else if (rec->op == kOpChunk) {
+      const auto compression = rec->field("compression").value_or("");
+      const auto size = rec->u32("size").value_or(0);
+      internal::Codec codec;
+      if (compression == "none") {
+        codec = internal::Codec::kNone;
+      } else if (compression == "bz2") {
+        codec = internal::Codec::kBz2;
+      } else if (compression == "lz4") {
+        codec = internal::Codec::kLz4Frame;
+      } else {
+        on_problem({pos, "a chunk compressed with \"" + std::string(compression) + "\", which is not known"});
+        pos = rec->end;
+        continue;
+      }
+      std::string error = internal::decompress(codec, rec->data, size, chunk);
+      if (!error.empty() && !truncated) on_problem({pos, "chunk: " + error});
+      // Records inside the chunk: every whole one is read, up to the first that does not parse.
+      size_t in = 0;
+      while (in < chunk.size()) {
+        bool cut = false;
+        auto inner = parse_record(chunk, in, &why, &cut);
+        if (!inner || cut) {
+          if (error.empty() && !truncated) {
+            on_problem({pos, "chunk: " + (inner ? std::string("a record cut off") : why) + " at byte " +
+                                 std::to_string(in) + " of " + std::to_string(chunk.size())});
+          }
+          break;
+        }
+        if (inner->op == kOpConnection) connection(*inner, pos);
+        if (inner->op == kOpMessage) message(*inner, pos);
+        in = inner->end;
+      }
+    }
+    pos = rec->end;
+    file_.release_before(pos);
+  }
+  return delivered;
+}
+
+}  // namespace driftlab::formats

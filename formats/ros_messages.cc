@@ -1,0 +1,546 @@
+// ROS 1 serialization and CDR (ROS 2) read by one Reader, so each message is decoded by one function for both.
+// ROS 1: little endian, packed, strings and arrays prefixed with a uint32 length. CDR (OMG XCDR1, what rosbag2
+// stores): a 4-byte encapsulation header giving the byte order, every primitive aligned to its size counted from
+// the end of that header, strings prefixed with a length that includes their terminating NUL. Written by hand: a
+// reader over a span is shorter than wiring Fast-CDR's buffer classes, and both formats share it.
+#include "formats/ros_messages.h"
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <type_traits>
+
+#include "lcmtypes/encode.h"
+#include "driftlab/image_t.hpp"
+#include "driftlab/imu_t.hpp"
+#include "driftlab/joint_state_t.hpp"
+#include "driftlab/laser_scan_t.hpp"
+#include "driftlab/odometry_t.hpp"
+#include "driftlab/point_cloud_t.hpp"
+#include "driftlab/pose_t.hpp"
+#include "driftlab/tf_t.hpp"
+#include "driftlab/velocity_command_t.hpp"
+
+namespace driftlab::formats {
+namespace {
+
+using lcmtypes::encode;
+
+class Reader {
+ public:
+  Reader(std::span<const uint8_t> data, Serialization s) : data_(data), cdr_(s == Serialization::kCdr) {
+    if (!cdr_) return;
+    // Encapsulation: 0x00 0x00 big-endian CDR, 0x00 0x01 little-endian (0x02/0x03: the PL_CDR variants).
+    if (data.size() < 4 || data[0] != 0 || data[1] > 3) {
+      fail("no CDR encapsulation header");
+      return;
+    }
+    swap_ = (data[1] & 1) == 0;
+    origin_ = pos_ = 4;
+  }
+
+  bool ok() const { return error_.empty(); }
+  const std::string& error() const { return error_; }
+  size_t remaining() const { return data_.size() - pos_; }
+  /// Whether the message ended where its type does (CDR may pad to its alignment).
+  bool at_end() const { return cdr_ ? remaining() < 8 : remaining() == 0; }
+
+  template <typename T>
+  T get() {
+    static_assert(std::is_arithmetic_v<T>);
+    align(sizeof(T));
+    if (!need(sizeof(T))) return T{};
+    T v;
+    std::memcpy(&v, data_.data() + pos_, sizeof(T));
+    pos_ += sizeof(T);
+    if (swap_ && sizeof(T) > 1) v = swapped(v);
+    return v;
+  }
+  /// A fixed-size array.
+  template <typename T>
+  void get(T* out, size_t n) {
+    for (size_t i = 0; i < n; ++i) out[i] = get<T>();
+  }
+  /// A sequence's length, checked against what is left (each element at least min_element_bytes).
+  uint32_t count(size_t min_element_bytes) {
+    const uint32_t n = get<uint32_t>();
+    if (ok() && min_element_bytes > 0 && n > remaining() / min_element_bytes) {
+      fail("a sequence of " + std::to_string(n) + " elements in " + std::to_string(remaining()) + " bytes");
+      return 0;
+    }
+    return n;
+  }
+  std::string str() {
+    uint32_t n = count(1);
+    if (!ok()) return {};
+    std::string s(reinterpret_cast<const char*>(data_.data() + pos_), n);
+    pos_ += n;
+    if (cdr_ && !s.empty() && s.back() == '\0') s.pop_back();  // CDR counts the NUL
+    return s;
+  }
+  std::span<const uint8_t> bytes(size_t n) {
+    if (!need(n)) return {};
+    auto s = data_.subspan(pos_, n);
+    pos_ += n;
+    return s;
+  }
+  /// builtin_interfaces/Time (ROS 2: int32 sec, uint32 nanosec) or ROS 1 time (uint32, uint32), in microseconds.
+  int64_t time_us() {
+    const int64_t sec = cdr_ ? int64_t{get<int32_t>()} : int64_t{get<uint32_t>()};
+    const int64_t nsec = get<uint32_t>();
+    return sec * 1'000'000 + nsec / 1000;
+  }
+  void fail(std::string what) {
+    if (error_.empty()) error_ = std::move(what);
+    pos_ = data_.size();
+  }
+  /// header.seq for messages that carry none.
+  int64_t fallback_seq = 0;
+
+ private:
+  template <typename T>
+  static T swapped(T v) {
+    using U = std::conditional_t<sizeof(T) == 2, uint16_t, std::conditional_t<sizeof(T) == 4, uint32_t, uint64_t>>;
+    U u;
+    std::memcpy(&u, &v, sizeof(T));
+    if constexpr (sizeof(T) == 2) u = __builtin_bswap16(u);
+    if constexpr (sizeof(T) == 4) u = __builtin_bswap32(u);
+    if constexpr (sizeof(T) == 8) u = __builtin_bswap64(u);
+    std::memcpy(&v, &u, sizeof(T));
+    return v;
+  }
+  void align(size_t n) {
+    if (!cdr_ || n <= 1) return;
+    const size_t off = (pos_ - origin_) % n;
+    if (off != 0) pos_ = std::min(data_.size(), pos_ + (n - off));
+  }
+  bool need(size_t n) {
+    if (!ok()) return false;
+    if (remaining() < n) {
+      fail("ends inside the message (" + std::to_string(data_.size()) + " bytes)");
+      return false;
+    }
+    return true;
+  }
+
+  std::span<const uint8_t> data_;
+  size_t pos_ = 0;
+  size_t origin_ = 0;
+  bool cdr_ = false;
+  bool swap_ = false;
+  std::string error_;
+};
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+/// std_msgs/Header: ROS 1 has a seq first; ROS 2 has none.
+void header(Reader& r, Serialization s, header_t& h, bool* has_seq) {
+  if (s == Serialization::kRos1) {
+    h.seq = r.get<uint32_t>();
+    *has_seq = true;
+  } else {
+    h.seq = r.fallback_seq;
+  }
+  h.utime = r.time_us();
+  h.frame_id = r.str();
+}
+
+void vector3(Reader& r, vector3_t& v) {
+  v.x = r.get<double>();
+  v.y = r.get<double>();
+  v.z = r.get<double>();
+}
+void quaternion(Reader& r, quaternion_t& q) {  // ROS order: x, y, z, w
+  q.x = r.get<double>();
+  q.y = r.get<double>();
+  q.z = r.get<double>();
+  q.w = r.get<double>();
+}
+
+struct Decoded {
+  std::vector<uint8_t> bytes;
+  int64_t stamp = 0;
+};
+
+using Convert = std::vector<uint8_t> (*)(Reader&, Serialization, int64_t unstamped, int64_t* stamp, bool* has_seq);
+
+std::vector<uint8_t> laser_scan(Reader& r, Serialization s, int64_t, int64_t* stamp, bool* has_seq) {
+  laser_scan_t m;
+  header(r, s, m.header, has_seq);
+  m.angle_min = r.get<float>();
+  m.angle_max = r.get<float>();
+  m.angle_increment = r.get<float>();
+  m.time_increment = r.get<float>();
+  m.scan_time = r.get<float>();
+  m.range_min = r.get<float>();
+  m.range_max = r.get<float>();
+  m.nranges = static_cast<int32_t>(r.count(4));
+  m.ranges.resize(static_cast<size_t>(m.nranges));
+  r.get(m.ranges.data(), m.ranges.size());
+  m.nintensities = static_cast<int32_t>(r.count(4));
+  m.intensities.resize(static_cast<size_t>(m.nintensities));
+  r.get(m.intensities.data(), m.intensities.size());
+  *stamp = m.header.utime;
+  return encode(m);
+}
+
+std::vector<uint8_t> imu(Reader& r, Serialization s, int64_t, int64_t* stamp, bool* has_seq) {
+  imu_t m;
+  header(r, s, m.header, has_seq);
+  quaternion(r, m.orientation);
+  r.get(m.orientation_covariance, 9);
+  vector3(r, m.angular_velocity);
+  r.get(m.angular_velocity_covariance, 9);
+  vector3(r, m.linear_acceleration);
+  r.get(m.linear_acceleration_covariance, 9);
+  *stamp = m.header.utime;
+  return encode(m);
+}
+
+std::vector<uint8_t> odometry(Reader& r, Serialization s, int64_t, int64_t* stamp, bool* has_seq) {
+  odometry_t m;
+  header(r, s, m.header, has_seq);
+  m.child_frame_id = r.str();
+  vector3(r, m.position);
+  quaternion(r, m.orientation);
+  r.get(m.pose_covariance, 36);
+  vector3(r, m.linear_velocity);
+  vector3(r, m.angular_velocity);
+  r.get(m.twist_covariance, 36);
+  *stamp = m.header.utime;
+  return encode(m);
+}
+
+pose_t stamped_pose(Reader& r, Serialization s, bool* has_seq) {
+  pose_t m;
+  header(r, s, m.header, has_seq);
+  vector3(r, m.position);
+  quaternion(r, m.orientation);
+  return m;
+}
+
+std::vector<uint8_t> pose_stamped(Reader& r, Serialization s, int64_t, int64_t* stamp, bool* has_seq) {
+  pose_t m = stamped_pose(r, s, has_seq);
+  *stamp = m.header.utime;
+  return encode(m);
+}
+
+std::vector<uint8_t> pose_with_covariance(Reader& r, Serialization s, int64_t, int64_t* stamp, bool* has_seq) {
+  pose_t m = stamped_pose(r, s, has_seq);
+  r.get(m.covariance, 36);
+  *stamp = m.header.utime;
+  return encode(m);
+}
+
+void transform_stamped(Reader& r, Serialization s, transform_t& t, bool* has_seq) {
+  header(r, s, t.header, has_seq);
+  t.child_frame_id = r.str();
+  vector3(r, t.translation);
+  quaternion(r, t.rotation);
+}
+
+std::vector<uint8_t> transform(Reader& r, Serialization s, int64_t, int64_t* stamp, bool* has_seq) {
+  tf_t m;
+  m.ntransforms = 1;
+  m.transforms.resize(1);
+  transform_stamped(r, s, m.transforms[0], has_seq);
+  m.header = m.transforms[0].header;
+  *stamp = m.header.utime;
+  return encode(m);
+}
+
+/// tf2_msgs/TFMessage: a batch without a header of its own; the batch is stamped with its newest transform
+/// (what a TF listener sees as the batch's time) and numbered by the caller, as no sequence travels with it.
+std::vector<uint8_t> tf_message(Reader& r, Serialization s, int64_t unstamped, int64_t* stamp, bool*) {
+  tf_t m;
+  // Each transform: at least a header (ROS 1: 12 bytes + frame), a child frame and 7 doubles.
+  m.ntransforms = static_cast<int32_t>(r.count(64));
+  m.transforms.resize(static_cast<size_t>(m.ntransforms));
+  bool transform_seq = false;
+  int64_t newest = std::numeric_limits<int64_t>::min();
+  for (auto& t : m.transforms) {
+    transform_stamped(r, s, t, &transform_seq);
+    newest = std::max(newest, t.header.utime);
+  }
+  m.header.seq = r.fallback_seq;
+  m.header.utime = m.transforms.empty() ? unstamped : newest;
+  m.header.frame_id = m.transforms.empty() ? "" : m.transforms[0].header.frame_id;
+  *stamp = m.header.utime;
+  return encode(m);
+}
+
+std::vector<uint8_t> twist_stamped(Reader& r, Serialization s, int64_t, int64_t* stamp, bool* has_seq) {
+  velocity_command_t m;
+  header(r, s, m.header, has_seq);
+  vector3(r, m.linear);
+  vector3(r, m.angular);
+  *stamp = m.header.utime;
+  return encode(m);
+}
+
+/// geometry_msgs/Twist carries no stamp: header.utime is its arrival, so its latency reads as zero.
+std::vector<uint8_t> twist(Reader& r, Serialization, int64_t unstamped, int64_t* stamp, bool*) {
+  velocity_command_t m;
+  m.header.seq = r.fallback_seq;
+  m.header.utime = unstamped;
+  vector3(r, m.linear);
+  vector3(r, m.angular);
+  *stamp = m.header.utime;
+  return encode(m);
+}
+
+std::vector<uint8_t> joint_state(Reader& r, Serialization s, int64_t, int64_t* stamp, bool* has_seq) {
+  joint_state_t m;
+  header(r, s, m.header, has_seq);
+  const uint32_t n = r.count(4);
+  m.name.resize(n);
+  for (auto& name : m.name) name = r.str();
+  // position, velocity and effort may each be empty (not measured): NaN then, as driftlab's arrays are njoints.
+  auto values = [&](std::vector<double>& out, const char* what) {
+    const uint32_t k = r.count(8);
+    out.assign(n, kNaN);
+    if (k != 0 && k != n) r.fail(std::string(what) + " has " + std::to_string(k) + " values for " +
+                                 std::to_string(n) + " joints");
+    for (uint32_t i = 0; i < k && r.ok(); ++i) out[i] = r.get<double>();
+  };
+  values(m.position, "position");
+  values(m.velocity, "velocity");
+  values(m.effort, "effort");
+  m.njoints = static_cast<int32_t>(n);
+  *stamp = m.header.utime;
+  return encode(m);
+}
+
+/// sensor_msgs/Image: rows copied without their padding (driftlab images have none). Encodings other than
+/// mono8/rgb8/bgr8 keep ROS's name.
+std::vector<uint8_t> image(Reader& r, Serialization s, int64_t, int64_t* stamp, bool* has_seq) {
+  image_t m;
+  header(r, s, m.header, has_seq);
+  const uint32_t height = r.get<uint32_t>();
+  const uint32_t width = r.get<uint32_t>();
+  m.encoding = r.str();
+  r.get<uint8_t>();  // is_bigendian
+  const uint32_t step = r.get<uint32_t>();
+  const uint32_t n = r.count(1);
+  auto data = r.bytes(n);
+  if (!r.ok()) return {};
+  if (height != 0 && (step == 0 || uint64_t{step} * height > n)) {
+    r.fail("image data of " + std::to_string(n) + " bytes for " + std::to_string(height) + " rows of " +
+           std::to_string(step));
+    return {};
+  }
+  // Bytes per pixel of the encodings robots use; for others the rows are kept with their step.
+  static constexpr std::pair<std::string_view, uint32_t> kBpp[] = {
+      {"mono8", 1}, {"8UC1", 1}, {"bayer_rggb8", 1}, {"bayer_bggr8", 1}, {"bayer_gbrg8", 1}, {"bayer_grbg8", 1},
+      {"mono16", 2}, {"16UC1", 2}, {"rgb8", 3}, {"bgr8", 3}, {"8UC3", 3}, {"rgba8", 4}, {"bgra8", 4},
+      {"32FC1", 4}};
+  uint64_t row = step;
+  for (const auto& [name, bpp] : kBpp)
+    if (m.encoding == name && uint64_t{width} * bpp <= step) row = uint64_t{width} * bpp;
+  m.width = static_cast<int32_t>(width);
+  m.height = static_cast<int32_t>(height);
+  m.data.reserve(row * height);
+  for (uint64_t y = 0; y < height; ++y) {
+    m.data.insert(m.data.end(), data.begin() + static_cast<ptrdiff_t>(y * step),
+                  data.begin() + static_cast<ptrdiff_t>(y * step + row));
+  }
+  m.size = static_cast<int32_t>(m.data.size());
+  *stamp = m.header.utime;
+  return encode(m);
+}
+
+/// Width and height from a PNG's IHDR or a JPEG's start-of-frame marker; 0 when neither is found.
+void image_size(std::span<const uint8_t> d, int32_t* w, int32_t* h) {
+  auto be16 = [&](size_t i) { return (d[i] << 8) | d[i + 1]; };
+  if (d.size() >= 24 && d[0] == 0x89 && d[1] == 'P' && d[2] == 'N' && d[3] == 'G') {
+    *w = (be16(16) << 16) | be16(18);
+    *h = (be16(20) << 16) | be16(22);
+    return;
+  }
+  for (size_t i = 2; i + 9 < d.size();) {
+    if (d[i] != 0xFF) return;
+    const uint8_t marker = d[i + 1];
+    if (marker >= 0xC0 && marker <= 0xCF && marker != 0xC4 && marker != 0xC8 && marker != 0xCC) {
+      *h = be16(i + 5);
+      *w = be16(i + 7);
+      return;
+    }
+    i += 2 + static_cast<size_t>(be16(i + 2));
+  }
+}
+
+std::vector<uint8_t> compressed_image(Reader& r, Serialization s, int64_t, int64_t* stamp, bool* has_seq) {
+  image_t m;
+  header(r, s, m.header, has_seq);
+  const std::string format = r.str();
+  auto data = r.bytes(r.count(1));
+  if (!r.ok()) return {};
+  m.data.assign(data.begin(), data.end());
+  m.size = static_cast<int32_t>(m.data.size());
+  const bool png = data.size() >= 4 && data[0] == 0x89 && data[1] == 'P';
+  const bool jpeg = data.size() >= 2 && data[0] == 0xFF && data[1] == 0xD8;
+  m.encoding = png ? "png" : jpeg ? "jpeg" : format;
+  m.width = m.height = 0;
+  image_size(data, &m.width, &m.height);
+  *stamp = m.header.utime;
+  return encode(m);
+}
+
+/// sensor_msgs/PointCloud2: x, y, z (float32 or float64), intensity, and per-point time when the driver gives
+/// it: `time` (float32 seconds after the stamp, Velodyne), `t` (uint32 nanoseconds, Ouster) or `timestamp`
+/// (float64 seconds since the epoch, Hesai and Livox).
+std::vector<uint8_t> point_cloud2(Reader& r, Serialization s, int64_t, int64_t* stamp, bool* has_seq) {
+  point_cloud_t m;
+  header(r, s, m.header, has_seq);
+  const uint32_t height = r.get<uint32_t>();
+  const uint32_t width = r.get<uint32_t>();
+  struct Field {
+    std::string name;
+    uint32_t offset = 0;
+    uint8_t type = 0;
+  };
+  std::vector<Field> fields(r.count(9));
+  for (auto& f : fields) {
+    f.name = r.str();
+    f.offset = r.get<uint32_t>();
+    f.type = r.get<uint8_t>();
+    r.get<uint32_t>();  // count
+  }
+  const bool big = r.get<uint8_t>() != 0;
+  const uint32_t point_step = r.get<uint32_t>();
+  const uint32_t row_step = r.get<uint32_t>();
+  auto data = r.bytes(r.count(1));
+  r.get<uint8_t>();  // is_dense
+  if (!r.ok()) return {};
+  const uint64_t npoints = uint64_t{height} * width;
+  if (npoints != 0 && (uint64_t{row_step} * height > data.size() || uint64_t{point_step} * width > row_step)) {
+    r.fail("point data of " + std::to_string(data.size()) + " bytes for " + std::to_string(height) + " x " +
+           std::to_string(width) + " points of " + std::to_string(point_step) + " bytes");
+    return {};
+  }
+  // PointField datatypes: 1 int8, 2 uint8, 3 int16, 4 uint16, 5 int32, 6 uint32, 7 float32, 8 float64.
+  static constexpr uint8_t kSize[9] = {0, 1, 1, 2, 2, 4, 4, 4, 8};
+  auto find = [&](std::string_view name) -> const Field* {
+    for (const auto& f : fields)
+      if (f.name == name && f.type >= 1 && f.type <= 8 && f.offset + kSize[f.type] <= point_step) return &f;
+    return nullptr;
+  };
+  auto value = [&](const Field& f, const uint8_t* p) -> double {
+    uint8_t raw[8];
+    std::memcpy(raw, p + f.offset, kSize[f.type]);
+    if (big != (std::endian::native == std::endian::big)) std::reverse(raw, raw + kSize[f.type]);
+    switch (f.type) {
+      case 1: return static_cast<int8_t>(raw[0]);
+      case 2: return raw[0];
+      case 3: { int16_t v; std::memcpy(&v, raw, 2); return v; }
+      case 4: { uint16_t v; std::memcpy(&v, raw, 2); return v; }
+      case 5: { int32_t v; std::memcpy(&v, raw, 4); return v; }
+      case 6: { uint32_t v; std::memcpy(&v, raw, 4); return v; }
+      case 7: { float v; std::memcpy(&v, raw, 4); return v; }
+      default: { double v; std::memcpy(&v, raw, 8); return v; }
+    }
+  };
+  const Field* fx = find("x");
+  const Field* fy = find("y");
+  const Field* fz = find("z");
+  if (npoints != 0 && (!fx || !fy || !fz)) {
+    r.fail("a point cloud without x, y and z fields");
+    return {};
+  }
+  const Field* fi = find("intensity");
+  const Field* ft = find("time");
+  const Field* fns = find("t");
+  const Field* fabs = find("timestamp");
+  m.height = static_cast<int32_t>(height);
+  m.width = static_cast<int32_t>(width);
+  m.npoints = static_cast<int32_t>(npoints);
+  m.x.resize(npoints);
+  m.y.resize(npoints);
+  m.z.resize(npoints);
+  if (fi) m.intensities.resize(npoints);
+  if (ft || fns || fabs) m.time_offsets.resize(npoints);
+  const double stamp_s = static_cast<double>(m.header.utime) * 1e-6;
+  size_t i = 0;
+  for (uint32_t row = 0; row < height; ++row) {
+    for (uint32_t col = 0; col < width; ++col, ++i) {
+      const uint8_t* p = data.data() + uint64_t{row} * row_step + uint64_t{col} * point_step;
+      m.x[i] = static_cast<float>(value(*fx, p));
+      m.y[i] = static_cast<float>(value(*fy, p));
+      m.z[i] = static_cast<float>(value(*fz, p));
+      if (fi) m.intensities[i] = static_cast<float>(value(*fi, p));
+      if (ft) m.time_offsets[i] = static_cast<float>(value(*ft, p));
+      else if (fns) m.time_offsets[i] = static_cast<float>(value(*fns, p) * 1e-9);
+      else if (fabs) m.time_offsets[i] = static_cast<float>(value(*fabs, p) - stamp_s);
+    }
+  }
+  m.nintensities = static_cast<int32_t>(m.intensities.size());
+  m.ntimes = static_cast<int32_t>(m.time_offsets.size());
+  *stamp = m.header.utime;
+  return encode(m);
+}
+
+struct Mapping {
+  const char* ros;
+  const char* driftlab;
+  Convert convert;
+};
+constexpr Mapping kMappings[] = {
+    {"sensor_msgs/LaserScan", "driftlab.laser_scan_t", laser_scan},
+    {"sensor_msgs/Imu", "driftlab.imu_t", imu},
+    {"sensor_msgs/PointCloud2", "driftlab.point_cloud_t", point_cloud2},
+    {"sensor_msgs/Image", "driftlab.image_t", image},
+    {"sensor_msgs/CompressedImage", "driftlab.image_t", compressed_image},
+    {"sensor_msgs/JointState", "driftlab.joint_state_t", joint_state},
+    {"nav_msgs/Odometry", "driftlab.odometry_t", odometry},
+    {"geometry_msgs/PoseStamped", "driftlab.pose_t", pose_stamped},
+    {"geometry_msgs/PoseWithCovarianceStamped", "driftlab.pose_t", pose_with_covariance},
+    {"geometry_msgs/TransformStamped", "driftlab.tf_t", transform},
+    {"geometry_msgs/TwistStamped", "driftlab.velocity_command_t", twist_stamped},
+    {"geometry_msgs/Twist", "driftlab.velocity_command_t", twist},
+    {"tf2_msgs/TFMessage", "driftlab.tf_t", tf_message},
+    {"tf/tfMessage", "driftlab.tf_t", tf_message},  // ROS 1's older /tf type, same layout
+};
+
+const Mapping* find_mapping(std::string_view ros_type) {
+  const std::string name = ros1_type_name(ros_type);
+  for (const auto& m : kMappings)
+    if (name == m.ros) return &m;
+  return nullptr;
+}
+
+}  // namespace
+
+std::string ros1_type_name(std::string_view type) {
+  std::string s(type);
+  if (auto p = s.find("/msg/"); p != std::string::npos) s.erase(p, 4);
+  return s;
+}
+
+const char* driftlab_type_for(std::string_view ros_type) {
+  const Mapping* m = find_mapping(ros_type);
+  return m ? m->driftlab : nullptr;
+}
+
+std::optional<Converted> convert_ros_message(std::string_view ros_type, Serialization serialization,
+                                             std::span<const uint8_t> payload, int64_t unstamped_us,
+                                             int64_t fallback_seq, std::string* error) {
+  error->clear();
+  const Mapping* m = find_mapping(ros_type);
+  if (!m) return std::nullopt;
+  Reader r(payload, serialization);
+  r.fallback_seq = fallback_seq;
+  Converted out;
+  out.lcm = m->convert(r, serialization, unstamped_us, &out.stamp_us, &out.has_seq);
+  if (r.ok() && !r.at_end()) {
+    r.fail(std::to_string(r.remaining()) + " bytes left over after the message");
+  }
+  if (!r.ok()) {
+    *error = "not a " + ros1_type_name(ros_type) + ": " + r.error();
+    return std::nullopt;
+  }
+  return out;
+}
+
+}  // namespace driftlab::formats

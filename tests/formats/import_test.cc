@@ -1,0 +1,381 @@
+// driftlab import (formats/import): ROS 1 bags checked against an independent reader on real bags, CARMEN logs
+// against their own lines, and broken files of both: every intact message converted, the rest reported.
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <cmath>
+#include <map>
+#include <filesystem>
+#include <numbers>
+#include <sstream>
+
+#include "driftlab/foreign_message_t.hpp"
+#include "driftlab/foreign_schema_t.hpp"
+#include "driftlab/laser_scan_t.hpp"
+#include "driftlab/odometry_t.hpp"
+#include "driftlab/pose_t.hpp"
+#include "driftlab/tf_t.hpp"
+#include "formats/import.h"
+#include "lcmtypes/validate.h"
+#include "tests/test_util.h"
+
+namespace driftlab {
+namespace {
+
+using test::CmdResult;
+using test::OwnedEvent;
+using test::run_capture;
+
+const std::string kDriftlab = std::string(DRIFTLAB_BIN_DIR) + "/driftlab";
+const std::string kOracle = std::string(DRIFTLAB_SOURCE_DIR) + "/tests/formats/ros1_bag_oracle.py";
+
+CmdResult import(const std::string& in, const std::string& out) {
+  return run_capture(kDriftlab + " import '" + in + "' -o '" + out + "'");
+}
+
+std::map<std::string, std::vector<OwnedEvent>> by_channel(const std::string& log) {
+  std::map<std::string, std::vector<OwnedEvent>> m;
+  for (auto& e : test::read_all(log)) m[e.channel].push_back(std::move(e));
+  return m;
+}
+
+template <typename T>
+T decoded(const OwnedEvent& e) {
+  T m;
+  EXPECT_TRUE(lcmtypes::decode(e.data, m)) << e.channel;
+  return m;
+}
+
+/// What the oracle says of one message, against the converted message.
+void expect_same(const nlohmann::json& want, const std::string& type, const OwnedEvent& got) {
+  SCOPED_TRACE(got.channel + " " + want.dump());
+  EXPECT_EQ(got.utime, want["record_us"].get<int64_t>());
+  if (type == "tf2_msgs/TFMessage") {
+    const auto tf = decoded<tf_t>(got);
+    ASSERT_EQ(tf.ntransforms, want["transforms"].get<int>());
+    const auto& t = tf.transforms[0];
+    EXPECT_EQ(t.header.utime, want["first"]["stamp_us"].get<int64_t>());
+    EXPECT_EQ(t.header.frame_id, want["first"]["frame_id"]);
+    EXPECT_EQ(t.child_frame_id, want["first"]["child"]);
+    EXPECT_EQ(t.translation.x, want["first"]["xyz"][0].get<double>());
+    EXPECT_EQ(t.translation.z, want["first"]["xyz"][2].get<double>());
+    return;
+  }
+  if (type == "sensor_msgs/LaserScan") {
+    const auto s = decoded<laser_scan_t>(got);
+    EXPECT_EQ(s.header.seq, want["seq"].get<int64_t>());
+    EXPECT_EQ(s.header.utime, want["stamp_us"].get<int64_t>());
+    EXPECT_EQ(s.header.frame_id, want["frame_id"]);
+    ASSERT_EQ(s.nranges, want["nranges"].get<int>());
+    EXPECT_FLOAT_EQ(s.angle_min, want["angle_min"].get<float>());
+    EXPECT_FLOAT_EQ(s.angle_increment, want["angle_increment"].get<float>());
+    EXPECT_FLOAT_EQ(s.range_max, want["range_max"].get<float>());
+    for (size_t i = 0; i < want["ranges"].size(); ++i) EXPECT_FLOAT_EQ(s.ranges[i], want["ranges"][i].get<float>());
+    return;
+  }
+  if (type == "nav_msgs/Odometry") {
+    const auto o = decoded<odometry_t>(got);
+    EXPECT_EQ(o.header.seq, want["seq"].get<int64_t>());
+    EXPECT_EQ(o.header.utime, want["stamp_us"].get<int64_t>());
+    EXPECT_EQ(o.header.frame_id, want["frame_id"]);
+    EXPECT_EQ(o.child_frame_id, want["child"]);
+    EXPECT_EQ(o.position.x, want["xyz"][0].get<double>());
+    EXPECT_EQ(o.position.y, want["xyz"][1].get<double>());
+    EXPECT_EQ(o.orientation.z, want["q_xyzw"][2].get<double>());
+    EXPECT_EQ(o.orientation.w, want["q_xyzw"][3].get<double>());
+    return;
+  }
+  ADD_FAILURE() << "the test has no check for " << type;
+}
+
+// Every message of real bags (bz2 chunks from carmen_to_rosbag, lz4 chunks from evo's test data) accounted for,
+// first and last of each topic equal to what an independent reader finds in the file.
+TEST(Import, Ros1BagsAgreeWithAnIndependentReader) {
+  for (const char* name : {"carmen/intel.orig.bag", "carmen/aces.orig.bag", "bags/tf_example.bag"}) {
+    SCOPED_TRACE(name);
+    const std::string bag = test::shared_data(name);
+    if (bag.empty()) return;
+    test::TempDir dir;
+    const CmdResult r = import(bag, dir.file("out.lcm"));
+    ASSERT_EQ(r.code, 0) << r.err;
+    EXPECT_EQ(r.err, "");
+    EXPECT_NE(r.out.find("(ROS 1 bag)"), std::string::npos) << r.out;
+
+    std::string oracle_out;
+    ASSERT_EQ(test::run(std::string(DRIFTLAB_PYTHON) + " " + kOracle + " '" + bag + "'", &oracle_out), 0);
+    const auto oracle = nlohmann::json::parse(oracle_out);
+    const auto log = by_channel(dir.file("out.lcm"));
+    EXPECT_EQ(log.size(), oracle.size());
+    for (const auto& [topic, want] : oracle.items()) {
+      SCOPED_TRACE(topic);
+      ASSERT_TRUE(log.count(topic));
+      const auto& events = log.at(topic);
+      ASSERT_EQ(static_cast<int64_t>(events.size()), want["count"].get<int64_t>());
+      expect_same(want["first"], want["type"], events.front());
+      expect_same(want["last"], want["type"], events.back());
+    }
+  }
+}
+
+// The README of the data counts 13,631 scans and 26,915 odometry poses in the Intel bag: the import says so too.
+TEST(Import, SummaryCountsEveryTopic) {
+  const std::string bag = test::shared_data("carmen/intel.orig.bag");
+  if (bag.empty()) return;
+  test::TempDir dir;
+  const CmdResult r = import(bag, dir.file("intel.lcm"));
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("/scan"), std::string::npos);
+  EXPECT_NE(r.out.find("sensor_msgs/LaserScan"), std::string::npos);
+  EXPECT_NE(r.out.find("13,631"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("26,915"), std::string::npos) << r.out;
+}
+
+// --- A ROS 1 bag written here, record by record, to break it in known ways. ---------------------------------
+
+void put32(std::string& b, uint32_t v) { b.append(reinterpret_cast<const char*>(&v), 4); }
+std::string field(const std::string& name, const std::string& value) {
+  std::string f;
+  put32(f, static_cast<uint32_t>(name.size() + 1 + value.size()));
+  return f + name + "=" + value;
+}
+std::string u32(uint32_t v) { return std::string(reinterpret_cast<const char*>(&v), 4); }
+std::string record(const std::string& header, const std::string& data) {
+  std::string r;
+  put32(r, static_cast<uint32_t>(header.size()));
+  r += header;
+  put32(r, static_cast<uint32_t>(data.size()));
+  return r + data;
+}
+std::string connection(uint32_t id, const std::string& topic, const std::string& type) {
+  return record(field("op", "\x07") + field("conn", u32(id)) + field("topic", topic),
+                field("topic", topic) + field("type", type) + field("md5sum", "*") +
+                    field("message_definition", "# the definition of " + type + "\n"));
+}
+std::string message(uint32_t conn, uint32_t sec, uint32_t nsec, const std::string& payload) {
+  return record(field("op", std::string(1, '\x02')) + field("conn", u32(conn)) + field("time", u32(sec) + u32(nsec)),
+                payload);
+}
+/// A sensor_msgs/LaserScan in ROS 1 serialization: 3 beams.
+std::string scan_payload(uint32_t seq, uint32_t sec) {
+  std::string p = u32(seq) + u32(sec) + u32(0);
+  put32(p, 5);
+  p += "laser";
+  const float head[7] = {-1.0F, 1.0F, 1.0F, 0.0F, 0.1F, 0.1F, 30.0F};
+  p.append(reinterpret_cast<const char*>(head), sizeof(head));
+  put32(p, 3);
+  const float ranges[3] = {1.5F, 2.5F, 3.5F};
+  p.append(reinterpret_cast<const char*>(ranges), sizeof(ranges));
+  put32(p, 0);
+  return p;
+}
+/// An unindexed bag (as a recording cut off before rosbag closed it): header, then records, no chunks.
+std::string bag_of(const std::string& records) {
+  std::string header = record(field("op", "\x03") + field("index_pos", std::string(8, '\0')) +
+                                  field("conn_count", u32(0)) + field("chunk_count", u32(0)),
+                              std::string(64, ' '));
+  return "#ROSBAG V2.0\n" + header + records;
+}
+std::string write_bag(const test::TempDir& dir, const std::string& bytes) {
+  const std::string path = dir.file("in.bag");
+  test::write_file(path, {bytes.begin(), bytes.end()});
+  return path;
+}
+
+// An unindexed bag: every message read; a type without a mapping carried with its definition; a short
+// LaserScan and a message on an undefined connection reported with topic and byte offset; exit 2.
+TEST(Import, UnindexedBagWithUnmappedAndMalformedMessages) {
+  test::TempDir dir;
+  std::string recs = connection(0, "/scan", "sensor_msgs/LaserScan") + connection(1, "/chatter", "std_msgs/String");
+  recs += message(0, 100, 0, scan_payload(0, 99));
+  recs += message(1, 100, 500, u32(5) + "hello");
+  const size_t short_at = bag_of(recs).size();
+  recs += message(0, 101, 0, scan_payload(1, 100).substr(0, 30));  // cut inside the header's frame
+  recs += message(7, 101, 10, "x");                               // connection 7 never defined
+  recs += message(0, 102, 0, scan_payload(2, 101));
+  const CmdResult r = import(write_bag(dir, bag_of(recs)), dir.file("out.lcm"));
+  EXPECT_EQ(r.code, 2) << r.err;
+  EXPECT_NE(r.err.find("in.bag: /scan at byte " + std::to_string(short_at) + ": not a sensor_msgs/LaserScan"),
+            std::string::npos)
+      << r.err;
+  EXPECT_NE(r.err.find("connection 7"), std::string::npos) << r.err;
+
+  const auto log = by_channel(dir.file("out.lcm"));
+  ASSERT_EQ(log.at("/scan").size(), 2u);
+  const auto s = decoded<laser_scan_t>(log.at("/scan")[1]);
+  EXPECT_EQ(s.header.seq, 2);
+  EXPECT_EQ(s.header.utime, 101'000'000);
+  EXPECT_EQ(log.at("/scan")[1].utime, 102'000'000);
+  ASSERT_EQ(s.nranges, 3);
+  EXPECT_FLOAT_EQ(s.ranges[2], 3.5F);
+
+  ASSERT_EQ(log.at("/chatter").size(), 1u);
+  const auto f = decoded<foreign_message_t>(log.at("/chatter")[0]);
+  EXPECT_EQ(f.type, "std_msgs/String");
+  EXPECT_EQ(f.encoding, "ros1");
+  EXPECT_EQ(std::string(f.data.begin(), f.data.end()), u32(5) + "hello");
+  ASSERT_EQ(log.at("FOREIGN_SCHEMAS").size(), 1u);
+  const auto schema = decoded<foreign_schema_t>(log.at("FOREIGN_SCHEMAS")[0]);
+  EXPECT_EQ(schema.channel, "/chatter");
+  EXPECT_EQ(schema.definition, "# the definition of std_msgs/String\n");
+}
+
+// Garbage in the middle of a bag: reported with its offset, and reading goes on at the next record.
+TEST(Import, CorruptBytesAreSkippedToTheNextRecord) {
+  test::TempDir dir;
+  std::string recs = connection(0, "/scan", "sensor_msgs/LaserScan") + message(0, 1, 0, scan_payload(0, 1));
+  const size_t garbage_at = bag_of(recs).size();
+  recs += std::string(300, '\xff');
+  for (uint32_t i = 1; i < 4; ++i) recs += message(0, 1 + i, 0, scan_payload(i, 1 + i));
+  const CmdResult r = import(write_bag(dir, bag_of(recs)), dir.file("out.lcm"));
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("at byte " + std::to_string(garbage_at) + ": a record header length"), std::string::npos)
+      << r.err;
+  EXPECT_NE(r.err.find("300 bytes skipped"), std::string::npos) << r.err;
+  EXPECT_EQ(by_channel(dir.file("out.lcm")).at("/scan").size(), 4u);
+}
+
+// A real bag cut short (bz2 chunks): everything before the cut converted, the cut reported.
+TEST(Import, TruncatedBagKeepsEveryWholeMessage) {
+  const std::string bag = test::shared_data("carmen/aces.orig.bag");
+  if (bag.empty()) return;
+  test::TempDir dir;
+  auto bytes = test::read_file(bag);
+  bytes.resize(bytes.size() / 2);
+  test::write_file(dir.file("half.bag"), bytes);
+  const CmdResult r = import(dir.file("half.bag"), dir.file("half.lcm"));
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("half.bag: at byte "), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("the file ends inside this record"), std::string::npos) << r.err;
+  const auto log = by_channel(dir.file("half.lcm"));
+  // About half of the 7,374 scans: whole chunks only, and the cut chunk's messages decoded before the cut.
+  ASSERT_TRUE(log.count("/scan"));
+  EXPECT_GT(log.at("/scan").size(), 7374u * 4 / 10);
+  EXPECT_LT(log.at("/scan").size(), 7374u * 6 / 10);
+}
+
+TEST(Import, UnknownFormatsAreNamedInOneLine) {
+  test::TempDir dir;
+  test::write_file(dir.file("notes.txt"), {'h', 'e', 'l', 'l', 'o', '\n'});
+  CmdResult r = import(dir.file("notes.txt"), dir.file("out.lcm"));
+  EXPECT_EQ(r.code, 2);
+  EXPECT_EQ(r.err, "driftlab: " + dir.file("notes.txt") +
+                       ": not a format driftlab imports (ROS 1 bag, CARMEN log, MRPT rawlog): text starting "
+                       "\"hello\"\n");
+  test::write_file(dir.file("empty"), {});
+  r = import(dir.file("empty"), dir.file("out.lcm"));
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("an empty file"), std::string::npos) << r.err;
+  EXPECT_FALSE(std::filesystem::exists(dir.file("out.lcm")));
+}
+
+// --- CARMEN -------------------------------------------------------------------------------------------------
+
+// GMapping's corrected Intel log: every FLASER and ODOM line converted, NEFF lines counted as skipped; a
+// 180-beam FLASER spans -90..+89 degrees, and its longest reading (81.83 m, the SICK's "no return") lies above
+// range_max while every other reading is within it.
+TEST(Import, CarmenCorrectedLog) {
+  const std::string gz = test::shared_data("carmen/intel-corrected.log.gz");
+  if (gz.empty()) return;
+  test::TempDir dir;
+  const CmdResult r = import(gz, dir.file("c.lcm"));
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("(CARMEN log)"), std::string::npos);
+  EXPECT_NE(r.out.find("skipped NEFF"), std::string::npos) << r.out;
+  const auto log = by_channel(dir.file("c.lcm"));
+  ASSERT_EQ(log.at("FLASER").size(), 910u);
+  EXPECT_EQ(log.at("FLASER_POSE").size(), 910u);
+  EXPECT_EQ(log.at("ODOM").size(), 14541u);
+  ASSERT_EQ(log.at("TF_STATIC").size(), 1u);
+
+  // The first FLASER line, read here by the shell, against its message.
+  std::string line;
+  ASSERT_EQ(test::run("zcat '" + gz + "' | grep -m1 '^FLASER'", &line), 0);
+  std::istringstream in(line);
+  std::string word;
+  int n = 0;
+  in >> word >> n;
+  ASSERT_EQ(n, 180);
+  std::vector<double> ranges(static_cast<size_t>(n));
+  for (auto& v : ranges) in >> v;
+  double x, y, theta, ox, oy, otheta, ipc, logger;
+  std::string host;
+  in >> x >> y >> theta >> ox >> oy >> otheta >> ipc >> host >> logger;
+
+  const auto s = decoded<laser_scan_t>(log.at("FLASER")[0]);
+  EXPECT_EQ(s.header.utime, std::llround(ipc * 1e6));
+  EXPECT_EQ(log.at("FLASER")[0].utime, std::llround(logger * 1e6));
+  EXPECT_EQ(s.header.frame_id, "laser");
+  ASSERT_EQ(s.nranges, 180);
+  EXPECT_NEAR(s.angle_min, -std::numbers::pi / 2, 1e-6);
+  EXPECT_NEAR(s.angle_max, 89 * std::numbers::pi / 180, 1e-6);
+  EXPECT_NEAR(s.angle_increment, std::numbers::pi / 180, 1e-7);
+  for (int i = 0; i < n; ++i) EXPECT_FLOAT_EQ(s.ranges[static_cast<size_t>(i)], static_cast<float>(ranges[i]));
+  const auto p = decoded<pose_t>(log.at("FLASER_POSE")[0]);
+  EXPECT_EQ(p.position.x, x);
+  EXPECT_NEAR(2 * std::atan2(p.orientation.z, p.orientation.w), theta, 1e-12);
+
+  float longest = 0;
+  int64_t at_longest = 0, beyond = 0;
+  for (const auto& e : log.at("FLASER")) {
+    const auto scan = decoded<laser_scan_t>(e);
+    for (float v : scan.ranges) {
+      if (v > longest) longest = v, at_longest = 0;
+      at_longest += v == longest;
+      beyond += v > scan.range_max;
+    }
+  }
+  EXPECT_FLOAT_EQ(longest, 81.83F);
+  EXPECT_EQ(beyond, at_longest);
+}
+
+// Every CARMEN message driftlab reads, on lines written here, with a broken line in the middle.
+TEST(Import, CarmenMessagesAndBrokenLines) {
+  test::TempDir dir;
+  std::string text =
+      "# CARMEN log\n"
+      "PARAM robot_frontlaser_offset 0.25 nohost 0\n"
+      "ODOM 1.0 2.0 0.5 0.3 0.1 0 10.000001 host 10.002\n"
+      "TRUEPOS 1.1 2.1 0.6 1.0 2.0 0.5 10.01 host 10.011\n"
+      "RAWLASER1 0 -1.5708 3.1416 0.0175 30.0 0.01 0 3 1.0 30.0 2.0 0 10.02 host 10.025\n"
+      "FLASER 4 1 2 x 4 0 0 0 0 0 0 10.03 host 10.03\n"
+      "ROBOTLASER1 0 -0.5 1.0 0.5 8.0 0.01 0 3 1.0 8.0 2.0 3 10 20 30 0.1 0.2 0.3 1 2 3 0.5 0.1 0 0 0 10.04 host "
+      "10.05\n"
+      "SYNC 1 host 11\n";
+  test::write_file(dir.file("in.log"), {text.begin(), text.end()});
+  const CmdResult r = import(dir.file("in.log"), dir.file("out.lcm"));
+  EXPECT_EQ(r.code, 2);
+  EXPECT_EQ(r.err, "driftlab: " + dir.file("in.log") + ":6: FLASER: \"x\" is not a number\n");
+  EXPECT_NE(r.out.find("skipped SYNC"), std::string::npos) << r.out;
+  const auto log = by_channel(dir.file("out.lcm"));
+
+  const auto o = decoded<odometry_t>(log.at("ODOM")[0]);
+  EXPECT_EQ(o.header.utime, 10'000'001);
+  EXPECT_EQ(log.at("ODOM")[0].utime, 10'002'000);
+  EXPECT_EQ(o.position.x, 1.0);
+  EXPECT_NEAR(2 * std::atan2(o.orientation.z, o.orientation.w), 0.5, 1e-12);
+  EXPECT_EQ(o.linear_velocity.x, 0.3);
+  EXPECT_EQ(o.angular_velocity.z, 0.1);
+  EXPECT_EQ(decoded<pose_t>(log.at("TRUEPOS")[0]).position.y, 2.1);
+
+  const auto raw = decoded<laser_scan_t>(log.at("RAWLASER1")[0]);
+  EXPECT_FLOAT_EQ(raw.angle_min, -1.5708F);
+  EXPECT_FLOAT_EQ(raw.angle_increment, 0.0175F);
+  ASSERT_EQ(raw.nranges, 3);
+  EXPECT_GT(raw.ranges[1], raw.range_max);  // 30.0 = maximum_range: no return
+  EXPECT_LE(raw.ranges[2], raw.range_max);
+
+  const auto robot = decoded<laser_scan_t>(log.at("ROBOTLASER1")[0]);
+  ASSERT_EQ(robot.nintensities, 3);
+  EXPECT_EQ(robot.intensities[2], 30.0F);
+  const auto laser_pose = decoded<pose_t>(log.at("ROBOTLASER1_POSE")[0]);
+  EXPECT_EQ(laser_pose.position.x, 0.1);
+  EXPECT_EQ(laser_pose.position.y, 0.2);
+
+  const auto tf = decoded<tf_t>(log.at("TF_STATIC")[0]);
+  ASSERT_GE(tf.ntransforms, 1);
+  EXPECT_EQ(tf.transforms[0].child_frame_id, "laser");
+  EXPECT_EQ(tf.transforms[0].translation.x, 0.25);
+}
+
+}  // namespace
+}  // namespace driftlab
