@@ -28,6 +28,12 @@ class CarmenReader {
  public:
   /// Reads path whole (a log is text of tens of MB at most), gunzipping it when it is gzip.
   static Result<CarmenReader> open(const std::string& path);
+  /// A log's text in memory: for fuzzing and tests. No check that it looks like CARMEN.
+  static CarmenReader from_text(std::string text) {
+    CarmenReader r;
+    r.text_ = std::move(text);
+    return r;
+  }
   /// Whether these (decompressed) first bytes look like a CARMEN log.
   static bool looks_like(std::string_view head);
 

@@ -131,24 +131,31 @@ bool Ros1BagReader::looks_like(std::span<const uint8_t> head) {
   return head.size() >= 9 && std::memcmp(head.data(), "#ROSBAG V", 9) == 0;
 }
 
-Result<Ros1BagReader> Ros1BagReader::open(const std::string& path) {
-  auto file = MappedFile::open(path);
-  if (!file) return file.error();
-  auto bytes = file->bytes();
-  if (!looks_like(bytes)) return Error(path + ": not a ROS 1 bag (no #ROSBAG magic)");
+Result<Ros1BagReader> Ros1BagReader::check(const std::string& name, std::span<const uint8_t> bytes) {
+  if (!looks_like(bytes)) return Error(name + ": not a ROS 1 bag (no #ROSBAG magic)");
   if (bytes.size() < kMagic.size() || std::memcmp(bytes.data(), kMagic.data(), kMagic.size()) != 0) {
     const auto* p = reinterpret_cast<const char*>(bytes.data());
     const std::string version(p + 9, std::min<size_t>(3, bytes.size() - 9));
-    return Error(path + ": ROS bag format " + version + " is not supported (2.0 is; `rosbag fix` converts older bags)");
+    return Error(name + ": ROS bag format " + version + " is not supported (2.0 is; `rosbag fix` converts older bags)");
   }
   Ros1BagReader r;
-  r.file_ = std::move(*file);
+  r.bytes_ = bytes;
   return r;
 }
 
+Result<Ros1BagReader> Ros1BagReader::open(const std::string& path) {
+  auto file = MappedFile::open(path);
+  if (!file) return file.error();
+  auto r = check(path, file->bytes());
+  if (r) r->file_ = std::move(*file);  // the mapping moves, the bytes stay where they are
+  return r;
+}
+
+Result<Ros1BagReader> Ros1BagReader::from_memory(std::span<const uint8_t> bytes) { return check("bag", bytes); }
+
 int64_t Ros1BagReader::read(const std::function<void(const BagMessage&)>& on_message,
                             const std::function<void(const BagProblem&)>& on_problem) {
-  const auto bytes = file_.bytes();
+  const auto bytes = bytes_;
   int64_t delivered = 0;
   std::vector<uint8_t> chunk;
 

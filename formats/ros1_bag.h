@@ -44,6 +44,8 @@ class Ros1BagReader {
  public:
   /// Opens path and checks the "#ROSBAG V2.0" magic (another version is an error naming it).
   static Result<Ros1BagReader> open(const std::string& path);
+  /// A bag in memory (bytes must outlive the reader): for fuzzing and tests.
+  static Result<Ros1BagReader> from_memory(std::span<const uint8_t> bytes);
   /// Whether the bytes start like a ROS 1 bag.
   static bool looks_like(std::span<const uint8_t> head);
 
@@ -53,11 +55,13 @@ class Ros1BagReader {
                const std::function<void(const BagProblem&)>& on_problem);
 
   const std::map<uint32_t, RosConnection>& connections() const { return connections_; }
-  uint64_t size() const { return file_.bytes().size(); }
+  uint64_t size() const { return bytes_.size(); }
 
  private:
   Ros1BagReader() = default;
-  MappedFile file_;
+  static Result<Ros1BagReader> check(const std::string& name, std::span<const uint8_t> bytes);
+  MappedFile file_;  // unmapped for a bag in memory
+  std::span<const uint8_t> bytes_;
   std::map<uint32_t, RosConnection> connections_;
 };
 
