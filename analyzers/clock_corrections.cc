@@ -6,17 +6,32 @@ namespace driftlab::analyzers {
 
 ClockCorrections clock_corrections(const Diagnosis& d, std::vector<std::string>* notes) {
   ClockCorrections r;
+  char buf[320];
   for (const auto& c : d.channels) {
     if (!c.clock_valid) continue;
     const bool ahead = clock_ahead(c.clock_offset_s);
     const bool drifts = clock_drifts(c.clock_drift_ppm);
     if (!ahead && !drifts) continue;
-    const ClockCorrection k{ahead ? c.clock_offset_s : 0.0, drifts ? c.clock_drift_ppm : 0.0, d.start_utime};
+    // Only what the diagnosis is sure of: a correction whose 95% interval reaches zero could be jitter, and
+    // applying it could make things worse (a wrong shift skews this stream against every other).
+    const bool sure_ahead = ahead && c.clock_offset_ci_s[0] > 0;
+    const bool sure_drift = drifts && (c.clock_drift_ci_ppm[0] > 0 || c.clock_drift_ci_ppm[1] < 0);
+    if (!sure_ahead && !sure_drift) {
+      if (notes != nullptr) {
+        std::snprintf(buf, sizeof(buf), "not restamping %s: %+.1f ms (95%%: %+.1f to %+.1f), %+.0f ppm (95%%: %+.0f to "
+                      "%+.0f) could be zero", c.name.c_str(), c.clock_offset_s * 1e3, c.clock_offset_ci_s[0] * 1e3,
+                      c.clock_offset_ci_s[1] * 1e3, c.clock_drift_ppm, c.clock_drift_ci_ppm[0], c.clock_drift_ci_ppm[1]);
+        notes->push_back(buf);
+      }
+      continue;
+    }
+    const ClockCorrection k{sure_ahead ? c.clock_offset_s : 0.0, sure_drift ? c.clock_drift_ppm : 0.0, d.start_utime};
     r[c.name] = k;
     if (notes != nullptr) {
-      char buf[256];
-      std::snprintf(buf, sizeof(buf), "restamp %s: %+.1f ms, %+.0f ppm (from the timing diagnosis of %s)",
-                    c.name.c_str(), k.offset_s * 1e3, k.drift_ppm, d.log.c_str());
+      std::snprintf(buf, sizeof(buf), "restamp %s: %+.1f ms, %+.0f ppm (from the timing diagnosis of %s: offset 95%% "
+                    "%+.1f to %+.1f ms, drift %+.0f to %+.0f ppm)", c.name.c_str(), k.offset_s * 1e3, k.drift_ppm,
+                    d.log.c_str(), c.clock_offset_ci_s[0] * 1e3, c.clock_offset_ci_s[1] * 1e3,
+                    c.clock_drift_ci_ppm[0], c.clock_drift_ci_ppm[1]);
       notes->push_back(buf);
     }
   }

@@ -19,7 +19,8 @@ inline bool clock_ahead(double offset_s) { return offset_s >= kClockAheadMin_s; 
 inline bool clock_drifts(double drift_ppm) { return drift_ppm >= kClockDriftMin_ppm || drift_ppm <= -kClockDriftMin_ppm; }
 
 /// The corrections for the channels of a diagnosis whose clock is ahead or drifts (a clock behind cannot be told
-/// from latency in one log and is left alone). `notes` receives one line per correction, saying what and why.
+/// from latency in one log and is left alone), each only where its 95% confidence interval leaves out zero.
+/// `notes` receives one line per correction, saying what and why, and one per correction left out.
 ClockCorrections clock_corrections(const Diagnosis& d, std::vector<std::string>* notes = nullptr);
 
 }  // namespace driftlab::analyzers

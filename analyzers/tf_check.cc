@@ -1,5 +1,7 @@
 #include "analyzers/tf_check.h"
 
+#include <cctype>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -15,6 +17,18 @@ constexpr int64_t kFutureToleranceUs = 1000;
 constexpr int64_t kWaitUs = 50000;
 std::string quoted(const std::string& frame) { return "'" + frame + "'"; }
 }  // namespace
+
+bool is_static_tf_channel(std::string_view channel) {
+  constexpr std::string_view kStatic = "static";
+  for (size_t i = 0; i + kStatic.size() <= channel.size(); ++i) {
+    bool match = true;
+    for (size_t k = 0; k < kStatic.size() && match; ++k) {
+      match = std::tolower(static_cast<unsigned char>(channel[i + k])) == kStatic[k];
+    }
+    if (match) return true;
+  }
+  return false;
+}
 
 void TfCheck::add_tf(std::span<const uint8_t> data, int64_t arrival, bool is_static) {
   driftlab::tf_t tf;

@@ -9,11 +9,17 @@
 #include <map>
 #include <span>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "analyzers/timing.h"
 
 namespace driftlab::analyzers::internal {
+
+/// Whether a channel of tf_t holds static transforms: its name contains "static" in any case (TF_STATIC,
+/// ROS's /tf_static).
+bool is_static_tf_channel(std::string_view channel);
+
 
 class TfCheck {
  public:

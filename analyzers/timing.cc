@@ -27,6 +27,9 @@
 namespace driftlab::analyzers {
 namespace {
 
+/// A stamp later than the channel's typical by less than this is never called late (see fit_clock).
+constexpr double kLateStampMin_s = 0.001;
+
 template <typename T>
 using Array = HugeVector<T>;
 
@@ -191,21 +194,46 @@ void add_motion(Samples& s, int64_t fingerprint, std::span<const uint8_t> data) 
   s.have_last = true;
 }
 
-/// The source clock from the lower envelope of latency over time: window minima, then a Theil-Sen line.
+/// The ranks of a distribution-free 95% confidence interval for the median of m values (binomial, normal
+/// approximation): the lower and upper order statistics, clamped to the sample.
+std::pair<size_t, size_t> median_ci_ranks(size_t m) {
+  const double half = 1.96 * std::sqrt(static_cast<double>(m)) / 2;
+  const double mid = static_cast<double>(m - 1) / 2;
+  return {static_cast<size_t>(std::max(0.0, std::floor(mid - half))),
+          static_cast<size_t>(std::min(static_cast<double>(m - 1), std::ceil(mid + half)))};
+}
+
+/// The source clock from the lower envelope of latency over time: window minima, then a Theil-Sen line, with
+/// 95% confidence intervals (Sen's, from Kendall's tau, for the slope; the median's order statistics for the
+/// envelope's level). Late stamps are left out first: a stamp later than its arrival by far more than the
+/// channel's delivery varies is not the clock but a message stamped after the fact (or by another clock), and a
+/// handful of them would otherwise set every window's minimum.
 void fit_clock(const Samples& s, int64_t log_start, ChannelTiming& c) {
   const size_t n = s.stamp.size();
   if (n < 20) return;
+  Array<double> lat(n);
+  for (size_t i = 0; i < n; ++i) lat[i] = static_cast<double>(s.arrival[i] - s.stamp[i]) * 1e-6;
+  Array<double> sorted(lat);
+  const double p50 = quantile(sorted, 0.5), p10 = quantile(sorted, 0.1);
+  // 10 times the spread of the faster half of deliveries, and at least 1 ms (a clock's resolution and a
+  // scheduler's tick): a 1000 ppm drift over a minute spreads latency by 60 ms and leaves it well inside.
+  const double bound = p50 - std::max(kLateStampMin_s, 10 * (p50 - p10));
+  for (size_t i = 0; i < n; ++i) {
+    if (lat[i] >= bound) continue;
+    if (c.late_stamps++ == 0) c.first_late_stamp_s = static_cast<double>(s.stamp[i] - log_start) * 1e-6;
+    c.late_stamp_max_s = std::max(c.late_stamp_max_s, p50 - lat[i]);
+  }
   const auto [lo, hi] = std::minmax_element(s.stamp.begin(), s.stamp.end());
   const double span = static_cast<double>(*hi - *lo) * 1e-6;
   if (span < 10.0) return;  // too short to tell drift from jitter
   const size_t windows = std::clamp<size_t>(n / 20, 4, 200);
   std::vector<double> min_lat(windows, INFINITY), at_t(windows, 0);
   for (size_t i = 0; i < n; ++i) {
+    if (lat[i] < bound) continue;
     const double t = static_cast<double>(s.stamp[i] - *lo) * 1e-6;
-    const double lat = static_cast<double>(s.arrival[i] - s.stamp[i]) * 1e-6;
     const size_t w = std::min(windows - 1, static_cast<size_t>(t / span * static_cast<double>(windows)));
-    if (lat < min_lat[w]) {
-      min_lat[w] = lat;
+    if (lat[i] < min_lat[w]) {
+      min_lat[w] = lat[i];
       at_t[w] = t;
     }
   }
@@ -224,18 +252,36 @@ void fit_clock(const Samples& s, int64_t log_start, ChannelTiming& c) {
     }
   }
   if (slopes.empty()) return;
-  const double slope = median(slopes);
-  Array<double> intercepts;
-  for (size_t i = 0; i < ts.size(); ++i) intercepts.push_back(ls[i] - slope * ts[i]);
-  const double intercept = median(intercepts);  // envelope at the first stamp
+  std::sort(slopes.begin(), slopes.end());
+  const double slope = quantile(slopes, 0.5);
+  // Sen's interval: ranks (N -+ C) / 2 of the N slopes, C = z sqrt(var S) with Kendall's var S for m points.
+  const auto m = static_cast<double>(ts.size());
+  const double big_c = 1.96 * std::sqrt(m * (m - 1) * (2 * m + 5) / 18);
+  const auto slope_n = static_cast<double>(slopes.size());
+  const double slope_lo = slopes[static_cast<size_t>(std::clamp(std::floor((slope_n - big_c) / 2), 0.0, slope_n - 1))];
+  const double slope_hi = slopes[static_cast<size_t>(std::clamp(std::ceil((slope_n + big_c) / 2), 0.0, slope_n - 1))];
+  // The envelope's level at the windows' median time, where it does not depend on the slope.
+  Array<double> t_sorted(ts.begin(), ts.end());
+  const double tm = quantile(t_sorted, 0.5);
+  Array<double> levels;
+  for (size_t i = 0; i < ts.size(); ++i) levels.push_back(ls[i] - slope * (ts[i] - tm));
+  std::sort(levels.begin(), levels.end());
+  const double level = quantile(levels, 0.5);
+  const auto [r_lo, r_hi] = median_ci_ranks(levels.size());
   const double t0 = static_cast<double>(log_start - *lo) * 1e-6;
   c.clock_valid = true;
   c.clock_drift_ppm = -slope * 1e6;
-  c.clock_offset_s = -(intercept + slope * t0);
+  c.clock_drift_ci_ppm = {-slope_hi * 1e6, -slope_lo * 1e6};
+  c.clock_offset_s = -(level + slope * (t0 - tm));
+  // Both parts of the level's uncertainty: its own, and the slope's carried from tm to the log's start.
+  const double level_half = 0.5 * (levels[r_hi] - levels[r_lo]);
+  const double slope_half = 0.5 * (slope_hi - slope_lo) * std::abs(t0 - tm);
+  const double half = std::hypot(level_half, slope_half);
+  c.clock_offset_ci_s = {c.clock_offset_s - half, c.clock_offset_s + half};
   Array<double> transport(n);
   for (size_t i = 0; i < n; ++i) {
     const double t = static_cast<double>(s.stamp[i] - *lo) * 1e-6;
-    transport[i] = static_cast<double>(s.arrival[i] - s.stamp[i]) * 1e-6 - (intercept + slope * t);
+    transport[i] = lat[i] - (level + slope * (t - tm));
   }
   c.transport_s = distribution(std::move(transport));
 }
@@ -267,7 +313,32 @@ void analyse_period(const Samples& s, ChannelTiming& c, bool record_gaps) {
   for (size_t i = 1; i < sorted.size(); ++i) {
     if (sorted[i] > sorted[i - 1]) intervals.push_back(static_cast<double>(sorted[i] - sorted[i - 1]) * 1e-6);
   }
-  c.expected_period_s = median(intervals);
+  if (intervals.empty()) return;
+  const double median_interval = median(intervals);
+  const double mean_interval = static_cast<double>(sorted.back() - sorted.front()) * 1e-6 /
+                               static_cast<double>(sorted.size() - 1);
+  // Bursts: the usual interval far shorter than the average one. A steady stream losing even 80% of its
+  // messages at random keeps its median interval above half its mean (the gaps are geometric), so a quarter
+  // means the messages come in groups: judged by the average rate, and its long gaps are not drops.
+  if (sorted.size() >= 10 && median_interval < 0.25 * mean_interval) {
+    c.bursty = true;
+    c.expected_period_s = mean_interval;
+    c.burst_interval_s = median_interval;
+    Array<double> sizes;
+    double size = 1;
+    for (size_t i = 1; i < sorted.size(); ++i) {
+      if (static_cast<double>(sorted[i] - sorted[i - 1]) * 1e-6 < 0.5 * mean_interval) {
+        ++size;
+      } else {
+        sizes.push_back(size);
+        size = 1;
+      }
+    }
+    sizes.push_back(size);
+    c.burst_size = median(sizes);
+    return;
+  }
+  c.expected_period_s = median_interval;
   if (c.expected_period_s <= 0) return;
   for (size_t i = 1; i < sorted.size(); ++i) {
     const double gap = static_cast<double>(sorted[i] - sorted[i - 1]) * 1e-6;
@@ -309,21 +380,98 @@ void judge(ChannelTiming& c) {
                   static_cast<long long>(c.out_of_order_stamp));
     add("fault", buf);
   }
+  if (c.zero_stamps > 0) {
+    std::snprintf(buf, sizeof(buf), "%lld messages are stamped 0: the source never set their stamps",
+                  static_cast<long long>(c.zero_stamps));
+    add("fault", buf);
+  }
+  // Frozen stamps: most messages carry the stamp of the one before (a stamp set once, or every observation given
+  // one time, as MRPT 2.5's carmen2rawlog does). A few repeats are a fast source's clock resolution.
+  if (c.count >= 10 && c.repeated_stamps * 2 > c.count) {
+    std::snprintf(buf, sizeof(buf), "%lld of %lld messages repeat the stamp of the one before: the stamps are frozen",
+                  static_cast<long long>(c.repeated_stamps), static_cast<long long>(c.count));
+    add("fault", buf);
+  }
+  if (c.out_of_order_arrival > 0) {
+    std::snprintf(buf, sizeof(buf), "log times step back %lld times: events were written out of time order",
+                  static_cast<long long>(c.out_of_order_arrival));
+    add("warn", buf);
+  }
+  // Stamps on another time base than arrival, by more than a second: name the usual causes.
+  if (c.has_header && c.zero_stamps * 2 < c.count && std::abs(c.latency_s.p50) >= 1.0) {
+    const double behind = c.latency_s.p50;  // arrival - stamp [s]
+    constexpr double kWallClock = 1e9;      // 2001-09-09 in seconds since the epoch: stamps before are not dates
+    const double stamp_s = static_cast<double>(c.median_stamp_utime) * 1e-6;
+    std::string cause;
+    auto near = [&](double seconds) { return std::abs(std::abs(behind) - seconds) < 0.5; };
+    if (stamp_s < kWallClock && stamp_s + behind >= kWallClock) {
+      std::snprintf(buf, sizeof(buf), "stamps count from %.0f s while arrivals are wall-clock dates: the source "
+                    "stamps with simulation time or time since boot (use_sim_time?)", stamp_s);
+      cause = buf;
+    } else if (near(37) || near(18) || near(19)) {
+      const double s = std::round(std::abs(behind));
+      const char* which = s == 37 ? "TAI and UTC" : s == 18 ? "GPS time and UTC" : "TAI and GPS time";
+      std::snprintf(buf, sizeof(buf), "stamps are %.3f s %s arrival: the %.0f s between %s", std::abs(behind),
+                    behind > 0 ? "behind" : "ahead of", s, which);
+      cause = buf;
+    } else if (std::abs(behind) >= 1800 && std::abs(std::remainder(behind, 1800)) < 1) {
+      std::snprintf(buf, sizeof(buf), "stamps are %.1f h %s arrival: a time zone applied to one clock",
+                    std::abs(behind) / 3600, behind > 0 ? "behind" : "ahead of");
+      cause = buf;
+    }
+    if (!cause.empty()) add("fault", cause);
+  }
   if (c.has_header && c.latency_s.p50 < -0.001) {
     std::snprintf(buf, sizeof(buf), "stamps are %.1f ms ahead of arrival: the source clock runs ahead",
                   -c.latency_s.p50 * 1e3);
     add("fault", buf);
   }
-  if (c.clock_valid && std::abs(c.clock_drift_ppm) >= 25) {
-    std::snprintf(buf, sizeof(buf), "source clock drifts %.0f ppm (%.1f ms per minute)", c.clock_drift_ppm,
-                  c.clock_drift_ppm * 60e-3);
+  // A drift is reported when its confidence interval leaves out zero: jitter alone can tilt a line a little.
+  if (c.clock_valid && std::abs(c.clock_drift_ppm) >= 25 &&
+      (c.clock_drift_ci_ppm[0] > 0 || c.clock_drift_ci_ppm[1] < 0)) {
+    std::snprintf(buf, sizeof(buf), "source clock drifts %.0f ppm (95%%: %.0f to %.0f; %.1f ms per minute)",
+                  c.clock_drift_ppm, c.clock_drift_ci_ppm[0], c.clock_drift_ci_ppm[1], c.clock_drift_ppm * 60e-3);
     add(std::abs(c.clock_drift_ppm) >= 100 ? "fault" : "warn", buf);
+  }
+  if (c.bursty) {
+    std::snprintf(buf, sizeof(buf), "messages come in bursts of about %.0f, %.1f ms apart, %.2f Hz on average: "
+                  "drops are told by seq only", c.burst_size, c.burst_interval_s * 1e3, 1 / c.expected_period_s);
+    add("warn", buf);
+  }
+  if (c.late_stamps > 0) {
+    std::snprintf(buf, sizeof(buf), "%lld stamps late by up to %.3f s against the channel's usual latency (the "
+                  "first %.1f s into the log): stamped after the fact or by another clock; left out of the clock fit",
+                  static_cast<long long>(c.late_stamps), c.late_stamp_max_s,
+                  c.first_late_stamp_s);
+    add("warn", buf);
   }
   if (c.has_header && c.latency_s.p99 > 0.005 && c.latency_s.p99 > 5 * std::max(c.latency_s.p50, 0.0005)) {
     std::snprintf(buf, sizeof(buf), "latency spikes: p99 %.1f ms against a median of %.1f ms",
                   c.latency_s.p99 * 1e3, c.latency_s.p50 * 1e3);
     add("warn", buf);
   }
+}
+
+/// Whether two channels carry the same stamps, message for message (90% of each one's stamps appear in the
+/// other): stamped by one clock at one instant, as a scan and the pose logged with it, so there is no skew between
+/// them to measure, whatever a correlation of their motion says. Streams at different rates on one clock (a 200 Hz
+/// IMU, 100 Hz ground truth) share only some stamps and are still compared.
+bool same_stamps(const Samples& a, const Samples& b) {
+  if (a.stamp.empty() || b.stamp.empty()) return false;
+  Array<int64_t> x(a.stamp), y(b.stamp);
+  std::sort(x.begin(), x.end());
+  std::sort(y.begin(), y.end());
+  size_t i = 0, j = 0, common = 0;
+  while (i < x.size() && j < y.size()) {
+    if (x[i] < y[j]) {
+      ++i;
+    } else if (y[j] < x[i]) {
+      ++j;
+    } else {
+      ++common, ++i, ++j;
+    }
+  }
+  return common * 10 >= std::max(x.size(), y.size()) * 9;
 }
 
 /// Linear interpolation of (t, v) (t ascending) at time x; false outside.
@@ -513,7 +661,7 @@ Result<Diagnosis> diagnose(const std::string& log, const DiagnoseOptions& option
     }
     const int64_t fp = logfmt::fingerprint(e.data);
     s.arrival.push_back(e.utime);
-    if (fp == tf_hash) tf.add_tf(e.data, e.utime, last_name.find("STATIC") != std::string_view::npos);
+    if (fp == tf_hash) tf.add_tf(e.data, e.utime, internal::is_static_tf_channel(last_name));
     if (s.has_header) {
       if (const auto h = lcmtypes::read_header(e.data, e.utime)) {
         s.seq.push_back(h->seq);
@@ -560,10 +708,15 @@ Result<Diagnosis> diagnose(const std::string& log, const DiagnoseOptions& option
       Array<double> latency(s.stamp.size());
       for (size_t i = 0; i < s.stamp.size(); ++i) {
         if (s.stamp[i] < newest && s.seq[i] != s.seq[i - 1]) ++c.out_of_order_stamp;
+        if (i > 0 && s.stamp[i] == s.stamp[i - 1] && s.seq[i] != s.seq[i - 1]) ++c.repeated_stamps;
+        c.zero_stamps += s.stamp[i] == 0;
         newest = std::max(newest, s.stamp[i]);
         latency[i] = static_cast<double>(s.arrival[i] - s.stamp[i] - s.ready_after_us) * 1e-6;
       }
       c.latency_s = distribution(std::move(latency));
+      Array<int64_t> stamps(s.stamp);
+      std::nth_element(stamps.begin(), stamps.begin() + static_cast<ptrdiff_t>(stamps.size() / 2), stamps.end());
+      c.median_stamp_utime = stamps.empty() ? 0 : stamps[stamps.size() / 2];
       // The clock is fitted to when the data was complete (a scan's last beam), then the stamps restored.
       for (auto& t : s.stamp) t += s.ready_after_us;
       fit_clock(s, d.start_utime, c);
@@ -605,7 +758,9 @@ Result<Diagnosis> diagnose(const std::string& log, const DiagnoseOptions& option
   // Each pair is independent: two threads share them (this machine has two cores).
   std::vector<std::pair<size_t, size_t>> jobs;
   for (size_t i = 0; i < moving.size(); ++i) {
-    for (size_t j = i + 1; j < moving.size(); ++j) jobs.emplace_back(i, j);
+    for (size_t j = i + 1; j < moving.size(); ++j) {
+      if (!same_stamps(moving[i]->second, moving[j]->second)) jobs.emplace_back(i, j);
+    }
   }
   const double log_end = static_cast<double>(d.end_utime) * 1e-6;
   std::vector<Grid> grids(moving.size());

@@ -6,6 +6,7 @@
 
 #include <cstdint>
 #include <span>
+#include <array>
 #include <string>
 #include <utility>
 #include <vector>
@@ -32,17 +33,28 @@ struct ChannelTiming {
   int64_t malformed = 0;            ///< messages that do not hold their type's layout (left out of the rest) [count]
   std::string malformed_example;    ///< why the first of them is malformed
   double rate_hz = 0;               ///< messages per second of arrival time
-  double expected_period_s = 0;     ///< median interval between stamps (arrivals without a header)
+  double expected_period_s = 0;     ///< median interval between stamps (arrivals without a header); the mean one when bursty
+  bool bursty = false;              ///< messages come in groups (median interval under a quarter of the mean)
+  double burst_size = 0;            ///< when bursty: the median number of messages in a group [count]
+  double burst_interval_s = 0;      ///< when bursty: the median interval, inside the groups [s]
   int64_t seq_gaps = 0;             ///< messages missing from gaps in seq [count]
   int64_t missing_by_period = 0;    ///< messages missing from gaps in time longer than 1.5 periods [count]
   std::vector<Gap> gaps;            ///< seq gaps with a header, time gaps without
   int64_t duplicates = 0;           ///< extra copies of a message already received (same seq; without a header, the same bytes again within a quarter period) [count]
   int64_t out_of_order_stamp = 0;   ///< messages whose stamp is older than an earlier-arrived one [count]
   int64_t out_of_order_arrival = 0; ///< log timestamps that step back [count]
+  int64_t repeated_stamps = 0;      ///< messages (of another seq) stamped exactly like the one before: frozen stamps [count]
+  int64_t zero_stamps = 0;          ///< messages stamped 0: never set [count]
+  int64_t median_stamp_utime = 0;   ///< the median stamp [us], to tell simulation time from wall-clock dates
   Distribution latency_s;           ///< arrival - stamp [s]
   bool clock_valid = false;         ///< enough data spread over time to fit the clock
   double clock_offset_s = 0;        ///< source clock ahead of the recorder's at the log's start [s] (fastest delivery taken as instantaneous)
   double clock_drift_ppm = 0;       ///< source clock running fast [ppm]
+  std::array<double, 2> clock_offset_ci_s{};    ///< 95% confidence interval of clock_offset_s [s]
+  std::array<double, 2> clock_drift_ci_ppm{};   ///< 95% confidence interval of clock_drift_ppm [ppm]
+  int64_t late_stamps = 0;          ///< stamps later than the channel's usual latency allows (left out of the clock fit) [count]
+  double first_late_stamp_s = 0;    ///< the first of them, from the log's start [s]
+  double late_stamp_max_s = 0;      ///< how much later than the median latency the latest of them is [s]
   Distribution transport_s;         ///< latency above the fitted clock line [s]
   std::string verdict = "ok";       ///< ok, warn or fault
   std::vector<std::string> reasons; ///< why, in words
@@ -64,8 +76,8 @@ struct StreamPair {
   std::vector<std::pair<double, double>> curve;
 };
 
-/// The TF tree seen in the log (channels of driftlab.tf_t; a channel whose name contains "STATIC" holds static
-/// transforms) and what would go wrong when data is transformed with it.
+/// The TF tree seen in the log (channels of driftlab.tf_t; a channel whose name contains "static", in any case,
+/// holds static transforms) and what would go wrong when data is transformed with it.
 struct TfDiagnosis {
   std::vector<std::string> frames;    ///< every frame, sorted
   std::vector<std::string> roots;     ///< frames that are nobody's child

@@ -29,13 +29,22 @@ nlohmann::json to_json(const analyzers::Diagnosis& d) {
          {"malformed", c.malformed},
          {"rate_hz", c.rate_hz},
          {"expected_period_s", c.expected_period_s},
+         {"bursts", c.bursty ? nlohmann::json{{"size", c.burst_size}, {"interval_s", c.burst_interval_s}}
+                             : nlohmann::json()},
          {"drops", {{"seq_gaps", c.has_header ? nlohmann::json(c.seq_gaps) : nlohmann::json()},
                     {"missing_by_period", c.missing_by_period},
                     {"gaps", gaps}}},
          {"duplicates", c.duplicates},
          {"out_of_order", {{"by_stamp", c.out_of_order_stamp}, {"by_arrival", c.out_of_order_arrival}}},
+         {"stamps", c.has_header ? nlohmann::json{{"repeated", c.repeated_stamps}, {"zero", c.zero_stamps},
+                                                  {"median_utime", c.median_stamp_utime},
+                                                  {"late", {{"count", c.late_stamps},
+                                                            {"first_s", c.first_late_stamp_s},
+                                                            {"max_s", c.late_stamp_max_s}}}}
+                                : nlohmann::json()},
          {"latency_s", c.has_header ? distribution_json(c.latency_s) : nlohmann::json()},
-         {"clock", c.clock_valid ? nlohmann::json{{"offset_s", c.clock_offset_s}, {"drift_ppm", c.clock_drift_ppm}}
+         {"clock", c.clock_valid ? nlohmann::json{{"offset_s", c.clock_offset_s}, {"offset_ci_s", c.clock_offset_ci_s},
+                                                  {"drift_ppm", c.clock_drift_ppm}, {"drift_ci_ppm", c.clock_drift_ci_ppm}}
                                  : nlohmann::json()},
          {"transport_s", c.clock_valid ? distribution_json(c.transport_s) : nlohmann::json()},
          {"verdict", c.verdict},

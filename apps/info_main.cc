@@ -48,7 +48,10 @@ nlohmann::json to_json(const std::string& path, const LogSummary& s) {
                         {"bytes", c.bytes},
                         {"rate_hz", rate_hz(c)},
                         {"first_utime", c.first_utime},
-                        {"last_utime", c.last_utime}});
+                        {"last_utime", c.last_utime},
+                        {"times_back", c.times_back},
+                        {"stamped", c.stamped},
+                        {"stamps_repeated", c.stamps_repeated}});
   }
   nlohmann::json problems = nlohmann::json::array();
   for (const auto& p : s.problems) {
@@ -85,8 +88,25 @@ void print_table(const std::string& path, const LogSummary& s, int max_problems)
                 static_cast<double>(c.first_utime - s.start_utime) * 1e-6,
                 static_cast<double>(c.last_utime - s.start_utime) * 1e-6);
   }
+  // What the index saw in time, beside the framing: log times stepping back, frozen stamps.
+  std::vector<std::string> timing;
+  for (const auto& c : s.channels) {
+    if (c.times_back > 0) {
+      timing.push_back(c.name + ": log times step back " + thousands(c.times_back) +
+                       " times (events written out of time order)");
+    }
+    // A fast source's clock may repeat a stamp now and then; most of them repeated means the stamps are frozen.
+    if (c.stamped >= 10 && c.stamps_repeated * 2 > c.stamped) {
+      timing.push_back(c.name + ": " + thousands(c.stamps_repeated) + " of " + thousands(c.stamped) +
+                       " messages repeat the stamp before (frozen stamps: time cannot be told from them)");
+    }
+  }
+  if (!timing.empty()) {
+    std::printf("\ntiming (driftlab diagnose says more):\n");
+    for (const auto& line : timing) std::printf("  %s\n", line.c_str());
+  }
   if (s.problems_total == 0) {
-    std::printf("\nno problems\n");
+    std::printf("\n%s\n", timing.empty() ? "no problems" : "no framing problems");
     return;
   }
   std::printf("\n%s problem%s:\n", thousands(static_cast<int64_t>(s.problems_total)).c_str(),

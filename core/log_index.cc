@@ -13,11 +13,12 @@
 #include "core/mapped_file.h"
 #include "core/internal/string_hash.h"
 #include "core/log_format.h"
+#include "lcmtypes/stream_header.h"
 
 namespace driftlab {
 namespace {
 
-constexpr char kMagic[8] = {'D', 'L', 'I', 'D', 'X', '0', '0', '1'};
+constexpr char kMagic[8] = {'D', 'L', 'I', 'D', 'X', '0', '0', '2'};
 constexpr uint64_t kSampleBytes = 64 << 10;
 
 uint64_t fnv1a(std::span<const uint8_t> bytes, uint64_t h = 1469598103934665603ull) {
@@ -112,6 +113,9 @@ std::vector<uint8_t> serialise(const LogSummary& s, const std::vector<LogIndex::
     o.put(c.last_utime);
     o.put(c.fingerprint);
     o.put(static_cast<uint8_t>(c.mixed_fingerprints));
+    o.put(c.times_back);
+    o.put(c.stamped);
+    o.put(c.stamps_repeated);
   }
   o.put(static_cast<uint64_t>(s.problems.size()));
   for (const auto& p : s.problems) {
@@ -136,13 +140,14 @@ bool deserialise(std::span<const uint8_t> bytes, const FileIdentity& expected, L
   uint64_t n = 0;
   if (!in.get(id) || !(id == expected)) return false;
   if (!in.get(s.file_bytes) || !in.get(s.events) || !in.get(s.start_utime) || !in.get(s.end_utime) ||
-      !in.get(s.problems_total) || !in.get_count(n, 4 + 5 * 8 + 1))
+      !in.get(s.problems_total) || !in.get_count(n, 4 + 8 * 8 + 1))
     return false;
   s.channels.resize(n);
   for (auto& c : s.channels) {
     uint8_t mixed = 0;
     if (!in.get_string(c.name) || !in.get(c.count) || !in.get(c.bytes) || !in.get(c.first_utime) ||
-        !in.get(c.last_utime) || !in.get(c.fingerprint) || !in.get(mixed))
+        !in.get(c.last_utime) || !in.get(c.fingerprint) || !in.get(mixed) || !in.get(c.times_back) ||
+        !in.get(c.stamped) || !in.get(c.stamps_repeated))
       return false;
     c.mixed_fingerprints = mixed != 0;
   }
@@ -184,6 +189,13 @@ LogIndex LogIndex::build(std::span<const uint8_t> bytes, const std::function<voi
   std::unordered_map<std::string, size_t, internal::StringHash, std::equal_to<>> by_name;
   std::vector<ChannelSummary> channels;
   ChannelSummary* last = nullptr;
+  struct Previous {
+    int64_t utime = 0;
+    bool stamped = false;
+    int64_t seq = 0, stamp = 0;
+  };
+  std::vector<Previous> previous;  // per channel, by index in `channels`
+  size_t last_index = 0;
   int64_t prefix_max = std::numeric_limits<int64_t>::min();
   uint64_t next_block = 0;
   Event e;
@@ -200,10 +212,23 @@ LogIndex LogIndex::build(std::span<const uint8_t> bytes, const std::function<voi
         it = by_name.emplace(std::string(e.channel), channels.size()).first;
         channels.push_back(ChannelSummary{std::string(e.channel), 0, 0, e.utime, e.utime,
                                           logfmt::fingerprint(e.data), false});
+        previous.push_back({e.utime});
       }
       last = &channels[it->second];
+      last_index = it->second;
     }
     ChannelSummary& c = *last;
+    Previous& before = previous[last_index];
+    if (c.count > 0 && e.utime < before.utime) ++c.times_back;
+    before.utime = e.utime;
+    const auto header = lcmtypes::read_header(e.data, e.utime);
+    if (header) {
+      ++c.stamped;
+      if (before.stamped && header->utime == before.stamp && header->seq != before.seq) ++c.stamps_repeated;
+      before.seq = header->seq;
+      before.stamp = header->utime;
+    }
+    before.stamped = header.has_value();
     ++c.count;
     c.bytes += static_cast<int64_t>(e.data.size());
     c.first_utime = std::min(c.first_utime, e.utime);

@@ -22,6 +22,9 @@ struct ChannelSummary {
   int64_t last_utime = 0;   ///< log timestamp of the last event [us]
   int64_t fingerprint = 0;  ///< LCM fingerprint of the first message (0 when shorter than 8 bytes)
   bool mixed_fingerprints = false;  ///< later messages carry another fingerprint
+  int64_t times_back = 0;   ///< events whose log timestamp is older than the channel's event before [count]
+  int64_t stamped = 0;      ///< messages that start with a stream header (lcmtypes/stream_header.h) [count]
+  int64_t stamps_repeated = 0;  ///< of those, stamped exactly as the one before with another seq [count]
 };
 
 struct LogSummary {

@@ -11,6 +11,8 @@
 #include <random>
 #include <set>
 
+#include "analyzers/clock_corrections.h"
+#include "analyzers/tf_check.h"
 #include "core/faults.h"
 #include "core/log_reader.h"
 #include "core/log_writer.h"
@@ -39,6 +41,9 @@ struct Faults {
   bool tf_future = false;      // dynamic transforms stamped 20 ms ahead of their arrival
   bool laser_static_missing = false;
   bool static_changes = false; // base_link -> imu republished with another offset
+  std::string static_channel = "TF_STATIC";
+  bool static_once = false;     // the static transforms published once, at the start (ROS's latched /tf_static)
+  bool copy_truth = false;      // POSE: the ground truth's poses again, with its stamps (as a pose logged with a scan)
 };
 
 constexpr int64_t kT0 = 1763776800000000;
@@ -82,6 +87,7 @@ void write_log(const std::string& path, const Faults& f, uint64_t seed) {
     m.header = {i, kT0 + us(t), "world"};
     m.orientation = {std::cos(yaw(t) / 2), 0, 0, std::sin(yaw(t) / 2)};
     out.push_back({kT0 + us(t) + 100, "GROUND_TRUTH", encode(m)});
+    if (f.copy_truth) out.push_back({kT0 + us(t) + 300, "POSE", encode(m)});
   }
   for (int64_t i = 0; i * 0.005 <= kSeconds; ++i) {  // IMU, 200 Hz, its clock offset
     const double t = i * 0.005;
@@ -132,7 +138,8 @@ void write_log(const std::string& path, const Faults& f, uint64_t seed) {
                      transform("base_link", "imu", kT0, f.static_changes && i > 30 ? 0.2 : 0.1)};
     if (!f.laser_static_missing) tf.transforms.push_back(transform("base_link", "laser", kT0, 0.3));
     tf.ntransforms = static_cast<int32_t>(tf.transforms.size());
-    out.push_back({kT0 + i * 1000000 + 500, "TF_STATIC", encode(tf)});
+    out.push_back({kT0 + i * 1000000 + 500, f.static_channel, encode(tf)});
+    if (f.static_once) break;
   }
   for (int i = 0; i * (1.0 / 30) <= kSeconds; ++i) {  // an untyped stream at 30 Hz
     if (i >= 300 && i < 300 + f.raw_gap) continue;
@@ -289,6 +296,114 @@ TEST(DiagnoseTf, FindsMissingFramesChangedStaticsFutureStampsLagAndStaleness) {
   auto c = diagnose(dir.file("c.lcm"));
   ASSERT_TRUE(c.ok());
   EXPECT_TRUE(has_problem(*c, "transforms 'odom' -> 'base_link' are stamped in the future of their arrival"));
+}
+
+TEST(DiagnoseTf, RosStaticChannelPublishedOnceIsStatic) {
+  // ROS latches /tf_static: one message at the start. Were it taken as dynamic, it would go stale at once.
+  EXPECT_TRUE(internal::is_static_tf_channel("/tf_static"));
+  EXPECT_TRUE(internal::is_static_tf_channel("TF_STATIC"));
+  EXPECT_FALSE(internal::is_static_tf_channel("/tf"));
+  test::TempDir dir;
+  Faults f;
+  f.static_channel = "/tf_static";
+  f.static_once = true;
+  write_log(dir.file("ros.lcm"), f, 9);
+  auto d = diagnose(dir.file("ros.lcm"));
+  ASSERT_TRUE(d.ok());
+  EXPECT_EQ(d->tf.roots, (std::vector<std::string>{"world"}));
+  EXPECT_TRUE(d->tf.problems.empty()) << d->tf.problems.front();
+}
+
+TEST(Diagnose, StreamsWithTheSameStampsAreNotPaired) {
+  // POSE repeats the ground truth with its stamps: one clock stamped both, so there is no skew to measure
+  // (a correlation would still find a peak at 0 and call it a measurement).
+  test::TempDir dir;
+  Faults f;
+  f.copy_truth = true;
+  f.imu_offset_s = 0.015;
+  write_log(dir.file("copy.lcm"), f, 10);
+  auto d = diagnose(dir.file("copy.lcm"));
+  ASSERT_TRUE(d.ok());
+  EXPECT_EQ(pair(*d, "GROUND_TRUTH", "POSE"), nullptr);
+  EXPECT_EQ(pair(*d, "POSE", "GROUND_TRUTH"), nullptr);
+  // Each is still compared with the streams on other clocks (pairs are ordered by first appearance).
+  const StreamPair* truth_imu = pair(*d, "GROUND_TRUTH", "IMU");
+  const StreamPair* pose_imu = pair(*d, "POSE", "IMU");
+  ASSERT_NE(truth_imu, nullptr);
+  ASSERT_NE(pose_imu, nullptr);
+  EXPECT_NEAR(truth_imu->offset_s, 0.015, 0.001);
+  EXPECT_NEAR(pose_imu->offset_s, 0.015, 0.001);
+}
+
+bool has_reason(const ChannelTiming& c, const std::string& text) {
+  for (const auto& r : c.reasons)
+    if (r.find(text) != std::string::npos) return true;
+  return false;
+}
+
+TEST(Diagnose, NamesStampsThatAreUnsetFrozenOrOnAnotherTimeBase) {
+  // 20 s of 100 Hz IMU messages on seven channels, each arriving 0.5 ms after it was measured; only the stamps
+  // differ. The thresholds: frozen when most repeat the stamp before (a 100 Hz source with a 1 ms clock never
+  // repeats); a named time base when the offset is within 0.5 s of the named one (delivery is milliseconds).
+  test::TempDir dir;
+  {
+    auto w = LogWriter::create(dir.file("stamps.lcm"));
+    ASSERT_TRUE(w.ok());
+    for (int64_t i = 0; i < 2000; ++i) {
+      const int64_t measured = kT0 + i * 10000;
+      const std::pair<const char*, int64_t> stamps[] = {
+          {"GOOD", measured},
+          {"FROZEN", kT0 + (i / 100) * 1000000},     // a new stamp once a second
+          {"ZERO", 0},
+          {"SIM", 120000000 + i * 10000},            // 120 s after a simulator started
+          {"TAI", measured + 37000000},              // stamped in TAI, arrivals in UTC
+          // Every 40th message stamped 0.3, 0.6 or 0.9 s after it arrived (stamped after the fact): 50 of them.
+          {"LATE", measured + (i % 40 == 0 ? 300000 * ((i / 40) % 3 + 1) : 0)},
+          // Groups of three 1 ms apart every 30 ms: 100 Hz on average, nothing lost.
+          {"BURST", kT0 + (i / 3) * 30000 + (i % 3) * 1000},
+      };
+      for (const auto& [name, stamp] : stamps) {
+        driftlab::imu_t m{};
+        m.header = {i, stamp, "imu"};
+        const int64_t arrival = std::string_view(name) == "BURST" ? stamp + 500 : measured + 500;
+        ASSERT_TRUE(w->write(arrival, name, encode(m)).ok());
+      }
+    }
+    ASSERT_TRUE(w->close().ok());
+  }
+  auto d = diagnose(dir.file("stamps.lcm"));
+  ASSERT_TRUE(d.ok());
+  EXPECT_EQ(channel(*d, "GOOD").verdict, "ok");
+  EXPECT_EQ(channel(*d, "GOOD").repeated_stamps, 0);
+  EXPECT_EQ(channel(*d, "FROZEN").repeated_stamps, 1980);
+  EXPECT_TRUE(has_reason(channel(*d, "FROZEN"), "1980 of 2000 messages repeat the stamp"));
+  EXPECT_EQ(channel(*d, "ZERO").zero_stamps, 2000);
+  EXPECT_TRUE(has_reason(channel(*d, "ZERO"), "2000 messages are stamped 0"));
+  EXPECT_TRUE(has_reason(channel(*d, "SIM"), "stamps count from 130 s while arrivals are wall-clock dates"));
+  EXPECT_TRUE(has_reason(channel(*d, "TAI"), "the 37 s between TAI and UTC"));
+  // The late stamps are found and left out of the clock fit: the clock is the others' (0.5 ms behind arrival).
+  const ChannelTiming& late = channel(*d, "LATE");
+  EXPECT_EQ(late.late_stamps, 50);
+  EXPECT_NEAR(late.late_stamp_max_s, 0.9, 1e-6);
+  EXPECT_TRUE(has_reason(late, "50 stamps late by up to 0.900 s"));
+  ASSERT_TRUE(late.clock_valid);
+  EXPECT_NEAR(late.clock_offset_s, -0.0005, 1e-6);
+  EXPECT_NEAR(late.clock_drift_ppm, 0, 1);
+  const auto corrections = clock_corrections(*d);
+  EXPECT_EQ(corrections.count("LATE"), 0u);
+  EXPECT_EQ(corrections.count("GOOD"), 0u);
+  ASSERT_EQ(corrections.count("TAI"), 1u);  // 37 s ahead: a clock ahead is corrected
+  EXPECT_NEAR(corrections.at("TAI").offset_s, 36.9995, 1e-6);
+  // Bursts are burstiness, not drops.
+  const ChannelTiming& burst = channel(*d, "BURST");
+  EXPECT_TRUE(burst.bursty);
+  EXPECT_NEAR(burst.expected_period_s, 0.01, 1e-4);
+  EXPECT_EQ(burst.burst_size, 3);
+  EXPECT_NEAR(burst.burst_interval_s, 0.001, 1e-9);
+  EXPECT_EQ(burst.missing_by_period, 0);
+  EXPECT_EQ(burst.seq_gaps, 0);
+  EXPECT_TRUE(has_reason(burst, "bursts of about 3, 1.0 ms apart, 100.0"));
+  EXPECT_FALSE(channel(*d, "GOOD").bursty);
 }
 
 /// A log made with the fault model the simulator uses, its manifest written to the FAULTS channel; the

@@ -3,6 +3,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "core/log_writer.h"
+#include "driftlab/imu_t.hpp"
 #include "tests/test_util.h"
 
 namespace driftlab {
@@ -60,6 +62,34 @@ TEST(Info, TableShowsChannelsAndProblems) {
   EXPECT_NE(r.out.find("driftlab.imu_t"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("2 problems"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("bad_channel_length"), std::string::npos) << r.out;
+}
+
+TEST(Info, SaysWhenLogTimesStepBackAndStampsAreFrozen) {
+  // What MRPT 2.5's carmen2rawlog leaves: every observation given one stamp; and a log written out of time order.
+  test::TempDir dir;
+  {
+    auto w = LogWriter::create(dir.file("t.lcm"));
+    ASSERT_TRUE(w.ok());
+    for (int64_t i = 0; i < 100; ++i) {
+      driftlab::imu_t m{};
+      m.header = {i, 1000000, "imu"};
+      ASSERT_TRUE(w->write(1000000 + i * 10000, "FROZEN", test::encode(m)).ok());
+      m.header.utime = 1000000 + i * 10000;
+      ASSERT_TRUE(w->write(1000000 + i * 10000 - (i % 10 == 9 ? 50000 : 0), "BACK", test::encode(m)).ok());
+    }
+    ASSERT_TRUE(w->close().ok());
+  }
+  CmdResult r = driftlab("info " + dir.file("t.lcm"));
+  EXPECT_EQ(r.code, 0);
+  EXPECT_NE(r.out.find("BACK: log times step back 10 times"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("FROZEN: 99 of 100 messages repeat the stamp before"), std::string::npos) << r.out;
+  EXPECT_EQ(r.out.find("BACK: 9"), std::string::npos) << r.out;  // BACK's stamps are all different
+  EXPECT_NE(r.out.find("no framing problems"), std::string::npos) << r.out;
+  const auto j = nlohmann::json::parse(driftlab("info --json " + dir.file("t.lcm")).out);
+  EXPECT_EQ(j["channels"][0]["name"], "BACK");
+  EXPECT_EQ(j["channels"][0]["times_back"], 10);
+  EXPECT_EQ(j["channels"][1]["stamps_repeated"], 99);
+  EXPECT_EQ(j["channels"][1]["stamped"], 100);
 }
 
 TEST(Info, MissingFileDirectoryAndNonLogExitWithCode2AndOneLine) {
