@@ -23,6 +23,7 @@
 #include "core/internal/yaml_fields.h"
 #include "slam/internal/mrpt_scan.h"
 #include "slam/internal/odometry_buffer.h"
+#include "slam/internal/point_maps.h"
 #include "driftlab/image_t.hpp"
 #include "driftlab/laser_scan_t.hpp"
 #include "driftlab/odometry_t.hpp"
@@ -222,7 +223,11 @@ Status Slam2d::start(Bus& bus) {
     mrpt::obs::CSensoryFrame frame;
     frame.insert(obs);
     d.builder.processActionObservation(actions, frame);
-    d.keyframes = d.builder.getCurrentlyBuiltMapSize();
+    const auto keyframes = static_cast<int64_t>(d.builder.getCurrentlyBuiltMapSize());
+    // A new keyframe means the scan went into the points map; with fuse_points the map's kd-tree is left stale
+    // by MRPT (see mark_point_maps_modified), so the next scans would match against the map as it was before.
+    if (keyframes != d.keyframes) internal::mark_point_maps_modified(*d.builder.getCurrentlyBuiltMetricMap());
+    d.keyframes = keyframes;
 
     mrpt::math::CMatrixDouble66 cov;
     mrpt::poses::CPose3D mean;
