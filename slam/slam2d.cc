@@ -15,6 +15,7 @@
 
 #include <cmath>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <optional>
 #include <set>
@@ -24,6 +25,7 @@
 #include "slam/internal/mrpt_scan.h"
 #include "slam/internal/odometry_buffer.h"
 #include "slam/internal/point_maps.h"
+#include "slam/internal/scan_graph.h"
 #include "driftlab/image_t.hpp"
 #include "driftlab/laser_scan_t.hpp"
 #include "driftlab/odometry_t.hpp"
@@ -89,6 +91,19 @@ Result<Slam2dConfig> parse_slam2d_config(const YAML::Node& node, const std::stri
     DL_TRY(f.vector("sensor_pose", pose, 3));
     if (!pose.empty()) c.sensor_pose = {pose[0], pose[1], pose[2]};
     DL_TRY(f.text("ini", c.ini));
+    // Method and pose graph.
+    DL_TRY(f.text("method", c.method));
+    DL_TRY(f.text("trajectory_channel", c.trajectory_channel));
+    DL_TRY(f.number("odom_wait_s", c.odom_wait_s, 0, 60));
+    DL_TRY(f.positive("keyframe_distance", c.keyframe_distance));
+    DL_TRY(f.positive("keyframe_angle", c.keyframe_angle));
+    DL_TRY(f.integer("local_map_keyframes", c.local_map_keyframes, 1, 1000));
+    DL_TRY(f.boolean("loop_closure", c.loop_closure));
+    DL_TRY(f.positive("loop_min_travel", c.loop_min_travel));
+    DL_TRY(f.positive("loop_radius", c.loop_radius));
+    DL_TRY(f.number("loop_drift", c.loop_drift, 0, 1));
+    DL_TRY(f.positive("loop_max_radius", c.loop_max_radius));
+    DL_TRY(f.number("loop_min_goodness", c.loop_min_goodness, 0, 1));
     DL_TRY(f.positive("insertion_lin_distance", c.insertion_lin_distance));
     DL_TRY(f.positive("insertion_ang_distance", c.insertion_ang_distance));
     DL_TRY(f.positive("localization_lin_distance", c.localization_lin_distance));
@@ -104,11 +119,20 @@ Result<Slam2dConfig> parse_slam2d_config(const YAML::Node& node, const std::stri
     DL_TRY(f.integer("decimation", c.decimation, 1, 1000));
     DL_TRY(f.positive("map_resolution", c.map_resolution));
     DL_TRY(f.finish("scan_channel, odom_channel, tf_static_channel, pose_channel, map_channel, base_frame, "
-                    "sensor_pose, ini, insertion_lin_distance, insertion_ang_distance, localization_lin_distance, "
+                    "sensor_pose, ini, method, trajectory_channel, odom_wait_s, keyframe_distance, keyframe_angle, "
+                    "local_map_keyframes, loop_closure, loop_min_travel, loop_radius, loop_drift, loop_max_radius, "
+                    "loop_min_goodness, insertion_lin_distance, insertion_ang_distance, localization_lin_distance, "
                     "localization_ang_distance, min_icp_goodness, min_dist_between_points, fuse_points, max_iterations, "
                     "threshold_dist, threshold_ang, alfa, smallest_threshold_dist, decimation, map_resolution"));
     if (c.scan_channel.empty()) return Error{f.where("scan_channel") + " must not be empty"};
     for (const auto& kv : node) c.given.insert(kv.first.as<std::string>());
+    if (!c.ini.empty() && !c.given.count("method")) c.method = "icp-slam";  // an icp-slam .ini asks for icp-slam
+    if (c.method != "graph" && c.method != "icp-slam") {
+      return Error{f.where("method") + " = " + c.method + " must be graph or icp-slam"};
+    }
+    if (!c.ini.empty() && c.method != "icp-slam") {
+      return Error{f.where("ini") + ": an icp-slam .ini file configures method icp-slam, not " + c.method};
+    }
     if (!c.ini.empty()) {
       if (c.ini[0] != '/' && origin.find('/') != std::string::npos) {
         c.ini = origin.substr(0, origin.rfind('/') + 1) + c.ini;  // relative to the config file
@@ -124,7 +148,8 @@ Result<Slam2dConfig> parse_slam2d_config(const YAML::Node& node, const std::stri
 
 struct Slam2d::Impl {
   Slam2dConfig c;
-  mrpt::slam::CMetricMapBuilderICP builder;
+  std::unique_ptr<internal::ScanGraph> graph;  ///< method graph
+  mrpt::slam::CMetricMapBuilderICP builder;    ///< method icp-slam
   mrpt::obs::CActionRobotMovement2D::TMotionModelOptions motion;
   std::map<std::string, mrpt::poses::CPose2D> sensor_on_base;  ///< by scan frame, from TF_STATIC
   internal::OdometryBuffer odom;
@@ -133,6 +158,45 @@ struct Slam2d::Impl {
   int64_t first_scan = -1;  ///< stamp of the first scan [us]
   bool tf_missing_warned = false;
   std::vector<std::string> warnings;
+  // Method graph: scans wait, in stamp order, for the odometry at their stamps (odom_wait_s).
+  std::multimap<int64_t, mrpt::obs::CObservation2DRangeScan::Ptr> waiting;
+  int64_t newest_odometry = std::numeric_limits<int64_t>::min(), newest_scan = std::numeric_limits<int64_t>::min();
+  int64_t waited_out = 0;  ///< scans matched before their odometry arrived (the wait ran out)
+
+  /// Matches one scan (method graph) and publishes its pose.
+  void process(Bus& bus, int64_t stamp, const mrpt::obs::CObservation2DRangeScan::Ptr& obs) {
+    driftlab::pose_t p{};
+    p.header.seq = seq++;
+    p.header.utime = stamp;
+    p.header.frame_id = "map";
+    p.child_frame_id = c.base_frame;
+    std::optional<mrpt::poses::CPose2D> odometry;
+    if (auto at = odom.at(stamp)) odometry = mrpt::poses::CPose2D(at->x, at->y, at->yaw);
+    mrpt::math::CMatrixDouble33 cov;
+    const mrpt::poses::CPose2D pose = graph->add(stamp, obs, odometry, &cov);
+    p.position = {pose.x(), pose.y(), 0};
+    p.orientation = yaw_quaternion(pose.phi());
+    const int ours[3] = {0, 1, 5};  // x, y, yaw in our x, y, z, roll, pitch, yaw
+    for (int i = 0; i < 3; ++i) {
+      for (int j = 0; j < 3; ++j) p.covariance[ours[i] * 6 + ours[j]] = cov(i, j);
+    }
+    keyframes = graph->stats().keyframes;
+    bus.publish_message(c.pose_channel, p);
+  }
+
+  /// Matches the waiting scans the odometry has caught up with, and those that waited odom_wait_s (by the scans'
+  /// stamps) or, with `all`, every one.
+  void drain(Bus& bus, bool all = false) {
+    const auto wait = static_cast<int64_t>(c.odom_wait_s * 1e6);
+    while (!waiting.empty()) {
+      const auto it = waiting.begin();
+      const bool covered = it->first <= newest_odometry || c.odom_channel.empty();
+      if (!covered && !all && newest_scan - it->first < wait) break;
+      if (!covered) ++waited_out;
+      process(bus, it->first, it->second);
+      waiting.erase(it);
+    }
+  }
 };
 
 Slam2d::Slam2d(Slam2dConfig config) : impl_(std::make_unique<Impl>()) { impl_->c = std::move(config); }
@@ -158,10 +222,27 @@ Status Slam2d::start(Bus& bus) {
         for (const auto& k : keys) cfg.write(section, k, overrides.read_string(section, k, ""));
       }
     }
-    d.builder.setMinLoggingLevel(mrpt::system::LVL_ERROR);
-    d.builder.ICP_options.loadFromConfigFile(cfg, "MappingApplication");
-    d.builder.ICP_params.loadFromConfigFile(cfg, "ICP");
-    d.builder.initialize();
+    if (c.method == "graph") {
+      internal::ScanGraphOptions o;
+      o.icp.loadFromConfigFile(cfg, "ICP");
+      o.min_icp_goodness = c.min_icp_goodness;
+      o.min_dist_between_points = c.min_dist_between_points;
+      o.keyframe_distance = c.keyframe_distance;
+      o.keyframe_angle = c.keyframe_angle * M_PI / 180;
+      o.local_map_keyframes = c.local_map_keyframes;
+      o.loop_closure = c.loop_closure;
+      o.loop_min_travel = c.loop_min_travel;
+      o.loop_radius = c.loop_radius;
+      o.loop_drift = c.loop_drift;
+      o.loop_max_radius = c.loop_max_radius;
+      o.loop_min_goodness = c.loop_min_goodness;
+      d.graph = std::make_unique<internal::ScanGraph>(o);
+    } else {
+      d.builder.setMinLoggingLevel(mrpt::system::LVL_ERROR);
+      d.builder.ICP_options.loadFromConfigFile(cfg, "MappingApplication");
+      d.builder.ICP_params.loadFromConfigFile(cfg, "ICP");
+      d.builder.initialize();
+    }
   } catch (const std::exception& e) {
     std::string what = e.what();
     what = what.substr(0, what.find('\n'));
@@ -179,11 +260,15 @@ Status Slam2d::start(Bus& bus) {
     });
   }
   if (!c.odom_channel.empty()) {
-    bus.subscribe(c.odom_channel, [this](const BusMessage& m) {
+    bus.subscribe(c.odom_channel, [this, &bus](const BusMessage& m) {
       driftlab::odometry_t o;
       if (!decode_message(m, o)) return void(++impl_->undecodable);
       ++impl_->odometry;
       impl_->odom.add(o.header.utime, {o.position.x, o.position.y, yaw_of(o.orientation)});
+      if (impl_->graph) {
+        impl_->newest_odometry = std::max(impl_->newest_odometry, o.header.utime);
+        impl_->drain(bus);
+      }
     });
   }
   bus.subscribe(c.scan_channel, [this, &bus](const BusMessage& m) {
@@ -209,6 +294,17 @@ Status Slam2d::start(Bus& bus) {
     auto obs = internal::to_mrpt(scan, sensor);
     obs->sensorLabel = m.channel;
 
+    if (d.graph) {
+      d.waiting.emplace(scan.header.utime, obs);
+      d.newest_scan = std::max(d.newest_scan, scan.header.utime);
+      d.drain(bus);
+      return;
+    }
+    driftlab::pose_t p{};
+    p.header.seq = d.seq++;
+    p.header.utime = scan.header.utime;
+    p.header.frame_id = "map";
+    p.child_frame_id = d.c.base_frame;
     mrpt::obs::CActionCollection actions;
     if (auto at = d.odom.at(scan.header.utime)) {
       const mrpt::poses::CPose2D now(at->x, at->y, at->yaw);
@@ -232,11 +328,6 @@ Status Slam2d::start(Bus& bus) {
     mrpt::math::CMatrixDouble66 cov;
     mrpt::poses::CPose3D mean;
     d.builder.getCurrentPoseEstimation()->getCovarianceAndMean(cov, mean);
-    driftlab::pose_t p{};
-    p.header.seq = d.seq++;
-    p.header.utime = scan.header.utime;
-    p.header.frame_id = "map";
-    p.child_frame_id = d.c.base_frame;
     p.position = {mean.x(), mean.y(), 0};
     p.orientation = yaw_quaternion(mean.yaw());
     // MRPT orders (x, y, z, yaw, pitch, roll); ours (x, y, z, roll, pitch, yaw).
@@ -251,15 +342,38 @@ Status Slam2d::start(Bus& bus) {
 
 void Slam2d::finish(Bus& bus) {
   Impl& d = *impl_;
+  if (d.graph) d.drain(bus, true);
   if (d.scans == 0) return;
-  mrpt::maps::CSimpleMap keyframes;
-  d.builder.getCurrentlyBuiltMap(keyframes);
   mrpt::maps::COccupancyGridMap2D grid(-10, 10, -10, 10, static_cast<float>(d.c.map_resolution));
-  for (size_t i = 0; i < keyframes.size(); ++i) {
-    mrpt::poses::CPose3DPDF::Ptr pose;
-    mrpt::obs::CSensoryFrame::Ptr frame;
-    keyframes.get(i, pose, frame);
-    frame->insertObservationsInto(grid, pose->getMeanVal());
+  if (d.graph) {
+    d.graph->finish();
+    // The trajectory as last optimised: a pose per scan, published now with the scans' stamps.
+    int64_t seq = 0;
+    if (!d.c.trajectory_channel.empty()) {
+      for (const auto& [stamp, pose] : d.graph->trajectory()) {
+        driftlab::pose_t p{};
+        p.header.seq = seq++;
+        p.header.utime = stamp;
+        p.header.frame_id = "map";
+        p.child_frame_id = d.c.base_frame;
+        p.position = {pose.x(), pose.y(), 0};
+        p.orientation = yaw_quaternion(pose.phi());
+        bus.publish_message(d.c.trajectory_channel, p);
+      }
+    }
+    const auto& keyframes = d.graph->keyframes();
+    for (size_t i = 0; i < keyframes.size(); ++i) {
+      grid.insertObservation(*keyframes[i].scan, mrpt::poses::CPose3D(d.graph->keyframe_pose(i)));
+    }
+  } else {
+    mrpt::maps::CSimpleMap keyframes;
+    d.builder.getCurrentlyBuiltMap(keyframes);
+    for (size_t i = 0; i < keyframes.size(); ++i) {
+      mrpt::poses::CPose3DPDF::Ptr pose;
+      mrpt::obs::CSensoryFrame::Ptr frame;
+      keyframes.get(i, pose, frame);
+      frame->insertObservationsInto(grid, pose->getMeanVal());
+    }
   }
   // Free space white, obstacles black, unknown grey; north up.
   const int w = static_cast<int>(grid.getSizeX()), h = static_cast<int>(grid.getSizeY());
@@ -303,6 +417,19 @@ ModuleCounters Slam2d::counters() const {
   c.metrics = {{"scans", static_cast<double>(d.scans)},
                {"scans_before_odometry", static_cast<double>(d.before_odometry)},
                {"keyframes", static_cast<double>(d.keyframes)}};
+  if (d.graph) {
+    const auto& s = d.graph->stats();
+    c.metrics.insert(c.metrics.end(), {{"unmatched", static_cast<double>(s.unmatched)},
+                                       {"scans_still", static_cast<double>(s.still)},
+                                       {"scans_waited_out", static_cast<double>(d.waited_out)},
+                                       {"loop_tests", static_cast<double>(s.loop_tests)},
+                                       {"loop_closures", static_cast<double>(s.loop_closures)},
+                                       {"loop_rejected_goodness", static_cast<double>(s.loop_rejected_goodness)},
+                                       {"loop_rejected_unique", static_cast<double>(s.loop_rejected_unique)},
+                                       {"loop_rejected_chi2", static_cast<double>(s.loop_rejected_chi2)},
+                                       {"loop_unconfirmed", static_cast<double>(s.loop_pending)},
+                                       {"optimisations", static_cast<double>(s.optimisations)}});
+  }
   return c;
 }
 

@@ -1,6 +1,10 @@
-// 2D lidar SLAM with MRPT's ICP map builder (mrpt::slam::CMetricMapBuilderICP, the engine of MRPT's icp-slam),
-// behind the Bus: laser scans in, wheel odometry as the prior when present, a pose per scan out, and at the end
-// the occupancy map as a PNG (on the bus and beside the output log, with a map_server-style YAML).
+// 2D lidar SLAM behind the Bus: laser scans in, wheel odometry as the prior when present, a pose per scan out, and
+// at the end the whole trajectory as last optimised and the occupancy map as a PNG (on the bus and beside the
+// output log, with a map_server-style YAML). Two methods: `graph` (the default), a pose graph over keyframes with
+// loop closures found by scan matching against older keyframes (MRPT's ICP and its sparse pose-graph optimiser,
+// slam/internal/scan_graph.h), and `icp-slam`, MRPT's ICP map builder (mrpt::slam::CMetricMapBuilderICP, the
+// engine of MRPT's icp-slam application) as it is. docs/slam.md says how each works and why the defaults are
+// what they are.
 // Thread-safety: a module is called from its bus's thread only. MRPT stays inside slam2d.cc.
 #pragma once
 
@@ -25,7 +29,22 @@ struct Slam2dConfig {
   std::string base_frame = "base_link";
   std::array<double, 3> sensor_pose = {0, 0, 0};  ///< x, y, yaw of the scanner on the base when TF has none
   std::string ini;  ///< an MRPT icp-slam .ini file ([MappingApplication] and [ICP]); the keys below override it
-  // Map building (icp-slam's [MappingApplication]); defaults are MRPT's icp-slam_demo_classic.ini but fuse_points.
+  // Method and pose graph (method graph). Defaults chosen on the Intel and ACES logs and the simulator's sessions
+  // (docs/slam.md says why each is what it is).
+  std::string method = "graph";                          ///< graph | icp-slam (the default with `ini`)
+  std::string trajectory_channel = "SLAM_TRAJECTORY";  ///< every scan's pose as last optimised, at the end
+  double odom_wait_s = 2;            ///< how long a scan waits for the odometry at its stamp [s of scan stamps]
+  double keyframe_distance = 0.5;    ///< travel that makes a new keyframe [m]
+  double keyframe_angle = 20;        ///< turn that makes a new keyframe [deg]
+  int local_map_keyframes = 10;      ///< keyframes each scan is matched against
+  bool loop_closure = true;          ///< match new keyframes against older ones and optimise the graph
+  double loop_min_travel = 10;       ///< path between two keyframes before they may close a loop [m]
+  double loop_radius = 1.5;          ///< old keyframes within this of the estimate are candidates [m] ...
+  double loop_drift = 0.05;          ///< ... plus this fraction of the graph distance between the two
+  double loop_max_radius = 8;        ///< [m]
+  double loop_min_goodness = 0.65;   ///< share of the current points an old place must explain [0, 1]
+  // Map building (icp-slam's [MappingApplication], method icp-slam); defaults are MRPT's icp-slam_demo_classic.ini
+  // but fuse_points.
   double insertion_lin_distance = 1.2;    ///< [m]
   double insertion_ang_distance = 45;     ///< [deg]
   double localization_lin_distance = 0.2; ///< [m]
@@ -37,7 +56,7 @@ struct Slam2dConfig {
   // ICP ([ICP]).
   int max_iterations = 80;
   double threshold_dist = 0.3;            ///< [m]
-  double threshold_ang = 5;               ///< [deg]
+  double threshold_ang = 1;               ///< [deg]
   double alfa = 0.8;
   double smallest_threshold_dist = 0.05;  ///< [m]
   int decimation = 5;                     ///< corresponding_points_decimation

@@ -25,7 +25,9 @@ inline mrpt::obs::CObservation2DRangeScan::Ptr to_mrpt(const driftlab::laser_sca
   obs->resizeScan(n);
   for (int i = 0; i < n; ++i) {
     const float r = scan.ranges[static_cast<size_t>(increment > 0 ? i : n - 1 - i)];
-    const bool valid = std::isfinite(r) && r >= scan.range_min && r <= scan.range_max;
+    // A reading at range_max is the scanner saying "no return" (a SICK reports its maximum, 50 m or 81.83 m, for
+    // every beam without an echo; ROS bags made from CARMEN logs carry it as range_max): not a point.
+    const bool valid = std::isfinite(r) && r >= scan.range_min && r < scan.range_max;
     obs->setScanRange(i, valid ? r : scan.range_max);
     obs->setScanRangeValidity(i, valid);
   }

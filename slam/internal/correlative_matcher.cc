@@ -1,0 +1,165 @@
+#include "slam/internal/correlative_matcher.h"
+
+#include <algorithm>
+#include <cmath>
+#include <functional>
+
+namespace driftlab::slam::internal {
+
+CorrelativeMatcher::CorrelativeMatcher(const std::vector<Point2f>& reference, double resolution, double margin,
+                                       int levels)
+    : resolution_(resolution) {
+  if (reference.empty()) return;
+  float min_x = reference[0].x, max_x = min_x, min_y = reference[0].y, max_y = min_y;
+  for (const auto& p : reference) {
+    min_x = std::min(min_x, p.x), max_x = std::max(max_x, p.x);
+    min_y = std::min(min_y, p.y), max_y = std::max(max_y, p.y);
+  }
+  x0_ = min_x - margin;
+  y0_ = min_y - margin;
+  width_ = static_cast<int>(std::ceil((max_x - min_x + 2 * margin) / resolution)) + 1;
+  height_ = static_cast<int>(std::ceil((max_y - min_y + 2 * margin) / resolution)) + 1;
+  const auto cells = static_cast<size_t>(width_) * static_cast<size_t>(height_);
+  levels_.assign(1, std::vector<float>(cells, 0.0f));
+  auto& grid = levels_[0];
+  const int r = 3;  // cells: the likelihood is 1% three standard deviations away
+  const double k = -1 / (2 * resolution * resolution);
+  for (const auto& p : reference) {
+    const int cx = static_cast<int>(std::floor((p.x - x0_) / resolution));
+    const int cy = static_cast<int>(std::floor((p.y - y0_) / resolution));
+    for (int iy = std::max(0, cy - r); iy <= std::min(height_ - 1, cy + r); ++iy) {
+      const double dy = y0_ + (iy + 0.5) * resolution - p.y;
+      for (int ix = std::max(0, cx - r); ix <= std::min(width_ - 1, cx + r); ++ix) {
+        const double dx = x0_ + (ix + 0.5) * resolution - p.x;
+        float& cell = grid[static_cast<size_t>(iy) * static_cast<size_t>(width_) + static_cast<size_t>(ix)];
+        cell = std::max(cell, static_cast<float>(std::exp(k * (dx * dx + dy * dy))));
+      }
+    }
+  }
+  // Level d at a cell: the maximum of the grid over the 2^d x 2^d cells from it (an upper bound for each of them).
+  for (int d = 1; d <= levels; ++d) {
+    const auto& below = levels_.back();
+    const int h = 1 << (d - 1);
+    std::vector<float> level(cells, 0.0f);
+    auto at = [&](int x, int y) {
+      return x < width_ && y < height_ ? below[static_cast<size_t>(y) * static_cast<size_t>(width_) + static_cast<size_t>(x)] : 0.0f;
+    };
+    for (int y = 0; y < height_; ++y) {
+      for (int x = 0; x < width_; ++x) {
+        level[static_cast<size_t>(y) * static_cast<size_t>(width_) + static_cast<size_t>(x)] =
+            std::max({at(x, y), at(x + h, y), at(x, y + h), at(x + h, y + h)});
+      }
+    }
+    levels_.push_back(std::move(level));
+  }
+}
+
+namespace {
+
+struct Cells {
+  std::vector<int> x, y;  ///< each point's cell with the guess's translation
+};
+
+/// The turn that moves the farthest points (the 90th percentile of distance, so one stray return does not decide)
+/// by about `resolution`.
+double yaw_step(const std::vector<Point2f>& points, double resolution) {
+  std::vector<double> reach(points.size());
+  for (size_t i = 0; i < points.size(); ++i) reach[i] = std::hypot(double{points[i].x}, double{points[i].y});
+  const size_t at = reach.size() * 9 / 10;
+  std::nth_element(reach.begin(), reach.begin() + static_cast<std::ptrdiff_t>(at), reach.end());
+  return std::clamp(resolution / std::max(reach[at], 1e-3), 0.002, 0.035);
+}
+
+}  // namespace
+
+double CorrelativeMatcher::score(const std::vector<Point2f>& points, double x, double y, double yaw) const {
+  if (points.empty() || levels_.empty()) return 0;
+  const double c = std::cos(yaw), s = std::sin(yaw);
+  double sum = 0;
+  for (const auto& p : points) {
+    const auto ix = static_cast<int>(std::floor((c * p.x - s * p.y + x - x0_) / resolution_));
+    const auto iy = static_cast<int>(std::floor((s * p.x + c * p.y + y - y0_) / resolution_));
+    if (ix >= 0 && iy >= 0 && ix < width_ && iy < height_) {
+      sum += levels_[0][static_cast<size_t>(iy) * static_cast<size_t>(width_) + static_cast<size_t>(ix)];
+    }
+  }
+  return sum / static_cast<double>(points.size());
+}
+
+CorrelativeMatcher::Match CorrelativeMatcher::match(const std::vector<Point2f>& points, double guess_x, double guess_y,
+                                                    double guess_yaw, double window_xy, double window_yaw,
+                                                    const Match* exclude, double exclude_xy) const {
+  Match best{guess_x, guess_y, guess_yaw, 0};
+  if (points.empty() || levels_.empty()) return best;
+  const double res = resolution_;
+  const double step = yaw_step(points, res);
+  const int n = static_cast<int>(std::ceil(window_xy / res));  // translations -n..n cells in x and y
+  const int n_yaw = static_cast<int>(std::ceil(window_yaw / step));
+  std::vector<Cells> turns;
+  for (int k = -n_yaw; k <= n_yaw; ++k) {
+    const double yaw = guess_yaw + k * step, c = std::cos(yaw), s = std::sin(yaw);
+    Cells cells;
+    for (const auto& p : points) {
+      cells.x.push_back(static_cast<int>(std::floor((c * p.x - s * p.y + guess_x - x0_) / res)));
+      cells.y.push_back(static_cast<int>(std::floor((s * p.x + c * p.y + guess_y - y0_) / res)));
+    }
+    turns.push_back(std::move(cells));
+  }
+  auto bound = [&](int turn, int tx, int ty, int level) {
+    const Cells& cells = turns[static_cast<size_t>(turn)];
+    const auto& grid = levels_[static_cast<size_t>(level)];
+    double sum = 0;
+    for (size_t i = 0; i < cells.x.size(); ++i) {
+      const int x = cells.x[i] + tx, y = cells.y[i] + ty;
+      if (x >= 0 && y >= 0 && x < width_ && y < height_) {
+        sum += grid[static_cast<size_t>(y) * static_cast<size_t>(width_) + static_cast<size_t>(x)];
+      }
+    }
+    return sum / static_cast<double>(cells.x.size());
+  };
+  struct Candidate {
+    double bound;
+    int turn, tx, ty;
+  };
+  auto by_bound = [](const Candidate& a, const Candidate& b) {
+    if (a.bound != b.bound) return a.bound > b.bound;
+    if (a.turn != b.turn) return a.turn < b.turn;
+    return a.ty != b.ty ? a.ty < b.ty : a.tx < b.tx;
+  };
+  const int top = static_cast<int>(levels_.size()) - 1;
+  std::vector<Candidate> roots;
+  for (int k = 0; k < static_cast<int>(turns.size()); ++k) {
+    for (int ty = -n; ty <= n; ty += 1 << top) {
+      for (int tx = -n; tx <= n; tx += 1 << top) roots.push_back({bound(k, tx, ty, top), k, tx, ty});
+    }
+  }
+  std::sort(roots.begin(), roots.end(), by_bound);
+  double best_score = -1;
+  std::function<void(const std::vector<Candidate>&, int)> branch = [&](const std::vector<Candidate>& list, int level) {
+    for (const Candidate& c : list) {
+      if (c.bound <= best_score) return;  // sorted: nothing further down the list can do better
+      if (level == 0) {
+        const double x = guess_x + c.tx * res, y = guess_y + c.ty * res;
+        if (exclude != nullptr && std::hypot(x - exclude->x, y - exclude->y) <= exclude_xy) continue;
+        best_score = c.bound;
+        best = {x, y, guess_yaw + (c.turn - n_yaw) * step, c.bound};
+        continue;
+      }
+      const int h = 1 << (level - 1);
+      std::vector<Candidate> children;
+      for (int dy : {0, h}) {
+        for (int dx : {0, h}) {
+          if (c.tx + dx > n || c.ty + dy > n) continue;
+          children.push_back({bound(c.turn, c.tx + dx, c.ty + dy, level - 1), c.turn, c.tx + dx, c.ty + dy});
+        }
+      }
+      std::sort(children.begin(), children.end(), by_bound);
+      branch(children, level - 1);
+    }
+  };
+  branch(roots, top);
+  best.score = std::max(best_score, 0.0);
+  return best;
+}
+
+}  // namespace driftlab::slam::internal

@@ -1,0 +1,53 @@
+// A 2D pose graph optimised with Ceres (Debian's libceres-dev): nodes are poses (x, y, yaw), edges relative poses
+// with their information matrices; the first node is held fixed. Deterministic (one thread). Not thread-safe: one caller. docs/slam.md says why
+// Ceres and not MRPT's graph-slam optimiser.
+#pragma once
+
+#include <array>
+#include <cstddef>
+#include <deque>
+#include <memory>
+#include <vector>
+
+namespace driftlab::slam::internal {
+
+class PoseGraph2d {
+ public:
+  using Pose = std::array<double, 3>;         ///< x [m], y [m], yaw [rad]
+  using Information = std::array<double, 9>;  ///< 3x3, row-major, over (x, y, yaw) of "b seen from a"
+
+  PoseGraph2d();
+  ~PoseGraph2d();
+  PoseGraph2d(const PoseGraph2d&) = delete;
+  PoseGraph2d& operator=(const PoseGraph2d&) = delete;
+
+  /// Adds a node at its first estimate; returns its index (0, 1, ...). The first one is fixed.
+  size_t add_node(const Pose& pose);
+  /// Adds the measurement "b seen from a" with its information matrix (symmetric positive definite). Returns the
+  /// edge's id.
+  size_t add_edge(size_t a, size_t b, const Pose& b_in_a, const Information& information);
+  /// Takes an edge out of the problem (a loop closure found wrong).
+  void remove_edge(size_t id);
+  /// Levenberg-Marquardt from the current estimates, at most max_iterations.
+  void optimise(int max_iterations);
+  /// The squared Mahalanobis error of an edge at the current estimates (its chi2, without the loss).
+  double edge_chi2(size_t id) const;
+
+  const Pose& node(size_t i) const { return nodes_[i]; }
+  void set_node(size_t i, const Pose& pose) { nodes_[i] = pose; }
+  size_t size() const { return nodes_.size(); }
+  size_t edges() const { return live_edges_; }
+
+ private:
+  struct Edge;
+  struct Problem;
+  std::deque<Pose> nodes_;  ///< a deque: Ceres holds pointers to the poses
+  std::vector<std::unique_ptr<Edge>> edges_;
+  std::unique_ptr<Problem> problem_;
+  size_t live_edges_ = 0;
+};
+
+/// A diagonal information: standard deviations sigma_xy [m] (each of x and y) and sigma_yaw [rad].
+PoseGraph2d::Information diagonal_information(double sigma_xy, double sigma_yaw);
+
+}  // namespace driftlab::slam::internal

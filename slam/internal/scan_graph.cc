@@ -1,0 +1,398 @@
+#include "slam/internal/scan_graph.h"
+
+#include <mrpt/poses/CPosePDFGaussian.h>
+
+#include <Eigen/Eigenvalues>
+#include <Eigen/Geometry>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <queue>
+
+#include "slam/internal/correlative_matcher.h"
+
+namespace driftlab::slam::internal {
+
+using mrpt::poses::CPose2D;
+using mrpt::poses::CPose3D;
+
+namespace {
+
+double angle_of(const CPose2D& p) { return std::abs(mrpt::math::wrapToPi(p.phi())); }
+PoseGraph2d::Pose array_of(const CPose2D& p) { return {p.x(), p.y(), p.phi()}; }
+
+/// What a match pins down, from its point pairs: each pair constrains the pose along the normal of the old surface
+/// at its point (point to line), so H = mean over the pairs of J^T J, J = [n_x, n_y, n . d(point)/d(yaw)], is the
+/// information per point about the current pose (x, y, yaw in the map frame) at `pose`. In a corridor every normal
+/// points across it, and H's translation block has an eigenvalue near zero along it. At most 200 pairs, evenly
+/// spread, are looked at; `lines` receives how many had a clear surface (a line through their old neighbours).
+Eigen::Matrix3d constraint_of(const mrpt::maps::CSimplePointsMap& reference, const mrpt::tfest::TMatchingPairList& pairs,
+                              const CPose2D& pose, size_t& lines) {
+  Eigen::Matrix3d h = Eigen::Matrix3d::Zero();
+  lines = 0;
+  std::vector<size_t> idx;
+  std::vector<float> d2;
+  const size_t every = std::max<size_t>(1, pairs.size() / 200);
+  for (size_t p = 0; p < pairs.size(); p += every) {
+    const auto& pair = pairs[p];
+    reference.kdTreeNClosestPoint2DIdx(pair.global.x, pair.global.y, 6, idx, d2);
+    if (idx.size() < 4) continue;
+    std::vector<Eigen::Vector2d> near;
+    Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+    for (size_t i : idx) {
+      float x, y;
+      reference.getPoint(i, x, y);
+      near.emplace_back(x, y);
+      mean += near.back();
+    }
+    mean /= static_cast<double>(near.size());
+    Eigen::Matrix2d cov = Eigen::Matrix2d::Zero();
+    for (const auto& q : near) cov += (q - mean) * (q - mean).transpose();
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(cov);
+    // A line: spread along one direction (by 5 cm at least), ten times less across it.
+    if (eig.eigenvalues()(1) < 0.05 * 0.05 * static_cast<double>(near.size()) ||
+        eig.eigenvalues()(0) > 0.1 * eig.eigenvalues()(1)) {
+      continue;
+    }
+    const Eigen::Vector2d n = eig.eigenvectors().col(0);
+    const Eigen::Vector2d arm(pair.global.x - pose.x(), pair.global.y - pose.y());  // the point seen from the robot
+    const Eigen::Vector3d j(n.x(), n.y(), n.y() * arm.x() - n.x() * arm.y());
+    h += j * j.transpose();
+    ++lines;
+  }
+  if (lines > 0) h /= static_cast<double>(lines);
+  return h;
+}
+
+std::vector<Point2f> points_in(const mrpt::maps::CSimplePointsMap& map, size_t at_most) {
+  std::vector<Point2f> out;
+  const size_t every = std::max<size_t>(1, map.size() / std::max<size_t>(at_most, 1));
+  for (size_t i = 0; i < map.size(); i += every) {
+    Point2f p;
+    map.getPoint(i, p.x, p.y);
+    out.push_back(p);
+  }
+  return out;
+}
+
+}  // namespace
+
+ScanGraph::ScanGraph(ScanGraphOptions options) : o_(std::move(options)), icp_(o_.icp) {}
+
+CPose2D ScanGraph::keyframe_pose(size_t i) const {
+  const auto& p = graph_.node(i);
+  return CPose2D(p[0], p[1], std::remainder(p[2], 2 * M_PI));
+}
+
+mrpt::maps::CSimplePointsMap ScanGraph::points_of(const mrpt::obs::CObservation2DRangeScan& scan) const {
+  mrpt::maps::CSimplePointsMap points;
+  points.insertionOptions.minDistBetweenLaserPoints = static_cast<float>(o_.min_dist_between_points);
+  points.insertionOptions.isPlanarMap = true;
+  points.insertObservation(scan);  // at the origin: the points land in the base frame (the sensor's pose applied)
+  return points;
+}
+
+CPose2D ScanGraph::add(int64_t stamp, const mrpt::obs::CObservation2DRangeScan::Ptr& scan,
+                       const std::optional<CPose2D>& odometry, mrpt::math::CMatrixDouble33* covariance) {
+  ++stats_.scans;
+  auto points = points_of(*scan);
+  if (covariance != nullptr) covariance->setZero();
+  if (keyframes_.empty()) {
+    last_odometry_ = odometry;
+    scans_.push_back({stamp, 0, CPose2D()});
+    add_keyframe(stamp, scan, std::move(points), CPose2D());
+    return CPose2D();
+  }
+  // Predict with the odometry's motion since the previous scan, then match against the local map.
+  const CPose2D previous = keyframe_pose(current_keyframe_) + relative_;
+  CPose2D pose = previous;
+  if (odometry && last_odometry_) pose = previous + (*odometry - *last_odometry_);
+  if (odometry) last_odometry_ = odometry;
+  // Standing still by the odometry since the last matched scan: the prediction is as good as a match.
+  const CPose2D since = pose - (keyframe_pose(matched_keyframe_) + matched_);
+  if (odometry && since.norm() < o_.still_distance && angle_of(since) < o_.still_angle) {
+    ++stats_.still;
+    relative_ = pose - keyframe_pose(current_keyframe_);
+    scans_.push_back({stamp, current_keyframe_, relative_});
+    return pose;
+  }
+  mrpt::slam::CICP::TReturnInfo info;
+  const auto pdf = icp_.Align(&local_map_, &points, pose, info);
+  if (points.size() >= 10 && info.goodness >= o_.min_icp_goodness) {
+    ++stats_.matched;
+    pose = pdf->getMeanVal();
+    const auto* gauss = dynamic_cast<const mrpt::poses::CPosePDFGaussian*>(pdf.get());
+    if (covariance != nullptr && gauss != nullptr) *covariance = gauss->cov;
+  } else {
+    ++stats_.unmatched;  // the prediction stands
+  }
+  relative_ = pose - keyframe_pose(current_keyframe_);
+  matched_keyframe_ = current_keyframe_, matched_ = relative_;
+  scans_.push_back({stamp, current_keyframe_, relative_});
+  if (relative_.norm() >= o_.keyframe_distance || angle_of(relative_) >= o_.keyframe_angle) {
+    scans_.back() = {stamp, static_cast<uint32_t>(keyframes_.size()), CPose2D()};
+    add_keyframe(stamp, scan, std::move(points), pose);
+    return keyframe_pose(current_keyframe_);  // loop closures may have moved it
+  }
+  return pose;
+}
+
+void ScanGraph::add_keyframe(int64_t stamp, const mrpt::obs::CObservation2DRangeScan::Ptr& scan,
+                             mrpt::maps::CSimplePointsMap points, const CPose2D& pose) {
+  const auto id = static_cast<uint32_t>(keyframes_.size());
+  const double step_length = id == 0 ? 0.0 : (pose - keyframe_pose(current_keyframe_)).norm();
+  keyframes_.push_back({stamp, scan, std::move(points), id == 0 ? 0.0 : keyframes_.back().path + step_length});
+  adjacency_.emplace_back();
+  graph_.add_node(array_of(pose));
+  if (id > 0) {
+    const CPose2D step = pose - keyframe_pose(current_keyframe_);
+    graph_.add_edge(current_keyframe_, id, array_of(step), diagonal_information(o_.edge_sigma_xy, o_.edge_sigma_yaw));
+    adjacency_[current_keyframe_].push_back({id, step_length});
+    adjacency_[id].push_back({current_keyframe_, step_length});
+  }
+  if (matched_keyframe_ == current_keyframe_) matched_keyframe_ = id, matched_ = pose - keyframe_pose(id);
+  current_keyframe_ = id;
+  relative_ = CPose2D();
+  ++stats_.keyframes;
+  if (o_.loop_closure) close_loops();
+  rebuild_local_map();
+}
+
+void ScanGraph::rebuild_local_map() {
+  local_map_.clear();
+  const size_t n = keyframes_.size();
+  const auto last = static_cast<size_t>(o_.local_map_keyframes);
+  for (size_t i = n > last ? n - last : 0; i < n; ++i) {
+    local_map_.insertAnotherMap(&keyframes_[i].points, CPose3D(keyframe_pose(i)));
+  }
+}
+
+std::vector<double> ScanGraph::graph_distances(size_t from) const {
+  std::vector<double> d(keyframes_.size(), std::numeric_limits<double>::infinity());
+  using Item = std::pair<double, uint32_t>;
+  std::priority_queue<Item, std::vector<Item>, std::greater<>> queue;
+  d[from] = 0;
+  queue.push({0, static_cast<uint32_t>(from)});
+  while (!queue.empty()) {
+    const auto [dist, node] = queue.top();
+    queue.pop();
+    if (dist > d[node]) continue;
+    for (const auto& [next, length] : adjacency_[node]) {
+      if (dist + length < d[next]) {
+        d[next] = dist + length;
+        queue.push({d[next], next});
+      }
+    }
+  }
+  return d;
+}
+
+void ScanGraph::close_loops() {
+  const size_t k = current_keyframe_;
+  // Large corrections wait a few keyframes for a second, consistent match; then they are dropped.
+  std::erase_if(pending_, [&](const LoopEdge& l) { return k - l.k > static_cast<size_t>(o_.loop_confirm_keyframes); });
+  // The old keyframe the graph places nearest, among those within reach of the drift since the graph last tied
+  // the two together (the graph distance between them, loop edges counting as the short links they are).
+  const CPose2D here = keyframe_pose(k);
+  const double path = keyframes_[k].path;
+  std::vector<double> distance;  // computed when there is a candidate
+  double best = std::numeric_limits<double>::infinity(), best_radius = 0;
+  size_t nearest = k;
+  for (size_t j = 0; j + static_cast<size_t>(o_.local_map_keyframes) < k; ++j) {
+    if (path - keyframes_[j].path < o_.loop_min_travel) continue;
+    const CPose2D there = keyframe_pose(j);
+    const double d = std::hypot(there.x() - here.x(), there.y() - here.y());
+    if (d > o_.loop_max_radius || d >= best) continue;
+    if (distance.empty()) distance = graph_distances(k);
+    const double radius = std::min(o_.loop_max_radius, o_.loop_radius + o_.loop_drift * distance[j]);
+    if (d <= radius) best = d, best_radius = radius, nearest = j;
+  }
+  if (nearest != k) try_loop(nearest, best_radius);
+}
+
+bool ScanGraph::try_loop(size_t j, double radius) {
+  ++stats_.loop_tests;
+  const size_t k = current_keyframe_;
+  const double path = keyframes_[k].path;
+  const CPose2D here = keyframe_pose(k);
+  const bool far = radius > o_.loop_far_radius;
+  // The current place: this keyframe and the ones just before it, in this keyframe's frame.
+  mrpt::maps::CSimplePointsMap query;
+  const auto q = static_cast<size_t>(o_.loop_query_keyframes);
+  for (size_t i = k + 1 > q ? k + 1 - q : 0; i <= k; ++i) {
+    query.insertAnotherMap(&keyframes_[i].points, CPose3D(keyframe_pose(i) - here));
+  }
+  // The old place, at the graph's poses: near, the candidate and its neighbours; far, every old keyframe within
+  // reach.
+  mrpt::maps::CSimplePointsMap reference;
+  std::vector<size_t> old;
+  if (far) {
+    for (size_t i = 0; i < k; ++i) {
+      const CPose2D there = keyframe_pose(i);
+      if (path - keyframes_[i].path >= o_.loop_min_travel && std::hypot(there.x() - here.x(), there.y() - here.y()) <= radius) {
+        old.push_back(i);
+      }
+    }
+  } else {
+    const auto s = static_cast<size_t>(o_.loop_submap_keyframes);
+    for (size_t i = j > s ? j - s : 0; i <= j + s && i < k; ++i) {
+      if (path - keyframes_[i].path >= o_.loop_min_travel) old.push_back(i);
+    }
+  }
+  for (size_t i : old) reference.insertAnotherMap(&keyframes_[i].points, CPose3D(keyframe_pose(i)));
+
+  CPose2D start = here;
+  if (far) {
+    // Further than ICP reaches from the estimate (the first return after a long excursion): the best pose in the
+    // whole window, and no other place in it nearly as good.
+    const CorrelativeMatcher matcher(points_in(reference, std::numeric_limits<size_t>::max()), o_.loop_grid_resolution,
+                                     1.0, o_.loop_grid_levels);
+    const auto points = points_in(query, static_cast<size_t>(o_.loop_search_points));
+    const auto best = matcher.match(points, here.x(), here.y(), here.phi(), radius, o_.loop_far_yaw);
+    const auto other = matcher.match(points, here.x(), here.y(), here.phi(), radius, o_.loop_far_yaw, &best, 0.5);
+    if (other.score >= o_.loop_ambiguity * best.score) {
+      ++stats_.loop_rejected_unique;
+      return false;
+    }
+    start = CPose2D(best.x, best.y, best.yaw);
+  } else {
+    // Near: ICP from the estimate, correspondences first as far apart as the drift may have carried it.
+    mrpt::slam::CICP coarse(o_.icp);
+    coarse.options.thresholdDist = std::clamp(radius, o_.icp.thresholdDist, 2.0);
+    coarse.options.thresholdAng = std::max(o_.icp.thresholdAng, o_.loop_threshold_ang);
+    start = coarse.Align(&reference, &query, here)->getMeanVal();
+  }
+  const CPose2D found = icp_.Align(&reference, &query, start)->getMeanVal();
+
+  // Overlap: the share of the current points with an old point close by, all points counted.
+  mrpt::maps::TMatchingParams params;
+  params.maxDistForCorrespondence = static_cast<float>(o_.loop_match_distance);
+  params.maxAngularDistForCorrespondence = 0;
+  params.onlyKeepTheClosest = true;
+  params.decimation_other_map_points = 1;
+  mrpt::tfest::TMatchingPairList pairs;
+  mrpt::maps::TMatchingExtraResults overlap;
+  reference.determineMatching2D(&query, found, pairs, params, overlap);
+  const CPose2D correction = found - here;
+  if (overlap.correspondencesRatio < o_.loop_min_goodness || static_cast<double>(pairs.size()) < o_.loop_min_points ||
+      correction.norm() > radius) {
+    ++stats_.loop_rejected_goodness;
+    return false;
+  }
+  // What the match pins down. A corridor pins the pose across it and its heading, not along it: such a match is
+  // kept, with the information it has (next to none along the corridor).
+  size_t lines = 0;
+  Eigen::Matrix3d h = constraint_of(reference, pairs, found, lines);
+  if (static_cast<double>(lines) < o_.loop_min_points / 2) {
+    ++stats_.loop_rejected_unique;
+    return false;
+  }
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> axes(h.topLeftCorner<2, 2>());
+  const bool corridor = axes.eigenvalues()(0) < o_.loop_min_constraint;
+  // A unique optimum: started loop_uniqueness off along each pinned-down axis, and turned, ICP must come back.
+  const double u = o_.loop_uniqueness;
+  mrpt::slam::CICP restart(o_.icp);
+  restart.options.thresholdDist = std::max(o_.icp.thresholdDist, 2 * u);
+  restart.options.thresholdAng = std::max(o_.icp.thresholdAng, o_.loop_threshold_ang);
+  std::vector<Eigen::Vector3d> offsets = {{0, 0, 2 * u / 3}};
+  for (int a = corridor ? 1 : 0; a < 2; ++a) offsets.emplace_back(u * axes.eigenvectors()(0, a), u * axes.eigenvectors()(1, a), 0);
+  for (const Eigen::Vector3d& off : offsets) {
+    const CPose2D back =
+        restart.Align(&reference, &query, CPose2D(found.x() + off.x(), found.y() + off.y(), found.phi() + off.z()))->getMeanVal();
+    const Eigen::Vector2d step(back.x() - found.x(), back.y() - found.y());
+    bool same = std::abs(mrpt::math::wrapToPi(back.phi() - found.phi())) <= 0.02;
+    for (int a = corridor ? 1 : 0; a < 2; ++a) same &= std::abs(step.dot(axes.eigenvectors().col(a))) <= 0.05;
+    if (!same) {
+      ++stats_.loop_rejected_unique;
+      return false;
+    }
+  }
+  if (corridor) {  // next to no information along the corridor (a standard deviation of about a metre)
+    Eigen::Vector2d values = axes.eigenvalues();
+    values(0) = std::max(values(0), 1e-3);
+    h.topLeftCorner<2, 2>() = axes.eigenvectors() * values.asDiagonal() * axes.eigenvectors().transpose();
+  }
+
+  // The edge: this keyframe seen from the old keyframe nearest where the match put it.
+  if (far) {
+    double nearest = std::numeric_limits<double>::infinity();
+    for (size_t i : old) {
+      const CPose2D there = keyframe_pose(i);
+      const double d = std::hypot(there.x() - found.x(), there.y() - found.y());
+      if (d < nearest) nearest = d, j = i;
+    }
+  }
+  const CPose2D there = keyframe_pose(j);
+  const CPose2D measured = found - there;
+  // Its information: what the match pinned down (h, per point, in the map frame) turned into the old keyframe's
+  // frame, and scaled so that a place pinned down equally in x and y gives edge_sigma_xy in each.
+  Eigen::Matrix3d rotate = Eigen::Matrix3d::Identity();
+  rotate.topLeftCorner<2, 2>() = Eigen::Rotation2Dd(there.phi()).toRotationMatrix().transpose();
+  const Eigen::Matrix3d info = rotate * h * rotate.transpose() * (2 / (o_.edge_sigma_xy * o_.edge_sigma_xy));
+  LoopEdge loop{j, k, measured, {}};
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) loop.information[static_cast<size_t>(r * 3 + c)] = info(r, c);
+  }
+  // A small correction is one the graph nearly agrees with already. A large one (the first return after a long
+  // excursion, or a wrong match) waits for a second match, from one of the next keyframes, that puts this stretch
+  // of the path in the same place; then both go in.
+  if (correction.norm() <= o_.loop_confirm_xy && angle_of(correction) <= o_.loop_confirm_yaw) return add_loops({loop});
+  for (auto it = pending_.begin(); it != pending_.end(); ++it) {
+    const CPose2D predicted = (keyframe_pose(it->j) + it->measured) + (here - keyframe_pose(it->k));
+    const CPose2D diff = found - predicted;
+    if (diff.norm() <= o_.loop_consistency_xy && angle_of(diff) <= o_.loop_consistency_yaw) {
+      const LoopEdge first = *it;
+      pending_.erase(it);
+      return add_loops({first, loop});
+    }
+  }
+  pending_.push_back(loop);
+  ++stats_.loop_pending;
+  return false;
+}
+
+bool ScanGraph::add_loops(const std::vector<LoopEdge>& loops) {
+  std::vector<PoseGraph2d::Pose> before(graph_.size());
+  for (size_t i = 0; i < before.size(); ++i) before[i] = graph_.node(i);
+  std::vector<size_t> edges;
+  bool disagree = false;
+  for (const auto& l : loops) {
+    edges.push_back(graph_.add_edge(l.j, l.k, array_of(l.measured), l.information));
+    const CPose2D off = (keyframe_pose(l.k) - keyframe_pose(l.j)) - l.measured;
+    disagree |= off.norm() > o_.optimize_threshold_xy || angle_of(off) > o_.optimize_threshold_yaw;
+  }
+  if (disagree) {
+    ++stats_.optimisations;
+    graph_.optimise(10);
+    // A match that contradicts the rest of the graph stays far from what the optimum makes of it.
+    for (size_t e : edges) {
+      if (graph_.edge_chi2(e) <= o_.loop_max_chi2) continue;
+      for (size_t r : edges) graph_.remove_edge(r);
+      for (size_t i = 0; i < before.size(); ++i) graph_.set_node(i, before[i]);
+      stats_.loop_rejected_chi2 += static_cast<int64_t>(loops.size());
+      return false;
+    }
+  }
+  for (const auto& l : loops) {
+    adjacency_[l.j].push_back({static_cast<uint32_t>(l.k), l.measured.norm()});
+    adjacency_[l.k].push_back({static_cast<uint32_t>(l.j), l.measured.norm()});
+    ++stats_.loop_closures;
+  }
+  return true;
+}
+
+void ScanGraph::finish() {
+  if (stats_.loop_closures == 0) return;
+  ++stats_.optimisations;
+  graph_.optimise(100);
+}
+
+std::vector<std::pair<int64_t, CPose2D>> ScanGraph::trajectory() const {
+  std::vector<std::pair<int64_t, CPose2D>> out;
+  out.reserve(scans_.size());
+  for (const auto& s : scans_) out.emplace_back(s.stamp, keyframe_pose(s.keyframe) + s.relative);
+  return out;
+}
+
+}  // namespace driftlab::slam::internal

@@ -1,0 +1,148 @@
+// 2D lidar SLAM as a pose graph over keyframes (the 2D SLAM module's default method; docs/slam.md):
+//   front end: each scan matched with MRPT's ICP against a local map (the points of the last keyframes at their
+//              graph poses), starting from the previous pose moved by the wheel odometry;
+//   keyframes: a scan becomes a graph node when the robot has moved far enough from the last one; consecutive
+//              nodes are joined by the front end's relative pose;
+//   loops:     each new keyframe is matched against the old keyframe the graph places nearest, if the drift since
+//              the graph last tied the two places together can explain the distance (a radius growing with the
+//              graph distance between them). Near, ICP from the estimate; far, a correlative search of the whole
+//              window (correlative_matcher.h). A match is kept when it overlaps the old place, has a unique optimum
+//              in the directions the geometry pins down, and, if it moves the estimate much, a second match from
+//              one of the next keyframes agrees with it; its information comes from what the geometry pins down
+//              (little along a corridor). After optimising, a loop edge the rest of the graph contradicts is
+//              taken out again;
+//   back end:  the pose graph, optimised with Ceres (pose_graph.h) when a loop edge disagrees with the estimate,
+//              and once more at the end.
+// A scan's pose is kept relative to the keyframe it was matched after, so the whole trajectory follows the
+// keyframes whenever the graph is optimised. Deterministic. Not thread-safe: one caller.
+#pragma once
+
+#include <mrpt/maps/CSimplePointsMap.h>
+#include <mrpt/obs/CObservation2DRangeScan.h>
+#include <mrpt/poses/CPose2D.h>
+#include <mrpt/slam/CICP.h>
+
+#include <cstdint>
+#include <optional>
+#include <vector>
+
+#include "slam/internal/pose_graph.h"
+
+namespace driftlab::slam::internal {
+
+/// Distances in m, angles in rad. The values here are the module's defaults; docs/slam.md says why.
+struct ScanGraphOptions {
+  // Front end.
+  double keyframe_distance = 0.5;         ///< a new keyframe after this much travel since the last ...
+  double keyframe_angle = 0.35;           ///< ... or this much turning
+  int local_map_keyframes = 10;           ///< keyframes in the local map the front end matches against
+  double min_icp_goodness = 0.4;          ///< below it the front end keeps the odometry's prediction [0, 1]
+  double min_dist_between_points = 0.05;  ///< points closer than this in a scan are merged
+  double still_distance = 0.005;          ///< odometry moving less than this since the last matched scan ...
+  double still_angle = 0.005;             ///< ... and turning less: standing still, the scan is not matched
+  mrpt::slam::CICP::TConfigParams icp;    ///< the front end's ICP (also the loop matches' final step)
+  // Loop closure: which old place.
+  bool loop_closure = true;
+  double loop_min_travel = 10;      ///< path between two keyframes before they may close a loop
+  double loop_radius = 1.5;         ///< the old keyframe must be within this of the estimate ...
+  double loop_drift = 0.05;         ///< ... plus this share of the graph distance between the two ...
+  double loop_max_radius = 8;       ///< ... and never further
+  double loop_far_radius = 2.5;     ///< beyond this radius, a correlative search instead of ICP from the estimate
+  double loop_far_yaw = 0.35;       ///< the correlative search's turn window (+-)
+  double loop_grid_resolution = 0.1;   ///< of its likelihood grid ...
+  int loop_grid_levels = 4;         ///< ... and coarse levels above it (the top one 2^4 cells: 1.6 m)
+  int loop_search_points = 200;     ///< current points it scores per pose
+  double loop_ambiguity = 0.9;      ///< another place 0.5 m away scoring this share of the best: ambiguous
+  int loop_submap_keyframes = 4;    ///< near: keyframes on either side of the candidate in the old place
+  int loop_query_keyframes = 3;     ///< the last keyframes matched against it
+  double loop_threshold_ang = 0.087;   ///< near: the first ICP's angular correspondence threshold
+  // Loop closure: when a match counts.
+  double loop_min_goodness = 0.65;  ///< share of the current points with an old point within loop_match_distance
+  double loop_match_distance = 0.15;
+  double loop_min_points = 60;      ///< matched points a loop match needs
+  double loop_min_constraint = 0.1;  ///< the weakest direction's share of the point-to-line information; below:
+                                     ///< a corridor
+  double loop_uniqueness = 0.3;     ///< restarts this far off must come back to the same pose
+  double loop_confirm_xy = 0.5;     ///< a match moving the estimate further ...
+  double loop_confirm_yaw = 0.09;   ///< ... or turning it more waits for a second one ...
+  int loop_confirm_keyframes = 5;   ///< ... from one of the next keyframes ...
+  double loop_consistency_xy = 0.2;    ///< ... that places this stretch within this ...
+  double loop_consistency_yaw = 0.035;  ///< ... and this of where the first one put it
+  double loop_max_chi2 = 20;        ///< a loop edge left with a larger error after optimising is taken out
+  // Back end.
+  double edge_sigma_xy = 0.05;      ///< standard deviation of an edge's x and y
+  double edge_sigma_yaw = 0.0175;   ///< and of its yaw
+  double optimize_threshold_xy = 0.05;   ///< a loop edge off by more than this triggers optimisation ...
+  double optimize_threshold_yaw = 0.02;  ///< ... or by more than this
+};
+
+struct ScanGraphStats {
+  int64_t scans = 0, matched = 0, unmatched = 0, still = 0, keyframes = 0;
+  int64_t loop_tests = 0, loop_closures = 0, loop_rejected_goodness = 0, loop_rejected_unique = 0,
+          loop_rejected_chi2 = 0, loop_pending = 0, optimisations = 0;
+};
+
+class ScanGraph {
+ public:
+  explicit ScanGraph(ScanGraphOptions options);
+
+  /// Adds a scan (sensor pose inside `scan`), with the wheel odometry's pose at its stamp when there is one.
+  /// Returns the base's pose in the map frame (the first scan's base is the origin) and the front end's
+  /// covariance of it (x, y, yaw; zero when the scan could not be matched).
+  mrpt::poses::CPose2D add(int64_t stamp, const mrpt::obs::CObservation2DRangeScan::Ptr& scan,
+                           const std::optional<mrpt::poses::CPose2D>& odometry,
+                           mrpt::math::CMatrixDouble33* covariance = nullptr);
+
+  /// Optimises the whole graph once more (call at the end).
+  void finish();
+
+  /// Every scan's pose after the latest optimisation, in the order added.
+  std::vector<std::pair<int64_t, mrpt::poses::CPose2D>> trajectory() const;
+
+  struct Keyframe {
+    int64_t stamp = 0;
+    mrpt::obs::CObservation2DRangeScan::Ptr scan;
+    mrpt::maps::CSimplePointsMap points;  ///< the scan's points in the base frame
+    double path = 0;                      ///< distance travelled (keyframe to keyframe) when it was made [m]
+  };
+  const std::vector<Keyframe>& keyframes() const { return keyframes_; }
+  mrpt::poses::CPose2D keyframe_pose(size_t i) const;
+  const ScanGraphStats& stats() const { return stats_; }
+
+ private:
+  struct ScanRecord {
+    int64_t stamp;
+    uint32_t keyframe;
+    mrpt::poses::CPose2D relative;  ///< the scan's pose in its keyframe's frame
+  };
+  struct LoopEdge {
+    size_t j, k;                    ///< old and current keyframe
+    mrpt::poses::CPose2D measured;  ///< k seen from j
+    PoseGraph2d::Information information;
+  };
+  void add_keyframe(int64_t stamp, const mrpt::obs::CObservation2DRangeScan::Ptr& scan,
+                    mrpt::maps::CSimplePointsMap points, const mrpt::poses::CPose2D& pose);
+  void rebuild_local_map();
+  void close_loops();
+  bool try_loop(size_t candidate, double radius);
+  bool add_loops(const std::vector<LoopEdge>& loops);
+  std::vector<double> graph_distances(size_t from) const;
+  mrpt::maps::CSimplePointsMap points_of(const mrpt::obs::CObservation2DRangeScan& scan) const;
+
+  ScanGraphOptions o_;
+  mrpt::slam::CICP icp_;
+  PoseGraph2d graph_;
+  std::vector<Keyframe> keyframes_;
+  std::vector<std::vector<std::pair<uint32_t, double>>> adjacency_;  ///< neighbour, length of the edge [m]
+  std::vector<ScanRecord> scans_;
+  mrpt::maps::CSimplePointsMap local_map_;  ///< in the map frame
+  uint32_t current_keyframe_ = 0;
+  mrpt::poses::CPose2D relative_;           ///< the last scan's pose in its keyframe's frame
+  uint32_t matched_keyframe_ = 0;           ///< the last matched scan's keyframe ...
+  mrpt::poses::CPose2D matched_;            ///< ... and its pose in that keyframe's frame
+  std::optional<mrpt::poses::CPose2D> last_odometry_;
+  std::vector<LoopEdge> pending_;           ///< large corrections waiting for a second match
+  ScanGraphStats stats_;
+};
+
+}  // namespace driftlab::slam::internal
