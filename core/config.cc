@@ -6,8 +6,10 @@
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <sstream>
+#include <type_traits>
 
 namespace driftlab::config {
 namespace {
@@ -186,67 +188,52 @@ Result<double> Value::number(const Range& range, const std::string& unit) const 
   return v;
 }
 
-Result<int64_t> Value::integer(const Range& range, const std::string& unit) const {
-  if (!given()) return error("has no value (a whole number is expected)");
-  if (!node_.IsScalar()) return error(std::string("must be a whole number, not ") + shape(node_));
-  std::string text = node_.Scalar();
-  if (!text.empty() && text[0] == '+') text.erase(0, 1);
-  int64_t x = 0;
-  const char* end = text.data() + text.size();
-  const auto [p, ec] = std::from_chars(text.data(), end, x);
-  if (p == end && ec == std::errc::result_out_of_range) return error("= " + quoted(text) + " is too large for an integer");
-  if (p != end || ec != std::errc() || text.empty()) {  // "1e3", "5.0": a whole number written as a decimal
-    double d = 0;
-    switch (parse_number(text, d)) {
-      case Parsed::kOk:
-        break;
-      case Parsed::kNotANumber:
-        return error("= " + quoted(node_.Scalar()) + " must be a whole number");
-      case Parsed::kNonFinite:
-        return error("= " + quoted(node_.Scalar()) + " must be a finite number");
-      case Parsed::kTooLarge:
-        return error("= " + quoted(node_.Scalar()) + " is too large for an integer");
-    }
-    if (d != std::floor(d)) return error("= " + format_number(d) + " must be a whole number");
-    if (!(std::abs(d) < 9.2e18)) return error("= " + format_number(d) + " is too large for an integer");
-    x = static_cast<int64_t>(d);
-  }
-  if (const std::string why = range.violation(static_cast<double>(x), unit); !why.empty()) {
-    return error("= " + std::to_string(x) + " " + why);
-  }
-  return x;
-}
+namespace {
 
-Result<uint64_t> Value::unsigned_integer(const Range& range, const std::string& unit) const {
-  if (!given()) return error("has no value (a whole number >= 0 is expected)");
-  if (!node_.IsScalar()) return error(std::string("must be a whole number, not ") + shape(node_));
-  std::string text = node_.Scalar();
-  if (!text.empty() && text[0] == '+') text.erase(0, 1);
-  uint64_t x = 0;
+/// A whole number of type I: exact when written as digits, else (1e3, 5.0) through a double that must be whole.
+template <class I>
+Result<I> whole_number(const Value& v, const Range& range, const std::string& unit) {
+  const YAML::Node& node = v.node();
+  if (!v.given()) return v.error("has no value (a whole number is expected)");
+  if (!node.IsScalar()) return v.error(std::string("must be a whole number, not ") + shape(node));
+  const std::string& raw = node.Scalar();
+  const std::string text = !raw.empty() && raw[0] == '+' ? raw.substr(1) : raw;
+  I x = 0;
   const char* end = text.data() + text.size();
   const auto [p, ec] = std::from_chars(text.data(), end, x);
-  if (p == end && ec == std::errc::result_out_of_range) return error("= " + quoted(text) + " is too large for an integer");
+  if (p == end && ec == std::errc::result_out_of_range) return v.error("= " + quoted(raw) + " is too large for an integer");
   if (p != end || ec != std::errc() || text.empty()) {
     double d = 0;
     switch (parse_number(text, d)) {
       case Parsed::kOk:
         break;
       case Parsed::kNotANumber:
-        return error("= " + quoted(node_.Scalar()) + " must be a whole number");
+        return v.error("= " + quoted(raw) + " must be a whole number");
       case Parsed::kNonFinite:
-        return error("= " + quoted(node_.Scalar()) + " must be a finite number");
+        return v.error("= " + quoted(raw) + " must be a finite number");
       case Parsed::kTooLarge:
-        return error("= " + quoted(node_.Scalar()) + " is too large for an integer");
+        return v.error("= " + quoted(raw) + " is too large for an integer");
     }
-    if (d != std::floor(d)) return error("= " + format_number(d) + " must be a whole number");
-    if (d < 0) return error("= " + format_number(d) + " must be >= 0");
-    if (!(d < 1.8e19)) return error("= " + format_number(d) + " is too large for an integer");
-    x = static_cast<uint64_t>(d);
+    if (d != std::floor(d)) return v.error("= " + format_number(d) + " must be a whole number");
+    if (std::is_unsigned_v<I> && d < 0) return v.error("= " + format_number(d) + " must be >= 0");
+    const double limit = std::ldexp(1.0, std::numeric_limits<I>::digits);  // 2^63, 2^64
+    if (!(d < limit && d >= -limit)) return v.error("= " + format_number(d) + " is too large for an integer");
+    x = static_cast<I>(d);
   }
   if (const std::string why = range.violation(static_cast<double>(x), unit); !why.empty()) {
-    return error("= " + std::to_string(x) + " " + why);
+    return v.error("= " + std::to_string(x) + " " + why);
   }
   return x;
+}
+
+}  // namespace
+
+Result<int64_t> Value::integer(const Range& range, const std::string& unit) const {
+  return whole_number<int64_t>(*this, range, unit);
+}
+
+Result<uint64_t> Value::unsigned_integer(const Range& range, const std::string& unit) const {
+  return whole_number<uint64_t>(*this, range, unit);
 }
 
 Result<bool> Value::boolean() const {

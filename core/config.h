@@ -71,7 +71,7 @@ class Value {
   const std::string& key() const { return key_; }
   /// Given, and not YAML's null ("key:" with nothing after it).
   bool given() const { return node_.IsDefined() && !node_.IsNull(); }
-  /// "FILE:LINE" of the value, or of the map it is missing from.
+  /// "FILE:LINE" of the value; of its key when it is null, of the map it is missing from when it is missing.
   std::string place() const;
   /// "FILE:LINE: KEY WHAT" ("FILE:LINE: WHAT" for the document itself).
   Error error(const std::string& what) const;
@@ -236,18 +236,18 @@ class Table {
   /// A fixed-size vector of numbers (std::array<double, N>, Eigen::Vector3d), written [a, b, c].
   template <class V>
   Table& numbers(const char* key, V T::*m, Range r, const char* unit, const char* doc) {
-    constexpr std::size_t n = detail::fixed_size<V>();
-    return add(key, "[" + std::to_string(n) + " numbers]", unit, r.text(), doc,
+    using Array = std::array<double, detail::fixed_size<V>()>;
+    return add(key, "[" + std::to_string(Array().size()) + " numbers]", unit, r.text(), doc,
                [m, r, u = std::string(unit)](const Value& v, T& t) -> Status {
-                 auto x = v.numbers(n, r, u);
+                 auto x = v.numbers(Array().size(), r, u);
                  if (!x) return x.error();
-                 for (std::size_t i = 0; i < n; ++i) (t.*m)[i] = (*x)[i];
+                 for (std::size_t i = 0; i < x->size(); ++i) (t.*m)[i] = (*x)[i];
                  return {};
                },
                [m](const T& t) {
-                 double a[n];
-                 for (std::size_t i = 0; i < n; ++i) a[i] = (t.*m)[i];
-                 return detail::show_numbers(a, n);
+                 Array a;
+                 for (std::size_t i = 0; i < a.size(); ++i) a[i] = (t.*m)[i];
+                 return detail::show_numbers(a.data(), a.size());
                });
   }
   /// A struct of numbers written as a list: numbers("start", &C::start, {&Pose2::x, &Pose2::y, &Pose2::yaw}, ...).

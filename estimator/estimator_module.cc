@@ -10,6 +10,9 @@
 #include "lcmtypes/validate.h"
 
 namespace driftlab::estimator {
+namespace {
+
+/// The filter's noises, as keys of the estimator's map.
 const config::Table<EkfNoise>& ekf_noise_table() {
   using N = EkfNoise;
   using config::above;
@@ -33,6 +36,8 @@ const config::Table<EkfNoise>& ekf_noise_table() {
           .number("initial_bias", &N::initial_bias, above(0, 1e4), "rad/s", "initial gyro bias uncertainty");
   return t;
 }
+
+}  // namespace
 
 const config::Table<EstimatorConfig>& estimator_config_table() {
   using C = EstimatorConfig;

@@ -33,9 +33,7 @@ struct EstimatorConfig {
   EkfNoise noise;
 };
 
-/// The keys of the `estimator:` map of a replay config, with units, ranges and defaults (core/config.h); the noise
-/// keys are ekf_noise_table()'s.
-const config::Table<EkfNoise>& ekf_noise_table();
+/// The keys of the `estimator:` map of a replay config, with units, ranges and defaults (core/config.h).
 const config::Table<EstimatorConfig>& estimator_config_table();
 
 /// Reads the `estimator:` map of a replay config; errors name the file, line and key.
