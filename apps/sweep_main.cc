@@ -123,8 +123,8 @@ Result<std::string> collect(const std::string& dir, const Plan& plan, bool plots
   for (Stage s : plan.spec.stages) j["stages"].push_back(stage_name(s));
   if (plan.spec.kind == "batch" || !plan.spec.logs.empty()) j["ranked"] = rank_batch(t);
   const std::string json_path = (fs::path(dir) / "results.json").string();
-  if (Status s = write_atomically((fs::path(dir) / "results.csv").string(), table_csv(t)); !s) return s.error();
-  if (Status s = write_atomically(json_path, j.dump(1) + "\n"); !s) return s.error();
+  if (Status s = write_atomically((fs::path(dir) / "results.csv").string(), table_csv(t)); !s) return Error{s.message()};
+  if (Status s = write_atomically(json_path, j.dump(1) + "\n"); !s) return Error{s.message()};
   if (!plots) return std::string();
   if (Status s = run_plot_script(kSweepPageScript, "sweep_page.py", dir, {json_path, dir}); !s) {
     return Error{"collect " + dir + ": " + s.message()};
@@ -349,13 +349,13 @@ Result<std::vector<std::string>> batch_logs(const BatchArgs& a) {
     return {};
   };
   if (!a.list.empty()) {
-    if (Status s = read_list(a.list); !s) return s.error();
+    if (Status s = read_list(a.list); !s) return Error{s.message()};
   }
   for (const auto& item : items) {
     if (item.size() > 1 && item[0] == '@') {
-      if (Status s = read_list(item.substr(1)); !s) return s.error();
+      if (Status s = read_list(item.substr(1)); !s) return Error{s.message()};
     } else if (Status s = add(item); !s) {
-      return s.error();
+      return Error{s.message()};
     }
   }
   return out;

@@ -145,7 +145,7 @@ class SlurmExecutor : public Executor {
     const std::string stem = "array-" + std::to_string(k);
     std::string list;
     for (const auto& id : ids) list += id + "\n";
-    if (Status s = write_atomically((slurm / (stem + ".txt")).string(), list); !s) return s.error();
+    if (Status s = write_atomically((slurm / (stem + ".txt")).string(), list); !s) return Error{s.message()};
 
     const std::string script = (slurm / (stem + ".sh")).string();
     std::ostringstream sh;
@@ -164,7 +164,7 @@ class SlurmExecutor : public Executor {
        << "  scontrol requeue \"${SLURM_ARRAY_JOB_ID}_${SLURM_ARRAY_TASK_ID}\"\n"
        << "fi\n"
        << "exit \"$rc\"\n";
-    if (Status s = write_atomically(script, sh.str()); !s) return s.error();
+    if (Status s = write_atomically(script, sh.str()); !s) return Error{s.message()};
     fs::permissions(script, fs::perms::owner_exec | fs::perms::group_exec, fs::perm_options::add, ec);
 
     std::string array = "--array=0-" + std::to_string(ids.size() - 1);

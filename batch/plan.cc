@@ -452,7 +452,7 @@ Result<Spec> load_spec(const std::string& path) {
     s.stages.push_back(Stage::kDiagnose);
     if (!s.modules.empty()) s.stages.push_back(Stage::kEval);
   }
-  if (auto st = check_stage_order(s, path + ": pipeline " + stage_list(s)); !st) return st.error();
+  if (auto st = check_stage_order(s, path + ": pipeline " + stage_list(s)); !st) return Error{st.message()};
   if (!s.has(Stage::kSim) && s.duration > 0) return Error{path + ": duration: only a simulation has one"};
 
   if (s.has(Stage::kSim) && s.scenario.empty()) s.scenario = std::string(DRIFTLAB_SOURCE_DIR) + "/sim/scenarios/indoor.yaml";
@@ -466,7 +466,7 @@ Result<Spec> load_spec(const std::string& path) {
       }
       auto p = read_parameter(path, key, kv.second);
       if (!p) return p.error();
-      if (auto st = check_parameter(path, kv.first, *p, s, channels); !st) return st.error();
+      if (auto st = check_parameter(path, kv.first, *p, s, channels); !st) return Error{st.message()};
       s.vary.push_back(std::move(*p));
     }
   }

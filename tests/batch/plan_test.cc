@@ -8,6 +8,7 @@
 
 #include "batch/plan.h"
 #include "batch/store.h"
+#include "core/faults.h"
 #include "tests/test_util.h"
 
 namespace driftlab::batch {

@@ -124,7 +124,7 @@ TEST(SweepCli, CtrlCKeepsFinishedPointsAndResumes) {
     EXPECT_FALSE(fs::exists(e.path() / "result.json.partial")) << e.path();
     if (fs::exists(e.path() / "result.json")) {
       std::ifstream f(e.path() / "result.json");
-      EXPECT_NO_THROW((void)nlohmann::json::parse(f)) << e.path();
+      EXPECT_TRUE(nlohmann::json::accept(f)) << e.path();
     }
   }
   // Resuming runs the rest only.
