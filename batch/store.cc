@@ -149,11 +149,13 @@ Table merge_results(const std::string& dir, const Plan& plan) {
     nlohmann::json row = {{"id", pt.id}, {"status", state_name(st.state)}, {"attempts", st.attempts}};
     for (const auto& [k, v] : pt.params) row[k] = v.json();
     if (st.state == PointState::kDone && st.record.is_object()) {
-      for (const auto& [k, v] : st.record.value("metrics", nlohmann::json::object()).items()) {
+      const nlohmann::json metric_values = st.record.value("metrics", nlohmann::json::object());
+      const nlohmann::json stage_seconds = st.record.value("seconds", nlohmann::json::object());
+      for (const auto& [k, v] : metric_values.items()) {
         row[k] = v;
         metrics.insert(k);
       }
-      for (const auto& [k, v] : st.record.value("seconds", nlohmann::json::object()).items()) {
+      for (const auto& [k, v] : stage_seconds.items()) {
         row["seconds." + k] = v;
         seconds.insert("seconds." + k);
       }
