@@ -430,7 +430,7 @@ Result<Spec> load_spec(const std::string& path) {
   }
 
   // The pipeline: given, or what the spec implies.
-  if (pipeline) {
+  if (pipeline && !pipeline.IsNull()) {
     if (!pipeline.IsSequence()) return Error{where(path, pipeline, "pipeline") + ": a list of stages (sim, replay, diagnose, eval)"};
     std::set<Stage> seen;
     for (const auto& st : pipeline) {
@@ -457,7 +457,7 @@ Result<Spec> load_spec(const std::string& path) {
 
   if (s.has(Stage::kSim) && s.scenario.empty()) s.scenario = std::string(DRIFTLAB_SOURCE_DIR) + "/sim/scenarios/indoor.yaml";
   const std::set<std::string> channels = s.has(Stage::kSim) ? scenario_channels(s.scenario) : std::set<std::string>{};
-  if (vary) {
+  if (vary && !vary.IsNull()) {
     if (!vary.IsMap()) return Error{where(path, vary, "vary") + ": a map of PARAMETER: [values] or {from, to, step}"};
     for (const auto& kv : vary) {
       const std::string key = kv.first.Scalar();
