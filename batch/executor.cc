@@ -91,6 +91,7 @@ class LocalExecutor : public Executor {
         running[pid] = id;
       }
       draw(false);
+      if (running.empty()) break;  // stopping, and every running point has ended
       int status = 0;
       const pid_t pid = ::waitpid(-1, &status, WNOHANG);
       if (pid <= 0) {
