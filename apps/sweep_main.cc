@@ -73,15 +73,6 @@ RunnerOptions runner_options() {
   return {self_path(), [](const nlohmann::json& d) { return diagnosis_summary(d); }};
 }
 
-std::string last_line_of(const std::string& path) {
-  std::ifstream in(path);
-  std::string line, last;
-  while (std::getline(in, line)) {
-    if (!line.empty()) last = line;
-  }
-  return last;
-}
-
 /// Asks the replay program whether it accepts a module config: `driftlab replay` of an empty log with it. Its
 /// one-line error when it names the config file; "" when it does not complain about the config.
 std::string check_config(const std::string& yaml, const std::string& modules) {

@@ -96,6 +96,9 @@ def sweep_plots(data, out_dir):
                     ax.fill_between(px, lo, hi, color=color, alpha=0.15, linewidth=0)
                 for x in xs:
                     ax.plot([pos[x]] * len(by_x[x]), by_x[x], ".", color=color, alpha=0.5, markersize=3)
+            values = [v for by_x in series.values() for vs in by_x.values() for v in vs]
+            if min(values) > 0 and max(values) / min(values) > 100:
+                ax.set_yscale("log")  # curves orders of magnitude apart stay readable
             if not numeric:
                 ax.set_xticks(list(pos.values()))
                 ax.set_xticklabels([str(x) for x in all_x])

@@ -7,6 +7,7 @@
 
 #include <cerrno>
 #include <cstdio>
+#include <fstream>
 
 namespace driftlab {
 
@@ -49,6 +50,15 @@ int run_process(const std::vector<std::string>& argv, const std::string& stdout_
                 const std::string& stderr_path) {
   const pid_t pid = start_process(argv, stdout_path, stderr_path);
   return pid < 0 ? 127 : wait_process(pid);
+}
+
+std::string last_line_of(const std::string& path) {
+  std::ifstream in(path);
+  std::string line, last;
+  while (std::getline(in, line)) {
+    if (!line.empty()) last = line;
+  }
+  return last;
 }
 
 }  // namespace driftlab

@@ -24,4 +24,7 @@ int wait_process(pid_t pid);
 int run_process(const std::vector<std::string>& argv, const std::string& stdout_path,
                 const std::string& stderr_path = "");
 
+/// The last non-empty line of a file: what a child process said last on the standard error it was given.
+std::string last_line_of(const std::string& path);
+
 }  // namespace driftlab
