@@ -27,12 +27,6 @@ void on_signal(int sig) {
   if (g_child > 0) ::kill(static_cast<pid_t>(g_child), sig);
 }
 
-std::string host_name() {
-  char buf[256] = {};
-  if (::gethostname(buf, sizeof(buf) - 1) != 0) return "?";
-  return buf;
-}
-
 struct StageRun {
   std::string name;
   std::vector<std::string> argv;

@@ -1,6 +1,7 @@
 #include "batch/store.h"
 
 #include <fcntl.h>
+#include <signal.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -37,6 +38,12 @@ std::string csv_field(const nlohmann::json& v) {
 }
 
 }  // namespace
+
+std::string host_name() {
+  char buf[256] = {};
+  if (::gethostname(buf, sizeof(buf) - 1) != 0) return "?";
+  return buf;
+}
 
 Status write_atomically(const std::string& path, const std::string& text) {
   const std::string partial = path + ".partial";
@@ -121,6 +128,12 @@ PointStatus point_status(const std::string& dir, const std::string& id) {
     auto j = read_json_file((d / file).string());
     st.state = state;
     st.record = j ? *j : nlohmann::json();
+    // An attempt on this host whose process is gone was killed outright (it leaves no failed.json).
+    if (state == PointState::kRunning && st.record.is_object() && st.record.value("host", "") == host_name() &&
+        ::kill(st.record.value("pid", 0), 0) != 0 && errno == ESRCH) {
+      st.state = PointState::kFailed;
+      st.record["error"] = "killed: process " + std::to_string(st.record.value("pid", 0)) + " is gone";
+    }
     return st;
   }
   return st;

@@ -2,7 +2,8 @@
 // per point: its inputs, the stages' outputs and logs), and the markers that say where a point is:
 //   DIR/points/ID/result.json   the done-marker: the point's row, written atomically as the very last step
 //   DIR/points/ID/failed.json   the last attempt failed (stage, exit code, its last error line)
-//   DIR/points/ID/running.json  an attempt is under way (host, pid, start)
+//   DIR/points/ID/running.json  an attempt is under way (host, pid, start); read on that host with the pid gone,
+//                               the point counts as failed (killed)
 //   DIR/points/ID/attempts      how many attempts were started
 // Every file is written beside its target and renamed, so a reader on another node sees whole files only (a shared
 // filesystem is the assumption). Thread-safety: functions on paths; one writer per point at a time.
@@ -17,6 +18,9 @@
 #include "core/result.h"
 
 namespace driftlab::batch {
+
+/// This machine's host name (as running.json records it).
+std::string host_name();
 
 /// Writes text to path through path.partial, fsync and rename; the error names the file.
 Status write_atomically(const std::string& path, const std::string& text);

@@ -1,6 +1,8 @@
 // batch/plan.h and batch/store.h: specs read and checked (bad ones named by file and key), grids expanded, point
 // ids stable, the inputs a point writes (faults, module settings), atomic files and the merged table.
 #include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 #include <filesystem>
 #include <fstream>
@@ -186,6 +188,18 @@ TEST(SweepStore, AtomicFilesAndTheMergedTable) {
   EXPECT_EQ(point_status(d, plan.points[1].id).state, PointState::kFailed);
   EXPECT_EQ(point_status(d, plan.points[1].id).attempts, 2);
   EXPECT_EQ(point_status(d, plan.points[2].id).state, PointState::kPending);
+  // A running marker of this host whose process is gone: killed outright, so failed (and run again).
+  const pid_t gone = fork();
+  if (gone == 0) _exit(0);
+  waitpid(gone, nullptr, 0);
+  std::filesystem::create_directories(point_dir(d, "stale"));
+  ASSERT_TRUE(write_atomically(point_dir(d, "stale") + "/running.json",
+                               nlohmann::json{{"host", host_name()}, {"pid", gone}}.dump()));
+  EXPECT_EQ(point_status(d, "stale").state, PointState::kFailed);
+  ASSERT_TRUE(write_atomically(point_dir(d, "stale") + "/running.json",
+                               nlohmann::json{{"host", host_name()}, {"pid", getpid()}}.dump()));
+  EXPECT_EQ(point_status(d, "stale").state, PointState::kRunning);
+
   const Table t = merge_results(d, plan);
   EXPECT_EQ(t.columns, (std::vector<std::string>{"id", "status", "attempts", "seed", "ate_rmse", "error",
                                                  "worst_stream", "seconds.sim"}));
