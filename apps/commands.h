@@ -21,6 +21,9 @@ void add_record_command(CLI::App& app, int* exit_code);
 void add_diagnose_command(CLI::App& app, int* exit_code);
 void add_report_command(CLI::App& app, int* exit_code);
 void add_demo_command(CLI::App& app, int* exit_code);
+/// sweep SPEC, sweep status|collect, and batch diagnose|eval|report (apps/sweep_main.cc, batch/).
+void add_sweep_command(CLI::App& app, int* exit_code);
+void add_batch_command(CLI::App& app, int* exit_code);
 /// import FILE (ROS 1 bags, CARMEN logs; MRPT rawlogs handed to driftlab-rawlog), on the `import` subcommand.
 void add_import_file_command(CLI::App& import_command, int* exit_code);
 /// export tum, export csv, on the `export` subcommand.
