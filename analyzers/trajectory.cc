@@ -86,6 +86,29 @@ double Trajectory::path_length() const {
   return length;
 }
 
+StampOrder sort_by_stamp(Trajectory& t) {
+  StampOrder o;
+  const size_t n = t.size();
+  for (size_t i = 1; i < n; ++i) {
+    if (t.stamps[i] < t.stamps[i - 1] && o.out_of_order++ == 0) o.first_out_of_order = t.stamps[i];
+  }
+  if (o.out_of_order > 0) {
+    PoseArray<size_t> order(n);
+    std::iota(order.begin(), order.end(), 0);
+    std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return t.stamps[a] < t.stamps[b]; });
+    Trajectory sorted;
+    sorted.stamps.reserve(n);
+    sorted.positions.reserve(n);
+    sorted.orientations.reserve(n);
+    for (size_t i : order) sorted.push_back(t.stamps[i], t.positions[i], t.orientations[i]);
+    t = std::move(sorted);
+  }
+  for (size_t i = 1; i < n; ++i) {
+    if (t.stamps[i] == t.stamps[i - 1] && o.repeated++ == 0) o.first_repeated = t.stamps[i];
+  }
+  return o;
+}
+
 Stats compute_stats(PoseArray<double> e) {
   Stats s;
   s.count = e.size();

@@ -33,6 +33,17 @@ struct Trajectory {
   double path_length() const;
 };
 
+/// How a trajectory's stamps were ordered before sort_by_stamp.
+struct StampOrder {
+  size_t out_of_order = 0;      ///< poses stamped earlier than the pose before them [count]
+  double first_out_of_order = 0;  ///< the stamp of the first of them [s]
+  size_t repeated = 0;          ///< poses stamped exactly as the pose before them (after sorting) [count]
+  double first_repeated = 0;    ///< the stamp of the first of them [s]
+};
+/// Sorts t's poses by stamp, keeping the file order among equal stamps (so matching still takes the first of
+/// them, as evo does), and says what it found.
+StampOrder sort_by_stamp(Trajectory& t);
+
 /// Error statistics; std is the population standard deviation, median as numpy's.
 struct Stats {
   size_t count = 0;

@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <cstring>
 
+#include "analyzers/internal/number_lines.h"
 #include "core/log_format.h"
 #include "core/log_index.h"
 #include "core/log_reader.h"
@@ -24,50 +25,6 @@ bool is_file(const std::string& path) {
   return stat(path.c_str(), &st) == 0 && S_ISREG(st.st_mode);
 }
 
-/// One decimal number. Numbers whose digits form an integer of at most 2^53, with up to 22 decimals, as TUM files hold,
-/// take Clinger's fast path (an integer and a power of ten, both exact in a double, so one division rounds
-/// correctly); anything else goes to std::from_chars. Both give the correctly rounded double, as numpy does.
-const char* parse_double(const char* p, const char* end, double& out) {
-  static constexpr double kPow10[] = {1e0,  1e1,  1e2,  1e3,  1e4,  1e5,  1e6,  1e7,  1e8,  1e9,  1e10, 1e11,
-                                      1e12, 1e13, 1e14, 1e15, 1e16, 1e17, 1e18, 1e19, 1e20, 1e21, 1e22};
-  const char* q = p;
-  const bool negative = q < end && *q == '-';
-  if (negative) ++q;
-  uint64_t mantissa = 0;
-  const char* start = q;
-  while (q < end && static_cast<unsigned>(*q - '0') < 10) mantissa = mantissa * 10 + static_cast<unsigned>(*q++ - '0');
-  const char* dot = q;
-  if (q < end && *q == '.') {
-    ++q;
-    while (q < end && static_cast<unsigned>(*q - '0') < 10) mantissa = mantissa * 10 + static_cast<unsigned>(*q++ - '0');
-  }
-  const long decimals = q > dot ? q - dot - 1 : 0;
-  const long digits = q - start - (q > dot ? 1 : 0);  // at most 19 digits cannot overflow 64 bits
-  const bool plain = digits > 0 && (q == end || *q == ' ' || *q == '\t' || *q == ',' || *q == '\r');
-  if (plain && digits <= 19 && mantissa <= (uint64_t{1} << 53) && decimals <= 22) {
-    const double v = static_cast<double>(mantissa) / kPow10[decimals];
-    out = negative ? -v : v;
-    return q;
-  }
-  const auto [next, ec] = std::from_chars(p, end, out);
-  return ec == std::errc() ? next : nullptr;
-}
-
-/// Parses the numbers of one line; returns how many it found (at most 9).
-int parse_numbers(const char* p, const char* end, double* out) {
-  int n = 0;
-  while (p < end) {
-    while (p < end && (*p == ' ' || *p == '\t' || *p == ',' || *p == '\r')) ++p;
-    if (p >= end) break;
-    if (n == 9) return n + 1;
-    const char* next = parse_double(p, end, out[n]);
-    if (next == nullptr || next == p) return -1;
-    p = next;
-    ++n;
-  }
-  return n;
-}
-
 }  // namespace
 
 Result<Trajectory> load_tum(const std::string& path) {
@@ -81,29 +38,30 @@ Result<Trajectory> load_tum(const std::string& path) {
   t.stamps.reserve(expected);
   t.positions.reserve(expected);
   t.orientations.reserve(expected);
-  const char* p = text.data();
-  const char* end = p + text.size();
-  for (size_t line = 1; p < end; ++line) {
-    const char* eol = static_cast<const char*>(std::memchr(p, '\n', static_cast<size_t>(end - p)));
-    if (eol == nullptr) eol = end;
-    const char* q = p;
-    while (q < eol && (*q == ' ' || *q == '\t' || *q == '\r')) ++q;
-    if (q < eol && *q != '#') {
-      double v[9];
-      const int n = parse_numbers(q, eol, v);
-      if (n != 8) {
-        return Error{path + ":" + std::to_string(line) +
-                     (n < 0 ? ": not a number" : ": expected 8 numbers (t x y z qx qy qz qw), found " + std::to_string(n))};
-      }
-      for (int i = 0; i < 8; ++i) {
-        if (!std::isfinite(v[i])) return Error{path + ":" + std::to_string(line) + ": a number is not finite"};
-      }
-      const Eigen::Quaterniond quat(v[7], v[4], v[5], v[6]);
-      if (quat.norm() < 1e-9) return Error{path + ":" + std::to_string(line) + ": the quaternion is zero"};
-      t.push_back(v[0], Eigen::Vector3d(v[1], v[2], v[3]), quat);
+  std::string error;
+  internal::for_each_data_line(text, [&](size_t line, const char* p, const char* eol) {
+    double v[8];
+    const int n = internal::parse_numbers(p, eol, v, 8);
+    if (n != 8) {
+      error = path + ":" + std::to_string(line) +
+              (n < 0 ? ": not a number" : ": expected 8 numbers (t x y z qx qy qz qw), found " + std::to_string(n));
+      return false;
     }
-    p = eol + 1;
-  }
+    for (int i = 0; i < 8; ++i) {
+      if (!std::isfinite(v[i])) {
+        error = path + ":" + std::to_string(line) + ": a number is not finite";
+        return false;
+      }
+    }
+    const Eigen::Quaterniond quat(v[7], v[4], v[5], v[6]);
+    if (quat.norm() < 1e-9) {
+      error = path + ":" + std::to_string(line) + ": the quaternion is zero";
+      return false;
+    }
+    t.push_back(v[0], Eigen::Vector3d(v[1], v[2], v[3]), quat);
+    return true;
+  });
+  if (!error.empty()) return Error{error};
   if (t.size() == 0) return Error{path + ": no poses (expected lines of \"t x y z qx qy qz qw\")"};
   return t;
 }

@@ -7,6 +7,7 @@
 #include <future>
 #include <memory>
 
+#include "analyzers/relations.h"
 #include "analyzers/trajectory.h"
 #include "analyzers/trajectory_io.h"
 #include "apps/cli_checks.h"
@@ -30,6 +31,9 @@ struct EvalOptions {
   bool all_pairs = false;
   std::vector<double> segments;
   int segment_step = 10;
+  std::string relations;
+  double relations_max_dt = 1e-4;
+  std::string odometry;
   std::string json;
 };
 
@@ -39,6 +43,7 @@ nlohmann::json stats_json(const Stats& s) {
 
 struct Evaluation {
   size_t gt_poses = 0, est_poses = 0;
+  std::optional<RelationResult> relations;
   Matched matched;
   Alignment alignment;
   ApeResult ape;
@@ -82,6 +87,39 @@ nlohmann::json to_json(const EvalOptions& o, const Evaluation& ev) {
                      {"segments", segments}}}};
 }
 
+nlohmann::json relation_stats_json(const RelationStats& s) {
+  return {{"mean", s.mean}, {"std", s.std}, {"max", s.max}};
+}
+
+nlohmann::json relations_json(const EvalOptions& o, const RelationResult& r) {
+  return {{"source", o.relations},
+          {"odometry", o.odometry.empty() ? nlohmann::json(nullptr) : nlohmann::json(o.odometry)},
+          {"max_dt", o.relations_max_dt},
+          {"relations", r.relations},
+          {"used", r.used},
+          {"bridged", r.bridged},
+          {"max_bridge_s", r.max_bridge_s},
+          {"trans_m", relation_stats_json(r.trans_m)},
+          {"trans_sq_m2", relation_stats_json(r.trans_sq_m2)},
+          {"rot_deg", relation_stats_json(r.rot_deg)},
+          {"rot_sq_deg2", relation_stats_json(r.rot_sq_deg2)}};
+}
+
+void print_relations(const EvalOptions& o, const RelationResult& r) {
+  std::printf("relation error (Kuemmerle et al. 2009) of %s over %s of %s relations", o.est.c_str(),
+              thousands(static_cast<int64_t>(r.used)).c_str(), thousands(static_cast<int64_t>(r.relations)).c_str());
+  if (r.bridged > 0) {
+    std::printf(" (%s with a pose carried by odometry, at most %.3f s)", thousands(static_cast<int64_t>(r.bridged)).c_str(),
+                r.max_bridge_s);
+  }
+  std::printf("\n%-20s %12s %12s %12s\n", "", "mean", "std", "max");
+  const std::pair<const char*, const RelationStats*> rows[] = {{"translation [m]", &r.trans_m},
+                                                               {"translation^2 [m^2]", &r.trans_sq_m2},
+                                                               {"rotation [deg]", &r.rot_deg},
+                                                               {"rotation^2 [deg^2]", &r.rot_sq_deg2}};
+  for (const auto& [label, st] : rows) std::printf("%-20s %12.6f %12.6f %12.6f\n", label, st->mean, st->std, st->max);
+}
+
 void print_stats_row(const char* label, const Stats& s) {
   std::printf("%-16s %10.6f %10.6f %10.6f %10.6f %10.6f %10.6f\n", label, s.rmse, s.mean, s.median, s.std, s.min,
               s.max);
@@ -121,16 +159,56 @@ void print_table(const EvalOptions& o, const Evaluation& ev) {
   }
 }
 
+/// The relation error of the estimate, when --relations is given; false (after printing why) on bad input.
+bool evaluate_relations(const EvalOptions& o, const Trajectory& est, Evaluation& ev) {
+  auto pending_odometry = std::async(std::launch::async, [&]() -> Result<Trajectory> {
+    if (o.odometry.empty()) return Trajectory{};
+    return load_trajectory(o.odometry);
+  });
+  auto relations = load_relations(o.relations);
+  auto odometry = pending_odometry.get();
+  if (!relations) return fail(relations.error().message), false;
+  if (!odometry) return fail(odometry.error().message), false;
+  Trajectory sorted = est;
+  sort_by_stamp(sorted);
+  sort_by_stamp(*odometry);
+  RelationOptions options;
+  options.max_dt = o.relations_max_dt;
+  options.odometry = o.odometry.empty() ? nullptr : &*odometry;
+  ev.relations = relation_error(sorted, *relations, options);
+  if (ev.relations->used == 0) {
+    fail(o.relations + ": no relation has estimate poses at both of its stamps (within --relations-max-dt " +
+         short_number(o.relations_max_dt) + " s" + (o.odometry.empty() ? "; --relations-odometry can carry the nearest poses to them" : "") + ")");
+    return false;
+  }
+  return true;
+}
+
 int run_eval(const EvalOptions& o) {
-  // The two inputs load in parallel: parsing is most of the work on large trajectories.
-  auto pending_gt = std::async(std::launch::async, [&] { return load_trajectory(o.gt); });
+  if (o.gt.empty() && o.relations.empty()) {
+    return fail("eval needs --gt (ATE, RPE and drift against a reference), --relations (the SLAM benchmark's relation "
+                "error), or both");
+  }
+  // The inputs load in parallel: parsing is most of the work on large trajectories.
+  auto pending_gt = std::async(std::launch::async, [&]() -> Result<Trajectory> {
+    if (o.gt.empty()) return Trajectory{};
+    return load_trajectory(o.gt);
+  });
   auto est = load_trajectory(o.est);
   auto gt = pending_gt.get();
   if (!gt) return fail(gt.error().message);
   if (!est) return fail(est.error().message);
   Evaluation ev;
-  ev.gt_poses = gt->size();
   ev.est_poses = est->size();
+  if (!o.relations.empty() && !evaluate_relations(o, *est, ev)) return kExitBadInput;
+  if (o.gt.empty()) {
+    nlohmann::json j = {{"estimate", {{"source", o.est}, {"poses", ev.est_poses}}},
+                        {"relations", relations_json(o, *ev.relations)}};
+    if (o.json != "-") print_relations(o, *ev.relations);
+    if (!o.json.empty() && !write_output(o.json, j.dump(2) + "\n")) return kExitFailure;
+    return kExitOk;
+  }
+  ev.gt_poses = gt->size();
   ev.matched = o.interpolate ? match_interpolated(*gt, *est, o.max_gap, o.offset)
                              : match_nearest(*gt, *est, o.max_dt, o.offset);
   if (ev.matched.ref.size() == 0) {
@@ -150,12 +228,16 @@ int run_eval(const EvalOptions& o) {
   ev.rpe = rpe(aligned, o.delta, unit, o.all_pairs);
   ev.drift = drift(aligned, o.segments, static_cast<size_t>(o.segment_step));
 
-  if (o.json.empty()) {
+  nlohmann::json j = to_json(o, ev);
+  if (ev.relations) j["relations"] = relations_json(o, *ev.relations);
+  if (o.json != "-") {
     print_table(o, ev);
-    return kExitOk;
+    if (ev.relations) {
+      std::printf("\n");
+      print_relations(o, *ev.relations);
+    }
   }
-  if (!write_output(o.json, to_json(o, ev).dump(2) + "\n")) return kExitFailure;
-  if (o.json != "-") print_table(o, ev);
+  if (!o.json.empty() && !write_output(o.json, j.dump(2) + "\n")) return kExitFailure;
   return kExitOk;
 }
 
@@ -164,12 +246,17 @@ int run_eval(const EvalOptions& o) {
 void add_eval_command(CLI::App& app, int* exit_code) {
   auto o = std::make_shared<EvalOptions>();
   CLI::App* cmd = app.add_subcommand(
-      "eval", "Trajectory error of an estimate against ground truth: ATE, RPE and drift, with evo's semantics.");
+      "eval",
+      "Trajectory error of an estimate: ATE, RPE and drift against ground truth with evo's semantics, and the SLAM "
+      "benchmark's relation error.");
   cmd->footer(
       "SRC is LOG:CHANNEL (a driftlab.pose_t or driftlab.odometry_t channel, stamped with header.utime) or a TUM\n"
       "file (t x y z qx qy qz qw). Matching: for each stamp of the trajectory with fewer poses, the nearest stamp of\n"
-      "the other within --max-dt (as evo), or with --interpolate the reference interpolated at each estimate stamp.");
-  cmd->add_option("--gt", o->gt, "Reference (ground truth): LOG:CHANNEL or TUM file")->required();
+      "the other within --max-dt (as evo), or with --interpolate the reference interpolated at each estimate stamp.\n"
+      "--relations: Kuemmerle et al.'s error of the estimate's relative poses between the stamps of each relation\n"
+      "(a pose within --relations-max-dt of each stamp): mean, std and max of the absolute and squared translation and\n"
+      "rotation errors, as the benchmark's metric evaluator reports them. See docs/trajectory-evaluation.md.");
+  cmd->add_option("--gt", o->gt, "Reference (ground truth): LOG:CHANNEL or TUM file");
   cmd->add_option("--est", o->est, "Estimate: LOG:CHANNEL or TUM file")->required();
   cmd->add_option("--align", o->align, "Alignment of the estimate onto the reference (Umeyama; posyaw: x, y, z, yaw)")
       ->capture_default_str()
@@ -196,6 +283,14 @@ void add_eval_command(CLI::App& app, int* exit_code) {
   cmd->add_option("--segment-step", o->segment_step, "Drift: a segment starts at every N-th matched pose")
       ->capture_default_str()
       ->check(positive());
+  cmd->add_option("--relations", o->relations,
+                  "Relations file (t1 t2 x y z roll pitch yaw a line): the SLAM benchmark's relation error");
+  cmd->add_option("--relations-max-dt", o->relations_max_dt,
+                  "With --relations: largest stamp difference of a relation and the pose it takes [s]")
+      ->capture_default_str()
+      ->check(non_negative());
+  cmd->add_option("--relations-odometry", o->odometry,
+                  "With --relations: raw odometry (LOG:CHANNEL or TUM file) to carry poses to stamps without one");
   cmd->add_option("--json", o->json, "Also write the results as JSON to this file ('-': print only the JSON)");
   cmd->callback([o, exit_code] {
     if (o->delta_unit == "frames" && std::floor(o->delta) != o->delta) {
