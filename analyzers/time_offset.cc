@@ -28,6 +28,9 @@ constexpr double kGapIntervals = 5;
 constexpr double kMinSamples = 20;
 /// A signal whose best correlation is below this carries no timing (a robot that never turns): left out.
 constexpr double kInformative = 0.5;
+/// Bounds of the fine search: lags a side, and grid points.
+constexpr double kMaxFineLags = 400;
+constexpr double kMaxFinePoints = 1 << 20;
 
 enum class Use { kBoth, kSpeed, kAngularSpeed };
 
@@ -193,7 +196,10 @@ TimeOffset estimate_time_offset(const Trajectory& ref, const Trajectory& est, co
   const double min_overlap = options.min_overlap * std::min(span_r, span_e);
 
   // Coarse: every lag at once.
-  const double hc = std::max(window / 5, (span_r + span_e) / 131072.0);
+  // A fifth of the window; at most 2^17 points over both spans, and 8 per pose (stamps spread by a stray one
+  // coarsen the grid, not lengthen the FFTs).
+  const double hc = std::max({window / 5, (span_r + span_e) / 131072.0,
+                              (span_r + span_e) / (8.0 * static_cast<double>(ref.size() + est.size()))});
   const size_t na = static_cast<size_t>(span_r / hc) + 1, nb = static_cast<size_t>(span_e / hc) + 1;
   const Series a = sample(sr, ref.stamps.front(), hc, na, window);
   const Series b = sample(se, est.stamps.front(), hc, nb, window);
@@ -236,12 +242,16 @@ TimeOffset estimate_time_offset(const Trajectory& ref, const Trajectory& est, co
   const double coarse = (ref.stamps.front() - est.stamps.front()) +
                         (static_cast<double>(best_lag) - static_cast<double>(nb - 1)) * hc;
 
-  // Fine: lags every fiftieth of the window within two coarse steps of the peak; the signals are smooth over the
-  // window, so sums over every fifth grid point (a tenth of the window) lose nothing.
-  const double hf = window / 50;
+  // Fine: lags every fiftieth of the window within two coarse steps of the peak, over the time the two share
+  // there; the signals are smooth over the window, so sums over every fifth grid point (a tenth of the window)
+  // lose nothing. At most kMaxFineLags lags a side and kMaxFinePoints grid points: stamps spread over years (a
+  // stray stamp) coarsen the step rather than take the memory.
+  const double from = std::max(ref.stamps.front(), est.stamps.front() + coarse) - 2 * hc;
+  const double to = std::min(ref.stamps.back(), est.stamps.back() + coarse) + 2 * hc;
+  const double hf = std::max({window / 50, 2 * hc / kMaxFineLags, (to - from) / kMaxFinePoints});
   const long lags = static_cast<long>(std::ceil(2 * hc / hf));
-  const size_t nf = static_cast<size_t>(span_r / hf) + 1;
-  const double t0 = ref.stamps.front();
+  const size_t nf = static_cast<size_t>(std::max(0.0, to - from) / hf) + 1;
+  const double t0 = from;
   const Series fa = sample(sr, t0, hf, nf, window);
   // The estimate at ref time t0 + j hf - (coarse + k hf), for k in [-lags, lags]: est index i = j - k + lags.
   const Series fb = sample(se, t0 - coarse - static_cast<double>(lags) * hf, hf, nf + 2 * static_cast<size_t>(lags),

@@ -27,12 +27,13 @@ struct TimeOffsetOptions {
 };
 
 /// Cross-correlates the speed and the angular speed of the two trajectories (both independent of their frames,
-/// and the correlation of their scale: a monocular estimate's unknown scale does not matter) over every offset at
-/// which they overlap enough, then refines the best one. Coarse stage: both signals on a grid of the coarser
-/// sampling interval (at most 2^17 points over both spans), every lag at once by FFT, with each lag's correlation
-/// computed over the samples both trajectories have there (tracking gaps left out). Fine stage: lags every tenth of
-/// that interval within two coarse steps of the peak, then a parabola through the top three. Both trajectories
-/// must be sorted by stamp, stamped, and at least 2 s long.
+/// and the correlation of their scale: a monocular estimate's unknown scale does not matter), each over a window of
+/// 0.5 s or two sampling intervals (the longer), at every offset at which they overlap enough, then refines the
+/// best one. Coarse stage: both signals on a grid of a fifth of the window (at most 2^17 points over both spans,
+/// and 8 per pose), every lag at once by FFT, each lag's correlation taken over the samples both trajectories have
+/// there (tracking gaps left out). Fine stage: lags every fiftieth of the window within two coarse steps of the
+/// peak, then a parabola through the top three. Both trajectories must be sorted by stamp, stamped, and at least
+/// 2 s long.
 TimeOffset estimate_time_offset(const Trajectory& ref, const Trajectory& est, const TimeOffsetOptions& options = {});
 
 }  // namespace driftlab::analyzers

@@ -67,6 +67,12 @@ TEST(EstimateTimeOffset, NeedsMotionOverlapAndStamps) {
   const TimeOffset part = estimate_time_offset(ref, observe(25, 10, 0.05, 3.0, 1, 3));
   ASSERT_TRUE(part.found) << part.problem;
   EXPECT_NEAR(part.offset_s, -3.0, 2e-3);
+  // One stray stamp thirty years on stretches the reference to 1e9 s: the search coarsens within bounded memory
+  // and time instead of sampling a billion seconds finely.
+  Trajectory stray = ref;
+  stray.push_back(stray.stamps.back() + 1e9, stray.positions.back(), stray.orientations.back());
+  const TimeOffset far = estimate_time_offset(stray, observe(25, 10, 0.05, 3.0, 1, 3));
+  EXPECT_TRUE(!far.found || std::isfinite(far.offset_s));
 }
 
 }  // namespace
