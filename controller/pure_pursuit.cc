@@ -5,12 +5,6 @@
 #include <stdexcept>
 
 namespace driftlab::controller {
-namespace {
-
-double wrap_angle(double a) { return std::remainder(a, 2 * M_PI); }
-
-}  // namespace
-
 PurePursuit::PurePursuit(std::vector<Point2> route, PurePursuitOptions options)
     : route_(std::move(route)), opt_(options) {
   if (route_.size() < 2) throw std::invalid_argument("a route needs at least two points");

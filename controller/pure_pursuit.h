@@ -7,15 +7,12 @@
 #include <cstddef>
 #include <vector>
 
+#include "lcmtypes/planar.h"
+
 namespace driftlab::controller {
 
 struct Point2 {
   double x = 0, y = 0;  ///< [m]
-};
-
-struct Pose2 {
-  double x = 0, y = 0;  ///< [m]
-  double yaw = 0;       ///< [rad], counter-clockwise from the x axis
 };
 
 struct Command {

@@ -21,6 +21,7 @@
 #include "core/clock_correction.h"
 #include "core/faults.h"
 #include "core/result.h"
+#include "replayer/module_host.h"
 
 namespace driftlab::replay {
 
@@ -53,15 +54,6 @@ struct ReplayOptions {
   bool write_inputs = true;       ///< the output log holds the dispatched inputs as well as the outputs
   std::string stats_channel = "MODULE_STATS";
   std::string faults_channel = "REPLAY_FAULTS";  ///< where the manifest of injected faults goes
-};
-
-struct ModuleReport {
-  std::string name;
-  int64_t inputs = 0, late = 0, out_of_order = 0, dropped = 0, outputs = 0;
-  double proc_mean_s = 0, proc_p95_s = 0, proc_max_s = 0;  ///< 0 unless ReplayOptions::timing
-  int32_t queue_depth_max = 0;
-  std::vector<std::string> warnings;
-  std::vector<std::pair<std::string, double>> metrics;  ///< the module's own (ModuleCounters::metrics)
 };
 
 struct ReplayReport {
@@ -100,7 +92,7 @@ class Replayer {
  private:
   struct Prepared;
   ReplayOptions options_;
-  std::vector<std::unique_ptr<Module>> modules_;
+  std::unique_ptr<ModuleHost> host_;
   std::unique_ptr<Prepared> prepared_;
 };
 
