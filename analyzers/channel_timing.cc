@@ -132,8 +132,8 @@ void analyse_period(const Samples& s, ChannelTiming& c, bool record_gaps) {
   }
   if (intervals.empty()) return;
   const double median_interval = median(intervals);
-  const double mean_interval = static_cast<double>(sorted.back() - sorted.front()) * 1e-6 /
-                               static_cast<double>(sorted.size() - 1);
+  const double mean_interval =
+      static_cast<double>(sorted.back() - sorted.front()) * 1e-6 / static_cast<double>(sorted.size() - 1);
   // Bursts: the usual interval far shorter than the average one. A steady stream losing even 80% of its
   // messages at random keeps its median interval above half its mean (the gaps are geometric), so a quarter
   // means the messages come in groups: judged by the average rate, and its long gaps are not drops.
@@ -175,13 +175,13 @@ void judge(ChannelTiming& c) {
   };
   char buf[256];
   if (c.malformed > 0) {
-    std::snprintf(buf, sizeof(buf), "%lld messages do not decode as %s (first: %s)", static_cast<long long>(c.malformed),
-                  c.type.c_str(), c.malformed_example.c_str());
+    std::snprintf(buf, sizeof(buf), "%lld messages do not decode as %s (first: %s)",
+                  static_cast<long long>(c.malformed), c.type.c_str(), c.malformed_example.c_str());
     add("fault", buf);
   }
   if (c.seq_gaps > 0) {
-    std::snprintf(buf, sizeof(buf), "%lld messages missing in %zu gaps of seq",
-                  static_cast<long long>(c.seq_gaps), c.gaps.size());
+    std::snprintf(buf, sizeof(buf), "%lld messages missing in %zu gaps of seq", static_cast<long long>(c.seq_gaps),
+                  c.gaps.size());
     add("fault", buf);
   } else if (!c.has_header && c.missing_by_period > 0) {
     std::snprintf(buf, sizeof(buf), "about %lld messages missing from gaps longer than 1.5 periods",
@@ -222,8 +222,10 @@ void judge(ChannelTiming& c) {
     std::string cause;
     auto near = [&](double seconds) { return std::abs(std::abs(behind) - seconds) < 0.5; };
     if (stamp_s < kWallClock && stamp_s + behind >= kWallClock) {
-      std::snprintf(buf, sizeof(buf), "stamps count from %.0f s while arrivals are wall-clock dates: the source "
-                    "stamps with simulation time or time since boot (use_sim_time?)", stamp_s);
+      std::snprintf(buf, sizeof(buf),
+                    "stamps count from %.0f s while arrivals are wall-clock dates: the source "
+                    "stamps with simulation time or time since boot (use_sim_time?)",
+                    stamp_s);
       cause = buf;
     } else if (near(37) || near(18) || near(19)) {
       const double s = std::round(std::abs(behind));
@@ -251,20 +253,22 @@ void judge(ChannelTiming& c) {
     add(std::abs(c.clock_drift_ppm) >= 100 ? "fault" : "warn", buf);
   }
   if (c.bursty) {
-    std::snprintf(buf, sizeof(buf), "messages come in bursts of about %.0f, %.1f ms apart, %.2f Hz on average: "
-                  "drops are told by seq only", c.burst_size, c.burst_interval_s * 1e3, 1 / c.expected_period_s);
+    std::snprintf(buf, sizeof(buf),
+                  "messages come in bursts of about %.0f, %.1f ms apart, %.2f Hz on average: "
+                  "drops are told by seq only",
+                  c.burst_size, c.burst_interval_s * 1e3, 1 / c.expected_period_s);
     add("warn", buf);
   }
   if (c.late_stamps > 0) {
-    std::snprintf(buf, sizeof(buf), "%lld stamps late by up to %.3f s against the channel's usual latency (the "
+    std::snprintf(buf, sizeof(buf),
+                  "%lld stamps late by up to %.3f s against the channel's usual latency (the "
                   "first %.1f s into the log): stamped after the fact or by another clock; left out of the clock fit",
-                  static_cast<long long>(c.late_stamps), c.late_stamp_max_s,
-                  c.first_late_stamp_s);
+                  static_cast<long long>(c.late_stamps), c.late_stamp_max_s, c.first_late_stamp_s);
     add("warn", buf);
   }
   if (c.has_header && c.latency_s.p99 > 0.005 && c.latency_s.p99 > 5 * std::max(c.latency_s.p50, 0.0005)) {
-    std::snprintf(buf, sizeof(buf), "latency spikes: p99 %.1f ms against a median of %.1f ms",
-                  c.latency_s.p99 * 1e3, c.latency_s.p50 * 1e3);
+    std::snprintf(buf, sizeof(buf), "latency spikes: p99 %.1f ms against a median of %.1f ms", c.latency_s.p99 * 1e3,
+                  c.latency_s.p50 * 1e3);
     add("warn", buf);
   }
 }

@@ -28,9 +28,9 @@ void BM_Ekf_Cycle(benchmark::State& state) {
   for (auto _ : state) {
     t += 5000;
     const double w = 0.3 * std::sin(++i * 0.01);
-    Measurement m = kind == 0 ? Measurement{GyroZ{w, 0}}
-                  : kind == 1 ? Measurement{Twist{0.5, w, 0, 0}}
-                              : Measurement{PoseFix{{0.0025 * i, 0, 0}, 0, 0}};
+    Measurement m = kind == 0   ? Measurement{GyroZ{w, 0}}
+                    : kind == 1 ? Measurement{Twist{0.5, w, 0, 0}}
+                                : Measurement{PoseFix{{0.0025 * i, 0, 0}, 0, 0}};
     ekf.update(t, m);
     benchmark::DoNotOptimize(ekf.state());
   }

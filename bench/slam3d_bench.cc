@@ -1,7 +1,8 @@
 // 3D point-cloud odometry (slam/slam3d.h) per registration method (scripts/bench slam3d): clouds per second and
 // the real-time factor of the module alone, on a simulated session of the 16 x 1800 lidar (sim/scenarios/
 // indoor_3d.yaml) held in memory and played in arrival order through the module host (replayer/module_host.h,
-// as on replay: routing, message checks), so log reading is not in the figure. Each run also reports the path's error against ground truth (first pose aligned).
+// as on replay: routing, message checks), so log reading is not in the figure. Each run also reports the path's error
+// against ground truth (first pose aligned).
 //   slam3d_bench [--log=SESSION.lcm | --seconds=N] [benchmark flags]
 // Without --log, N simulated seconds (default 20) are made in $DRIFTLAB_BENCH_DIR (default /dev/shm) first.
 #include <benchmark/benchmark.h>
@@ -17,8 +18,8 @@
 #include "analyzers/trajectory.h"
 #include "core/bus.h"
 #include "core/log_reader.h"
-#include "replayer/module_host.h"
 #include "driftlab/pose_t.hpp"
+#include "replayer/module_host.h"
 #include "sim/scenario.h"
 #include "sim/simulator.h"
 #include "slam/slam3d.h"

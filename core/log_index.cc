@@ -10,9 +10,9 @@
 #include <unordered_map>
 
 #include "core/internal/event_scanner.h"
+#include "core/log_format.h"
 #include "core/mapped_file.h"
 #include "core/string_hash.h"
-#include "core/log_format.h"
 #include "lcmtypes/stream_header.h"
 
 namespace driftlab {

@@ -5,9 +5,9 @@
 #include <unordered_map>
 
 #include "core/internal/event_scanner.h"
+#include "core/log_index.h"
 #include "core/mapped_file.h"
 #include "core/string_hash.h"
-#include "core/log_index.h"
 
 namespace driftlab {
 

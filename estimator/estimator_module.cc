@@ -81,7 +81,8 @@ Status EstimatorModule::start(Bus& bus) {
       if (!decode_message(m, p)) return void(++undecodable_);
       ++poses_;
       const PoseFix pose{{p.position.x, p.position.y, yaw_of(p.orientation)},
-                         std::max(p.covariance[0], p.covariance[7]), p.covariance[35]};
+                         std::max(p.covariance[0], p.covariance[7]),
+                         p.covariance[35]};
       if (!ekf_.initialized()) {
         frame_ = c_.frame_id.empty() ? p.header.frame_id : c_.frame_id;
         ekf_.init(p.header.utime, pose, 0, 0);

@@ -17,8 +17,8 @@
 #include <thread>
 #include <unordered_map>
 
-#include "core/string_hash.h"
 #include "core/log_writer.h"
+#include "core/string_hash.h"
 #include "driftlab/recorder_stats_t.hpp"
 #include "recorder/lcm_udpm.h"
 

@@ -164,7 +164,7 @@ Status ModuleHost::fire_timers(int64_t t) {
     now_ = std::max(now_, due->next);
     due->next += due->period;
     try {
-      due->fn();  // timers_ is a deque: a timer may add timers without moving this one
+      due->fn();                         // timers_ is a deque: a timer may add timers without moving this one
     } catch (const std::exception& e) {  // as for a message: counted, and the run goes on
       due->bus->tally_.failed("a timer", e.what());
     }

@@ -67,8 +67,8 @@ struct HostOptions {
   /// true: what a module publishes goes to the modules (in publication order, at the same instant, before the next
   /// input), to the log and to the outlet; false (live): to the log and the outlet, which brings it back as input.
   bool loopback = true;
-  std::string out;            ///< the output log (atomic); without ".lcm", the modules' artifact prefix; empty: none
-  bool timing = false;        ///< measure processing time (and the queue it implies); makes a replay vary
+  std::string out;              ///< the output log (atomic); without ".lcm", the modules' artifact prefix; empty: none
+  bool timing = false;          ///< measure processing time (and the queue it implies); makes a replay vary
   double stats_period_s = 1.0;  ///< module statistics every this long of host time [s]; <= 0: only at the end
   std::string stats_channel = "MODULE_STATS";
 };

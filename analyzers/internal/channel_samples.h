@@ -29,8 +29,8 @@ struct Samples {
   // Yaw rate [rad/s] at a stamp [s], for channels that observe the robot's rotation.
   Array<double> motion_t, motion_w;
   bool motion_from_pose = false;
-  std::string frame;  // header.frame_id of the first message
-  int64_t malformed = 0;          // messages that do not hold their type's layout: counted, nothing else read
+  std::string frame;      // header.frame_id of the first message
+  int64_t malformed = 0;  // messages that do not hold their type's layout: counted, nothing else read
   std::string malformed_example;
   double last_yaw = 0, last_t = 0;
   bool have_last = false;

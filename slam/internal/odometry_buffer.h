@@ -32,7 +32,7 @@ class OdometryBuffer {
     const double f = static_cast<double>(stamp - lo->stamp) / static_cast<double>(hi->stamp - lo->stamp);
     const double dyaw = wrap_angle(hi->pose.yaw - lo->pose.yaw);
     return Pose2{lo->pose.x + f * (hi->pose.x - lo->pose.x), lo->pose.y + f * (hi->pose.y - lo->pose.y),
-                  lo->pose.yaw + f * dyaw};
+                 lo->pose.yaw + f * dyaw};
   }
 
  private:

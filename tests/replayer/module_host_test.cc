@@ -151,11 +151,12 @@ TEST(ModuleHost, MalformedInputsAndModulesThatThrowAreCountedAndSkipped) {
   ASSERT_TRUE(bus.start());
   std::vector<uint8_t> bad = imu(9, kT0);
   test::put_be32(bad, 8 + 8 + 8, 1 << 30);  // the frame_id's length: far past the end
-  for (int i = 0; i < 4; ++i) ASSERT_TRUE(bus.deliver("IMU", i == 1 ? bad : imu(i, kT0 + i * 700000), kT0 + i * 700000));
+  for (int i = 0; i < 4; ++i)
+    ASSERT_TRUE(bus.deliver("IMU", i == 1 ? bad : imu(i, kT0 + i * 700000), kT0 + i * 700000));
   ASSERT_TRUE(bus.finish());
   EXPECT_EQ(fragile_handled, 3);  // the malformed one reached no handler
   EXPECT_EQ(steady_handled, 3);
-  EXPECT_EQ(ticks, 3);            // at kT0 (threw), kT0 + 1 s and kT0 + 2 s: the run went on
+  EXPECT_EQ(ticks, 3);  // at kT0 (threw), kT0 + 1 s and kT0 + 2 s: the run went on
   const auto reports = bus.reports();
   ASSERT_EQ(reports.size(), 2u);
   EXPECT_EQ(reports[0].inputs, 3);
@@ -163,8 +164,7 @@ TEST(ModuleHost, MalformedInputsAndModulesThatThrowAreCountedAndSkipped) {
   ASSERT_EQ(reports[0].warnings.size(), 2u);
   EXPECT_EQ(reports[0].warnings[0].rfind("1 malformed messages dropped before delivery (first: IMU: ", 0), 0u)
       << reports[0].warnings[0];
-  EXPECT_EQ(reports[0].warnings[1],
-            "2 messages the module failed on and skipped (first: a timer: timer trouble)");
+  EXPECT_EQ(reports[0].warnings[1], "2 messages the module failed on and skipped (first: a timer: timer trouble)");
   EXPECT_EQ(reports[1].dropped, 1);
 }
 

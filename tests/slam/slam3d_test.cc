@@ -1,8 +1,9 @@
 // slam::Slam3d and slam::make_slam3d (3D point-cloud odometry with PCL registration) end to end on 25 s of the
 // simulated 16 x 1800 lidar (sim/scenarios/indoor_3d.yaml), played in arrival order through the fake bus
-// (tests/fakes/fake_bus.h, the replay host): the SLAM path of each method (icp, ndt, gicp) against ground truth, compared with what wrong answers score
-// (standing still; an odometry 10% too long, alone); registration without odometry; dropped-cloud counts; the PCD
-// map; config errors; the warnings when there are no clouds or no sensor pose in TF.
+// (tests/fakes/fake_bus.h, the replay host): the SLAM path of each method (icp, ndt, gicp) against ground truth,
+// compared with what wrong answers score (standing still; an odometry 10% too long, alone); registration without
+// odometry; dropped-cloud counts; the PCD map; config errors; the warnings when there are no clouds or no sensor pose
+// in TF.
 #include <gtest/gtest.h>
 #include <pcl/io/pcd_io.h>
 #include <pcl/point_cloud.h>
@@ -114,8 +115,7 @@ class Slam3dSession : public ::testing::Test {
     size_t matched = 0;          ///< poses matched to ground truth
   };
   /// Plays the session through a Slam3d made from `yaml`; artifacts under `prefix` when non-empty.
-  static Run run(const std::string& yaml, const std::string& prefix = {},
-                 const test::FakeBus::Rewrite& rewrite = {}) {
+  static Run run(const std::string& yaml, const std::string& prefix = {}, const test::FakeBus::Rewrite& rewrite = {}) {
     Run r;
     auto module = make_slam3d(YAML::Load(yaml), "test.yaml");
     EXPECT_TRUE(module) << module.error().message;
