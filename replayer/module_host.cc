@@ -69,8 +69,13 @@ ModuleHost::~ModuleHost() = default;
 void ModuleHost::add_module(std::unique_ptr<Module> module) { modules_.push_back(std::move(module)); }
 
 Status ModuleHost::start(std::unique_ptr<LogSink> log) {
-  if (started_) return {};
+  if (started_) return started_status_;
   started_ = true;
+  started_status_ = open(std::move(log));
+  return started_status_;
+}
+
+Status ModuleHost::open(std::unique_ptr<LogSink> log) {
   for (auto& m : modules_) buses_.push_back(std::make_unique<HostBus>(*this, *m));
   if (!o_.out.empty()) {
     prefix_ = o_.out;

@@ -87,7 +87,8 @@ class ModuleHost {
   void set_outlet(Outlet outlet) { outlet_ = std::move(outlet); }
 
   /// Starts the modules (they subscribe), then opens the output log: `log` when given (tests), else
-  /// options.out. Errors ("module NAME: ...", the log's) leave no output behind. Once only.
+  /// options.out. Errors ("module NAME: ...", the log's) leave no output behind. Once only: a second call
+  /// returns what the first did.
   Status start(std::unique_ptr<LogSink> log = {});
 
   /// Moves the host's time to t [us]: fires the timer ticks due up to t (those at t too), then publishes the
@@ -130,6 +131,7 @@ class ModuleHost {
     std::vector<uint8_t> data;
   };
 
+  Status open(std::unique_ptr<LogSink> log);
   void publish(HostBus& from, std::string_view channel, std::span<const uint8_t> data);
   Status fire_timers(int64_t t);
   Status maybe_stats();
@@ -154,6 +156,7 @@ class ModuleHost {
   int64_t stats_seq_ = 0;
   int64_t deliveries_ = 0, outputs_ = 0;
   bool started_ = false;
+  Status started_status_;  ///< what start() said, said again
   Status failure_;
 };
 

@@ -29,7 +29,7 @@ Status MemoryLog::write(int64_t utime, std::string_view channel, std::span<const
   return {};
 }
 
-FakeBus::FakeBus(Options options)
+FakeBus::FakeBus(const Options& options)
     : host_(std::make_unique<replay::ModuleHost>(replay::HostOptions{
           .clock = replay::HostClock::kVirtual,
           .loopback = true,

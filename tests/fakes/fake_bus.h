@@ -39,7 +39,7 @@ class FakeBus {
     double stats_period_s = 0;    ///< module statistics on MODULE_STATS [s]; 0: once, at finish()
   };
   FakeBus() : FakeBus(Options{}) {}
-  explicit FakeBus(Options options);
+  explicit FakeBus(const Options& options);
   ~FakeBus();
 
   /// Hosts a module (borrowed: it must outlive the bus). Before start() only.
