@@ -52,7 +52,8 @@ std::optional<double> scan_rotation(const std::vector<float>& previous, const st
     }
   }
   for (int k = std::max(-max_shift, coarse - 4); k <= std::min(max_shift, coarse + 4); ++k) {
-    cost[static_cast<size_t>(k + max_shift)] = cost_at(k, 2);
+    const int at = k + max_shift;  // >= 0
+    cost[static_cast<size_t>(at)] = cost_at(k, 2);
   }
   const size_t best = static_cast<size_t>(std::min_element(cost.begin(), cost.end()) - cost.begin());
   if (!std::isfinite(cost[best])) return std::nullopt;

@@ -76,7 +76,7 @@ using ItemHeap = std::priority_queue<Item, std::vector<Item>, Later>;
 /// The logs merged by log time, with -c, --start and --end applied.
 class Merger {
  public:
-  static Result<Merger> open(const ReplayOptions& o, std::function<void(const Problem&)> on_problem) {
+  static Result<Merger> open(const ReplayOptions& o, const std::function<void(const Problem&)>& on_problem) {
     Merger m;
     for (const auto& path : o.logs) {
       ReadOptions ro;

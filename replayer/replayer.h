@@ -1,9 +1,9 @@
 // The replayer: merges one or more logs in time order and dispatches every event to modules (SLAM, estimator,
 // controller) through the Bus they also use live, hosted as live (module_host.h) but on the virtual clock: a
-// module's "now" is the time of the message it handles. Before dispatch it can filter and rename channels, correct clocks (restamp) and inject faults; what the
-// modules publish goes back on the bus (to the other modules, in publication order) and into the output log, with
-// per-module statistics. The same inputs and options give a byte-identical output log.
-// Thread-safety: a Replayer runs on one thread; modules are called from it only.
+// module's "now" is the time of the message it handles. Before dispatch it can filter and rename channels, correct
+// clocks (restamp) and inject faults; what the modules publish goes back on the bus (to the other modules, in
+// publication order) and into the output log, with per-module statistics. The same inputs and options give a
+// byte-identical output log. Thread-safety: a Replayer runs on one thread; modules are called from it only.
 #pragma once
 
 #include <atomic>

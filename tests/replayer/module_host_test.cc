@@ -151,7 +151,7 @@ TEST(ModuleHost, MalformedInputsAndModulesThatThrowAreCountedAndSkipped) {
   ASSERT_TRUE(bus.start());
   std::vector<uint8_t> bad = imu(9, kT0);
   test::put_be32(bad, 8 + 8 + 8, 1 << 30);  // the frame_id's length: far past the end
-  for (int i = 0; i < 4; ++i)
+  for (int64_t i = 0; i < 4; ++i)
     ASSERT_TRUE(bus.deliver("IMU", i == 1 ? bad : imu(i, kT0 + i * 700000), kT0 + i * 700000));
   ASSERT_TRUE(bus.finish());
   EXPECT_EQ(fragile_handled, 3);  // the malformed one reached no handler
@@ -174,7 +174,7 @@ TEST(ModuleHost, StatisticsEveryPeriodOfHostTime) {
   probe.on_start = [](Bus& b) { b.subscribe("IMU", [](const BusMessage&) {}); };
   bus.add(probe);
   ASSERT_TRUE(bus.start());
-  for (int i = 0; i <= 25; ++i) ASSERT_TRUE(bus.deliver("IMU", imu(i, kT0 + i * 100000), kT0 + i * 100000));
+  for (int64_t i = 0; i <= 25; ++i) ASSERT_TRUE(bus.deliver("IMU", imu(i, kT0 + i * 100000), kT0 + i * 100000));
   ASSERT_TRUE(bus.finish());
   std::vector<int64_t> at;
   for (const auto& e : bus.recorded()) {
