@@ -46,7 +46,7 @@ struct LiveRunner::Impl {
     if (lcm != nullptr) lcm_destroy(lcm);
   }
 
-  /// Every message on the bus goes to the host, which routes it to the modules subscribed to its channel.
+  /// Every message on a channel some module subscribed to goes to the host, which routes it.
   static void on_message(const lcm_recv_buf_t* rbuf, const char* channel, void* user) {
     auto& d = *static_cast<Impl*>(user);
     if (!d.failure.ok()) return;
@@ -69,8 +69,19 @@ Status LiveRunner::open() {
     const std::string channel(m.channel);
     lcm_publish(d.lcm, channel.c_str(), m.data.data(), static_cast<unsigned int>(m.data.size()));
   });
-  lcm_subscribe(d.lcm, ".*", &Impl::on_message, &d);
-  return d.host.start();
+  if (Status s = d.host.start_modules(); !s) return s;
+  // One LCM subscription to what any module subscribed to: LCM drops the other channels on arrival, and the host
+  // routes the rest. Its queue holds as many messages as the modules' subscriptions would have had apiece (LCM's
+  // default, 30, each), so a flood on one channel leaves room for the others as before.
+  const std::vector<std::string> wanted = d.host.subscriptions();
+  if (!wanted.empty()) {
+    std::string any;
+    for (const auto& regex : wanted) any += (any.empty() ? "(?:" : "|(?:") + regex + ")";
+    lcm_subscription_t* sub = lcm_subscribe(d.lcm, ("(?:" + any + ")").c_str(), &Impl::on_message, &d);
+    if (sub == nullptr) return Error{"--url " + d.o.url + ": cannot subscribe to " + any};
+    lcm_subscription_set_queue_capacity(sub, static_cast<int>(30 * wanted.size()));
+  }
+  return d.host.open_log();  // after subscribing: a log on disk says the runner listens
 }
 
 Result<LiveReport> LiveRunner::run(const std::atomic<bool>* stop) {

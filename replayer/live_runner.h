@@ -1,6 +1,6 @@
 // Runs the same modules live: on an LCM bus (udpm), with the wall clock as their clock. The replay's twin, on the
 // same host (module_host.h): what a module does here it does there, message for message; here it meets real
-// timing. Every message on the bus goes to the host, which routes it by the modules' subscriptions; what the
+// timing. Every message on a channel a module subscribed to goes to the host, which routes it; what the
 // modules publish goes on the bus (and so back to them) and into an output log, with their statistics
 // (processing time measured, as nothing needs to repeat).
 // Thread-safety: run() handles every message and timer on its own thread; modules need no locking.

@@ -40,7 +40,8 @@ class ModuleHost::HostBus final : public Bus {
  public:
   HostBus(ModuleHost& host, Module& module) : host_(host), module_(module) {}
   void subscribe(const std::string& channel_regex, BusHandler handler) override {
-    subs_.push_back({std::regex(channel_regex, std::regex::ECMAScript | std::regex::optimize), std::move(handler)});
+    subs_.push_back(
+        {channel_regex, std::regex(channel_regex, std::regex::ECMAScript | std::regex::optimize), std::move(handler)});
     host_.routes_.clear();
   }
   void publish(std::string_view channel, std::span<const uint8_t> data) override {
@@ -54,6 +55,7 @@ class ModuleHost::HostBus final : public Bus {
   std::string artifact_prefix() const override { return host_.prefix_; }
 
   struct Subscription {
+    std::string pattern;
     std::regex regex;
     BusHandler handler;
   };
@@ -69,21 +71,29 @@ ModuleHost::~ModuleHost() = default;
 void ModuleHost::add_module(std::unique_ptr<Module> module) { modules_.push_back(std::move(module)); }
 
 Status ModuleHost::start(std::unique_ptr<LogSink> log) {
-  if (started_) return started_status_;
-  started_ = true;
-  started_status_ = open(std::move(log));
-  return started_status_;
+  if (Status s = start_modules(); !s) return s;
+  return open_log(std::move(log));
 }
 
-Status ModuleHost::open(std::unique_ptr<LogSink> log) {
+Status ModuleHost::start_modules() {
+  if (started_) return started_status_;
+  started_ = true;
   for (auto& m : modules_) buses_.push_back(std::make_unique<HostBus>(*this, *m));
   if (!o_.out.empty()) {
     prefix_ = o_.out;
     if (prefix_.size() > 4 && prefix_.compare(prefix_.size() - 4, 4, ".lcm") == 0) prefix_.resize(prefix_.size() - 4);
   }
   for (auto& b : buses_) {
-    if (Status s = b->module_.start(*b); !s) return Error{"module " + b->module_.name() + ": " + s.message()};
+    if (Status s = b->module_.start(*b); !s) {
+      started_status_ = Error{"module " + b->module_.name() + ": " + s.message()};
+      return started_status_;
+    }
   }
+  return {};
+}
+
+Status ModuleHost::open_log(std::unique_ptr<LogSink> log) {
+  if (log_) return {};
   if (log) {
     log_ = std::move(log);
   } else if (!o_.out.empty()) {
@@ -134,6 +144,14 @@ std::optional<int64_t> ModuleHost::next_due() const {
   for (const Timer& timer : timers_) earliest(timer.next == 0 ? now_ : timer.next);  // unplaced: at the next advance
   if (o_.stats_period_s > 0 && next_stats_ != 0) earliest(next_stats_);
   return due;
+}
+
+std::vector<std::string> ModuleHost::subscriptions() const {
+  std::vector<std::string> out;
+  for (const auto& b : buses_) {
+    for (const auto& s : b->subs_) out.push_back(s.pattern);
+  }
+  return out;
 }
 
 std::vector<ModuleReport> ModuleHost::reports() const {

@@ -90,6 +90,12 @@ class ModuleHost {
   /// options.out. Errors ("module NAME: ...", the log's) leave no output behind. Once only: a second call
   /// returns what the first did.
   Status start(std::unique_ptr<LogSink> log = {});
+  /// start() in its two steps, for a caller that acts on the subscriptions before the log appears (the live
+  /// runner subscribes on LCM).
+  Status start_modules();
+  Status open_log(std::unique_ptr<LogSink> log = {});
+  /// The channel regexes the modules subscribed to, in order.
+  std::vector<std::string> subscriptions() const;
 
   /// Moves the host's time to t [us]: fires the timer ticks due up to t (those at t too), then publishes the
   /// statistics when a period has passed. Time never goes back: an earlier t only fires nothing.
@@ -131,7 +137,6 @@ class ModuleHost {
     std::vector<uint8_t> data;
   };
 
-  Status open(std::unique_ptr<LogSink> log);
   void publish(HostBus& from, std::string_view channel, std::span<const uint8_t> data);
   Status fire_timers(int64_t t);
   Status maybe_stats();

@@ -2,7 +2,7 @@
 // on the virtual one, a late timer once on the wall one, now() the tick time in both), time never going back,
 // outputs looped back in publication order or handed to the outlet, malformed inputs and modules that throw
 // (in a handler or a timer) counted and skipped, statistics every period, the artifact prefix, the atomic output
-// log; and the fake bus module tests use (tests/fakes/fake_bus.h).
+// log, starting in two steps; and the fake bus module tests use (tests/fakes/fake_bus.h).
 #include "replayer/module_host.h"
 
 #include <gtest/gtest.h>
@@ -207,6 +207,27 @@ TEST(ModuleHost, OutputLogAppearsWholeOnCloseAndNamesTheArtifactPrefix) {
   ASSERT_EQ(events.size(), 2u);
   EXPECT_EQ(events[0].channel, "NOTE");
   EXPECT_EQ(events[1].channel, "MODULE_STATS");
+}
+
+TEST(ModuleHost, StartsInTwoStepsListingWhatTheModulesSubscribedBeforeTheLogAppears) {
+  // The live runner subscribes on LCM to these between the steps, so a log on disk says it listens.
+  test::TempDir dir;
+  ModuleHost host({.out = dir.file("live.lcm")});
+  auto a = std::make_unique<Probe>("a");
+  a->on_start = [](Bus& b) {
+    b.subscribe("IMU|ODOM", [](const BusMessage&) {});
+    b.subscribe("SCAN", [](const BusMessage&) {});
+  };
+  auto b = std::make_unique<Probe>("b");
+  b->on_start = [](Bus& bus) { bus.subscribe("SLAM_.*", [](const BusMessage&) {}); };
+  host.add_module(std::move(a));
+  host.add_module(std::move(b));
+  ASSERT_TRUE(host.start_modules());
+  EXPECT_EQ(host.subscriptions(), (std::vector<std::string>{"IMU|ODOM", "SCAN", "SLAM_.*"}));
+  EXPECT_TRUE(std::filesystem::is_empty(dir.path()));
+  ASSERT_TRUE(host.open_log());
+  EXPECT_TRUE(std::filesystem::exists(dir.file("live.lcm.partial")));
+  ASSERT_TRUE(host.close());
 }
 
 TEST(ModuleHost, AModuleThatFailsToStartIsNamedAndNoLogIsCreated) {
