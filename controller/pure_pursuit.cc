@@ -7,12 +7,6 @@
 #include "core/config.h"
 
 namespace driftlab::controller {
-namespace {
-
-double wrap_angle(double a) { return std::remainder(a, 2 * M_PI); }
-
-}  // namespace
-
 const config::Table<PurePursuitOptions>& pure_pursuit_table() {
   using O = PurePursuitOptions;
   using config::above;

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "core/result.h"
+#include "lcmtypes/planar.h"
 
 namespace driftlab::config {
 template <class T>
@@ -19,11 +20,6 @@ namespace driftlab::controller {
 
 struct Point2 {
   double x = 0, y = 0;  ///< [m]
-};
-
-struct Pose2 {
-  double x = 0, y = 0;  ///< [m]
-  double yaw = 0;       ///< [rad], counter-clockwise from the x axis
 };
 
 struct Command {

@@ -86,7 +86,7 @@ Status EstimatorModule::start(Bus& bus) {
       ++odom_;
       if (!ekf_.initialized() && (c_.pose_channel.empty() || poses_ == 0)) {
         if (frame_.empty()) frame_ = c_.frame_id.empty() ? o.header.frame_id : c_.frame_id;
-        ekf_.init(o.header.utime, {o.position.x, o.position.y, yaw_of(o.orientation), 0, 0}, o.linear_velocity.x,
+        ekf_.init(o.header.utime, {{o.position.x, o.position.y, yaw_of(o.orientation)}}, o.linear_velocity.x,
                   o.angular_velocity.z);
         return;
       }
@@ -100,8 +100,9 @@ Status EstimatorModule::start(Bus& bus) {
       driftlab::pose_t p;
       if (!decode_message(m, p)) return void(++undecodable_);
       ++poses_;
-      const Pose2 pose{p.position.x, p.position.y, yaw_of(p.orientation),
-                       std::max(p.covariance[0], p.covariance[7]), p.covariance[35]};
+      const PoseFix pose{{p.position.x, p.position.y, yaw_of(p.orientation)},
+                         std::max(p.covariance[0], p.covariance[7]),
+                         p.covariance[35]};
       if (!ekf_.initialized()) {
         frame_ = c_.frame_id.empty() ? p.header.frame_id : c_.frame_id;
         ekf_.init(p.header.utime, pose, 0, 0);

@@ -1,9 +1,9 @@
 // The replayer: merges one or more logs in time order and dispatches every event to modules (SLAM, estimator,
-// controller) through the Bus they also use live, on a virtual clock: a module's "now" is the time of the message it
-// handles. Before dispatch it can filter and rename channels, correct clocks (restamp) and inject faults; what the
-// modules publish goes back on the bus (to the other modules, in publication order) and into the output log, with
-// per-module statistics. The same inputs and options give a byte-identical output log.
-// Thread-safety: a Replayer runs on one thread; modules are called from it only.
+// controller) through the Bus they also use live, hosted as live (module_host.h) but on the virtual clock: a
+// module's "now" is the time of the message it handles. Before dispatch it can filter and rename channels, correct
+// clocks (restamp) and inject faults; what the modules publish goes back on the bus (to the other modules, in
+// publication order) and into the output log, with per-module statistics. The same inputs and options give a
+// byte-identical output log. Thread-safety: a Replayer runs on one thread; modules are called from it only.
 #pragma once
 
 #include <atomic>
@@ -21,6 +21,7 @@
 #include "core/clock_correction.h"
 #include "core/faults.h"
 #include "core/result.h"
+#include "replayer/module_host.h"
 
 namespace driftlab::config {
 template <class T>
@@ -66,15 +67,6 @@ struct ReplayOptions {
   std::string faults_channel = "REPLAY_FAULTS";  ///< where the manifest of injected faults goes
 };
 
-struct ModuleReport {
-  std::string name;
-  int64_t inputs = 0, late = 0, out_of_order = 0, dropped = 0, outputs = 0;
-  double proc_mean_s = 0, proc_p95_s = 0, proc_max_s = 0;  ///< 0 unless ReplayOptions::timing
-  int32_t queue_depth_max = 0;
-  std::vector<std::string> warnings;
-  std::vector<std::pair<std::string, double>> metrics;  ///< the module's own (ModuleCounters::metrics)
-};
-
 struct ReplayReport {
   int64_t read = 0;        ///< events read from the logs (after -c, --start, --end)
   int64_t dispatched = 0;  ///< input deliveries (after injected drops and duplicates)
@@ -111,7 +103,7 @@ class Replayer {
  private:
   struct Prepared;
   ReplayOptions options_;
-  std::vector<std::unique_ptr<Module>> modules_;
+  std::unique_ptr<ModuleHost> host_;
   std::unique_ptr<Prepared> prepared_;
 };
 

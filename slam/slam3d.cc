@@ -31,7 +31,7 @@ namespace {
 
 using Cloud = pcl::PointCloud<pcl::PointXYZ>;
 
-Eigen::Isometry3d planar(const internal::Pose2d& p) {
+Eigen::Isometry3d planar(const Pose2& p) {
   Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
   t.translate(Eigen::Vector3d(p.x, p.y, 0));
   t.rotate(Eigen::AngleAxisd(p.yaw, Eigen::Vector3d::UnitZ()));
@@ -98,7 +98,7 @@ struct Slam3d::Impl {
   bool have_pose = false;
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();          ///< base in map, at the last cloud
   Eigen::Isometry3d last_motion = Eigen::Isometry3d::Identity();   ///< between the last two clouds
-  std::optional<internal::Pose2d> odom_at_last;
+  std::optional<Pose2> odom_at_last;
   Eigen::Isometry3d last_keyframe = Eigen::Isometry3d::Identity();
   std::deque<Cloud::Ptr> local;  ///< recent keyframes in the map frame, at `voxel`
   Cloud::Ptr map = std::make_shared<Cloud>();  ///< every keyframe in the map frame, at about `map_voxel`
