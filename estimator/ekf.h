@@ -12,6 +12,8 @@
 #include <deque>
 #include <variant>
 
+#include "lcmtypes/planar.h"
+
 namespace driftlab::estimator {
 
 /// Process and measurement noise (standard deviations).
@@ -35,11 +37,12 @@ struct GyroZ {
 struct Twist {
   double v = 0, w = 0, var_v = 0, var_w = 0;
 };
-/// An absolute pose [m, m, rad] with variances (<= 0: configured).
-struct Pose2 {
-  double x = 0, y = 0, yaw = 0, var_xy = 0, var_yaw = 0;
+/// An absolute pose with variances [m^2, rad^2] (<= 0: configured).
+struct PoseFix {
+  Pose2 pose;
+  double var_xy = 0, var_yaw = 0;
 };
-using Measurement = std::variant<GyroZ, Twist, Pose2>;
+using Measurement = std::variant<GyroZ, Twist, PoseFix>;
 
 class Ekf {
  public:
@@ -50,7 +53,7 @@ class Ekf {
   explicit Ekf(const EkfNoise& noise = {}) : noise_(noise) {}
 
   /// Starts at a pose and velocity, at time utime [us].
-  void init(int64_t utime, const Pose2& pose, double v, double w);
+  void init(int64_t utime, const PoseFix& fix, double v, double w);
   bool initialized() const { return initialized_; }
 
   /// Moves the state to utime (no-op for earlier times).
@@ -85,7 +88,7 @@ class DelayedEkf {
 
   DelayedEkf(const EkfNoise& noise, double window_s) : ekf_(noise), window_(static_cast<int64_t>(window_s * 1e6)) {}
 
-  void init(int64_t utime, const Pose2& pose, double v, double w);
+  void init(int64_t utime, const PoseFix& fix, double v, double w);
   bool initialized() const { return ekf_.initialized(); }
   /// Applies a measurement stamped utime [us]; false when it was older than the window and rejected.
   bool add(int64_t utime, const Measurement& m);
@@ -105,8 +108,5 @@ class DelayedEkf {
   std::deque<Entry> history_; ///< applied measurements within the window, by stamp
   Counters counters_;
 };
-
-/// Wraps an angle to (-pi, pi].
-double wrap_angle(double a);
 
 }  // namespace driftlab::estimator

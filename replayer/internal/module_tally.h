@@ -15,7 +15,7 @@
 #include "core/bus.h"
 #include "core/quantile.h"
 #include "driftlab/module_stats_t.hpp"
-#include "replayer/replayer.h"
+#include "replayer/module_host.h"
 
 namespace driftlab::replay::internal {
 

@@ -18,7 +18,7 @@ struct Truth {
   double v = 0.5, w = 0.25;
   Pose2 at(double t) const {
     const double yaw = w * t;
-    return {v / w * std::sin(yaw), v / w * (1 - std::cos(yaw)), wrap_angle(yaw), 0, 0};
+    return {v / w * std::sin(yaw), v / w * (1 - std::cos(yaw)), wrap_angle(yaw)};
   }
 };
 
@@ -42,7 +42,7 @@ std::vector<Stamped> measurements(uint64_t seed) {
       p.x += 0.05 * n(rng);
       p.y += 0.05 * n(rng);
       p.yaw += 0.02 * n(rng);
-      out.push_back({t, p});
+      out.push_back({t, PoseFix{p}});
     }
   }
   return out;
@@ -50,7 +50,7 @@ std::vector<Stamped> measurements(uint64_t seed) {
 
 TEST(Ekf, TracksACircleAndEstimatesTheGyroBias) {
   DelayedEkf ekf(EkfNoise{}, 0.5);
-  ekf.init(kT0, {0, 0, 0, 0, 0}, 0.5, 0.25);
+  ekf.init(kT0, {}, 0.5, 0.25);
   for (const auto& s : measurements(1)) ASSERT_TRUE(ekf.add(s.utime, s.m));
   const auto& x = ekf.filter().state();
   const Pose2 truth = Truth().at(20.0);
@@ -77,8 +77,8 @@ TEST(DelayedEkf, LateMeasurementsWithinTheWindowGiveTheInOrderResult) {
   }
   std::stable_sort(arrivals.begin(), arrivals.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
   DelayedEkf a(EkfNoise{}, 0.5), b(EkfNoise{}, 0.5);
-  a.init(kT0, {0, 0, 0, 0, 0}, 0.5, 0.25);
-  b.init(kT0, {0, 0, 0, 0, 0}, 0.5, 0.25);
+  a.init(kT0, {}, 0.5, 0.25);
+  b.init(kT0, {}, 0.5, 0.25);
   for (const auto& s : in_order) a.add(s.utime, s.m);
   for (const auto& [arrival, s] : arrivals) ASSERT_TRUE(b.add(s.utime, s.m));
   EXPECT_EQ(b.counters().reapplied, 999);  // all but the last, which comes after the last gyro sample
@@ -91,7 +91,7 @@ TEST(DelayedEkf, LateMeasurementsWithinTheWindowGiveTheInOrderResult) {
 
 TEST(DelayedEkf, MeasurementsOlderThanTheWindowAreRejectedAndCounted) {
   DelayedEkf ekf(EkfNoise{}, 0.1);
-  ekf.init(kT0, {0, 0, 0, 0, 0}, 0, 0);
+  ekf.init(kT0, {}, 0, 0);
   for (int i = 1; i <= 100; ++i) ASSERT_TRUE(ekf.add(kT0 + i * 5000, GyroZ{0, 0}));
   const Ekf before = ekf.filter();
   EXPECT_FALSE(ekf.add(kT0 + 500000 - 150000, Twist{1, 1, 0, 0}));  // 150 ms old, window 100 ms
@@ -101,7 +101,7 @@ TEST(DelayedEkf, MeasurementsOlderThanTheWindowAreRejectedAndCounted) {
   EXPECT_EQ(ekf.counters().reapplied, 1);
   // A zero window is the "reject every late measurement" policy.
   DelayedEkf strict(EkfNoise{}, 0);
-  strict.init(kT0, {0, 0, 0, 0, 0}, 0, 0);
+  strict.init(kT0, {}, 0, 0);
   ASSERT_TRUE(strict.add(kT0 + 10000, GyroZ{0, 0}));
   EXPECT_FALSE(strict.add(kT0 + 5000, GyroZ{0, 0}));
 }
