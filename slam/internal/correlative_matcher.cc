@@ -145,6 +145,12 @@ CorrelativeMatcher::Match CorrelativeMatcher::match(const std::vector<Point2f>& 
         best = {x, y, guess_yaw + (c.turn - n_yaw) * step, c.bound};
         continue;
       }
+      if (exclude != nullptr) {  // a branch wholly inside the excluded disc holds no pose to find
+        const double span = ((1 << level) - 1) * res;
+        const double x = guess_x + c.tx * res - exclude->x, y = guess_y + c.ty * res - exclude->y;
+        const double far_x = std::max(std::abs(x), std::abs(x + span)), far_y = std::max(std::abs(y), std::abs(y + span));
+        if (std::hypot(far_x, far_y) <= exclude_xy) continue;
+      }
       const int h = 1 << (level - 1);
       std::vector<Candidate> children;
       for (int dy : {0, h}) {

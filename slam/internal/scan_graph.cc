@@ -26,7 +26,9 @@ PoseGraph2d::Pose array_of(const CPose2D& p) { return {p.x(), p.y(), p.phi()}; }
 /// at its point (point to line), so H = mean over the pairs of J^T J, J = [n_x, n_y, n . d(point)/d(yaw)], is the
 /// information per point about the current pose (x, y, yaw in the map frame) at `pose`. In a corridor every normal
 /// points across it, and H's translation block has an eigenvalue near zero along it. At most 200 pairs, evenly
-/// spread, are looked at; `lines` receives how many had a clear surface (a line through their old neighbours).
+/// spread, are looked at; `lines` receives how many had a clear surface (a line through their 8 nearest old
+/// points: spread along it by 2 cm at least, so dense scans (the simulator's 360 beams, several keyframes on top
+/// of each other) still show their walls, and ten times less across it).
 Eigen::Matrix3d constraint_of(const mrpt::maps::CSimplePointsMap& reference, const mrpt::tfest::TMatchingPairList& pairs,
                               const CPose2D& pose, size_t& lines) {
   Eigen::Matrix3d h = Eigen::Matrix3d::Zero();
@@ -36,7 +38,7 @@ Eigen::Matrix3d constraint_of(const mrpt::maps::CSimplePointsMap& reference, con
   const size_t every = std::max<size_t>(1, pairs.size() / 200);
   for (size_t p = 0; p < pairs.size(); p += every) {
     const auto& pair = pairs[p];
-    reference.kdTreeNClosestPoint2DIdx(pair.global.x, pair.global.y, 6, idx, d2);
+    reference.kdTreeNClosestPoint2DIdx(pair.global.x, pair.global.y, 8, idx, d2);
     if (idx.size() < 4) continue;
     std::vector<Eigen::Vector2d> near;
     Eigen::Vector2d mean = Eigen::Vector2d::Zero();
@@ -50,8 +52,7 @@ Eigen::Matrix3d constraint_of(const mrpt::maps::CSimplePointsMap& reference, con
     Eigen::Matrix2d cov = Eigen::Matrix2d::Zero();
     for (const auto& q : near) cov += (q - mean) * (q - mean).transpose();
     const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(cov);
-    // A line: spread along one direction (by 5 cm at least), ten times less across it.
-    if (eig.eigenvalues()(1) < 0.05 * 0.05 * static_cast<double>(near.size()) ||
+    if (eig.eigenvalues()(1) < 0.02 * 0.02 * static_cast<double>(near.size()) ||
         eig.eigenvalues()(0) > 0.1 * eig.eigenvalues()(1)) {
       continue;
     }
@@ -392,6 +393,8 @@ std::vector<std::pair<int64_t, CPose2D>> ScanGraph::trajectory() const {
   std::vector<std::pair<int64_t, CPose2D>> out;
   out.reserve(scans_.size());
   for (const auto& s : scans_) out.emplace_back(s.stamp, keyframe_pose(s.keyframe) + s.relative);
+  // In stamp order: a scan that arrived late was matched after newer ones.
+  std::stable_sort(out.begin(), out.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
   return out;
 }
 

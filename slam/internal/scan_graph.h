@@ -96,7 +96,7 @@ class ScanGraph {
   /// Optimises the whole graph once more (call at the end).
   void finish();
 
-  /// Every scan's pose after the latest optimisation, in the order added.
+  /// Every scan's pose after the latest optimisation, in stamp order.
   std::vector<std::pair<int64_t, mrpt::poses::CPose2D>> trajectory() const;
 
   struct Keyframe {

@@ -4,16 +4,11 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
-#include <cstdio>
-#include <map>
 #include <string>
-#include <vector>
 
 #include "analyzers/trajectory.h"
 #include "analyzers/trajectory_io.h"
-#include "driftlab/laser_scan_t.hpp"
-#include "driftlab/pose_t.hpp"
-#include "lcmtypes/validate.h"
+#include "tests/carmen_reference.h"
 #include "tests/test_util.h"
 
 namespace driftlab {
@@ -26,49 +21,6 @@ const std::string kReference =
 void import(const std::string& in, const std::string& out) {
   const auto r = test::run_capture(kDriftlab + " import '" + in + "' -o '" + out + "'");
   ASSERT_EQ(r.code, 0) << r.err;
-}
-
-/// GMapping's corrected poses at the raw scans' stamps. The corrected CARMEN log counts time from 0 with six
-/// significant digits and holds only the scans GMapping integrated; its readings are the raw ones, unchanged, so
-/// each corrected scan is found among the raw scans by its readings (data README), and its pose takes that stamp.
-analyzers::Trajectory corrected_at_raw_stamps(const std::string& raw_log, const std::string& corrected_log) {
-  std::map<std::vector<float>, int64_t> stamp_of;
-  size_t raw_scans = 0;
-  for (const auto& e : test::read_all(raw_log)) {
-    if (e.channel != "/scan") continue;
-    laser_scan_t s;
-    EXPECT_TRUE(lcmtypes::decode(e.data, s));
-    stamp_of.emplace(s.ranges, s.header.utime);
-    ++raw_scans;
-  }
-  EXPECT_EQ(stamp_of.size(), raw_scans) << "two raw scans with the same readings: matching would be ambiguous";
-  std::vector<std::vector<float>> scans;
-  std::vector<pose_t> poses;
-  for (const auto& e : test::read_all(corrected_log)) {
-    if (e.channel == "FLASER") {
-      laser_scan_t s;
-      EXPECT_TRUE(lcmtypes::decode(e.data, s));
-      scans.push_back(s.ranges);
-    } else if (e.channel == "FLASER_POSE") {
-      pose_t p;
-      EXPECT_TRUE(lcmtypes::decode(e.data, p));
-      poses.push_back(p);
-    }
-  }
-  EXPECT_EQ(scans.size(), poses.size());  // one pose per FLASER line
-  analyzers::Trajectory t;
-  for (size_t i = 0; i < scans.size() && i < poses.size(); ++i) {
-    const auto it = stamp_of.find(scans[i]);
-    if (it == stamp_of.end()) {
-      ADD_FAILURE() << "corrected scan " << i << " is not among the raw scans";
-      continue;
-    }
-    const auto& p = poses[i];
-    t.push_back(static_cast<double>(it->second) * 1e-6, {p.position.x, p.position.y, p.position.z},
-                {p.orientation.w, p.orientation.x, p.orientation.y, p.orientation.z});
-  }
-  analyzers::sort_by_stamp(t);
-  return t;
 }
 
 void expect_equal(const nlohmann::json& ours, const nlohmann::json& ref) {
@@ -106,8 +58,9 @@ TEST_P(RelationsOnTheBenchmark, GMappingAgreesWithTheReferenceAndTheLiterature) 
   test::TempDir dir;
   ASSERT_NO_FATAL_FAILURE(import(bag, dir.file("raw.lcm")));
   ASSERT_NO_FATAL_FAILURE(import(corrected, dir.file("corrected.lcm")));
-  const analyzers::Trajectory gmapping = corrected_at_raw_stamps(dir.file("raw.lcm"), dir.file("corrected.lcm"));
-  ASSERT_TRUE(analyzers::write_tum(dir.file("gmapping.tum"), gmapping).ok());
+  auto gmapping = test::corrected_at_raw_stamps(dir.file("raw.lcm"), dir.file("corrected.lcm"));
+  ASSERT_TRUE(gmapping) << gmapping.error().message;
+  ASSERT_TRUE(analyzers::write_tum(dir.file("gmapping.tum"), *gmapping).ok());
   ASSERT_EQ(test::run(kDriftlab + " export tum " + dir.file("raw.lcm") + ":/odom -o " + dir.file("odom.tum")), 0);
 
   for (const bool with_odometry : {false, true}) {

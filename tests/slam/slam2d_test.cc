@@ -15,6 +15,7 @@
 #include "replayer/replayer.h"
 #include "slam/rawlog.h"
 #include "slam/slam2d.h"
+#include "tests/slam/icp_slam.h"
 #include "tests/test_util.h"
 #include "lcmtypes/planar.h"
 
@@ -22,7 +23,8 @@ namespace driftlab::slam {
 namespace {
 
 const std::string kSena = "/usr/share/mrpt/datasets/2006-01ENE-21-SENA_Telecom Faculty_one_loop_only.rawlog";
-const std::string kIcpIni = "/usr/share/mrpt/config_files/icp-slam/icp-slam_demo_classic.ini";
+const std::string& kIcpIni = test::kIcpSlamIni;
+using test::run_icp_slam;
 
 struct Pose {
   int64_t utime;
@@ -53,22 +55,6 @@ std::vector<int64_t> odometry_stamps(const std::string& log) {
     out.push_back(o.header.utime);
   }
   return out;
-}
-
-/// Runs MRPT's icp-slam on a rawlog in dir with the demo configuration (windows and scene dumps off), its output
-/// in dir/icp; its exit code.
-int run_icp_slam(const test::TempDir& dir, const std::string& rawlog) {
-  std::ifstream in(kIcpIni);
-  std::stringstream ini;
-  for (std::string line; std::getline(in, line);) {
-    if (line.rfind("SHOW_PROGRESS_3D_REAL_TIME=", 0) == 0) line = "SHOW_PROGRESS_3D_REAL_TIME=0";
-    if (line.rfind("SAVE_3D_SCENE=", 0) == 0) line = "SAVE_3D_SCENE=0";
-    if (line.rfind("LOG_FREQUENCY=", 0) == 0) line = "LOG_FREQUENCY=0";
-    if (line.rfind("logOutput_dir=", 0) == 0) line = "logOutput_dir=" + dir.file("icp");
-    ini << line << "\n";
-  }
-  std::ofstream(dir.file("icp.ini")) << ini.str();
-  return test::run("cd " + dir.path() + " && icp-slam icp.ini '" + rawlog + "' >icp.out 2>&1");
 }
 
 /// icp-slam's estimated path (x, y, yaw per step) on the SENA rawlog.
