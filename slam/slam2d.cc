@@ -22,10 +22,6 @@
 #include <sstream>
 
 #include "core/config.h"
-#include "slam/internal/mrpt_scan.h"
-#include "slam/internal/odometry_buffer.h"
-#include "slam/internal/point_maps.h"
-#include "slam/internal/scan_graph.h"
 #include "driftlab/image_t.hpp"
 #include "driftlab/laser_scan_t.hpp"
 #include "driftlab/odometry_t.hpp"
@@ -33,6 +29,10 @@
 #include "driftlab/tf_t.hpp"
 #include "lcmtypes/planar.h"
 #include "lcmtypes/validate.h"
+#include "slam/internal/mrpt_scan.h"
+#include "slam/internal/odometry_buffer.h"
+#include "slam/internal/point_maps.h"
+#include "slam/internal/scan_graph.h"
 
 namespace driftlab::slam {
 namespace {
@@ -121,7 +121,8 @@ const config::Table<Slam2dConfig>& slam2d_config_table() {
           .number("localization_lin_distance", &C::localization_lin_distance, above(0, 1e3), "m",
                   "motion after which a scan is matched against the map")
           .number("localization_ang_distance", &C::localization_ang_distance, above(0, 360), "deg", "... or rotation")
-          .number("min_icp_goodness", &C::min_icp_goodness, between(0, 1), "", "below it, an ICP correction is rejected")
+          .number("min_icp_goodness", &C::min_icp_goodness, between(0, 1), "",
+                  "below it, an ICP correction is rejected")
           .number("min_dist_between_points", &C::min_dist_between_points, above(0, 100), "m", "point-map insertion")
           .flag("fuse_points", &C::fuse_points,
                 "fuse new points with the map's (icp-slam's demo has false, which makes the map, and every ICP, "
@@ -145,7 +146,8 @@ const config::Table<Slam2dConfig>& slam2d_config_table() {
               if (c.ini[0] != '/' && v.file().find('/') != std::string::npos) {
                 c.ini = v.file().substr(0, v.file().rfind('/') + 1) + c.ini;  // relative to the config file
               }
-              if (!std::ifstream(c.ini)) return Error{v["ini"].place() + ": " + v["ini"].key() + ": cannot open " + c.ini};
+              if (!std::ifstream(c.ini))
+                return Error{v["ini"].place() + ": " + v["ini"].key() + ": cannot open " + c.ini};
             }
             return {};
           });

@@ -36,18 +36,18 @@ struct Slam2dConfig {
   std::string ini;  ///< an MRPT icp-slam .ini file ([MappingApplication] and [ICP]); the keys below override it
   // Method and pose graph (method graph). Defaults chosen on the Intel and ACES logs and the simulator's sessions
   // (docs/slam.md says why each is what it is).
-  std::string method = "graph";                          ///< graph | icp-slam (the default with `ini`)
+  std::string method = "graph";                        ///< graph | icp-slam (the default with `ini`)
   std::string trajectory_channel = "SLAM_TRAJECTORY";  ///< every scan's pose as last optimised, at the end
-  double odom_wait_s = 2;            ///< how long a scan waits for the odometry at its stamp [s of scan stamps]
-  double keyframe_distance = 0.5;    ///< travel that makes a new keyframe [m]
-  double keyframe_angle = 20;        ///< turn that makes a new keyframe [deg]
-  int local_map_keyframes = 10;      ///< keyframes each scan is matched against
-  bool loop_closure = true;          ///< match new keyframes against older ones and optimise the graph
-  double loop_min_travel = 10;       ///< path between two keyframes before they may close a loop [m]
-  double loop_radius = 1.5;          ///< old keyframes within this of the estimate are candidates [m] ...
-  double loop_drift = 0.05;          ///< ... plus this fraction of the graph distance between the two
-  double loop_max_radius = 8;        ///< [m]
-  double loop_min_goodness = 0.65;   ///< share of the current points an old place must explain [0, 1]
+  double odom_wait_s = 2;           ///< how long a scan waits for the odometry at its stamp [s of scan stamps]
+  double keyframe_distance = 0.5;   ///< travel that makes a new keyframe [m]
+  double keyframe_angle = 20;       ///< turn that makes a new keyframe [deg]
+  int local_map_keyframes = 10;     ///< keyframes each scan is matched against
+  bool loop_closure = true;         ///< match new keyframes against older ones and optimise the graph
+  double loop_min_travel = 10;      ///< path between two keyframes before they may close a loop [m]
+  double loop_radius = 1.5;         ///< old keyframes within this of the estimate are candidates [m] ...
+  double loop_drift = 0.05;         ///< ... plus this fraction of the graph distance between the two
+  double loop_max_radius = 8;       ///< [m]
+  double loop_min_goodness = 0.65;  ///< share of the current points an old place must explain [0, 1]
   // Map building (icp-slam's [MappingApplication], method icp-slam); defaults are MRPT's icp-slam_demo_classic.ini
   // but fuse_points.
   double insertion_lin_distance = 1.2;    ///< [m]

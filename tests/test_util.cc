@@ -41,6 +41,12 @@ std::string shared_data(const std::string& relative) {
   return "";
 }
 
+CarmenRun carmen_run(const std::string& name) {
+  CarmenRun r{shared_data("carmen/" + name + ".orig.bag"), shared_data("carmen/" + name + "-corrected.log.gz"),
+              shared_data("carmen/" + name + ".relations")};
+  return r.empty() ? CarmenRun{} : r;
+}
+
 std::vector<uint8_t> read_file(const std::string& path) {
   std::ifstream f(path, std::ios::binary);
   return {std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>()};

@@ -52,6 +52,14 @@ std::vector<OwnedEvent> read_all_memory(const std::vector<uint8_t>& bytes, std::
 /// Use as: `auto bag = shared_data("..."); if (bag.empty()) return;`
 std::string shared_data(const std::string& relative);
 
+/// One run of the SLAM benchmark in the shared data (carmen/NAME.orig.bag, NAME-corrected.log.gz, NAME.relations;
+/// NAME intel or aces), or all empty when one is missing (as shared_data: skipped, or failed under CI).
+struct CarmenRun {
+  std::string bag, corrected, relations;
+  bool empty() const { return bag.empty() || corrected.empty() || relations.empty(); }
+};
+CarmenRun carmen_run(const std::string& name);
+
 /// An LCM message encoded by its lcm-gen class.
 template <typename T>
 std::vector<uint8_t> encode(const T& m) {

@@ -42,7 +42,9 @@ CorrelativeMatcher::CorrelativeMatcher(const std::vector<Point2f>& reference, do
     const int h = 1 << (d - 1);
     std::vector<float> level(cells, 0.0f);
     auto at = [&](int x, int y) {
-      return x < width_ && y < height_ ? below[static_cast<size_t>(y) * static_cast<size_t>(width_) + static_cast<size_t>(x)] : 0.0f;
+      return x < width_ && y < height_
+                 ? below[static_cast<size_t>(y) * static_cast<size_t>(width_) + static_cast<size_t>(x)]
+                 : 0.0f;
     };
     for (int y = 0; y < height_; ++y) {
       for (int x = 0; x < width_; ++x) {
@@ -148,7 +150,8 @@ CorrelativeMatcher::Match CorrelativeMatcher::match(const std::vector<Point2f>& 
       if (exclude != nullptr) {  // a branch wholly inside the excluded disc holds no pose to find
         const double span = ((1 << level) - 1) * res;
         const double x = guess_x + c.tx * res - exclude->x, y = guess_y + c.ty * res - exclude->y;
-        const double far_x = std::max(std::abs(x), std::abs(x + span)), far_y = std::max(std::abs(y), std::abs(y + span));
+        const double far_x = std::max(std::abs(x), std::abs(x + span)),
+                     far_y = std::max(std::abs(y), std::abs(y + span));
         if (std::hypot(far_x, far_y) <= exclude_xy) continue;
       }
       const int h = 1 << (level - 1);

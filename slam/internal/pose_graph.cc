@@ -56,7 +56,6 @@ struct PoseGraph2d::Problem {
 PoseGraph2d::PoseGraph2d() : problem_(std::make_unique<Problem>()) {}
 PoseGraph2d::~PoseGraph2d() = default;
 
-
 PoseGraph2d::Information diagonal_information(double sigma_xy, double sigma_yaw) {
   const double xy = 1 / (sigma_xy * sigma_xy);
   return {xy, 0, 0, 0, xy, 0, 0, 0, 1 / (sigma_yaw * sigma_yaw)};

@@ -1,6 +1,6 @@
 // A 2D pose graph optimised with Ceres (Debian's libceres-dev): nodes are poses (x, y, yaw), edges relative poses
-// with their information matrices; the first node is held fixed. Deterministic (one thread). Not thread-safe: one caller. docs/slam.md says why
-// Ceres and not MRPT's graph-slam optimiser.
+// with their information matrices; the first node is held fixed. Deterministic (one thread). Not thread-safe: one
+// caller. docs/slam.md says why Ceres and not MRPT's graph-slam optimiser.
 #pragma once
 
 #include <array>

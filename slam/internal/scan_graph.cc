@@ -29,8 +29,8 @@ PoseGraph2d::Pose array_of(const CPose2D& p) { return {p.x(), p.y(), p.phi()}; }
 /// spread, are looked at; `lines` receives how many had a clear surface (a line through their 8 nearest old
 /// points: spread along it by 2 cm at least, so dense scans (the simulator's 360 beams, several keyframes on top
 /// of each other) still show their walls, and ten times less across it).
-Eigen::Matrix3d constraint_of(const mrpt::maps::CSimplePointsMap& reference, const mrpt::tfest::TMatchingPairList& pairs,
-                              const CPose2D& pose, size_t& lines) {
+Eigen::Matrix3d constraint_of(const mrpt::maps::CSimplePointsMap& reference,
+                              const mrpt::tfest::TMatchingPairList& pairs, const CPose2D& pose, size_t& lines) {
   Eigen::Matrix3d h = Eigen::Matrix3d::Zero();
   lines = 0;
   std::vector<size_t> idx;
@@ -231,7 +231,8 @@ bool ScanGraph::try_loop(size_t j, double radius) {
   if (far) {
     for (size_t i = 0; i < k; ++i) {
       const CPose2D there = keyframe_pose(i);
-      if (path - keyframes_[i].path >= o_.loop_min_travel && std::hypot(there.x() - here.x(), there.y() - here.y()) <= radius) {
+      if (path - keyframes_[i].path >= o_.loop_min_travel &&
+          std::hypot(there.x() - here.x(), there.y() - here.y()) <= radius) {
         old.push_back(i);
       }
     }
@@ -297,10 +298,12 @@ bool ScanGraph::try_loop(size_t j, double radius) {
   restart.options.thresholdDist = std::max(o_.icp.thresholdDist, 2 * u);
   restart.options.thresholdAng = std::max(o_.icp.thresholdAng, o_.loop_threshold_ang);
   std::vector<Eigen::Vector3d> offsets = {{0, 0, 2 * u / 3}};
-  for (int a = corridor ? 1 : 0; a < 2; ++a) offsets.emplace_back(u * axes.eigenvectors()(0, a), u * axes.eigenvectors()(1, a), 0);
+  for (int a = corridor ? 1 : 0; a < 2; ++a)
+    offsets.emplace_back(u * axes.eigenvectors()(0, a), u * axes.eigenvectors()(1, a), 0);
   for (const Eigen::Vector3d& off : offsets) {
     const CPose2D back =
-        restart.Align(&reference, &query, CPose2D(found.x() + off.x(), found.y() + off.y(), found.phi() + off.z()))->getMeanVal();
+        restart.Align(&reference, &query, CPose2D(found.x() + off.x(), found.y() + off.y(), found.phi() + off.z()))
+            ->getMeanVal();
     const Eigen::Vector2d step(back.x() - found.x(), back.y() - found.y());
     bool same = std::abs(mrpt::math::wrapToPi(back.phi() - found.phi())) <= 0.02;
     for (int a = corridor ? 1 : 0; a < 2; ++a) same &= std::abs(step.dot(axes.eigenvectors().col(a))) <= 0.05;

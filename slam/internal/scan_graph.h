@@ -43,35 +43,35 @@ struct ScanGraphOptions {
   mrpt::slam::CICP::TConfigParams icp;    ///< the front end's ICP (also the loop matches' final step)
   // Loop closure: which old place.
   bool loop_closure = true;
-  double loop_min_travel = 10;      ///< path between two keyframes before they may close a loop
-  double loop_radius = 1.5;         ///< the old keyframe must be within this of the estimate ...
-  double loop_drift = 0.05;         ///< ... plus this share of the graph distance between the two ...
-  double loop_max_radius = 8;       ///< ... and never further
-  double loop_far_radius = 2.5;     ///< beyond this radius, a correlative search instead of ICP from the estimate
-  double loop_far_yaw = 0.35;       ///< the correlative search's turn window (+-)
-  double loop_grid_resolution = 0.1;   ///< of its likelihood grid ...
-  int loop_grid_levels = 4;         ///< ... and coarse levels above it (the top one 2^4 cells: 1.6 m)
-  int loop_search_points = 200;     ///< current points it scores per pose
-  double loop_ambiguity = 0.9;      ///< another place 0.5 m away scoring this share of the best: ambiguous
-  int loop_submap_keyframes = 4;    ///< near: keyframes on either side of the candidate in the old place
-  int loop_query_keyframes = 3;     ///< the last keyframes matched against it
-  double loop_threshold_ang = 0.087;   ///< near: the first ICP's angular correspondence threshold
+  double loop_min_travel = 10;        ///< path between two keyframes before they may close a loop
+  double loop_radius = 1.5;           ///< the old keyframe must be within this of the estimate ...
+  double loop_drift = 0.05;           ///< ... plus this share of the graph distance between the two ...
+  double loop_max_radius = 8;         ///< ... and never further
+  double loop_far_radius = 2.5;       ///< beyond this radius, a correlative search instead of ICP from the estimate
+  double loop_far_yaw = 0.35;         ///< the correlative search's turn window (+-)
+  double loop_grid_resolution = 0.1;  ///< of its likelihood grid ...
+  int loop_grid_levels = 4;           ///< ... and coarse levels above it (the top one 2^4 cells: 1.6 m)
+  int loop_search_points = 200;       ///< current points it scores per pose
+  double loop_ambiguity = 0.9;        ///< another place 0.5 m away scoring this share of the best: ambiguous
+  int loop_submap_keyframes = 4;      ///< near: keyframes on either side of the candidate in the old place
+  int loop_query_keyframes = 3;       ///< the last keyframes matched against it
+  double loop_threshold_ang = 0.087;  ///< near: the first ICP's angular correspondence threshold
   // Loop closure: when a match counts.
   double loop_min_goodness = 0.65;  ///< share of the current points with an old point within loop_match_distance
   double loop_match_distance = 0.15;
-  double loop_min_points = 60;      ///< matched points a loop match needs
-  double loop_min_constraint = 0.1;  ///< the weakest direction's share of the point-to-line information; below:
-                                     ///< a corridor
-  double loop_uniqueness = 0.3;     ///< restarts this far off must come back to the same pose
-  double loop_confirm_xy = 0.5;     ///< a match moving the estimate further ...
-  double loop_confirm_yaw = 0.09;   ///< ... or turning it more waits for a second one ...
-  int loop_confirm_keyframes = 5;   ///< ... from one of the next keyframes ...
-  double loop_consistency_xy = 0.2;    ///< ... that places this stretch within this ...
+  double loop_min_points = 60;          ///< matched points a loop match needs
+  double loop_min_constraint = 0.1;     ///< the weakest direction's share of the point-to-line information; below:
+                                        ///< a corridor
+  double loop_uniqueness = 0.3;         ///< restarts this far off must come back to the same pose
+  double loop_confirm_xy = 0.5;         ///< a match moving the estimate further ...
+  double loop_confirm_yaw = 0.09;       ///< ... or turning it more waits for a second one ...
+  int loop_confirm_keyframes = 5;       ///< ... from one of the next keyframes ...
+  double loop_consistency_xy = 0.2;     ///< ... that places this stretch within this ...
   double loop_consistency_yaw = 0.035;  ///< ... and this of where the first one put it
-  double loop_max_chi2 = 20;        ///< a loop edge left with a larger error after optimising is taken out
+  double loop_max_chi2 = 20;            ///< a loop edge left with a larger error after optimising is taken out
   // Back end.
-  double edge_sigma_xy = 0.05;      ///< standard deviation of an edge's x and y
-  double edge_sigma_yaw = 0.0175;   ///< and of its yaw
+  double edge_sigma_xy = 0.05;           ///< standard deviation of an edge's x and y
+  double edge_sigma_yaw = 0.0175;        ///< and of its yaw
   double optimize_threshold_xy = 0.05;   ///< a loop edge off by more than this triggers optimisation ...
   double optimize_threshold_yaw = 0.02;  ///< ... or by more than this
 };
@@ -137,11 +137,11 @@ class ScanGraph {
   std::vector<ScanRecord> scans_;
   mrpt::maps::CSimplePointsMap local_map_;  ///< in the map frame
   uint32_t current_keyframe_ = 0;
-  mrpt::poses::CPose2D relative_;           ///< the last scan's pose in its keyframe's frame
-  uint32_t matched_keyframe_ = 0;           ///< the last matched scan's keyframe ...
-  mrpt::poses::CPose2D matched_;            ///< ... and its pose in that keyframe's frame
+  mrpt::poses::CPose2D relative_;  ///< the last scan's pose in its keyframe's frame
+  uint32_t matched_keyframe_ = 0;  ///< the last matched scan's keyframe ...
+  mrpt::poses::CPose2D matched_;   ///< ... and its pose in that keyframe's frame
   std::optional<mrpt::poses::CPose2D> last_odometry_;
-  std::vector<LoopEdge> pending_;           ///< large corrections waiting for a second match
+  std::vector<LoopEdge> pending_;  ///< large corrections waiting for a second match
   ScanGraphStats stats_;
 };
 

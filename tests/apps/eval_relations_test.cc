@@ -50,14 +50,12 @@ class RelationsOnTheBenchmark : public ::testing::TestWithParam<Dataset> {};
 // corrected pose to each missing scan with the raw odometry (its -o option); --relations-odometry does the same.
 TEST_P(RelationsOnTheBenchmark, GMappingAgreesWithTheReferenceAndTheLiterature) {
   const Dataset& run = GetParam();
-  const std::string base = std::string("carmen/") + run.name;
-  const std::string bag = test::shared_data(base + ".orig.bag");
-  const std::string corrected = test::shared_data(base + "-corrected.log.gz");
-  const std::string relations = test::shared_data(base + ".relations");
-  if (bag.empty() || corrected.empty() || relations.empty()) return;
+  const auto files = test::carmen_run(run.name);
+  if (files.empty()) return;
+  const std::string& relations = files.relations;
   test::TempDir dir;
-  ASSERT_NO_FATAL_FAILURE(import(bag, dir.file("raw.lcm")));
-  ASSERT_NO_FATAL_FAILURE(import(corrected, dir.file("corrected.lcm")));
+  ASSERT_NO_FATAL_FAILURE(import(files.bag, dir.file("raw.lcm")));
+  ASSERT_NO_FATAL_FAILURE(import(files.corrected, dir.file("corrected.lcm")));
   auto gmapping = test::corrected_at_raw_stamps(dir.file("raw.lcm"), dir.file("corrected.lcm"));
   ASSERT_TRUE(gmapping) << gmapping.error().message;
   ASSERT_TRUE(analyzers::write_tum(dir.file("gmapping.tum"), *gmapping).ok());

@@ -51,8 +51,8 @@ void icp_slam_tum(const std::string& log, const std::string& path_txt, const std
     ASSERT_LT(step, scan_stamp.size());
     if (scan_stamp[step] < 0) continue;
     char line[200];
-    std::snprintf(line, sizeof(line), "%.6f %.6f %.6f 0 0 0 %.9f %.9f\n", static_cast<double>(scan_stamp[step]) * 1e-6, x,
-                  y, std::sin(yaw / 2), std::cos(yaw / 2));
+    std::snprintf(line, sizeof(line), "%.6f %.6f %.6f 0 0 0 %.9f %.9f\n", static_cast<double>(scan_stamp[step]) * 1e-6,
+                  x, y, std::sin(yaw / 2), std::cos(yaw / 2));
     out << line;
     ++scans;
   }
@@ -68,15 +68,15 @@ class SlamOnTheBenchmark : public ::testing::TestWithParam<Dataset> {};
 
 TEST_P(SlamOnTheBenchmark, ClosesLoopsToCentimetresAndBeatsIcpSlam) {
   const Dataset& run = GetParam();
-  const std::string base = std::string("carmen/") + run.name;
-  const std::string bag = test::shared_data(base + ".orig.bag");
-  const std::string corrected = test::shared_data(base + "-corrected.log.gz");
-  const std::string relations = test::shared_data(base + ".relations");
-  if (bag.empty() || corrected.empty() || relations.empty()) return;
+  const auto files = test::carmen_run(run.name);
+  if (files.empty()) return;
+  const std::string& relations = files.relations;
   test::TempDir dir;
   const std::string raw = dir.file("raw.lcm"), out = dir.file("slam.lcm");
-  ASSERT_EQ(test::run(test::kDriftlabProgram + " import " + bag + " -o " + raw + " >/dev/null"), 0);
-  ASSERT_EQ(test::run(test::kDriftlabProgram + " import " + corrected + " -o " + dir.file("corrected.lcm") + " >/dev/null"), 0);
+  ASSERT_EQ(test::run(test::kDriftlabProgram + " import " + files.bag + " -o " + raw + " >/dev/null"), 0);
+  ASSERT_EQ(test::run(test::kDriftlabProgram + " import " + files.corrected + " -o " + dir.file("corrected.lcm") +
+                      " >/dev/null"),
+            0);
   const std::string config = test::carmen_slam_config(dir);
 
   const auto replay = test::driftlab_json("replay " + raw + " --modules slam --config " + config + " --json -o " + out);
@@ -113,11 +113,13 @@ TEST_P(SlamOnTheBenchmark, ClosesLoopsToCentimetresAndBeatsIcpSlam) {
   const auto restamped = test::driftlab_json("replay " + raw + " --modules slam --config " + config +
                                              " --restamp auto --json -o " + dir.file("restamped.lcm"));
   ASSERT_FALSE(restamped.is_null());
-  const double restamped_mean = test::relation_error(dir.file("restamped.lcm") + ":SLAM_TRAJECTORY", relations)["trans_m"]["mean"].get<double>();
+  const double restamped_mean =
+      test::relation_error(dir.file("restamped.lcm") + ":SLAM_TRAJECTORY", relations)["trans_m"]["mean"].get<double>();
   EXPECT_NEAR(restamped_mean, mean, 0.02 * mean);
 
   // MRPT's icp-slam, its demo configuration, on the same scans and odometry (`driftlab export rawlog`).
-  ASSERT_EQ(test::run(test::kDriftlabProgram + " export rawlog " + raw + " -o " + dir.file("raw.rawlog") + " >/dev/null"), 0);
+  ASSERT_EQ(
+      test::run(test::kDriftlabProgram + " export rawlog " + raw + " -o " + dir.file("raw.rawlog") + " >/dev/null"), 0);
   ASSERT_EQ(test::run_icp_slam(dir, dir.file("raw.rawlog")), 0);
   ASSERT_NO_FATAL_FAILURE(icp_slam_tum(raw, dir.file("icp/log_estimated_path.txt"), dir.file("icp.tum")));
   const double peer = test::relation_error(dir.file("icp.tum"), relations)["trans_m"]["mean"].get<double>();

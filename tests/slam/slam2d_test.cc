@@ -12,12 +12,12 @@
 #include "driftlab/laser_scan_t.hpp"
 #include "driftlab/odometry_t.hpp"
 #include "driftlab/pose_t.hpp"
+#include "lcmtypes/planar.h"
 #include "replayer/replayer.h"
 #include "slam/rawlog.h"
 #include "slam/slam2d.h"
 #include "tests/slam/icp_slam.h"
 #include "tests/test_util.h"
-#include "lcmtypes/planar.h"
 
 namespace driftlab::slam {
 namespace {
