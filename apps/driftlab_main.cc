@@ -27,6 +27,7 @@ int main(int argc, char** argv) {
   add_report_command(app, &exit_code);
   add_demo_command(app, &exit_code);
   add_export_commands(exp, &exit_code);
+  add_export_mcap_commands(exp, &exit_code);
   add_import_file_command(import, &exit_code);
   return parse_and_run(app, argc, argv, exit_code);
 }

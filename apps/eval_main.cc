@@ -11,6 +11,7 @@
 #include "analyzers/trajectory_io.h"
 #include "apps/cli_checks.h"
 #include "apps/cli_util.h"
+#include "apps/log_input.h"
 #include "apps/commands.h"
 
 namespace driftlab::apps {
@@ -121,7 +122,12 @@ void print_table(const EvalOptions& o, const Evaluation& ev) {
   }
 }
 
-int run_eval(const EvalOptions& o) {
+int run_eval(EvalOptions o) {
+  for (std::string* src : {&o.gt, &o.est}) {
+    auto converted = log_channel_for(*src);  // LOG:CHANNEL of a bag: its cached conversion
+    if (!converted) return fail(converted.error().message);
+    *src = *converted;
+  }
   // The two inputs load in parallel: parsing is most of the work on large trajectories.
   auto pending_gt = std::async(std::launch::async, [&] { return load_trajectory(o.gt); });
   auto est = load_trajectory(o.est);

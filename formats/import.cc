@@ -269,6 +269,9 @@ Status import_mcap(const std::string& path, Importer& out) {
         const McapChannel& c = *m.channel;
         Incoming in;
         in.topic = c.topic;
+        // A channel whose name is not a ROS name went out under one, with the original beside (driftlab export).
+        for (const auto& [k, v] : c.metadata)
+          if (k == "driftlab_channel" && !v.empty()) in.topic = v;
         in.type = c.schema ? std::string_view(c.schema->name) : std::string_view();
         in.encoding = c.message_encoding;
         in.definition = c.schema ? std::string_view(c.schema->data) : std::string_view();

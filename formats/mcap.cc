@@ -850,12 +850,12 @@ Status McapWriter::close() {
     }
     // The footer's CRC covers the summary, the summary offsets and the footer up to its own CRC field.
     const size_t summary_at = static_cast<size_t>(summary_start - s.flushed);
-    const size_t at = s.out.begin_record(kFooter);
+    s.out.u8(kFooter);
+    s.out.put<uint64_t>(kFooterContent);
     s.out.put(summary_start);
     s.out.put(summary_offset_start);
     const uint32_t summary_crc = crc32_of(std::span<const uint8_t>(s.out.v()).subspan(summary_at));
     s.out.put(summary_crc);
-    s.out.end_record(at);
     s.out.bytes(kMagic);
     st = s.flush_out();
   }
