@@ -387,32 +387,37 @@ int64_t McapReader::read(const std::function<void(const McapMessage&)>& on_messa
   uint64_t summary_start = 0;
   while (pos < bytes.size()) {
     if (bytes.size() - pos < kRecordHead) {
-      if (!in_summary) on_problem({pos, "the file ends inside a record's opcode and length"});
+      on_problem({pos, in_summary ? "the file ends inside its summary (every message was read)"
+                                  : "the file ends inside a record's opcode and length"});
       break;
     }
     const uint8_t op = bytes[pos];
     const auto len = le<uint64_t>(bytes.data() + pos + 1);
     const bool cut = len > bytes.size() - pos - kRecordHead;
-    if (op == 0 || (cut && op != kChunk && op != kMessage)) {
-      if (op != 0 && cut && op != kFooter) {
+    if (op == kFooter && !in_summary) break;  // the end of a file without summary (or Data End)
+    if ((op == 0 || cut) && in_summary) {  // a damaged summary: the messages are all read already
+      on_problem({pos, cut ? "the file ends inside its summary (every message was read)"
+                           : "the summary is damaged here (every message was read)"});
+      break;
+    }
+    if (op == 0 || cut) {
+      // A record running past the end is the file cut inside it, unless a readable record follows: then its
+      // length (or opcode) is damaged and reading goes on there.
+      const size_t next = resync(pos + 1);
+      if (op != 0 && next == bytes.size()) {
         on_problem({pos, "the file ends inside this record (" + std::to_string(bytes.size() - pos - kRecordHead) +
                              " of its " + std::to_string(len) + " bytes)"});
+        if (op == kChunk) chunk(bytes.subspan(pos + kRecordHead), pos, true);
         break;
       }
-      if (op == kFooter) break;
-      const size_t next = resync(pos + 1);
       on_problem({pos, (op == 0 ? std::string("opcode 0, not a record") : "a record length of " + std::to_string(len)) +
                            (next < bytes.size() ? "; " + std::to_string(next - pos) + " bytes skipped"
                                                 : "; nothing readable after it")});
       pos = next;
       continue;
     }
-    const auto content = bytes.subspan(pos + kRecordHead, cut ? bytes.size() - pos - kRecordHead : len);
-    const size_t end = cut ? bytes.size() : pos + kRecordHead + len;
-    if (cut) {
-      on_problem({pos, "the file ends inside this record (" + std::to_string(content.size()) + " of its " +
-                           std::to_string(len) + " bytes)"});
-    }
+    const auto content = bytes.subspan(pos + kRecordHead, len);
+    const size_t end = pos + kRecordHead + len;
     if (in_summary) {
       if (op == kStatistics) {
         Fields f(content);
@@ -430,7 +435,7 @@ int64_t McapReader::read(const std::function<void(const McapMessage&)>& on_messa
           statistics_.channel_message_counts[id] = f.get<uint64_t>();
         }
         has_statistics_ = f.ok();
-      } else if (op == kFooter && !cut && len == kFooterContent) {
+      } else if (op == kFooter && len == kFooterContent) {
         const uint32_t want = le<uint32_t>(content.data() + 16);
         if (want != 0 && summary_start != 0 && summary_start <= pos) {
           const uint32_t got = crc32_of(bytes.subspan(summary_start, pos + kRecordHead + 16 - summary_start));
@@ -450,10 +455,8 @@ int64_t McapReader::read(const std::function<void(const McapMessage&)>& on_messa
       }
       case kSchema: schema(content, pos); break;
       case kChannel: channel(content, pos); break;
-      case kMessage:
-        if (!cut) message(content, pos, -1);
-        break;
-      case kChunk: chunk(content, pos, cut); break;
+      case kMessage: message(content, pos, -1); break;
+      case kChunk: chunk(content, pos, false); break;
       case kMetadata: metadata(content, pos); break;
       case kDataEnd: {
         crc_to(pos);
@@ -465,9 +468,6 @@ int64_t McapReader::read(const std::function<void(const McapMessage&)>& on_messa
         summary_start = end;
         break;
       }
-      case kFooter:
-        pos = bytes.size();  // a file without summary (or Data End): the footer ends it
-        continue;
       default: break;  // indexes, attachments, records of later versions and private ones: not needed here
     }
     crc_to(end);
