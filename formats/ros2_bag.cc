@@ -6,6 +6,7 @@
 #include <sqlite3.h>
 #include <yaml-cpp/yaml.h>
 
+#include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <sstream>
@@ -62,6 +63,33 @@ bool has_table(sqlite3* db, const char* name) {
   if (!s.ok()) return false;
   sqlite3_bind_text(s.get(), 1, name, -1, SQLITE_STATIC);
   return sqlite3_step(s.get()) == SQLITE_ROW;
+}
+
+uint64_t fs_size(const std::string& path) {
+  std::error_code ec;
+  const auto n = std::filesystem::file_size(path, ec);
+  return ec ? 0 : n;
+}
+
+/// The file padded with zeros to the size its header gives, when it is shorter (a cut file) and small enough to
+/// hold in memory; empty otherwise.
+std::vector<uint8_t> padded_image(const std::string& path) {
+  constexpr uint64_t kMaxBytes = uint64_t{2} << 30;
+  const uint64_t size = fs_size(path);
+  if (size < 100 || size > kMaxBytes) return {};
+  std::vector<uint8_t> b(size);
+  FILE* f = std::fopen(path.c_str(), "rb");
+  if (!f) return {};
+  const size_t got = std::fread(b.data(), 1, b.size(), f);
+  std::fclose(f);
+  if (got != size || !SqliteBagReader::looks_like(b)) return {};
+  uint32_t page = (uint32_t{b[16]} << 8) | b[17];
+  if (page == 1) page = 65536;
+  const uint64_t pages = (uint64_t{b[28]} << 24) | (uint64_t{b[29]} << 16) | (uint64_t{b[30]} << 8) | b[31];
+  const uint64_t want = pages * page;
+  if (want <= size || want > kMaxBytes) return {};
+  b.resize(want, 0);
+  return b;
 }
 
 }  // namespace
@@ -130,8 +158,19 @@ Result<SqliteBagReader> SqliteBagReader::open(const std::string& path) {
       continue;
     }
     if (Status s = r.load_tables(); !s) {
-      if (immutable) return Error(s.message());
-      continue;
+      if (!immutable) continue;
+      // A file cut short (a recorder killed, a copy interrupted): sqlite reads the pages it has when the missing
+      // ones read as zeros, so the rows before the cut can be read.
+      if (auto padded = padded_image(path); !padded.empty()) {
+        auto m = from_memory(padded);
+        if (m) {
+          m->name_ = path;
+          m->note_ = "the file is cut short (" + std::to_string(fs_size(path)) + " of the " +
+                     std::to_string(padded.size()) + " bytes its header gives); reading what is intact";
+          return m;
+        }
+      }
+      return Error(s.message());
     }
     return r;
   }
@@ -158,6 +197,7 @@ int64_t SqliteBagReader::read(const std::function<void(const Ros2DbMessage&)>& o
                               const std::function<void(const Ros2DbProblem&)>& on_problem) {
   sqlite3* db = db_->db;
   int64_t delivered = 0;
+  if (!note_.empty()) on_problem({0, note_});
   // Walked by id (the order rosbag2 inserted them, as they arrived), so that after a damaged page reading can
   // go on from the next id that can be reached.
   Stmt s(db, "SELECT id, topic_id, timestamp, data FROM messages WHERE id > ? ORDER BY id");
@@ -167,14 +207,22 @@ int64_t SqliteBagReader::read(const std::function<void(const Ros2DbMessage&)>& o
   }
   int64_t last = INT64_MIN;
   std::map<int64_t, bool> unknown_reported;
-  for (int attempt = 0; attempt < 64;) {
+  // After damage: where it was met (the last id read), and why; reported once reading goes on or gives up.
+  int64_t damaged_after = INT64_MIN;
+  std::string damage;
+  int attempt = 0;
+  for (;;) {
     sqlite3_reset(s.get());
     sqlite3_bind_int64(s.get(), 1, last);
     int rc;
-    bool progressed = false;
     while ((rc = sqlite3_step(s.get())) == SQLITE_ROW) {
-      progressed = true;
       const int64_t id = sqlite3_column_int64(s.get(), 0);
+      if (!damage.empty()) {
+        on_problem({damaged_after, "rows after id " + std::to_string(damaged_after) + " cannot be read (" + damage +
+                                       "); reading went on at id " + std::to_string(id)});
+        damage.clear();
+        attempt = 0;
+      }
       last = id;
       const int64_t topic = sqlite3_column_int64(s.get(), 1);
       auto t = topics_.find(topic);
@@ -190,16 +238,18 @@ int64_t SqliteBagReader::read(const std::function<void(const Ros2DbMessage&)>& o
       on_message({&t->second, sqlite3_column_int64(s.get(), 2), {data, size}, id});
       ++delivered;
     }
-    if (rc == SQLITE_DONE) break;
-    // A damaged part: say where, and try the ids after it, further each time.
-    const std::string why = sqlite3_errmsg(db);
-    if (progressed) attempt = 0;
-    const int64_t skip = int64_t{1} << std::min(attempt, 40);
-    on_problem({last == INT64_MIN ? 0 : last,
-                "messages after id " + (last == INT64_MIN ? std::string("0") : std::to_string(last)) + ": " + why});
-    if (last == INT64_MIN) last = 0;
-    last += skip;
-    ++attempt;
+    if (rc == SQLITE_DONE && damage.empty()) break;
+    if (rc != SQLITE_DONE && damage.empty()) {
+      damage = sqlite3_errmsg(db);
+      damaged_after = last == INT64_MIN ? 0 : last;
+    }
+    // Try the ids after the damage, further each time (rows are numbered from 1 as they were inserted).
+    if (rc == SQLITE_DONE || attempt >= 40) {
+      on_problem({damaged_after, "rows after id " + std::to_string(damaged_after) + " cannot be read (" + damage +
+                                     "); nothing readable after them"});
+      break;
+    }
+    last = damaged_after + (int64_t{1} << attempt++);
   }
   return delivered;
 }

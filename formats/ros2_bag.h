@@ -95,6 +95,7 @@ class SqliteBagReader {
   struct Db;
   std::unique_ptr<Db> db_;
   std::string name_;
+  std::string note_;  // a problem met when opening (a cut file), reported by read()
   std::map<int64_t, Ros2TopicInfo> topics_;
   std::map<std::string, std::pair<std::string, std::string>> definitions_;
 };
