@@ -5,6 +5,8 @@
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
+#include <functional>
+#include <map>
 #include <sstream>
 
 #include "driftlab/foreign_message_t.hpp"
@@ -18,6 +20,8 @@
 #include "driftlab/tf_t.hpp"
 #include "driftlab/velocity_command_t.hpp"
 #include "formats/ros_definition.h"
+#include "lcmtypes/schema.h"
+#include "lcmtypes/type_registry.h"
 #include "lcmtypes/validate.h"
 
 namespace driftlab::test {
@@ -86,8 +90,14 @@ std::vector<uint8_t> bytes_of(const json& a) {
   for (const auto& v : a) b.push_back(v.get<uint8_t>());
   return b;
 }
-void expect_transform(const json& t, const transform_t& got, int64_t seq) {
-  expect_header(t.at("header"), got.header, seq);
+void expect_transform(const json& t, const transform_t& got) {
+  // A transform's own seq exists in ROS 1 only (ROS 2 has none, and driftlab's batch carries the sequence).
+  const json& h = t.at("header");
+  EXPECT_EQ(got.header.utime, stamp_us(h.at("stamp")));
+  EXPECT_EQ(got.header.frame_id, h.at("frame_id").get<std::string>());
+  if (h.contains("seq")) {
+    EXPECT_EQ(got.header.seq, h.at("seq").get<int64_t>());
+  }
   EXPECT_EQ(got.child_frame_id, t.at("child_frame_id").get<std::string>());
   expect_vec(t.at("transform").at("translation"), got.translation);
   expect_quat(t.at("transform").at("rotation"), got.rotation);
@@ -156,6 +166,39 @@ void expect_same_message(const json& ros, const OwnedEvent& e, int64_t seq, cons
   const std::string type = formats::ros1_type_name(ros.at("type").get<std::string>());
   const json& m = ros.at("msg");
   EXPECT_EQ(e.utime, ros.at("time_ns").get<int64_t>() / 1000);
+  if (type.starts_with("driftlab_msgs/")) {
+    // driftlab's own types: every field of the LCM message, flattened, against the oracle's reading.
+    int64_t fp = 0;
+    for (int i = 0; i < 8; ++i) fp = static_cast<int64_t>((static_cast<uint64_t>(fp) << 8) | e.data[static_cast<size_t>(i)]);
+    const lcmtypes::StructDef* def = lcmtypes::find_struct(lcmtypes::type_name(fp));
+    ASSERT_NE(def, nullptr);
+    std::map<std::string, json> want;
+    std::function<void(const json&, const std::string&)> flat = [&](const json& v, const std::string& path) {
+      if (v.is_object()) {
+        for (const auto& [k, x] : v.items()) flat(x, path.empty() ? k : path + "." + k);
+      } else if (v.is_array()) {
+        for (size_t i = 0; i < v.size(); ++i) flat(v[i], path + "[" + std::to_string(i) + "]");
+      } else {
+        want[path] = v;
+      }
+    };
+    flat(m, "");
+    size_t columns = 0;
+    lcmtypes::flatten(*def, e.data, [&](const std::string& column, const std::string& value) {
+      ++columns;
+      ASSERT_TRUE(want.count(column)) << column;
+      const json& w = want.at(column);
+      if (w.is_string()) {
+        EXPECT_EQ(value, w.get<std::string>()) << column;
+      } else if (w.is_boolean()) {
+        EXPECT_EQ(value, w.get<bool>() ? "1" : "0") << column;
+      } else {
+        EXPECT_SAME(num(w), std::strtod(value.c_str(), nullptr));
+      }
+    }, {.max_array = SIZE_MAX, .bytes = true});
+    EXPECT_EQ(columns, want.size());
+    return;
+  }
   if (!formats::driftlab_type_for(type) || (ros["encoding"] != "cdr" && ros["encoding"] != "ros1")) {
     const auto f = decoded<foreign_message_t>(e);
     EXPECT_EQ(f.type, ros.at("type").get<std::string>());
@@ -217,8 +260,7 @@ void expect_same_message(const json& ros, const OwnedEvent& e, int64_t seq, cons
     int64_t newest = INT64_MIN;
     for (size_t i = 0; i < m.at("transforms").size(); ++i) {
       const json& t = m.at("transforms")[i];
-      const int64_t tseq = t.at("header").contains("seq") ? t["header"]["seq"].get<int64_t>() : seq;
-      expect_transform(t, tf.transforms[i], tseq);
+      expect_transform(t, tf.transforms[i]);
       newest = std::max(newest, stamp_us(t.at("header").at("stamp")));
     }
     EXPECT_EQ(tf.header.seq, seq);
@@ -226,7 +268,8 @@ void expect_same_message(const json& ros, const OwnedEvent& e, int64_t seq, cons
   } else if (type == "geometry_msgs/TransformStamped") {
     const auto tf = decoded<tf_t>(e);
     ASSERT_EQ(tf.ntransforms, 1);
-    expect_transform(m, tf.transforms[0], seq);
+    expect_transform(m, tf.transforms[0]);
+    EXPECT_EQ(tf.transforms[0].header.seq, m.at("header").contains("seq") ? m["header"]["seq"].get<int64_t>() : seq);
   } else if (type == "geometry_msgs/TwistStamped" || type == "geometry_msgs/Twist") {
     const auto v = decoded<velocity_command_t>(e);
     const json& twist = type == "geometry_msgs/Twist" ? m : m.at("twist");
