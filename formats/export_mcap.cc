@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <bit>
+#include <charconv>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
@@ -338,62 +339,52 @@ void point_cloud(Cdr& c, const point_cloud_t& m) {
 
 // --- driftlab's other types: the LCM bytes walked by their definition into CDR -----------------------------------
 
+/// A driftlab message of any type in CDR by its .lcm definition: lcmtypes::flatten walks the LCM bytes (every
+/// primitive in order, as text that reads back exactly), and the fields are written again in CDR in the same
+/// order, with sequence lengths before variable-length arrays.
 class LcmToCdr {
  public:
   LcmToCdr(std::span<const uint8_t> data, Cdr& out) : d_(data), c_(out) {}
   bool run(const lcmtypes::StructDef& s) {
-    pos_ = 8;  // the fingerprint
-    return d_.size() >= 8 && fields(s);
+    const bool whole = lcmtypes::flatten(
+        s, d_, [&](const std::string&, const std::string& value) { values_.push_back(value); },
+        {.max_array = SIZE_MAX, .bytes = true});
+    return whole && fields(s) && next_ == values_.size();
   }
 
  private:
-  bool take(size_t n, const uint8_t*& p) {
-    if (d_.size() - pos_ < n) return false;
-    p = d_.data() + pos_;
-    pos_ += n;
-    return true;
-  }
-  static uint64_t be(const uint8_t* p, size_t n) {
-    uint64_t v = 0;
-    for (size_t k = 0; k < n; ++k) v = (v << 8) | p[k];
-    return v;
-  }
   bool primitive(const std::string& t, int64_t* value) {
-    const uint8_t* p = nullptr;
+    if (next_ >= values_.size()) return false;
+    const std::string& v = values_[next_++];
     if (t == "string") {
-      if (!take(4, p)) return false;
-      const auto n = static_cast<uint32_t>(be(p, 4));
-      if (n == 0 || !take(n, p)) return false;
-      c_.str({reinterpret_cast<const char*>(p), n - 1});
+      c_.str(v);
       return true;
     }
-    const size_t size = t == "double" || t == "int64_t" ? 8 : t == "float" || t == "int32_t" ? 4 : t == "int16_t" ? 2 : 1;
-    if (!take(size, p)) return false;
-    const uint64_t raw = be(p, size);
-    const int shift = static_cast<int>(64 - 8 * size);
-    const int64_t v = t == "byte" ? static_cast<int64_t>(raw) : static_cast<int64_t>(raw << shift) >> shift;
-    if (value) *value = v;
-    if (t == "double") {
-      double d;
-      std::memcpy(&d, &raw, 8);
-      c_.put(d);
-    } else if (t == "float") {
-      const auto bits = static_cast<uint32_t>(raw);
-      float f;
-      std::memcpy(&f, &bits, 4);
-      c_.put(f);
-    } else if (t == "int64_t") {
-      c_.put(v);
+    const char* b = v.data();
+    const char* e = b + v.size();
+    if (t == "double" || t == "float") {
+      double d = 0;
+      if (std::from_chars(b, e, d).ec != std::errc()) d = std::strtod(v.c_str(), nullptr);  // nan, inf
+      if (t == "double") {
+        c_.put(d);
+      } else {
+        c_.put(static_cast<float>(d));
+      }
+      return true;
+    }
+    int64_t i = 0;
+    if (std::from_chars(b, e, i).ec != std::errc()) return false;
+    if (value) *value = i;
+    if (t == "int64_t") {
+      c_.put(i);
     } else if (t == "int32_t") {
-      c_.put(static_cast<int32_t>(v));
+      c_.put(static_cast<int32_t>(i));
     } else if (t == "int16_t") {
-      c_.put(static_cast<int16_t>(v));
+      c_.put(static_cast<int16_t>(i));
     } else if (t == "int8_t") {
-      c_.put(static_cast<int8_t>(v));
-    } else if (t == "boolean") {
-      c_.put<uint8_t>(v != 0);
+      c_.put(static_cast<int8_t>(i));
     } else {
-      c_.put(static_cast<uint8_t>(v));
+      c_.put(static_cast<uint8_t>(i));  // byte, boolean
     }
     return true;
   }
@@ -412,10 +403,8 @@ class LcmToCdr {
       }
       uint64_t total = 1;
       for (const auto& d : f.dims) {
-        const uint64_t n = std::isdigit(static_cast<unsigned char>(d[0])) ? std::stoull(d)
-                                                                          : static_cast<uint64_t>(std::max<int64_t>(0, ints[d]));
-        total *= n;
-        if (total > d_.size()) return false;  // more elements than bytes: not this type
+        total *= std::isdigit(static_cast<unsigned char>(d[0])) ? std::stoull(d)
+                                                                 : static_cast<uint64_t>(std::max<int64_t>(0, ints[d]));
       }
       uint64_t fixed = 0;
       if (!fixed_dims(f, &fixed)) c_.put(static_cast<uint32_t>(total));
@@ -426,7 +415,8 @@ class LcmToCdr {
   }
   std::span<const uint8_t> d_;
   Cdr& c_;
-  size_t pos_ = 0;
+  std::vector<std::string> values_;
+  size_t next_ = 0;
 };
 
 // --- topics, channels and schemas ----------------------------------------------------------------------------------

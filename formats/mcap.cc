@@ -276,7 +276,17 @@ int64_t McapReader::read(const std::function<void(const McapMessage&)>& on_messa
     }
     std::string error;
     if (compression.empty()) {
-      if (!cut && crc != 0 && crc32_of(records) != crc) error = "its records fail their CRC";
+      if (!cut && (crc != 0 || want_data_crc != 0)) {
+        // One pass serves both CRCs: the chunk's, and the data section's (combined in, as zlib allows).
+        const uint32_t got = crc32_of(records);
+        if (crc != 0 && got != crc) error = "its records fail their CRC";
+        const auto at = static_cast<uint64_t>(records.data() - bytes.data());
+        if (want_data_crc != 0 && crc_done <= at && at + records.size() <= data_end_at) {
+          crc_to(at);
+          data_crc = static_cast<uint32_t>(::crc32_combine(data_crc, got, static_cast<z_off_t>(records.size())));
+          crc_done = at + records.size();
+        }
+      }
     } else {
       internal::Codec codec;
       if (compression == "zstd") {
