@@ -607,19 +607,24 @@ struct McapWriter::Impl {
     if (error.empty()) error = file_path + ": " + what + (err ? std::string(": ") + std::strerror(err) : "");
     return Error(error);
   }
-  Status flush_out() {
-    auto& v = out.v();
-    crc = crc32_of(v, crc);
+  /// Writes bytes whose CRC is known (bytes_crc) to the file, straight from the caller's memory.
+  Status write_direct(std::span<const uint8_t> b, uint32_t bytes_crc) {
     size_t done = 0;
-    while (done < v.size()) {
-      const ssize_t n = ::write(fd, v.data() + done, v.size() - done);
+    while (done < b.size()) {
+      const ssize_t n = ::write(fd, b.data() + done, b.size() - done);
       if (n < 0) {
         if (errno == EINTR) continue;
         return fail("cannot write", errno);
       }
       done += static_cast<size_t>(n);
     }
-    flushed += v.size();
+    crc = static_cast<uint32_t>(::crc32_combine(crc, bytes_crc, static_cast<z_off_t>(b.size())));
+    flushed += b.size();
+    return {};
+  }
+  Status flush_out() {
+    auto& v = out.v();
+    if (Status s = write_direct(v, crc32_of(v)); !s) return s;
     v.clear();
     return {};
   }
@@ -642,15 +647,19 @@ struct McapWriter::Impl {
     ci.offset = offset();
     ci.compressed = payload.size();
     ci.uncompressed = records.size();
-    const size_t at = out.begin_record(kChunk);
+    // The chunk's head through the buffer, its records straight from memory (no copy; for uncompressed records
+    // the CRC already computed serves the file's too).
+    const uint64_t content = 8 + 8 + 8 + 4 + 4 + std::strlen(compression) + 8 + payload.size();
+    out.u8(kChunk);
+    out.put(content);
     out.put(chunk_start);
     out.put(chunk_end);
     out.put<uint64_t>(records.size());
     out.put(records_crc);
     out.str(compression);
     out.put<uint64_t>(payload.size());
-    out.bytes(payload);
-    out.end_record(at);
+    if (Status st = flush_out(); !st) return st;
+    if (Status st = write_direct(payload, compressor ? crc32_of(payload) : records_crc); !st) return st;
     ci.length = offset() - ci.offset;
     const uint64_t index_start = offset();
     for (auto& [id, entries] : chunk_index) {
