@@ -122,15 +122,15 @@ void print_table(const EvalOptions& o, const Evaluation& ev) {
   }
 }
 
-int run_eval(EvalOptions o) {
-  for (std::string* src : {&o.gt, &o.est}) {
-    auto converted = log_channel_for(*src);  // LOG:CHANNEL of a bag: its cached conversion
-    if (!converted) return fail(converted.error().message);
-    *src = *converted;
-  }
+int run_eval(const EvalOptions& o) {
+  // LOG:CHANNEL of another tool's recording: read from its cached conversion (the output names the source given).
+  auto gt_src = log_channel_for(o.gt);
+  if (!gt_src) return fail(gt_src.error().message);
+  auto est_src = log_channel_for(o.est);
+  if (!est_src) return fail(est_src.error().message);
   // The two inputs load in parallel: parsing is most of the work on large trajectories.
-  auto pending_gt = std::async(std::launch::async, [&] { return load_trajectory(o.gt); });
-  auto est = load_trajectory(o.est);
+  auto pending_gt = std::async(std::launch::async, [&] { return load_trajectory(*gt_src); });
+  auto est = load_trajectory(*est_src);
   auto gt = pending_gt.get();
   if (!gt) return fail(gt.error().message);
   if (!est) return fail(est.error().message);
