@@ -138,6 +138,14 @@ class Importer {
   /// a check against its schema.
   void message(const Incoming& m) {
     if (!status_) return;
+    // A channel name an LCM log can hold: 1 to 255 bytes, no NUL.
+    if (m.topic.empty() || m.topic.size() > 255 || m.topic.find('\0') != std::string_view::npos) {
+      if (bad_topics_++ == 0) {
+        problem(file + ": " + m.where.text() + ": a topic name an LCM log cannot hold (empty, over 255 bytes or "
+                "with a NUL); its messages are left out");
+      }
+      return;
+    }
     auto sit = state_.find(m.topic);
     if (sit == state_.end()) sit = state_.emplace(std::string(m.topic), State{}).first;
     State& st = sit->second;
@@ -199,18 +207,20 @@ class Importer {
         return;
       }
     }
+    // Strings of an LCM message end at their first NUL (LCM encodes them so).
+    auto text = [](std::string_view v) { return std::string(v.substr(0, v.find('\0'))); };
     if (!st.schema_written) {
       foreign_schema_t s;
       s.channel = std::string(m.topic);
-      s.type = std::string(m.type);
-      s.encoding = std::string(m.encoding);
-      s.definition = std::string(m.definition);
+      s.type = text(m.type);
+      s.encoding = text(m.encoding);
+      s.definition = text(m.definition);
       if (!write(m.arrival_us, kSchemaChannel, encode(s))) return;
       st.schema_written = true;
     }
     foreign_message_t f;
-    f.type = std::string(m.type);
-    f.encoding = std::string(m.encoding);
+    f.type = text(m.type);
+    f.encoding = text(m.encoding);
     f.data.assign(payload.begin(), payload.end());
     f.size = static_cast<int32_t>(f.data.size());
     if (write(m.arrival_us, m.topic, encode(f))) {
@@ -235,6 +245,7 @@ class Importer {
   std::map<std::string, State, std::less<>> state_;
   Status status_;
   std::string error_;
+  int64_t bad_topics_ = 0;
   internal::Decompressor decompressor_;
   std::vector<uint8_t> unpacked_;
 };

@@ -27,6 +27,14 @@ namespace {
 using internal::Reader;
 using lcmtypes::encode;
 
+/// A string for a driftlab message: up to its first NUL, as LCM encodes strings (a NUL inside would make the
+/// encoded message longer than its fields).
+std::string lcm_string(Reader& r) {
+  std::string s = r.str();
+  if (const size_t nul = s.find('\0'); nul != std::string::npos) s.resize(nul);
+  return s;
+}
+
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 /// std_msgs/Header: ROS 1 has a seq first; ROS 2 has none.
@@ -38,7 +46,7 @@ void header(Reader& r, Serialization s, header_t& h, bool* has_seq) {
     h.seq = r.fallback_seq;
   }
   h.utime = r.time_us();
-  h.frame_id = r.str();
+  h.frame_id = lcm_string(r);
 }
 
 void vector3(Reader& r, vector3_t& v) {
@@ -96,7 +104,7 @@ std::vector<uint8_t> imu(Reader& r, Serialization s, int64_t, int64_t* stamp, bo
 std::vector<uint8_t> odometry(Reader& r, Serialization s, int64_t, int64_t* stamp, bool* has_seq) {
   odometry_t m;
   header(r, s, m.header, has_seq);
-  m.child_frame_id = r.str();
+  m.child_frame_id = lcm_string(r);
   vector3(r, m.position);
   quaternion(r, m.orientation);
   r.get(m.pose_covariance, 36);
@@ -130,7 +138,7 @@ std::vector<uint8_t> pose_with_covariance(Reader& r, Serialization s, int64_t, i
 
 void transform_stamped(Reader& r, Serialization s, transform_t& t, bool* has_seq) {
   header(r, s, t.header, has_seq);
-  t.child_frame_id = r.str();
+  t.child_frame_id = lcm_string(r);
   vector3(r, t.translation);
   quaternion(r, t.rotation);
 }
@@ -190,7 +198,7 @@ std::vector<uint8_t> joint_state(Reader& r, Serialization s, int64_t, int64_t* s
   header(r, s, m.header, has_seq);
   const uint32_t n = r.count(4);
   m.name.resize(n);
-  for (auto& name : m.name) name = r.str();
+  for (auto& name : m.name) name = lcm_string(r);
   // position, velocity and effort may each be empty (not measured): NaN then, as driftlab's arrays are njoints.
   auto values = [&](std::vector<double>& out, const char* what) {
     const uint32_t k = r.count(8);
@@ -214,7 +222,7 @@ std::vector<uint8_t> image(Reader& r, Serialization s, int64_t, int64_t* stamp, 
   header(r, s, m.header, has_seq);
   const uint32_t height = r.get<uint32_t>();
   const uint32_t width = r.get<uint32_t>();
-  m.encoding = r.str();
+  m.encoding = lcm_string(r);
   r.get<uint8_t>();  // is_bigendian
   const uint32_t step = r.get<uint32_t>();
   const uint32_t n = r.count(1);
@@ -268,7 +276,7 @@ void image_size(std::span<const uint8_t> d, int32_t* w, int32_t* h) {
 std::vector<uint8_t> compressed_image(Reader& r, Serialization s, int64_t, int64_t* stamp, bool* has_seq) {
   image_t m;
   header(r, s, m.header, has_seq);
-  const std::string format = r.str();
+  const std::string format = lcm_string(r);
   auto data = r.bytes(r.count(1));
   if (!r.ok()) return {};
   m.data.assign(data.begin(), data.end());
@@ -297,7 +305,7 @@ std::vector<uint8_t> point_cloud2(Reader& r, Serialization s, int64_t, int64_t* 
   };
   std::vector<Field> fields(r.count(9));
   for (auto& f : fields) {
-    f.name = r.str();
+    f.name = lcm_string(r);
     f.offset = r.get<uint32_t>();
     f.type = r.get<uint8_t>();
     r.get<uint32_t>();  // count

@@ -15,6 +15,8 @@
 #include "formats/internal/decompress.h"
 #include "formats/mcap.h"
 #include "formats/ros2_bag.h"
+#include "formats/ros_messages.h"
+#include "driftlab/velocity_command_t.hpp"
 #include "lcmtypes/validate.h"
 #include "tests/test_util.h"
 
@@ -126,6 +128,27 @@ TEST(Ros2Import, SplitRecordingIsOneRecording) {
   r = driftlab("info --json '" + bag + "/b_2.mcap' '" + bag + "/b_10.mcap'");
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.out.find("\"events\": 10"), std::string::npos) << r.out;
+}
+
+// A NUL inside a ROS string (found by the fuzzer): the driftlab message keeps the string up to it, as LCM encodes
+// strings, and stays well formed.
+TEST(Ros2Import, StringsEndAtTheirFirstNul) {
+  std::string frame("base", 4);
+  frame += '\0';
+  frame += "link";
+  Cdr c(false);
+  c.put<int32_t>(1).put<uint32_t>(2).str(frame);
+  for (int i = 0; i < 6; ++i) c.put(0.5 * i);
+  std::string error;
+  const auto bytes = c.bytes();
+  auto m = formats::convert_ros_message("geometry_msgs/msg/TwistStamped", formats::Serialization::kCdr, bytes, 0, 0,
+                                        &error);
+  ASSERT_TRUE(m.has_value()) << error;
+  EXPECT_FALSE(lcmtypes::layout_problem(m->lcm).has_value());
+  velocity_command_t v;
+  ASSERT_TRUE(lcmtypes::decode(m->lcm, v));
+  EXPECT_EQ(v.header.frame_id, "base");
+  EXPECT_EQ(v.angular.z, 2.5);
 }
 
 // A bag folder without its metadata.yaml: said in one line, exit 2, and its files still read in name order.
