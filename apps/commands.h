@@ -56,6 +56,10 @@ int exec_tool(const ToolCommand& tool, char** argv);
 /// line) for a usage error.
 int parse_and_run(CLI::App& app, int argc, char** argv, const int& exit_code);
 
+/// --help-config on cmd: calls print (the reference of the config files the command reads, from their tables) and
+/// exits with 0, before any other option is checked.
+void add_config_help(CLI::App& cmd, void (*print)());
+
 /// The `import` and `export` parent commands.
 CLI::App& add_import_command(CLI::App& app);
 CLI::App& add_export_command(CLI::App& app);

@@ -14,6 +14,11 @@
 #include "core/result.h"
 #include "estimator/ekf.h"
 
+namespace driftlab::config {
+template <class T>
+class Table;
+}
+
 namespace driftlab::estimator {
 
 struct EstimatorConfig {
@@ -27,6 +32,9 @@ struct EstimatorConfig {
   double publish_rate = 50;   ///< output rate in stamp time [Hz]
   EkfNoise noise;
 };
+
+/// The keys of the `estimator:` map of a replay config, with units, ranges and defaults (core/config.h).
+const config::Table<EstimatorConfig>& estimator_config_table();
 
 /// Reads the `estimator:` map of a replay config; errors name the file, line and key.
 Result<EstimatorConfig> parse_estimator_config(const YAML::Node& node, const std::string& origin);

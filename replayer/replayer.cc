@@ -13,7 +13,7 @@
 #include <unordered_map>
 #include <unordered_set>
 
-#include "core/internal/yaml_fields.h"
+#include "core/config.h"
 #include "core/log_format.h"
 #include "core/log_reader.h"
 #include "core/log_writer.h"
@@ -25,38 +25,29 @@
 
 namespace driftlab::replay {
 
+const config::Table<RestampFile>& restamp_file_table() {
+  using C = ClockCorrection;
+  static const auto correction =
+      config::Table<C>()
+          .number("offset_s", &C::offset_s, config::between(-86400, 86400), "s",
+                  "the stream's clock was ahead of the log's by this much ...")
+          .number("drift_ppm", &C::drift_ppm, config::between(-1e5, 1e5), "ppm",
+                  "... plus this much per second since reference_utime; the correction subtracts both")
+          .integer("reference_utime", &C::reference_utime, config::between(0, 9e18), "us",
+                   "when the drift is zero; 0: the first event of the replay");
+  static const auto t = config::Table<RestampFile>()
+                            .map("channels", &RestampFile::channels, "CHANNEL", correction,
+                                 "the clock correction of each channel, as named in the input logs")
+                            .required();
+  return t;
+}
+
 Result<Restamp> load_restamp(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) return Error{path + ": cannot open the restamp file"};
-  std::stringstream text;
-  text << in.rdbuf();
-  try {
-    const YAML::Node root = YAML::Load(text.str());
-    Fields top(root, path, "");
-    DL_TRY(top.is_map());
-    Restamp r;
-    const YAML::Node channels = top.node("channels");
-    if (!channels.IsDefined() || !channels.IsMap()) {
-      return Error{at(path, root) + ": a restamp file needs 'channels: {CHANNEL: {offset_s: ..., drift_ppm: ...}}'"};
-    }
-    for (const auto& kv : channels) {
-      const std::string channel = kv.first.as<std::string>();
-      Fields f(kv.second, path, "channels." + channel);
-      DL_TRY(f.is_map());
-      ClockCorrection c;
-      DL_TRY(f.number("offset_s", c.offset_s, -86400, 86400));
-      DL_TRY(f.number("drift_ppm", c.drift_ppm, -1e5, 1e5));
-      double ref = 0;
-      DL_TRY(f.number("reference_utime", ref, 0, 1e19));
-      c.reference_utime = static_cast<int64_t>(ref);
-      DL_TRY(f.finish("offset_s, drift_ppm, reference_utime"));
-      r[channel] = c;
-    }
-    DL_TRY(top.finish("channels"));
-    return r;
-  } catch (const YAML::Exception& e) {
-    return Error{path + ":" + std::to_string(e.mark.line + 1) + ": " + e.msg};
-  }
+  auto root = config::load_yaml(path, "restamp file");
+  if (!root) return root.error();
+  auto file = restamp_file_table().parse(config::Value(*root, path));
+  if (!file) return file.error();
+  return std::move(file->channels);
 }
 
 namespace {

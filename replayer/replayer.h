@@ -22,14 +22,25 @@
 #include "core/faults.h"
 #include "core/result.h"
 
+namespace driftlab::config {
+template <class T>
+class Table;
+}
+
 namespace driftlab::replay {
 
 using ClockCorrection = driftlab::ClockCorrection;
 /// Per channel (as named in the input logs), e.g. from `driftlab diagnose` (analyzers/clock_corrections.h).
 using Restamp = ClockCorrections;
 
-/// Reads a restamp file: `channels: {IMU: {offset_s: 0.015, drift_ppm: 0, reference_utime: 0}}`. Errors name the
-/// file, line and key.
+/// A restamp file: `channels: {IMU: {offset_s: 0.015, drift_ppm: 0, reference_utime: 0}}`.
+struct RestampFile {
+  Restamp channels;
+};
+/// Its keys, with units and ranges (core/config.h).
+const config::Table<RestampFile>& restamp_file_table();
+
+/// Reads a restamp file. Errors name the file, line and key.
 Result<Restamp> load_restamp(const std::string& path);
 
 enum class Order {
