@@ -77,7 +77,8 @@ bool split_log_channel(const std::string& src, std::string* log, std::string* ch
   const size_t colon = src.rfind(':');
   if (colon == std::string::npos || colon == 0 || colon + 1 == src.size()) return false;
   std::error_code ec;
-  if (!std::filesystem::is_regular_file(src.substr(0, colon), ec)) return false;
+  const std::string log_part = src.substr(0, colon);
+  if (!std::filesystem::is_regular_file(log_part, ec) && !std::filesystem::is_directory(log_part, ec)) return false;
   std::string whole = src;  // log or channel may alias src
   *log = whole.substr(0, colon);
   *channel = whole.substr(colon + 1);

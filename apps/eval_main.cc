@@ -15,6 +15,7 @@
 #include "analyzers/trajectory_io.h"
 #include "apps/cli_checks.h"
 #include "apps/cli_util.h"
+#include "apps/log_input.h"
 #include "apps/commands.h"
 
 namespace driftlab::apps {
@@ -299,12 +300,18 @@ int run_eval(const EvalOptions& o) {
     return fail("eval needs --gt (ATE, RPE and drift against a reference), --relations (the SLAM benchmark's relation "
                 "error), or both");
   }
+  // LOG:CHANNEL of another tool's recording: read from its cached conversion (the output names the source given).
+  Result<std::string> gt_src = std::string();
+  if (!o.gt.empty()) gt_src = log_channel_for(o.gt);
+  if (!gt_src) return fail(gt_src.error().message);
+  auto est_src = log_channel_for(o.est);
+  if (!est_src) return fail(est_src.error().message);
   // The inputs load in parallel: parsing is most of the work on large trajectories.
   auto pending_gt = std::async(std::launch::async, [&]() -> Result<Trajectory> {
     if (o.gt.empty()) return Trajectory{};
-    return load_trajectory(o.gt, format_of(o.gt_format), o.gt_times);
+    return load_trajectory(*gt_src, format_of(o.gt_format), o.gt_times);
   });
-  auto est = load_trajectory(o.est, format_of(o.est_format), o.est_times);
+  auto est = load_trajectory(*est_src, format_of(o.est_format), o.est_times);
   auto gt = pending_gt.get();
   if (!gt) return fail(gt.error().message);
   if (!est) return fail(est.error().message);

@@ -6,6 +6,7 @@
 #include <memory>
 
 #include "apps/cli_util.h"
+#include "apps/log_input.h"
 #include "apps/commands.h"
 #include "slam/rawlog.h"
 #include "core/same_file.h"
@@ -60,7 +61,12 @@ void add_rawlog_commands(CLI::App& import, CLI::App& exp, int* exit_code) {
       *exit_code = fail(s.message());
       return;
     }
-    auto r = slam::export_rawlog(out->in, out->out);
+    auto log = log_for(out->in);  // another tool's recording: its cached conversion
+    if (!log) {
+      *exit_code = fail(log.error().message);
+      return;
+    }
+    auto r = slam::export_rawlog(*log, out->out);
     if (!r) {
       *exit_code = fail(r.error().message);
       return;

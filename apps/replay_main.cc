@@ -15,6 +15,7 @@
 #include "analyzers/timing.h"
 #include "apps/cli_checks.h"
 #include "apps/cli_util.h"
+#include "apps/log_input.h"
 #include "apps/commands.h"
 #include "modules/registry.h"
 #include "replayer/live_runner.h"
@@ -113,7 +114,12 @@ void print_modules(const std::vector<replay::ModuleReport>& reports, bool timing
   }
 }
 
-int run_replay(const ReplayArgs& a) {
+int run_replay(ReplayArgs a) {
+  for (auto& log : a.logs) {
+    auto converted = log_for(log);  // another tool's recording: its cached conversion
+    if (!converted) return fail(converted.error().message);
+    log = *converted;
+  }
   replay::ReplayOptions o;
   o.logs = a.logs;
   o.channels = a.channels;
