@@ -102,7 +102,7 @@ CPose2D ScanGraph::add(int64_t stamp, const mrpt::obs::CObservation2DRangeScan::
   if (keyframes_.empty()) {
     last_odometry_ = odometry;
     scans_.push_back({stamp, 0, CPose2D()});
-    add_keyframe(stamp, scan, std::move(points), CPose2D());
+    add_keyframe(stamp, scan, points, CPose2D());
     return CPose2D();
   }
   // Predict with the odometry's motion since the previous scan, then match against the local map.
@@ -133,17 +133,17 @@ CPose2D ScanGraph::add(int64_t stamp, const mrpt::obs::CObservation2DRangeScan::
   scans_.push_back({stamp, current_keyframe_, relative_});
   if (relative_.norm() >= o_.keyframe_distance || angle_of(relative_) >= o_.keyframe_angle) {
     scans_.back() = {stamp, static_cast<uint32_t>(keyframes_.size()), CPose2D()};
-    add_keyframe(stamp, scan, std::move(points), pose);
+    add_keyframe(stamp, scan, points, pose);
     return keyframe_pose(current_keyframe_);  // loop closures may have moved it
   }
   return pose;
 }
 
 void ScanGraph::add_keyframe(int64_t stamp, const mrpt::obs::CObservation2DRangeScan::Ptr& scan,
-                             mrpt::maps::CSimplePointsMap points, const CPose2D& pose) {
+                             const mrpt::maps::CSimplePointsMap& points, const CPose2D& pose) {
   const auto id = static_cast<uint32_t>(keyframes_.size());
   const double step_length = id == 0 ? 0.0 : (pose - keyframe_pose(current_keyframe_)).norm();
-  keyframes_.push_back({stamp, scan, std::move(points), id == 0 ? 0.0 : keyframes_.back().path + step_length});
+  keyframes_.push_back({stamp, scan, points, id == 0 ? 0.0 : keyframes_.back().path + step_length});
   adjacency_.emplace_back();
   graph_.add_node(array_of(pose));
   if (id > 0) {
@@ -336,7 +336,7 @@ bool ScanGraph::try_loop(size_t j, double radius) {
   const Eigen::Matrix3d info = rotate * h * rotate.transpose() * (2 / (o_.edge_sigma_xy * o_.edge_sigma_xy));
   LoopEdge loop{j, k, measured, {}};
   for (int r = 0; r < 3; ++r) {
-    for (int c = 0; c < 3; ++c) loop.information[static_cast<size_t>(r * 3 + c)] = info(r, c);
+    for (int c = 0; c < 3; ++c) loop.information[static_cast<size_t>(r) * 3 + static_cast<size_t>(c)] = info(r, c);
   }
   // A small correction is one the graph nearly agrees with already. A large one (the first return after a long
   // excursion, or a wrong match) waits for a second match, from one of the next keyframes, that puts this stretch

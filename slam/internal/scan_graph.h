@@ -121,10 +121,10 @@ class ScanGraph {
     PoseGraph2d::Information information;
   };
   void add_keyframe(int64_t stamp, const mrpt::obs::CObservation2DRangeScan::Ptr& scan,
-                    mrpt::maps::CSimplePointsMap points, const mrpt::poses::CPose2D& pose);
+                    const mrpt::maps::CSimplePointsMap& points, const mrpt::poses::CPose2D& pose);
   void rebuild_local_map();
   void close_loops();
-  bool try_loop(size_t candidate, double radius);
+  bool try_loop(size_t j, double radius);  // j: the candidate keyframe
   bool add_loops(const std::vector<LoopEdge>& loops);
   std::vector<double> graph_distances(size_t from) const;
   mrpt::maps::CSimplePointsMap points_of(const mrpt::obs::CObservation2DRangeScan& scan) const;

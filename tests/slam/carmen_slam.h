@@ -16,7 +16,7 @@ inline const std::string kDriftlabProgram = std::string(DRIFTLAB_BIN_DIR) + "/dr
 
 /// The bag's topics for the slam module (docs/tutorial-public-dataset.md uses the same file).
 inline std::string carmen_slam_config(const TempDir& dir) {
-  const std::string path = dir.file("slam.yaml");
+  std::string path = dir.file("slam.yaml");
   std::ofstream(path)
       << "slam:\n  2d:\n    scan_channel: /scan\n    odom_channel: /odom\n    tf_static_channel: /tf_static\n";
   return path;
