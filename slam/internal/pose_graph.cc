@@ -28,7 +28,7 @@ struct RelativePoseError {
     const T c = ceres::cos(a[2]), s = ceres::sin(a[2]);
     const T dx = b[0] - a[0], dy = b[1] - a[1];
     const T e[3] = {c * dx + s * dy - z_[0], -s * dx + c * dy - z_[1], wrap_angle(b[2] - a[2] - T(z_[2]))};
-    for (int i = 0; i < 3; ++i) r[i] = w_[i * 3] * e[0] + w_[i * 3 + 1] * e[1] + w_[i * 3 + 2] * e[2];
+    for (size_t i = 0; i < 3; ++i) r[i] = w_[3 * i] * e[0] + w_[3 * i + 1] * e[1] + w_[3 * i + 2] * e[2];
     return true;
   }
   PoseGraph2d::Pose z_;
