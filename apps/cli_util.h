@@ -32,7 +32,7 @@ bool write_output(const std::string& path, const std::string& text);
 int run_program(const std::vector<std::string>& argv, const std::string& stdout_path,
                 const std::string& stderr_path = "");
 
-/// Splits "LOG:CHANNEL" at its last ':' when the part before it is an existing file; false (log and channel
+/// Splits "LOG:CHANNEL" at its last ':' when the part before it exists and is not a folder; false (log and channel
 /// untouched) otherwise. Channel names may hold ':' only if the log's name has none after its last one.
 bool split_log_channel(const std::string& src, std::string* log, std::string* channel);
 

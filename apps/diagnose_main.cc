@@ -12,6 +12,7 @@
 #include "apps/cli_util.h"
 #include "apps/commands.h"
 #include "apps/diagnosis_json.h"
+#include "core/log_reader.h"
 #include "core/same_file.h"
 
 namespace driftlab::apps {
@@ -117,6 +118,7 @@ int run_diagnose(const DiagnoseOptions& o) {
   for (const auto& [out, option] : {std::pair{o.json, "--json"}, {o.html, "--html"}}) {
     if (Status s = refuse_same_file(out, {o.log}, option); !s) return fail(s.message());
   }
+  if (Status s = check_event_log(o.log); !s) return fail(s.message());
   auto result = analyzers::diagnose(o.log, o.analysis);
   if (!result) return fail(result.error().message);
   const Diagnosis& d = *result;

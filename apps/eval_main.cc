@@ -12,6 +12,8 @@
 #include "apps/cli_checks.h"
 #include "apps/cli_util.h"
 #include "apps/commands.h"
+#include "core/log_reader.h"
+#include "core/same_file.h"
 
 namespace driftlab::apps {
 namespace {
@@ -121,7 +123,27 @@ void print_table(const EvalOptions& o, const Evaluation& ev) {
   }
 }
 
+/// The files a source reads (LOG of LOG:CHANNEL, or a TUM file), checked: a log must hold events, and a log given
+/// without its channel is named as such (rather than read as a TUM file that is "not a number" on line 1).
+Status check_source(const std::string& src, const char* option, std::vector<std::string>& files) {
+  std::string log, channel;
+  if (split_log_channel(src, &log, &channel)) {
+    files.push_back(log);
+    return check_event_log(log);
+  }
+  files.push_back(src);
+  if (check_event_log(src).ok()) {
+    return Error{src + ": an LCM event log: name the channel, as " + option + " " + src + ":CHANNEL"};
+  }
+  return {};
+}
+
 int run_eval(const EvalOptions& o) {
+  std::vector<std::string> inputs;
+  for (const auto& [src, option] : {std::pair{o.gt, "--gt"}, {o.est, "--est"}}) {
+    if (Status s = check_source(src, option, inputs); !s) return fail(s.message());
+  }
+  if (Status s = refuse_same_file(o.json, inputs, "--json"); !s) return fail(s.message());
   // The two inputs load in parallel: parsing is most of the work on large trajectories.
   auto pending_gt = std::async(std::launch::async, [&] { return load_trajectory(o.gt); });
   auto est = load_trajectory(o.est);

@@ -50,6 +50,7 @@ struct CsvFile {
 };
 
 int run_csv(const CsvArgs& a) {
+  if (Status s = check_event_log(a.log); !s) return fail(s.message());
   ReadOptions ro;
   ro.channels = a.channels;
   auto reader = LogReader::open(a.log, ro);
@@ -147,6 +148,7 @@ int run_tum(TumArgs a) {
     return fail(a.log + ": name the channel as LOG:CHANNEL (or with -c CHANNEL)");
   }
   if (Status s = refuse_same_file(a.out, {a.log}); !s) return fail(s.message());
+  if (Status s = check_event_log(a.log); !s) return fail(s.message());
   auto t = analyzers::load_log_channel(a.log, a.channel);
   if (!t) return fail(t.error().message);
   const std::string partial = a.out + ".partial";

@@ -8,6 +8,7 @@
 #include "apps/cli_util.h"
 #include "apps/commands.h"
 #include "slam/rawlog.h"
+#include "core/log_reader.h"
 #include "core/same_file.h"
 
 namespace driftlab::apps {
@@ -56,13 +57,15 @@ void add_rawlog_commands(CLI::App& import, CLI::App& exp, int* exit_code) {
   to->add_option("log", out->in, "Log to read")->required();
   to->add_option("-o,--out", out->out, "Rawlog to write")->required();
   to->callback([out, exit_code] {
-    if (Status s = refuse_same_file(out->out, {out->in}); !s) {
-      *exit_code = fail(s.message());
-      return;
+    for (const Status& s : {refuse_same_file(out->out, {out->in}), check_event_log(out->in)}) {
+      if (!s) {
+        *exit_code = fail(s.message());
+        return;
+      }
     }
     auto r = slam::export_rawlog(out->in, out->out);
-    if (!r) {
-      *exit_code = fail(r.error().message);
+    if (!r) {  // the log was checked above: what fails now is creating or writing the rawlog
+      *exit_code = fail(r.error().message, kExitFailure);
       return;
     }
     print_counts(*r, out->in, out->out);

@@ -6,7 +6,6 @@
 #include <atomic>
 #include <chrono>
 #include <cstdio>
-#include <filesystem>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <regex>
@@ -19,6 +18,7 @@
 #include "modules/registry.h"
 #include "replayer/live_runner.h"
 #include "replayer/replayer.h"
+#include "core/log_reader.h"
 #include "core/same_file.h"
 
 namespace driftlab::apps {
@@ -119,7 +119,7 @@ int run_replay(const ReplayArgs& a) {
     o.remap.emplace_back(m.substr(0, eq), m.substr(eq + 1));
   }
   for (const auto& log : a.logs) {
-    if (!std::filesystem::is_regular_file(log)) return fail(log + ": no such log file");
+    if (Status s = check_event_log(log); !s) return fail(s.message());
   }
   if (Status s = refuse_same_file(a.out, a.logs); !s) return fail(s.message());
   if (a.end > 0 && a.end <= a.start) {
@@ -171,7 +171,6 @@ int run_replay(const ReplayArgs& a) {
   sa.sa_handler = on_signal;
   sigaction(SIGINT, &sa, nullptr);
   sigaction(SIGTERM, &sa, nullptr);
-  signal(SIGXFSZ, SIG_IGN);
   const auto t0 = std::chrono::steady_clock::now();
   auto report = replayer.run(sink, &g_stop);
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -237,7 +236,6 @@ int run_live(const RunArgs& a) {
   sa.sa_handler = on_signal;
   sigaction(SIGINT, &sa, nullptr);
   sigaction(SIGTERM, &sa, nullptr);
-  signal(SIGXFSZ, SIG_IGN);
   auto report = runner.run(&g_stop);
   if (!report) return fail(report.error().message, kExitFailure);
   if (a.json) {

@@ -23,6 +23,7 @@
 #include "apps/commands.h"
 #include "apps/diagnosis_json.h"
 #include "apps/report.h"
+#include "core/log_reader.h"
 
 namespace driftlab::apps {
 
@@ -125,6 +126,7 @@ Result<std::string> make_report(const ReportOptions& o) {
   if (o.logs.empty()) return Error{"report: no log given"};
   std::vector<LogSeries> logs;
   for (const auto& path : o.logs) {
+    if (Status s = check_event_log(path); !s) return Error{s.message()};
     auto s = read_log_series(path);
     if (!s) return s.error();
     if (s->streams.empty()) return Error{path + ": no events"};

@@ -138,9 +138,14 @@ Status ControllerModule::start(Bus& bus) {
       ++undecodable_;
       return;
     }
+    if (!non_finite_.finite(m)) return;
     if (!c_.estimate_in_world) {  // the estimate's frame starts at the robot's start pose
       const double c = std::cos(c_.start.yaw), s = std::sin(c_.start.yaw);
       p = {c_.start.x + c * p.x - s * p.y, c_.start.y + s * p.x + c * p.y, c_.start.yaw + p.yaw};
+    }
+    // Finite fields can still give a NaN pose (a quaternion of huge numbers has no yaw).
+    if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.yaw)) {
+      return non_finite_.count(m.channel, "the pose it gives is not finite");
     }
     estimate_ = p;
   });
@@ -148,6 +153,7 @@ Status ControllerModule::start(Bus& bus) {
     bus.subscribe(c_.scan_channel, [this](const BusMessage& m) {
       driftlab::laser_scan_t scan;
       if (!decode_message(m, scan)) return void(++undecodable_);
+      if (!non_finite_.finite(m)) return;
       // The nearest return per sector within reach, in the scan's frame (taken as the base's: the obstacle layer
       // only needs directions and distances to within the laser's offset).
       double nearest[kSectors];
@@ -155,7 +161,9 @@ Status ControllerModule::start(Bus& bus) {
       for (int i = 0; i < scan.nranges; ++i) {
         const float r = scan.ranges[static_cast<size_t>(i)];
         if (!(r >= scan.range_min && r <= scan.range_max) || r > kObstacleRange) continue;
-        const double a = scan.angle_min + i * static_cast<double>(scan.angle_increment);
+        // Wrapped first: a huge angle would overflow the sector index.
+        const double a = std::remainder(scan.angle_min + i * static_cast<double>(scan.angle_increment), 2 * M_PI);
+        if (!std::isfinite(a)) continue;
         int k = static_cast<int>(std::floor((a + M_PI) / (2 * M_PI) * kSectors)) % kSectors;
         if (k < 0) k += kSectors;
         nearest[k] = std::min(nearest[k], static_cast<double>(r));
@@ -172,6 +180,7 @@ Status ControllerModule::start(Bus& bus) {
     bus.subscribe(c_.logged_channel, [this](const BusMessage& m) {
       driftlab::velocity_command_t cmd;
       if (!decode_message(m, cmd)) return void(++undecodable_);
+      if (!non_finite_.finite(m)) return;
       logged_.push_back({m.utime, cmd.linear.x, cmd.angular.z});
     });
   }
@@ -216,7 +225,7 @@ void ControllerModule::finish(Bus& bus) {
 
 ModuleCounters ControllerModule::counters() const {
   ModuleCounters c;
-  c.dropped = undecodable_;
+  c.dropped = undecodable_ + non_finite_.dropped();
   if (comparison_) {
     c.metrics = {{"compared_commands", comparison_->matched},
                  {"linear_rmse_m_s", comparison_->linear_rmse},
@@ -235,6 +244,7 @@ ModuleCounters ControllerModule::counters() const {
   if (undecodable_ > 0) {
     c.warnings.push_back("controller: " + std::to_string(undecodable_) + " messages of the wrong type ignored");
   }
+  if (auto w = non_finite_.warning("controller")) c.warnings.push_back(*w);
   return c;
 }
 

@@ -174,7 +174,13 @@ Result<LiveReport> LiveRunner::run(const std::atomic<bool>* stop) {
       fn();
     }
   }
-  for (auto& b : d.buses) b->module_.finish(*b);
+  for (auto& b : d.buses) {
+    try {
+      b->module_.finish(*b);
+    } catch (const std::exception& e) {  // as for a message: counted and named, the log closed
+      b->tally_.failed("(finish)", e.what());
+    }
+  }
   d.publish_stats();
   LiveReport report;
   report.received = d.received;

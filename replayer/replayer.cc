@@ -147,7 +147,11 @@ class Engine {
   /// Calls every module's finish(), the last statistics and the manifest of injected faults.
   Status finish(const std::vector<driftlab::fault_t>& injected) {
     for (auto& b : buses_) {
-      b->module_.finish(*b);
+      try {
+        b->module_.finish(*b);
+      } catch (const std::exception& e) {  // as for a message: counted and named, the run and its log complete
+        b->tally_.failed("(finish)", e.what());
+      }
       if (Status s = drain(); !s) return s;
     }
     if (Status s = publish_stats(); !s) return s;

@@ -131,6 +131,7 @@ struct Slam2d::Impl {
   std::optional<mrpt::poses::CPose2D> last_odom_at_scan;
   int64_t scans = 0, odometry = 0, undecodable = 0, seq = 0, keyframes = 0, before_odometry = 0;
   int64_t first_scan = -1;  ///< stamp of the first scan [us]
+  NonFiniteInputs non_finite;
   bool tf_missing_warned = false;
   std::vector<std::string> warnings;
 };
@@ -163,18 +164,20 @@ Status Slam2d::start(Bus& bus) {
     d.builder.ICP_params.loadFromConfigFile(cfg, "ICP");
     d.builder.initialize();
   } catch (const std::exception& e) {
-    std::string what = e.what();
-    what = what.substr(0, what.find('\n'));
-    return Error{(c.ini.empty() ? std::string("slam.2d") : c.ini) + ": MRPT rejected the ICP settings: " + what};
+    return Error{(c.ini.empty() ? std::string("slam.2d") : c.ini) + ": MRPT rejected the ICP settings: " +
+                 one_line(e.what())};
   }
 
   if (!c.tf_static_channel.empty()) {
     bus.subscribe(c.tf_static_channel, [this](const BusMessage& m) {
       driftlab::tf_t tf;
       if (!decode_message(m, tf)) return void(++impl_->undecodable);
+      if (!impl_->non_finite.finite(m)) return;
       for (const auto& t : tf.transforms) {
         if (t.header.frame_id != impl_->c.base_frame) continue;
-        impl_->sensor_on_base[t.child_frame_id] = mrpt::poses::CPose2D(t.translation.x, t.translation.y, yaw_of(t.rotation));
+        const double yaw = yaw_of(t.rotation);  // NaN for a quaternion of huge numbers
+        if (!std::isfinite(yaw)) return impl_->non_finite.count(m.channel, "the yaw of " + t.child_frame_id + " = nan");
+        impl_->sensor_on_base[t.child_frame_id] = mrpt::poses::CPose2D(t.translation.x, t.translation.y, yaw);
       }
     });
   }
@@ -182,14 +185,22 @@ Status Slam2d::start(Bus& bus) {
     bus.subscribe(c.odom_channel, [this](const BusMessage& m) {
       driftlab::odometry_t o;
       if (!decode_message(m, o)) return void(++impl_->undecodable);
+      if (!impl_->non_finite.finite(m)) return;
+      const double yaw = yaw_of(o.orientation);  // NaN for a quaternion of huge numbers
+      if (!std::isfinite(yaw)) return impl_->non_finite.count(m.channel, "the yaw of orientation = nan");
       ++impl_->odometry;
-      impl_->odom.add(o.header.utime, {o.position.x, o.position.y, yaw_of(o.orientation)});
+      impl_->odom.add(o.header.utime, {o.position.x, o.position.y, yaw});
     });
   }
   bus.subscribe(c.scan_channel, [this, &bus](const BusMessage& m) {
     Impl& d = *impl_;
     driftlab::laser_scan_t scan;
     if (!decode_message(m, scan) || scan.nranges < 2) return void(++d.undecodable);
+    // A scan whose geometry is NaN or infinite cannot be placed (MRPT's grid asserts on it): left out, counted.
+    if (!d.non_finite.finite(m)) return;
+    if (!std::isfinite(scan.angle_increment * static_cast<float>(scan.nranges - 1))) {
+      return d.non_finite.count(m.channel, "angle_increment * (nranges - 1) = inf");
+    }
     // With odometry configured, the map starts where the odometry does (as icp-slam starts at its first
     // odometry/scan pair): scans in the first second before any odometry are counted and left out.
     if (d.first_scan < 0) d.first_scan = scan.header.utime;
@@ -293,8 +304,9 @@ void Slam2d::finish(Bus& bus) {
 ModuleCounters Slam2d::counters() const {
   const Impl& d = *impl_;
   ModuleCounters c;
-  c.dropped = d.undecodable;
+  c.dropped = d.undecodable + d.non_finite.dropped();
   c.warnings = d.warnings;
+  if (auto w = d.non_finite.warning("slam")) c.warnings.push_back(*w);
   if (d.scans == 0) {
     c.warnings.push_back("slam: no driftlab.laser_scan_t on " + d.c.scan_channel + ": no map built");
   } else if (!d.c.odom_channel.empty() && d.odometry == 0) {

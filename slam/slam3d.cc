@@ -109,6 +109,7 @@ struct Slam3d::Impl {
   int64_t clouds = 0, not_clouds = 0, unusable = 0, unconverged = 0, rejected = 0, undecodable = 0;
   int64_t odometry = 0, keyframes = 0, registered = 0, seq = 0;
   double fitness_sum = 0, fitness_max = 0;
+  NonFiniteInputs non_finite;
   bool tf_missing_warned = false;
   std::vector<std::string> warnings;
 
@@ -281,6 +282,7 @@ Status Slam3d::start(Bus& bus) {
     bus.subscribe(c.tf_static_channel, [this](const BusMessage& m) {
       driftlab::tf_t tf;
       if (!decode_message(m, tf)) return void(++impl_->undecodable);
+      if (!impl_->non_finite.finite(m)) return;
       for (const auto& t : tf.transforms) {
         if (t.header.frame_id != impl_->c.base_frame) continue;
         Eigen::Isometry3d x = Eigen::Isometry3d::Identity();
@@ -294,8 +296,11 @@ Status Slam3d::start(Bus& bus) {
     bus.subscribe(c.odom_channel, [this](const BusMessage& m) {
       driftlab::odometry_t o;
       if (!decode_message(m, o)) return void(++impl_->undecodable);
+      if (!impl_->non_finite.finite(m)) return;
+      const double yaw = yaw_of(o.orientation);  // NaN for a quaternion of huge numbers
+      if (!std::isfinite(yaw)) return impl_->non_finite.count(m.channel, "the yaw of orientation = nan");
       ++impl_->odometry;
-      impl_->odom.add(o.header.utime, {o.position.x, o.position.y, yaw_of(o.orientation)});
+      impl_->odom.add(o.header.utime, {o.position.x, o.position.y, yaw});
     });
   }
   bus.subscribe(c.cloud_channel, [this, &bus](const BusMessage& m) { impl_->on_cloud(bus, m); });
@@ -323,8 +328,9 @@ void Slam3d::finish(Bus& bus) {
 ModuleCounters Slam3d::counters() const {
   const Impl& d = *impl_;
   ModuleCounters c;
-  c.dropped = d.not_clouds + d.undecodable + d.unusable + d.unconverged + d.rejected;
+  c.dropped = d.not_clouds + d.undecodable + d.unusable + d.unconverged + d.rejected + d.non_finite.dropped();
   c.warnings = d.warnings;
+  if (auto w = d.non_finite.warning("slam3d")) c.warnings.push_back(*w);
   if (d.clouds == 0) {
     std::string w = "slam3d: no driftlab.point_cloud_t on " + d.c.cloud_channel;
     if (d.not_clouds > 0) w += " (" + std::to_string(d.not_clouds) + " messages of another type)";

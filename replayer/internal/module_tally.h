@@ -40,7 +40,7 @@ class ModuleTally {
   }
   /// An input whose handler threw: the module skipped it (what() says why).
   void failed(const std::string& channel, const char* what) {
-    if (failed_++ == 0) first_failure_ = channel + ": " + what;
+    if (failed_++ == 0) first_failure_ = channel + ": " + one_line(what);  // not MRPT's call stack
   }
   /// An input that arrived at `at` [us] took `seconds` to process: the queue a module with these processing times
   /// has (inputs wait while it is busy).

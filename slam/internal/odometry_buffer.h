@@ -19,7 +19,7 @@ class OdometryBuffer {
   void add(int64_t stamp, const Pose2d& pose, int64_t depth_us = 5000000) {
     auto at = std::upper_bound(q_.begin(), q_.end(), stamp, [](int64_t t, const Sample& s) { return t < s.stamp; });
     q_.insert(at, {stamp, pose});
-    while (q_.size() > 2 && q_.back().stamp - q_.front().stamp > depth_us) q_.pop_front();
+    while (q_.size() > 2 && span(q_.front().stamp, q_.back().stamp) > static_cast<uint64_t>(depth_us)) q_.pop_front();
   }
   bool empty() const { return q_.empty(); }
 
@@ -31,13 +31,15 @@ class OdometryBuffer {
     if (stamp >= q_.back().stamp) return q_.back().pose;
     auto hi = std::lower_bound(q_.begin(), q_.end(), stamp, [](const Sample& s, int64_t t) { return s.stamp < t; });
     auto lo = std::prev(hi);
-    const double f = static_cast<double>(stamp - lo->stamp) / static_cast<double>(hi->stamp - lo->stamp);
+    const double f = static_cast<double>(span(lo->stamp, stamp)) / static_cast<double>(span(lo->stamp, hi->stamp));
     const double dyaw = std::remainder(hi->pose.yaw - lo->pose.yaw, 2 * M_PI);
     return Pose2d{lo->pose.x + f * (hi->pose.x - lo->pose.x), lo->pose.y + f * (hi->pose.y - lo->pose.y),
                   lo->pose.yaw + f * dyaw};
   }
 
  private:
+  /// b - a for a <= b, exact whatever the stamps (int64_t arithmetic could overflow on hostile ones).
+  static uint64_t span(int64_t a, int64_t b) { return static_cast<uint64_t>(b) - static_cast<uint64_t>(a); }
   struct Sample {
     int64_t stamp;
     Pose2d pose;

@@ -3,6 +3,7 @@
 // messages are counted and named, and every good one is still used.
 #include <gtest/gtest.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include <filesystem>
 #include <fstream>
@@ -12,9 +13,12 @@
 #include "core/log_writer.h"
 #include "driftlab/imu_t.hpp"
 #include "driftlab/laser_scan_t.hpp"
+#include "driftlab/odometry_t.hpp"
 #include "driftlab/pose_t.hpp"
 #include "driftlab/tf_t.hpp"
+#include "driftlab/velocity_command_t.hpp"
 #include "lcmtypes/stream_header.h"
+#include "lcmtypes/validate.h"
 #include "tests/test_util.h"
 
 namespace driftlab {
@@ -68,6 +72,12 @@ int write_hostile_log(const std::string& path) {
   }
   if (last == 0 || !w->close().ok()) return -1;
   return sets;
+}
+
+/// Whether a message shows C++ or MRPT internals rather than saying what is wrong.
+bool shows_internals(const std::string& err) {
+  return err.find("==== MRPT") != std::string::npos || err.find("_M_") != std::string::npos ||
+         err.find("std::") != std::string::npos || err.find("Call stack") != std::string::npos;
 }
 
 bool crashed(const test::CmdResult& r) {
@@ -173,13 +183,210 @@ TEST(OutputOverInput, IsRefusedBeforeAnythingIsWritten) {
   const auto before = test::read_file(log);
   for (const std::string& cmd : std::vector<std::string>{
            "replay " + log + " -o " + link, "diagnose --json " + link + " " + log, "export tum " + log +
-           ":GROUND_TRUTH -o " + link, "import rawlog " + log + " -o " + log, "export rawlog " + log + " -o " + log}) {
+           ":GROUND_TRUTH -o " + link, "import rawlog " + log + " -o " + log, "export rawlog " + log + " -o " + log,
+           "recover " + log + " -o " + link, "eval --gt " + log + ":GROUND_TRUTH --est " + log + ":GROUND_TRUTH --json " + link}) {
     const auto r = driftlab(cmd);
     EXPECT_EQ(r.code, 2) << cmd << "\n" << r.err;
     EXPECT_NE(r.err.find("is the input"), std::string::npos) << cmd << "\n" << r.err;
     EXPECT_EQ(test::read_file(log), before) << cmd;
   }
   expect_no_partial_files(dir.path());
+}
+
+/// Every command that reads a log, with OUT as the output of those that write one.
+std::vector<std::string> log_readers(const std::string& log, const test::TempDir& dir) {
+  return {"info " + log,
+          "diagnose " + log,
+          "diagnose --json " + dir.file("d.json") + " " + log,
+          "replay " + log + " -o " + dir.file("r.lcm"),
+          "export csv " + log + " -o " + dir.file("csv"),
+          "export tum " + log + ":GROUND_TRUTH -o " + dir.file("t.tum"),
+          "export rawlog " + log + " -o " + dir.file("x.rawlog"),
+          "report " + log + " -o " + dir.file("report"),
+          "eval --gt " + log + ":GROUND_TRUTH --est " + kSample + ":GROUND_TRUTH",
+          "recover " + log + " -o " + dir.file("c.lcm")};
+}
+
+TEST(NotALog, EveryCommandThatReadsLogsSaysSoAndExits2) {
+  // Random bytes, zeros and an empty file used to be "no timing problems found" (diagnose) and exit 0 (replay,
+  // export rawlog, with an empty output written). 64 MB of zeros here (a sparse file; 4 GB takes 2 s, checked by
+  // hand). A FIFO is refused at once by every command.
+  test::TempDir dir;
+  std::vector<uint8_t> random(100000);
+  uint64_t x = 88172645463325252ull;
+  for (auto& b : random) b = static_cast<uint8_t>((x ^= x << 13, x ^= x >> 7, x ^= x << 17) >> 56);
+  test::write_file(dir.file("random.lcm"), random);
+  test::write_file(dir.file("zeros.lcm"), {});
+  ASSERT_EQ(::truncate(dir.file("zeros.lcm").c_str(), 64 << 20), 0);
+  test::write_file(dir.file("empty.lcm"), {});
+  ASSERT_EQ(mkfifo(dir.file("fifo.lcm").c_str(), 0600), 0);  // opening it to read would block without a writer
+  for (const auto& [name, message] : {std::pair{"random.lcm", "not an LCM event log (no event in 100000 bytes"},
+                                      {"zeros.lcm", "not an LCM event log (no event in 67108864 bytes"},
+                                      {"empty.lcm", "empty file (0 bytes): no events"},
+                                      {"fifo.lcm", "not a regular file (a FIFO, device or socket)"}}) {
+    const std::string log = dir.file(name);
+    for (const auto& cmd : log_readers(log, dir)) {
+      if (cmd.rfind("info", 0) == 0 && std::string(name) == "empty.lcm") continue;  // info describes it (below)
+      const auto r = driftlab(cmd);
+      EXPECT_EQ(r.code, 2) << cmd << "\n" << r.err;
+      EXPECT_NE(r.err.find(log + ": " + message), std::string::npos) << cmd << "\n" << r.err;
+      EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << cmd << "\n" << r.err;
+      EXPECT_EQ(r.out.find("no timing problems"), std::string::npos) << cmd;
+      EXPECT_FALSE(shows_internals(r.err)) << cmd << "\n" << r.err;
+    }
+    for (const char* out : {"d.json", "r.lcm", "csv", "t.tum", "x.rawlog", "report", "c.lcm"}) {
+      EXPECT_FALSE(fs::exists(dir.file(out))) << name << " left " << out;
+    }
+  }
+  // An empty file is a log of no events (what lcm-logger leaves when nothing came): info says so, with exit 0.
+  const auto info = driftlab("info " + dir.file("empty.lcm"));
+  EXPECT_EQ(info.code, 0) << info.err;
+  EXPECT_NE(info.out.find("the file is empty"), std::string::npos) << info.out;
+  expect_no_partial_files(dir.path());
+}
+
+TEST(NotALog, ALogDamagedThroughoutIsNamedAsSuch) {
+  // It starts like a log, but no event is whole: not "not a log", and still nothing to work on.
+  test::TempDir dir;
+  auto bytes = test::read_file(kSample);
+  bytes.resize(20);
+  test::write_file(dir.file("cut.lcm"), bytes);
+  const auto r = driftlab("diagnose " + dir.file("cut.lcm"));
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("cut.lcm: no intact event in 20 bytes"), std::string::npos) << r.err;
+}
+
+/// The sample log with the first and every `every`-th message after it on `channel` rewritten by `edit` (which
+/// gets the decoded message); returns how many were rewritten.
+template <typename T, typename F>
+int rewrite_sample(const std::string& path, const std::string& channel, int every, F edit) {
+  auto w = LogWriter::create(path);
+  if (!w.ok()) return -1;
+  int n = 0, rewritten = 0;
+  for (const auto& e : test::read_all(kSample)) {
+    std::vector<uint8_t> data = e.data;
+    if (e.channel == channel && n++ % every == 0) {
+      T m;
+      if (m.decode(data.data(), 0, static_cast<int>(data.size())) < 0) return -1;
+      edit(m);
+      data = encode(m);
+      ++rewritten;
+    }
+    if (!w->write(e.utime, e.channel, data).ok()) return -1;
+  }
+  return w->close().ok() ? rewritten : -1;
+}
+
+/// Every message on `channel` of a log, as T.
+template <typename T>
+std::vector<T> messages(const std::string& path, const std::string& channel) {
+  std::vector<T> out;
+  for (const auto& e : test::read_all(path)) {
+    if (e.channel != channel) continue;
+    EXPECT_EQ(lcmtypes::non_finite(e.data), std::nullopt) << channel << " at " << e.utime;
+    T m;
+    if (m.decode(e.data.data(), 0, static_cast<int>(e.data.size())) >= 0) out.push_back(m);
+  }
+  return out;
+}
+
+nlohmann::json module_report(const nlohmann::json& replay, const std::string& name) {
+  for (const auto& m : replay["modules"]) {
+    if (m["name"] == name) return m;
+  }
+  return {};
+}
+
+TEST(HostileValues, NanTwistsNeverReachTheEstimate) {
+  // NaN in 5% of the odometry twists made nearly every EKF output NaN for the rest of the run, without a warning.
+  test::TempDir dir;
+  const std::string log = dir.file("nan.lcm");
+  const int nan = rewrite_sample<driftlab::odometry_t>(log, "ODOM", 20, [](driftlab::odometry_t& o) {
+    o.linear_velocity.x = NAN;
+  });
+  ASSERT_GT(nan, 1);
+  const auto r = driftlab("replay " + log + " --modules estimator,controller --json -o " + dir.file("out.lcm"));
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  const auto est = module_report(j, "estimator");
+  EXPECT_EQ(est["dropped"].get<int64_t>(), nan) << est;
+  EXPECT_EQ(est["metrics"]["non_finite_dropped"].get<double>(), nan) << est;
+  EXPECT_NE(est["warnings"].dump().find("estimator: " + std::to_string(nan) +
+                                        " inputs with NaN or infinite numbers dropped (first: ODOM: "
+                                        "linear_velocity.x = nan)"),
+            std::string::npos)
+      << est;
+  const auto estimates = messages<driftlab::odometry_t>(dir.file("out.lcm"), "EKF_ODOM");  // all finite
+  EXPECT_GE(estimates.size(), 45u);  // 50 Hz over the sample's second
+  // The controller follows the odometry's pose: a message with a NaN in it is dropped there too.
+  EXPECT_EQ(module_report(j, "controller")["dropped"].get<int64_t>(), nan);
+  (void)messages<driftlab::velocity_command_t>(dir.file("out.lcm"), "CMD_REPLAY");
+}
+
+TEST(HostileValues, SlamSkipsAScanWithANanAngleIncrementAndSaysSo) {
+  // MRPT's occupancy grid asserted on such a scan (the first, a keyframe): `replay --modules slam` aborted,
+  // leaving OUT.partial behind.
+  test::TempDir dir;
+  const std::string log = dir.file("nan.lcm");
+  const int nan = rewrite_sample<driftlab::laser_scan_t>(log, "SCAN", 3, [](driftlab::laser_scan_t& s) {
+    s.angle_increment = NAN;
+  });
+  ASSERT_GE(nan, 3);
+  const auto r = driftlab("replay " + log + " --modules slam --json -o " + dir.file("out.lcm"));
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto slam = module_report(nlohmann::json::parse(r.out), "slam");
+  EXPECT_EQ(slam["dropped"].get<int64_t>(), nan) << slam;
+  EXPECT_NE(slam["warnings"].dump().find("(first: SCAN: angle_increment = nan)"), std::string::npos) << slam;
+  EXPECT_EQ(slam["warnings"].dump().find("failed on"), std::string::npos) << slam;  // skipped, not thrown
+  EXPECT_FALSE(messages<driftlab::pose_t>(dir.file("out.lcm"), "SLAM_POSE").empty());
+}
+
+TEST(FullDisk, EveryCommandFailsWithCode1AndLeavesNothingBehind) {
+  // A file-size limit of 1 KiB (ulimit -f 1) stands for a full disk: the write fails with EFBIG. SIGXFSZ used to
+  // kill export csv and export rawlog halfway, leaving their partial files.
+  test::TempDir dir;
+  for (const std::string& cmd :
+       {"diagnose --json " + dir.file("d.json") + " " + kSample, "export csv " + kSample + " -o " + dir.file("csv"),
+        "export tum " + kSample + ":GROUND_TRUTH -o " + dir.file("t.tum"), "replay " + kSample + " -o " + dir.file("r.lcm"),
+        "export rawlog " + kSample + " -o " + dir.file("x.rawlog"), "recover " + kSample + " -o " + dir.file("c.lcm")}) {
+    const auto r = test::run_capture("ulimit -f 1; timeout 60 " + kDriftlab + " " + cmd);
+    EXPECT_EQ(r.code, 1) << cmd << "\n" << r.err;
+    EXPECT_FALSE(shows_internals(r.err)) << cmd << "\n" << r.err;  // export rawlog said "==== MRPT exception ===="
+
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << cmd << "\n" << r.err;
+  }
+  for (const char* out : {"d.json", "t.tum", "r.lcm", "x.rawlog", "c.lcm"}) EXPECT_FALSE(fs::exists(dir.file(out))) << out;
+  expect_no_partial_files(dir.path());
+}
+
+TEST(BadInput, RecordAndDemoExitWith2) {
+  // They exited 1 (an environment failure) for options the user got wrong.
+  test::TempDir dir;
+  for (const auto& [args, message] :
+       std::vector<std::pair<std::string, std::string>>{
+           {"record -c '[bad' -o " + dir.file("x.lcm"), "-c/--channels: invalid channel regex '[bad': "},
+           {"record --exclude '(' -o " + dir.file("x.lcm"), "--exclude: invalid channel regex '(': "},
+           {"record --url bogus:// -o " + dir.file("x.lcm"), "LCM URL 'bogus://': only udpm:// is supported"},
+           {"demo /nonexistent.yaml -o " + dir.file("demo"), "demo: driftlab sim /nonexistent.yaml"}}) {
+    const auto r = driftlab(args);
+    EXPECT_EQ(r.code, 2) << args << "\n" << r.err;
+    EXPECT_EQ(r.err.rfind("driftlab: " + message, 0), 0u) << args << "\n" << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+  }
+  EXPECT_FALSE(fs::exists(dir.file("x.lcm")));
+  EXPECT_FALSE(fs::exists(dir.file("demo/sim.json")));  // the failed stage's (empty) output is not kept
+}
+
+TEST(BadInput, EvalNamesALogGivenWithoutItsChannel) {
+  // It was read as a TUM file: "sample.lcm:1: not a number".
+  for (const std::string& args : {"--gt " + kSample + " --est " + kSample + ":GROUND_TRUTH",
+                                  "--gt " + kSample + ":GROUND_TRUTH --est " + kSample}) {
+    const auto r = driftlab("eval " + args);
+    EXPECT_EQ(r.code, 2) << args;
+    const std::string option = args.find("--est " + kSample + ":") != std::string::npos ? "--gt" : "--est";
+    EXPECT_EQ(r.err, "driftlab: " + kSample + ": an LCM event log: name the channel, as " + option + " " + kSample +
+                         ":CHANNEL\n");
+  }
 }
 
 }  // namespace

@@ -1,0 +1,298 @@
+// libFuzzer target: the processing modules (the estimator, the controller, the 2D and 3D SLAM) fed well-formed
+// messages carrying hostile values (NaN, infinities, huge, tiny and denormal numbers, zero-length and odd-sized
+// arrays, stamps at the ends of int64_t and running backwards) through a fake bus that delivers them as
+// `driftlab replay` does, timers included. No module may throw, crash or trip a sanitizer, and every message a
+// module publishes must be well-formed with every number finite (lcmtypes::non_finite): a NaN that gets in must
+// never come out.
+// Input: a byte picking the module, then messages, each a kind byte and the values FuzzedDataProvider draws.
+#include <fuzzer/FuzzedDataProvider.h>
+
+#include <cfloat>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <cstdlib>
+#include <functional>
+#include <limits>
+#include <memory>
+#include <regex>
+#include <string>
+#include <vector>
+
+#include "controller/controller_module.h"
+#include "core/bus.h"
+#include "driftlab/imu_t.hpp"
+#include "driftlab/laser_scan_t.hpp"
+#include "driftlab/odometry_t.hpp"
+#include "driftlab/point_cloud_t.hpp"
+#include "driftlab/pose_t.hpp"
+#include "driftlab/tf_t.hpp"
+#include "driftlab/velocity_command_t.hpp"
+#include "estimator/estimator_module.h"
+#include "lcmtypes/validate.h"
+#include "slam/slam2d.h"
+#include "slam/slam3d.h"
+
+namespace {
+
+using driftlab::BusMessage;
+
+/// A bus as the replayer is one, reduced: handlers by full regex match, now() the time of the message handled,
+/// timers fired at whole multiples of their period before the first message at or after a tick. Every publication
+/// is checked.
+class FakeBus final : public driftlab::Bus {
+ public:
+  void subscribe(const std::string& channel_regex, driftlab::BusHandler handler) override {
+    subs_.push_back({std::regex(channel_regex), std::move(handler)});
+  }
+  void publish(std::string_view channel, std::span<const uint8_t> data) override {
+    if (const auto why = driftlab::lcmtypes::layout_problem(data)) {
+      std::fprintf(stderr, "published a malformed message on %.*s: %s\n", static_cast<int>(channel.size()),
+                   channel.data(), why->c_str());
+      std::abort();
+    }
+    if (const auto what = driftlab::lcmtypes::non_finite(data)) {
+      std::fprintf(stderr, "published a non-finite number on %.*s: %s\n", static_cast<int>(channel.size()),
+                   channel.data(), what->c_str());
+      std::abort();
+    }
+  }
+  int64_t now() const override { return now_; }
+  void every(int64_t period_us, std::function<void()> fn) override {
+    if (period_us <= 0) std::abort();  // modules validate their rates
+    timers_.push_back({period_us, 0, std::move(fn)});
+  }
+
+  /// Delivers a message at log time t (which may go backwards, as in a log).
+  void deliver(const std::string& channel, int64_t t, const std::vector<uint8_t>& bytes) {
+    fire_timers(t);
+    now_ = t;
+    const BusMessage m{channel, t, bytes};
+    for (auto& s : subs_) {
+      if (std::regex_match(channel, s.regex)) s.handler(m);
+    }
+  }
+
+ private:
+  struct Sub {
+    std::regex regex;
+    driftlab::BusHandler handler;
+  };
+  struct Timer {
+    int64_t period, next;
+    std::function<void()> fn;
+  };
+  void fire_timers(int64_t t) {
+    for (Timer& timer : timers_) {
+      // Placed at the first tick at or after t; a jump of more than 64 periods skips the ticks in between (the
+      // replayer fires them all; here they would only cost time).
+      if (timer.next == 0 || static_cast<double>(t) - static_cast<double>(timer.next) > 64.0 * timer.period) {
+        timer.next = (t / timer.period) * timer.period;
+      }
+      while (timer.next <= t) {
+        now_ = timer.next;
+        timer.fn();
+        if (timer.next > std::numeric_limits<int64_t>::max() - timer.period) return;
+        timer.next += timer.period;
+      }
+    }
+  }
+  std::vector<Sub> subs_;
+  std::vector<Timer> timers_;
+  int64_t now_ = 0;
+};
+
+double hostile_double(FuzzedDataProvider& in) {
+  switch (in.ConsumeIntegralInRange<int>(0, 15)) {
+    case 0: return std::numeric_limits<double>::quiet_NaN();
+    case 1: return INFINITY;
+    case 2: return -INFINITY;
+    case 3: return DBL_MAX;
+    case 4: return -1e300;
+    case 5: return DBL_MIN;
+    case 6: return 4.9e-324;  // the smallest denormal
+    case 7: return 0.0;
+    case 8: return -0.0;
+    case 9: return 1e15;
+    case 10: return in.ConsumeFloatingPoint<double>();
+    default: return in.ConsumeFloatingPointInRange<double>(-20, 20);  // ordinary values, most of the time
+  }
+}
+
+float hostile_float(FuzzedDataProvider& in) {
+  const double d = hostile_double(in);
+  if (std::isnan(d)) return NAN;
+  if (std::abs(d) > FLT_MAX) return d > 0 ? INFINITY : -INFINITY;
+  return static_cast<float>(d);
+}
+
+int64_t hostile_stamp(FuzzedDataProvider& in, int64_t& clock) {
+  switch (in.ConsumeIntegralInRange<int>(0, 9)) {
+    case 0: return std::numeric_limits<int64_t>::min();
+    case 1: return std::numeric_limits<int64_t>::max();
+    case 2: return 0;
+    case 3: return in.ConsumeIntegral<int64_t>();
+    case 4: return clock - in.ConsumeIntegralInRange<int64_t>(0, 2000000);  // late
+    default: return clock += in.ConsumeIntegralInRange<int64_t>(0, 100000);  // in order, up to 0.1 s apart
+  }
+}
+
+driftlab::header_t header(FuzzedDataProvider& in, int64_t stamp, const char* frame) {
+  return {in.ConsumeIntegral<int64_t>(), stamp, in.ConsumeBool() ? frame : "odom"};
+}
+
+template <typename T>
+std::vector<uint8_t> encode(const T& m) {
+  std::vector<uint8_t> bytes(static_cast<size_t>(m.getEncodedSize()));
+  m.encode(bytes.data(), 0, static_cast<int>(bytes.size()));
+  return bytes;
+}
+
+template <size_t N>
+void fill(FuzzedDataProvider& in, double (&a)[N]) {
+  for (double& v : a) v = in.ConsumeBool() ? hostile_double(in) : 0.0;
+}
+
+void put_quaternion(FuzzedDataProvider& in, driftlab::quaternion_t& q) {
+  if (in.ConsumeBool()) {  // a unit quaternion of a yaw
+    const double yaw = hostile_double(in);
+    q = {std::cos(yaw / 2), 0, 0, std::sin(yaw / 2)};
+  } else {
+    q = {hostile_double(in), hostile_double(in), hostile_double(in), hostile_double(in)};
+  }
+}
+
+void put_vector(FuzzedDataProvider& in, driftlab::vector3_t& v) { v = {hostile_double(in), hostile_double(in), hostile_double(in)}; }
+
+std::unique_ptr<driftlab::Module> make_module(int which) {
+  using namespace driftlab;
+  switch (which) {
+    case 0: return std::make_unique<estimator::EstimatorModule>(estimator::EstimatorConfig{});
+    case 1: {
+      controller::ControllerConfig c;
+      c.route = {{0, 0}, {5, 0}, {5, 5}, {0, 5}};
+      return std::make_unique<controller::ControllerModule>(c);
+    }
+    case 2: return std::make_unique<slam::Slam2d>(slam::Slam2dConfig{});
+    default: return std::make_unique<slam::Slam3d>(slam::Slam3dConfig{});
+  }
+}
+
+}  // namespace
+
+extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
+  FuzzedDataProvider in(data, size);
+  const int which = in.ConsumeIntegralInRange<int>(0, 3);
+  auto module = make_module(which);
+  FakeBus bus;
+  if (!module->start(bus).ok()) std::abort();  // the defaults always start
+  // SLAM does real work per scan or cloud: fewer messages keep each input fast.
+  const int max_messages = which >= 2 ? 24 : 200;
+  int64_t clock = 1'000'000;
+  for (int n = 0; n < max_messages && in.remaining_bytes() > 0; ++n) {
+    const int64_t stamp = hostile_stamp(in, clock);
+    const int64_t arrival = in.ConsumeBool() ? clock : stamp;
+    switch (in.ConsumeIntegralInRange<int>(0, 6)) {
+      case 0: {
+        driftlab::imu_t m{};
+        m.header = header(in, stamp, "imu");
+        put_quaternion(in, m.orientation);
+        fill(in, m.orientation_covariance);
+        put_vector(in, m.angular_velocity);
+        fill(in, m.angular_velocity_covariance);
+        put_vector(in, m.linear_acceleration);
+        fill(in, m.linear_acceleration_covariance);
+        bus.deliver("IMU", arrival, encode(m));
+        break;
+      }
+      case 1: {
+        driftlab::odometry_t m{};
+        m.header = header(in, stamp, "odom");
+        m.child_frame_id = "base_link";
+        put_vector(in, m.position);
+        put_quaternion(in, m.orientation);
+        fill(in, m.pose_covariance);
+        put_vector(in, m.linear_velocity);
+        put_vector(in, m.angular_velocity);
+        fill(in, m.twist_covariance);
+        bus.deliver("ODOM", arrival, encode(m));
+        break;
+      }
+      case 2: {
+        driftlab::pose_t m{};
+        m.header = header(in, stamp, "map");
+        m.child_frame_id = "base_link";
+        put_vector(in, m.position);
+        put_quaternion(in, m.orientation);
+        fill(in, m.covariance);
+        bus.deliver("SLAM_POSE", arrival, encode(m));
+        break;
+      }
+      case 3: {
+        driftlab::laser_scan_t m{};
+        m.header = header(in, stamp, "laser");
+        m.nranges = in.ConsumeIntegralInRange<int32_t>(0, 90);
+        const bool plain = in.ConsumeBool();  // an ordinary fan, hostile ranges only
+        m.angle_min = plain ? -1.5f : hostile_float(in);
+        m.angle_increment = plain ? 3.0f / 90 : hostile_float(in);
+        m.angle_max = m.angle_min + m.angle_increment * static_cast<float>(m.nranges);
+        m.range_min = plain ? 0.1f : hostile_float(in);
+        m.range_max = plain ? 30.0f : hostile_float(in);
+        m.time_increment = hostile_float(in);
+        m.scan_time = hostile_float(in);
+        for (int i = 0; i < m.nranges; ++i) {
+          m.ranges.push_back(in.ConsumeBool() ? in.ConsumeFloatingPointInRange<float>(0, 10) : hostile_float(in));
+        }
+        m.nintensities = in.ConsumeBool() ? m.nranges : 0;
+        m.intensities.assign(static_cast<size_t>(m.nintensities), 1.0f);
+        bus.deliver("SCAN", arrival, encode(m));
+        break;
+      }
+      case 4: {
+        driftlab::point_cloud_t m{};
+        m.header = header(in, stamp, "lidar");
+        m.npoints = in.ConsumeIntegralInRange<int32_t>(0, 400);
+        m.height = in.ConsumeBool() ? 1 : in.ConsumeIntegral<int32_t>();
+        m.width = in.ConsumeBool() ? m.npoints : in.ConsumeIntegral<int32_t>();
+        const double spread = in.ConsumeFloatingPointInRange<double>(0.1, 30);
+        for (int i = 0; i < m.npoints; ++i) {
+          const bool ordinary = in.ConsumeProbability<double>() < 0.9;
+          m.x.push_back(ordinary ? static_cast<float>(spread * std::cos(i * 0.7)) : hostile_float(in));
+          m.y.push_back(ordinary ? static_cast<float>(spread * std::sin(i * 0.7)) : hostile_float(in));
+          m.z.push_back(ordinary ? static_cast<float>((i % 7) * 0.3) : hostile_float(in));
+        }
+        m.nintensities = 0;
+        m.ntimes = in.ConsumeBool() ? m.npoints : 0;
+        for (int i = 0; i < m.ntimes; ++i) m.time_offsets.push_back(in.ConsumeBool() ? i * 1e-4f : hostile_float(in));
+        bus.deliver("POINTS", arrival, encode(m));
+        break;
+      }
+      case 5: {
+        driftlab::tf_t m{};
+        m.header = header(in, stamp, "");
+        m.ntransforms = in.ConsumeIntegralInRange<int32_t>(0, 3);
+        for (int i = 0; i < m.ntransforms; ++i) {
+          driftlab::transform_t t{};
+          t.header = {0, stamp, "base_link"};
+          t.child_frame_id = in.ConsumeBool() ? "laser" : "lidar";
+          put_vector(in, t.translation);
+          put_quaternion(in, t.rotation);
+          m.transforms.push_back(t);
+        }
+        bus.deliver("TF_STATIC", arrival, encode(m));
+        break;
+      }
+      default: {
+        driftlab::velocity_command_t m{};
+        m.header = header(in, stamp, "base_link");
+        put_vector(in, m.linear);
+        put_vector(in, m.angular);
+        bus.deliver("CMD", arrival, encode(m));
+        break;
+      }
+    }
+  }
+  module->finish(bus);
+  (void)module->counters();
+  return 0;
+}
