@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 
 #include "core/internal/yaml_fields.h"
 #include "driftlab/command_comparison_t.hpp"
@@ -93,7 +94,9 @@ CommandComparison compare_commands(const std::vector<CommandSample>& recomputed,
     size_t hint = 0;
     CommandSample held;
     for (const CommandSample& r : recomputed) {
-      if (!held_at(logged, r.utime + lag, hint, held)) continue;
+      int64_t at = 0;  // saturated: log times at the end of int64_t (a hostile log) must not overflow
+      if (__builtin_add_overflow(r.utime, lag, &at)) at = lag > 0 ? INT64_MAX : INT64_MIN;
+      if (!held_at(logged, at, hint, held)) continue;
       const double dl = r.linear - held.linear, da = r.angular - held.angular;
       se_l += dl * dl;
       se_a += da * da;
@@ -144,8 +147,9 @@ Status ControllerModule::start(Bus& bus) {
       p = {c_.start.x + c * p.x - s * p.y, c_.start.y + s * p.x + c * p.y, c_.start.yaw + p.yaw};
     }
     // Finite fields can still give a NaN pose (a quaternion of huge numbers has no yaw).
-    if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.yaw)) {
-      return non_finite_.count(m.channel, "the pose it gives is not finite");
+    if (!std::isfinite(p.yaw)) return non_finite_.count(m.channel, "the yaw of orientation = nan");
+    if (!non_finite_.plausible(m.channel, "position.x", p.x) || !non_finite_.plausible(m.channel, "position.y", p.y)) {
+      return;
     }
     estimate_ = p;
   });
@@ -180,7 +184,10 @@ Status ControllerModule::start(Bus& bus) {
     bus.subscribe(c_.logged_channel, [this](const BusMessage& m) {
       driftlab::velocity_command_t cmd;
       if (!decode_message(m, cmd)) return void(++undecodable_);
-      if (!non_finite_.finite(m)) return;
+      if (!non_finite_.finite(m) || !non_finite_.plausible(m.channel, "linear.x", cmd.linear.x) ||
+          !non_finite_.plausible(m.channel, "angular.z", cmd.angular.z)) {
+        return;  // a command of 1e300 would make the comparison's RMSE infinite
+      }
       logged_.push_back({m.utime, cmd.linear.x, cmd.angular.z});
     });
   }

@@ -5,6 +5,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "lcmtypes/validate.h"
+
 namespace driftlab::estimator {
 
 double wrap_angle(double a) {
@@ -14,14 +16,9 @@ double wrap_angle(double a) {
 
 namespace {
 
-/// Positions, speeds and rates beyond this [m, m/s, rad/s] are no robot's (past the Moon's orbit, faster than
-/// light). Bounded so, the state cannot overflow: with the longest step int64_t stamps allow (9.2e12 s), the
-/// motion model's terms stay below 1e22.
-constexpr double kMaxMagnitude = 1e9;
-
-bool plausible(double v) { return std::abs(v) <= kMaxMagnitude; }  // false for NaN too
-
-/// Whether a measurement can be applied: its values plausible, its variances finite (yaw wraps: any finite one).
+/// Whether a measurement can be applied: its values plausible (within kMaxMagnitude: so bounded, the state cannot
+/// overflow, the motion model's terms staying below 1e22 with the longest step int64_t stamps allow, 9.2e12 s),
+/// its variances finite (yaw wraps: any finite one).
 bool usable(const Measurement& m) {
   if (const auto* g = std::get_if<GyroZ>(&m)) return plausible(g->w) && std::isfinite(g->var);
   if (const auto* t = std::get_if<Twist>(&m)) {

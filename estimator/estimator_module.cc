@@ -1,6 +1,7 @@
 #include "estimator/estimator_module.h"
 
 #include <cmath>
+#include <cstdint>
 
 #include "core/internal/yaml_fields.h"
 #include "driftlab/imu_t.hpp"
@@ -109,8 +110,16 @@ void EstimatorModule::add(Bus& bus, int64_t stamp, const Measurement& m) {
   if (next_publish_ == 0) next_publish_ = t;
   if (t >= next_publish_) {
     publish(bus);
-    const auto period = static_cast<int64_t>(std::llround(1e6 / c_.publish_rate));
-    while (next_publish_ <= t) next_publish_ += period;
+    // The first multiple of the period after t, computed rather than stepped to (a stamp years ahead would take
+    // billions of steps) and saturated at the end of int64_t (a hostile stamp must not overflow).
+    const auto period = static_cast<uint64_t>(std::llround(1e6 / c_.publish_rate));
+    const uint64_t steps = (static_cast<uint64_t>(t) - static_cast<uint64_t>(next_publish_)) / period + 1;
+    int64_t next = 0;
+    if (steps > static_cast<uint64_t>(INT64_MAX) / period ||
+        __builtin_add_overflow(next_publish_, static_cast<int64_t>(steps * period), &next)) {
+      next = INT64_MAX;
+    }
+    next_publish_ = next;
   }
 }
 

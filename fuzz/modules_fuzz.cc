@@ -29,6 +29,9 @@
 #include "driftlab/tf_t.hpp"
 #include "driftlab/velocity_command_t.hpp"
 #include "estimator/estimator_module.h"
+#include "core/log_format.h"
+#include "lcmtypes/schema.h"
+#include "lcmtypes/type_registry.h"
 #include "lcmtypes/validate.h"
 #include "slam/slam2d.h"
 #include "slam/slam3d.h"
@@ -65,6 +68,7 @@ class FakeBus final : public driftlab::Bus {
 
   /// Delivers a message at log time t (which may go backwards, as in a log).
   void deliver(const std::string& channel, int64_t t, const std::vector<uint8_t>& bytes) {
+    if (verbose_) std::fprintf(stderr, "%s at %lld: %s\n", channel.c_str(), static_cast<long long>(t), describe(bytes).c_str());
     fire_timers(t);
     now_ = t;
     const BusMessage m{channel, t, bytes};
@@ -74,6 +78,16 @@ class FakeBus final : public driftlab::Bus {
   }
 
  private:
+  /// The message's fields, for reading a crash's input (DRIFTLAB_FUZZ_VERBOSE=1).
+  static std::string describe(std::span<const uint8_t> bytes) {
+    const char* type = driftlab::lcmtypes::type_name(driftlab::logfmt::fingerprint(bytes));
+    if (type == nullptr) return "?";
+    std::string s = type;
+    driftlab::lcmtypes::flatten(*driftlab::lcmtypes::find_struct(type), bytes,
+                                [&](const std::string& k, const std::string& v) { s += " " + k + "=" + v; });
+    return s;
+  }
+  const bool verbose_ = std::getenv("DRIFTLAB_FUZZ_VERBOSE") != nullptr;
   struct Sub {
     std::regex regex;
     driftlab::BusHandler handler;

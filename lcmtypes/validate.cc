@@ -4,6 +4,7 @@
 #include <bit>
 #include <cctype>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <limits>
 #include <map>
@@ -270,6 +271,14 @@ bool NonFiniteInputs::finite(const BusMessage& m) {
   return !what;
 }
 
+bool NonFiniteInputs::plausible(std::string_view channel, const char* field, double v) {
+  if (driftlab::plausible(v)) return true;
+  char what[96];
+  std::snprintf(what, sizeof(what), "%s = %g, beyond %g", field, v, kMaxMagnitude);
+  count(channel, what);
+  return false;
+}
+
 void NonFiniteInputs::count(std::string_view channel, const std::string& what) {
   if (dropped_++ == 0) first_ = std::string(channel) + ": " + what;
 }
@@ -277,7 +286,7 @@ void NonFiniteInputs::count(std::string_view channel, const std::string& what) {
 std::optional<std::string> NonFiniteInputs::warning(const std::string& module) const {
   if (dropped_ == 0) return std::nullopt;
   return module + ": " + std::to_string(dropped_) + " input" + (dropped_ == 1 ? "" : "s") +
-         " with NaN or infinite numbers dropped (first: " + first_ + ")";
+         " with NaN, infinite or out-of-range numbers dropped (first: " + first_ + ")";
 }
 
 }  // namespace driftlab

@@ -52,16 +52,25 @@ bool decode_message(const BusMessage& m, T& out) {
   return lcmtypes::decode(m.data, out);
 }
 
-/// The inputs a module drops because a number in them is NaN or infinite (lcmtypes::non_finite, or a value the
-/// module derives), counted with the first one named, for the module's statistics. Not thread-safe (one module).
+/// Positions, speeds and rates beyond this [m, m/s, rad/s] are no robot's (past the Moon's orbit, faster than
+/// light). The modules refuse them as they refuse NaN: below it, their arithmetic cannot overflow.
+inline constexpr double kMaxMagnitude = 1e9;
+/// Whether |v| <= kMaxMagnitude (false for NaN).
+inline bool plausible(double v) { return v >= -kMaxMagnitude && v <= kMaxMagnitude; }
+
+/// The inputs a module drops because a number in them is NaN, infinite (lcmtypes::non_finite) or out of range (not
+/// plausible, or a value the module derives), counted with the first one named, for the module's statistics. Not
+/// thread-safe (one module).
 class NonFiniteInputs {
  public:
   /// Whether m's numbers are all finite; counts m (naming the first) when not.
   bool finite(const BusMessage& m);
-  /// Counts an input the module found non-finite itself: what names the value ("angle_increment = nan").
+  /// Whether a value the module uses is plausible; counts the input (naming field and value) when not.
+  bool plausible(std::string_view channel, const char* field, double v);
+  /// Counts an input the module found unusable itself: what names the value ("the yaw of orientation = nan").
   void count(std::string_view channel, const std::string& what);
   int64_t dropped() const { return dropped_; }
-  /// "N inputs with NaN or infinite numbers dropped (first: ODOM: linear_velocity.x = nan)", prefixed with
+  /// "N inputs with NaN, infinite or out-of-range numbers dropped (first: ODOM: linear_velocity.x = nan)", prefixed with
   /// "MODULE: "; nullopt when none were.
   std::optional<std::string> warning(const std::string& module) const;
 

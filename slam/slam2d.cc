@@ -13,7 +13,10 @@
 
 #include <opencv2/imgcodecs.hpp>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <cstdio>
 #include <fstream>
 #include <map>
 #include <optional>
@@ -34,6 +37,9 @@
 
 namespace driftlab::slam {
 namespace {
+
+/// The largest occupancy map drawn at the end [cells]: 100 MB, 500 m x 500 m at 5 cm.
+constexpr double kMaxMapCells = 1e8;
 
 /// An MRPT icp-slam configuration from ours: [MappingApplication] (map building, a single planar point map, as in
 /// icp-slam_demo_classic.ini) and [ICP]. With an .ini file, its values replace the defaults, and the keys given
@@ -177,6 +183,11 @@ Status Slam2d::start(Bus& bus) {
         if (t.header.frame_id != impl_->c.base_frame) continue;
         const double yaw = yaw_of(t.rotation);  // NaN for a quaternion of huge numbers
         if (!std::isfinite(yaw)) return impl_->non_finite.count(m.channel, "the yaw of " + t.child_frame_id + " = nan");
+        auto& in = impl_->non_finite;
+        if (!in.plausible(m.channel, "translation.x", t.translation.x) ||
+            !in.plausible(m.channel, "translation.y", t.translation.y)) {
+          return;
+        }
         impl_->sensor_on_base[t.child_frame_id] = mrpt::poses::CPose2D(t.translation.x, t.translation.y, yaw);
       }
     });
@@ -188,6 +199,10 @@ Status Slam2d::start(Bus& bus) {
       if (!impl_->non_finite.finite(m)) return;
       const double yaw = yaw_of(o.orientation);  // NaN for a quaternion of huge numbers
       if (!std::isfinite(yaw)) return impl_->non_finite.count(m.channel, "the yaw of orientation = nan");
+      auto& in = impl_->non_finite;
+      if (!in.plausible(m.channel, "position.x", o.position.x) || !in.plausible(m.channel, "position.y", o.position.y)) {
+        return;
+      }
       ++impl_->odometry;
       impl_->odom.add(o.header.utime, {o.position.x, o.position.y, yaw});
     });
@@ -204,7 +219,9 @@ Status Slam2d::start(Bus& bus) {
     // With odometry configured, the map starts where the odometry does (as icp-slam starts at its first
     // odometry/scan pair): scans in the first second before any odometry are counted and left out.
     if (d.first_scan < 0) d.first_scan = scan.header.utime;
-    if (!d.c.odom_channel.empty() && d.odom.empty() && scan.header.utime - d.first_scan < 1000000) {
+    const bool first_second = scan.header.utime < d.first_scan ||  // uint64_t: hostile stamps must not overflow
+                              static_cast<uint64_t>(scan.header.utime) - static_cast<uint64_t>(d.first_scan) < 1000000;
+    if (!d.c.odom_channel.empty() && d.odom.empty() && first_second) {
       ++d.before_odometry;
       return;
     }
@@ -265,6 +282,32 @@ void Slam2d::finish(Bus& bus) {
   if (d.scans == 0) return;
   mrpt::maps::CSimpleMap keyframes;
   d.builder.getCurrentlyBuiltMap(keyframes);
+  // MRPT grows the grid to every scan it inserts, to at most maxDistanceInsertion around the sensor. Scans placed
+  // absurdly far apart (a scanner 1e15 m from the base in a hostile log), or a tiny map_resolution, would ask it for
+  // more cells than memory holds, or than an int counts: past kMaxMapCells the map is not drawn, and the warning
+  // says how to draw it.
+  double x0 = -10, x1 = 10, y0 = -10, y1 = 10;
+  const double reach = mrpt::maps::COccupancyGridMap2D::TInsertionOptions().maxDistanceInsertion;
+  for (size_t i = 0; i < keyframes.size(); ++i) {
+    mrpt::poses::CPose3DPDF::Ptr pose;
+    mrpt::obs::CSensoryFrame::Ptr frame;
+    keyframes.get(i, pose, frame);
+    for (const auto& obs : *frame) {
+      if (const auto scan = std::dynamic_pointer_cast<mrpt::obs::CObservation2DRangeScan>(obs)) {
+        const mrpt::poses::CPose3D at = pose->getMeanVal() + scan->sensorPose;
+        x0 = std::min(x0, at.x() - reach), x1 = std::max(x1, at.x() + reach);
+        y0 = std::min(y0, at.y() - reach), y1 = std::max(y1, at.y() + reach);
+      }
+    }
+  }
+  const double cells = (x1 - x0) / d.c.map_resolution * ((y1 - y0) / d.c.map_resolution);
+  if (!(cells <= kMaxMapCells)) {
+    char what[200];
+    std::snprintf(what, sizeof(what), "slam: the map would span %.3g m x %.3g m, %.3g cells at map_resolution %g m: "
+                  "not drawn (a coarser map_resolution draws it)", x1 - x0, y1 - y0, cells, d.c.map_resolution);
+    d.warnings.push_back(what);
+    return;
+  }
   mrpt::maps::COccupancyGridMap2D grid(-10, 10, -10, 10, static_cast<float>(d.c.map_resolution));
   for (size_t i = 0; i < keyframes.size(); ++i) {
     mrpt::poses::CPose3DPDF::Ptr pose;

@@ -12,6 +12,7 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <deque>
 #include <filesystem>
 #include <limits>
@@ -144,7 +145,9 @@ void Slam3d::Impl::on_cloud(Bus& bus, const BusMessage& m) {
   // cloud to cloud, growing until registration failed).
   const auto odo = odom.at(stamp);
   auto motion_after = [&](double s) -> Eigen::Isometry3d {
-    return planar(*odo).inverse() * planar(*odom.at(stamp + std::llround(s * 1e6)));
+    int64_t at = 0;  // saturated: a hostile stamp near the end of int64_t must not overflow
+    if (__builtin_add_overflow(stamp, std::llround(s * 1e6), &at)) at = s > 0 ? INT64_MAX : INT64_MIN;
+    return planar(*odo).inverse() * planar(*odom.at(at));
   };
 
   // The returns within range, in the base frame at the stamp. An organised cloud is walked column by column, so
@@ -282,9 +285,15 @@ Status Slam3d::start(Bus& bus) {
     bus.subscribe(c.tf_static_channel, [this](const BusMessage& m) {
       driftlab::tf_t tf;
       if (!decode_message(m, tf)) return void(++impl_->undecodable);
-      if (!impl_->non_finite.finite(m)) return;
+      auto& in = impl_->non_finite;
+      if (!in.finite(m)) return;
       for (const auto& t : tf.transforms) {
         if (t.header.frame_id != impl_->c.base_frame) continue;
+        if (!in.plausible(m.channel, "translation.x", t.translation.x) ||
+            !in.plausible(m.channel, "translation.y", t.translation.y) ||
+            !in.plausible(m.channel, "translation.z", t.translation.z)) {
+          return;
+        }
         Eigen::Isometry3d x = Eigen::Isometry3d::Identity();
         x.translate(Eigen::Vector3d(t.translation.x, t.translation.y, t.translation.z));
         x.rotate(Eigen::Quaterniond(t.rotation.w, t.rotation.x, t.rotation.y, t.rotation.z).normalized());
@@ -299,6 +308,10 @@ Status Slam3d::start(Bus& bus) {
       if (!impl_->non_finite.finite(m)) return;
       const double yaw = yaw_of(o.orientation);  // NaN for a quaternion of huge numbers
       if (!std::isfinite(yaw)) return impl_->non_finite.count(m.channel, "the yaw of orientation = nan");
+      auto& in = impl_->non_finite;
+      if (!in.plausible(m.channel, "position.x", o.position.x) || !in.plausible(m.channel, "position.y", o.position.y)) {
+        return;
+      }
       ++impl_->odometry;
       impl_->odom.add(o.header.utime, {o.position.x, o.position.y, yaw});
     });

@@ -7,10 +7,12 @@
 
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <nlohmann/json.hpp>
 
 #include "core/log_reader.h"
 #include "core/log_writer.h"
+#include "driftlab/command_comparison_t.hpp"
 #include "driftlab/imu_t.hpp"
 #include "driftlab/laser_scan_t.hpp"
 #include "driftlab/odometry_t.hpp"
@@ -256,19 +258,22 @@ TEST(NotALog, ALogDamagedThroughoutIsNamedAsSuch) {
   EXPECT_NE(r.err.find("cut.lcm: no intact event in 20 bytes"), std::string::npos) << r.err;
 }
 
-/// The sample log with the first and every `every`-th message after it on `channel` rewritten by `edit` (which
-/// gets the decoded message); returns how many were rewritten.
+/// The log `from` (the sample log) with the first and every `every`-th message after it on `channel` rewritten by
+/// `edit` (which gets the decoded message and its index on the channel) into `path`; returns how many were
+/// rewritten.
 template <typename T, typename F>
-int rewrite_sample(const std::string& path, const std::string& channel, int every, F edit) {
+int rewrite_sample(const std::string& path, const std::string& channel, int every, F edit,
+                   const std::string& from = kSample) {
+  const auto events = test::read_all(from);  // before writing: path may be from
   auto w = LogWriter::create(path);
   if (!w.ok()) return -1;
   int n = 0, rewritten = 0;
-  for (const auto& e : test::read_all(kSample)) {
+  for (const auto& e : events) {
     std::vector<uint8_t> data = e.data;
     if (e.channel == channel && n++ % every == 0) {
       T m;
       if (m.decode(data.data(), 0, static_cast<int>(data.size())) < 0) return -1;
-      edit(m);
+      edit(m, n - 1);
       data = encode(m);
       ++rewritten;
     }
@@ -301,7 +306,7 @@ TEST(HostileValues, NanTwistsNeverReachTheEstimate) {
   // NaN in 5% of the odometry twists made nearly every EKF output NaN for the rest of the run, without a warning.
   test::TempDir dir;
   const std::string log = dir.file("nan.lcm");
-  const int nan = rewrite_sample<driftlab::odometry_t>(log, "ODOM", 20, [](driftlab::odometry_t& o) {
+  const int nan = rewrite_sample<driftlab::odometry_t>(log, "ODOM", 20, [](driftlab::odometry_t& o, int) {
     o.linear_velocity.x = NAN;
   });
   ASSERT_GT(nan, 1);
@@ -312,7 +317,7 @@ TEST(HostileValues, NanTwistsNeverReachTheEstimate) {
   EXPECT_EQ(est["dropped"].get<int64_t>(), nan) << est;
   EXPECT_EQ(est["metrics"]["non_finite_dropped"].get<double>(), nan) << est;
   EXPECT_NE(est["warnings"].dump().find("estimator: " + std::to_string(nan) +
-                                        " inputs with NaN or infinite numbers dropped (first: ODOM: "
+                                        " inputs with NaN, infinite or out-of-range numbers dropped (first: ODOM: "
                                         "linear_velocity.x = nan)"),
             std::string::npos)
       << est;
@@ -328,7 +333,7 @@ TEST(HostileValues, SlamSkipsAScanWithANanAngleIncrementAndSaysSo) {
   // leaving OUT.partial behind.
   test::TempDir dir;
   const std::string log = dir.file("nan.lcm");
-  const int nan = rewrite_sample<driftlab::laser_scan_t>(log, "SCAN", 3, [](driftlab::laser_scan_t& s) {
+  const int nan = rewrite_sample<driftlab::laser_scan_t>(log, "SCAN", 3, [](driftlab::laser_scan_t& s, int) {
     s.angle_increment = NAN;
   });
   ASSERT_GE(nan, 3);
@@ -339,6 +344,42 @@ TEST(HostileValues, SlamSkipsAScanWithANanAngleIncrementAndSaysSo) {
   EXPECT_NE(slam["warnings"].dump().find("(first: SCAN: angle_increment = nan)"), std::string::npos) << slam;
   EXPECT_EQ(slam["warnings"].dump().find("failed on"), std::string::npos) << slam;  // skipped, not thrown
   EXPECT_FALSE(messages<driftlab::pose_t>(dir.file("out.lcm"), "SLAM_POSE").empty());
+}
+
+TEST(HostileValues, HugeNumbersAndStampsAreRefusedNotOverflowed) {
+  // What the module fuzzer found: a scanner placed 1e15 m from the base made MRPT's grid ask for more cells than
+  // memory holds (a segfault in resizeGrid); a stamp at the end of int64_t overflowed the estimator's publication
+  // schedule (and stepping to it took 4e14 steps: replay hung); logged commands of 1e300 made the controller's
+  // comparison infinite. A map_resolution of 1 um (a valid number, but no map of 20 m fits in memory at it) made
+  // MRPT allocate 4e14 cells; now the map is left undrawn, with a warning.
+  test::TempDir dir;
+  const std::string log = dir.file("huge.lcm");
+  ASSERT_GT(rewrite_sample<driftlab::tf_t>(log, "TF_STATIC", 1, [](driftlab::tf_t& tf, int) {
+    for (auto& t : tf.transforms) t.translation.x = 1e15;
+  }), 0);
+  ASSERT_GT(rewrite_sample<driftlab::odometry_t>(log, "ODOM", 50, [](driftlab::odometry_t& o, int n) {
+    if (n == 50) o.header.utime = std::numeric_limits<int64_t>::max();  // the last
+  }, log), 0);
+  const int huge = rewrite_sample<driftlab::velocity_command_t>(log, "CMD_VEL", 4, [](driftlab::velocity_command_t& c, int) {
+    c.linear.x = 1e300;
+  }, log);
+  ASSERT_GT(huge, 1);
+  const std::string config = dir.file("c.yaml");
+  std::ofstream(config) << "controller:\n  logged_channel: CMD_VEL\nslam:\n  2d:\n    map_resolution: 1e-6\n";
+  const auto r = driftlab("replay " + log + " --modules slam,estimator,controller --config " + config +
+                          " --json -o " + dir.file("out.lcm"));
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  const auto slam = module_report(j, "slam"), ctl = module_report(j, "controller");
+  EXPECT_NE(slam["warnings"].dump().find("(first: TF_STATIC: translation.x = 1e+15, beyond 1e+09)"), std::string::npos)
+      << slam;
+  EXPECT_NE(slam["warnings"].dump().find("not drawn (a coarser map_resolution draws it)"), std::string::npos) << slam;
+  EXPECT_EQ(ctl["dropped"].get<int64_t>(), huge) << ctl;
+  EXPECT_NE(ctl["warnings"].dump().find("(first: CMD_VEL: linear.x = 1e+300, beyond 1e+09)"), std::string::npos) << ctl;
+  for (const auto& e : test::read_all(dir.file("out.lcm"))) {
+    EXPECT_EQ(lcmtypes::non_finite(e.data), std::nullopt) << e.channel;
+  }
+  EXPECT_EQ(messages<driftlab::command_comparison_t>(dir.file("out.lcm"), "CMD_COMPARISON").size(), 1u);
 }
 
 TEST(FullDisk, EveryCommandFailsWithCode1AndLeavesNothingBehind) {

@@ -166,7 +166,7 @@ TEST(NonFinite, ModulesCountTheDroppedAndNameTheFirst) {
   inputs.count("SCAN", "angle_increment * (nranges - 1) = inf");
   EXPECT_EQ(inputs.dropped(), 2);
   EXPECT_EQ(inputs.warning("estimator"),
-            "estimator: 2 inputs with NaN or infinite numbers dropped (first: ODOM: angular_velocity.z = nan)");
+            "estimator: 2 inputs with NaN, infinite or out-of-range numbers dropped (first: ODOM: angular_velocity.z = nan)");
 }
 
 }  // namespace
