@@ -351,10 +351,12 @@ def eval_table(evals):
     rows = []
     for e in evals:
         r = e["result"]
+        rpe = r["rpe"]["trans"]  # null when no pair of poses was delta apart
+        rpe_rmse = f"{rpe['rmse']:.4f}" if rpe else "no pairs"
         rows.append(
             f"<tr><td>{esc(e['file'])}</td><td>{esc(r['estimate']['source'])}</td>"
             f"<td>{esc(r['alignment']['type'])}</td><td>{r['matched']:,}</td><td>{r['ate']['rmse']:.4f}</td>"
-            f"<td>{r['ate']['max']:.4f}</td><td>{r['rpe']['trans']['rmse']:.4f}</td>"
+            f"<td>{r['ate']['max']:.4f}</td><td>{rpe_rmse}</td>"
             f"<td>{r['drift']['trans_pct']:.2f} %</td></tr>")
     return ("<section><h2>Trajectory evaluation</h2><table><tr><th>file</th><th>estimate</th><th>alignment</th>"
             "<th>matched</th><th>ATE rmse [m]</th><th>ATE max [m]</th><th>RPE rmse [m]</th><th>drift</th></tr>"

@@ -1,4 +1,4 @@
-#include "analyzers/tf_check.h"
+#include "analyzers/internal/tf_check.h"
 
 #include <cctype>
 

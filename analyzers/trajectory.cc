@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <functional>
 #include <limits>
 #include <numeric>
 
@@ -84,6 +85,30 @@ double Trajectory::path_length() const {
   double length = 0;
   for (size_t i = 1; i < positions.size(); ++i) length += (positions[i] - positions[i - 1]).norm();
   return length;
+}
+
+StampOrder sort_by_stamp(Trajectory& t) {
+  StampOrder o;
+  const size_t n = t.size();
+  for (size_t i = 1; i < n; ++i) {
+    if (t.stamps[i] < t.stamps[i - 1] && o.out_of_order++ == 0) o.first_out_of_order = t.stamps[i];
+  }
+  if (o.out_of_order > 0) {
+    PoseArray<size_t> order(n);
+    std::iota(order.begin(), order.end(), 0);
+    std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return t.stamps[a] < t.stamps[b]; });
+    Trajectory sorted;
+    sorted.stamps.reserve(n);
+    sorted.positions.reserve(n);
+    sorted.orientations.reserve(n);
+    for (size_t i : order) sorted.push_back(t.stamps[i], t.positions[i], t.orientations[i]);
+    sorted.stamped = t.stamped;
+    t = std::move(sorted);
+  }
+  for (size_t i = 1; i < n; ++i) {
+    if (t.stamps[i] == t.stamps[i - 1] && o.repeated++ == 0) o.first_repeated = t.stamps[i];
+  }
+  return o;
 }
 
 Stats compute_stats(PoseArray<double> e) {
@@ -209,23 +234,43 @@ Alignment align(const Matched& m, AlignmentType type) {
   Alignment a;
   a.type = type;
   const size_t n = m.est.size();
-  if (type == AlignmentType::kNone || n < (type == AlignmentType::kPosYaw ? 2u : 3u)) return a;
+  if (type == AlignmentType::kNone) return a;
+  const size_t needed = type == AlignmentType::kPosYaw ? 2 : 3;
+  if (n < needed) {
+    a.problem = std::to_string(n) + " matched pose" + (n == 1 ? "" : "s") + ", " + to_string(type) + " alignment needs " +
+                std::to_string(needed);
+    return a;
+  }
   Eigen::Matrix3Xd src(3, n), dst(3, n);
   for (size_t i = 0; i < n; ++i) {
     src.col(static_cast<long>(i)) = m.est.positions[i];
     dst.col(static_cast<long>(i)) = m.ref.positions[i];
   }
+  const Eigen::Vector3d mu_src = src.rowwise().mean(), mu_dst = dst.rowwise().mean();
   if (type == AlignmentType::kPosYaw) {
     // Rotation about z only: the yaw that best maps the centred est xy onto the centred ref xy.
-    const Eigen::Vector3d mu_src = src.rowwise().mean(), mu_dst = dst.rowwise().mean();
-    double sin_sum = 0, cos_sum = 0;
+    double sin_sum = 0, cos_sum = 0, spread = 0;
     for (size_t i = 0; i < n; ++i) {
       const Eigen::Vector3d s = src.col(static_cast<long>(i)) - mu_src, d = dst.col(static_cast<long>(i)) - mu_dst;
       cos_sum += s.x() * d.x() + s.y() * d.y();
       sin_sum += s.x() * d.y() - s.y() * d.x();
+      spread += s.head<2>().squaredNorm() + d.head<2>().squaredNorm();
+    }
+    if (!(std::hypot(sin_sum, cos_sum) > 1e-12 * spread) || !(spread > 0)) {
+      a.problem = "the matched positions do not move in x and y, so no yaw aligns them";
+      return a;
     }
     a.rotation = Eigen::AngleAxisd(std::atan2(sin_sum, cos_sum), Eigen::Vector3d::UnitZ()).toRotationMatrix();
     a.translation = mu_dst - a.rotation * mu_src;
+    return a;
+  }
+  // Umeyama needs the cross-covariance to have rank 2 at least (evo checks the same: singular values above the
+  // machine epsilon): points all on one point or one line leave a rotation about that line free.
+  const Eigen::Matrix3d cov = (dst.colwise() - mu_dst) * (src.colwise() - mu_src).transpose() / static_cast<double>(n);
+  const Eigen::Vector3d sv = Eigen::JacobiSVD<Eigen::Matrix3d>(cov).singularValues();
+  if ((sv.array() > std::numeric_limits<double>::epsilon()).count() < 2 || !sv.allFinite()) {
+    a.problem = "the matched positions lie on one point or one line, which leaves the " + std::string(to_string(type)) +
+                " alignment undetermined";
     return a;
   }
   // Eigen's Umeyama: the same closed form evo uses (SVD of the cross-covariance, reflection fixed).
@@ -267,47 +312,138 @@ const char* to_string(DeltaUnit unit) {
     case DeltaUnit::kFrames: return "frames";
     case DeltaUnit::kMeters: return "m";
     case DeltaUnit::kSeconds: return "s";
+    case DeltaUnit::kDegrees: return "deg";
+    case DeltaUnit::kRadians: return "rad";
   }
   return "frames";
 }
 
 namespace {
-std::vector<std::pair<size_t, size_t>> rpe_pairs(const Trajectory& ref, double delta, DeltaUnit unit, bool all_pairs) {
-  std::vector<std::pair<size_t, size_t>> pairs;
-  const size_t n = ref.size();
-  if (unit == DeltaUnit::kFrames) {
-    const size_t d = static_cast<size_t>(delta);
-    if (all_pairs) {
-      for (size_t i = 0; i + d < n; ++i) pairs.emplace_back(i, i + d);
-    } else {
-      for (size_t i = 0; i + d < n; i += d) pairs.emplace_back(i, i + d);
-    }
-    return pairs;
-  }
-  // Metres along the reference path, or seconds.
-  std::vector<double> along(n, 0.0);
-  for (size_t i = 1; i < n; ++i) {
-    along[i] = unit == DeltaUnit::kMeters ? along[i - 1] + (ref.positions[i] - ref.positions[i - 1]).norm()
-                                          : ref.stamps[i] - ref.stamps[0];
-  }
-  if (all_pairs) {
-    for (size_t i = 0; i + 1 < n; ++i) {
-      const auto it = std::lower_bound(along.begin() + static_cast<long>(i) + 1, along.end(), along[i] + delta);
-      if (it != along.end()) pairs.emplace_back(i, static_cast<size_t>(it - along.begin()));
-    }
-    return pairs;
-  }
-  // As evo: the ids are the poses where the distance accumulated since the previous id reaches delta.
+
+using Pairs = std::vector<std::pair<size_t, size_t>>;
+
+/// The distance between two positions as numpy's norm of their difference computes it (the squares summed in
+/// order), so that thresholds on a path fall exactly where evo's do.
+double step_length(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+  const double dx = a.x() - b.x(), dy = a.y() - b.y(), dz = a.z() - b.z();
+  return std::sqrt(dx * dx + dy * dy + dz * dz);
+}
+
+/// Consecutive pairs along a distance: the poses where the steps since the previous such pose add up to delta.
+Pairs consecutive_by_distance(size_t n, const std::function<double(size_t)>& step, double delta) {
   std::vector<size_t> ids;
   double since = 0.0;
   for (size_t i = 0; i < n; ++i) {
-    since += i == 0 ? 0.0 : along[i] - along[i - 1];
+    if (i > 0) since += step(i);
     if (since >= delta) {
       ids.push_back(i);
       since = 0.0;
     }
   }
+  Pairs pairs;
   for (size_t k = 1; k < ids.size(); ++k) pairs.emplace_back(ids[k - 1], ids[k]);
+  return pairs;
+}
+
+/// All pairs along a distance: from each i, the j > i whose (along[j] - along[i]) - delta is closest to 0 (the
+/// first on ties), kept when within tol. along is non-decreasing, so that miss is too (rounding is monotonic) and
+/// two binary searches find what evo's argmin over every j finds.
+Pairs all_by_distance(const PoseArray<double>& along, double delta, double tol) {
+  Pairs pairs;
+  const size_t n = along.size();
+  for (size_t i = 0; i + 1 < n; ++i) {
+    auto miss = [&](size_t j) { return (along[j] - along[i]) - delta; };
+    // First j >= first with miss(j) >= v.
+    auto first_at_least = [&](size_t first, double v) {
+      size_t lo = first, hi = n;
+      while (lo < hi) {
+        const size_t mid = lo + (hi - lo) / 2;
+        if (miss(mid) >= v) {
+          hi = mid;
+        } else {
+          lo = mid + 1;
+        }
+      }
+      return lo;
+    };
+    const size_t k = first_at_least(i + 1, 0.0);
+    size_t best = k;
+    if (k > i + 1) {
+      const size_t below = first_at_least(i + 1, miss(k - 1));  // the first of the poses missing by miss(k - 1)
+      if (k == n || -miss(k - 1) <= miss(k)) best = below;
+    }
+    if (best < n && std::abs(miss(best)) <= tol) pairs.emplace_back(i, best);
+  }
+  return pairs;
+}
+
+Pairs rpe_pairs(const Trajectory& t, const RpeOptions& o) {
+  Pairs pairs;
+  const size_t n = t.size();
+  switch (o.unit) {
+    case DeltaUnit::kFrames: {
+      const size_t d = static_cast<size_t>(o.delta);
+      if (d == 0) return pairs;
+      for (size_t i = 0; i + d < n; i += o.all_pairs ? 1 : d) pairs.emplace_back(i, i + d);
+      return pairs;
+    }
+    case DeltaUnit::kMeters:
+    case DeltaUnit::kSeconds: {
+      const bool metres = o.unit == DeltaUnit::kMeters;
+      if (!o.all_pairs) {
+        return consecutive_by_distance(
+            n,
+            [&](size_t i) {
+              return metres ? step_length(t.positions[i], t.positions[i - 1]) : t.stamps[i] - t.stamps[i - 1];
+            },
+            o.delta);
+      }
+      PoseArray<double> along(n, 0.0);
+      for (size_t i = 1; i < n; ++i) {
+        along[i] = metres ? along[i - 1] + step_length(t.positions[i - 1], t.positions[i]) : t.stamps[i] - t.stamps[0];
+      }
+      return all_by_distance(along, o.delta, o.delta * o.delta_tol);
+    }
+    case DeltaUnit::kDegrees:
+    case DeltaUnit::kRadians: {
+      // evo converts the delta and the tolerance (delta * delta_tol, in the delta's unit) with numpy's deg2rad.
+      const double to_rad = o.unit == DeltaUnit::kDegrees ? M_PI / 180.0 : 1.0;
+      const double delta = o.delta * to_rad, tol = (o.delta * o.delta_tol) * to_rad;
+      const auto& q = t.orientations;
+      if (!o.all_pairs) {
+        double angle = 0.0;
+        size_t start = 0;
+        for (size_t i = 0; i + 1 < n; ++i) {
+          angle += rotation_angle(q[i].conjugate() * q[i + 1]);
+          if (angle >= delta) {
+            pairs.emplace_back(start, i + 1);
+            angle = 0.0;
+            start = i + 1;
+          }
+        }
+        return pairs;
+      }
+      const double lower = delta - tol, upper = delta + tol;
+      // The angle between unit quaternions a and b is 2 acos(|a . b|): a dot product rules out the pairs far from
+      // the band (with a margin for rounding), and only the rest get the angle computed as everywhere else, so
+      // the pairs are the same as comparing every angle, about 10x sooner.
+      constexpr double kMargin = 1e-9;
+      const double dot_min = upper >= M_PI ? -1.0 : std::cos(upper / 2) - kMargin;
+      const double dot_max = lower <= 0 ? 2.0 : std::cos(lower / 2) + kMargin;
+      for (size_t i = 0; i + 1 < n; ++i) {
+        const Eigen::Quaterniond& a = q[i];
+        const Eigen::Quaterniond qi = a.conjugate();
+        for (size_t j = i + 1; j < n; ++j) {
+          const Eigen::Quaterniond& b = q[j];
+          const double dot = std::abs(a.w() * b.w() + a.x() * b.x() + a.y() * b.y() + a.z() * b.z());
+          if (dot < dot_min || dot > dot_max) continue;
+          const double angle = rotation_angle(qi * b);
+          if (lower <= angle && angle <= upper) pairs.emplace_back(i, j);
+        }
+      }
+      return pairs;
+    }
+  }
   return pairs;
 }
 
@@ -336,12 +472,10 @@ class RelativeError {
 };
 }  // namespace
 
-RpeResult rpe(const Matched& m, double delta, DeltaUnit unit, bool all_pairs) {
+RpeResult rpe(const Matched& m, const RpeOptions& options) {
   RpeResult r;
-  r.delta = delta;
-  r.unit = unit;
-  r.all_pairs = all_pairs;
-  r.pairs = rpe_pairs(m.ref, delta, unit, all_pairs);
+  r.options = options;
+  r.pairs = rpe_pairs(options.pairs_from_reference ? m.ref : m.est, options);
   PoseArray<double> trans(r.pairs.size()), rot(r.pairs.size());
   const RelativeError error(m);
   for (size_t k = 0; k < r.pairs.size(); ++k) {

@@ -23,6 +23,8 @@ struct Trajectory {
   PoseArray<double> stamps;                      ///< [s]
   PoseArray<Eigen::Vector3d> positions;          ///< [m]
   PoseArray<Eigen::Quaterniond> orientations;    ///< unit quaternions
+  /// False for poses without stamps (a KITTI file without its times): stamps are then the pose indices.
+  bool stamped = true;
   size_t size() const { return stamps.size(); }
   void push_back(double stamp, const Eigen::Vector3d& p, const Eigen::Quaterniond& q) {
     stamps.push_back(stamp);
@@ -32,6 +34,17 @@ struct Trajectory {
   /// Length of the path through all positions [m].
   double path_length() const;
 };
+
+/// How a trajectory's stamps were ordered before sort_by_stamp.
+struct StampOrder {
+  size_t out_of_order = 0;      ///< poses stamped earlier than the pose before them [count]
+  double first_out_of_order = 0;  ///< the stamp of the first of them [s]
+  size_t repeated = 0;          ///< poses stamped exactly as the pose before them (after sorting) [count]
+  double first_repeated = 0;    ///< the stamp of the first of them [s]
+};
+/// Sorts t's poses by stamp, keeping the file order among equal stamps (so matching still takes the first of
+/// them, as evo does), and says what it found.
+StampOrder sort_by_stamp(Trajectory& t);
 
 /// Error statistics; std is the population standard deviation, median as numpy's.
 struct Stats {
@@ -68,10 +81,14 @@ struct Alignment {
   Eigen::Matrix3d rotation = Eigen::Matrix3d::Identity();
   Eigen::Vector3d translation = Eigen::Vector3d::Zero();
   double scale = 1.0;
+  /// Why no alignment could be found, with the identity kept: the matched positions are too few, or all on one
+  /// point or one line (evo refuses these: "degenerate covariance rank"); empty when aligned.
+  std::string problem;
 };
 
 /// Least-squares alignment of est's positions onto ref's (Umeyama; posyaw: translation and yaw about z only).
-/// Needs at least 3 matched poses (2 for posyaw); fewer give the identity.
+/// Needs at least 3 matched poses (2 for posyaw) spanning more than a line (for posyaw, not all on one vertical);
+/// otherwise the identity with `problem` set.
 Alignment align(const Matched& m, AlignmentType type);
 /// est with the alignment applied: positions scaled, rotated and moved; orientations rotated.
 Trajectory apply(const Alignment& a, Trajectory t);
@@ -85,22 +102,34 @@ struct ApeResult {
 };
 ApeResult ape(const Matched& aligned);
 
-enum class DeltaUnit { kFrames, kMeters, kSeconds };
+enum class DeltaUnit { kFrames, kMeters, kSeconds, kDegrees, kRadians };
 const char* to_string(DeltaUnit unit);
 
-/// Relative pose error of (Q_i^-1 Q_j)^-1 (P_i^-1 P_j) over pairs (i, j) chosen as evo does: frames: (0, d),
-/// (d, 2d), ...; metres: consecutive poses of the reference where the path since the previous one reaches d;
-/// seconds: the same with time. all_pairs: every (i, i + d) for frames, every i with its first j at d or more
-/// for metres and seconds.
-struct RpeResult {
-  double delta = 1;
+/// How the pairs of poses of the relative pose error are chosen, as evo's RPE does (evo.core.filters).
+struct RpeOptions {
+  double delta = 1;                       ///< in `unit`
   DeltaUnit unit = DeltaUnit::kFrames;
-  bool all_pairs = false;
+  bool all_pairs = false;                 ///< every pair delta apart, not consecutive ones
+  bool pairs_from_reference = false;      ///< choose pairs along the reference's path (evo's default: the estimate's)
+  double delta_tol = 0.1;                 ///< all pairs by distance or angle: accepted miss, relative to delta
+};
+
+/// Relative pose error of (Q_i^-1 Q_j)^-1 (P_i^-1 P_j) over pairs (i, j) chosen along the estimate's poses (or the
+/// reference's) as evo does:
+/// - frames: (0, d), (d, 2d), ...; all pairs: every (i, i + d);
+/// - metres (path travelled) and seconds (time, not in evo): the poses where the distance since the previous one
+///   reaches d, taken as consecutive pairs (so the first pair need not start at pose 0); all pairs: from each pose
+///   i, the later pose j whose distance from i is closest to d (the first on ties), kept when it misses d by at most
+///   delta_tol * d;
+/// - degrees and radians: consecutive pairs from pose 0 where the rotation angles between consecutive poses add up
+///   to d; all pairs: every (i, j > i) whose direct rotation angle is within delta_tol * d of d (O(n^2), as evo).
+struct RpeResult {
+  RpeOptions options;
   std::vector<std::pair<size_t, size_t>> pairs;
-  Stats trans;
+  Stats trans;    ///< count 0 when there is no pair
   Stats rot_deg;
 };
-RpeResult rpe(const Matched& aligned, double delta, DeltaUnit unit, bool all_pairs);
+RpeResult rpe(const Matched& aligned, const RpeOptions& options);
 
 /// KITTI-style drift: from every step-th pose, the first pose at least L metres further along the reference
 /// path; error of that segment relative to L.

@@ -2,12 +2,13 @@
 
 #include <sys/stat.h>
 
+#include <algorithm>
 #include <cerrno>
-#include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
 
+#include "analyzers/internal/number_lines.h"
 #include "core/log_format.h"
 #include "core/log_index.h"
 #include "core/log_reader.h"
@@ -24,105 +25,193 @@ bool is_file(const std::string& path) {
   return stat(path.c_str(), &st) == 0 && S_ISREG(st.st_mode);
 }
 
-/// One decimal number. Numbers whose digits form an integer of at most 2^53, with up to 22 decimals, as TUM files hold,
-/// take Clinger's fast path (an integer and a power of ten, both exact in a double, so one division rounds
-/// correctly); anything else goes to std::from_chars. Both give the correctly rounded double, as numpy does.
-const char* parse_double(const char* p, const char* end, double& out) {
-  static constexpr double kPow10[] = {1e0,  1e1,  1e2,  1e3,  1e4,  1e5,  1e6,  1e7,  1e8,  1e9,  1e10, 1e11,
-                                      1e12, 1e13, 1e14, 1e15, 1e16, 1e17, 1e18, 1e19, 1e20, 1e21, 1e22};
-  const char* q = p;
-  const bool negative = q < end && *q == '-';
-  if (negative) ++q;
-  uint64_t mantissa = 0;
-  const char* start = q;
-  while (q < end && static_cast<unsigned>(*q - '0') < 10) mantissa = mantissa * 10 + static_cast<unsigned>(*q++ - '0');
-  const char* dot = q;
-  if (q < end && *q == '.') {
-    ++q;
-    while (q < end && static_cast<unsigned>(*q - '0') < 10) mantissa = mantissa * 10 + static_cast<unsigned>(*q++ - '0');
-  }
-  const long decimals = q > dot ? q - dot - 1 : 0;
-  const long digits = q - start - (q > dot ? 1 : 0);  // at most 19 digits cannot overflow 64 bits
-  const bool plain = digits > 0 && (q == end || *q == ' ' || *q == '\t' || *q == ',' || *q == '\r');
-  if (plain && digits <= 19 && mantissa <= (uint64_t{1} << 53) && decimals <= 22) {
-    const double v = static_cast<double>(mantissa) / kPow10[decimals];
-    out = negative ? -v : v;
-    return q;
-  }
-  const auto [next, ec] = std::from_chars(p, end, out);
-  return ec == std::errc() ? next : nullptr;
+std::string_view text_of(const MappedFile& f) {
+  const auto bytes = f.bytes();
+  return {reinterpret_cast<const char*>(bytes.data()), bytes.size()};
 }
 
-/// Parses the numbers of one line; returns how many it found (at most 9).
-int parse_numbers(const char* p, const char* end, double* out) {
-  int n = 0;
-  while (p < end) {
-    while (p < end && (*p == ' ' || *p == '\t' || *p == ',' || *p == '\r')) ++p;
-    if (p >= end) break;
-    if (n == 9) return n + 1;
-    const char* next = parse_double(p, end, out[n]);
-    if (next == nullptr || next == p) return -1;
-    p = next;
-    ++n;
+void reserve(Trajectory& t, size_t n) {
+  t.stamps.reserve(n);
+  t.positions.reserve(n);
+  t.orientations.reserve(n);
+}
+
+/// Reads the poses of a text trajectory file: parse(line_number, numbers, count, t) appends one pose or returns an
+/// error (without the file and line, which this adds). `columns` numbers are kept of each line; `exact`: a line
+/// must have exactly that many, else at least that many. `what` names the line format in messages.
+template <typename F>
+Result<Trajectory> read_lines(const std::string& path, int columns, bool exact, const char* what, size_t bytes_per_line,
+                              F&& parse) {
+  auto mapped = MappedFile::open(path);
+  if (!mapped) return mapped.error();
+  const std::string_view text = text_of(*mapped);
+  Trajectory t;
+  reserve(t, text.size() / bytes_per_line + 16);  // one allocation rather than doublings
+  std::string error;
+  constexpr int kMax = 32;
+  internal::for_each_data_line(text, [&](size_t line, const char* p, const char* eol) {
+    double v[kMax];
+    const int n = internal::parse_numbers(p, eol, v, exact ? columns : kMax);
+    std::string problem;
+    if (n < 0) {
+      problem = "not a number";
+    } else if (exact ? n != columns : n < columns) {
+      problem = std::string("expected ") + (exact ? "" : "at least ") + std::to_string(columns) + " numbers (" + what +
+                "), found " + (n > columns ? "more" : std::to_string(n));
+    } else {
+      problem = parse(v, t);
+    }
+    if (!problem.empty()) error = path + ":" + std::to_string(line) + ": " + problem;
+    return problem.empty();
+  });
+  if (!error.empty()) return Error{error};
+  if (t.size() == 0) return Error{path + ": no poses (expected lines of \"" + what + "\")"};
+  return t;
+}
+
+std::string short_value(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "%.6g", v);
+  return buf;
+}
+
+/// The first data line of a text file, and whether the file starts with an EuRoC-style "#timestamp" header.
+TrajectoryFormat detect(const std::string& path, std::string& why) {
+  auto mapped = MappedFile::open(path);
+  if (!mapped) {
+    why = mapped.error().message;
+    return TrajectoryFormat::kAuto;
   }
-  return n;
+  const std::string_view text = text_of(*mapped);
+  if (text.starts_with("#timestamp") || text.starts_with("\xEF\xBB\xBF#timestamp")) return TrajectoryFormat::kEuroc;
+  int numbers = -2;
+  bool commas = false;
+  size_t where = 0;
+  internal::for_each_data_line(text, [&](size_t line, const char* p, const char* eol) {
+    double v[32];
+    numbers = internal::parse_numbers(p, eol, v, 31);
+    commas = std::find(p, eol, ',') != eol;
+    where = line;
+    return false;
+  });
+  if (numbers == 8) return TrajectoryFormat::kTum;
+  if (numbers == 12) return TrajectoryFormat::kKitti;
+  if (numbers > 8 && commas) return TrajectoryFormat::kEuroc;
+  why = path + (numbers == -2 ? ": no data lines"
+                              : ":" + std::to_string(where) + ": " +
+                                    (numbers < 0 ? std::string("not a number")
+                                                 : std::to_string(numbers) + " numbers on the first data line")) +
+        ", not a trajectory evo reads (TUM: 8 numbers a line, KITTI: 12, EuRoC: comma-separated with a #timestamp "
+        "header)";
+  return TrajectoryFormat::kAuto;
 }
 
 }  // namespace
 
-Result<Trajectory> load_tum(const std::string& path) {
-  auto mapped = MappedFile::open(path);
-  if (!mapped) return mapped.error();
-  const auto bytes = mapped->bytes();
-  const std::string_view text(reinterpret_cast<const char*>(bytes.data()), bytes.size());
-  Trajectory t;
-  // About 60 bytes a line: reserve once rather than grow.
-  const size_t expected = text.size() / 48 + 16;
-  t.stamps.reserve(expected);
-  t.positions.reserve(expected);
-  t.orientations.reserve(expected);
-  const char* p = text.data();
-  const char* end = p + text.size();
-  for (size_t line = 1; p < end; ++line) {
-    const char* eol = static_cast<const char*>(std::memchr(p, '\n', static_cast<size_t>(end - p)));
-    if (eol == nullptr) eol = end;
-    const char* q = p;
-    while (q < eol && (*q == ' ' || *q == '\t' || *q == '\r')) ++q;
-    if (q < eol && *q != '#') {
-      double v[9];
-      const int n = parse_numbers(q, eol, v);
-      if (n != 8) {
-        return Error{path + ":" + std::to_string(line) +
-                     (n < 0 ? ": not a number" : ": expected 8 numbers (t x y z qx qy qz qw), found " + std::to_string(n))};
-      }
-      for (int i = 0; i < 8; ++i) {
-        if (!std::isfinite(v[i])) return Error{path + ":" + std::to_string(line) + ": a number is not finite"};
-      }
-      const Eigen::Quaterniond quat(v[7], v[4], v[5], v[6]);
-      if (quat.norm() < 1e-9) return Error{path + ":" + std::to_string(line) + ": the quaternion is zero"};
-      t.push_back(v[0], Eigen::Vector3d(v[1], v[2], v[3]), quat);
-    }
-    p = eol + 1;
+const char* to_string(TrajectoryFormat format) {
+  switch (format) {
+    case TrajectoryFormat::kAuto: return "auto";
+    case TrajectoryFormat::kTum: return "tum";
+    case TrajectoryFormat::kKitti: return "kitti";
+    case TrajectoryFormat::kEuroc: return "euroc";
   }
-  if (t.size() == 0) return Error{path + ": no poses (expected lines of \"t x y z qx qy qz qw\")"};
-  return t;
+  return "auto";
 }
 
-bool append_pose(std::span<const uint8_t> data, Trajectory& t) {
+std::string pose_problem(double stamp, const Eigen::Vector3d& p, const Eigen::Quaterniond& q) {
+  if (!std::isfinite(stamp) || !p.allFinite() || !q.coeffs().allFinite()) return "a number is not finite";
+  const double norm = q.norm();
+  if (norm < 1e-9) return "the quaternion is zero";
+  if (std::abs(norm - 1) > 0.01) return "the quaternion's norm is " + short_value(norm) + ", not 1: not a rotation";
+  return "";
+}
+
+Result<Trajectory> load_tum(const std::string& path) {
+  // About 60 bytes a line.
+  return read_lines(path, 8, true, "t x y z qx qy qz qw", 48, [](const double* v, Trajectory& t) {
+    const Eigen::Vector3d p(v[1], v[2], v[3]);
+    const Eigen::Quaterniond q(v[7], v[4], v[5], v[6]);
+    std::string problem = pose_problem(v[0], p, q);
+    if (problem.empty()) t.push_back(v[0], p, q);
+    return problem;
+  });
+}
+
+Result<Trajectory> load_euroc(const std::string& path) {
+  // About 200 bytes a line (17 columns).
+  return read_lines(path, 8, false, "timestamp [ns], x, y, z, qw, qx, qy, qz, ...", 160, [](const double* v, Trajectory& t) {
+    // Nanoseconds to seconds as evo does (the stamp parsed to the nearest double, then divided).
+    const double stamp = v[0] / 1e9;
+    const Eigen::Vector3d p(v[1], v[2], v[3]);
+    const Eigen::Quaterniond q(v[4], v[5], v[6], v[7]);
+    std::string problem = pose_problem(stamp, p, q);
+    if (problem.empty()) t.push_back(stamp, p, q);
+    return problem;
+  });
+}
+
+Result<Trajectory> load_kitti(const std::string& path, const std::string& times) {
+  auto poses = read_lines(
+      path, 12, true, "r11 r12 r13 tx r21 r22 r23 ty r31 r32 r33 tz", 150, [](const double* v, Trajectory& t) -> std::string {
+        if (!std::all_of(v, v + 12, [](double x) { return std::isfinite(x); })) return "a number is not finite";
+        Eigen::Matrix3d r;
+        r << v[0], v[1], v[2], v[4], v[5], v[6], v[8], v[9], v[10];
+        // A rotation matrix within the rounding of printed digits: orthonormal and right-handed.
+        const double off = (r.transpose() * r - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
+        if (off > 0.01 || r.determinant() < 0) {
+          return "the 3x3 part is not a rotation (R^T R differs from the identity by " + short_value(off) +
+                 ", determinant " + short_value(r.determinant()) + ")";
+        }
+        t.push_back(static_cast<double>(t.size()), Eigen::Vector3d(v[3], v[7], v[11]), Eigen::Quaterniond(r).normalized());
+        return "";
+      });
+  if (!poses) return poses;
+  Trajectory& t = *poses;
+  if (times.empty()) {
+    t.stamped = false;
+    return poses;
+  }
+  auto stamps = read_lines(times, 1, true, "t", 12, [](const double* v, Trajectory& s) -> std::string {
+    if (!std::isfinite(v[0])) return "a number is not finite";
+    s.push_back(v[0], Eigen::Vector3d::Zero(), Eigen::Quaterniond::Identity());
+    return "";
+  });
+  if (!stamps) return stamps.error();
+  if (stamps->size() != t.size()) {
+    return Error{times + ": " + std::to_string(stamps->size()) + " stamps for the " + std::to_string(t.size()) +
+                 " poses of " + path + " (one a line, as many as poses)"};
+  }
+  t.stamps = std::move(stamps->stamps);
+  return poses;
+}
+
+bool append_pose(std::span<const uint8_t> data, Trajectory& t, std::string* why) {
   const int64_t fp = logfmt::fingerprint(data);
   auto add = [&](const auto& m) {
-    t.push_back(static_cast<double>(m.header.utime) * 1e-6, {m.position.x, m.position.y, m.position.z},
-                {m.orientation.w, m.orientation.x, m.orientation.y, m.orientation.z});
+    const double stamp = static_cast<double>(m.header.utime) * 1e-6;
+    const Eigen::Vector3d p(m.position.x, m.position.y, m.position.z);
+    const Eigen::Quaterniond q(m.orientation.w, m.orientation.x, m.orientation.y, m.orientation.z);
+    std::string problem = pose_problem(stamp, p, q);
+    if (!problem.empty()) {
+      if (why != nullptr) *why = std::move(problem);
+      return false;
+    }
+    t.push_back(stamp, p, q);
     return true;
+  };
+  auto undecodable = [&](const char* type) {
+    if (why != nullptr) *why = std::string("does not decode as ") + type;
+    return false;
   };
   if (fp == driftlab::pose_t::getHash()) {
     driftlab::pose_t pose;
-    return lcmtypes::decode(data, pose) && add(pose);
+    return lcmtypes::decode(data, pose) ? add(pose) : undecodable("driftlab.pose_t");
   }
   if (fp == driftlab::odometry_t::getHash()) {
     driftlab::odometry_t odom;
-    return lcmtypes::decode(data, odom) && add(odom);
+    return lcmtypes::decode(data, odom) ? add(odom) : undecodable("driftlab.odometry_t");
   }
+  if (why != nullptr) *why = "is neither driftlab.pose_t nor driftlab.odometry_t";
   return false;
 }
 
@@ -140,9 +229,8 @@ Result<Trajectory> load_log_channel(const std::string& log, const std::string& c
       return Error{log + ": channel " + channel + " carries neither driftlab.pose_t nor driftlab.odometry_t (event at byte " +
                    std::to_string(e.offset) + ")"};
     }
-    if (!append_pose(e.data, t)) {
-      return Error{log + ": event at byte " + std::to_string(e.offset) + " on " + channel + " does not decode as " +
-                   (fp == driftlab::pose_t::getHash() ? "driftlab.pose_t" : "driftlab.odometry_t")};
+    if (std::string why; !append_pose(e.data, t, &why)) {
+      return Error{log + ": event at byte " + std::to_string(e.offset) + " on " + channel + ": " + why};
     }
   }
   if (!seen) {
@@ -155,12 +243,26 @@ Result<Trajectory> load_log_channel(const std::string& log, const std::string& c
   return t;
 }
 
-Result<Trajectory> load_trajectory(const std::string& src) {
+Result<Trajectory> load_trajectory(const std::string& src, TrajectoryFormat format, const std::string& times) {
   const size_t colon = src.rfind(':');
   if (colon != std::string::npos && colon > 0 && colon + 1 < src.size() && is_file(src.substr(0, colon))) {
     return load_log_channel(src.substr(0, colon), src.substr(colon + 1));
   }
-  return load_tum(src);
+  if (format == TrajectoryFormat::kAuto) {
+    std::string why;
+    format = detect(src, why);
+    if (format == TrajectoryFormat::kAuto) return Error{why};
+  }
+  if (!times.empty() && format != TrajectoryFormat::kKitti) {
+    return Error{src + ": a times file goes with KITTI poses, and this is a " + to_string(format) + " file"};
+  }
+  switch (format) {
+    case TrajectoryFormat::kTum: return load_tum(src);
+    case TrajectoryFormat::kKitti: return load_kitti(src, times);
+    case TrajectoryFormat::kEuroc: return load_euroc(src);
+    case TrajectoryFormat::kAuto: break;
+  }
+  return Error{src + ": unknown format"};
 }
 
 Status write_tum(const std::string& path, const Trajectory& t) {

@@ -1,14 +1,14 @@
 #include "apps/cli_util.h"
 
-#include <fcntl.h>
+#include "core/process.h"
+
 #include <lcm/lcm.h>
-#include <spawn.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include <cctype>
 #include <cerrno>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <ctime>
 #include <filesystem>
@@ -41,28 +41,36 @@ bool write_output(const std::string& path, const std::string& text) {
 }
 
 int run_program(const std::vector<std::string>& argv, const std::string& stdout_path, const std::string& stderr_path) {
-  std::vector<char*> args;
-  for (const auto& a : argv) args.push_back(const_cast<char*>(a.c_str()));
-  args.push_back(nullptr);
-  posix_spawn_file_actions_t actions;
-  posix_spawn_file_actions_init(&actions);
-  if (!stdout_path.empty()) {
-    posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, stdout_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  return run_process(argv, stdout_path, stderr_path);
+}
+
+Status run_plot_script(const char* script, const std::string& name, const std::string& dir,
+                       const std::vector<std::string>& args) {
+  const std::string path = (std::filesystem::path(dir) / ("." + name)).string();
+  {
+    FILE* f = std::fopen(path.c_str(), "w");
+    const size_t n = std::strlen(script);
+    bool ok = f != nullptr && std::fwrite(script, 1, n, f) == n;
+    if (f != nullptr && std::fclose(f) != 0) ok = false;
+    if (!ok) return Error{path + ": cannot write"};
   }
-  if (!stderr_path.empty()) {
-    posix_spawn_file_actions_addopen(&actions, STDERR_FILENO, stderr_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  // The first Python that has matplotlib: $DRIFTLAB_PYTHON, the one on PATH, then Debian's (where
+  // python3-matplotlib installs, should PATH lead to another, like pyenv's).
+  std::vector<std::string> pythons = {"python3", "/usr/bin/python3"};
+  if (const char* p = std::getenv("DRIFTLAB_PYTHON"); p != nullptr && *p != 0) pythons.insert(pythons.begin(), p);
+  int code = 127;
+  for (const auto& python : pythons) {
+    std::vector<std::string> argv = {python, path};
+    argv.insert(argv.end(), args.begin(), args.end());
+    code = run_program(argv, "");
+    if (code != 3 && code != 127) break;
   }
-  std::fflush(stdout);
-  pid_t pid = 0;
-  const int rc = posix_spawnp(&pid, args[0], &actions, nullptr, args.data(), environ);
-  posix_spawn_file_actions_destroy(&actions);
-  if (rc != 0) return 127;
-  int status = 0;
-  while (waitpid(pid, &status, 0) < 0) {
-    if (errno != EINTR) return 127;
+  std::remove(path.c_str());
+  if (code == 3 || code == 127) {
+    return Error{"no python3 with matplotlib (Debian: apt-get install python3-matplotlib, or run scripts/bootstrap)"};
   }
-  if (WIFSIGNALED(status)) return 128 + WTERMSIG(status);
-  return WIFEXITED(status) ? WEXITSTATUS(status) : 127;
+  if (code != 0) return Error{"drawing the plots failed (python3 exited with " + std::to_string(code) + ")"};
+  return {};
 }
 
 bool split_log_channel(const std::string& src, std::string* log, std::string* channel) {

@@ -32,6 +32,13 @@ bool write_output(const std::string& path, const std::string& text);
 int run_program(const std::vector<std::string>& argv, const std::string& stdout_path,
                 const std::string& stderr_path = "");
 
+/// Runs a plotting script (Python source compiled into the program) as `python3 SCRIPT ARGS...`: written to
+/// DIR/.NAME, run with the first Python that has matplotlib ($DRIFTLAB_PYTHON, python3 on PATH, Debian's
+/// /usr/bin/python3: the script exits 3 without matplotlib), then removed. Errors: no such Python, or the script's
+/// exit code.
+Status run_plot_script(const char* script, const std::string& name, const std::string& dir,
+                       const std::vector<std::string>& args);
+
 /// Splits "LOG:CHANNEL" at its last ':' when the part before it exists and is not a folder; false (log and channel
 /// untouched) otherwise. Channel names may hold ':' only if the log's name has none after its last one.
 bool split_log_channel(const std::string& src, std::string* log, std::string* channel);

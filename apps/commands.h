@@ -22,6 +22,9 @@ void add_diagnose_command(CLI::App& app, int* exit_code);
 void add_recover_command(CLI::App& app, int* exit_code);
 void add_report_command(CLI::App& app, int* exit_code);
 void add_demo_command(CLI::App& app, int* exit_code);
+/// sweep SPEC, sweep status|collect, and batch diagnose|eval|report (apps/sweep_main.cc, batch/).
+void add_sweep_command(CLI::App& app, int* exit_code);
+void add_batch_command(CLI::App& app, int* exit_code);
 /// import FILE (ROS 1 bags, CARMEN logs; MRPT rawlogs handed to driftlab-rawlog), on the `import` subcommand.
 void add_import_file_command(CLI::App& import_command, int* exit_code);
 /// export tum, export csv, on the `export` subcommand.
@@ -54,6 +57,10 @@ int exec_tool(const ToolCommand& tool, char** argv);
 /// Parses argv with app and returns the exit code: the command's, or CLI11's for --help/--version, or 2 (one
 /// line) for a usage error.
 int parse_and_run(CLI::App& app, int argc, char** argv, const int& exit_code);
+
+/// --help-config on cmd: calls print (the reference of the config files the command reads, from their tables) and
+/// exits with 0, before any other option is checked.
+void add_config_help(CLI::App& cmd, void (*print)());
 
 /// The `import` and `export` parent commands.
 CLI::App& add_import_command(CLI::App& app);

@@ -21,6 +21,7 @@
 #include "apps/commands.h"
 #include "apps/diagnosis_json.h"
 #include "apps/report.h"
+#include "core/process.h"
 
 namespace driftlab::apps {
 namespace {
@@ -79,15 +80,6 @@ std::string self_path() {
   std::error_code ec;
   const auto p = fs::read_symlink("/proc/self/exe", ec);
   return ec ? "driftlab" : p.string();
-}
-
-std::string last_line_of(const std::string& path) {
-  std::ifstream in(path);
-  std::string line, last;
-  while (std::getline(in, line)) {
-    if (!line.empty()) last = line;
-  }
-  return last;
 }
 
 std::string join_args(const std::vector<std::string>& args) {

@@ -27,6 +27,8 @@ int main(int argc, char** argv) {
   exp.add_subcommand("rawlog", tool_description("export", "rawlog"))->allow_extras();
   add_report_command(app, &exit_code);
   add_demo_command(app, &exit_code);
+  add_sweep_command(app, &exit_code);
+  add_batch_command(app, &exit_code);
   add_export_commands(exp, &exit_code);
   add_import_file_command(import, &exit_code);
   return parse_and_run(app, argc, argv, exit_code);

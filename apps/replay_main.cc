@@ -18,6 +18,7 @@
 #include "modules/registry.h"
 #include "replayer/live_runner.h"
 #include "replayer/replayer.h"
+#include "core/config.h"
 #include "core/log_reader.h"
 #include "core/same_file.h"
 
@@ -46,6 +47,18 @@ struct ReplayArgs {
 
 std::atomic<bool> g_stop{false};
 void on_signal(int) { g_stop.store(true); }
+
+/// --help-config: the keys of the files replay and run read, from the tables they are read with.
+void print_config_help() {
+  std::printf("## Module settings: `driftlab replay|run --config FILE`\n\n"
+              "One map per module name (%s), each optional; an absent key keeps its default. What the modules do: "
+              "docs/replay.md.\n\n%s\n"
+              "## Restamp file: `driftlab replay --restamp FILE`\n\n%s\n"
+              "The fault description of `driftlab replay --inject FILE` is the simulator's (`driftlab sim "
+              "--help-config`).\n",
+              modules::known_modules().c_str(), modules::config_reference().c_str(),
+              replay::restamp_file_table().reference().c_str());
+}
 
 /// Clock corrections from the timing diagnosis of each log (analyzers/clock_corrections.h holds the rule).
 Result<replay::Restamp> restamp_from_diagnosis(const std::vector<std::string>& logs, std::vector<std::string>& notes) {
@@ -270,6 +283,7 @@ void add_run_command(CLI::App& app, int* exit_code) {
       "--duration stops, finishes the modules (maps are written) and closes a valid log.");
   cmd->add_option("--modules", a->modules, "Modules to run, comma-separated (" + modules::known_modules() + ")")->required();
   cmd->add_option("--config", a->config, "Module settings (YAML: one map per module name)");
+  add_config_help(*cmd, print_config_help);
   cmd->add_option("--url", a->url, "LCM URL")->required();
   cmd->add_option("-o,--out", a->out, "Log of the module outputs and statistics");
   cmd->add_option("--duration", a->duration, "Stop after this many seconds (0: at Ctrl-C)")
@@ -291,6 +305,7 @@ void add_replay_command(CLI::App& app, int* exit_code) {
   cmd->add_option("logs", a->logs, "Logs to replay")->required();
   cmd->add_option("--modules", a->modules, "Modules to run, comma-separated (" + modules::known_modules() + ")");
   cmd->add_option("--config", a->config, "Module settings (YAML: one map per module name)");
+  add_config_help(*cmd, print_config_help);
   cmd->add_option("-o,--out", a->out, "Output log: the inputs as dispatched, the module outputs and statistics");
   cmd->add_option("--rate", a->rate, "With --publish: pace at this multiple of real time")
       ->capture_default_str()

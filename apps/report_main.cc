@@ -226,22 +226,9 @@ Result<std::string> make_report(const ReportOptions& o) {
 
   const std::string json_path = (fs::path(o.out) / "report.json").string();
   if (auto st = write_file(json_path, data.dump() + "\n"); !st) return Error{st.message()};
-  const std::string script = (fs::path(o.out) / ".report_page.py").string();
-  if (auto st = write_file(script, kReportPageScript); !st) return Error{st.message()};
-  // The first Python that has matplotlib: $DRIFTLAB_PYTHON, the one on PATH, then Debian's (where
-  // python3-matplotlib installs, should PATH lead to another, like pyenv's).
-  std::vector<std::string> pythons = {"python3", "/usr/bin/python3"};
-  if (const char* p = std::getenv("DRIFTLAB_PYTHON"); p != nullptr && *p != 0) pythons.insert(pythons.begin(), p);
-  int code = 127;
-  for (const auto& python : pythons) {
-    code = run_program({python, script, json_path, o.out}, "");
-    if (code != 3 && code != 127) break;
+  if (Status st = run_plot_script(kReportPageScript, "report_page.py", o.out, {json_path, o.out}); !st) {
+    return Error{"report: " + st.message()};
   }
-  fs::remove(script, ec);
-  if (code == 3 || code == 127) {
-    return Error{"report: no python3 with matplotlib (Debian: apt-get install python3-matplotlib, or run scripts/bootstrap)"};
-  }
-  if (code != 0) return Error{"report: drawing the plots failed (python3 exited with " + std::to_string(code) + ")"};
   return (fs::path(o.out) / "index.html").string();
 }
 

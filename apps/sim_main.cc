@@ -14,6 +14,8 @@
 #include "apps/cli_checks.h"
 #include "apps/cli_util.h"
 #include "apps/commands.h"
+#include "core/config.h"
+#include "sim/scenario.h"
 #include "sim/simulator.h"
 #include "core/same_file.h"
 
@@ -34,6 +36,14 @@ struct SimArgs {
 
 std::atomic<bool> g_stop{false};
 void on_signal(int) { g_stop.store(true); }
+
+/// --help-config: the keys of a scenario and of a fault description, from the tables they are read with.
+void print_config_help() {
+  std::printf("## Scenario: `driftlab sim SCENARIO`\n\n%s\n"
+              "## Fault description: `driftlab sim --faults FILE`, a scenario's `faults:`, `driftlab replay --inject "
+              "FILE`\n\n%s",
+              sim::scenario_reference().c_str(), fault_config_table().reference().c_str());
+}
 
 int run_sim(const SimArgs& a) {
   const std::string path = a.scenario.empty() ? sim::default_scenario_path() : a.scenario;
@@ -124,6 +134,7 @@ void add_sim_command(CLI::App& app, int* exit_code) {
   cmd->add_option("--duration", a->duration, "Simulated seconds (default: the scenario's)")->check(positive());
   cmd->add_option("--seed", a->seed, "Random seed (default: the scenario's)")->check(non_negative());
   cmd->add_option("--faults", a->faults, "Fault description (YAML) replacing the scenario's faults");
+  add_config_help(*cmd, print_config_help);
   cmd->add_option("--live", a->live_url, "Also publish every message on this LCM URL as it arrives");
   cmd->add_option("--live-rate", a->live_rate, "Pace --live at this multiple of real time (0: as fast as possible)")
       ->capture_default_str()

@@ -128,11 +128,23 @@ int parse_and_run(CLI::App& app, int argc, char** argv, const int& exit_code) {
     return app.exit(e);
   } catch (const CLI::CallForVersion& e) {
     return app.exit(e);
+  } catch (const CLI::Success& e) {  // --help-config
+    return app.exit(e);
   } catch (const CLI::ParseError& e) {
     // One line naming the problem, then where to look; exit 2 like other usage errors.
     return fail(std::string(e.what()) + " (see 'driftlab --help')");
   }
   return exit_code;
+}
+
+void add_config_help(CLI::App& cmd, void (*print)()) {
+  cmd.add_flag_callback(
+      "--help-config",
+      [print] {
+        print();
+        throw CLI::Success();
+      },
+      "Print the keys of the config files this command reads (type, unit, default, range) and exit");
 }
 
 CLI::App& add_import_command(CLI::App& app) {

@@ -13,7 +13,7 @@ using driftlab::estimator::Ekf;
 using driftlab::estimator::EkfNoise;
 using driftlab::estimator::GyroZ;
 using driftlab::estimator::Measurement;
-using driftlab::estimator::Pose2;
+using driftlab::estimator::PoseFix;
 using driftlab::estimator::Twist;
 
 constexpr int64_t kT0 = 1763776800000000;
@@ -21,16 +21,16 @@ constexpr int64_t kT0 = 1763776800000000;
 /// One cycle: predict 5 ms ahead, then one update of the given kind.
 void BM_Ekf_Cycle(benchmark::State& state) {
   Ekf ekf{EkfNoise{}};
-  ekf.init(kT0, {0, 0, 0, 0, 0}, 0.5, 0.1);
+  ekf.init(kT0, {}, 0.5, 0.1);
   int64_t t = kT0;
   int i = 0;
   const auto kind = state.range(0);
   for (auto _ : state) {
     t += 5000;
     const double w = 0.3 * std::sin(++i * 0.01);
-    Measurement m = kind == 0 ? Measurement{GyroZ{w, 0}}
-                  : kind == 1 ? Measurement{Twist{0.5, w, 0, 0}}
-                              : Measurement{Pose2{0.0025 * i, 0, 0, 0, 0}};
+    Measurement m = kind == 0   ? Measurement{GyroZ{w, 0}}
+                    : kind == 1 ? Measurement{Twist{0.5, w, 0, 0}}
+                                : Measurement{PoseFix{{0.0025 * i, 0, 0}, 0, 0}};
     ekf.update(t, m);
     benchmark::DoNotOptimize(ekf.state());
   }
@@ -43,7 +43,7 @@ BENCHMARK(BM_Ekf_Cycle)->Arg(0)->Arg(1)->Arg(2);
 /// 30 ms late and is inserted into the past, re-applying the gyro samples after it.
 void BM_DelayedEkf_Mix(benchmark::State& state) {
   DelayedEkf ekf(EkfNoise{}, 0.5);
-  ekf.init(kT0, {0, 0, 0, 0, 0}, 0.5, 0.1);
+  ekf.init(kT0, {}, 0.5, 0.1);
   const bool late = state.range(0) == 1;
   int64_t i = 0;
   for (auto _ : state) {

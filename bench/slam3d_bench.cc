@@ -1,7 +1,8 @@
 // 3D point-cloud odometry (slam/slam3d.h) per registration method (scripts/bench slam3d): clouds per second and
 // the real-time factor of the module alone, on a simulated session of the 16 x 1800 lidar (sim/scenarios/
-// indoor_3d.yaml) held in memory and played in arrival order through a minimal Bus, so neither log reading nor
-// the replayer is in the figure. Each run also reports the path's error against ground truth (first pose aligned).
+// indoor_3d.yaml) held in memory and played in arrival order through the module host (replayer/module_host.h,
+// as on replay: routing, message checks), so log reading is not in the figure. Each run also reports the path's error
+// against ground truth (first pose aligned).
 //   slam3d_bench [--log=SESSION.lcm | --seconds=N] [benchmark flags]
 // Without --log, N simulated seconds (default 20) are made in $DRIFTLAB_BENCH_DIR (default /dev/shm) first.
 #include <benchmark/benchmark.h>
@@ -18,6 +19,7 @@
 #include "core/bus.h"
 #include "core/log_reader.h"
 #include "driftlab/pose_t.hpp"
+#include "replayer/module_host.h"
 #include "sim/scenario.h"
 #include "sim/simulator.h"
 #include "slam/slam3d.h"
@@ -36,34 +38,6 @@ analyzers::Trajectory g_truth;
 double g_span_s = 0;
 int64_t g_clouds = 0;
 
-/// Delivers in-memory events to exact-channel subscribers and keeps the published poses. The module subscribes
-/// plain channel names here, so no regex is needed.
-class MemoryBus final : public Bus {
- public:
-  void subscribe(const std::string& channel, BusHandler handler) override { subs_.emplace_back(channel, handler); }
-  void publish(std::string_view channel, std::span<const uint8_t> data) override {
-    driftlab::pose_t p;
-    if (p.decode(data.data(), 0, static_cast<int>(data.size())) < 0) return;
-    path.push_back(static_cast<double>(p.header.utime) * 1e-6, {p.position.x, p.position.y, p.position.z},
-                   Eigen::Quaterniond(p.orientation.w, p.orientation.x, p.orientation.y, p.orientation.z));
-  }
-  int64_t now() const override { return now_; }
-  void every(int64_t, std::function<void()>) override { std::abort(); }  // Slam3d has no timers
-  void play() {
-    for (const OwnedEvent& e : g_events) {
-      now_ = e.utime;
-      for (auto& [channel, handler] : subs_) {
-        if (channel == e.channel) handler(BusMessage{e.channel, e.utime, e.data});
-      }
-    }
-  }
-  analyzers::Trajectory path;
-
- private:
-  std::vector<std::pair<std::string, BusHandler>> subs_;
-  int64_t now_ = 0;
-};
-
 double ate_first_pose(const analyzers::Trajectory& est) {
   analyzers::Matched m = analyzers::match_nearest(g_truth, est, 0.006, 0);
   if (m.est.size() == 0) return NAN;
@@ -81,13 +55,24 @@ void BM_Slam3d(benchmark::State& state, const std::string& yaml) {
   for (auto _ : state) {
     auto module = slam::make_slam3d(YAML::Load(yaml), "bench");
     if (!module) return state.SkipWithError(module.error().message.c_str());
-    MemoryBus bus;
-    if (!(*module)->start(bus)) return state.SkipWithError("start failed");
-    bus.play();
-    (*module)->finish(bus);
+    const Module& slam = **module;
+    replay::ModuleHost host({.stats_period_s = 0});
+    host.add_module(std::move(*module));
+    analyzers::Trajectory path;
+    host.set_outlet([&path](const BusMessage& m) {
+      driftlab::pose_t p;
+      if (m.channel != "SLAM_POSE" || p.decode(m.data.data(), 0, static_cast<int>(m.data.size())) < 0) return;
+      path.push_back(static_cast<double>(p.header.utime) * 1e-6, {p.position.x, p.position.y, p.position.z},
+                     Eigen::Quaterniond(p.orientation.w, p.orientation.x, p.orientation.y, p.orientation.z));
+    });
+    if (!host.start()) return state.SkipWithError("start failed");
+    for (const OwnedEvent& e : g_events) {
+      if (!host.advance(e.utime) || !host.deliver(e.channel, e.data)) return state.SkipWithError("delivery failed");
+    }
+    if (!host.finish()) return state.SkipWithError("finish failed");
     state.PauseTiming();
-    ate = ate_first_pose(bus.path);
-    counters = (*module)->counters();
+    ate = ate_first_pose(path);
+    counters = slam.counters();
     state.ResumeTiming();
   }
   state.SetItemsProcessed(state.iterations() * g_clouds);  // items_per_second = clouds/s

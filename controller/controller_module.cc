@@ -4,7 +4,7 @@
 #include <cmath>
 #include <cstdint>
 
-#include "core/internal/yaml_fields.h"
+#include "core/config.h"
 #include "driftlab/command_comparison_t.hpp"
 #include "driftlab/laser_scan_t.hpp"
 #include "driftlab/odometry_t.hpp"
@@ -31,54 +31,47 @@ bool held_at(const std::vector<CommandSample>& s, int64_t t, size_t& hint, Comma
 
 }  // namespace
 
+const config::Table<ControllerConfig>& controller_config_table() {
+  using C = ControllerConfig;
+  using config::Text;
+  static const auto t =
+      config::Table<C>()
+          .describe(
+              "Without `route`, or with `scenario`, the route, start, rate, footprint_radius, the follower's keys "
+              "(lookahead ... stuck_timeout) and logged_channel default to the scenario's (the default scenario "
+              "when neither is given), and the keys given here override them; the defaults shown are those without "
+              "a scenario.")
+          .text("scenario", &C::scenario,
+                "a simulator scenario to take the defaults from (relative to the config file)")
+          .shown_default("the default scenario, without `route`")
+          .custom<std::vector<Point2>>(
+              "route", &C::route, "list of [x, y]", "m", "at least 2 points", "the route to follow, in the world frame",
+              read_route,
+              [](const std::vector<Point2>& r) { return std::to_string(r.size()) + " points"; })
+          .shown_default("the scenario's")
+          .numbers("start", &C::start, {&Pose2::x, &Pose2::y, &Pose2::yaw}, config::between(-1e6, 1e6), "m, m, rad",
+                   "where the estimate's frame starts in the world: x, y, yaw")
+          .number("rate", &C::rate, config::between(0.1, 1000), "Hz", "ticks of the follower, on the bus's clock")
+          .include(&C::pursuit, pure_pursuit_table())
+          .text("estimate_channel", &C::estimate_channel,
+                "driftlab.odometry_t or pose_t to follow (e.g. EKF_ODOM, SLAM_POSE)", Text::kNonEmpty)
+          .flag("estimate_in_world", &C::estimate_in_world, "the estimate is in the world frame already")
+          .text("scan_channel", &C::scan_channel, "driftlab.laser_scan_t for the obstacle layer; \"\" for none")
+          .number("footprint_radius", &C::footprint_radius, config::above(0, 100), "m",
+                  "the robot's footprint, for the obstacle layer")
+          .text("command_channel", &C::command_channel, "driftlab.velocity_command_t out", Text::kNonEmpty)
+          .text("logged_channel", &C::logged_channel, "the logged commands to compare with; \"\" for none")
+          .text("comparison_channel", &C::comparison_channel, "driftlab.command_comparison_t out, at the end")
+          .number("max_delay_s", &C::max_delay_s, config::between(0, 10), "s",
+                  "the delay between recomputed and logged commands is searched over +-max_delay_s");
+  return t;
+}
+
 Result<ControllerConfig> parse_controller_config(const YAML::Node& node, const std::string& origin,
-                                                 ControllerConfig c) {
-  if (node.IsDefined() && !node.IsNull()) {
-    try {
-      Fields f(node, origin, "controller");
-      DL_TRY(f.is_map());
-      if (f.has("route")) {
-        const YAML::Node route = f.node("route");
-        if (!route.IsSequence() || route.size() < 2) {
-          return Error{f.where("route") + " must be a list of at least two [x, y] points"};
-        }
-        c.route.clear();
-        for (const auto& p : route) {
-          if (!p.IsSequence() || p.size() != 2) return Error{at(origin, p) + ": controller.route: a point is [x, y]"};
-          c.route.push_back({p[0].as<double>(), p[1].as<double>()});
-          if (!std::isfinite(c.route.back().x) || !std::isfinite(c.route.back().y)) {
-            return Error{at(origin, p) + ": controller.route: points must be finite"};
-          }
-        }
-      }
-      std::vector<double> start;
-      DL_TRY(f.vector("start", start, 3));
-      if (!start.empty()) c.start = {start[0], start[1], start[2]};
-      DL_TRY(f.positive("rate", c.rate));
-      DL_TRY(f.positive("lookahead", c.pursuit.lookahead));
-      DL_TRY(f.positive("speed", c.pursuit.speed));
-      DL_TRY(f.positive("max_angular", c.pursuit.max_angular));
-      DL_TRY(f.boolean("loop", c.pursuit.loop));
-      DL_TRY(f.text("estimate_channel", c.estimate_channel));
-      DL_TRY(f.boolean("estimate_in_world", c.estimate_in_world));
-      DL_TRY(f.text("scan_channel", c.scan_channel));
-      DL_TRY(f.positive("footprint_radius", c.footprint_radius));
-      DL_TRY(f.text("command_channel", c.command_channel));
-      DL_TRY(f.text("logged_channel", c.logged_channel));
-      DL_TRY(f.text("comparison_channel", c.comparison_channel));
-      DL_TRY(f.number("max_delay_s", c.max_delay_s, 0, 10));
-      std::string scenario;  // read by the caller, which fills `base` from the scenario
-      DL_TRY(f.text("scenario", scenario));
-      DL_TRY(f.finish("scenario, route, start, rate, lookahead, speed, max_angular, loop, estimate_channel, estimate_in_world, "
-                      "scan_channel, footprint_radius, command_channel, logged_channel, comparison_channel, "
-                      "max_delay_s"));
-      if (c.estimate_channel.empty()) return Error{f.where("estimate_channel") + " must not be empty"};
-      if (c.command_channel.empty()) return Error{f.where("command_channel") + " must not be empty"};
-    } catch (const YAML::Exception& e) {
-      return Error{origin + ":" + std::to_string(e.mark.line + 1) + ": " + e.msg};
-    }
-  }
-  if (c.route.size() < 2) {
+                                                 ControllerConfig base) {
+  auto c = controller_config_table().parse(config::Value(node, origin, "controller"), std::move(base));
+  if (!c) return c.error();
+  if (c->route.size() < 2) {
     return Error{origin + ": controller: no route (give controller.route, or controller.scenario with a route)"};
   }
   return c;

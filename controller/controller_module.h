@@ -20,6 +20,7 @@
 namespace driftlab::controller {
 
 struct ControllerConfig {
+  std::string scenario;                      ///< a simulator scenario the defaults come from (modules/registry.h)
   std::vector<Point2> route;                 ///< in the world frame [m]; required
   Pose2 start;                               ///< the robot's start in the world: maps odometry into the world
   PurePursuitOptions pursuit;
@@ -34,8 +35,12 @@ struct ControllerConfig {
   double max_delay_s = 0.5;                  ///< delay search range of the comparison [s]
 };
 
-/// Reads the `controller:` map of a replay config (route, start, rate, lookahead, speed, max_angular, channels).
-/// `base` supplies defaults (e.g. from a simulator scenario). Errors name the file, line and key.
+/// The keys of the `controller:` map of a replay config, with units, ranges and defaults (core/config.h); the
+/// follower's keys are pure_pursuit_table()'s.
+const config::Table<ControllerConfig>& controller_config_table();
+
+/// Reads the `controller:` map of a replay config. `base` supplies defaults (e.g. from a simulator scenario). Errors
+/// name the file, line and key.
 Result<ControllerConfig> parse_controller_config(const YAML::Node& node, const std::string& origin,
                                                  ControllerConfig base = {});
 

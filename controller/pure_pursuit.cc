@@ -4,12 +4,47 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "core/config.h"
+
 namespace driftlab::controller {
-namespace {
+const config::Table<PurePursuitOptions>& pure_pursuit_table() {
+  using O = PurePursuitOptions;
+  using config::above;
+  static const auto t =
+      config::Table<O>()
+          .number("lookahead", &O::lookahead, above(0, 100), "m", "distance to the carrot point along the route")
+          .number("speed", &O::speed, above(0, 100), "m/s", "cruise speed")
+          .number("max_angular", &O::max_angular, above(0, 100), "rad/s", "yaw-rate limit")
+          .number("max_accel", &O::max_accel, above(0, 1000), "m/s^2", "forward acceleration limit")
+          .number("max_decel", &O::max_decel, above(0, 1000), "m/s^2", "forward deceleration limit")
+          .number("max_angular_accel", &O::max_angular_accel, above(0, 1000), "rad/s^2",
+                  "yaw acceleration limit (abrupt turns make wheels slip)")
+          .number("turn_in_place", &O::turn_in_place, above(0, 10), "rad",
+                  "heading error beyond which the base turns on the spot (pi or more: never)")
+          .number("goal_tolerance", &O::goal_tolerance, above(0, 1000), "m",
+                  "distance at which an open route's last point counts as reached")
+          .flag("loop", &O::loop, "the route closes on itself and is driven again and again")
+          .number("stuck_timeout", &O::stuck_timeout, above(0, 1e5), "s",
+                  "no progress along the route for this long: skip ahead by 2 lookaheads");
+  return t;
+}
 
-double wrap_angle(double a) { return std::remainder(a, 2 * M_PI); }
-
-}  // namespace
+Status read_route(const config::Value& v, std::vector<Point2>& route) {
+  if (!v.node().IsSequence() || v.node().size() < 2) return v.error("must be a list of at least two [x, y] points");
+  std::vector<Point2> out;
+  double length = 0;
+  for (std::size_t i = 0; i < v.node().size(); ++i) {
+    const config::Value point = v[i];
+    if (!point.node().IsSequence() || point.node().size() != 2) return point.error("must be a point [x, y]");
+    auto xy = point.numbers(2, config::between(-1e6, 1e6), "m");
+    if (!xy) return xy.error();
+    out.push_back({(*xy)[0], (*xy)[1]});
+    if (i > 0) length += std::hypot(out[i].x - out[i - 1].x, out[i].y - out[i - 1].y);
+  }
+  if (!(length > 0)) return v.error("has no length (its points are all the same)");
+  route = std::move(out);
+  return {};
+}
 
 PurePursuit::PurePursuit(std::vector<Point2> route, PurePursuitOptions options)
     : route_(std::move(route)), opt_(options) {

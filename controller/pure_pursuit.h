@@ -7,15 +7,19 @@
 #include <cstddef>
 #include <vector>
 
+#include "core/result.h"
+#include "lcmtypes/planar.h"
+
+namespace driftlab::config {
+template <class T>
+class Table;
+class Value;
+}  // namespace driftlab::config
+
 namespace driftlab::controller {
 
 struct Point2 {
   double x = 0, y = 0;  ///< [m]
-};
-
-struct Pose2 {
-  double x = 0, y = 0;  ///< [m]
-  double yaw = 0;       ///< [rad], counter-clockwise from the x axis
 };
 
 struct Command {
@@ -35,6 +39,13 @@ struct PurePursuitOptions {
   bool loop = true;             ///< the route closes on itself and is driven again and again
   double stuck_timeout = 8.0;   ///< no progress along the route for this long: skip ahead by 2 lookaheads [s]
 };
+
+/// The follower's keys (lookahead, speed, ...; core/config.h): the one key set wherever they are read, in the
+/// simulator's scenario (`controller:`) and in the controller module's config.
+const config::Table<PurePursuitOptions>& pure_pursuit_table();
+
+/// Reads a route: a list of at least two [x, y] points in the world frame [m], not all the same.
+Status read_route(const config::Value& value, std::vector<Point2>& route);
 
 /// A reactive safety layer (like Nav2's collision monitor): slows down for obstacles ahead and steers away
 /// from obstacles close to the body, so a robot whose odometry has drifted grazes past door frames instead of

@@ -1,45 +1,13 @@
 #include "core/faults.h"
-#include "core/internal/faults_yaml.h"
-
-#include <yaml-cpp/yaml.h>
 
 #include <cmath>
-#include <fstream>
 #include <functional>
-#include <sstream>
 #include <utility>
+
+#include "core/config.h"
 
 namespace driftlab {
 namespace {
-
-std::string at(const std::string& origin, const YAML::Node& node) {
-  return origin + ":" + std::to_string(node.Mark().line + 1);
-}
-
-/// The keys of a stream's faults, with where each goes and its valid range.
-struct Key {
-  const char* name;
-  double StreamFaults::*field;
-  double min, max;
-};
-constexpr Key kKeys[] = {
-    {"clock_offset_s", &StreamFaults::clock_offset_s, -1e6, 1e6},
-    {"clock_drift_ppm", &StreamFaults::clock_drift_ppm, -1e5, 1e5},
-    {"latency_s", &StreamFaults::latency_s, 0, 1e3},
-    {"jitter_s", &StreamFaults::jitter_s, 0, 1e3},
-    {"drop_probability", &StreamFaults::drop_probability, 0, 1},
-    {"burst_enter", &StreamFaults::burst_enter, 0, 1},
-    {"burst_exit", &StreamFaults::burst_exit, 0, 1},
-    {"duplicate_probability", &StreamFaults::duplicate_probability, 0, 1},
-    {"reorder_probability", &StreamFaults::reorder_probability, 0, 1},
-    {"reorder_delay_s", &StreamFaults::reorder_delay_s, 0, 1e3},
-};
-
-std::string known_keys() {
-  std::string out;
-  for (const Key& k : kKeys) out += (out.empty() ? "" : ", ") + std::string(k.name);
-  return out;
-}
 
 driftlab::fault_t fault(const std::string& channel, const char* kind, int64_t start, int64_t end,
                         std::vector<std::pair<std::string, double>> params, std::vector<int64_t> affected = {}) {
@@ -60,78 +28,56 @@ driftlab::fault_t fault(const std::string& channel, const char* kind, int64_t st
 
 }  // namespace
 
-Result<FaultConfig> parse_faults(const std::string& text, const std::string& origin) {
-  YAML::Node root;
-  try {
-    root = YAML::Load(text);
-  } catch (const YAML::Exception& e) {
-    return Error{origin + ":" + std::to_string(e.mark.line + 1) + ": " + e.msg};
-  }
-  return parse_faults(root, origin);
+const config::Table<StreamFaults>& stream_faults_table() {
+  using F = StreamFaults;
+  static const auto t =
+      config::Table<F>()
+          .number("clock_offset_s", &F::clock_offset_s, config::between(-1e6, 1e6), "s",
+                  "the source clock is ahead of true time by this much: header stamps move, arrivals do not")
+          .number("clock_drift_ppm", &F::clock_drift_ppm, config::between(-1e5, 1e5), "ppm",
+                  "the source clock runs fast by this much, from the start of the run")
+          .number("latency_s", &F::latency_s, config::between(0, 1e3), "s",
+                  "transport delay, fixed part: arrivals move, stamps do not")
+          .number("jitter_s", &F::jitter_s, config::between(0, 1e3), "s",
+                  "transport delay, random part: exponential with this mean")
+          .number("drop_probability", &F::drop_probability, config::between(0, 1), "",
+                  "each message lost independently with this probability; its seq goes missing")
+          .number("burst_enter", &F::burst_enter, config::between(0, 1), "",
+                  "burst loss (Gilbert-Elliott): probability, per message, of entering a burst (with burst_exit)")
+          .number("burst_exit", &F::burst_exit, config::between(0, 1), "",
+                  "... and of leaving it; every message in a burst is lost")
+          .number("duplicate_probability", &F::duplicate_probability, config::between(0, 1), "",
+                  "each message delivered twice (same seq and stamp) with this probability")
+          .number("reorder_probability", &F::reorder_probability, config::between(0, 1), "",
+                  "each message held back by reorder_delay_s with this probability, so later ones overtake it")
+          .number("reorder_delay_s", &F::reorder_delay_s, config::between(0, 1e3), "s",
+                  "how long a reordered message is held back")
+          .check([](const config::Value& v, F& f) -> Status {
+            if ((f.burst_enter > 0) != (f.burst_exit > 0)) return v.error("needs both burst_enter and burst_exit");
+            return {};
+          });
+  return t;
 }
 
-Result<FaultConfig> parse_faults(const YAML::Node& root, const std::string& origin) {
-  FaultConfig config;
-  if (!root || root.IsNull()) return config;
-  if (!root.IsMap()) return Error{at(origin, root) + ": expected a map with 'seed' and 'streams'"};
-  for (const auto& top : root) {
-    const std::string key = top.first.as<std::string>();
-    if (key == "seed") {
-      try {
-        config.seed = top.second.as<uint64_t>();
-      } catch (const YAML::Exception&) {
-        return Error{at(origin, top.second) + ": seed must be a non-negative integer"};
-      }
-    } else if (key == "streams") {
-      if (!top.second.IsMap()) return Error{at(origin, top.second) + ": 'streams' must map channels to faults"};
-      for (const auto& stream : top.second) {
-        const std::string channel = stream.first.as<std::string>();
-        if (!stream.second.IsMap()) {
-          return Error{at(origin, stream.second) + ": faults of " + channel + " must be a map of key: value"};
-        }
-        StreamFaults f;
-        for (const auto& item : stream.second) {
-          const std::string name = item.first.as<std::string>();
-          const Key* key = nullptr;
-          for (const Key& k : kKeys) {
-            if (name == k.name) key = &k;
-          }
-          if (key == nullptr) {
-            return Error{at(origin, item.first) + ": unknown key '" + name + "' in the faults of " + channel +
-                         " (known: " + known_keys() + ")"};
-          }
-          double value;
-          try {
-            value = item.second.as<double>();
-          } catch (const YAML::Exception&) {
-            return Error{at(origin, item.second) + ": " + channel + "." + name + " must be a number"};
-          }
-          if (!std::isfinite(value) || value < key->min || value > key->max) {
-            std::ostringstream range;
-            range << key->min << ".." << key->max;
-            return Error{at(origin, item.second) + ": " + channel + "." + name + " = " + item.second.as<std::string>() +
-                         " is outside " + range.str()};
-          }
-          f.*(key->field) = value;
-        }
-        if ((f.burst_enter > 0) != (f.burst_exit > 0)) {
-          return Error{at(origin, stream.second) + ": " + channel + " needs both burst_enter and burst_exit"};
-        }
-        config.streams[channel] = f;
-      }
-    } else {
-      return Error{at(origin, top.first) + ": unknown key '" + key + "' (known: seed, streams)"};
-    }
-  }
-  return config;
+const config::Table<FaultConfig>& fault_config_table() {
+  static const auto t =
+      config::Table<FaultConfig>()
+          .integer("seed", &FaultConfig::seed, config::at_least(0), "",
+                   "random seed of the injected faults; in the simulator, 0 or none means the scenario's")
+          .map("streams", &FaultConfig::streams, "CHANNEL", stream_faults_table(), "the faults of each channel");
+  return t;
+}
+
+Result<FaultConfig> parse_faults(const std::string& text, const std::string& origin) {
+  auto root = config::parse_yaml(text, origin);
+  if (!root) return root.error();
+  return fault_config_table().parse(config::Value(*root, origin));
 }
 
 Result<FaultConfig> load_faults(const std::string& path) {
-  std::ifstream f(path);
-  if (!f) return Error{path + ": cannot open the fault description"};
-  std::stringstream text;
-  text << f.rdbuf();
-  return parse_faults(text.str(), path);
+  auto root = config::load_yaml(path, "fault description");
+  if (!root) return root.error();
+  return fault_config_table().parse(config::Value(*root, path));
 }
 
 StreamFaultInjector::StreamFaultInjector(std::string channel, StreamFaults faults, uint64_t seed, int64_t start_utime)

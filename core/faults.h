@@ -16,6 +16,11 @@
 
 namespace driftlab {
 
+namespace config {
+template <class T>
+class Table;
+}
+
 /// Faults on one stream; every field is optional (0: off).
 struct StreamFaults {
   double clock_offset_s = 0;         ///< the source clock is ahead of true time by this much [s]
@@ -35,8 +40,12 @@ struct FaultConfig {
   std::map<std::string, StreamFaults> streams;  ///< by channel
 };
 
-/// Parses the YAML fault description (`seed:` and `streams: {CHANNEL: {key: value}}`); errors say
-/// "ORIGIN:LINE: ..." and name the key.
+/// The keys of a stream's faults and of a fault description (`seed:` and `streams: {CHANNEL: {key: value}}`), with
+/// their units and ranges (core/config.h): how they are read, and their reference.
+const config::Table<StreamFaults>& stream_faults_table();
+const config::Table<FaultConfig>& fault_config_table();
+
+/// Parses the YAML fault description; errors say "ORIGIN:LINE: ..." and name the key.
 Result<FaultConfig> parse_faults(const std::string& yaml_text, const std::string& origin);
 Result<FaultConfig> load_faults(const std::string& path);
 

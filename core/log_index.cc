@@ -10,9 +10,9 @@
 #include <unordered_map>
 
 #include "core/internal/event_scanner.h"
-#include "core/mapped_file.h"
-#include "core/internal/string_hash.h"
 #include "core/log_format.h"
+#include "core/mapped_file.h"
+#include "core/string_hash.h"
 #include "lcmtypes/stream_header.h"
 
 namespace driftlab {
@@ -186,7 +186,7 @@ LogIndex LogIndex::build(std::span<const uint8_t> bytes, const std::function<voi
     if (s.problems.size() < kMaxStoredProblems) s.problems.push_back(p);
   };
   internal::EventScanner scanner(bytes, &on_problem);
-  std::unordered_map<std::string, size_t, internal::StringHash, std::equal_to<>> by_name;
+  std::unordered_map<std::string, size_t, StringHash, std::equal_to<>> by_name;
   std::vector<ChannelSummary> channels;
   ChannelSummary* last = nullptr;
   struct Previous {

@@ -5,9 +5,9 @@
 #include <unordered_map>
 
 #include "core/internal/event_scanner.h"
-#include "core/mapped_file.h"
-#include "core/internal/string_hash.h"
 #include "core/log_index.h"
+#include "core/mapped_file.h"
+#include "core/string_hash.h"
 
 namespace driftlab {
 
@@ -39,7 +39,7 @@ struct LogReader::Impl {
   ReadOptions options;
   internal::EventScanner scanner;
   std::optional<std::regex> filter;
-  std::unordered_map<std::string, bool, internal::StringHash, std::equal_to<>> decisions;
+  std::unordered_map<std::string, bool, StringHash, std::equal_to<>> decisions;
   std::string_view last_channel;  // a key of decisions
   bool last_accepted = false;
   std::optional<LogIndex> index;

@@ -9,11 +9,6 @@
 
 namespace driftlab::estimator {
 
-double wrap_angle(double a) {
-  a = std::remainder(a, 2 * M_PI);
-  return a <= -M_PI ? a + 2 * M_PI : a;
-}
-
 namespace {
 
 /// Whether a measurement can be applied: its values plausible (within kMaxMagnitude: so bounded, the state cannot
@@ -24,21 +19,21 @@ bool usable(const Measurement& m) {
   if (const auto* t = std::get_if<Twist>(&m)) {
     return plausible(t->v) && plausible(t->w) && std::isfinite(t->var_v) && std::isfinite(t->var_w);
   }
-  const auto& p = std::get<Pose2>(m);
-  return plausible(p.x) && plausible(p.y) && std::isfinite(p.yaw) && std::isfinite(p.var_xy) &&
+  const auto& p = std::get<PoseFix>(m);
+  return plausible(p.pose.x) && plausible(p.pose.y) && std::isfinite(p.pose.yaw) && std::isfinite(p.var_xy) &&
          std::isfinite(p.var_yaw);
 }
 
 }  // namespace
 
-bool Ekf::init(int64_t utime, const Pose2& pose, double v, double w) {
-  if (!usable(Measurement(pose)) || !plausible(v) || !plausible(w)) return false;
+bool Ekf::init(int64_t utime, const PoseFix& fix, double v, double w) {
+  if (!usable(Measurement(fix)) || !plausible(v) || !plausible(w)) return false;
   initialized_ = true;
   t_ = utime;
-  x_ << pose.x, pose.y, wrap_angle(pose.yaw), v, w, 0;
+  x_ << fix.pose.x, fix.pose.y, wrap_angle(fix.pose.yaw), v, w, 0;
   P_.setZero();
-  P_(kX, kX) = P_(kY, kY) = pose.var_xy > 0 ? pose.var_xy : noise_.pose_xy * noise_.pose_xy;
-  P_(kYaw, kYaw) = pose.var_yaw > 0 ? pose.var_yaw : noise_.pose_yaw * noise_.pose_yaw;
+  P_(kX, kX) = P_(kY, kY) = fix.var_xy > 0 ? fix.var_xy : noise_.pose_xy * noise_.pose_xy;
+  P_(kYaw, kYaw) = fix.var_yaw > 0 ? fix.var_yaw : noise_.pose_yaw * noise_.pose_yaw;
   P_(kV, kV) = P_(kW, kW) = 0.01;
   P_(kBias, kBias) = noise_.initial_bias * noise_.initial_bias;
   return true;
@@ -117,10 +112,10 @@ void Ekf::apply(int64_t utime, const Measurement& m) {
     R(0, 0) = t->var_v > 0 ? t->var_v : noise_.odom_v * noise_.odom_v;
     R(1, 1) = t->var_w > 0 ? t->var_w : noise_.odom_w * noise_.odom_w;
     correct<2>(z, H, R);
-  } else if (const auto* p = std::get_if<Pose2>(&m)) {
+  } else if (const auto* p = std::get_if<PoseFix>(&m)) {
     Eigen::Matrix<double, 3, 6> H = Eigen::Matrix<double, 3, 6>::Zero();
     H(0, kX) = H(1, kY) = H(2, kYaw) = 1;
-    const Eigen::Vector3d z(p->x - x_(kX), p->y - x_(kY), wrap_angle(p->yaw - x_(kYaw)));
+    const Eigen::Vector3d z(p->pose.x - x_(kX), p->pose.y - x_(kY), wrap_angle(p->pose.yaw - x_(kYaw)));
     Eigen::Matrix3d R = Eigen::Matrix3d::Zero();
     R(0, 0) = R(1, 1) = p->var_xy > 0 ? p->var_xy : noise_.pose_xy * noise_.pose_xy;
     R(2, 2) = p->var_yaw > 0 ? p->var_yaw : noise_.pose_yaw * noise_.pose_yaw;
@@ -128,8 +123,8 @@ void Ekf::apply(int64_t utime, const Measurement& m) {
   }
 }
 
-bool DelayedEkf::init(int64_t utime, const Pose2& pose, double v, double w) {
-  if (!ekf_.init(utime, pose, v, w)) return false;
+bool DelayedEkf::init(int64_t utime, const PoseFix& fix, double v, double w) {
+  if (!ekf_.init(utime, fix, v, w)) return false;
   base_ = ekf_;
   history_.clear();
   return true;

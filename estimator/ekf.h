@@ -12,6 +12,8 @@
 #include <deque>
 #include <variant>
 
+#include "lcmtypes/planar.h"
+
 namespace driftlab::estimator {
 
 /// Process and measurement noise (standard deviations).
@@ -35,11 +37,12 @@ struct GyroZ {
 struct Twist {
   double v = 0, w = 0, var_v = 0, var_w = 0;
 };
-/// An absolute pose [m, m, rad] with variances (<= 0: configured).
-struct Pose2 {
-  double x = 0, y = 0, yaw = 0, var_xy = 0, var_yaw = 0;
+/// An absolute pose with variances [m^2, rad^2] (<= 0: configured).
+struct PoseFix {
+  Pose2 pose;
+  double var_xy = 0, var_yaw = 0;
 };
-using Measurement = std::variant<GyroZ, Twist, Pose2>;
+using Measurement = std::variant<GyroZ, Twist, PoseFix>;
 
 class Ekf {
  public:
@@ -51,7 +54,7 @@ class Ekf {
 
   /// Starts at a pose and velocity, at time utime [us]; false (and not initialised) when a value is NaN,
   /// infinite or beyond any robot's (over 1e9 m, m/s or rad/s).
-  bool init(int64_t utime, const Pose2& pose, double v, double w);
+  bool init(int64_t utime, const PoseFix& fix, double v, double w);
   bool initialized() const { return initialized_; }
 
   /// Moves the state to utime (no-op for earlier times).
@@ -90,7 +93,7 @@ class DelayedEkf {
 
   DelayedEkf(const EkfNoise& noise, double window_s) : ekf_(noise), window_(static_cast<int64_t>(window_s * 1e6)) {}
 
-  bool init(int64_t utime, const Pose2& pose, double v, double w);
+  bool init(int64_t utime, const PoseFix& fix, double v, double w);
   bool initialized() const { return ekf_.initialized(); }
   /// Applies a measurement stamped utime [us]; false when it was older than the window and rejected, or refused
   /// by the filter (Ekf::update).
@@ -112,8 +115,5 @@ class DelayedEkf {
   std::deque<Entry> history_; ///< applied measurements within the window, by stamp
   Counters counters_;
 };
-
-/// Wraps an angle to (-pi, pi].
-double wrap_angle(double a);
 
 }  // namespace driftlab::estimator

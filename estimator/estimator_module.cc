@@ -3,7 +3,7 @@
 #include <cmath>
 #include <cstdint>
 
-#include "core/internal/yaml_fields.h"
+#include "core/config.h"
 #include "driftlab/imu_t.hpp"
 #include "driftlab/odometry_t.hpp"
 #include "driftlab/pose_t.hpp"
@@ -11,40 +11,60 @@
 #include "lcmtypes/validate.h"
 
 namespace driftlab::estimator {
+namespace {
+
+/// The filter's noises, as keys of the estimator's map.
+const config::Table<EkfNoise>& ekf_noise_table() {
+  using N = EkfNoise;
+  using config::above;
+  static const auto t =
+      config::Table<N>()
+          .number("accel_noise", &N::accel, above(0, 1e4), "m/s^2 per sqrt(s)",
+                  "linear acceleration, as process noise on the speed")
+          .number("angular_accel_noise", &N::angular_accel, above(0, 1e4), "rad/s^2 per sqrt(s)",
+                  "angular acceleration, as process noise on the yaw rate")
+          .number("gyro_bias_walk", &N::gyro_bias_walk, above(0, 1e4), "rad/s per sqrt(s)", "gyro bias random walk")
+          .number("gyro_noise", &N::gyro, above(0, 1e4), "rad/s",
+                  "gyro white noise per sample, when the message gives no covariance")
+          .number("odom_v_noise", &N::odom_v, above(0, 1e4), "m/s",
+                  "odometry forward speed, when the message gives no covariance")
+          .number("odom_w_noise", &N::odom_w, above(0, 1e4), "rad/s",
+                  "odometry yaw rate, when the message gives no covariance")
+          .number("pose_xy_noise", &N::pose_xy, above(0, 1e4), "m",
+                  "absolute pose position, when the message gives no covariance")
+          .number("pose_yaw_noise", &N::pose_yaw, above(0, 1e4), "rad",
+                  "absolute pose yaw, when the message gives no covariance")
+          .number("initial_bias", &N::initial_bias, above(0, 1e4), "rad/s", "initial gyro bias uncertainty");
+  return t;
+}
+
+}  // namespace
+
+const config::Table<EstimatorConfig>& estimator_config_table() {
+  using C = EstimatorConfig;
+  static const auto t =
+      config::Table<C>()
+          .text("imu_channel", &C::imu_channel, "driftlab.imu_t (gyro z); \"\" to ignore")
+          .text("odom_channel", &C::odom_channel, "driftlab.odometry_t: its twist; the first pose initialises")
+          .text("pose_channel", &C::pose_channel, "driftlab.pose_t absolute poses (SLAM); \"\" to ignore")
+          .text("output_channel", &C::output_channel, "driftlab.odometry_t estimates out")
+          .text("frame_id", &C::frame_id, "output frame; \"\": the odometry's frame, or map with poses")
+          .text("child_frame_id", &C::child_frame_id, "the body frame of the output")
+          .number("window_s", &C::window_s, config::between(0, 60), "s",
+                  "how far back late measurements are re-applied; 0: reject every late one")
+          .number("publish_rate", &C::publish_rate, config::between(0.1, 1000), "Hz", "output rate, in stamp time")
+          .include(&C::noise, ekf_noise_table())
+          .check([](const config::Value& v, C& c) -> Status {
+            if (c.odom_channel.empty() && c.pose_channel.empty()) {
+              return v.error("needs odom_channel or pose_channel to start from");
+            }
+            return {};
+          });
+  return t;
+}
+
 Result<EstimatorConfig> parse_estimator_config(const YAML::Node& node, const std::string& origin) {
-  EstimatorConfig c;
-  if (!node.IsDefined() || node.IsNull()) return c;
-  try {
-    Fields f(node, origin, "estimator");
-    DL_TRY(f.is_map());
-    DL_TRY(f.text("imu_channel", c.imu_channel));
-    DL_TRY(f.text("odom_channel", c.odom_channel));
-    DL_TRY(f.text("pose_channel", c.pose_channel));
-    DL_TRY(f.text("output_channel", c.output_channel));
-    DL_TRY(f.text("frame_id", c.frame_id));
-    DL_TRY(f.text("child_frame_id", c.child_frame_id));
-    DL_TRY(f.number("window_s", c.window_s, 0, 60));
-    DL_TRY(f.positive("publish_rate", c.publish_rate));
-    EkfNoise& n = c.noise;
-    DL_TRY(f.positive("accel_noise", n.accel));
-    DL_TRY(f.positive("angular_accel_noise", n.angular_accel));
-    DL_TRY(f.positive("gyro_bias_walk", n.gyro_bias_walk));
-    DL_TRY(f.positive("gyro_noise", n.gyro));
-    DL_TRY(f.positive("odom_v_noise", n.odom_v));
-    DL_TRY(f.positive("odom_w_noise", n.odom_w));
-    DL_TRY(f.positive("pose_xy_noise", n.pose_xy));
-    DL_TRY(f.positive("pose_yaw_noise", n.pose_yaw));
-    DL_TRY(f.positive("initial_bias", n.initial_bias));
-    DL_TRY(f.finish("imu_channel, odom_channel, pose_channel, output_channel, frame_id, child_frame_id, window_s, "
-                    "publish_rate, accel_noise, angular_accel_noise, gyro_bias_walk, gyro_noise, odom_v_noise, "
-                    "odom_w_noise, pose_xy_noise, pose_yaw_noise, initial_bias"));
-    if (c.odom_channel.empty() && c.pose_channel.empty()) {
-      return Error{at(origin, node) + ": estimator needs odom_channel or pose_channel to start from"};
-    }
-  } catch (const YAML::Exception& e) {
-    return Error{origin + ":" + std::to_string(e.mark.line + 1) + ": " + e.msg};
-  }
-  return c;
+  return estimator_config_table().parse(config::Value(node, origin, "estimator"));
 }
 
 EstimatorModule::EstimatorModule(EstimatorConfig config)
@@ -68,8 +88,8 @@ Status EstimatorModule::start(Bus& bus) {
       if (!non_finite_.finite(m)) return;
       ++odom_;
       if (!ekf_.initialized() && (c_.pose_channel.empty() || poses_ == 0)) {
-        if (!ekf_.init(o.header.utime, {o.position.x, o.position.y, yaw_of(o.orientation), 0, 0},
-                       o.linear_velocity.x, o.angular_velocity.z)) {
+        if (!ekf_.init(o.header.utime, {{o.position.x, o.position.y, yaw_of(o.orientation)}}, o.linear_velocity.x,
+                       o.angular_velocity.z)) {
           return void(++refused_init_);
         }
         if (frame_.empty()) frame_ = c_.frame_id.empty() ? o.header.frame_id : c_.frame_id;
@@ -86,8 +106,9 @@ Status EstimatorModule::start(Bus& bus) {
       if (!decode_message(m, p)) return void(++undecodable_);
       if (!non_finite_.finite(m)) return;
       ++poses_;
-      const Pose2 pose{p.position.x, p.position.y, yaw_of(p.orientation),
-                       std::max(p.covariance[0], p.covariance[7]), p.covariance[35]};
+      const PoseFix pose{{p.position.x, p.position.y, yaw_of(p.orientation)},
+                         std::max(p.covariance[0], p.covariance[7]),
+                         p.covariance[35]};
       if (!ekf_.initialized()) {
         if (!ekf_.init(p.header.utime, pose, 0, 0)) return void(++refused_init_);
         frame_ = c_.frame_id.empty() ? p.header.frame_id : c_.frame_id;

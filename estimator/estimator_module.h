@@ -15,6 +15,11 @@
 #include "estimator/ekf.h"
 #include "lcmtypes/validate.h"
 
+namespace driftlab::config {
+template <class T>
+class Table;
+}
+
 namespace driftlab::estimator {
 
 struct EstimatorConfig {
@@ -28,6 +33,9 @@ struct EstimatorConfig {
   double publish_rate = 50;   ///< output rate in stamp time [Hz]
   EkfNoise noise;
 };
+
+/// The keys of the `estimator:` map of a replay config, with units, ranges and defaults (core/config.h).
+const config::Table<EstimatorConfig>& estimator_config_table();
 
 /// Reads the `estimator:` map of a replay config; errors name the file, line and key.
 Result<EstimatorConfig> parse_estimator_config(const YAML::Node& node, const std::string& origin);

@@ -1,5 +1,6 @@
-// libFuzzer target: any text given to the simulator's parsers (scenario YAML, world YAML, URDF) must give a value
-// or a one-line error naming the origin, never a crash, an exception or a hang.
+// libFuzzer target: any text given to the simulator's parsers (scenario YAML, world YAML, URDF) or read as a module,
+// restamp or fault config (core/config.h tables) must give a value or a one-line error naming the origin, never a
+// crash, an exception or a hang.
 #include <btBulletDynamicsCommon.h>
 
 #include <cstdint>
@@ -8,6 +9,11 @@
 #include <cstring>
 #include <string>
 
+#include "controller/controller_module.h"
+#include "core/config.h"
+#include "core/faults.h"
+#include "estimator/estimator_module.h"
+#include "replayer/replayer.h"
 #include "sim/bullet_world.h"
 #include "sim/robot.h"
 #include "sim/scenario.h"
@@ -31,6 +37,15 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   // Paths into device and process trees could block or read without end; they are not configuration.
   for (const char* dir : {"/dev", "/proc", "/sys"}) {
     if (text.find(dir) != std::string::npos) return 0;
+  }
+  if (auto root = driftlab::config::parse_yaml(text, "m.yaml"); !root) {
+    check(root.error(), "m.yaml");
+  } else {
+    const driftlab::config::Value v(*root, "m.yaml", "m");
+    if (auto c = driftlab::estimator::estimator_config_table().parse(v); !c) check(c.error(), "m.yaml");
+    if (auto c = driftlab::controller::controller_config_table().parse(v); !c) check(c.error(), "m.yaml");
+    if (auto c = driftlab::replay::restamp_file_table().parse(v); !c) check(c.error(), "m.yaml");
+    if (auto c = driftlab::fault_config_table().parse(v); !c) check(c.error(), "m.yaml");
   }
   if (auto w = driftlab::sim::parse_world(text, "w.yaml", "/nonexistent"); !w) check(w.error(), "w.yaml");
   if (auto s = driftlab::sim::parse_scenario(text, "s.yaml", "/nonexistent/scenarios"); !s) check(s.error(), "s.yaml");

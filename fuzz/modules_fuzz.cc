@@ -1,9 +1,9 @@
 // libFuzzer target: the processing modules (the estimator, the controller, the 2D and 3D SLAM) fed well-formed
 // messages carrying hostile values (NaN, infinities, huge, tiny and denormal numbers, zero-length and odd-sized
-// arrays, stamps at the ends of int64_t and running backwards) through a fake bus that delivers them as
-// `driftlab replay` does, timers included. No module may throw, crash or trip a sanitizer, and every message a
-// module publishes must be well-formed with every number finite (lcmtypes::non_finite): a NaN that gets in must
-// never come out.
+// arrays, stamps and log times at the ends of int64_t and running backwards) through the fake bus of the tests
+// (tests/fakes/fake_bus.h: the replay host itself on its virtual clock, timers included). No module may throw
+// (the host would count and skip it), crash or trip a sanitizer, and every message a module publishes must be
+// well-formed with every number finite (lcmtypes::non_finite): a NaN that gets in must never come out.
 // Input: a byte picking the module, then messages, each a kind byte and the values FuzzedDataProvider draws.
 #include <fuzzer/FuzzedDataProvider.h>
 
@@ -12,10 +12,8 @@
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
-#include <functional>
 #include <limits>
 #include <memory>
-#include <regex>
 #include <string>
 #include <vector>
 
@@ -29,6 +27,7 @@
 #include "driftlab/tf_t.hpp"
 #include "driftlab/velocity_command_t.hpp"
 #include "estimator/estimator_module.h"
+#include "tests/fakes/fake_bus.h"
 #include "core/log_format.h"
 #include "lcmtypes/schema.h"
 #include "lcmtypes/type_registry.h"
@@ -38,83 +37,22 @@
 
 namespace {
 
-using driftlab::BusMessage;
 
-/// A bus as the replayer is one, reduced: handlers by full regex match, now() the time of the message handled,
-/// timers fired at whole multiples of their period before the first message at or after a tick. Every publication
-/// is checked.
-class FakeBus final : public driftlab::Bus {
- public:
-  void subscribe(const std::string& channel_regex, driftlab::BusHandler handler) override {
-    subs_.push_back({std::regex(channel_regex), std::move(handler)});
-  }
-  void publish(std::string_view channel, std::span<const uint8_t> data) override {
-    if (const auto why = driftlab::lcmtypes::layout_problem(data)) {
-      std::fprintf(stderr, "published a malformed message on %.*s: %s\n", static_cast<int>(channel.size()),
-                   channel.data(), why->c_str());
-      std::abort();
-    }
-    if (const auto what = driftlab::lcmtypes::non_finite(data)) {
-      std::fprintf(stderr, "published a non-finite number on %.*s: %s\n", static_cast<int>(channel.size()),
-                   channel.data(), what->c_str());
-      std::abort();
-    }
-  }
-  int64_t now() const override { return now_; }
-  void every(int64_t period_us, std::function<void()> fn) override {
-    if (period_us <= 0) std::abort();  // modules validate their rates
-    timers_.push_back({period_us, 0, std::move(fn)});
-  }
-
-  /// Delivers a message at log time t (which may go backwards, as in a log).
-  void deliver(const std::string& channel, int64_t t, const std::vector<uint8_t>& bytes) {
-    if (verbose_) std::fprintf(stderr, "%s at %lld: %s\n", channel.c_str(), static_cast<long long>(t), describe(bytes).c_str());
-    fire_timers(t);
-    now_ = t;
-    const BusMessage m{channel, t, bytes};
-    for (auto& s : subs_) {
-      if (std::regex_match(channel, s.regex)) s.handler(m);
-    }
-  }
-
- private:
-  /// The message's fields, for reading a crash's input (DRIFTLAB_FUZZ_VERBOSE=1).
-  static std::string describe(std::span<const uint8_t> bytes) {
-    const char* type = driftlab::lcmtypes::type_name(driftlab::logfmt::fingerprint(bytes));
-    if (type == nullptr) return "?";
-    std::string s = type;
+/// Prints the messages of an input as they are delivered (DRIFTLAB_FUZZ_VERBOSE=1), to read a crash's input.
+void describe(const std::string& channel, int64_t t, std::span<const uint8_t> bytes) {
+  const char* type = driftlab::lcmtypes::type_name(driftlab::logfmt::fingerprint(bytes));
+  std::string s = type != nullptr ? type : "?";
+  if (type != nullptr) {
     driftlab::lcmtypes::flatten(*driftlab::lcmtypes::find_struct(type), bytes,
                                 [&](const std::string& k, const std::string& v) { s += " " + k + "=" + v; });
-    return s;
   }
-  const bool verbose_ = std::getenv("DRIFTLAB_FUZZ_VERBOSE") != nullptr;
-  struct Sub {
-    std::regex regex;
-    driftlab::BusHandler handler;
-  };
-  struct Timer {
-    int64_t period, next;
-    std::function<void()> fn;
-  };
-  void fire_timers(int64_t t) {
-    for (Timer& timer : timers_) {
-      // Placed at the first tick at or after t; a jump of more than 64 periods skips the ticks in between (the
-      // replayer fires them all; here they would only cost time).
-      if (timer.next == 0 || static_cast<double>(t) - static_cast<double>(timer.next) > 64.0 * timer.period) {
-        timer.next = (t / timer.period) * timer.period;
-      }
-      while (timer.next <= t) {
-        now_ = timer.next;
-        timer.fn();
-        if (timer.next > std::numeric_limits<int64_t>::max() - timer.period) return;
-        timer.next += timer.period;
-      }
-    }
-  }
-  std::vector<Sub> subs_;
-  std::vector<Timer> timers_;
-  int64_t now_ = 0;
-};
+  std::fprintf(stderr, "%s at %lld: %s\n", channel.c_str(), static_cast<long long>(t), s.c_str());
+}
+
+[[noreturn]] void fail(const std::string& what) {
+  std::fprintf(stderr, "%s\n", what.c_str());
+  std::abort();
+}
 
 double hostile_double(FuzzedDataProvider& in) {
   switch (in.ConsumeIntegralInRange<int>(0, 15)) {
@@ -198,8 +136,14 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   FuzzedDataProvider in(data, size);
   const int which = in.ConsumeIntegralInRange<int>(0, 3);
   auto module = make_module(which);
-  FakeBus bus;
-  if (!module->start(bus).ok()) std::abort();  // the defaults always start
+  driftlab::test::FakeBus bus;  // the replay host itself, on its virtual clock
+  bus.add(*module);
+  if (!bus.start().ok()) std::abort();  // the defaults always start
+  const bool verbose = std::getenv("DRIFTLAB_FUZZ_VERBOSE") != nullptr;
+  auto deliver = [&](const std::string& channel, int64_t t, const std::vector<uint8_t>& bytes) {
+    if (verbose) describe(channel, t, bytes);
+    if (!bus.deliver(channel, bytes, t).ok()) std::abort();  // no output log to fail
+  };
   // SLAM does real work per scan or cloud: fewer messages keep each input fast.
   const int max_messages = which >= 2 ? 24 : 200;
   int64_t clock = 1'000'000;
@@ -216,7 +160,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
         fill(in, m.angular_velocity_covariance);
         put_vector(in, m.linear_acceleration);
         fill(in, m.linear_acceleration_covariance);
-        bus.deliver("IMU", arrival, encode(m));
+        deliver("IMU", arrival, encode(m));
         break;
       }
       case 1: {
@@ -229,7 +173,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
         put_vector(in, m.linear_velocity);
         put_vector(in, m.angular_velocity);
         fill(in, m.twist_covariance);
-        bus.deliver("ODOM", arrival, encode(m));
+        deliver("ODOM", arrival, encode(m));
         break;
       }
       case 2: {
@@ -239,7 +183,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
         put_vector(in, m.position);
         put_quaternion(in, m.orientation);
         fill(in, m.covariance);
-        bus.deliver("SLAM_POSE", arrival, encode(m));
+        deliver("SLAM_POSE", arrival, encode(m));
         break;
       }
       case 3: {
@@ -259,7 +203,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
         }
         m.nintensities = in.ConsumeBool() ? m.nranges : 0;
         m.intensities.assign(static_cast<size_t>(m.nintensities), 1.0f);
-        bus.deliver("SCAN", arrival, encode(m));
+        deliver("SCAN", arrival, encode(m));
         break;
       }
       case 4: {
@@ -278,7 +222,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
         m.nintensities = 0;
         m.ntimes = in.ConsumeBool() ? m.npoints : 0;
         for (int i = 0; i < m.ntimes; ++i) m.time_offsets.push_back(in.ConsumeBool() ? i * 1e-4f : hostile_float(in));
-        bus.deliver("POINTS", arrival, encode(m));
+        deliver("POINTS", arrival, encode(m));
         break;
       }
       case 5: {
@@ -293,7 +237,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
           put_quaternion(in, t.rotation);
           m.transforms.push_back(t);
         }
-        bus.deliver("TF_STATIC", arrival, encode(m));
+        deliver("TF_STATIC", arrival, encode(m));
         break;
       }
       default: {
@@ -301,12 +245,21 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
         m.header = header(in, stamp, "base_link");
         put_vector(in, m.linear);
         put_vector(in, m.angular);
-        bus.deliver("CMD", arrival, encode(m));
+        deliver("CMD", arrival, encode(m));
         break;
       }
     }
   }
-  module->finish(bus);
-  (void)module->counters();
+  if (!bus.finish().ok()) std::abort();
+  // The host catches what a module throws, and counts it: here a throw is a hole in the module's own checks.
+  for (const auto& r : bus.reports()) {
+    for (const auto& w : r.warnings) {
+      if (w.find("failed on and skipped") != std::string::npos) fail(r.name + ": " + w);
+    }
+  }
+  for (const auto& e : bus.published()) {
+    if (const auto why = driftlab::lcmtypes::layout_problem(e.data)) fail("malformed on " + e.channel + ": " + *why);
+    if (const auto what = driftlab::lcmtypes::non_finite(e.data)) fail("non-finite on " + e.channel + ": " + *what);
+  }
   return 0;
 }

@@ -5,10 +5,10 @@
 #include <algorithm>
 #include <array>
 #include <filesystem>
-#include <fstream>
 #include <sstream>
 
 #include "controller/controller_module.h"
+#include "core/config.h"
 #include "estimator/estimator_module.h"
 #include "sim/scenario.h"
 #include "slam/slam_module.h"
@@ -73,6 +73,13 @@ Result<std::unique_ptr<Module>> make_module(const std::string& name, const YAML:
 
 }  // namespace
 
+std::string config_reference() {
+  std::string out = "### slam\n\n" + slam::slam_config_table().reference("slam.");
+  out += "\n### estimator\n\n" + estimator::estimator_config_table().reference("estimator.");
+  out += "\n### controller\n\n" + controller::controller_config_table().reference("controller.");
+  return out;
+}
+
 std::string known_modules() {
   std::string s;
   for (const char* m : kModules) s += (s.empty() ? "" : ", ") + std::string(m);
@@ -84,15 +91,9 @@ Result<std::vector<std::unique_ptr<Module>>> load_modules(const std::string& lis
   YAML::Node config;
   std::string config_dir = ".";
   if (!config_path.empty()) {
-    std::ifstream in(config_path);
-    if (!in) return Error{config_path + ": cannot open the module config"};
-    std::stringstream text;
-    text << in.rdbuf();
-    try {
-      config = YAML::Load(text.str());
-    } catch (const YAML::Exception& e) {
-      return Error{config_path + ":" + std::to_string(e.mark.line + 1) + ": " + e.msg};
-    }
+    auto root = config::load_yaml(config_path, "module config");
+    if (!root) return root.error();
+    config = *root;
     if (!config.IsNull() && !config.IsMap()) return Error{config_path + ":1: expected a map of module name: settings"};
     config_dir = std::filesystem::path(config_path).parent_path().string();
     if (config_dir.empty()) config_dir = ".";

@@ -16,6 +16,10 @@ namespace driftlab::modules {
 /// The module names, comma-separated, in the order they are listed ("slam, estimator, controller").
 std::string known_modules();
 
+/// The reference of the module config: every module's keys with type, unit, default, range and description, as
+/// markdown (from the modules' config tables, core/config.h).
+std::string config_reference();
+
 /// Whether the input holds messages of the named type ("driftlab.laser_scan_t") on a channel, as delivered to the
 /// modules; the slam module's `auto` backend asks. Live, nothing is known in advance: answer false.
 using HasData = std::function<bool(const std::string& channel, const std::string& type)>;

@@ -17,8 +17,8 @@
 #include <thread>
 #include <unordered_map>
 
-#include "core/internal/string_hash.h"
 #include "core/log_writer.h"
+#include "core/string_hash.h"
 #include "driftlab/recorder_stats_t.hpp"
 #include "recorder/lcm_udpm.h"
 
@@ -436,7 +436,7 @@ class Session {
   const int fd_;
   ChunkQueue queue_;
   std::optional<std::regex> include_, exclude_;
-  std::unordered_map<std::string, bool, internal::StringHash, std::equal_to<>> decisions_;
+  std::unordered_map<std::string, bool, StringHash, std::equal_to<>> decisions_;
   Counters local_;                // receiver thread only
   std::mutex counters_mutex_;
   Counters shared_;               // under counters_mutex_

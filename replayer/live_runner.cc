@@ -3,192 +3,113 @@
 #include <lcm/lcm.h>
 #include <sys/time.h>
 
+#include <algorithm>
 #include <chrono>
-#include <optional>
-#include <unordered_set>
 
-#include "core/log_writer.h"
-#include "lcmtypes/stream_header.h"
-#include "lcmtypes/validate.h"
-#include "replayer/internal/module_tally.h"
+#include "replayer/module_host.h"
 
 namespace driftlab::replay {
 namespace {
 
-int64_t wall_utime() {
-  timeval tv{};
-  gettimeofday(&tv, nullptr);
-  return static_cast<int64_t>(tv.tv_sec) * 1000000 + tv.tv_usec;
-}
-
-/// One module's view of the live bus.
-class LiveBus final : public Bus {
+/// The only place the live runner reads a clock: wall time for the host [us], steady time for the duration [s].
+class WallClock {
  public:
-  LiveBus(LiveRunner::Impl& runner, Module& module) : runner_(runner), module_(module) {}
-  void subscribe(const std::string& channel_regex, BusHandler handler) override;
-  void publish(std::string_view channel, std::span<const uint8_t> data) override;
-  int64_t now() const override { return handling_ != 0 ? handling_ : wall_utime(); }
-  void every(int64_t period_us, std::function<void()> fn) override;
-  std::string artifact_prefix() const override;
+  WallClock() : start_(std::chrono::steady_clock::now()) {}
+  static int64_t now_us() {
+    timeval tv{};
+    gettimeofday(&tv, nullptr);
+    return static_cast<int64_t>(tv.tv_sec) * 1000000 + tv.tv_usec;
+  }
+  double elapsed_s() const { return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count(); }
 
-  struct Subscription {
-    LiveBus* bus;
-    BusHandler handler;
-  };
-  LiveRunner::Impl& runner_;
-  Module& module_;
-  std::vector<std::unique_ptr<Subscription>> subs_;
-  internal::ModuleTally tally_;
-  int64_t handling_ = 0;  ///< receive time of the message being handled, 0 outside handlers [us]
+ private:
+  std::chrono::steady_clock::time_point start_;
 };
 
 }  // namespace
 
 struct LiveRunner::Impl {
   LiveOptions o;
-  std::vector<std::unique_ptr<Module>> modules;
-  std::vector<std::unique_ptr<LiveBus>> buses;
+  ModuleHost host;
   lcm_t* lcm = nullptr;
-  std::optional<LogWriter> writer;
-  std::string prefix;
-  std::unordered_set<std::string> names;  ///< interned channel names
-  struct Timer {
-    int64_t period, next;
-    std::function<void()> fn;
-  };
-  std::vector<Timer> timers;
-  int64_t received = 0, outputs = 0, stats_seq = 0;
-  Status failure;
+  Status failure;  ///< the first failure met inside LCM's callback
 
+  explicit Impl(LiveOptions options)
+      : o(std::move(options)),
+        host({.clock = HostClock::kWall,
+              .loopback = false,  // LCM brings what the modules publish back to them
+              .out = o.out,
+              .timing = true,  // nothing needs to repeat live
+              .stats_period_s = o.stats_period_s,
+              .stats_channel = o.stats_channel}) {}
   ~Impl() {
     if (lcm != nullptr) lcm_destroy(lcm);
   }
 
-  void record(std::string_view channel, std::span<const uint8_t> data, int64_t utime) {
-    if (!writer || !failure.ok()) return;
-    if (Status s = writer->write(utime, channel, data); !s) failure = s;
-  }
-
-  void publish_stats() {
-    const int64_t now = wall_utime();
-    for (auto& b : buses) {
-      const auto bytes = internal::encode_stats(b->tally_.report(b->module_), stats_seq, now);
-      lcm_publish(lcm, o.stats_channel.c_str(), bytes.data(), static_cast<unsigned int>(bytes.size()));
-      record(o.stats_channel, bytes, now);
-    }
-    ++stats_seq;
+  /// Every message on a channel some module subscribed to goes to the host, which routes it.
+  static void on_message(const lcm_recv_buf_t* rbuf, const char* channel, void* user) {
+    auto& d = *static_cast<Impl*>(user);
+    if (!d.failure.ok()) return;
+    const std::span<const uint8_t> data(static_cast<const uint8_t*>(rbuf->data), rbuf->data_size);
+    if (Status s = d.host.advance(rbuf->recv_utime); !s) d.failure = s;
+    if (Status s = d.host.deliver(channel, data); !s) d.failure = s;
   }
 };
 
-namespace {
-
-void on_message(const lcm_recv_buf_t* rbuf, const char* channel, void* user) {
-  auto* sub = static_cast<LiveBus::Subscription*>(user);
-  LiveBus& b = *sub->bus;
-  LiveRunner::Impl& r = b.runner_;
-  ++r.received;
-  const std::span<const uint8_t> data(static_cast<const uint8_t*>(rbuf->data), rbuf->data_size);
-  // Any peer can publish: a message that does not hold its type's layout is counted and dropped, never decoded.
-  if (const auto why = lcmtypes::layout_problem(data)) return b.tally_.malformed(channel, *why);
-  const std::string* name = &*r.names.insert(channel).first;
-  b.tally_.input(name, lcmtypes::header_stamp(data, rbuf->recv_utime));
-  b.handling_ = rbuf->recv_utime;
-  const auto t0 = std::chrono::steady_clock::now();
-  try {
-    sub->handler(BusMessage{channel, rbuf->recv_utime, data});
-  } catch (const std::exception& e) {  // an exception must not unwind through LCM's C code and end the run
-    b.tally_.failed(channel, e.what());
-  }
-  b.tally_.processed(rbuf->recv_utime, std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
-  b.handling_ = 0;
-}
-
-void LiveBus::subscribe(const std::string& channel_regex, BusHandler handler) {
-  subs_.push_back(std::make_unique<Subscription>(Subscription{this, std::move(handler)}));
-  lcm_subscribe(runner_.lcm, channel_regex.c_str(), &on_message, subs_.back().get());
-}
-
-void LiveBus::publish(std::string_view channel, std::span<const uint8_t> data) {
-  const std::string name(channel);
-  tally_.output();
-  ++runner_.outputs;
-  lcm_publish(runner_.lcm, name.c_str(), data.data(), static_cast<unsigned int>(data.size()));
-  runner_.record(channel, data, now());
-}
-
-void LiveBus::every(int64_t period_us, std::function<void()> fn) {
-  if (period_us <= 0) std::abort();  // a broken invariant: modules validate their rates
-  const int64_t now = wall_utime();
-  runner_.timers.push_back({period_us, (now / period_us + 1) * period_us, std::move(fn)});
-}
-
-std::string LiveBus::artifact_prefix() const { return runner_.prefix; }
-
-}  // namespace
-
-LiveRunner::LiveRunner(LiveOptions options) : impl_(std::make_unique<Impl>()) { impl_->o = std::move(options); }
+LiveRunner::LiveRunner(LiveOptions options) : impl_(std::make_unique<Impl>(std::move(options))) {}
 LiveRunner::~LiveRunner() = default;
-void LiveRunner::add_module(std::unique_ptr<Module> module) { impl_->modules.push_back(std::move(module)); }
+void LiveRunner::add_module(std::unique_ptr<Module> module) { impl_->host.add_module(std::move(module)); }
 
 Status LiveRunner::open() {
   Impl& d = *impl_;
   if (d.lcm != nullptr) return {};
   d.lcm = lcm_create(d.o.url.c_str());
   if (d.lcm == nullptr) return Error{"--url " + d.o.url + ": cannot open the LCM URL"};
-  if (!d.o.out.empty()) {
-    d.prefix = d.o.out;
-    if (d.prefix.size() > 4 && d.prefix.compare(d.prefix.size() - 4, 4, ".lcm") == 0) d.prefix.resize(d.prefix.size() - 4);
+  d.host.set_outlet([&d](const BusMessage& m) {
+    const std::string channel(m.channel);
+    lcm_publish(d.lcm, channel.c_str(), m.data.data(), static_cast<unsigned int>(m.data.size()));
+  });
+  if (Status s = d.host.start_modules(); !s) return s;
+  // One LCM subscription to what any module subscribed to: LCM drops the other channels on arrival, and the host
+  // routes the rest. Its queue holds as many messages as the modules' subscriptions would have had apiece (LCM's
+  // default, 30, each), so a flood on one channel leaves room for the others as before.
+  const std::vector<std::string> wanted = d.host.subscriptions();
+  if (!wanted.empty()) {
+    std::string any;
+    for (const auto& regex : wanted) any += (any.empty() ? "(?:" : "|(?:") + regex + ")";
+    lcm_subscription_t* sub = lcm_subscribe(d.lcm, ("(?:" + any + ")").c_str(), &Impl::on_message, &d);
+    if (sub == nullptr) return Error{"--url " + d.o.url + ": cannot subscribe to " + any};
+    lcm_subscription_set_queue_capacity(sub, static_cast<int>(30 * wanted.size()));
   }
-  for (auto& m : d.modules) {
-    d.buses.push_back(std::make_unique<LiveBus>(d, *m));
-    if (Status s = m->start(*d.buses.back()); !s) return Error{"module " + m->name() + ": " + s.message()};
-  }
-  if (!d.o.out.empty()) {
-    auto w = LogWriter::create(d.o.out, {.atomic = true});
-    if (!w) return w.error();
-    d.writer.emplace(std::move(*w));
-  }
-  return {};
+  return d.host.open_log();  // after subscribing: a log on disk says the runner listens
 }
 
 Result<LiveReport> LiveRunner::run(const std::atomic<bool>* stop) {
   if (Status s = open(); !s) return Error{s.message()};
   Impl& d = *impl_;
-  const auto start = std::chrono::steady_clock::now();
-  const auto period = static_cast<int64_t>(d.o.stats_period_s * 1e6);
-  if (period > 0) d.timers.push_back({period, (wall_utime() / period + 1) * period, [&d] { d.publish_stats(); }});
-  auto elapsed = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(); };
-  while (!(stop != nullptr && stop->load()) && (d.o.duration_s <= 0 || elapsed() < d.o.duration_s) && d.failure.ok()) {
-    // Wait for a message until the next timer is due (at most 100 ms, to notice a stop).
+  const WallClock clock;
+  auto failed = [&d] { return !d.failure.ok() || !d.host.failure().ok(); };
+  while (!(stop != nullptr && stop->load()) && (d.o.duration_s <= 0 || clock.elapsed_s() < d.o.duration_s) &&
+         !failed()) {
+    const int64_t now = WallClock::now_us();
+    if (Status s = d.host.advance(now); !s) break;  // timer ticks and statistics due by now
+    // Wait for a message until the host is next due (at most 100 ms, to notice a stop).
     int64_t wait_us = 100000;
-    const int64_t now = wall_utime();
-    for (const auto& t : d.timers) wait_us = std::min(wait_us, std::max<int64_t>(0, t.next - now));
+    if (const auto due = d.host.next_due()) wait_us = std::clamp<int64_t>(*due - now, 0, wait_us);
     if (lcm_handle_timeout(d.lcm, static_cast<int>((wait_us + 999) / 1000)) < 0) {
       return Error{"--url " + d.o.url + ": receiving failed"};
     }
-    const int64_t after = wall_utime();
-    for (size_t i = 0; i < d.timers.size(); ++i) {  // by index: a timer may add timers
-      if (d.timers[i].next > after) continue;
-      while (d.timers[i].next <= after) d.timers[i].next += d.timers[i].period;
-      auto fn = d.timers[i].fn;
-      fn();
-    }
   }
-  for (auto& b : d.buses) {
-    try {
-      b->module_.finish(*b);
-    } catch (const std::exception& e) {  // as for a message: counted and named, the log closed
-      b->tally_.failed("(finish)", e.what());
-    }
-  }
-  d.publish_stats();
+  Status finished = d.host.finish();  // after a failure, finish() writes nothing
   LiveReport report;
-  report.received = d.received;
-  report.outputs = d.outputs;
-  report.wall_s = elapsed();
-  for (auto& b : d.buses) report.modules.push_back(b->tally_.report(b->module_));
-  Status closed = d.writer ? d.writer->close() : Status{};
+  report.received = d.host.deliveries();
+  report.outputs = d.host.outputs();
+  report.wall_s = clock.elapsed_s();
+  report.modules = d.host.reports();
+  Status closed = d.host.close();
   if (!d.failure.ok()) return Error{d.failure.message()};
+  if (!d.host.failure().ok()) return Error{d.host.failure().message()};
+  if (!finished.ok()) return Error{finished.message()};
   if (!closed.ok()) return Error{closed.message()};
   return report;
 }

@@ -1,6 +1,8 @@
-// Runs the same modules live: on an LCM bus (udpm), with the wall clock as their clock. The replay's twin: what a
-// module does here it does there, message for message; here it meets real timing. What the modules publish goes on
-// the bus and into an output log, with their statistics (processing time measured, as nothing needs to repeat).
+// Runs the same modules live: on an LCM bus (udpm), with the wall clock as their clock. The replay's twin, on the
+// same host (module_host.h): what a module does here it does there, message for message; here it meets real
+// timing. Every message on a channel a module subscribed to goes to the host, which routes it; what the
+// modules publish goes on the bus (and so back to them) and into an output log, with their statistics
+// (processing time measured, as nothing needs to repeat).
 // Thread-safety: run() handles every message and timer on its own thread; modules need no locking.
 #pragma once
 
@@ -11,7 +13,7 @@
 
 #include "core/bus.h"
 #include "core/result.h"
-#include "replayer/replayer.h"
+#include "replayer/module_host.h"
 
 namespace driftlab::replay {
 
@@ -32,7 +34,6 @@ struct LiveReport {
 
 class LiveRunner {
  public:
-  struct Impl;  ///< opaque; public so the runner's bus can name it
   explicit LiveRunner(LiveOptions options);
   ~LiveRunner();
   void add_module(std::unique_ptr<Module> module);
@@ -42,6 +43,7 @@ class LiveRunner {
   Result<LiveReport> run(const std::atomic<bool>* stop = nullptr);
 
  private:
+  struct Impl;
   std::unique_ptr<Impl> impl_;
 };
 

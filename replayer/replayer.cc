@@ -3,60 +3,45 @@
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
-#include <deque>
 #include <fstream>
 #include <queue>
 #include <regex>
 #include <sstream>
 #include <unordered_map>
-#include <unordered_set>
 
-#include "core/internal/yaml_fields.h"
+#include "core/config.h"
 #include "core/log_format.h"
 #include "core/log_reader.h"
-#include "core/log_writer.h"
 #include "driftlab/fault_manifest_t.hpp"
 #include "lcmtypes/stream_header.h"
 #include "lcmtypes/type_registry.h"
-#include "lcmtypes/validate.h"
-#include "replayer/internal/module_tally.h"
 
 namespace driftlab::replay {
 
+const config::Table<RestampFile>& restamp_file_table() {
+  using C = ClockCorrection;
+  static const auto correction =
+      config::Table<C>()
+          .number("offset_s", &C::offset_s, config::between(-86400, 86400), "s",
+                  "the stream's clock was ahead of the log's by this much ...")
+          .number("drift_ppm", &C::drift_ppm, config::between(-1e5, 1e5), "ppm",
+                  "... plus this much per second since reference_utime; the correction subtracts both")
+          .integer("reference_utime", &C::reference_utime, config::between(0, 9e18), "us",
+                   "when the drift is zero; 0: the first event of the replay");
+  static const auto t = config::Table<RestampFile>()
+                            .map("channels", &RestampFile::channels, "CHANNEL", correction,
+                                 "the clock correction of each channel, as named in the input logs")
+                            .required();
+  return t;
+}
+
 Result<Restamp> load_restamp(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) return Error{path + ": cannot open the restamp file"};
-  std::stringstream text;
-  text << in.rdbuf();
-  try {
-    const YAML::Node root = YAML::Load(text.str());
-    Fields top(root, path, "");
-    DL_TRY(top.is_map());
-    Restamp r;
-    const YAML::Node channels = top.node("channels");
-    if (!channels.IsDefined() || !channels.IsMap()) {
-      return Error{at(path, root) + ": a restamp file needs 'channels: {CHANNEL: {offset_s: ..., drift_ppm: ...}}'"};
-    }
-    for (const auto& kv : channels) {
-      const std::string channel = kv.first.as<std::string>();
-      Fields f(kv.second, path, "channels." + channel);
-      DL_TRY(f.is_map());
-      ClockCorrection c;
-      DL_TRY(f.number("offset_s", c.offset_s, -86400, 86400));
-      DL_TRY(f.number("drift_ppm", c.drift_ppm, -1e5, 1e5));
-      double ref = 0;
-      DL_TRY(f.number("reference_utime", ref, 0, 1e19));
-      c.reference_utime = static_cast<int64_t>(ref);
-      DL_TRY(f.finish("offset_s, drift_ppm, reference_utime"));
-      r[channel] = c;
-    }
-    DL_TRY(top.finish("channels"));
-    return r;
-  } catch (const YAML::Exception& e) {
-    return Error{path + ":" + std::to_string(e.mark.line + 1) + ": " + e.msg};
-  }
+  auto root = config::load_yaml(path, "restamp file");
+  if (!root) return root.error();
+  auto file = restamp_file_table().parse(config::Value(*root, path));
+  if (!file) return file.error();
+  return std::move(file->channels);
 }
 
 namespace {
@@ -79,275 +64,10 @@ struct Later {
 };
 using ItemHeap = std::priority_queue<Item, std::vector<Item>, Later>;
 
-class Engine;
-
-/// One module's view of the bus, and what the replayer measures about it.
-class ModuleBus final : public Bus {
- public:
-  ModuleBus(Engine& engine, Module& module, size_t index) : engine_(engine), module_(module), index_(index) {}
-  void subscribe(const std::string& channel_regex, BusHandler handler) override;
-  void publish(std::string_view channel, std::span<const uint8_t> data) override;
-  int64_t now() const override;
-  void every(int64_t period_us, std::function<void()> fn) override;
-  std::string artifact_prefix() const override;
-
-  struct Subscription {
-    std::regex regex;
-    BusHandler handler;
-  };
-  Engine& engine_;
-  Module& module_;
-  size_t index_;
-  std::vector<Subscription> subs_;
-  internal::ModuleTally tally_;
-};
-
-class Engine {
- public:
-  explicit Engine(const ReplayOptions& o) : o_(o) {}
-  void set_sink(Sink sink) { sink_ = std::move(sink); }
-
-  Status start(std::vector<std::unique_ptr<Module>>& modules) {
-    for (size_t i = 0; i < modules.size(); ++i) buses_.push_back(std::make_unique<ModuleBus>(*this, *modules[i], i));
-    if (!o_.out.empty()) {
-      std::string prefix = o_.out;
-      if (prefix.size() > 4 && prefix.compare(prefix.size() - 4, 4, ".lcm") == 0) prefix.resize(prefix.size() - 4);
-      prefix_ = prefix;
-    }
-    for (auto& b : buses_) {
-      if (Status s = b->module_.start(*b); !s) return Error{"module " + b->module_.name() + ": " + s.message()};
-    }
-    if (!o_.out.empty()) {
-      auto w = LogWriter::create(o_.out, {.atomic = true});
-      if (!w) return w.error();
-      writer_.emplace(std::move(*w));
-    }
-    return {};
-  }
-
-  void add_timer(int64_t period, std::function<void()> fn) { timers_.push_back({period, 0, std::move(fn)}); }
-
-  /// Delivers one input at its time, then everything it caused.
-  Status deliver(const Item& item) {
-    if (Status s = fire_timers(item.time); !s) return s;
-    now_ = std::max(now_, item.time);
-    if (report_.dispatched == 0) report_.start_utime = now_;
-    report_.end_utime = now_;
-    ++report_.dispatched;
-    ++report_.channels[*item.channel];
-    if (Status s = maybe_stats(); !s) return s;
-    if (o_.write_inputs) {
-      if (Status s = write(*item.channel, item.data()); !s) return s;
-    }
-    emit(*item.channel, item.data());
-    dispatch(*item.channel, item.data());
-    return drain();
-  }
-
-  /// Calls every module's finish(), the last statistics and the manifest of injected faults.
-  Status finish(const std::vector<driftlab::fault_t>& injected) {
-    for (auto& b : buses_) {
-      try {
-        b->module_.finish(*b);
-      } catch (const std::exception& e) {  // as for a message: counted and named, the run and its log complete
-        b->tally_.failed("(finish)", e.what());
-      }
-      if (Status s = drain(); !s) return s;
-    }
-    if (Status s = publish_stats(); !s) return s;
-    if (!injected.empty()) {
-      driftlab::fault_manifest_t m;
-      m.header.utime = now_;
-      m.header.seq = 0;
-      m.seed = static_cast<int64_t>(o_.inject ? o_.inject->seed : 0);
-      m.faults = injected;
-      m.nfaults = static_cast<int32_t>(m.faults.size());
-      std::vector<uint8_t> bytes(static_cast<size_t>(m.getEncodedSize()));
-      m.encode(bytes.data(), 0, static_cast<int>(bytes.size()));
-      if (Status s = write(o_.faults_channel, bytes); !s) return s;
-    }
-    return {};
-  }
-
-  Status close() {
-    if (!writer_) return {};
-    Status s = writer_->close();
-    writer_.reset();
-    return s;
-  }
-
-  std::vector<ModuleReport> module_reports() const {
-    std::vector<ModuleReport> out;
-    for (const auto& b : buses_) out.push_back(b->tally_.report(b->module_));
-    return out;
-  }
-
-  ReplayReport& report() { return report_; }
-  int64_t now() const { return now_; }
-  const std::string& prefix() const { return prefix_; }
-  void invalidate_routes() { routes_.clear(); }
-
-  void publish(ModuleBus& from, std::string_view channel, std::span<const uint8_t> data) {
-    from.tally_.output();
-    ++report_.outputs;
-    pending_.push_back({std::string(channel), std::vector<uint8_t>(data.begin(), data.end())});
-  }
-
- private:
-  struct Route {
-    ModuleBus* bus;
-    size_t sub;
-  };
-  struct Pending {
-    std::string channel;
-    std::vector<uint8_t> data;
-  };
-
-  struct Timer {
-    int64_t period;
-    int64_t next;  ///< 0: not yet placed
-    std::function<void()> fn;
-  };
-
-  /// Fires, in time order, every timer tick before time t (and the ones at t, before the message at t).
-  Status fire_timers(int64_t t) {
-    for (;;) {
-      Timer* due = nullptr;
-      for (Timer& timer : timers_) {
-        if (timer.next == 0) {
-          const int64_t from = std::max(now_, t);
-          timer.next = (from / timer.period + (from % timer.period != 0 ? 1 : 0)) * timer.period;
-        }
-        if (timer.next <= t && (due == nullptr || timer.next < due->next)) due = &timer;
-      }
-      if (due == nullptr) return {};
-      now_ = std::max(now_, due->next);
-      due->next += due->period;
-      due->fn();
-      if (Status s = drain(); !s) return s;
-    }
-  }
-
-  const std::vector<Route>& routes(const std::string& channel) {
-    auto it = routes_.find(channel);
-    if (it != routes_.end()) return it->second;
-    std::vector<Route> r;
-    for (auto& b : buses_) {
-      for (size_t i = 0; i < b->subs_.size(); ++i) {
-        if (std::regex_match(channel, b->subs_[i].regex)) r.push_back({b.get(), i});
-      }
-    }
-    return routes_.emplace(channel, std::move(r)).first->second;
-  }
-
-  /// The interned name of a channel, stable for the run (statistics key on it).
-  const std::string* intern(const std::string& channel) {
-    return &*names_.insert(channel).first;
-  }
-
-  void dispatch(const std::string& channel, std::span<const uint8_t> data) {
-    const std::vector<Route> targets = routes(channel);  // a copy: handlers may subscribe (and clear the cache)
-    if (targets.empty()) return;
-    const std::string* name = intern(channel);
-    // A message that does not hold its type's layout never reaches a decoder: it is counted and dropped.
-    if (const auto why = lcmtypes::layout_problem(data)) {
-      for (const Route& r : targets) r.bus->tally_.malformed(channel, *why);
-      return;
-    }
-    const auto stamp = lcmtypes::header_stamp(data, now_);
-    BusMessage m{channel, now_, data};
-    for (const Route& r : targets) {
-      ModuleBus& b = *r.bus;
-      b.tally_.input(name, stamp);
-      const auto t0 = o_.timing ? std::chrono::steady_clock::now() : std::chrono::steady_clock::time_point{};
-      try {
-        b.subs_[r.sub].handler(m);
-      } catch (const std::exception& e) {  // one message a module cannot take must not end the run
-        b.tally_.failed(channel, e.what());
-      }
-      if (o_.timing) {
-        b.tally_.processed(now_, std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
-      } else {
-        b.tally_.unmeasured();
-      }
-    }
-  }
-
-  /// Delivers what the modules published, in publication order, at the current time.
-  Status drain() {
-    while (!pending_.empty()) {
-      Pending p = std::move(pending_.front());
-      pending_.pop_front();
-      if (Status s = write(p.channel, p.data); !s) return s;
-      emit(p.channel, p.data);
-      dispatch(p.channel, p.data);
-    }
-    return {};
-  }
-
-  Status write(const std::string& channel, std::span<const uint8_t> data) {
-    if (!writer_) return {};
-    return writer_->write(now_, channel, data);
-  }
-
-  void emit(std::string_view channel, std::span<const uint8_t> data) {
-    if (sink_) sink_(BusMessage{channel, now_, data});
-  }
-
-  Status maybe_stats() {
-    const auto period = static_cast<int64_t>(o_.stats_period_s * kUs);
-    if (period <= 0) return {};
-    if (next_stats_ == 0) next_stats_ = now_ + period;
-    if (now_ < next_stats_) return {};
-    while (next_stats_ <= now_) next_stats_ += period;
-    if (Status s = publish_stats(); !s) return s;
-    return drain();
-  }
-
-  Status publish_stats() {
-    if (buses_.empty()) return {};
-    for (auto& b : buses_) {
-      const auto bytes = internal::encode_stats(b->tally_.report(b->module_), stats_seq_, now_);
-      if (Status s = write(o_.stats_channel, bytes); !s) return s;
-      emit(o_.stats_channel, bytes);
-    }
-    ++stats_seq_;
-    return {};
-  }
-
-  const ReplayOptions& o_;
-  Sink sink_;
-  std::vector<std::unique_ptr<ModuleBus>> buses_;
-  std::unordered_map<std::string, std::vector<Route>> routes_;
-  std::unordered_set<std::string> names_;
-  std::deque<Pending> pending_;
-  std::vector<Timer> timers_;
-  std::optional<LogWriter> writer_;
-  std::string prefix_;
-  int64_t now_ = std::numeric_limits<int64_t>::min();
-  int64_t next_stats_ = 0;
-  int64_t stats_seq_ = 0;
-  ReplayReport report_;
-};
-
-void ModuleBus::subscribe(const std::string& channel_regex, BusHandler handler) {
-  subs_.push_back({std::regex(channel_regex, std::regex::ECMAScript | std::regex::optimize), std::move(handler)});
-  engine_.invalidate_routes();
-}
-void ModuleBus::publish(std::string_view channel, std::span<const uint8_t> data) {
-  engine_.publish(*this, channel, data);
-}
-int64_t ModuleBus::now() const { return engine_.now(); }
-void ModuleBus::every(int64_t period_us, std::function<void()> fn) {
-  if (period_us <= 0) std::abort();  // a broken invariant: modules validate their rates
-  engine_.add_timer(period_us, std::move(fn));
-}
-std::string ModuleBus::artifact_prefix() const { return engine_.prefix(); }
-
 /// The logs merged by log time, with -c, --start and --end applied.
 class Merger {
  public:
-  static Result<Merger> open(const ReplayOptions& o, std::function<void(const Problem&)> on_problem) {
+  static Result<Merger> open(const ReplayOptions& o, const std::function<void(const Problem&)>& on_problem) {
     Merger m;
     for (const auto& path : o.logs) {
       ReadOptions ro;
@@ -426,8 +146,45 @@ class Merger {
 
 struct Replayer::Prepared {
   std::optional<Merger> merger;
-  std::unique_ptr<Engine> engine;
 };
+
+namespace {
+
+HostOptions host_options(const ReplayOptions& o) {
+  return {.clock = HostClock::kVirtual,
+          .loopback = true,
+          .out = o.out,
+          .timing = o.timing,
+          .stats_period_s = o.stats_period_s,
+          .stats_channel = o.stats_channel};
+}
+
+/// Hands one input to the modules at its time: the timer ticks before it, the statistics, the input itself (to the
+/// output log when it keeps inputs, and to the sink), and everything the modules publish in turn.
+Status deliver(ModuleHost& host, const ReplayOptions& o, ReplayReport& report, const Item& item) {
+  if (Status s = host.advance(item.time); !s) return s;
+  if (report.dispatched == 0) report.start_utime = host.now();
+  report.end_utime = host.now();
+  ++report.dispatched;
+  ++report.channels[*item.channel];
+  if (Status s = host.record(*item.channel, item.data(), o.write_inputs, true); !s) return s;
+  return host.deliver(*item.channel, item.data());
+}
+
+/// The manifest of the injected faults, encoded.
+std::vector<uint8_t> encode_manifest(const ReplayOptions& o, int64_t utime, const std::vector<fault_t>& injected) {
+  driftlab::fault_manifest_t m;
+  m.header.utime = utime;
+  m.header.seq = 0;
+  m.seed = static_cast<int64_t>(o.inject ? o.inject->seed : 0);
+  m.faults = injected;
+  m.nfaults = static_cast<int32_t>(m.faults.size());
+  std::vector<uint8_t> bytes(static_cast<size_t>(m.getEncodedSize()));
+  m.encode(bytes.data(), 0, static_cast<int>(bytes.size()));
+  return bytes;
+}
+
+}  // namespace
 
 bool delivers(const ReplayOptions& o, const std::string& channel, const std::string& type) {
   // The input channels delivered as `channel`: those remapped to it, and itself unless remapped away. The first
@@ -462,9 +219,10 @@ bool delivers(const ReplayOptions& o, const std::string& channel, const std::str
   return false;
 }
 
-Replayer::Replayer(ReplayOptions options) : options_(std::move(options)) {}
+Replayer::Replayer(ReplayOptions options)
+    : options_(std::move(options)), host_(std::make_unique<ModuleHost>(host_options(options_))) {}
 Replayer::~Replayer() = default;
-void Replayer::add_module(std::unique_ptr<Module> module) { modules_.push_back(std::move(module)); }
+void Replayer::add_module(std::unique_ptr<Module> module) { host_->add_module(std::move(module)); }
 
 Status Replayer::open() {
   if (prepared_) return {};
@@ -474,11 +232,9 @@ Status Replayer::open() {
   }
   auto merger = Merger::open(o, nullptr);
   if (!merger) return merger.error();
-  auto engine = std::make_unique<Engine>(o);
-  if (Status s = engine->start(modules_); !s) return s;
+  if (Status s = host_->start(); !s) return s;
   prepared_ = std::make_unique<Prepared>();
   prepared_->merger.emplace(std::move(*merger));
-  prepared_->engine = std::move(engine);
   return {};
 }
 
@@ -486,8 +242,9 @@ Result<ReplayReport> Replayer::run(const Sink& sink, const std::atomic<bool>* st
   if (Status s = open(); !s) return Error{s.message()};
   const ReplayOptions& o = options_;
   auto& merger = prepared_->merger;
-  Engine& engine = *prepared_->engine;
-  engine.set_sink(sink);
+  ModuleHost& host = *host_;
+  host.set_outlet(sink);
+  ReplayReport report;
 
   // The delivered (remapped) name of each input channel; nodes are stable, so items point at the names.
   std::unordered_map<std::string, std::string> delivered_name;
@@ -523,12 +280,12 @@ Result<ReplayReport> Replayer::run(const Sink& sink, const std::atomic<bool>* st
   Status failure;
 
   auto to_modules = [&](Item&& item) -> Status {
-    if (o.order == Order::kReceived) return engine.deliver(item);
+    if (o.order == Order::kReceived) return deliver(host, o, report, item);
     latest_arrival = std::max(latest_arrival, item.time);
     if (auto stamp = lcmtypes::header_stamp(item.data(), item.time)) item.time = *stamp;
     stamped.push(std::move(item));
     while (!stamped.empty() && stamped.top().time <= latest_arrival - window) {
-      if (Status s = engine.deliver(stamped.top()); !s) return s;
+      if (Status s = deliver(host, o, report, stamped.top()); !s) return s;
       stamped.pop();
     }
     return {};
@@ -545,7 +302,7 @@ Result<ReplayReport> Replayer::run(const Sink& sink, const std::atomic<bool>* st
 
   Event e;
   while (!(stop != nullptr && stop->load()) && merger->next(e)) {
-    ++engine.report().read;
+    ++report.read;
     const std::string input(e.channel);
     Item item;
     item.time = e.utime;
@@ -592,24 +349,27 @@ Result<ReplayReport> Replayer::run(const Sink& sink, const std::atomic<bool>* st
   const bool interrupted = stop != nullptr && stop->load();
   if (failure.ok() && !interrupted) failure = release(std::numeric_limits<int64_t>::max());
   while (failure.ok() && !stamped.empty()) {
-    failure = engine.deliver(stamped.top());
+    failure = deliver(host, o, report, stamped.top());
     stamped.pop();
   }
   std::vector<driftlab::fault_t> injected;
   for (const auto& [channel, inj] : injectors) {
-    for (auto& f : inj.manifest(engine.report().end_utime)) injected.push_back(std::move(f));
+    for (auto& f : inj.manifest(report.end_utime)) injected.push_back(std::move(f));
   }
   std::sort(injected.begin(), injected.end(), [](const fault_t& a, const fault_t& b) {
     return a.channel != b.channel ? a.channel < b.channel : a.kind < b.kind;
   });
-  if (failure.ok()) failure = engine.finish(injected);
-  Status closed = engine.close();
+  if (failure.ok()) failure = host.finish();
+  if (failure.ok() && !injected.empty()) {
+    failure = host.record(o.faults_channel, encode_manifest(o, host.now(), injected), true, false);
+  }
+  Status closed = host.close();
   if (!failure.ok()) return Error{failure.message()};
   if (!closed.ok()) return Error{closed.message()};
-  ReplayReport report = std::move(engine.report());
+  report.outputs = host.outputs();
   report.log_problems = merger->problems();
   report.interrupted = interrupted;
-  report.modules = engine.module_reports();
+  report.modules = host.reports();
   report.injected = std::move(injected);
   return report;
 }

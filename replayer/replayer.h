@@ -1,9 +1,9 @@
 // The replayer: merges one or more logs in time order and dispatches every event to modules (SLAM, estimator,
-// controller) through the Bus they also use live, on a virtual clock: a module's "now" is the time of the message it
-// handles. Before dispatch it can filter and rename channels, correct clocks (restamp) and inject faults; what the
-// modules publish goes back on the bus (to the other modules, in publication order) and into the output log, with
-// per-module statistics. The same inputs and options give a byte-identical output log.
-// Thread-safety: a Replayer runs on one thread; modules are called from it only.
+// controller) through the Bus they also use live, hosted as live (module_host.h) but on the virtual clock: a
+// module's "now" is the time of the message it handles. Before dispatch it can filter and rename channels, correct
+// clocks (restamp) and inject faults; what the modules publish goes back on the bus (to the other modules, in
+// publication order) and into the output log, with per-module statistics. The same inputs and options give a
+// byte-identical output log. Thread-safety: a Replayer runs on one thread; modules are called from it only.
 #pragma once
 
 #include <atomic>
@@ -21,6 +21,12 @@
 #include "core/clock_correction.h"
 #include "core/faults.h"
 #include "core/result.h"
+#include "replayer/module_host.h"
+
+namespace driftlab::config {
+template <class T>
+class Table;
+}
 
 namespace driftlab::replay {
 
@@ -28,8 +34,14 @@ using ClockCorrection = driftlab::ClockCorrection;
 /// Per channel (as named in the input logs), e.g. from `driftlab diagnose` (analyzers/clock_corrections.h).
 using Restamp = ClockCorrections;
 
-/// Reads a restamp file: `channels: {IMU: {offset_s: 0.015, drift_ppm: 0, reference_utime: 0}}`. Errors name the
-/// file, line and key.
+/// A restamp file: `channels: {IMU: {offset_s: 0.015, drift_ppm: 0, reference_utime: 0}}`.
+struct RestampFile {
+  Restamp channels;
+};
+/// Its keys, with units and ranges (core/config.h).
+const config::Table<RestampFile>& restamp_file_table();
+
+/// Reads a restamp file. Errors name the file, line and key.
 Result<Restamp> load_restamp(const std::string& path);
 
 enum class Order {
@@ -53,15 +65,6 @@ struct ReplayOptions {
   bool write_inputs = true;       ///< the output log holds the dispatched inputs as well as the outputs
   std::string stats_channel = "MODULE_STATS";
   std::string faults_channel = "REPLAY_FAULTS";  ///< where the manifest of injected faults goes
-};
-
-struct ModuleReport {
-  std::string name;
-  int64_t inputs = 0, late = 0, out_of_order = 0, dropped = 0, outputs = 0;
-  double proc_mean_s = 0, proc_p95_s = 0, proc_max_s = 0;  ///< 0 unless ReplayOptions::timing
-  int32_t queue_depth_max = 0;
-  std::vector<std::string> warnings;
-  std::vector<std::pair<std::string, double>> metrics;  ///< the module's own (ModuleCounters::metrics)
 };
 
 struct ReplayReport {
@@ -100,7 +103,7 @@ class Replayer {
  private:
   struct Prepared;
   ReplayOptions options_;
-  std::vector<std::unique_ptr<Module>> modules_;
+  std::unique_ptr<ModuleHost> host_;
   std::unique_ptr<Prepared> prepared_;
 };
 

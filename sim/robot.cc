@@ -12,6 +12,8 @@
 #include <mutex>
 #include <sstream>
 
+#include "lcmtypes/planar.h"
+
 namespace driftlab::sim {
 namespace {
 
@@ -490,7 +492,7 @@ std::vector<JointReading> Robot::joints() const {
 void Robot::after_step(double dt) {
   for (Impl::Joint& j : impl_->joints) {
     const double raw = impl_->measure(j);
-    j.angle += std::remainder(raw - j.raw, 2 * M_PI);
+    j.angle += wrap_angle(raw - j.raw);
     j.raw = raw;
     j.velocity = impl_->rate(j);
   }

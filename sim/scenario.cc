@@ -2,14 +2,15 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <functional>
 #include <set>
 #include <sstream>
 
-#include "core/internal/faults_yaml.h"
-#include "core/internal/yaml_fields.h"
+#include "core/config.h"
 
 namespace driftlab::sim {
 namespace {
@@ -30,102 +31,187 @@ std::string resolve(const std::string& base_dir, const std::string& path) {
   return (std::filesystem::path(base_dir) / path).lexically_normal().string();
 }
 
-Status parse_sensor(const YAML::Node& node, const std::string& origin, SensorConfig& s) {
-  if (!node.IsMap()) return Error{at(origin, node) + ": a sensor must be a map with type, channel, rate, ..."};
-  s.line = node.Mark().line + 1;
-  std::string type;
-  if (!node["type"].IsDefined()) return Error{at(origin, node) + ": a sensor needs a 'type'"};
-  type = node["type"].as<std::string>();
-  bool found = false;
-  std::string known_types;
-  for (const TypeName& t : kSensorTypes) {
-    known_types += (known_types.empty() ? "" : ", ") + std::string(t.name);
-    if (type == t.name) {
-      s.type = t.type;
-      found = true;
-    }
-  }
-  if (!found) {
-    return Error{at(origin, node["type"]) + ": unknown sensor type '" + type + "' (known: " + known_types + ")"};
-  }
-  if (!node["channel"].IsDefined()) return Error{at(origin, node) + ": the " + type + " sensor needs a 'channel'"};
-  const std::string channel = node["channel"].as<std::string>();
-  Fields f(node, origin, channel);
-  f.node("type");
-  DL_TRY(f.text("channel", s.channel));
-  if (s.channel.empty()) return Error{at(origin, node) + ": a sensor's channel must not be empty"};
-  DL_TRY(f.text("link", s.link));
-  DL_TRY(f.positive("rate", s.rate));
-  std::string known = "type, channel, link, rate";
-  switch (s.type) {
-    case SensorType::kLidar2d: {
-      auto& p = s.lidar2d;
-      DL_TRY(f.integer("beams", p.beams, 1, 1 << 20));
-      DL_TRY(f.positive("fov", p.fov));
-      DL_TRY(f.number("range_min", p.range_min, 0, 1e6));
-      DL_TRY(f.positive("range_max", p.range_max));
-      DL_TRY(f.number("range_noise", p.range_noise, 0, 1e3));
-      known += ", beams, fov, range_min, range_max, range_noise";
-      if (p.range_min >= p.range_max) return Error{f.where("range_max") + " must exceed range_min"};
-      break;
-    }
-    case SensorType::kLidar3d: {
-      auto& p = s.lidar3d;
-      DL_TRY(f.integer("rings", p.rings, 1, 4096));
-      DL_TRY(f.integer("columns", p.columns, 1, 1 << 16));
-      DL_TRY(f.number("vertical_min", p.vertical_min, -M_PI / 2, M_PI / 2));
-      DL_TRY(f.number("vertical_max", p.vertical_max, -M_PI / 2, M_PI / 2));
-      DL_TRY(f.number("range_min", p.range_min, 0, 1e6));
-      DL_TRY(f.positive("range_max", p.range_max));
-      DL_TRY(f.number("range_noise", p.range_noise, 0, 1e3));
-      known += ", rings, columns, vertical_min, vertical_max, range_min, range_max, range_noise";
-      if (p.vertical_min > p.vertical_max) return Error{f.where("vertical_max") + " must not be below vertical_min"};
-      if (p.range_min >= p.range_max) return Error{f.where("range_max") + " must exceed range_min"};
-      break;
-    }
-    case SensorType::kImu: {
-      auto& p = s.imu;
-      DL_TRY(f.number("gyro_noise_density", p.gyro_noise_density, 0, 1e3));
-      DL_TRY(f.number("gyro_random_walk", p.gyro_random_walk, 0, 1e3));
-      DL_TRY(f.number("accel_noise_density", p.accel_noise_density, 0, 1e3));
-      DL_TRY(f.number("accel_random_walk", p.accel_random_walk, 0, 1e3));
-      DL_TRY(f.number("gyro_bias", p.gyro_bias, 0, 1e3));
-      DL_TRY(f.number("accel_bias", p.accel_bias, 0, 1e3));
-      known += ", gyro_noise_density, gyro_random_walk, accel_noise_density, accel_random_walk, gyro_bias, accel_bias";
-      break;
-    }
-    case SensorType::kOdometry: {
-      auto& p = s.odometry;
-      DL_TRY(f.integer("ticks_per_rev", p.ticks_per_rev, 1, 1 << 30));
-      DL_TRY(f.number("left_radius_error", p.left_radius_error, -0.5, 0.5));
-      DL_TRY(f.number("right_radius_error", p.right_radius_error, -0.5, 0.5));
-      DL_TRY(f.number("separation_error", p.separation_error, -0.5, 0.5));
-      DL_TRY(f.number("slip_noise", p.slip_noise, 0, 1));
-      DL_TRY(f.text("frame", p.frame));
-      DL_TRY(f.text("tf_channel", p.tf_channel));
-      known += ", ticks_per_rev, left_radius_error, right_radius_error, separation_error, slip_noise, frame, tf_channel";
-      break;
-    }
-    case SensorType::kCamera: {
-      auto& p = s.camera;
-      DL_TRY(f.integer("width", p.width, 8, 8192));
-      DL_TRY(f.integer("height", p.height, 8, 8192));
-      DL_TRY(f.number("hfov", p.hfov, 0.01, 3.1));
-      DL_TRY(f.positive("max_range", p.max_range));
-      DL_TRY(f.text("encoding", p.encoding));
-      DL_TRY(f.integer("quality", p.quality, 1, 100));
-      known += ", width, height, hfov, max_range, encoding, quality";
-      if (p.encoding != "jpeg" && p.encoding != "png") {
-        return Error{f.where("encoding") + " = " + p.encoding + " must be jpeg or png"};
-      }
-      break;
-    }
-    case SensorType::kGroundTruth:
-    case SensorType::kJointState:
-      break;
-  }
-  return f.finish(known);
+const config::Table<Lidar2dParams>& lidar2d_table() {
+  using P = Lidar2dParams;
+  using config::between;
+  static const auto t =
+      config::Table<P>()
+          .integer("beams", &P::beams, between(1, 1 << 20), "", "returns per scan")
+          .number("fov", &P::fov, config::above(0, 6.3), "rad", "field of view, centred on the link's x axis")
+          .number("range_min", &P::range_min, between(0, 1e6), "m", "nearer returns are none")
+          .number("range_max", &P::range_max, config::above(0, 1e6), "m", "farther returns are none")
+          .number("range_noise", &P::range_noise, between(0, 1e3), "m", "standard deviation of a range")
+          .check([](const config::Value& v, P& p) -> Status {
+            if (p.range_min >= p.range_max) return v["range_max"].error("must exceed range_min");
+            return {};
+          });
+  return t;
 }
+
+const config::Table<Lidar3dParams>& lidar3d_table() {
+  using P = Lidar3dParams;
+  using config::between;
+  static const auto t =
+      config::Table<P>()
+          .integer("rings", &P::rings, between(1, 4096), "", "rows of the organised cloud")
+          .integer("columns", &P::columns, between(1, 1 << 16), "", "returns per ring and sweep")
+          .number("vertical_min", &P::vertical_min, between(-1.5708, 1.5708), "rad", "elevation of the lowest ring")
+          .number("vertical_max", &P::vertical_max, between(-1.5708, 1.5708), "rad", "elevation of the highest ring")
+          .number("range_min", &P::range_min, between(0, 1e6), "m", "nearer returns are none")
+          .number("range_max", &P::range_max, config::above(0, 1e6), "m", "farther returns are none")
+          .number("range_noise", &P::range_noise, between(0, 1e3), "m", "standard deviation of a range")
+          .check([](const config::Value& v, P& p) -> Status {
+            if (p.vertical_min > p.vertical_max) return v["vertical_max"].error("must not be below vertical_min");
+            if (p.range_min >= p.range_max) return v["range_max"].error("must exceed range_min");
+            return {};
+          });
+  return t;
+}
+
+const config::Table<ImuParams>& imu_table() {
+  using P = ImuParams;
+  const auto r = config::between(0, 1e3);
+  static const auto t =
+      config::Table<P>()
+          .number("gyro_noise_density", &P::gyro_noise_density, r, "rad/s/sqrt(Hz)", "gyro white noise (Kalibr's)")
+          .number("gyro_random_walk", &P::gyro_random_walk, r, "rad/s^2/sqrt(Hz)", "gyro bias random walk")
+          .number("accel_noise_density", &P::accel_noise_density, r, "m/s^2/sqrt(Hz)", "accelerometer white noise")
+          .number("accel_random_walk", &P::accel_random_walk, r, "m/s^3/sqrt(Hz)", "accelerometer bias random walk")
+          .number("gyro_bias", &P::gyro_bias, r, "rad/s", "standard deviation of each axis' initial gyro bias")
+          .number("accel_bias", &P::accel_bias, r, "m/s^2",
+                  "standard deviation of each axis' initial accelerometer bias");
+  return t;
+}
+
+const config::Table<OdometryParams>& odometry_table() {
+  using P = OdometryParams;
+  using config::between;
+  static const auto t =
+      config::Table<P>()
+          .integer("ticks_per_rev", &P::ticks_per_rev, between(1, 1 << 30), "", "encoder ticks per wheel turn")
+          .number("left_radius_error", &P::left_radius_error, between(-0.5, 0.5), "",
+                  "the odometry's belief of the left wheel radius is off by this fraction")
+          .number("right_radius_error", &P::right_radius_error, between(-0.5, 0.5), "", "... and the right's")
+          .number("separation_error", &P::separation_error, between(-0.5, 0.5), "", "... and the wheel separation's")
+          .number("slip_noise", &P::slip_noise, between(0, 1), "",
+                  "random slip: each wheel increment is off by this fraction (standard deviation)")
+          .text("frame", &P::frame, "the odometry frame")
+          .text("tf_channel", &P::tf_channel, "where odom -> base link also goes; \"\" for none");
+  return t;
+}
+
+const config::Table<CameraParams>& camera_table() {
+  using P = CameraParams;
+  using config::between;
+  static const auto t = config::Table<P>()
+                            .integer("width", &P::width, between(8, 8192), "px", "image width")
+                            .integer("height", &P::height, between(8, 8192), "px", "image height")
+                            .number("hfov", &P::hfov, between(0.01, 3.1), "rad", "horizontal field of view")
+                            .number("max_range", &P::max_range, config::above(0, 1e6), "m", "farther is sky")
+                            .choice("encoding", &P::encoding, {"jpeg", "png"}, "image encoding")
+                            .integer("quality", &P::quality, between(1, 100), "", "JPEG quality");
+  return t;
+}
+
+std::vector<std::pair<std::string, SensorType>> sensor_types() {
+  std::vector<std::pair<std::string, SensorType>> out;
+  for (const TypeName& t : kSensorTypes) out.emplace_back(t.name, t.type);
+  return out;
+}
+
+/// The keys every sensor has.
+config::Table<SensorConfig> sensor_common_table() {
+  using S = SensorConfig;
+  return config::Table<S>()
+      .choice("type", &S::type, sensor_types(), "what the sensor is (the sections below)")
+      .required()
+      .text("channel", &S::channel, "where its messages go", config::Text::kNonEmpty)
+      .required()
+      .text("link", &S::link, "the URDF link it sits on; \"\": the base link")
+      .number("rate", &S::rate, config::above(0, 1e4), "Hz", "samples per second (at most one per physics step)");
+}
+
+/// The keys of a sensor of one type: the common ones and the type's.
+const config::Table<SensorConfig>& sensor_table(SensorType type) {
+  using S = SensorConfig;
+  static const auto common = sensor_common_table();
+  static const auto lidar2d = sensor_common_table().include(&S::lidar2d, lidar2d_table());
+  static const auto lidar3d = sensor_common_table().include(&S::lidar3d, lidar3d_table());
+  static const auto imu = sensor_common_table().include(&S::imu, imu_table());
+  static const auto odometry = sensor_common_table().include(&S::odometry, odometry_table());
+  static const auto camera = sensor_common_table().include(&S::camera, camera_table());
+  switch (type) {
+    case SensorType::kLidar2d: return lidar2d;
+    case SensorType::kLidar3d: return lidar3d;
+    case SensorType::kImu: return imu;
+    case SensorType::kOdometry: return odometry;
+    case SensorType::kCamera: return camera;
+    case SensorType::kGroundTruth:
+    case SensorType::kJointState: return common;
+  }
+  std::abort();  // not a SensorType
+}
+
+/// The `sensors:` list: each a map whose keys depend on its type; messages name a sensor by its channel.
+Status read_sensors(const config::Value& v, std::vector<SensorConfig>& out) {
+  if (!v.node().IsSequence()) return v.error("must be a list of sensors");
+  std::vector<SensorConfig> sensors;
+  for (std::size_t i = 0; i < v.node().size(); ++i) {
+    const config::Value item = v[i];
+    const YAML::Node& node = item.node();
+    if (!node.IsMap()) return Error{item.place() + ": a sensor must be a map with type, channel, rate, ..."};
+    const config::Value type = item["type"], channel = item["channel"];
+    if (!type.given()) return Error{item.place() + ": a sensor needs a 'type'"};
+    auto name = type.text();
+    if (!name) return name.error();
+    const auto types = sensor_types();
+    auto known = std::find_if(types.begin(), types.end(), [&](const auto& t) { return t.first == *name; });
+    if (known == types.end()) {
+      std::string list;
+      for (const auto& t : types) list += (list.empty() ? "" : ", ") + t.first;
+      return Error{type.place() + ": unknown sensor type '" + *name + "' (known: " + list + ")"};
+    }
+    if (!channel.given()) return Error{item.place() + ": the " + *name + " sensor needs a 'channel'"};
+    auto channel_name = channel.text();
+    if (!channel_name) return channel_name.error();
+    SensorConfig s;
+    s.line = node.Mark().line + 1;
+    if (Status st = sensor_table(known->second).read(config::Value(node, v.file(), *channel_name), s); !st) {
+      return st;
+    }
+    sensors.push_back(std::move(s));
+  }
+  out = std::move(sensors);
+  return {};
+}
+
+const config::Table<DriveOptions>& drive_table() {
+  using D = DriveOptions;
+  static const auto t =
+      config::Table<D>()
+          .text("left_wheel_joint", &D::left_joint, "continuous joint of the left drive wheel", config::Text::kNonEmpty)
+          .text("right_wheel_joint", &D::right_joint, "... and of the right", config::Text::kNonEmpty)
+          .number("max_wheel_torque", &D::max_wheel_torque, config::above(0, 1e4), "N*m", "motor torque limit per wheel")
+          .number("wheel_friction", &D::wheel_friction, config::between(0, 10), "",
+                  "friction of the wheels (multiplied with the floor's)")
+          .number("body_friction", &D::body_friction, config::between(0, 10), "",
+                  "friction of every other body (casters slide)");
+  return t;
+}
+
+const config::Table<ControllerConfig>& controller_table() {
+  using C = ControllerConfig;
+  static const auto t =
+      config::Table<C>()
+          .number("rate", &C::rate, config::between(0.1, 1000), "Hz", "commands per second")
+          .text("channel", &C::channel, "driftlab.velocity_command_t out", config::Text::kNonEmpty)
+          .number("footprint_radius", &C::footprint_radius, config::above(0, 100), "m",
+                  "the robot's footprint, for the reactive obstacle avoidance")
+          .include(&C::pursuit, controller::pure_pursuit_table());
+  return t;
+}
+
+std::string show_route(const std::vector<controller::Point2>& r) { return std::to_string(r.size()) + " points"; }
 
 }  // namespace
 
@@ -136,140 +222,105 @@ const char* sensor_type_name(SensorType type) {
   return "?";
 }
 
+const config::Table<Scenario>& scenario_table() {
+  using S = Scenario;
+  using config::Text;
+  static const auto robot =
+      config::Table<S>()
+          .text("urdf", &S::urdf_path, "the robot's URDF file (relative to the scenario)", Text::kNonEmpty)
+          .required()
+          .numbers("start", &S::start, config::between(-1e6, 1e6), "m, m, rad",
+                   "x, y, yaw of the base link in the world at the start")
+          .include(&S::drive, drive_table());
+  static const auto tf = config::Table<S>()
+                             .text("static_channel", &S::tf_static_channel, "driftlab.tf_t of the fixed frames")
+                             .number("static_rate", &S::tf_static_rate, config::above(0, 1000), "Hz",
+                                     "how often the fixed frames are published");
+  static const auto t =
+      config::Table<S>()
+          .text("name", &S::name, "the scenario's name, for messages")
+          .number("duration", &S::duration, config::above(0, 1e7), "s", "simulated time")
+          .integer("seed", &S::seed, config::at_least(0), "",
+                   "noise and faults; the same scenario and seed give a byte-identical log")
+          .custom<int64_t>(
+              "start_time", &S::start_utime, "number", "s", "0..4e+09", "true time of the first step, since the epoch",
+              [](const config::Value& v, int64_t& utime) -> Status {
+                auto s = v.number(config::between(0, 4e9), "s");
+                if (!s) return s.error();
+                utime = static_cast<int64_t>(std::llround(*s * 1e6));
+                return {};
+              },
+              [](const int64_t& utime) { return config::format_number(static_cast<double>(utime) * 1e-6); })
+          .number("physics_step", &S::physics_step, config::between(1e-5, 0.02), "s", "the physics time step")
+          .integer("solver_iterations", &S::solver_iterations, config::between(1, 1000), "",
+                   "Bullet's constraint solver iterations per step")
+          .text("world", &S::world_path, "the world file (relative to the scenario; docs/worlds.md)", Text::kNonEmpty)
+          .required()
+          .section("robot", robot, "the robot: its URDF, start pose and drive")
+          .required()
+          .section("controller", &S::controller, controller_table(),
+                   "the path follower, closed loop on the robot's own wheel odometry")
+          .custom<std::vector<controller::Point2>>("route", &S::route, "list of [x, y]", "m", "at least 2 points",
+                                                   "driven in order; with loop, it closes on itself",
+                                                   controller::read_route, show_route)
+          .required()
+          .section("tf", tf, "the fixed frames")
+          .text("faults_channel", &S::faults_channel, "driftlab.fault_manifest_t of the injected faults (truth)")
+          .custom<std::vector<SensorConfig>>(
+              "sensors", &S::sensors, "list of sensors", "", "", "each a map of the keys below", read_sensors,
+              [](const std::vector<SensorConfig>& s) { return std::to_string(s.size()) + " sensors"; })
+          .required()
+          .section("faults", &S::faults, fault_config_table(),
+                   "the faults injected, as a fault description (below); without seed: the scenario's")
+          .brief()
+          .check([](const config::Value& v, S& sc) -> Status {
+            std::set<std::string> channels{sc.controller.channel, sc.tf_static_channel, sc.faults_channel};
+            for (std::size_t i = 0; i < sc.sensors.size(); ++i) {
+              if (!channels.insert(sc.sensors[i].channel).second) {
+                return Error{v["sensors"][i].place() + ": channel '" + sc.sensors[i].channel + "' is used twice"};
+              }
+            }
+            if (!v["faults"]["seed"].given()) sc.faults.seed = sc.seed;
+            return {};
+          });
+  return t;
+}
+
+std::string scenario_reference() {
+  std::string out = scenario_table().reference();
+  out += "\n### Sensors\n\nEvery sensor has these keys:\n\n" + sensor_table(SensorType::kGroundTruth).reference();
+  struct Section {
+    const char* type;
+    std::string table;
+  };
+  const Section sections[] = {{"lidar2d", lidar2d_table().reference()},
+                              {"lidar3d", lidar3d_table().reference()},
+                              {"imu", imu_table().reference()},
+                              {"odometry", odometry_table().reference()},
+                              {"camera", camera_table().reference()}};
+  for (const Section& sec : sections) out += std::string("\nand with `type: ") + sec.type + "`:\n\n" + sec.table;
+  out += "\n`ground_truth` and `joint_state` have no keys of their own.\n";
+  return out;
+}
+
 Result<Scenario> parse_scenario(const std::string& text, const std::string& origin, const std::string& base_dir) {
-  YAML::Node root;
-  try {
-    root = YAML::Load(text);
-  } catch (const YAML::Exception& e) {
-    return Error{origin + ":" + std::to_string(e.mark.line + 1) + ": " + e.msg};
-  }
+  auto root = config::parse_yaml(text, origin);
+  if (!root) return root.error();
+  if (!root->IsMap()) return Error{origin + ":1: a scenario must be a map (name, world, robot, sensors, ...)"};
+  const config::Value doc(*root, origin);
   Scenario sc;
   sc.path = origin;
-  if (!root.IsMap()) return Error{origin + ":1: a scenario must be a map (name, world, robot, sensors, ...)"};
-  try {
-    Fields top(root, origin, "");
-    DL_TRY(top.text("name", sc.name));
-    DL_TRY(top.positive("duration", sc.duration));
-    if (top.has("seed")) {
-      try {
-        sc.seed = top.node("seed").as<uint64_t>();
-      } catch (const YAML::Exception&) {
-        return Error{top.where("seed") + " must be a non-negative integer"};
-      }
-    }
-    double start_time = static_cast<double>(sc.start_utime) * 1e-6;
-    DL_TRY(top.number("start_time", start_time, 0, 4e9));
-    sc.start_utime = static_cast<int64_t>(std::llround(start_time * 1e6));
-    DL_TRY(top.positive("physics_step", sc.physics_step));
-    if (sc.physics_step > 0.02) return Error{top.where("physics_step") + " must be at most 0.02 s"};
-    DL_TRY(top.integer("solver_iterations", sc.solver_iterations, 1, 1000));
-
-    if (!top.has("world")) return Error{origin + ": the scenario needs a 'world' (a world file)"};
-    DL_TRY(top.text("world", sc.world_path));
-    sc.world_path = resolve(base_dir, sc.world_path);
-    auto world = load_world(sc.world_path);
-    if (!world) return world.error();
-    sc.world = std::move(*world);
-
-    if (!top.has("robot")) return Error{origin + ": the scenario needs a 'robot' (urdf, start, drive joints)"};
-    {
-      Fields r(top.node("robot"), origin, "robot");
-      DL_TRY(r.is_map());
-      if (!r.has("urdf")) return Error{at(origin, root["robot"]) + ": robot needs a 'urdf' file"};
-      DL_TRY(r.text("urdf", sc.urdf_path));
-      sc.urdf_path = resolve(base_dir, sc.urdf_path);
-      std::vector<double> start;
-      DL_TRY(r.vector("start", start, 3));
-      if (!start.empty()) sc.start = Eigen::Vector3d(start[0], start[1], start[2]);
-      DL_TRY(r.text("left_wheel_joint", sc.drive.left_joint));
-      DL_TRY(r.text("right_wheel_joint", sc.drive.right_joint));
-      DL_TRY(r.positive("max_wheel_torque", sc.drive.max_wheel_torque));
-      DL_TRY(r.number("wheel_friction", sc.drive.wheel_friction, 0, 10));
-      DL_TRY(r.number("body_friction", sc.drive.body_friction, 0, 10));
-      DL_TRY(r.finish("urdf, start, left_wheel_joint, right_wheel_joint, max_wheel_torque, wheel_friction, body_friction"));
-    }
-
-    if (top.has("controller")) {
-      Fields c(top.node("controller"), origin, "controller");
-      DL_TRY(c.is_map());
-      auto& p = sc.controller.pursuit;
-      DL_TRY(c.positive("rate", sc.controller.rate));
-      DL_TRY(c.text("channel", sc.controller.channel));
-      DL_TRY(c.positive("lookahead", p.lookahead));
-      DL_TRY(c.positive("speed", p.speed));
-      DL_TRY(c.positive("max_angular", p.max_angular));
-      DL_TRY(c.positive("max_accel", p.max_accel));
-      DL_TRY(c.positive("turn_in_place", p.turn_in_place));
-      DL_TRY(c.positive("goal_tolerance", p.goal_tolerance));
-      DL_TRY(c.boolean("loop", p.loop));
-      DL_TRY(c.positive("footprint_radius", sc.controller.footprint_radius));
-      DL_TRY(c.finish("rate, channel, lookahead, speed, max_angular, max_accel, turn_in_place, goal_tolerance, loop, "
-                      "footprint_radius"));
-    }
-
-    if (!top.has("route")) return Error{origin + ": the scenario needs a 'route' (a list of [x, y] points)"};
-    {
-      const YAML::Node route = top.node("route");
-      if (!route.IsSequence() || route.size() < 2) {
-        return Error{at(origin, route) + ": route must be a list of at least two [x, y] points"};
-      }
-      double length = 0;
-      for (const auto& p : route) {
-        if (!p.IsSequence() || p.size() != 2) return Error{at(origin, p) + ": a route point must be [x, y]"};
-        try {
-          sc.route.push_back({p[0].as<double>(), p[1].as<double>()});
-        } catch (const YAML::Exception&) {
-          return Error{at(origin, p) + ": a route point must be two numbers [x, y]"};
-        }
-        if (!std::isfinite(sc.route.back().x) || !std::isfinite(sc.route.back().y)) {
-          return Error{at(origin, p) + ": a route point must be finite"};
-        }
-        if (sc.route.size() > 1) {
-          const auto& a = sc.route[sc.route.size() - 2];
-          length += std::hypot(sc.route.back().x - a.x, sc.route.back().y - a.y);
-        }
-      }
-      if (!(length > 0)) return Error{at(origin, route) + ": the route has no length (its points are all the same)"};
-    }
-
-    if (top.has("tf")) {
-      Fields t(top.node("tf"), origin, "tf");
-      DL_TRY(t.is_map());
-      DL_TRY(t.text("static_channel", sc.tf_static_channel));
-      DL_TRY(t.positive("static_rate", sc.tf_static_rate));
-      DL_TRY(t.finish("static_channel, static_rate"));
-    }
-    DL_TRY(top.text("faults_channel", sc.faults_channel));
-
-    if (!top.has("sensors")) return Error{origin + ": the scenario needs 'sensors'"};
-    {
-      const YAML::Node sensors = top.node("sensors");
-      if (!sensors.IsSequence()) return Error{at(origin, sensors) + ": sensors must be a list"};
-      std::set<std::string> channels{sc.controller.channel, sc.tf_static_channel, sc.faults_channel};
-      for (const auto& node : sensors) {
-        SensorConfig s;
-        DL_TRY(parse_sensor(node, origin, s));
-        if (!channels.insert(s.channel).second) {
-          return Error{at(origin, node) + ": channel '" + s.channel + "' is used twice"};
-        }
-        sc.sensors.push_back(std::move(s));
-      }
-    }
-
-    if (top.has("faults")) {
-      auto faults = parse_faults(top.node("faults"), origin);
-      if (!faults) return Error{faults.error()};
-      sc.faults = std::move(*faults);
-      if (!root["faults"]["seed"].IsDefined()) sc.faults.seed = sc.seed;
-    } else {
-      sc.faults.seed = sc.seed;
-    }
-    DL_TRY(top.finish("name, duration, seed, start_time, physics_step, solver_iterations, world, robot, controller, route, tf, "
-                      "faults_channel, sensors, faults"));
-  } catch (const YAML::Exception& e) {
-    // A key of the wrong shape (e.g. a map where a string belongs) that the checks above did not anticipate.
-    return Error{origin + ":" + std::to_string(e.mark.line + 1) + ": " + e.msg};
+  // The world first: its own errors come before those of the keys after it.
+  if (const config::Value world = doc["world"]; world.given()) {
+    auto path = world.text();
+    if (!path) return path.error();
+    auto w = load_world(resolve(base_dir, *path));
+    if (!w) return w.error();
+    sc.world = std::move(*w);
   }
+  if (Status s = scenario_table().read(doc, sc); !s) return Error{s.message()};
+  sc.world_path = resolve(base_dir, sc.world_path);
+  sc.urdf_path = resolve(base_dir, sc.urdf_path);
   return sc;
 }
 

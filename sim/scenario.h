@@ -14,6 +14,11 @@
 #include "sim/robot.h"
 #include "sim/world.h"
 
+namespace driftlab::config {
+template <class T>
+class Table;
+}
+
 namespace driftlab::sim {
 
 enum class SensorType { kLidar2d, kLidar3d, kImu, kOdometry, kCamera, kGroundTruth, kJointState };
@@ -106,6 +111,12 @@ struct Scenario {
   std::vector<SensorConfig> sensors;
   FaultConfig faults;
 };
+
+/// The keys of a scenario file, with units, ranges and defaults (core/config.h); `sensors` and `faults` have tables
+/// of their own (the sensors' depend on their type).
+const config::Table<Scenario>& scenario_table();
+/// The reference of a scenario file: its keys, every sensor type's, as markdown tables.
+std::string scenario_reference();
 
 /// Parses a scenario; relative paths (world, URDF) are resolved against `base_dir`. Errors: "ORIGIN:LINE: ..."
 /// naming the key (unknown keys, wrong types, negative rates, unknown sensor types, a malformed world file).

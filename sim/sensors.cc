@@ -11,6 +11,7 @@
 #include "driftlab/point_cloud_t.hpp"
 #include "driftlab/pose_t.hpp"
 #include "driftlab/tf_t.hpp"
+#include "lcmtypes/planar.h"
 #include "sim/camera_render.h"
 #include "sim/internal/sensors.h"
 #include "sim/raycaster.h"
@@ -364,7 +365,7 @@ void WheelOdometry::update(const Robot& robot, double dt) {
   const double ds = 0.5 * (dl + dr), dyaw = (dr - dl) / (separation_ * (1 + p_.separation_error));
   x_ += ds * std::cos(yaw_ + dyaw / 2);
   y_ += ds * std::sin(yaw_ + dyaw / 2);
-  yaw_ = std::remainder(yaw_ + dyaw, 2 * M_PI);
+  yaw_ = wrap_angle(yaw_ + dyaw);
   v_ = dt > 0 ? ds / dt : 0;
   w_ = dt > 0 ? dyaw / dt : 0;
   // Uncertainty grows with the distance and the rotation driven (slip, quantisation).

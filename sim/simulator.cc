@@ -213,9 +213,8 @@ Result<SimReport> Simulation::run(const SimOptions& options) {
     // The controller follows the route from the robot's odometry (started at the robot's start pose).
     if (t_us >= due_us(n_cmd, sc.controller.rate)) {
       ++n_cmd;
-      const controller::Pose2 estimate{sc.start.x() + c0 * odometry.x() - s0 * odometry.y(),
-                                       sc.start.y() + s0 * odometry.x() + c0 * odometry.y(),
-                                       sc.start.z() + odometry.yaw()};
+      const Pose2 estimate{sc.start.x() + c0 * odometry.x() - s0 * odometry.y(),
+                           sc.start.y() + s0 * odometry.x() + c0 * odometry.y(), sc.start.z() + odometry.yaw()};
       controller::Command cmd = pursuit.update(estimate, 1.0 / sc.controller.rate);
       // The robot's proximity ring (a bumper-height range-sensor ring) feeds the reactive safety layer.
       const Eigen::Isometry3d base = robot.link_pose(robot.base_link());

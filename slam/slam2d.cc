@@ -23,7 +23,7 @@
 #include <set>
 #include <sstream>
 
-#include "core/internal/yaml_fields.h"
+#include "core/config.h"
 #include "slam/internal/mrpt_scan.h"
 #include "slam/internal/odometry_buffer.h"
 #include "slam/internal/point_maps.h"
@@ -79,53 +79,58 @@ std::string ini_text(const Slam2dConfig& c, const std::set<std::string>& given, 
 
 }  // namespace
 
+const config::Table<Slam2dConfig>& slam2d_config_table() {
+  using C = Slam2dConfig;
+  using config::above;
+  using config::between;
+  static const auto t =
+      config::Table<C>()
+          .text("scan_channel", &C::scan_channel, "driftlab.laser_scan_t in", config::Text::kNonEmpty)
+          .text("odom_channel", &C::odom_channel, "driftlab.odometry_t: the prior; \"\" for none")
+          .text("tf_static_channel", &C::tf_static_channel, "where base_link -> scan frame is read")
+          .text("pose_channel", &C::pose_channel, "driftlab.pose_t out, one per scan")
+          .text("map_channel", &C::map_channel, "driftlab.image_t (PNG) of the occupancy map out, at the end")
+          .text("base_frame", &C::base_frame, "the robot's base frame")
+          .numbers("sensor_pose", &C::sensor_pose, between(-1e3, 1e3), "m, m, rad",
+                   "x, y, yaw of the scanner on the base, when TF has none")
+          .text("ini", &C::ini,
+                "an MRPT icp-slam .ini file (relative to the config file): its [MappingApplication] and [ICP] "
+                "replace the defaults; the keys given here override it")
+          .number("insertion_lin_distance", &C::insertion_lin_distance, above(0, 1e3), "m",
+                  "motion after which a scan becomes a keyframe of the map")
+          .number("insertion_ang_distance", &C::insertion_ang_distance, above(0, 360), "deg", "... or rotation")
+          .number("localization_lin_distance", &C::localization_lin_distance, above(0, 1e3), "m",
+                  "motion after which a scan is matched against the map")
+          .number("localization_ang_distance", &C::localization_ang_distance, above(0, 360), "deg", "... or rotation")
+          .number("min_icp_goodness", &C::min_icp_goodness, between(0, 1), "", "below it, an ICP correction is rejected")
+          .number("min_dist_between_points", &C::min_dist_between_points, above(0, 100), "m", "point-map insertion")
+          .flag("fuse_points", &C::fuse_points,
+                "fuse new points with the map's (icp-slam's demo has false, which makes the map, and every ICP, "
+                "grow with each revisit)")
+          .integer("max_iterations", &C::max_iterations, between(1, 100000), "", "ICP iterations")
+          .number("threshold_dist", &C::threshold_dist, above(0, 100), "m", "ICP: initial pairing distance")
+          .number("threshold_ang", &C::threshold_ang, above(0, 180), "deg", "ICP: initial pairing angle")
+          .number("alfa", &C::alfa, between(0.01, 1), "", "ICP: factor the thresholds shrink by on convergence")
+          .number("smallest_threshold_dist", &C::smallest_threshold_dist, above(0, 100), "m",
+                  "ICP: the pairing distance it stops shrinking at")
+          .integer("decimation", &C::decimation, between(1, 1000), "", "ICP: use one point in this many")
+          .number("map_resolution", &C::map_resolution, between(0.001, 10), "m", "cell of the occupancy image")
+          .check([](const config::Value& v, C& c) -> Status {
+            c.given.clear();
+            for (const auto& kv : v.node()) c.given.insert(kv.first.Scalar());
+            if (!c.ini.empty()) {
+              if (c.ini[0] != '/' && v.file().find('/') != std::string::npos) {
+                c.ini = v.file().substr(0, v.file().rfind('/') + 1) + c.ini;  // relative to the config file
+              }
+              if (!std::ifstream(c.ini)) return Error{v["ini"].place() + ": " + v["ini"].key() + ": cannot open " + c.ini};
+            }
+            return {};
+          });
+  return t;
+}
+
 Result<Slam2dConfig> parse_slam2d_config(const YAML::Node& node, const std::string& origin) {
-  Slam2dConfig c;
-  if (!node.IsDefined() || node.IsNull()) return c;
-  try {
-    Fields f(node, origin, "slam.2d");
-    DL_TRY(f.is_map());
-    DL_TRY(f.text("scan_channel", c.scan_channel));
-    DL_TRY(f.text("odom_channel", c.odom_channel));
-    DL_TRY(f.text("tf_static_channel", c.tf_static_channel));
-    DL_TRY(f.text("pose_channel", c.pose_channel));
-    DL_TRY(f.text("map_channel", c.map_channel));
-    DL_TRY(f.text("base_frame", c.base_frame));
-    std::vector<double> pose;
-    DL_TRY(f.vector("sensor_pose", pose, 3));
-    if (!pose.empty()) c.sensor_pose = {pose[0], pose[1], pose[2]};
-    DL_TRY(f.text("ini", c.ini));
-    DL_TRY(f.positive("insertion_lin_distance", c.insertion_lin_distance));
-    DL_TRY(f.positive("insertion_ang_distance", c.insertion_ang_distance));
-    DL_TRY(f.positive("localization_lin_distance", c.localization_lin_distance));
-    DL_TRY(f.positive("localization_ang_distance", c.localization_ang_distance));
-    DL_TRY(f.number("min_icp_goodness", c.min_icp_goodness, 0, 1));
-    DL_TRY(f.positive("min_dist_between_points", c.min_dist_between_points));
-    DL_TRY(f.boolean("fuse_points", c.fuse_points));
-    DL_TRY(f.integer("max_iterations", c.max_iterations, 1, 100000));
-    DL_TRY(f.positive("threshold_dist", c.threshold_dist));
-    DL_TRY(f.positive("threshold_ang", c.threshold_ang));
-    DL_TRY(f.number("alfa", c.alfa, 0.01, 1));
-    DL_TRY(f.positive("smallest_threshold_dist", c.smallest_threshold_dist));
-    DL_TRY(f.integer("decimation", c.decimation, 1, 1000));
-    DL_TRY(f.positive("map_resolution", c.map_resolution));
-    DL_TRY(f.finish("scan_channel, odom_channel, tf_static_channel, pose_channel, map_channel, base_frame, "
-                    "sensor_pose, ini, insertion_lin_distance, insertion_ang_distance, localization_lin_distance, "
-                    "localization_ang_distance, min_icp_goodness, min_dist_between_points, fuse_points, max_iterations, "
-                    "threshold_dist, threshold_ang, alfa, smallest_threshold_dist, decimation, map_resolution"));
-    if (c.scan_channel.empty()) return Error{f.where("scan_channel") + " must not be empty"};
-    for (const auto& kv : node) c.given.insert(kv.first.as<std::string>());
-    if (!c.ini.empty()) {
-      if (c.ini[0] != '/' && origin.find('/') != std::string::npos) {
-        c.ini = origin.substr(0, origin.rfind('/') + 1) + c.ini;  // relative to the config file
-      }
-      std::ifstream in(c.ini);
-      if (!in) return Error{f.where("ini") + ": cannot open " + c.ini};
-    }
-  } catch (const YAML::Exception& e) {
-    return Error{origin + ":" + std::to_string(e.mark.line + 1) + ": " + e.msg};
-  }
-  return c;
+  return slam2d_config_table().parse(config::Value(node, origin, "slam.2d"));
 }
 
 struct Slam2d::Impl {

@@ -14,6 +14,11 @@
 #include "core/bus.h"
 #include "core/result.h"
 
+namespace driftlab::config {
+template <class T>
+class Table;
+}
+
 namespace driftlab::slam {
 
 struct Slam2dConfig {
@@ -44,6 +49,9 @@ struct Slam2dConfig {
   double map_resolution = 0.05;           ///< of the occupancy image [m]
   std::set<std::string> given;            ///< the keys set in YAML (they override the .ini file's)
 };
+
+/// The keys of the `slam.2d` map, with units, ranges and defaults (core/config.h).
+const config::Table<Slam2dConfig>& slam2d_config_table();
 
 /// Reads the `slam.2d` map; an undefined node gives the defaults. Errors name the file, line and key.
 Result<Slam2dConfig> parse_slam2d_config(const YAML::Node& node, const std::string& origin);

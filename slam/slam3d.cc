@@ -18,7 +18,7 @@
 #include <limits>
 #include <map>
 
-#include "core/internal/yaml_fields.h"
+#include "core/config.h"
 #include "driftlab/odometry_t.hpp"
 #include "driftlab/point_cloud_t.hpp"
 #include "driftlab/pose_t.hpp"
@@ -32,7 +32,7 @@ namespace {
 
 using Cloud = pcl::PointCloud<pcl::PointXYZ>;
 
-Eigen::Isometry3d planar(const internal::Pose2d& p) {
+Eigen::Isometry3d planar(const Pose2& p) {
   Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
   t.translate(Eigen::Vector3d(p.x, p.y, 0));
   t.rotate(Eigen::AngleAxisd(p.yaw, Eigen::Vector3d::UnitZ()));
@@ -53,45 +53,42 @@ Cloud::Ptr downsample(const Cloud::ConstPtr& in, double leaf) {
 
 }  // namespace
 
+const config::Table<Slam3dConfig>& slam3d_config_table() {
+  using C = Slam3dConfig;
+  using config::above;
+  using config::between;
+  static const auto t =
+      config::Table<C>()
+          .text("cloud_channel", &C::cloud_channel, "driftlab.point_cloud_t in", config::Text::kNonEmpty)
+          .text("odom_channel", &C::odom_channel, "driftlab.odometry_t: the guess and the deskewing; \"\" for none")
+          .text("tf_static_channel", &C::tf_static_channel, "where base_link -> cloud frame is read; \"\" for none")
+          .text("pose_channel", &C::pose_channel, "driftlab.pose_t out, one per cloud")
+          .text("base_frame", &C::base_frame, "the robot's base frame")
+          .numbers("sensor_pose", &C::sensor_pose, between(-1e3, 1e3), "m, m, m, rad",
+                   "x, y, z, yaw of the sensor on the base, when TF has none")
+          .flag("deskew", &C::deskew, "undo the motion during a sweep (needs odometry and per-point time_offsets)")
+          .choice("method", &C::method, {"icp", "ndt", "gicp"}, "the registration")
+          .number("min_range", &C::min_range, between(0, 1e6), "m", "returns nearer are the robot itself")
+          .number("max_range", &C::max_range, above(0, 1e6), "m", "returns farther are dropped")
+          .number("voxel", &C::voxel, above(0, 100), "m", "leaf of the downsampled scan and of the local map")
+          .number("max_correspondence", &C::max_correspondence, above(0, 100), "m",
+                  "icp, gicp: largest point pair distance; all: the pairs max_fitness counts")
+          .number("ndt_resolution", &C::ndt_resolution, above(0, 100), "m", "ndt: cell size")
+          .number("ndt_step", &C::ndt_step, above(0, 100), "m", "ndt: More-Thuente line search step")
+          .integer("max_iterations", &C::max_iterations, between(1, 10000), "", "registration iterations")
+          .number("max_fitness", &C::max_fitness, above(0, 1e4), "m^2",
+                  "mean squared distance to the map above which a registration is rejected")
+          .number("keyframe_distance", &C::keyframe_distance, above(0, 1e3), "m",
+                  "a cloud becomes a keyframe after this much motion")
+          .number("keyframe_angle", &C::keyframe_angle, above(0, 360), "deg", "... or this much rotation")
+          .integer("local_map_keyframes", &C::local_map_keyframes, between(1, 10000), "",
+                   "keyframes in the registration target")
+          .number("map_voxel", &C::map_voxel, above(0, 100), "m", "leaf of the final map (PCD)");
+  return t;
+}
+
 Result<Slam3dConfig> parse_slam3d_config(const YAML::Node& node, const std::string& origin) {
-  Slam3dConfig c;
-  if (!node.IsDefined() || node.IsNull()) return c;
-  try {
-    Fields f(node, origin, "slam.3d");
-    DL_TRY(f.is_map());
-    DL_TRY(f.text("cloud_channel", c.cloud_channel));
-    DL_TRY(f.text("odom_channel", c.odom_channel));
-    DL_TRY(f.text("tf_static_channel", c.tf_static_channel));
-    DL_TRY(f.text("pose_channel", c.pose_channel));
-    DL_TRY(f.text("base_frame", c.base_frame));
-    std::vector<double> pose;
-    DL_TRY(f.vector("sensor_pose", pose, 4));
-    if (!pose.empty()) c.sensor_pose = {pose[0], pose[1], pose[2], pose[3]};
-    DL_TRY(f.boolean("deskew", c.deskew));
-    DL_TRY(f.text("method", c.method));
-    if (c.method != "icp" && c.method != "ndt" && c.method != "gicp") {
-      return Error{f.where("method") + " = " + c.method + " must be icp, ndt or gicp"};
-    }
-    DL_TRY(f.number("min_range", c.min_range, 0, 1e6));
-    DL_TRY(f.positive("max_range", c.max_range));
-    DL_TRY(f.positive("voxel", c.voxel));
-    DL_TRY(f.positive("max_correspondence", c.max_correspondence));
-    DL_TRY(f.positive("ndt_resolution", c.ndt_resolution));
-    DL_TRY(f.positive("ndt_step", c.ndt_step));
-    DL_TRY(f.integer("max_iterations", c.max_iterations, 1, 10000));
-    DL_TRY(f.positive("max_fitness", c.max_fitness));
-    DL_TRY(f.positive("keyframe_distance", c.keyframe_distance));
-    DL_TRY(f.positive("keyframe_angle", c.keyframe_angle));
-    DL_TRY(f.integer("local_map_keyframes", c.local_map_keyframes, 1, 10000));
-    DL_TRY(f.positive("map_voxel", c.map_voxel));
-    DL_TRY(f.finish("cloud_channel, odom_channel, tf_static_channel, pose_channel, base_frame, sensor_pose, deskew, "
-                    "method, min_range, max_range, voxel, max_correspondence, ndt_resolution, ndt_step, max_iterations, "
-                    "max_fitness, keyframe_distance, keyframe_angle, local_map_keyframes, map_voxel"));
-    if (c.cloud_channel.empty()) return Error{f.where("cloud_channel") + " must not be empty"};
-  } catch (const YAML::Exception& e) {
-    return Error{origin + ":" + std::to_string(e.mark.line + 1) + ": " + e.msg};
-  }
-  return c;
+  return slam3d_config_table().parse(config::Value(node, origin, "slam.3d"));
 }
 
 struct Slam3d::Impl {
@@ -102,7 +99,7 @@ struct Slam3d::Impl {
   bool have_pose = false;
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();          ///< base in map, at the last cloud
   Eigen::Isometry3d last_motion = Eigen::Isometry3d::Identity();   ///< between the last two clouds
-  std::optional<internal::Pose2d> odom_at_last;
+  std::optional<Pose2> odom_at_last;
   Eigen::Isometry3d last_keyframe = Eigen::Isometry3d::Identity();
   std::deque<Cloud::Ptr> local;  ///< recent keyframes in the map frame, at `voxel`
   Cloud::Ptr map = std::make_shared<Cloud>();  ///< every keyframe in the map frame, at about `map_voxel`

@@ -14,6 +14,11 @@
 #include "core/bus.h"
 #include "core/result.h"
 
+namespace driftlab::config {
+template <class T>
+class Table;
+}
+
 namespace driftlab::slam {
 
 struct Slam3dConfig {
@@ -39,6 +44,9 @@ struct Slam3dConfig {
   int local_map_keyframes = 10;          ///< keyframes in the registration target
   double map_voxel = 0.1;                ///< leaf of the final map [m] (kept at this resolution while running)
 };
+
+/// The keys of the `slam.3d` map, with units, ranges and defaults (core/config.h).
+const config::Table<Slam3dConfig>& slam3d_config_table();
 
 /// Reads the `slam.3d` map; an undefined node gives the defaults. Errors name the file, line and key.
 Result<Slam3dConfig> parse_slam3d_config(const YAML::Node& node, const std::string& origin);

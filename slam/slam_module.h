@@ -11,8 +11,20 @@
 
 #include "core/bus.h"
 #include "core/result.h"
+#include "slam/slam2d.h"
+#include "slam/slam3d.h"
 
 namespace driftlab::slam {
+
+/// The `slam:` map of a replay config.
+struct SlamConfig {
+  std::string backend = "auto";  ///< auto, 2d or 3d
+  Slam2dConfig two_d;            ///< `2d:`
+  Slam3dConfig three_d;          ///< `3d:`
+};
+
+/// Its keys, with units, ranges and defaults (core/config.h); `2d` and `3d` are slam2d's and slam3d's tables.
+const config::Table<SlamConfig>& slam_config_table();
 
 /// Whether the input holds a message of the named type ("driftlab.laser_scan_t") on a channel.
 using HasData = std::function<bool(const std::string& channel, const std::string& type)>;

@@ -7,16 +7,14 @@
 #include <deque>
 #include <optional>
 
-namespace driftlab::slam::internal {
+#include "lcmtypes/planar.h"
 
-struct Pose2d {
-  double x = 0, y = 0, yaw = 0;  ///< [m, m, rad]
-};
+namespace driftlab::slam::internal {
 
 class OdometryBuffer {
  public:
   /// Adds a pose at its stamp [us] (late ones go in place); keeps `depth_us` of history.
-  void add(int64_t stamp, const Pose2d& pose, int64_t depth_us = 5000000) {
+  void add(int64_t stamp, const Pose2& pose, int64_t depth_us = 5000000) {
     auto at = std::upper_bound(q_.begin(), q_.end(), stamp, [](int64_t t, const Sample& s) { return t < s.stamp; });
     q_.insert(at, {stamp, pose});
     while (q_.size() > 2 && span(q_.front().stamp, q_.back().stamp) > static_cast<uint64_t>(depth_us)) q_.pop_front();
@@ -25,16 +23,16 @@ class OdometryBuffer {
 
   /// The pose at a stamp: interpolated between the samples around it (yaw along the shorter way), or the nearest
   /// at either end.
-  std::optional<Pose2d> at(int64_t stamp) const {
+  std::optional<Pose2> at(int64_t stamp) const {
     if (q_.empty()) return std::nullopt;
     if (stamp <= q_.front().stamp) return q_.front().pose;
     if (stamp >= q_.back().stamp) return q_.back().pose;
     auto hi = std::lower_bound(q_.begin(), q_.end(), stamp, [](const Sample& s, int64_t t) { return s.stamp < t; });
     auto lo = std::prev(hi);
     const double f = static_cast<double>(span(lo->stamp, stamp)) / static_cast<double>(span(lo->stamp, hi->stamp));
-    const double dyaw = std::remainder(hi->pose.yaw - lo->pose.yaw, 2 * M_PI);
-    return Pose2d{lo->pose.x + f * (hi->pose.x - lo->pose.x), lo->pose.y + f * (hi->pose.y - lo->pose.y),
-                  lo->pose.yaw + f * dyaw};
+    const double dyaw = wrap_angle(hi->pose.yaw - lo->pose.yaw);
+    return Pose2{lo->pose.x + f * (hi->pose.x - lo->pose.x), lo->pose.y + f * (hi->pose.y - lo->pose.y),
+                 lo->pose.yaw + f * dyaw};
   }
 
  private:
@@ -42,7 +40,7 @@ class OdometryBuffer {
   static uint64_t span(int64_t a, int64_t b) { return static_cast<uint64_t>(b) - static_cast<uint64_t>(a); }
   struct Sample {
     int64_t stamp;
-    Pose2d pose;
+    Pose2 pose;
   };
   std::deque<Sample> q_;
 };

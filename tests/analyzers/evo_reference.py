@@ -1,20 +1,32 @@
 #!/usr/bin/python3
-"""An independent reference for `driftlab eval`, written from evo's documented semantics with numpy.
+"""An independent reference for `driftlab eval`, written from evo's semantics with numpy and scipy.
 
 evo itself is not packaged for Debian and PyPI is out of reach here, so this script restates what evo_ape and
 evo_rpe compute, in evo's own way (every pair of stamps compared with numpy.argmin, Umeyama by numpy's SVD,
-errors from 4x4 SE(3) matrices), and serves two purposes: the test oracle that driftlab's numbers must equal to
-1e-6, and the peer that scripts/bench times driftlab against.
+errors from 4x4 SE(3) matrices, angles by scipy's Rotation), and serves two purposes: the test oracle that
+driftlab's numbers must equal to 1e-6, and the peer that scripts/bench times driftlab against. It must itself equal
+what evo computed on real trajectories: `--expected ../shared/data/evo/expected.json` runs evo's 81 cases and
+fails on any difference (a test runs it).
 
-usage: evo_reference.py REF.tum EST.tum [--align none|se3|sim3] [--max-dt S] [--offset S]
-                        [--delta D] [--delta-unit frames|m] [--all-pairs]
+RPE pairs as evo chooses them (evo.core.filters): from the estimate's poses unless --pairs-from-reference; frames:
+(0, d), (d, 2d), ... or, with --all-pairs, every (i, i + d); metres: consecutive pairs where the path travelled
+since the previous pair's end reaches d (the first pair starting where it first does), or with --all-pairs, from
+each pose the later pose whose path distance is closest to d, kept within --delta-tol * d; degrees and radians:
+consecutive pairs where the rotation angles between consecutive poses add up to d (the first pair starting at
+pose 0), or with --all-pairs every later pose whose direct rotation angle is within --delta-tol * d of d.
+
+usage: evo_reference.py REF.tum EST.tum [--align none|se3|sim3] [--max-dt S] [--offset S] [--delta D]
+                        [--delta-unit frames|m|deg|rad] [--all-pairs] [--pairs-from-reference] [--delta-tol R]
+       evo_reference.py --expected EXPECTED.json
 prints one JSON object with the keys of `driftlab eval --json` that evo defines.
 """
 import argparse
+import functools
 import json
 import sys
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 
 def read_tum(path):
@@ -39,32 +51,6 @@ def se3(r, t):
     m[:3, :3] = r
     m[:3, 3] = t
     return m
-
-
-def se3_inv(m):
-    r, t = m[:3, :3], m[:3, 3]
-    return se3(r.T, -r.T @ t)
-
-
-def angle_of(r):
-    """Rotation angle [rad] via the quaternion of r (accurate near 0 and pi)."""
-    tr = np.trace(r)
-    # Shepperd: pick the largest of w, x, y, z to divide by.
-    cands = [tr, r[0, 0], r[1, 1], r[2, 2]]
-    k = int(np.argmax(cands))
-    if k == 0:
-        w = np.sqrt(1 + tr) / 2
-        v = np.array([r[2, 1] - r[1, 2], r[0, 2] - r[2, 0], r[1, 0] - r[0, 1]]) / (4 * w)
-    else:
-        i = k - 1
-        j, l = (i + 1) % 3, (i + 2) % 3
-        s = np.sqrt(1 + r[i, i] - r[j, j] - r[l, l]) * 2
-        v = np.zeros(3)
-        v[i] = s / 4
-        v[j] = (r[j, i] + r[i, j]) / s
-        v[l] = (r[l, i] + r[i, l]) / s
-        w = (r[l, j] - r[j, l]) / s
-    return 2 * np.arctan2(np.linalg.norm(v), abs(w))
 
 
 def associate(ref_t, est_t, max_dt, offset):
@@ -101,7 +87,7 @@ def umeyama(src, dst, with_scale):
 def stats(e):
     e = np.asarray(e, dtype=float)
     if e.size == 0:
-        return {k: 0.0 for k in ("rmse", "mean", "median", "std", "min", "max")}
+        return None  # no errors, no statistics (as driftlab's JSON says)
     return {"rmse": float(np.sqrt(np.mean(e ** 2))), "mean": float(np.mean(e)), "median": float(np.median(e)),
             "std": float(np.std(e)), "min": float(np.min(e)), "max": float(np.max(e))}
 
@@ -113,7 +99,17 @@ def pairs_by_index(n, delta, all_pairs):
     return list(zip(ids, ids[1:]))
 
 
-def pairs_by_path(positions, delta):
+def pairs_by_path(positions, delta, tol, all_pairs):
+    steps = np.linalg.norm(positions[1:] - positions[:-1], axis=1)
+    if all_pairs:
+        travelled = np.concatenate(([0.0], np.cumsum(steps)))
+        pairs = []
+        for i in range(len(positions) - 1):
+            miss = np.abs(travelled[i + 1:] - travelled[i] - delta)
+            j = int(np.argmin(miss))
+            if miss[j] <= tol:
+                pairs.append((i, i + 1 + j))
+        return pairs
     ids, path = [], 0.0
     for i in range(len(positions)):
         if i > 0:
@@ -124,7 +120,131 @@ def pairs_by_path(positions, delta):
     return list(zip(ids, ids[1:]))
 
 
+def pairs_by_angle(rotations, delta, tol, all_pairs):
+    """rotations: a scipy Rotation of n poses; delta and tol in radians."""
+    n = len(rotations)
+    if all_pairs:
+        pairs = []
+        for i in range(n - 1):
+            angles = np.linalg.norm((rotations[i].inv() * rotations[i + 1:]).as_rotvec(), axis=1)
+            for j in np.flatnonzero((delta - tol <= angles) & (angles <= delta + tol)):
+                pairs.append((i, i + 1 + int(j)))
+        return pairs
+    steps = np.linalg.norm((rotations[:-1].inv() * rotations[1:]).as_rotvec(), axis=1)
+    pairs, start, angle = [], 0, 0.0
+    for k, step in enumerate(steps):
+        angle += step
+        if angle >= delta:
+            pairs.append((start, k + 1))
+            start, angle = k + 1, 0.0
+    return pairs
+
+
+@functools.lru_cache(maxsize=4)
+def matched(ref_path, est_path, max_dt, offset):
+    """The associated positions and quaternions, once per pair of files (--expected runs 27 cases on each)."""
+    ref_t, ref_p, ref_q = read_tum(ref_path)
+    est_t, est_p, est_q = read_tum(est_path)
+    ri, ei = associate(ref_t, est_t, max_dt, offset)
+    return ref_p[ri], ref_q[ri], est_p[ei], est_q[ei]
+
+
+def evaluate(ref_path, est_path, align="none", max_dt=0.01, offset=0.0, delta=1, delta_unit="frames",
+             all_pairs=False, pairs_from_reference=False, delta_tol=0.1):
+    ref_p, ref_q, est_p, est_q = matched(ref_path, est_path, max_dt, offset)
+    n = len(ref_p)
+
+    r, t, c = np.eye(3), np.zeros(3), 1.0
+    if align != "none":
+        r, t, c = umeyama(est_p.T, ref_p.T, align == "sim3")
+    ref_poses = [se3(quat_to_matrix(ref_q[i]), ref_p[i]) for i in range(n)]
+    est_poses = [se3(r @ quat_to_matrix(est_q[i]), c * r @ est_p[i] + t) for i in range(n)]
+
+    # Errors of many poses at once: stacked rotations (n x 3 x 3) and translations (n x 3).
+    ref_r = np.array([pp[:3, :3] for pp in ref_poses]).reshape(-1, 3, 3)
+    ref_t = np.array([pp[:3, 3] for pp in ref_poses]).reshape(-1, 3)
+    est_r = np.array([pp[:3, :3] for pp in est_poses]).reshape(-1, 3, 3)
+    est_t = np.array([pp[:3, 3] for pp in est_poses]).reshape(-1, 3)
+    tr = lambda m: np.transpose(m, (0, 2, 1))
+
+    def angles_deg(r):
+        return np.degrees(Rotation.from_matrix(r).magnitude()) if len(r) else np.array([])
+
+    # APE: inv(Q) P.
+    ape_t = np.linalg.norm(est_t - ref_t, axis=1)
+    ape_r = angles_deg(tr(ref_r) @ est_r)
+
+    chosen = ref_poses if pairs_from_reference else est_poses
+    if delta_unit == "frames":
+        pairs = pairs_by_index(n, int(delta), all_pairs)
+    elif delta_unit == "m":
+        pairs = pairs_by_path(np.array([pp[:3, 3] for pp in chosen]), delta, delta * delta_tol, all_pairs)
+    else:
+        to_rad = np.pi / 180 if delta_unit == "deg" else 1.0
+        rotations = Rotation.from_matrix(np.array([pp[:3, :3] for pp in chosen]))
+        pairs = pairs_by_angle(rotations, delta * to_rad, delta * delta_tol * to_rad, all_pairs)
+    # RPE: inv(inv(Q_i) Q_j) inv(P_i) P_j.
+    i = np.array([p[0] for p in pairs], dtype=int)
+    j = np.array([p[1] for p in pairs], dtype=int)
+    q_rel_r = tr(ref_r[i]) @ ref_r[j]
+    q_rel_t = (tr(ref_r[i]) @ (ref_t[j] - ref_t[i])[:, :, None])[:, :, 0]
+    p_rel_r = tr(est_r[i]) @ est_r[j]
+    p_rel_t = (tr(est_r[i]) @ (est_t[j] - est_t[i])[:, :, None])[:, :, 0]
+    e_t = (tr(q_rel_r) @ (p_rel_t - q_rel_t)[:, :, None])[:, :, 0]
+    rpe_t = np.linalg.norm(e_t, axis=1)
+    rpe_r = angles_deg(tr(q_rel_r) @ p_rel_r)
+
+    return {
+        "matched": n,
+        "alignment": {"type": align, "rotation": r.tolist(), "translation": t.tolist(), "scale": float(c)},
+        "ate": stats(ape_t),
+        "ate_rot_deg": stats(ape_r),
+        "rpe": {"delta": delta, "unit": delta_unit, "all_pairs": all_pairs,
+                "pairs_from_reference": pairs_from_reference, "pairs": len(pairs),
+                "trans": stats(rpe_t), "rot_deg": stats(rpe_r)},
+    }
+
+
+def check_expected(path):
+    """Runs every case evo computed (expected.json beside the trajectories) and reports the differences."""
+    import os
+    if not os.path.exists(path):
+        # The shared real data is missing: skip (ctest's SKIP_RETURN_CODE), except under CI, which always has it.
+        print(f"{path} is missing")
+        return 1 if os.environ.get("CI") == "true" else 77
+    folder = os.path.dirname(os.path.abspath(path))
+    cases = json.load(open(path))["cases"]
+    bad = 0
+    for k, case in enumerate(cases):
+        got = evaluate(os.path.join(folder, case["gt"]), os.path.join(folder, case["est"]),
+                       align=case["align"] if case["metric"] == "ape" else "none", max_dt=case["max_dt"],
+                       delta=case.get("delta", 1), delta_unit=case.get("delta_unit", "frames"),
+                       all_pairs=case.get("all_pairs", False),
+                       pairs_from_reference=case.get("pairs_from_reference", False),
+                       delta_tol=case.get("rel_delta_tol", 0.1))
+        if case["metric"] == "ape":
+            counts = [("matched", got["matched"], case["matched"])]
+            groups = [("trans", got["ate"], case["trans"]), ("rot_deg", got["ate_rot_deg"], case["rot_deg"])]
+        else:
+            counts = [("pairs", got["rpe"]["pairs"], case["pairs"])]
+            groups = [("trans", got["rpe"]["trans"], case["trans"]), ("rot_deg", got["rpe"]["rot_deg"], case["rot_deg"])]
+        problems = [f"{name} {ours} != {want}" for name, ours, want in counts if ours != want]
+        for name, ours, want in groups:
+            for key, value in want.items():
+                if abs(ours[key] - value) > 1e-6 * max(abs(value), 1e-12):
+                    problems.append(f"{name}.{key} {ours[key]!r} != {value!r}")
+        if problems:
+            bad += 1
+            print(f"case {k} ({case['est']}, {case['metric']}, {case.get('delta')} {case.get('delta_unit')}, "
+                  f"all_pairs {case.get('all_pairs')}, from reference {case.get('pairs_from_reference')}): "
+                  + "; ".join(problems))
+    print(f"{len(cases) - bad} of {len(cases)} cases equal evo's numbers")
+    return 1 if bad else 0
+
+
 def main():
+    if len(sys.argv) == 3 and sys.argv[1] == "--expected":
+        sys.exit(check_expected(sys.argv[2]))
     ap = argparse.ArgumentParser()
     ap.add_argument("ref")
     ap.add_argument("est")
@@ -132,48 +252,13 @@ def main():
     ap.add_argument("--max-dt", type=float, default=0.01)
     ap.add_argument("--offset", type=float, default=0.0)
     ap.add_argument("--delta", type=float, default=1)
-    ap.add_argument("--delta-unit", default="frames", choices=["frames", "m"])
+    ap.add_argument("--delta-unit", default="frames", choices=["frames", "m", "deg", "rad"])
     ap.add_argument("--all-pairs", action="store_true")
+    ap.add_argument("--pairs-from-reference", action="store_true")
+    ap.add_argument("--delta-tol", type=float, default=0.1)
     a = ap.parse_args()
-
-    ref_t, ref_p, ref_q = read_tum(a.ref)
-    est_t, est_p, est_q = read_tum(a.est)
-    ri, ei = associate(ref_t, est_t, a.max_dt, a.offset)
-    ref_p, ref_q, est_p, est_q = ref_p[ri], ref_q[ri], est_p[ei], est_q[ei]
-    n = len(ri)
-
-    r, t, c = np.eye(3), np.zeros(3), 1.0
-    if a.align != "none":
-        r, t, c = umeyama(est_p.T, ref_p.T, a.align == "sim3")
-    ref_poses = [se3(quat_to_matrix(ref_q[i]), ref_p[i]) for i in range(n)]
-    est_poses = [se3(r @ quat_to_matrix(est_q[i]), c * r @ est_p[i] + t) for i in range(n)]
-
-    ape_t, ape_r = [], []
-    for q, p in zip(ref_poses, est_poses):
-        e = se3_inv(q) @ p
-        ape_t.append(np.linalg.norm(e[:3, 3]))
-        ape_r.append(np.degrees(angle_of(e[:3, :3])))
-
-    if a.delta_unit == "frames":
-        pairs = pairs_by_index(n, int(a.delta), a.all_pairs)
-    else:
-        pairs = pairs_by_path([pp[:3, 3] for pp in ref_poses], a.delta)
-    rpe_t, rpe_r = [], []
-    for i, j in pairs:
-        q_rel = se3_inv(ref_poses[i]) @ ref_poses[j]
-        p_rel = se3_inv(est_poses[i]) @ est_poses[j]
-        e = se3_inv(q_rel) @ p_rel
-        rpe_t.append(np.linalg.norm(e[:3, 3]))
-        rpe_r.append(np.degrees(angle_of(e[:3, :3])))
-
-    json.dump({
-        "matched": n,
-        "alignment": {"type": a.align, "rotation": r.tolist(), "translation": t.tolist(), "scale": float(c)},
-        "ate": stats(ape_t),
-        "ate_rot_deg": stats(ape_r),
-        "rpe": {"delta": a.delta, "unit": "m" if a.delta_unit == "m" else "frames", "pairs": len(pairs),
-                "trans": stats(rpe_t), "rot_deg": stats(rpe_r)},
-    }, sys.stdout)
+    json.dump(evaluate(a.ref, a.est, a.align, a.max_dt, a.offset, a.delta, a.delta_unit, a.all_pairs,
+                       a.pairs_from_reference, a.delta_tol), sys.stdout)
 
 
 if __name__ == "__main__":

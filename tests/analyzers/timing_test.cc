@@ -12,7 +12,7 @@
 #include <set>
 
 #include "analyzers/clock_corrections.h"
-#include "analyzers/tf_check.h"
+#include "analyzers/internal/tf_check.h"
 #include "core/faults.h"
 #include "core/log_reader.h"
 #include "core/log_writer.h"

@@ -125,25 +125,64 @@ TEST(ComputeStats, MatchesNumpyConventions) {
   EXPECT_DOUBLE_EQ(compute_stats({5, 1, 3}).median, 3);
 }
 
-TEST(Rpe, PairsFollowEvo) {
+std::vector<std::pair<size_t, size_t>> pairs_of(const Matched& m, double delta, DeltaUnit unit, bool all,
+                                                 bool from_reference = false, double tol = 0.1) {
+  RpeOptions o;
+  o.delta = delta;
+  o.unit = unit;
+  o.all_pairs = all;
+  o.pairs_from_reference = from_reference;
+  o.delta_tol = tol;
+  return rpe(m, o).pairs;
+}
+using P = std::vector<std::pair<size_t, size_t>>;
+
+TEST(Rpe, PairsByFramesAndDistanceFollowEvo) {
   const Trajectory ref = line({0, 1, 2, 3, 4, 5, 6});
   const Matched m{ref, ref};
-  auto pairs = [&](double d, DeltaUnit u, bool all) { return rpe(m, d, u, all).pairs; };
-  using P = std::vector<std::pair<size_t, size_t>>;
-  EXPECT_EQ(pairs(2, DeltaUnit::kFrames, false), (P{{0, 2}, {2, 4}, {4, 6}}));
-  EXPECT_EQ(pairs(2, DeltaUnit::kFrames, true), (P{{0, 2}, {1, 3}, {2, 4}, {3, 5}, {4, 6}}));
+  EXPECT_EQ(pairs_of(m, 2, DeltaUnit::kFrames, false), (P{{0, 2}, {2, 4}, {4, 6}}));
+  EXPECT_EQ(pairs_of(m, 2, DeltaUnit::kFrames, true), (P{{0, 2}, {1, 3}, {2, 4}, {3, 5}, {4, 6}}));
   // Metres: ids where the path since the previous id reaches delta (the first id is not pose 0, as in evo).
-  EXPECT_EQ(pairs(2.0, DeltaUnit::kMeters, false), (P{{2, 4}, {4, 6}}));
-  EXPECT_EQ(pairs(2.0, DeltaUnit::kSeconds, false), (P{{2, 4}, {4, 6}}));
+  EXPECT_EQ(pairs_of(m, 2.0, DeltaUnit::kMeters, false), (P{{2, 4}, {4, 6}}));
+  EXPECT_EQ(pairs_of(m, 2.0, DeltaUnit::kSeconds, false), (P{{2, 4}, {4, 6}}));
 }
 
-TEST(Rpe, MeasuresTheRelativeMotionError) {
-  // The estimate moves 1.1 m per step where the truth moves 1 m: 0.1 m error per consecutive pair.
-  const Matched m{line({0, 1, 2, 3}), line({0, 1, 2, 3}, 1.1)};
-  const RpeResult r = rpe(m, 1, DeltaUnit::kFrames, false);
-  EXPECT_EQ(r.trans.count, 3u);
-  EXPECT_NEAR(r.trans.mean, 0.1, 1e-12);
-  EXPECT_NEAR(r.rot_deg.max, 0.0, 1e-12);
+TEST(Rpe, AllPairsByDistanceTakeTheClosestWithinTheTolerance) {
+  // Steps of 1, 1, 3, 0.5, 0.5, 0 (standing), 2 m.
+  const Trajectory t = line({0, 1, 2, 5, 5.5, 6, 6, 8});
+  const Matched m{t, t};
+  // Within 10% of 2 m: from 0, pose 2 is exactly 2 m on; from 1, 2 and 3 are 1 and 4 m on; from 2, 3 m; from 3,
+  // 1 m; from 4, 0.5 m; from 5 and 6 (standing at the same place), 7 is exactly 2 m on.
+  EXPECT_EQ(pairs_of(m, 2.0, DeltaUnit::kMeters, true), (P{{0, 2}, {5, 7}, {6, 7}}));
+  // Accepting misses of 1 m: from 1, 2 (1 m on) misses by 1 and 3 (4 m) by 2: the closer is taken; from 3, 5 and 6
+  // (1 m on) and 7 (3 m) all miss by 1: the first; from 4, 7 (2.5 m on).
+  EXPECT_EQ(pairs_of(m, 2.0, DeltaUnit::kMeters, true, false, 0.5),
+            (P{{0, 2}, {1, 2}, {2, 3}, {3, 5}, {4, 7}, {5, 7}, {6, 7}}));
+  // Ties: from 0 with delta 5.75 m, poses 4 (5.5 m on) and 5 (6 m) miss by 0.25 each: the first, 4.
+  EXPECT_EQ(pairs_of(m, 5.75, DeltaUnit::kMeters, true, false, 0.05).front(), (std::pair<size_t, size_t>{0, 4}));
+}
+
+TEST(Rpe, PairsComeFromTheEstimateUnlessAskedForTheReference) {
+  // The estimate covers twice the reference's distance: 2 m along it is 1 m along the reference.
+  const Matched m{line({0, 1, 2, 3, 4, 5, 6}), line({0, 1, 2, 3, 4, 5, 6}, 2.0)};
+  EXPECT_EQ(pairs_of(m, 2.0, DeltaUnit::kMeters, false), (P{{1, 2}, {2, 3}, {3, 4}, {4, 5}, {5, 6}}));
+  EXPECT_EQ(pairs_of(m, 2.0, DeltaUnit::kMeters, false, true), (P{{2, 4}, {4, 6}}));
+}
+
+TEST(Rpe, PairsByAngleFollowEvo) {
+  // Turning 10 degrees per pose about z: consecutive pairs from pose 0 where the turns add up to 25 degrees.
+  Trajectory t;
+  for (int i = 0; i < 8; ++i) {
+    t.push_back(i, Eigen::Vector3d::Zero(), Eigen::Quaterniond(Eigen::AngleAxisd(i * 10 * M_PI / 180, Eigen::Vector3d::UnitZ())));
+  }
+  const Matched m{t, t};
+  EXPECT_EQ(pairs_of(m, 25, DeltaUnit::kDegrees, false), (P{{0, 3}, {3, 6}}));
+  EXPECT_EQ(pairs_of(m, 25 * M_PI / 180, DeltaUnit::kRadians, false), (P{{0, 3}, {3, 6}}));
+  // All pairs: every pair whose direct angle is within 10% of delta: 20 degrees +/- 2 is every (i, i + 2).
+  EXPECT_EQ(pairs_of(m, 20, DeltaUnit::kDegrees, true), (P{{0, 2}, {1, 3}, {2, 4}, {3, 5}, {4, 6}, {5, 7}}));
+  EXPECT_TRUE(pairs_of(m, 25, DeltaUnit::kDegrees, true).empty());
+  // 25 +/- 7.5 degrees: the pairs 20 and 30 degrees apart, 6 + 5.
+  EXPECT_EQ(pairs_of(m, 25, DeltaUnit::kDegrees, true, false, 0.3).size(), 11u);
 }
 
 TEST(Drift, IsThePercentOfDistanceForAScaleError) {
@@ -186,6 +225,10 @@ TEST(LoadTum, ErrorsNameTheFileAndLine) {
       {"1 2 3 4 0 0 0 0\n", ":1: the quaternion is zero"},
       {"1 2 3 4 0 0 0 1 9\n", ":1: expected 8 numbers"},
       {"# only a comment\n", ": no poses"},
+      // Poses that are no poses.
+      {"1 2 3 4 0 0 0 0.5\n", ":1: the quaternion's norm is 0.5, not 1"},
+      {"1 2 3 4 0 0 0 1\n2 inf 3 4 0 0 0 1\n", ":2: a number is not finite"},
+      {"1 2 3 4 0 0 0 1\n2 nan 3 4 0 0 0 1\n", ":2: a number is not finite"},
   };
   for (const auto& [text, expected] : cases) {
     test::write_file(dir.file("bad.tum"), {text.begin(), text.end()});
@@ -193,6 +236,118 @@ TEST(LoadTum, ErrorsNameTheFileAndLine) {
     ASSERT_FALSE(t.ok()) << text;
     EXPECT_NE(t.error().message.find(dir.file("bad.tum") + expected), std::string::npos) << t.error().message;
   }
+}
+
+TEST(LoadTum, KeepsQuaternionsRoundedToPrintedDigits) {
+  test::TempDir dir;
+  // Quaternions printed with 4 decimals (the TUM benchmark's own files) are unit within rounding: kept.
+  const std::string rounded = "1 0 0 0 0.6132 0.5962 -0.3311 -0.3986\n";
+  test::write_file(dir.file("ok.tum"), {rounded.begin(), rounded.end()});
+  EXPECT_TRUE(load_tum(dir.file("ok.tum")).ok());
+}
+
+TEST(LoadKitti, ReadsPoseMatricesWithOrWithoutTimes) {
+  test::TempDir dir;
+  const Eigen::Matrix3d r = Eigen::AngleAxisd(0.3, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix();
+  std::string text;
+  char line[512];
+  for (int i = 0; i < 3; ++i) {
+    std::snprintf(line, sizeof(line), "%.9e %.9e %.9e %d %.9e %.9e %.9e %d %.9e %.9e %.9e %d\n", r(0, 0), r(0, 1),
+                  r(0, 2), i, r(1, 0), r(1, 1), r(1, 2), 2 * i, r(2, 0), r(2, 1), r(2, 2), -i);
+    text += line;
+  }
+  test::write_file(dir.file("poses.txt"), {text.begin(), text.end()});
+  auto t = load_kitti(dir.file("poses.txt"));
+  ASSERT_TRUE(t.ok()) << t.error().message;
+  ASSERT_EQ(t->size(), 3u);
+  EXPECT_FALSE(t->stamped);
+  EXPECT_EQ(t->positions[2], Eigen::Vector3d(2, 4, -2));
+  EXPECT_TRUE(t->orientations[1].toRotationMatrix().isApprox(r, 1e-8));
+  const std::string times = "0.0\n0.103\n0.2071\n";
+  test::write_file(dir.file("times.txt"), {times.begin(), times.end()});
+  auto stamped = load_kitti(dir.file("poses.txt"), dir.file("times.txt"));
+  ASSERT_TRUE(stamped.ok()) << stamped.error().message;
+  EXPECT_TRUE(stamped->stamped);
+  EXPECT_EQ(stamped->stamps[2], 0.2071);
+  // Auto-detected by its 12 numbers a line.
+  auto detected = load_trajectory(dir.file("poses.txt"), TrajectoryFormat::kAuto, dir.file("times.txt"));
+  ASSERT_TRUE(detected.ok()) << detected.error().message;
+  EXPECT_EQ(detected->stamps[1], 0.103);
+  // Errors: times not one per pose, a matrix that is no rotation, a times file with a TUM file.
+  const std::string two = "0\n1\n";
+  test::write_file(dir.file("two.txt"), {two.begin(), two.end()});
+  auto short_times = load_kitti(dir.file("poses.txt"), dir.file("two.txt"));
+  ASSERT_FALSE(short_times.ok());
+  EXPECT_NE(short_times.error().message.find("2 stamps for the 3 poses"), std::string::npos) << short_times.error().message;
+  const std::string skew = "1 0 0 0 0 2 0 0 0 0 1 0\n";
+  test::write_file(dir.file("skew.txt"), {skew.begin(), skew.end()});
+  auto bad = load_kitti(dir.file("skew.txt"));
+  ASSERT_FALSE(bad.ok());
+  EXPECT_NE(bad.error().message.find(":1: the 3x3 part is not a rotation"), std::string::npos) << bad.error().message;
+  const std::string tum = "1 0 0 0 0 0 0 1\n";
+  test::write_file(dir.file("t.tum"), {tum.begin(), tum.end()});
+  EXPECT_FALSE(load_trajectory(dir.file("t.tum"), TrajectoryFormat::kAuto, dir.file("times.txt")).ok());
+}
+
+TEST(LoadEuroc, ReadsNanosecondStampsAndWxyzQuaternions) {
+  test::TempDir dir;
+  // The head of a real EuRoC ground truth file (MH_01_easy), 17 columns.
+  const std::string text =
+      "#timestamp, p_RS_R_x [m], p_RS_R_y [m], p_RS_R_z [m], q_RS_w [], q_RS_x [], q_RS_y [], q_RS_z [], v_RS_R_x [m "
+      "s^-1], v_RS_R_y [m s^-1], v_RS_R_z [m s^-1], b_w_RS_S_x [rad s^-1], b_w_RS_S_y [rad s^-1], b_w_RS_S_z [rad "
+      "s^-1], b_a_RS_S_x [m s^-2], b_a_RS_S_y [m s^-2], b_a_RS_S_z [m s^-2]\n"
+      "1403636580838555648,4.688319,-1.786938,0.783338,0.534108,-0.153029,-0.827383,-0.082152,-0.027876,0.033207,"
+      "0.800006,-0.003172,0.021267,0.078502,-0.025266,0.136696,0.075593\n"
+      "1403636580843555328,4.688177,-1.786770,0.787350,0.534640,-0.152990,-0.826976,-0.082863,-0.029272,0.033992,"
+      "0.804030,-0.003172,0.021267,0.078502,-0.025266,0.136696,0.075593\n";
+  test::write_file(dir.file("data.csv"), {text.begin(), text.end()});
+  for (const auto format : {TrajectoryFormat::kEuroc, TrajectoryFormat::kAuto}) {
+    auto t = load_trajectory(dir.file("data.csv"), format);
+    ASSERT_TRUE(t.ok()) << t.error().message;
+    ASSERT_EQ(t->size(), 2u);
+    EXPECT_EQ(t->stamps[0], 1403636580838555648.0 / 1e9);  // as evo: the nanoseconds as a double, divided
+    EXPECT_EQ(t->positions[1], Eigen::Vector3d(4.688177, -1.786770, 0.787350));
+    EXPECT_EQ(t->orientations[0].w(), 0.534108);
+    EXPECT_EQ(t->orientations[0].z(), -0.082152);
+  }
+  const std::string eight = "#timestamp\n1,0,0,0,1,0,0\n";
+  test::write_file(dir.file("short.csv"), {eight.begin(), eight.end()});
+  auto bad = load_euroc(dir.file("short.csv"));
+  ASSERT_FALSE(bad.ok());
+  EXPECT_NE(bad.error().message.find(":2: expected at least 8 numbers"), std::string::npos) << bad.error().message;
+  const std::string odd = "1 2 3\n";
+  test::write_file(dir.file("odd.txt"), {odd.begin(), odd.end()});
+  auto unknown = load_trajectory(dir.file("odd.txt"));
+  ASSERT_FALSE(unknown.ok());
+  EXPECT_NE(unknown.error().message.find(":1: 3 numbers on the first data line"), std::string::npos)
+      << unknown.error().message;
+}
+
+TEST(SortByStamp, SortsStablyAndCountsWhatItFound) {
+  Trajectory t = line({3, 1, 2, 2, 5, 4});
+  t.positions[3].y() = 7;  // the second pose stamped 2
+  const StampOrder o = sort_by_stamp(t);
+  EXPECT_EQ(o.out_of_order, 2u);  // 1 after 3, 4 after 5
+  EXPECT_EQ(o.first_out_of_order, 1.0);
+  EXPECT_EQ(o.repeated, 1u);
+  EXPECT_EQ(o.first_repeated, 2.0);
+  EXPECT_EQ(stamps_of(t), (std::vector<double>{1, 2, 2, 3, 4, 5}));
+  EXPECT_EQ(t.positions[2].y(), 7);  // equal stamps keep their order
+  EXPECT_EQ(t.positions[1].y(), 0);
+}
+
+TEST(Align, RefusesPositionsOnOneLineOrPoint) {
+  const Trajectory straight = line({0, 1, 2, 3, 4});
+  for (auto type : {AlignmentType::kSe3, AlignmentType::kSim3}) {
+    const Alignment a = align({straight, straight}, type);
+    EXPECT_NE(a.problem.find("one point or one line"), std::string::npos) << a.problem;
+    EXPECT_EQ(a.scale, 1.0);
+  }
+  Trajectory still;
+  for (int i = 0; i < 5; ++i) still.push_back(i, Eigen::Vector3d(1, 2, 3), Eigen::Quaterniond::Identity());
+  EXPECT_FALSE(align({still, still}, AlignmentType::kPosYaw).problem.empty());
+  EXPECT_FALSE(align({curve(2), curve(2)}, AlignmentType::kSe3).problem.empty());
+  EXPECT_TRUE(align({curve(10), curve(10)}, AlignmentType::kSim3).problem.empty());
 }
 
 TEST(LoadTrajectory, ReadsPoseAndOdometryChannelsOfALog) {

@@ -350,8 +350,8 @@ TEST(HostileValues, HugeNumbersAndStampsAreRefusedNotOverflowed) {
   // What the module fuzzer found: a scanner placed 1e15 m from the base made MRPT's grid ask for more cells than
   // memory holds (a segfault in resizeGrid); a stamp at the end of int64_t overflowed the estimator's publication
   // schedule (and stepping to it took 4e14 steps: replay hung); logged commands of 1e300 made the controller's
-  // comparison infinite. A map_resolution of 1 um (a valid number, but no map of 20 m fits in memory at it) made
-  // MRPT allocate 4e14 cells; now the map is left undrawn, with a warning.
+  // comparison infinite. At the finest map_resolution the config takes (1 mm), a map of 30 m is 9e8 cells (1 GB
+  // in MRPT's grid, as much again in the image): left undrawn, with a warning.
   test::TempDir dir;
   const std::string log = dir.file("huge.lcm");
   ASSERT_GT(rewrite_sample<driftlab::tf_t>(log, "TF_STATIC", 1, [](driftlab::tf_t& tf, int) {
@@ -365,7 +365,7 @@ TEST(HostileValues, HugeNumbersAndStampsAreRefusedNotOverflowed) {
   }, log);
   ASSERT_GT(huge, 1);
   const std::string config = dir.file("c.yaml");
-  std::ofstream(config) << "controller:\n  logged_channel: CMD_VEL\nslam:\n  2d:\n    map_resolution: 1e-6\n";
+  std::ofstream(config) << "controller:\n  logged_channel: CMD_VEL\nslam:\n  2d:\n    map_resolution: 0.001\n";
   const auto r = driftlab("replay " + log + " --modules slam,estimator,controller --config " + config +
                           " --json -o " + dir.file("out.lcm"));
   ASSERT_EQ(r.code, 0) << r.err;

@@ -175,6 +175,9 @@ TEST_F(ReplayCli, BadInputGetsOneLineAndExitCode2) {
   std::ofstream(file("bad_backend.yaml")) << "slam:\n  backend: lidar\n";
   std::ofstream(file("bad_scenario.yaml")) << "controller:\n  scenario: [a, b]\n";
   std::ofstream(file("bad_module_key.yaml")) << "? [slam]\n: {}\n";
+  // Rates that used to loop forever (estimator) or abort (controller: a timer period of 0 us).
+  std::ofstream(file("huge_rate.yaml")) << "estimator: {publish_rate: 1e7}\n";
+  std::ofstream(file("huge_controller_rate.yaml")) << "controller:\n  route: [[0, 0], [1, 0]]\n  rate: 1e308\n";
   const std::vector<Case> cases = {
       {"--modules estimater", "--modules: unknown module 'estimater' (known: slam, estimator, controller)"},
       {"--modules estimator --config " + file("bad_key.yaml"),
@@ -187,7 +190,12 @@ TEST_F(ReplayCli, BadInputGetsOneLineAndExitCode2) {
       {"--modules controller --config " + file("bad_scenario.yaml"),
        file("bad_scenario.yaml") + ":2: controller.scenario: expected a file name"},
       {"--modules slam --config " + file("bad_module_key.yaml"), file("bad_module_key.yaml") + ":1: expected a module name"},
-      {"--restamp " + file("bad_restamp.yaml"), file("bad_restamp.yaml") + ":1: a restamp file needs"},
+      {"--modules estimator --config " + file("huge_rate.yaml"),
+       file("huge_rate.yaml") + ":1: estimator.publish_rate = 1e+07 is outside 0.1..1000 Hz"},
+      {"--modules controller --config " + file("huge_controller_rate.yaml"),
+       file("huge_controller_rate.yaml") + ":3: controller.rate = 1e+308 is outside 0.1..1000 Hz"},
+      {"--restamp " + file("bad_restamp.yaml"),
+       file("bad_restamp.yaml") + ":1: channels must be a map of CHANNEL: {offset_s, drift_ppm, reference_utime}"},
       {"--restamp " + file("missing.yaml"), file("missing.yaml") + ": cannot open"},
       {"--remap SCAN", "--remap SCAN: expected FROM=TO"},
       {"-c '(' --modules slam", "invalid channel regex '('"},

@@ -28,13 +28,17 @@ streams:
 
 TEST(ParseFaults, ErrorsNameTheFileLineAndKey) {
   const std::pair<const char*, const char*> cases[] = {
-      {"streams:\n  IMU:\n    clock_ofset_s: 1\n", "faults.yaml:3: unknown key 'clock_ofset_s' in the faults of IMU"},
-      {"streams:\n  IMU:\n    drop_probability: 1.5\n", "faults.yaml:3: IMU.drop_probability = 1.5 is outside 0..1"},
-      {"streams:\n  IMU:\n    jitter_s: fast\n", "faults.yaml:3: IMU.jitter_s must be a number"},
-      {"streams:\n  IMU:\n    burst_enter: 0.1\n", "faults.yaml:3: IMU needs both burst_enter and burst_exit"},
+      {"streams:\n  IMU:\n    clock_ofset_s: 1\n",
+       "faults.yaml:3: unknown key 'streams.IMU.clock_ofset_s' (known: clock_offset_s, clock_drift_ppm, "},
+      {"streams:\n  IMU:\n    drop_probability: 1.5\n",
+       "faults.yaml:3: streams.IMU.drop_probability = 1.5 is outside 0..1"},
+      {"streams:\n  IMU:\n    jitter_s: fast\n", "faults.yaml:3: streams.IMU.jitter_s = fast must be a number"},
+      {"streams:\n  IMU:\n    latency_s: 1e309\n", "faults.yaml:3: streams.IMU.latency_s = 1e309 is too large for a number"},
+      {"streams:\n  IMU:\n    burst_enter: 0.1\n", "faults.yaml:3: streams.IMU needs both burst_enter and burst_exit"},
       {"seed: 1\nstreem: {}\n", "faults.yaml:2: unknown key 'streem'"},
       {"streams: [1, 2\n", "faults.yaml:"},
-      {"streams:\n  IMU: 3\n", "faults.yaml:2: faults of IMU must be a map"},
+      {"streams:\n  IMU: 3\n", "faults.yaml:2: streams.IMU must be a map of key: value"},
+      {"seed: -3\n", "faults.yaml:1: seed = -3 must be >= 0"},
   };
   for (const auto& [text, expected] : cases) {
     auto c = parse_faults(text, "faults.yaml");

@@ -19,7 +19,7 @@ struct Truth {
   double v = 0.5, w = 0.25;
   Pose2 at(double t) const {
     const double yaw = w * t;
-    return {v / w * std::sin(yaw), v / w * (1 - std::cos(yaw)), wrap_angle(yaw), 0, 0};
+    return {v / w * std::sin(yaw), v / w * (1 - std::cos(yaw)), wrap_angle(yaw)};
   }
 };
 
@@ -43,7 +43,7 @@ std::vector<Stamped> measurements(uint64_t seed) {
       p.x += 0.05 * n(rng);
       p.y += 0.05 * n(rng);
       p.yaw += 0.02 * n(rng);
-      out.push_back({t, p});
+      out.push_back({t, PoseFix{p}});
     }
   }
   return out;
@@ -51,7 +51,7 @@ std::vector<Stamped> measurements(uint64_t seed) {
 
 TEST(Ekf, TracksACircleAndEstimatesTheGyroBias) {
   DelayedEkf ekf(EkfNoise{}, 0.5);
-  ekf.init(kT0, {0, 0, 0, 0, 0}, 0.5, 0.25);
+  ekf.init(kT0, {}, 0.5, 0.25);
   for (const auto& s : measurements(1)) ASSERT_TRUE(ekf.add(s.utime, s.m));
   const auto& x = ekf.filter().state();
   const Pose2 truth = Truth().at(20.0);
@@ -78,8 +78,8 @@ TEST(DelayedEkf, LateMeasurementsWithinTheWindowGiveTheInOrderResult) {
   }
   std::stable_sort(arrivals.begin(), arrivals.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
   DelayedEkf a(EkfNoise{}, 0.5), b(EkfNoise{}, 0.5);
-  a.init(kT0, {0, 0, 0, 0, 0}, 0.5, 0.25);
-  b.init(kT0, {0, 0, 0, 0, 0}, 0.5, 0.25);
+  a.init(kT0, {}, 0.5, 0.25);
+  b.init(kT0, {}, 0.5, 0.25);
   for (const auto& s : in_order) a.add(s.utime, s.m);
   for (const auto& [arrival, s] : arrivals) ASSERT_TRUE(b.add(s.utime, s.m));
   EXPECT_EQ(b.counters().reapplied, 999);  // all but the last, which comes after the last gyro sample
@@ -92,7 +92,7 @@ TEST(DelayedEkf, LateMeasurementsWithinTheWindowGiveTheInOrderResult) {
 
 TEST(DelayedEkf, MeasurementsOlderThanTheWindowAreRejectedAndCounted) {
   DelayedEkf ekf(EkfNoise{}, 0.1);
-  ekf.init(kT0, {0, 0, 0, 0, 0}, 0, 0);
+  ekf.init(kT0, {}, 0, 0);
   for (int i = 1; i <= 100; ++i) ASSERT_TRUE(ekf.add(kT0 + i * 5000, GyroZ{0, 0}));
   const Ekf before = ekf.filter();
   EXPECT_FALSE(ekf.add(kT0 + 500000 - 150000, Twist{1, 1, 0, 0}));  // 150 ms old, window 100 ms
@@ -102,7 +102,7 @@ TEST(DelayedEkf, MeasurementsOlderThanTheWindowAreRejectedAndCounted) {
   EXPECT_EQ(ekf.counters().reapplied, 1);
   // A zero window is the "reject every late measurement" policy.
   DelayedEkf strict(EkfNoise{}, 0);
-  strict.init(kT0, {0, 0, 0, 0, 0}, 0, 0);
+  strict.init(kT0, {}, 0, 0);
   ASSERT_TRUE(strict.add(kT0 + 10000, GyroZ{0, 0}));
   EXPECT_FALSE(strict.add(kT0 + 5000, GyroZ{0, 0}));
 }
@@ -110,7 +110,7 @@ TEST(DelayedEkf, MeasurementsOlderThanTheWindowAreRejectedAndCounted) {
 TEST(Ekf, NeverLetsANonFiniteNumberIntoItsState) {
   // NaN in 5% of the odometry twists used to make nearly every later estimate NaN, for the rest of the run.
   DelayedEkf ekf(EkfNoise{}, 0.5);
-  ASSERT_TRUE(ekf.init(kT0, {0, 0, 0, 0, 0}, 0.5, 0.25));
+  ASSERT_TRUE(ekf.init(kT0, {}, 0.5, 0.25));
   int refused = 0, n = 0;
   for (auto s : measurements(4)) {
     if (auto* t = std::get_if<Twist>(&s.m); t != nullptr && ++n % 20 == 0) {
@@ -126,7 +126,7 @@ TEST(Ekf, NeverLetsANonFiniteNumberIntoItsState) {
   const auto x = ekf.filter().state();
   // Finite values no robot measures, which would overflow it on the next step (a speed of 1e300 m/s gives a
   // covariance term of 1e600), and an infinite variance (its gain would be 0 * inf).
-  for (const Measurement& m : {Measurement(Twist{1e300, 0, 0, 0}), Measurement(Pose2{1e308, -1e308, 0, 0, 0}),
+  for (const Measurement& m : {Measurement(Twist{1e300, 0, 0, 0}), Measurement(PoseFix{{1e308, -1e308, 0}}),
                                Measurement(GyroZ{2e9, 0}), Measurement(GyroZ{0.1, INFINITY}),
                                Measurement(Twist{0.5, 0.25, 0, -INFINITY})}) {
     EXPECT_FALSE(ekf.add(kT0 + 20'000'000, m));
@@ -134,7 +134,7 @@ TEST(Ekf, NeverLetsANonFiniteNumberIntoItsState) {
   EXPECT_EQ(ekf.filter().state(), x);
   EXPECT_EQ(ekf.counters().refused, refused + 5);
   // A late measurement that would poison it is refused too, and the filter stays as it was.
-  EXPECT_FALSE(ekf.add(kT0 + 19'900'000, Pose2{NAN, 0, 0, 0, 0}));
+  EXPECT_FALSE(ekf.add(kT0 + 19'900'000, PoseFix{{NAN, 0, 0}}));
   EXPECT_FALSE(ekf.add(kT0 + 19'900'000, Twist{1e300, 0, 0, 0}));
   EXPECT_EQ(ekf.filter().state(), x);
   // Stamps at the ends of int64_t: no overflow (UBSan), old ones rejected.
@@ -144,10 +144,10 @@ TEST(Ekf, NeverLetsANonFiniteNumberIntoItsState) {
 
 TEST(Ekf, StartsOnlyFromFiniteValues) {
   Ekf ekf;
-  EXPECT_FALSE(ekf.init(kT0, {NAN, 0, 0, 0, 0}, 0, 0));
-  EXPECT_FALSE(ekf.init(kT0, {0, 0, 0, 0, 0}, INFINITY, 0));
+  EXPECT_FALSE(ekf.init(kT0, {{NAN, 0, 0}}, 0, 0));
+  EXPECT_FALSE(ekf.init(kT0, {}, INFINITY, 0));
   EXPECT_FALSE(ekf.initialized());
-  EXPECT_TRUE(ekf.init(kT0, {0, 0, 0, 0, 0}, 0, 0));
+  EXPECT_TRUE(ekf.init(kT0, {}, 0, 0));
 }
 
 }  // namespace

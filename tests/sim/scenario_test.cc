@@ -76,12 +76,12 @@ TEST(Scenario, ErrorsNameTheLineAndTheKey) {
             "s.yaml:6: channel 'A' is used twice");
   EXPECT_EQ(err(base("  - {channel: A}")), "s.yaml:5: a sensor needs a 'type'");
   EXPECT_EQ(err("world: worlds/building.yaml\nrobot: {urdf: r.urdf}\nroute: [[1, 1], [1, 1]]\nsensors: []\n"),
-            "s.yaml:3: the route has no length (its points are all the same)");
+            "s.yaml:3: route has no length (its points are all the same)");
   EXPECT_EQ(err("world: nowhere.yaml\n"), kSim + "/nowhere.yaml: cannot open the world description");
   EXPECT_EQ(err("world: [\n"), "s.yaml:2: end of sequence flow not found");
   EXPECT_EQ(err("- 1\n"), "s.yaml:1: a scenario must be a map (name, world, robot, sensors, ...)");
   EXPECT_EQ(err(base("  - {type: imu, channel: I}", "physics_step: 0.5\n")),
-            "s.yaml:4: physics_step must be at most 0.02 s");
+            "s.yaml:4: physics_step = 0.5 is outside 1e-05..0.02 s");
 }
 
 }  // namespace

@@ -1,8 +1,9 @@
 // slam::Slam3d and slam::make_slam3d (3D point-cloud odometry with PCL registration) end to end on 25 s of the
-// simulated 16 x 1800 lidar (sim/scenarios/indoor_3d.yaml), driven by a small Bus that plays the log in arrival
-// order: the SLAM path of each method (icp, ndt, gicp) against ground truth, compared with what wrong answers score
-// (standing still; an odometry 10% too long, alone); registration without odometry; dropped-cloud counts; the PCD
-// map; config errors; the warnings when there are no clouds or no sensor pose in TF.
+// simulated 16 x 1800 lidar (sim/scenarios/indoor_3d.yaml), played in arrival order through the fake bus
+// (tests/fakes/fake_bus.h, the replay host): the SLAM path of each method (icp, ndt, gicp) against ground truth,
+// compared with what wrong answers score (standing still; an odometry 10% too long, alone); registration without
+// odometry; dropped-cloud counts; the PCD map; config errors; the warnings when there are no clouds or no sensor pose
+// in TF.
 #include <gtest/gtest.h>
 #include <pcl/io/pcd_io.h>
 #include <pcl/point_cloud.h>
@@ -13,7 +14,6 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
-#include <regex>
 
 #include "analyzers/trajectory.h"
 #include "core/log_reader.h"
@@ -22,79 +22,11 @@
 #include "sim/scenario.h"
 #include "sim/simulator.h"
 #include "slam/slam3d.h"
+#include "tests/fakes/fake_bus.h"
 #include "tests/test_util.h"
 
 namespace driftlab::slam {
 namespace {
-
-/// A Bus over one log: delivers its events in arrival order (now() = the event's time) to the handlers whose
-/// regex matches, fires timers at whole multiples of their period before the first event at or after the tick,
-/// and keeps what the module publishes.
-class LogPlayBus final : public Bus {
- public:
-  struct Published {
-    std::string channel;
-    int64_t utime;
-    std::vector<uint8_t> data;
-  };
-
-  explicit LogPlayBus(std::string artifact_prefix = {}) : prefix_(std::move(artifact_prefix)) {}
-  void subscribe(const std::string& channel_regex, BusHandler handler) override {
-    subs_.push_back({std::regex(channel_regex), std::move(handler)});
-  }
-  void publish(std::string_view channel, std::span<const uint8_t> data) override {
-    published_.push_back({std::string(channel), now_, {data.begin(), data.end()}});
-  }
-  int64_t now() const override { return now_; }
-  void every(int64_t period_us, std::function<void()> fn) override { timers_.push_back({period_us, -1, std::move(fn)}); }
-  std::string artifact_prefix() const override { return prefix_; }
-
-  /// Rewrites a message before delivery (channel, bytes in place); empty: none.
-  std::function<void(const std::string&, std::vector<uint8_t>&)> rewrite;
-
-  /// Starts the module, plays the log's events on channels matching `channels` (empty: all), finishes it.
-  void run(Module& module, const std::string& log, const std::string& channels = {}) {
-    ASSERT_TRUE(module.start(*this));
-    auto reader = LogReader::open(log, {.channels = channels});
-    ASSERT_TRUE(reader) << reader.error().message;
-    Event e;
-    while (reader->next(e)) {
-      for (Timer& t : timers_) {
-        if (t.next < 0) t.next = (e.utime + t.period - 1) / t.period * t.period;
-        for (; t.next <= e.utime; t.next += t.period) {
-          now_ = t.next;
-          t.fn();
-        }
-      }
-      now_ = e.utime;
-      const std::string channel(e.channel);
-      std::span<const uint8_t> data = e.data;
-      std::vector<uint8_t> rewritten;
-      if (rewrite) {
-        rewritten.assign(e.data.begin(), e.data.end());
-        rewrite(channel, rewritten);
-        data = rewritten;
-      }
-      for (auto& [re, handler] : subs_) {
-        if (std::regex_match(channel, re)) handler(BusMessage{e.channel, e.utime, data});
-      }
-    }
-    module.finish(*this);
-  }
-  const std::vector<Published>& published() const { return published_; }
-
- private:
-  struct Timer {
-    int64_t period;
-    int64_t next;
-    std::function<void()> fn;
-  };
-  std::string prefix_;
-  std::vector<std::pair<std::regex, BusHandler>> subs_;
-  std::vector<Timer> timers_;
-  std::vector<Published> published_;
-  int64_t now_ = 0;
-};
 
 Eigen::Quaterniond quat(const driftlab::quaternion_t& q) { return Eigen::Quaterniond(q.w, q.x, q.y, q.z).normalized(); }
 
@@ -136,7 +68,7 @@ double ate_first_pose(const analyzers::Trajectory& gt, const analyzers::Trajecto
 }
 
 /// A rewrite that makes the wheel odometry wrong: its positions scaled by `scale` (a wheel radius off by as much).
-std::function<void(const std::string&, std::vector<uint8_t>&)> scale_odometry(double scale) {
+test::FakeBus::Rewrite scale_odometry(double scale) {
   return [scale](const std::string& channel, std::vector<uint8_t>& bytes) {
     driftlab::odometry_t o;
     if (channel != "ODOM" || o.decode(bytes.data(), 0, static_cast<int>(bytes.size())) < 0) return;
@@ -183,18 +115,17 @@ class Slam3dSession : public ::testing::Test {
     size_t matched = 0;          ///< poses matched to ground truth
   };
   /// Plays the session through a Slam3d made from `yaml`; artifacts under `prefix` when non-empty.
-  static Run run(const std::string& yaml, const std::string& prefix = {},
-                 std::function<void(const std::string&, std::vector<uint8_t>&)> rewrite = {}) {
+  static Run run(const std::string& yaml, const std::string& prefix = {}, const test::FakeBus::Rewrite& rewrite = {}) {
     Run r;
     auto module = make_slam3d(YAML::Load(yaml), "test.yaml");
     EXPECT_TRUE(module) << module.error().message;
     if (!module) return r;
-    LogPlayBus bus(prefix);
-    bus.rewrite = std::move(rewrite);
-    bus.run(**module, log(), "POINTS|ODOM|TF_STATIC");
+    test::FakeBus bus({.artifact_prefix = prefix});
+    bus.add(**module);
+    const Status played = bus.run(log(), "POINTS|ODOM|TF_STATIC", rewrite);
+    EXPECT_TRUE(played) << played.message();
     std::vector<std::pair<std::string, std::vector<uint8_t>>> out;
-    for (const auto& p : bus.published()) out.emplace_back(p.channel, p.data);
-    EXPECT_EQ(out.size(), bus.published().size());
+    for (auto& p : bus.published()) out.emplace_back(p.channel, std::move(p.data));
     r.path = trajectory<driftlab::pose_t>(out, "SLAM_POSE");
     r.counters = (*module)->counters();
     r.ate = ate_first_pose(*gt_, r.path, &r.matched);
@@ -345,8 +276,9 @@ TEST_F(Slam3dSession, WarnsWhenTheLogHasNoClouds) {
   const std::string prefix = dir_->file("none");
   auto module = make_slam3d(YAML::Node(), "test.yaml");
   ASSERT_TRUE(module);
-  LogPlayBus bus(prefix);
-  bus.run(**module, log(), "ODOM|TF_STATIC|GROUND_TRUTH");
+  test::FakeBus bus({.artifact_prefix = prefix});
+  bus.add(**module);
+  ASSERT_TRUE(bus.run(log(), "ODOM|TF_STATIC|GROUND_TRUTH"));
   EXPECT_TRUE(bus.published().empty());
   const ModuleCounters c = (*module)->counters();
   ASSERT_EQ(c.warnings.size(), 1u);
@@ -357,8 +289,9 @@ TEST_F(Slam3dSession, WarnsWhenTheLogHasNoClouds) {
   // Messages of another type on the cloud channel are counted and named.
   auto wrong = make_slam3d(YAML::Load("cloud_channel: GROUND_TRUTH\nodom_channel: ''\n"), "test.yaml");
   ASSERT_TRUE(wrong);
-  LogPlayBus bus2;
-  bus2.run(**wrong, log(), "GROUND_TRUTH|TF_STATIC");
+  test::FakeBus bus2;
+  bus2.add(**wrong);
+  ASSERT_TRUE(bus2.run(log(), "GROUND_TRUTH|TF_STATIC"));
   const ModuleCounters w = (*wrong)->counters();
   ASSERT_EQ(w.warnings.size(), 1u);
   EXPECT_EQ(w.warnings[0], "slam3d: no driftlab.point_cloud_t on GROUND_TRUTH (2501 messages of another type): "

@@ -20,7 +20,6 @@ namespace driftlab::analyzers::internal {
 /// ROS's /tf_static).
 bool is_static_tf_channel(std::string_view channel);
 
-
 class TfCheck {
  public:
   /// A driftlab.tf_t message that arrived at arrival [us].
@@ -34,11 +33,11 @@ class TfCheck {
   struct Edge {
     std::string parent;
     bool is_static = false;
-    std::vector<int64_t> arrival;     // dynamic: in arrival order
-    std::vector<int64_t> newest;      // newest stamp received by then
-    int64_t future_stamps = 0;        // stamped ahead of their arrival
+    std::vector<int64_t> arrival;  // dynamic: in arrival order
+    std::vector<int64_t> newest;   // newest stamp received by then
+    int64_t future_stamps = 0;     // stamped ahead of their arrival
     bool static_changed = false;
-    double static_values[7] = {};     // translation, rotation (w, x, y, z)
+    double static_values[7] = {};  // translation, rotation (w, x, y, z)
     bool have_static = false;
     std::vector<std::string> other_parents;
   };

@@ -1,0 +1,327 @@
+#include "analyzers/internal/channel_timing.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <numeric>
+
+namespace driftlab::analyzers::internal {
+namespace {
+
+/// A stamp later than the channel's typical by less than this is never called late (see fit_clock).
+constexpr double kLateStampMin_s = 0.001;
+
+/// The ranks of a distribution-free 95% confidence interval for the median of m values (binomial, normal
+/// approximation): the lower and upper order statistics, clamped to the sample.
+std::pair<size_t, size_t> median_ci_ranks(size_t m) {
+  const double half = 1.96 * std::sqrt(static_cast<double>(m)) / 2;
+  const double mid = static_cast<double>(m - 1) / 2;
+  return {static_cast<size_t>(std::max(0.0, std::floor(mid - half))),
+          static_cast<size_t>(std::min(static_cast<double>(m - 1), std::ceil(mid + half)))};
+}
+
+/// The source clock from the lower envelope of latency over time: window minima, then a Theil-Sen line, with
+/// 95% confidence intervals (Sen's, from Kendall's tau, for the slope; the median's order statistics for the
+/// envelope's level). Late stamps are left out first: a stamp later than its arrival by far more than the
+/// channel's delivery varies is not the clock but a message stamped after the fact (or by another clock), and a
+/// handful of them would otherwise set every window's minimum.
+void fit_clock(const Samples& s, int64_t log_start, ChannelTiming& c) {
+  const size_t n = s.stamp.size();
+  if (n < 20) return;
+  Array<double> lat(n);
+  for (size_t i = 0; i < n; ++i) lat[i] = static_cast<double>(s.arrival[i] - s.stamp[i]) * 1e-6;
+  Array<double> sorted(lat);
+  const double p50 = quantile(sorted, 0.5), p10 = quantile(sorted, 0.1);
+  // 10 times the spread of the faster half of deliveries, and at least 1 ms (a clock's resolution and a
+  // scheduler's tick): a 1000 ppm drift over a minute spreads latency by 60 ms and leaves it well inside.
+  const double bound = p50 - std::max(kLateStampMin_s, 10 * (p50 - p10));
+  for (size_t i = 0; i < n; ++i) {
+    if (lat[i] >= bound) continue;
+    if (c.late_stamps++ == 0) c.first_late_stamp_s = static_cast<double>(s.stamp[i] - log_start) * 1e-6;
+    c.late_stamp_max_s = std::max(c.late_stamp_max_s, p50 - lat[i]);
+  }
+  const auto [lo, hi] = std::minmax_element(s.stamp.begin(), s.stamp.end());
+  const double span = static_cast<double>(*hi - *lo) * 1e-6;
+  if (span < 10.0) return;  // too short to tell drift from jitter
+  const size_t windows = std::clamp<size_t>(n / 20, 4, 200);
+  std::vector<double> min_lat(windows, INFINITY), at_t(windows, 0);
+  for (size_t i = 0; i < n; ++i) {
+    if (lat[i] < bound) continue;
+    const double t = static_cast<double>(s.stamp[i] - *lo) * 1e-6;
+    const size_t w = std::min(windows - 1, static_cast<size_t>(t / span * static_cast<double>(windows)));
+    if (lat[i] < min_lat[w]) {
+      min_lat[w] = lat[i];
+      at_t[w] = t;
+    }
+  }
+  std::vector<double> ts, ls;
+  for (size_t w = 0; w < windows; ++w) {
+    if (std::isfinite(min_lat[w])) {
+      ts.push_back(at_t[w]);
+      ls.push_back(min_lat[w]);
+    }
+  }
+  if (ts.size() < 4) return;
+  Array<double> slopes;
+  for (size_t i = 0; i < ts.size(); ++i) {
+    for (size_t j = i + 1; j < ts.size(); ++j) {
+      if (ts[j] - ts[i] > span / static_cast<double>(windows)) slopes.push_back((ls[j] - ls[i]) / (ts[j] - ts[i]));
+    }
+  }
+  if (slopes.empty()) return;
+  std::sort(slopes.begin(), slopes.end());
+  const double slope = quantile(slopes, 0.5);
+  // Sen's interval: ranks (N -+ C) / 2 of the N slopes, C = z sqrt(var S) with Kendall's var S for m points.
+  const auto m = static_cast<double>(ts.size());
+  const double big_c = 1.96 * std::sqrt(m * (m - 1) * (2 * m + 5) / 18);
+  const auto slope_n = static_cast<double>(slopes.size());
+  const double slope_lo = slopes[static_cast<size_t>(std::clamp(std::floor((slope_n - big_c) / 2), 0.0, slope_n - 1))];
+  const double slope_hi = slopes[static_cast<size_t>(std::clamp(std::ceil((slope_n + big_c) / 2), 0.0, slope_n - 1))];
+  // The envelope's level at the windows' median time, where it does not depend on the slope.
+  Array<double> t_sorted(ts.begin(), ts.end());
+  const double tm = quantile(t_sorted, 0.5);
+  Array<double> levels;
+  for (size_t i = 0; i < ts.size(); ++i) levels.push_back(ls[i] - slope * (ts[i] - tm));
+  std::sort(levels.begin(), levels.end());
+  const double level = quantile(levels, 0.5);
+  const auto [r_lo, r_hi] = median_ci_ranks(levels.size());
+  const double t0 = static_cast<double>(log_start - *lo) * 1e-6;
+  c.clock_valid = true;
+  c.clock_drift_ppm = -slope * 1e6;
+  c.clock_drift_ci_ppm = {-slope_hi * 1e6, -slope_lo * 1e6};
+  c.clock_offset_s = -(level + slope * (t0 - tm));
+  // Both parts of the level's uncertainty: its own, and the slope's carried from tm to the log's start.
+  const double level_half = 0.5 * (levels[r_hi] - levels[r_lo]);
+  const double slope_half = 0.5 * (slope_hi - slope_lo) * std::abs(t0 - tm);
+  const double half = std::hypot(level_half, slope_half);
+  c.clock_offset_ci_s = {c.clock_offset_s - half, c.clock_offset_s + half};
+  Array<double> transport(n);
+  for (size_t i = 0; i < n; ++i) {
+    const double t = static_cast<double>(s.stamp[i] - *lo) * 1e-6;
+    transport[i] = lat[i] - (level + slope * (t - tm));
+  }
+  c.transport_s = distribution(std::move(transport));
+}
+
+void analyse_sequence(const Samples& s, ChannelTiming& c) {
+  // Order by seq (stable: arrival order among equals), then walk it.
+  Array<size_t> order(s.seq.size());
+  std::iota(order.begin(), order.end(), 0);
+  if (!std::is_sorted(s.seq.begin(), s.seq.end())) {
+    std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return s.seq[a] < s.seq[b]; });
+  }
+  for (size_t k = 1; k < order.size(); ++k) {
+    const int64_t prev = s.seq[order[k - 1]], cur = s.seq[order[k]];
+    if (cur == prev) {
+      ++c.duplicates;
+    } else if (cur > prev + 1) {
+      const int64_t missing = cur - prev - 1;
+      c.seq_gaps += missing;
+      c.gaps.push_back({s.stamp[order[k - 1]], s.stamp[order[k]], missing});
+    }
+  }
+}
+
+void analyse_period(const Samples& s, ChannelTiming& c, bool record_gaps) {
+  const Array<int64_t>& times = s.has_header ? s.stamp : s.arrival;
+  Array<int64_t> sorted(times);
+  if (!std::is_sorted(sorted.begin(), sorted.end())) std::sort(sorted.begin(), sorted.end());
+  Array<double> intervals;
+  for (size_t i = 1; i < sorted.size(); ++i) {
+    if (sorted[i] > sorted[i - 1]) intervals.push_back(static_cast<double>(sorted[i] - sorted[i - 1]) * 1e-6);
+  }
+  if (intervals.empty()) return;
+  const double median_interval = median(intervals);
+  const double mean_interval =
+      static_cast<double>(sorted.back() - sorted.front()) * 1e-6 / static_cast<double>(sorted.size() - 1);
+  // Bursts: the usual interval far shorter than the average one. A steady stream losing even 80% of its
+  // messages at random keeps its median interval above half its mean (the gaps are geometric), so a quarter
+  // means the messages come in groups: judged by the average rate, and its long gaps are not drops.
+  if (sorted.size() >= 10 && median_interval < 0.25 * mean_interval) {
+    c.bursty = true;
+    c.expected_period_s = mean_interval;
+    c.burst_interval_s = median_interval;
+    Array<double> sizes;
+    double size = 1;
+    for (size_t i = 1; i < sorted.size(); ++i) {
+      if (static_cast<double>(sorted[i] - sorted[i - 1]) * 1e-6 < 0.5 * mean_interval) {
+        ++size;
+      } else {
+        sizes.push_back(size);
+        size = 1;
+      }
+    }
+    sizes.push_back(size);
+    c.burst_size = median(sizes);
+    return;
+  }
+  c.expected_period_s = median_interval;
+  if (c.expected_period_s <= 0) return;
+  for (size_t i = 1; i < sorted.size(); ++i) {
+    const double gap = static_cast<double>(sorted[i] - sorted[i - 1]) * 1e-6;
+    if (gap > 1.5 * c.expected_period_s) {
+      const auto missing = static_cast<int64_t>(std::llround(gap / c.expected_period_s)) - 1;
+      if (missing <= 0) continue;
+      c.missing_by_period += missing;
+      if (record_gaps) c.gaps.push_back({sorted[i - 1], sorted[i], missing});
+    }
+  }
+}
+
+void judge(ChannelTiming& c) {
+  auto add = [&](const char* level, const std::string& why) {
+    if (std::string(level) == "fault" || c.verdict == "ok") c.verdict = level;
+    c.reasons.push_back(why);
+  };
+  char buf[256];
+  if (c.malformed > 0) {
+    std::snprintf(buf, sizeof(buf), "%lld messages do not decode as %s (first: %s)",
+                  static_cast<long long>(c.malformed), c.type.c_str(), c.malformed_example.c_str());
+    add("fault", buf);
+  }
+  if (c.seq_gaps > 0) {
+    std::snprintf(buf, sizeof(buf), "%lld messages missing in %zu gaps of seq", static_cast<long long>(c.seq_gaps),
+                  c.gaps.size());
+    add("fault", buf);
+  } else if (!c.has_header && c.missing_by_period > 0) {
+    std::snprintf(buf, sizeof(buf), "about %lld messages missing from gaps longer than 1.5 periods",
+                  static_cast<long long>(c.missing_by_period));
+    add("warn", buf);
+  }
+  if (c.duplicates > 0) {
+    std::snprintf(buf, sizeof(buf), "%lld duplicated messages", static_cast<long long>(c.duplicates));
+    add("fault", buf);
+  }
+  if (c.out_of_order_stamp > 0) {
+    std::snprintf(buf, sizeof(buf), "%lld messages arrived after a newer one (reordered)",
+                  static_cast<long long>(c.out_of_order_stamp));
+    add("fault", buf);
+  }
+  if (c.zero_stamps > 0) {
+    std::snprintf(buf, sizeof(buf), "%lld messages are stamped 0: the source never set their stamps",
+                  static_cast<long long>(c.zero_stamps));
+    add("fault", buf);
+  }
+  // Frozen stamps: most messages carry the stamp of the one before (a stamp set once, or every observation given
+  // one time, as MRPT 2.5's carmen2rawlog does). A few repeats are a fast source's clock resolution.
+  if (c.count >= 10 && c.repeated_stamps * 2 > c.count) {
+    std::snprintf(buf, sizeof(buf), "%lld of %lld messages repeat the stamp of the one before: the stamps are frozen",
+                  static_cast<long long>(c.repeated_stamps), static_cast<long long>(c.count));
+    add("fault", buf);
+  }
+  if (c.out_of_order_arrival > 0) {
+    std::snprintf(buf, sizeof(buf), "log times step back %lld times: events were written out of time order",
+                  static_cast<long long>(c.out_of_order_arrival));
+    add("warn", buf);
+  }
+  // Stamps on another time base than arrival, by more than a second: name the usual causes.
+  if (c.has_header && c.zero_stamps * 2 < c.count && std::abs(c.latency_s.p50) >= 1.0) {
+    const double behind = c.latency_s.p50;  // arrival - stamp [s]
+    constexpr double kWallClock = 1e9;      // 2001-09-09 in seconds since the epoch: stamps before are not dates
+    const double stamp_s = static_cast<double>(c.median_stamp_utime) * 1e-6;
+    std::string cause;
+    auto near = [&](double seconds) { return std::abs(std::abs(behind) - seconds) < 0.5; };
+    if (stamp_s < kWallClock && stamp_s + behind >= kWallClock) {
+      std::snprintf(buf, sizeof(buf),
+                    "stamps count from %.0f s while arrivals are wall-clock dates: the source "
+                    "stamps with simulation time or time since boot (use_sim_time?)",
+                    stamp_s);
+      cause = buf;
+    } else if (near(37) || near(18) || near(19)) {
+      const double s = std::round(std::abs(behind));
+      const char* which = s == 37 ? "TAI and UTC" : s == 18 ? "GPS time and UTC" : "TAI and GPS time";
+      std::snprintf(buf, sizeof(buf), "stamps are %.3f s %s arrival: the %.0f s between %s", std::abs(behind),
+                    behind > 0 ? "behind" : "ahead of", s, which);
+      cause = buf;
+    } else if (std::abs(behind) >= 1800 && std::abs(std::remainder(behind, 1800)) < 1) {
+      std::snprintf(buf, sizeof(buf), "stamps are %.1f h %s arrival: a time zone applied to one clock",
+                    std::abs(behind) / 3600, behind > 0 ? "behind" : "ahead of");
+      cause = buf;
+    }
+    if (!cause.empty()) add("fault", cause);
+  }
+  if (c.has_header && c.latency_s.p50 < -0.001) {
+    std::snprintf(buf, sizeof(buf), "stamps are %.1f ms ahead of arrival: the source clock runs ahead",
+                  -c.latency_s.p50 * 1e3);
+    add("fault", buf);
+  }
+  // A drift is reported when its confidence interval leaves out zero: jitter alone can tilt a line a little.
+  if (c.clock_valid && std::abs(c.clock_drift_ppm) >= 25 &&
+      (c.clock_drift_ci_ppm[0] > 0 || c.clock_drift_ci_ppm[1] < 0)) {
+    std::snprintf(buf, sizeof(buf), "source clock drifts %.0f ppm (95%%: %.0f to %.0f; %.1f ms per minute)",
+                  c.clock_drift_ppm, c.clock_drift_ci_ppm[0], c.clock_drift_ci_ppm[1], c.clock_drift_ppm * 60e-3);
+    add(std::abs(c.clock_drift_ppm) >= 100 ? "fault" : "warn", buf);
+  }
+  if (c.bursty) {
+    std::snprintf(buf, sizeof(buf),
+                  "messages come in bursts of about %.0f, %.1f ms apart, %.2f Hz on average: "
+                  "drops are told by seq only",
+                  c.burst_size, c.burst_interval_s * 1e3, 1 / c.expected_period_s);
+    add("warn", buf);
+  }
+  if (c.late_stamps > 0) {
+    std::snprintf(buf, sizeof(buf),
+                  "%lld stamps late by up to %.3f s against the channel's usual latency (the "
+                  "first %.1f s into the log): stamped after the fact or by another clock; left out of the clock fit",
+                  static_cast<long long>(c.late_stamps), c.late_stamp_max_s, c.first_late_stamp_s);
+    add("warn", buf);
+  }
+  if (c.has_header && c.latency_s.p99 > 0.005 && c.latency_s.p99 > 5 * std::max(c.latency_s.p50, 0.0005)) {
+    std::snprintf(buf, sizeof(buf), "latency spikes: p99 %.1f ms against a median of %.1f ms", c.latency_s.p99 * 1e3,
+                  c.latency_s.p50 * 1e3);
+    add("warn", buf);
+  }
+}
+
+}  // namespace
+
+ChannelTiming channel_timing(const std::string& name, Samples& s, int64_t log_start) {
+  if (s.has_header && s.stamp.size() != s.arrival.size()) s.has_header = false;
+  ChannelTiming c;
+  c.name = name;
+  c.type = s.type;
+  c.has_header = s.has_header;
+  c.malformed = s.malformed;
+  c.malformed_example = s.malformed_example;
+  c.count = static_cast<int64_t>(s.arrival.size());
+  const auto [a0, a1] = std::minmax_element(s.arrival.begin(), s.arrival.end());
+  if (c.count > 1 && *a1 > *a0) c.rate_hz = static_cast<double>(c.count - 1) / (static_cast<double>(*a1 - *a0) * 1e-6);
+  for (size_t i = 1; i < s.arrival.size(); ++i) {
+    if (s.arrival[i] < s.arrival[i - 1]) ++c.out_of_order_arrival;
+  }
+  if (s.has_header) {
+    analyse_sequence(s, c);
+    analyse_period(s, c, false);
+    int64_t newest = INT64_MIN;
+    Array<double> latency(s.stamp.size());
+    for (size_t i = 0; i < s.stamp.size(); ++i) {
+      if (s.stamp[i] < newest && s.seq[i] != s.seq[i - 1]) ++c.out_of_order_stamp;
+      if (i > 0 && s.stamp[i] == s.stamp[i - 1] && s.seq[i] != s.seq[i - 1]) ++c.repeated_stamps;
+      c.zero_stamps += s.stamp[i] == 0;
+      newest = std::max(newest, s.stamp[i]);
+      latency[i] = static_cast<double>(s.arrival[i] - s.stamp[i] - s.ready_after_us) * 1e-6;
+    }
+    c.latency_s = distribution(std::move(latency));
+    Array<int64_t> stamps(s.stamp);
+    std::nth_element(stamps.begin(), stamps.begin() + static_cast<ptrdiff_t>(stamps.size() / 2), stamps.end());
+    c.median_stamp_utime = stamps.empty() ? 0 : stamps[stamps.size() / 2];
+    // The clock is fitted to when the data was complete (a scan's last beam), then the stamps restored.
+    for (auto& t : s.stamp) t += s.ready_after_us;
+    fit_clock(s, log_start, c);
+    for (auto& t : s.stamp) t -= s.ready_after_us;
+  } else {
+    analyse_period(s, c, true);
+    // Without a header, a duplicate is the same bytes again well within one period (a steady stream of
+    // identical messages, like a heartbeat, is not duplication).
+    const double window = 0.25 * c.expected_period_s * 1e6;
+    for (size_t i = 1; i < s.digest.size() && s.digest.size() == s.arrival.size(); ++i) {
+      if (s.digest[i] == s.digest[i - 1] && static_cast<double>(s.arrival[i] - s.arrival[i - 1]) < window) {
+        ++c.duplicates;
+      }
+    }
+  }
+  judge(c);
+  return c;
+}
+
+}  // namespace driftlab::analyzers::internal

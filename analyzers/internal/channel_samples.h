@@ -1,0 +1,58 @@
+// What the timing diagnosis keeps of each channel in its one pass over the log, and the statistics its parts
+// share. Internal to analyzers (timing.cc fills the samples; channel_timing.cc and stream_skew.cc read them).
+#pragma once
+
+#include <algorithm>
+#include <cstdint>
+#include <numeric>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "analyzers/timing.h"
+#include "core/huge_page_allocator.h"
+#include "core/quantile.h"
+
+namespace driftlab::analyzers::internal {
+
+template <typename T>
+using Array = HugeVector<T>;
+
+/// What one pass over the log keeps of a channel.
+struct Samples {
+  std::string type;
+  bool has_header = false;
+  Array<int64_t> arrival;  // log timestamp [us]
+  Array<int64_t> stamp;    // header.utime [us] (empty without a header)
+  Array<int64_t> seq;      // header.seq
+  Array<uint64_t> digest;  // payload size and first bytes (duplicate detection without a header)
+  // Yaw rate [rad/s] at a stamp [s], for channels that observe the robot's rotation.
+  Array<double> motion_t, motion_w;
+  bool motion_from_pose = false;
+  std::string frame;      // header.frame_id of the first message
+  int64_t malformed = 0;  // messages that do not hold their type's layout: counted, nothing else read
+  std::string malformed_example;
+  double last_yaw = 0, last_t = 0;
+  bool have_last = false;
+  std::vector<std::span<const uint8_t>> scans;  // 2D scans, as views into the mapped log
+  // A spinning lidar stamps its first beam but is complete only at its last: that much later [us] (from the
+  // first scan), which latency and the clock fit add to the stamp.
+  int64_t ready_after_us = 0;
+};
+
+inline double quantile(Array<double>& v, double q) { return quantile_in_place(v, q); }
+
+inline Distribution distribution(Array<double> v) {
+  Distribution d;
+  if (v.empty()) return d;
+  d.mean = std::accumulate(v.begin(), v.end(), 0.0) / static_cast<double>(v.size());
+  d.max = *std::max_element(v.begin(), v.end());
+  d.p99 = quantile(v, 0.99);
+  d.p95 = quantile(v, 0.95);
+  d.p50 = quantile(v, 0.5);
+  return d;
+}
+
+inline double median(Array<double> v) { return v.empty() ? 0 : quantile(v, 0.5); }
+
+}  // namespace driftlab::analyzers::internal

@@ -1,0 +1,449 @@
+// driftlab sweep SPEC -o DIR and driftlab batch diagnose|eval|report LOG... -o DIR: many runs of the existing
+// commands, on a local process pool or as one Slurm job array (docs/batch.md). This file is the command line; the
+// specs, points, markers, runner and executors are in batch/. Each point is this program run again with
+// `sweep --point ID` (or `batch --item ID`), so a point runs the same way on a laptop and on a cluster node.
+#include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
+#include <signal.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cctype>
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <memory>
+#include <sstream>
+
+#include "apps/cli_checks.h"
+#include "apps/cli_util.h"
+#include "apps/commands.h"
+#include "apps/diagnosis_json.h"
+#include "batch/executor.h"
+#include "batch/plan.h"
+#include "batch/runner.h"
+#include "batch/store.h"
+#include "core/process.h"
+
+namespace driftlab::apps {
+
+extern const char kSweepPageScript[];  // batch/sweep_page.py, generated into sweep_page_script.cc
+
+namespace {
+
+namespace fs = std::filesystem;
+using namespace batch;
+
+struct ExecArgs {
+  std::string executor = "local";
+  int jobs = 0;
+  int retries = 0;
+  int requeue = 2;
+  int max_parallel = 0;
+  std::vector<std::string> slurm_opts;
+  bool dry_run = false;
+  bool json = false;
+};
+
+struct SweepArgs {
+  std::string spec, out, point;
+  ExecArgs exec;
+};
+
+struct BatchArgs {
+  std::string command, out, item, list, gt = "GROUND_TRUTH", est = "EKF_ODOM", align = "posyaw";
+  std::vector<std::string> logs;
+  ExecArgs exec;
+};
+
+std::atomic<bool> g_stop{false};
+void on_stop(int) { g_stop = true; }
+
+std::string self_path() {
+  std::error_code ec;
+  const auto p = fs::read_symlink("/proc/self/exe", ec);
+  return ec ? "driftlab" : p.string();
+}
+
+RunnerOptions runner_options() {
+  return {self_path(), [](const nlohmann::json& d) { return diagnosis_summary(d); }};
+}
+
+/// Asks the replay program whether it accepts a module config: `driftlab replay` of an empty log with it. Its
+/// one-line error when it names the config file; "" when it does not complain about the config.
+std::string check_config(const std::string& yaml, const std::string& modules) {
+  char tmpl[] = "/tmp/driftlab-sweep-check-XXXXXX";
+  if (::mkdtemp(tmpl) == nullptr) return "";
+  const fs::path tmp(tmpl);
+  const std::string config = (tmp / "replay.yaml").string(), log = (tmp / "empty.lcm").string();
+  std::ofstream(config) << yaml;
+  std::ofstream(log).flush();
+  const std::string err = (tmp / "err").string();
+  const int code = run_process({self_path(), "replay", log, "--modules", modules, "--config", config, "-o",
+                                (tmp / "out.lcm").string(), "--no-inputs"},
+                               "/dev/null", err);
+  std::string why = code == 0 ? "" : last_line_of(err);
+  std::error_code ec;
+  fs::remove_all(tmp, ec);
+  if (why.find(config) == std::string::npos) return "";
+  if (why.rfind("driftlab: ", 0) == 0) why = why.substr(10);
+  // The temporary file's name means nothing to the user: the spec check names the spec file and key.
+  if (const size_t at = why.find(config); at != std::string::npos) why.replace(at, config.size(), "settings");
+  return why;
+}
+
+int install_stop_handlers() {
+  struct sigaction sa {};
+  sa.sa_handler = on_stop;
+  sigaction(SIGINT, &sa, nullptr);
+  sigaction(SIGTERM, &sa, nullptr);
+  return 0;
+}
+
+/// collect: the merged table (CSV, JSON) and the page with plots. Returns the page's path, or "" with --no-plots.
+Result<std::string> collect(const std::string& dir, const Plan& plan, bool plots) {
+  const Table t = merge_results(dir, plan);
+  nlohmann::json j = {{"name", plan.spec.name}, {"kind", plan.spec.kind}, {"columns", t.columns}, {"rows", t.rows}};
+  j["varied"] = nlohmann::json::array();
+  for (const auto& p : plan.spec.vary) j["varied"].push_back(p.key);
+  j["stages"] = nlohmann::json::array();
+  for (Stage s : plan.spec.stages) j["stages"].push_back(stage_name(s));
+  if (plan.spec.kind == "batch" || !plan.spec.logs.empty()) j["ranked"] = rank_batch(t);
+  const std::string json_path = (fs::path(dir) / "results.json").string();
+  if (Status s = write_atomically((fs::path(dir) / "results.csv").string(), table_csv(t)); !s) return Error{s.message()};
+  if (Status s = write_atomically(json_path, j.dump(1) + "\n"); !s) return Error{s.message()};
+  if (!plots) return std::string();
+  if (Status s = run_plot_script(kSweepPageScript, "sweep_page.py", dir, {json_path, dir}); !s) {
+    return Error{"collect " + dir + ": " + s.message()};
+  }
+  return (fs::path(dir) / "index.html").string();
+}
+
+struct Counts {
+  std::map<PointState, size_t> by_state;
+  std::vector<PointStatus> failed;
+};
+
+Counts count_points(const std::string& dir, const Plan& plan) {
+  Counts c;
+  for (const auto& p : plan.points) {
+    PointStatus st = point_status(dir, p.id);
+    ++c.by_state[st.state];
+    if (st.state == PointState::kFailed) c.failed.push_back(std::move(st));
+  }
+  return c;
+}
+
+int run_status(const std::string& dir, bool json) {
+  auto plan = load_plan(dir);
+  if (!plan) return fail(plan.error().message);
+  const Counts c = count_points(dir, *plan);
+  const auto jobs = slurm_jobs(dir);
+  const auto queue = slurm_queue(jobs);
+  auto n = [&](PointState s) { return c.by_state.count(s) ? c.by_state.at(s) : 0; };
+  if (json) {
+    nlohmann::json j = {{"dir", dir}, {"points", plan->points.size()}, {"done", n(PointState::kDone)},
+                        {"running", n(PointState::kRunning)}, {"failed", n(PointState::kFailed)},
+                        {"pending", n(PointState::kPending)}, {"slurm_jobs", jobs}};
+    j["slurm_tasks"] = nlohmann::json::object();
+    for (const auto& [id, state] : queue) j["slurm_tasks"][id] = state;
+    j["failures"] = nlohmann::json::array();
+    for (const auto& f : c.failed) j["failures"].push_back({{"id", f.id}, {"attempts", f.attempts}, {"record", f.record}});
+    std::printf("%s\n", j.dump(2).c_str());
+    return kExitOk;
+  }
+  std::printf("%s: %zu points: %zu done, %zu running, %zu failed, %zu pending\n", dir.c_str(), plan->points.size(),
+              n(PointState::kDone), n(PointState::kRunning), n(PointState::kFailed), n(PointState::kPending));
+  for (const auto& f : c.failed) {
+    std::printf("  failed %s (attempt %d): %s\n", f.id.c_str(), f.attempts,
+                f.record.is_object() ? f.record.value("error", "").c_str() : "");
+  }
+  if (!jobs.empty()) {
+    std::map<std::string, size_t> states;
+    for (const auto& [id, state] : queue) ++states[state];
+    std::string s;
+    for (const auto& [state, k] : states) s += (s.empty() ? "" : ", ") + std::to_string(k) + " " + state;
+    std::printf("slurm jobs %s: %s\n", [&] {
+      std::string l;
+      for (const auto& j : jobs) l += (l.empty() ? "" : ",") + j;
+      return l;
+    }().c_str(), s.empty() ? "none in the queue" : s.c_str());
+  }
+  return kExitOk;
+}
+
+int run_collect(const std::string& dir, bool plots) {
+  auto plan = load_plan(dir);
+  if (!plan) return fail(plan.error().message);
+  auto page = collect(dir, *plan, plots);
+  if (!page) return fail(page.error().message, kExitFailure);
+  const Counts c = count_points(dir, *plan);
+  const size_t done = c.by_state.count(PointState::kDone) ? c.by_state.at(PointState::kDone) : 0;
+  std::printf("%zu of %zu points done; table: %s/results.csv%s%s\n", done, plan->points.size(), dir.c_str(),
+              page->empty() ? "" : ", page: ", page->c_str());
+  return kExitOk;
+}
+
+int run_point_command(const std::string& dir, const std::string& id) {
+  auto plan = load_plan(dir);
+  if (!plan) return fail(plan.error().message);
+  for (const auto& p : plan->points) {
+    if (p.id == id) return run_point(*plan, p, dir, runner_options());
+  }
+  return fail(dir + ": no point " + id + " in plan.json");
+}
+
+/// Runs or submits the points of plan that are not done, then (local) collects.
+int execute(const std::string& dir, Plan plan, const ExecArgs& e, const std::string& point_flag) {
+  std::vector<std::string> pending;
+  for (const auto& p : plan.points) {
+    if (!is_done(dir, p.id)) pending.push_back(p.id);
+  }
+  if (e.dry_run) {
+    for (const auto& p : plan.points) {
+      std::string params;
+      for (const auto& [k, v] : p.params) params += " " + k + "=" + v.text;
+      std::printf("%s %s%s\n", p.id.c_str(), is_done(dir, p.id) ? "done   " : "pending", params.c_str());
+    }
+    return kExitOk;
+  }
+  if (Status s = save_plan(dir, plan); !s) return fail(s.message(), kExitFailure);
+  const std::string exe = self_path();
+  const size_t already = plan.points.size() - pending.size();
+  if (e.executor == "slurm") {
+    SlurmOptions so;
+    so.driftlab = exe;
+    so.point_flag = point_flag;
+    so.job_name = "driftlab-" + plan.spec.name;
+    for (char& c : so.job_name) {
+      if (!std::isalnum(static_cast<unsigned char>(c)) && c != '-' && c != '_') c = '_';
+    }
+    so.max_parallel = e.max_parallel;
+    so.requeue = e.requeue;
+    so.slurm_options = e.slurm_opts;
+    if (const char* sb = std::getenv("DRIFTLAB_SBATCH"); sb != nullptr && *sb != 0) so.sbatch = sb;
+    if (pending.empty()) {
+      std::printf("all %zu points of %s are done; nothing submitted\n", plan.points.size(), dir.c_str());
+      return kExitOk;
+    }
+    auto r = make_slurm_executor(so)->execute(dir, pending);
+    if (!r) return fail(r.error().message, kExitFailure);
+    if (e.json) {
+      std::printf("%s\n", nlohmann::json{{"job_id", r->job_id}, {"submitted", pending.size()}, {"done", already},
+                                         {"dir", dir}}.dump().c_str());
+    } else {
+      std::printf("submitted job %s: %zu points as a job array (%zu already done); follow with: driftlab sweep "
+                  "status %s\n",
+                  r->job_id.c_str(), pending.size(), already, dir.c_str());
+    }
+    return kExitOk;
+  }
+  LocalOptions lo;
+  lo.jobs = e.jobs;
+  lo.retries = e.retries;
+  lo.progress = isatty(STDERR_FILENO) == 1 && !e.json;
+  lo.stop = &g_stop;
+  const std::string abs_dir = fs::absolute(dir).string();
+  std::vector<std::string> flag_words;
+  {
+    std::stringstream ss(point_flag);
+    for (std::string w; ss >> w;) flag_words.push_back(w);
+  }
+  lo.command = [exe, abs_dir, flag_words](const std::string& id) {
+    std::vector<std::string> argv = {exe};
+    argv.insert(argv.end(), flag_words.begin(), flag_words.end());
+    argv.insert(argv.end(), {id, "-o", abs_dir});
+    return argv;
+  };
+  install_stop_handlers();
+  const auto t0 = std::chrono::steady_clock::now();
+  auto r = make_local_executor(lo)->execute(dir, pending);
+  if (!r) return fail(r.error().message, kExitFailure);
+  const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  auto page = collect(dir, plan, !r->interrupted);
+  const int code = r->interrupted ? 130 : r->failed > 0 ? kExitFailure : kExitOk;
+  if (e.json) {
+    nlohmann::json j = {{"dir", dir}, {"points", plan.points.size()}, {"already_done", already}, {"done", r->done},
+                        {"failed", r->failed}, {"not_started", r->not_started}, {"interrupted", r->interrupted},
+                        {"wall_s", wall}, {"jobs", lo.jobs > 0 ? lo.jobs : usable_cpus()},
+                        {"table", (fs::path(dir) / "results.csv").string()}};
+    if (page && !page->empty()) j["page"] = *page;
+    std::printf("%s\n", j.dump(2).c_str());
+  } else {
+    std::printf("%s %zu points in %.1f s (%zu already done): %zu done, %zu failed%s\n",
+                r->interrupted ? "stopped after" : "ran", r->done + r->failed, wall, already, r->done, r->failed,
+                r->interrupted ? "; finished points are kept, run the same command again to resume" : "");
+    if (page) std::printf("table: %s/results.csv%s%s\n", dir.c_str(), page->empty() ? "" : ", page: ", page->c_str());
+  }
+  if (!page) return fail(page.error().message, kExitFailure);
+  return code;
+}
+
+void add_exec_options(CLI::App* cmd, ExecArgs& e) {
+  cmd->add_option("--executor", e.executor, "Where the points run: local (a process pool here) or slurm (a job array)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"local", "slurm"}));
+  cmd->add_option("-j,--jobs", e.jobs, "local: points at once (0: one per usable core)")->capture_default_str()->check(CLI::NonNegativeNumber);
+  cmd->add_option("--retries", e.retries, "local: run a failed point again up to N times")->capture_default_str()->check(CLI::NonNegativeNumber);
+  cmd->add_option("--max-parallel", e.max_parallel, "slurm: tasks of the array running at once (0: no limit)")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
+  cmd->add_option("--requeue", e.requeue, "slurm: a failed task requeues itself up to N times")->capture_default_str()->check(CLI::NonNegativeNumber);
+  cmd->add_option("--slurm-opt", e.slurm_opts, "slurm: an sbatch option, passed as it is (repeatable): --partition=P, --time=1:00:00, --mem=4G, --account=A")
+      ->allow_extra_args(false);
+  cmd->add_flag("--dry-run", e.dry_run, "List the points (id, done or pending, values) and run nothing");
+  cmd->add_flag("--json", e.json, "Print one JSON object instead of text");
+}
+
+int run_sweep(const SweepArgs& a) {
+  if (a.out.empty()) return fail("sweep: -o DIR is required");
+  if (!a.point.empty()) return run_point_command(a.out, a.point);
+  if (a.spec.empty()) return fail("sweep: a SPEC.yaml is required (or --point ID, or status DIR, collect DIR)");
+  auto spec = load_spec(a.spec);
+  if (!spec) return fail(spec.error().message);
+  if (spec->has(Stage::kReplay)) {
+    if (Status s = validate_module_settings(*spec, [&](const std::string& y) { return check_config(y, spec->modules); }); !s) {
+      return fail(s.message());
+    }
+  }
+  Plan plan{*spec, expand(*spec)};
+  return execute(a.out, std::move(plan), a.exec, "sweep --point");
+}
+
+Result<std::vector<std::string>> batch_logs(const BatchArgs& a) {
+  std::vector<std::string> out;
+  auto add = [&](const std::string& item) -> Status {
+    if (is_pattern(item)) {  // a pattern the shell left alone (quoted, or no match)
+      auto found = expand_pattern(item);
+      if (found.empty()) return Error{item + ": matches no file"};
+      out.insert(out.end(), found.begin(), found.end());
+      return {};
+    }
+    out.push_back(item);
+    return {};
+  };
+  std::vector<std::string> items = a.logs;
+  auto read_list = [&](const std::string& path) -> Status {
+    std::ifstream in(path);
+    if (!in) return Error{path + ": cannot open the list of logs"};
+    for (std::string line; std::getline(in, line);) {
+      line.erase(0, line.find_first_not_of(" \t"));
+      line.erase(line.find_last_not_of(" \t\r") + 1);
+      if (line.empty() || line[0] == '#') continue;
+      if (fs::path(line).is_relative()) line = (fs::path(path).parent_path() / line).string();
+      if (Status s = add(line); !s) return Error{path + ": " + s.message()};
+    }
+    return {};
+  };
+  if (!a.list.empty()) {
+    if (Status s = read_list(a.list); !s) return Error{s.message()};
+  }
+  for (const auto& item : items) {
+    if (item.size() > 1 && item[0] == '@') {
+      if (Status s = read_list(item.substr(1)); !s) return Error{s.message()};
+    } else if (Status s = add(item); !s) {
+      return Error{s.message()};
+    }
+  }
+  return out;
+}
+
+int run_batch(const BatchArgs& a) {
+  if (a.out.empty()) return fail("batch: -o DIR is required");
+  if (!a.item.empty()) return run_point_command(a.out, a.item);
+  if (a.command.empty()) return fail("batch: a command is required: diagnose, eval or report (or --item ID)");
+  auto logs = batch_logs(a);
+  if (!logs) return fail(logs.error().message);
+  auto spec = batch_spec(a.command, *logs);
+  if (!spec) return fail(spec.error().message);
+  spec->gt_channel = a.gt;
+  spec->est_channel = a.est;
+  spec->align = a.align;
+  Plan plan{*spec, expand(*spec)};
+  return execute(a.out, std::move(plan), a.exec, "batch --item");
+}
+
+}  // namespace
+
+void add_sweep_command(CLI::App& app, int* exit_code) {
+  auto a = std::make_shared<SweepArgs>();
+  CLI::App* cmd = app.add_subcommand("sweep", "Run a pipeline (sim, replay, diagnose, eval) over a grid of parameters and seeds, here or on Slurm.");
+  cmd->footer(
+      "SPEC (YAML, docs/batch.md) names a scenario or logs, the parameters to vary (seed, duration, restamp,\n"
+      "faults.CHANNEL.FIELD, MODULE.KEY; lists or {from, to, step} grids) and the pipeline. Each point runs the real\n"
+      "subcommands in DIR/points/ID; a finished point is never run again, so running the same command again resumes.\n"
+      "The table (DIR/results.csv, results.json) and a page of plots (DIR/index.html) are written at the end (local)\n"
+      "or by `sweep collect DIR`. --executor slurm submits one job array and returns its job id at once; `sweep\n"
+      "status DIR` and `sweep collect DIR` work from any node that sees DIR (a shared filesystem).");
+  cmd->add_option("spec", a->spec, "Sweep spec (YAML)");
+  cmd->add_option("-o,--out", a->out, "Folder of the sweep (points, table, page)");
+  cmd->add_option("--point", a->point, "Run one point of the sweep in DIR (what each task runs)");
+  add_exec_options(cmd, a->exec);
+  auto status_dir = std::make_shared<std::string>();
+  auto status_json = std::make_shared<bool>(false);
+  CLI::App* status = cmd->add_subcommand("status", "Points done, running, failed and pending, and the Slurm jobs' states.");
+  status->add_option("dir", *status_dir, "Folder of the sweep")->required();
+  status->add_flag("--json", *status_json, "Print one JSON object");
+  status->callback([status_dir, status_json, exit_code] { *exit_code = run_status(*status_dir, *status_json); });
+  auto collect_dir = std::make_shared<std::string>();
+  auto no_plots = std::make_shared<bool>(false);
+  CLI::App* coll = cmd->add_subcommand("collect", "Merge the finished points into one table (CSV, JSON) and a page of plots.");
+  coll->add_option("dir", *collect_dir, "Folder of the sweep")->required();
+  coll->add_flag("--no-plots", *no_plots, "Only the tables");
+  coll->callback([collect_dir, no_plots, exit_code] { *exit_code = run_collect(*collect_dir, !*no_plots); });
+  cmd->callback([a, cmd, exit_code] {
+    if (!cmd->get_subcommands().empty()) return;
+    *exit_code = run_sweep(*a);
+  });
+}
+
+void add_batch_command(CLI::App& app, int* exit_code) {
+  auto a = std::make_shared<BatchArgs>();
+  CLI::App* cmd = app.add_subcommand("batch", "Diagnose, score or report many logs, here or on Slurm, and rank them.");
+  cmd->fallthrough();  // -o DIR and the executor options may follow the command's logs
+  cmd->footer(
+      "LOG... are paths, patterns (quoted: expanded here) or @FILE (one path a line). One result per log in\n"
+      "DIR/points/ID; a finished log is never run again. The table (DIR/results.csv, results.json) ranks the logs\n"
+      "worst first (streams with faults, then warnings, then drops, then ATE) and DIR/index.html shows it with each\n"
+      "log's worst stream. Executors, status and collect as for `driftlab sweep` (docs/batch.md).");
+  cmd->add_option("-o,--out", a->out, "Folder of the batch");
+  cmd->add_option("--item", a->item, "Run one item of the batch in DIR (what each task runs)");
+  add_exec_options(cmd, a->exec);
+  for (const char* word : {"diagnose", "eval", "report"}) {
+    CLI::App* sub = cmd->add_subcommand(word, std::string("driftlab ") + word + " of every log");
+    sub->add_option("logs", a->logs, "Logs, patterns or @FILE")->required();
+    sub->add_option("--list", a->list, "A file of log paths, one a line");
+    if (std::string(word) == "eval") {
+      sub->add_option("--gt", a->gt, "Ground-truth channel of each log")->capture_default_str();
+      sub->add_option("--est", a->est, "Estimate channel of each log")->capture_default_str();
+      sub->add_option("--align", a->align, "Alignment (as driftlab eval)")->capture_default_str()
+          ->check(CLI::IsMember({"none", "se3", "sim3", "posyaw"}));
+    }
+    sub->callback([a, word, exit_code] {
+      a->command = word;
+      *exit_code = run_batch(*a);
+    });
+  }
+  auto dir = std::make_shared<std::string>();
+  auto json = std::make_shared<bool>(false);
+  CLI::App* status = cmd->add_subcommand("status", "Logs done, running, failed and pending, and the Slurm jobs' states.");
+  status->add_option("dir", *dir, "Folder of the batch")->required();
+  status->add_flag("--json", *json, "Print one JSON object");
+  status->callback([dir, json, exit_code] { *exit_code = run_status(*dir, *json); });
+  auto cdir = std::make_shared<std::string>();
+  auto no_plots = std::make_shared<bool>(false);
+  CLI::App* coll = cmd->add_subcommand("collect", "Merge the finished logs into one ranked table and page.");
+  coll->add_option("dir", *cdir, "Folder of the batch")->required();
+  coll->add_flag("--no-plots", *no_plots, "Only the tables");
+  coll->callback([cdir, no_plots, exit_code] { *exit_code = run_collect(*cdir, !*no_plots); });
+  cmd->callback([a, cmd, exit_code] {
+    if (!cmd->get_subcommands().empty()) return;
+    *exit_code = run_batch(*a);
+  });
+}
+
+}  // namespace driftlab::apps

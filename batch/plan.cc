@@ -1,0 +1,703 @@
+#include "batch/plan.h"
+
+#include <fnmatch.h>
+#include <yaml-cpp/yaml.h>
+
+#include <algorithm>
+#include <charconv>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <set>
+#include <sstream>
+
+#include "core/faults.h"
+
+namespace driftlab::batch {
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr const char* kModules[] = {"slam", "estimator", "controller"};
+constexpr const char* kTopKeys =
+    "name, scenario, logs, duration, seed, faults, modules, settings, restamp, eval, keep_logs, pipeline, vary";
+
+bool is_module(const std::string& m) {
+  return std::any_of(std::begin(kModules), std::end(kModules), [&](const char* k) { return m == k; });
+}
+
+/// "FILE:LINE: KEY" for messages.
+std::string where(const std::string& file, const YAML::Node& node, const std::string& key) {
+  return file + ":" + std::to_string(node.Mark().line + 1) + ": " + key;
+}
+
+std::string canonical_number(double v) {
+  if (v == 0) return "0";  // no "-0"
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "%.12g", v);
+  double back = 0;
+  std::from_chars(buf, buf + std::strlen(buf), back);
+  // The shortest text that reads back as the 12-digit value.
+  for (int digits = 1; digits <= 17; ++digits) {
+    char shorter[32];
+    std::snprintf(shorter, sizeof(shorter), "%.*g", digits, back);
+    double again = 0;
+    std::from_chars(shorter, shorter + std::strlen(shorter), again);
+    if (again == back) return shorter;
+  }
+  return buf;
+}
+
+/// A YAML scalar as a typed value: numbers first (as YAML reads them), then true/false, else a string.
+Value scalar_value(const YAML::Node& n) {
+  const std::string s = n.Scalar();
+  if (n.Tag() != "!") {  // not quoted
+    double d = 0;
+    const auto r = std::from_chars(s.data(), s.data() + s.size(), d);
+    if (r.ec == std::errc() && r.ptr == s.data() + s.size() && std::isfinite(d)) return Value::of_number(d);
+    if (s == "true" || s == "false") return Value::of_bool(s == "true");
+  }
+  return Value::of_string(s);
+}
+
+uint64_t fnv1a(const std::string& s) {
+  uint64_t h = 1469598103934665603ull;
+  for (const char c : s) h = (h ^ static_cast<unsigned char>(c)) * 1099511628211ull;
+  return h;
+}
+
+std::string absolute(const std::string& path, const fs::path& base) {
+  fs::path p(path);
+  if (p.is_relative()) p = base / p;
+  return p.lexically_normal().string();
+}
+
+Status check_stage_order(const Spec& s, const std::string& at) {
+  if (s.has(Stage::kSim) && !s.logs.empty()) return Error{at + ": sim with logs: a sweep runs a scenario or logs"};
+  if (!s.has(Stage::kSim) && s.logs.empty()) return Error{at + ": no sim stage and no logs: nothing to work on"};
+  if (s.has(Stage::kReplay) && s.modules.empty()) return Error{at + ": replay needs `modules:` (slam, estimator, ...)"};
+  return {};
+}
+
+Result<Parameter> read_parameter(const std::string& file, const std::string& key, const YAML::Node& n) {
+  Parameter p{key, {}};
+  const std::string here = where(file, n, "vary: " + key);
+  if (n.IsSequence()) {
+    for (const auto& v : n) {
+      if (!v.IsScalar()) return Error{here + ": values must be scalars (numbers, words)"};
+      p.values.push_back(scalar_value(v));
+    }
+  } else if (n.IsMap()) {
+    double from = 0, to = 0, step = 0;
+    int64_t count = 0;
+    std::set<std::string> seen;
+    for (const auto& kv : n) {
+      const std::string k = kv.first.Scalar();
+      seen.insert(k);
+      if (k != "from" && k != "to" && k != "step" && k != "count") {
+        return Error{here + ": unknown grid key '" + k + "' (a grid is {from, to, step} or {from, to, count})"};
+      }
+      const Value v = kv.second.IsScalar() ? scalar_value(kv.second) : Value{};
+      if (v.kind != Value::Kind::kNumber) return Error{here + ": grid " + k + " must be a number"};
+      if (k == "from") from = v.number;
+      if (k == "to") to = v.number;
+      if (k == "step") step = v.number;
+      if (k == "count") {
+        if (v.number != std::floor(v.number)) return Error{here + ": grid count must be a whole number"};
+        count = static_cast<int64_t>(v.number);
+      }
+    }
+    if (!seen.count("from") || !seen.count("to") || seen.count("step") == seen.count("count")) {
+      return Error{here + ": a grid is {from, to, step} or {from, to, count}"};
+    }
+    if (seen.count("step")) {
+      if (!(step > 0)) return Error{here + ": grid step must be positive"};
+      if (to < from) return Error{here + ": empty grid (to < from)"};
+      const double n_steps = std::floor((to - from) / step + 1e-9);
+      if (n_steps > 10000) return Error{here + ": grid of more than 10,000 values"};
+      for (int64_t i = 0; i <= static_cast<int64_t>(n_steps); ++i) p.values.push_back(Value::of_number(from + i * step));
+    } else {
+      if (count < 1) return Error{here + ": empty grid (count < 1)"};
+      if (count > 10000) return Error{here + ": grid of more than 10,000 values"};
+      for (int64_t i = 0; i < count; ++i) {
+        p.values.push_back(Value::of_number(count == 1 ? from : from + (to - from) * i / (count - 1)));
+      }
+    }
+  } else {
+    return Error{here + ": expected a list of values or a grid {from, to, step}"};
+  }
+  if (p.values.empty()) return Error{here + ": empty list of values"};
+  std::set<std::string> distinct;
+  for (const auto& v : p.values) {
+    if (!distinct.insert(v.text).second) return Error{here + ": value " + v.text + " given twice"};
+  }
+  return p;
+}
+
+/// Checks a parameter's key and its values' types against what the point can do with them.
+Status check_parameter(const std::string& file, const YAML::Node& node, const Parameter& p, const Spec& s,
+                       const std::set<std::string>& scenario_channels) {
+  const std::string here = where(file, node, "vary: " + p.key);
+  auto all = [&](Value::Kind k) {
+    return std::all_of(p.values.begin(), p.values.end(), [k](const Value& v) { return v.kind == k; });
+  };
+  if (p.key == "seed") {
+    for (const auto& v : p.values) {
+      if (v.kind != Value::Kind::kNumber || v.number < 0 || v.number != std::floor(v.number) || v.number > 9e15) {
+        return Error{here + ": " + v.text + " is not a non-negative whole number"};
+      }
+    }
+    return {};
+  }
+  if (p.key == "duration") {
+    if (!s.has(Stage::kSim)) return Error{here + ": duration is the simulation's; this sweep has no sim stage"};
+    for (const auto& v : p.values) {
+      if (v.kind != Value::Kind::kNumber || !(v.number > 0)) return Error{here + ": " + v.text + " is not a positive number"};
+    }
+    return {};
+  }
+  if (p.key == "restamp") {
+    if (!s.has(Stage::kReplay)) return Error{here + ": restamp is the replay's; this sweep has no replay stage"};
+    for (const auto& v : p.values) {
+      if (v.text != "none" && v.text != "auto") return Error{here + ": " + v.text + " is neither none nor auto"};
+    }
+    return {};
+  }
+  const size_t dot = p.key.find('.');
+  const std::string head = p.key.substr(0, dot);
+  if (head == "faults") {
+    const size_t dot2 = p.key.rfind('.');
+    if (dot == std::string::npos || dot2 == dot) {
+      return Error{here + ": a fault is addressed as faults.CHANNEL.FIELD (e.g. faults.IMU.clock_offset_s)"};
+    }
+    if (!s.has(Stage::kSim) && !s.has(Stage::kReplay)) {
+      return Error{here + ": faults need a sim stage (--faults) or a replay stage (--inject)"};
+    }
+    const std::string channel = p.key.substr(dot + 1, dot2 - dot - 1), field = p.key.substr(dot2 + 1);
+    if (s.has(Stage::kSim) && !scenario_channels.empty() && !scenario_channels.count(channel)) {
+      std::string known;
+      for (const auto& c : scenario_channels) known += (known.empty() ? "" : ", ") + c;
+      return Error{here + ": the scenario publishes no channel " + channel + " (it has " + known + ")"};
+    }
+    if (!all(Value::Kind::kNumber)) return Error{here + ": fault values must be numbers"};
+    // The fault model's own parser checks the field and each value's range.
+    for (const auto& v : p.values) {
+      const std::string yaml = "streams:\n  " + channel + ":\n    " + field + ": " + v.text + "\n";
+      if (auto f = parse_faults(yaml, "x"); !f) {
+        std::string m = f.error().message;
+        if (const size_t colon = m.find(": "); colon != std::string::npos) m = m.substr(colon + 2);
+        if (const size_t colon = m.find(": "); colon != std::string::npos && m.rfind("x:", 0) == 0) m = m.substr(colon + 2);
+        return Error{here + ": " + m};
+      }
+    }
+    return {};
+  }
+  if (is_module(head)) {
+    if (dot == std::string::npos || dot + 1 == p.key.size()) {
+      return Error{here + ": a module setting is addressed as MODULE.KEY (e.g. estimator.window_s)"};
+    }
+    if (!s.has(Stage::kReplay)) return Error{here + ": module settings need a replay stage"};
+    return {};  // the replay program checks the key and values (validate_module_settings)
+  }
+  return Error{here + ": unknown parameter (seed, duration, restamp, faults.CHANNEL.FIELD or MODULE.KEY with "
+                      "MODULE one of slam, estimator, controller)"};
+}
+
+/// The channels a scenario publishes (its sensors' `channel`s), for checking faults early; empty when unreadable
+/// (the simulator then says what is wrong).
+std::set<std::string> scenario_channels(const std::string& path) {
+  std::set<std::string> out;
+  try {
+    const YAML::Node root = YAML::LoadFile(path);
+    for (const auto& sensor : root["sensors"]) {
+      if (sensor["channel"]) out.insert(sensor["channel"].Scalar());
+      if (sensor["tf_channel"]) out.insert(sensor["tf_channel"].Scalar());
+    }
+  } catch (const YAML::Exception&) {
+    out.clear();
+  }
+  return out;
+}
+
+/// The faults section of a scenario (docs/simulator.md) as channel -> field -> value.
+std::map<std::string, std::map<std::string, double>> scenario_faults(const std::string& path) {
+  std::map<std::string, std::map<std::string, double>> out;
+  try {
+    const YAML::Node root = YAML::LoadFile(path);
+    for (const auto& stream : root["faults"]["streams"]) {
+      for (const auto& kv : stream.second) out[stream.first.Scalar()][kv.first.Scalar()] = kv.second.as<double>();
+    }
+  } catch (const YAML::Exception&) {
+    out.clear();
+  }
+  return out;
+}
+
+std::string stage_list(const Spec& s) {
+  std::string out;
+  for (Stage st : s.stages) out += std::string(out.empty() ? "" : ",") + stage_name(st);
+  return out;
+}
+
+}  // namespace
+
+bool is_pattern(const std::string& s) { return s.find_first_of("*?[") != std::string::npos; }
+
+std::vector<std::string> expand_pattern(const std::string& pattern) {
+  const fs::path pat(pattern);
+  const std::string leaf = pat.filename().string();
+  std::vector<std::string> out;
+  std::error_code ec;
+  for (const auto& e : fs::directory_iterator(pat.parent_path().empty() ? "." : pat.parent_path(), ec)) {
+    const std::string name = e.path().filename().string();
+    if (e.is_regular_file(ec) && ::fnmatch(leaf.c_str(), name.c_str(), FNM_PERIOD) == 0) out.push_back(e.path().string());
+  }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+Value Value::of_number(double v) { return {Kind::kNumber, v, canonical_number(v)}; }
+Value Value::of_string(std::string s) { return {Kind::kString, 0, std::move(s)}; }
+Value Value::of_bool(bool b) { return {Kind::kBool, 0, b ? "true" : "false"}; }
+
+nlohmann::json Value::json() const {
+  if (kind == Kind::kNumber) return std::stod(text);
+  if (kind == Kind::kBool) return text == "true";
+  return text;
+}
+
+const char* stage_name(Stage s) {
+  switch (s) {
+    case Stage::kSim: return "sim";
+    case Stage::kReplay: return "replay";
+    case Stage::kDiagnose: return "diagnose";
+    case Stage::kEval: return "eval";
+    case Stage::kReport: return "report";
+  }
+  return "?";
+}
+
+bool Spec::has(Stage st) const { return std::find(stages.begin(), stages.end(), st) != stages.end(); }
+
+const Value* Point::get(const std::string& key) const {
+  for (const auto& [k, v] : params) {
+    if (k == key) return &v;
+  }
+  return nullptr;
+}
+
+Result<Spec> load_spec(const std::string& path) {
+  Spec s;
+  s.file = path;
+  std::ifstream in(path);
+  if (!in) return Error{path + ": cannot open the sweep spec"};
+  std::stringstream text;
+  text << in.rdbuf();
+  YAML::Node root;
+  try {
+    root = YAML::Load(text.str());
+  } catch (const YAML::Exception& e) {
+    return Error{path + ":" + std::to_string(e.mark.line + 1) + ": " + e.msg};
+  }
+  if (!root.IsMap()) return Error{path + ": a sweep spec is a map (" + std::string(kTopKeys) + ")"};
+  const fs::path base = fs::absolute(fs::path(path)).parent_path();
+  s.name = fs::path(path).stem().string();
+  YAML::Node vary, pipeline;
+  try {
+    for (const auto& kv : root) {
+      const std::string key = kv.first.Scalar();
+      const YAML::Node& v = kv.second;
+      const std::string here = where(path, v, key);
+      auto scalar = [&]() -> Result<Value> {
+        if (!v.IsScalar()) return Error{here + ": expected a single value"};
+        return scalar_value(v);
+      };
+      if (key == "name") {
+        auto x = scalar();
+        if (!x) return x.error();
+        s.name = x->text;
+      } else if (key == "scenario") {
+        auto x = scalar();
+        if (!x) return x.error();
+        s.scenario = absolute(x->text, base);
+        if (!fs::is_regular_file(s.scenario)) return Error{here + ": no such scenario file: " + s.scenario};
+      } else if (key == "logs") {
+        if (!v.IsSequence() && !v.IsScalar()) return Error{here + ": a list of logs (paths or globs)"};
+        std::vector<std::string> items;
+        if (v.IsScalar()) items.push_back(v.Scalar());
+        for (const auto& x : v) {
+          if (!x.IsScalar()) return Error{here + ": a list of logs (paths or globs)"};
+          items.push_back(x.Scalar());
+        }
+        for (const auto& item : items) {
+          const std::string p = absolute(item, base);
+          if (is_pattern(p)) {
+            auto files = expand_pattern(p);
+            if (files.empty()) return Error{here + ": " + item + " matches no file"};
+            s.logs.insert(s.logs.end(), files.begin(), files.end());
+          } else {
+            if (!fs::is_regular_file(p)) return Error{here + ": no such log: " + item};
+            s.logs.push_back(p);
+          }
+        }
+      } else if (key == "duration") {
+        auto x = scalar();
+        if (!x) return x.error();
+        if (x->kind != Value::Kind::kNumber || !(x->number > 0)) return Error{here + ": must be a positive number [s]"};
+        s.duration = x->number;
+      } else if (key == "seed") {
+        auto x = scalar();
+        if (!x) return x.error();
+        if (x->kind != Value::Kind::kNumber || x->number < 0 || x->number != std::floor(x->number)) {
+          return Error{here + ": must be a non-negative whole number"};
+        }
+        s.seed = static_cast<int64_t>(x->number);
+      } else if (key == "faults") {
+        // The scenario's `faults:` form (docs/faults.md), checked by the fault model's parser.
+        YAML::Emitter e;
+        e << v;
+        if (auto f = parse_faults(std::string(e.c_str()), path + " (faults)"); !f) return Error{here + ": " + f.error().message};
+        s.faults_given = true;
+        for (const auto& stream : v["streams"]) {
+          for (const auto& f : stream.second) s.faults[stream.first.Scalar()][f.first.Scalar()] = f.second.as<double>();
+        }
+      } else if (key == "modules") {
+        std::vector<std::string> names;
+        if (v.IsScalar()) {
+          std::stringstream ss(v.Scalar());
+          for (std::string m; std::getline(ss, m, ',');) {
+            m.erase(0, m.find_first_not_of(' '));
+            m.erase(m.find_last_not_of(' ') + 1);
+            names.push_back(m);
+          }
+        } else if (v.IsSequence()) {
+          for (const auto& m : v) names.push_back(m.Scalar());
+        } else {
+          return Error{here + ": a list of modules (slam, estimator, controller)"};
+        }
+        for (const auto& m : names) {
+          if (!is_module(m)) return Error{here + ": unknown module '" + m + "' (slam, estimator, controller)"};
+          s.modules += (s.modules.empty() ? "" : ",") + m;
+        }
+      } else if (key == "settings") {
+        if (!v.IsMap()) return Error{here + ": one map of settings per module (estimator: {window_s: 0.5})"};
+        for (const auto& m : v) {
+          const std::string module = m.first.Scalar();
+          if (!is_module(module)) return Error{where(path, m.first, "settings: " + module) + ": unknown module (slam, estimator, controller)"};
+          if (!m.second.IsMap()) return Error{where(path, m.second, "settings: " + module) + ": a map of key: value"};
+          for (const auto& kv2 : m.second) {
+            if (!kv2.second.IsScalar()) {
+              return Error{where(path, kv2.second, "settings: " + module + "." + kv2.first.Scalar()) + ": expected a single value"};
+            }
+            s.settings[module][kv2.first.Scalar()] = scalar_value(kv2.second);
+          }
+        }
+      } else if (key == "restamp") {
+        auto x = scalar();
+        if (!x) return x.error();
+        if (x->text != "none" && x->text != "auto") return Error{here + ": none or auto"};
+        s.restamp = x->text;
+      } else if (key == "eval") {
+        if (!v.IsMap()) return Error{here + ": {gt: CHANNEL, est: CHANNEL, align: none|se3|sim3|posyaw}"};
+        for (const auto& kv2 : v) {
+          const std::string k = kv2.first.Scalar();
+          const std::string x = kv2.second.Scalar();
+          if (k == "gt") s.gt_channel = x;
+          else if (k == "est") s.est_channel = x;
+          else if (k == "align") {
+            if (x != "none" && x != "se3" && x != "sim3" && x != "posyaw") return Error{where(path, kv2.second, "eval: align") + ": none, se3, sim3 or posyaw"};
+            s.align = x;
+          } else {
+            return Error{where(path, kv2.first, "eval: " + k) + ": unknown key (gt, est, align)"};
+          }
+        }
+      } else if (key == "keep_logs") {
+        auto x = scalar();
+        if (!x) return x.error();
+        if (x->kind != Value::Kind::kBool) return Error{here + ": true or false"};
+        s.keep_logs = x->text == "true";
+      } else if (key == "pipeline") {
+        pipeline = v;
+      } else if (key == "vary") {
+        vary = v;
+      } else {
+        return Error{where(path, kv.first, key) + ": unknown key (" + std::string(kTopKeys) + ")"};
+      }
+    }
+  } catch (const YAML::Exception& e) {
+    return Error{path + ":" + std::to_string(e.mark.line + 1) + ": " + e.msg};
+  }
+
+  // The pipeline: given, or what the spec implies.
+  if (pipeline && !pipeline.IsNull()) {
+    if (!pipeline.IsSequence()) return Error{where(path, pipeline, "pipeline") + ": a list of stages (sim, replay, diagnose, eval)"};
+    std::set<Stage> seen;
+    for (const auto& st : pipeline) {
+      const std::string n = st.Scalar();
+      Stage stage;
+      if (n == "sim") stage = Stage::kSim;
+      else if (n == "replay") stage = Stage::kReplay;
+      else if (n == "diagnose") stage = Stage::kDiagnose;
+      else if (n == "eval") stage = Stage::kEval;
+      else return Error{where(path, st, "pipeline") + ": unknown stage '" + n + "' (sim, replay, diagnose, eval)"};
+      seen.insert(stage);
+    }
+    for (Stage st : {Stage::kSim, Stage::kReplay, Stage::kDiagnose, Stage::kEval}) {
+      if (seen.count(st)) s.stages.push_back(st);
+    }
+  } else {
+    if (s.logs.empty()) s.stages.push_back(Stage::kSim);
+    if (!s.modules.empty()) s.stages.push_back(Stage::kReplay);
+    s.stages.push_back(Stage::kDiagnose);
+    if (!s.modules.empty()) s.stages.push_back(Stage::kEval);
+  }
+  if (auto st = check_stage_order(s, path + ": pipeline " + stage_list(s)); !st) return Error{st.message()};
+  if (!s.has(Stage::kSim) && s.duration > 0) return Error{path + ": duration: only a simulation has one"};
+
+  if (s.has(Stage::kSim) && s.scenario.empty()) s.scenario = std::string(DRIFTLAB_SOURCE_DIR) + "/sim/scenarios/indoor.yaml";
+  const std::set<std::string> channels = s.has(Stage::kSim) ? scenario_channels(s.scenario) : std::set<std::string>{};
+  if (vary && !vary.IsNull()) {
+    if (!vary.IsMap()) return Error{where(path, vary, "vary") + ": a map of PARAMETER: [values] or {from, to, step}"};
+    for (const auto& kv : vary) {
+      const std::string key = kv.first.Scalar();
+      for (const auto& p : s.vary) {
+        if (p.key == key) return Error{where(path, kv.first, "vary: " + key) + ": given twice"};
+      }
+      auto p = read_parameter(path, key, kv.second);
+      if (!p) return p.error();
+      if (auto st = check_parameter(path, kv.first, *p, s, channels); !st) return Error{st.message()};
+      s.vary.push_back(std::move(*p));
+    }
+  }
+  // A faults field varied without `faults:` in the spec starts from the scenario's own faults (sweeps of a
+  // scenario), so the other streams keep theirs.
+  if (!s.faults_given && s.has(Stage::kSim) &&
+      std::any_of(s.vary.begin(), s.vary.end(), [](const Parameter& p) { return p.key.rfind("faults.", 0) == 0; })) {
+    s.faults = scenario_faults(s.scenario);
+  }
+  return s;
+}
+
+Result<Spec> batch_spec(const std::string& command, const std::vector<std::string>& logs) {
+  Spec s;
+  s.kind = "batch";
+  s.name = "batch " + command;
+  if (command == "diagnose") {
+    s.stages = {Stage::kDiagnose};
+  } else if (command == "eval") {
+    s.stages = {Stage::kEval};
+  } else if (command == "report") {
+    s.stages = {Stage::kDiagnose, Stage::kReport};
+  } else {
+    return Error{"batch " + command + ": unknown command (diagnose, eval, report)"};
+  }
+  std::set<std::string> seen;
+  for (const auto& l : logs) {
+    std::error_code ec;
+    const std::string p = fs::absolute(fs::path(l), ec).lexically_normal().string();
+    if (!fs::is_regular_file(p, ec)) return Error{l + ": no such log file"};
+    if (seen.insert(p).second) s.logs.push_back(p);
+  }
+  if (s.logs.empty()) return Error{"batch " + command + ": no logs given"};
+  return s;
+}
+
+std::vector<Point> expand(const Spec& spec) {
+  // What every point shares: the resolved spec without `vary` (and for batches, without the list of logs).
+  nlohmann::json base = to_json(Plan{spec, {}})["spec"];
+  base.erase("vary");
+  base.erase("file");
+  base.erase("name");
+  base.erase("keep_logs");
+  base.erase("logs");  // each log is a point's own value
+  const std::string base_text = base.dump();
+
+  std::vector<std::vector<std::pair<std::string, Value>>> combos(1);
+  if (!spec.logs.empty()) {  // one point per log (and per combination of the varied values)
+    combos.clear();
+    for (const auto& l : spec.logs) combos.push_back({{"log", Value::of_string(l)}});
+  }
+  for (const auto& p : spec.vary) {
+    std::vector<std::vector<std::pair<std::string, Value>>> next;
+    for (const auto& c : combos) {
+      for (const auto& v : p.values) {
+        auto d = c;
+        d.emplace_back(p.key, v);
+        next.push_back(std::move(d));
+      }
+    }
+    combos = std::move(next);
+  }
+  std::vector<Point> points;
+  for (auto& c : combos) {
+    auto sorted = c;
+    std::sort(sorted.begin(), sorted.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+    std::string key = base_text;
+    for (const auto& [k, v] : sorted) key += "\n" + k + "=" + v.text;
+    char id[17];
+    std::snprintf(id, sizeof(id), "%016llx", static_cast<unsigned long long>(fnv1a(key)));
+    points.push_back({std::string(id, 12), std::move(c)});
+  }
+  return points;
+}
+
+std::string module_config_yaml(const Spec& spec, const Point& point) {
+  auto settings = spec.settings;
+  for (const auto& [k, v] : point.params) {
+    const size_t dot = k.find('.');
+    if (dot != std::string::npos && is_module(k.substr(0, dot))) settings[k.substr(0, dot)][k.substr(dot + 1)] = v;
+  }
+  if (settings.empty()) return "";
+  YAML::Emitter e;
+  e << YAML::BeginMap;
+  for (const auto& [module, kv] : settings) {
+    e << YAML::Key << module << YAML::Value << YAML::BeginMap;
+    for (const auto& [k, v] : kv) {
+      e << YAML::Key << k << YAML::Value;
+      if (v.kind == Value::Kind::kString) {
+        e << YAML::DoubleQuoted << v.text;
+      } else {
+        e << v.text;
+      }
+    }
+    e << YAML::EndMap;
+  }
+  e << YAML::EndMap;
+  return std::string(e.c_str()) + "\n";
+}
+
+std::string faults_yaml(const Spec& spec, const Point& point) {
+  auto faults = spec.faults;
+  bool varied = false;
+  for (const auto& [k, v] : point.params) {
+    if (k.rfind("faults.", 0) != 0) continue;
+    const size_t dot = k.rfind('.');
+    faults[k.substr(7, dot - 7)][k.substr(dot + 1)] = v.number;
+    varied = true;
+  }
+  if (!spec.faults_given && !varied) return "";
+  std::ostringstream out;
+  out << "# written by driftlab sweep\nstreams:\n";
+  if (faults.empty()) return "streams: {}\n";
+  for (const auto& [channel, fields] : faults) {
+    out << "  " << channel << ":\n";
+    for (const auto& [f, v] : fields) out << "    " << f << ": " << canonical_number(v) << "\n";
+  }
+  return out.str();
+}
+
+std::string restamp_of(const Spec& spec, const Point& point) {
+  const Value* v = point.get("restamp");
+  return v != nullptr ? v->text : spec.restamp;
+}
+
+Status validate_module_settings(const Spec& spec, const ConfigCheck& check) {
+  std::vector<const Parameter*> module_params;
+  for (const auto& p : spec.vary) {
+    const size_t dot = p.key.find('.');
+    if (dot != std::string::npos && is_module(p.key.substr(0, dot))) module_params.push_back(&p);
+  }
+  if (spec.settings.empty() && module_params.empty()) return {};
+  size_t rounds = 1;
+  for (const auto* p : module_params) rounds = std::max(rounds, p->values.size());
+  for (size_t i = 0; i < rounds; ++i) {
+    Point pt;
+    for (const auto* p : module_params) pt.params.emplace_back(p->key, p->values[i % p->values.size()]);
+    const std::string message = check(module_config_yaml(spec, pt));
+    if (message.empty()) continue;
+    // Name the spec's key the program complained about.
+    std::string key = "settings";
+    for (const auto* p : module_params) {
+      const std::string leaf = p->key.substr(p->key.find('.') + 1);
+      if (message.find(leaf) != std::string::npos) key = "vary: " + p->key + " = " + pt.get(p->key)->text;
+    }
+    return Error{spec.file + ": " + key + ": the replay program refuses it: " + message};
+  }
+  return {};
+}
+
+nlohmann::json to_json(const Plan& plan) {
+  const Spec& s = plan.spec;
+  nlohmann::json j;
+  nlohmann::json spec = {{"kind", s.kind}, {"file", s.file}, {"name", s.name}, {"scenario", s.scenario},
+                         {"logs", s.logs}, {"duration", s.duration}, {"seed", s.seed}, {"faults", s.faults},
+                         {"faults_given", s.faults_given}, {"modules", s.modules}, {"restamp", s.restamp},
+                         {"gt", s.gt_channel}, {"est", s.est_channel}, {"align", s.align},
+                         {"keep_logs", s.keep_logs}};
+  nlohmann::json settings = nlohmann::json::object();
+  for (const auto& [m, kv] : s.settings) {
+    for (const auto& [k, v] : kv) settings[m][k] = {{"kind", static_cast<int>(v.kind)}, {"text", v.text}};
+  }
+  spec["settings"] = settings;
+  spec["stages"] = nlohmann::json::array();
+  for (Stage st : s.stages) spec["stages"].push_back(stage_name(st));
+  spec["vary"] = nlohmann::json::array();
+  for (const auto& p : s.vary) {
+    nlohmann::json values = nlohmann::json::array();
+    for (const auto& v : p.values) values.push_back({{"kind", static_cast<int>(v.kind)}, {"text", v.text}});
+    spec["vary"].push_back({{"key", p.key}, {"values", values}});
+  }
+  j["spec"] = spec;
+  j["points"] = nlohmann::json::array();
+  for (const auto& pt : plan.points) {
+    nlohmann::json params = nlohmann::json::array();
+    for (const auto& [k, v] : pt.params) params.push_back({{"key", k}, {"kind", static_cast<int>(v.kind)}, {"text", v.text}});
+    j["points"].push_back({{"id", pt.id}, {"params", params}});
+  }
+  return j;
+}
+
+Result<Plan> plan_from_json(const nlohmann::json& j, const std::string& origin) {
+  auto value = [](const nlohmann::json& v) {
+    const auto kind = static_cast<Value::Kind>(v.at("kind").get<int>());
+    const std::string text = v.at("text");
+    if (kind == Value::Kind::kNumber) return Value::of_number(std::stod(text));
+    if (kind == Value::Kind::kBool) return Value::of_bool(text == "true");
+    return Value::of_string(text);
+  };
+  try {
+    Plan plan;
+    Spec& s = plan.spec;
+    const auto& js = j.at("spec");
+    s.kind = js.at("kind");
+    s.file = js.at("file");
+    s.name = js.at("name");
+    s.scenario = js.at("scenario");
+    s.logs = js.at("logs").get<std::vector<std::string>>();
+    s.duration = js.at("duration");
+    s.seed = js.at("seed");
+    s.faults = js.at("faults").get<std::map<std::string, std::map<std::string, double>>>();
+    s.faults_given = js.at("faults_given");
+    s.modules = js.at("modules");
+    s.restamp = js.at("restamp");
+    s.gt_channel = js.at("gt");
+    s.est_channel = js.at("est");
+    s.align = js.at("align");
+    s.keep_logs = js.at("keep_logs");
+    for (const auto& [m, kv] : js.at("settings").items()) {
+      for (const auto& [k, v] : kv.items()) s.settings[m][k] = value(v);
+    }
+    for (const auto& st : js.at("stages")) {
+      const std::string n = st;
+      for (Stage x : {Stage::kSim, Stage::kReplay, Stage::kDiagnose, Stage::kEval, Stage::kReport}) {
+        if (n == stage_name(x)) s.stages.push_back(x);
+      }
+    }
+    for (const auto& p : js.at("vary")) {
+      Parameter param{p.at("key"), {}};
+      for (const auto& v : p.at("values")) param.values.push_back(value(v));
+      s.vary.push_back(std::move(param));
+    }
+    for (const auto& pt : j.at("points")) {
+      Point point{pt.at("id"), {}};
+      for (const auto& p : pt.at("params")) point.params.emplace_back(p.at("key"), value(p));
+      plan.points.push_back(std::move(point));
+    }
+    return plan;
+  } catch (const nlohmann::json::exception& e) {
+    return Error{origin + ": not a driftlab sweep plan (" + std::string(e.what()) + ")"};
+  }
+}
+
+}  // namespace driftlab::batch

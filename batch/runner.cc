@@ -1,0 +1,228 @@
+#include "batch/runner.h"
+
+#include <signal.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <chrono>
+#include <cstdio>
+#include <ctime>
+#include <filesystem>
+#include <fstream>
+
+#include "batch/store.h"
+#include "core/process.h"
+
+namespace driftlab::batch {
+namespace {
+
+namespace fs = std::filesystem;
+
+volatile sig_atomic_t g_stop = 0;
+volatile sig_atomic_t g_child = 0;
+
+void on_signal(int sig) {
+  g_stop = 1;
+  // A terminal's Ctrl-C reaches the stage itself; a SIGTERM from an executor or scancel reaches only us.
+  if (g_child > 0) ::kill(static_cast<pid_t>(g_child), sig);
+}
+
+struct StageRun {
+  std::string name;
+  std::vector<std::string> argv;
+  std::string out;  ///< its standard output
+};
+
+}  // namespace
+
+nlohmann::json point_metrics(const Plan& plan, const std::string& pdir, const RunnerOptions& options) {
+  const Spec& s = plan.spec;
+  const fs::path d(pdir);
+  nlohmann::json m = nlohmann::json::object();
+  if (s.has(Stage::kEval)) {
+    if (auto e = read_json_file((d / "eval.json").string())) {
+      m["ate_rmse"] = (*e).at("ate").at("rmse");
+      m["ate_max"] = (*e).at("ate").at("max");
+      m["rpe_rmse"] = (*e).at("rpe").at("trans").at("rmse");
+      m["matched_poses"] = (*e).at("matched");
+    }
+  }
+  if (s.has(Stage::kDiagnose) && options.summarize) {
+    if (auto dj = read_json_file((d / "diagnosis.json").string())) {
+      const nlohmann::json sum = options.summarize(*dj);
+      int64_t drops = 0;
+      for (const auto& [ch, n] : sum.at("drops").items()) {
+        m["drops." + ch] = n;
+        drops += n.get<int64_t>();
+      }
+      m["drops"] = drops;
+      for (const auto& [ch, v] : sum.at("clocks_ahead_s").items()) m["offset_s." + ch] = v;
+      const auto& worst = sum.at("worst_stream");
+      m["worst_stream"] = worst.is_object() ? worst.at("name").get<std::string>() : "";
+      m["worst_verdict"] = worst.is_object() ? worst.at("verdict").get<std::string>() : "ok";
+      m["worst_reason"] = worst.is_object() && !worst.at("reasons").empty() ? worst.at("reasons")[0].get<std::string>() : "";
+      int faults = 0, warns = 0;
+      for (const auto& c : (*dj).at("channels")) {
+        const std::string v = c.at("verdict");
+        faults += v == "fault";
+        warns += v == "warn";
+      }
+      m["fault_streams"] = faults;
+      m["warn_streams"] = warns;
+    }
+  }
+  if (s.has(Stage::kReplay)) {
+    if (auto r = read_json_file((d / "replay.json").string())) {
+      for (const auto& mod : (*r).at("modules")) {
+        if (mod.at("name") != "estimator") continue;
+        for (const char* k : {"late_rejected", "late_reapplied"}) {
+          if (mod.at("metrics").contains(k)) m[std::string("estimator.") + k] = mod.at("metrics").at(k);
+        }
+      }
+    }
+  }
+  if (s.has(Stage::kReport)) m["report"] = (d / "report" / "index.html").string();
+  return m;
+}
+
+int run_point(const Plan& plan, const Point& point, const std::string& dir, const RunnerOptions& options) {
+  const Spec& s = plan.spec;
+  if (is_done(dir, point.id)) return kPointDone;
+  const fs::path d = fs::absolute(point_dir(dir, point.id));
+  std::error_code ec;
+  // A new attempt starts clean: what an earlier, unfinished one left is removed (the attempt count stays).
+  if (fs::exists(d)) {
+    for (const auto& e : fs::directory_iterator(d, ec)) {
+      if (e.path().filename() != "attempts") fs::remove_all(e.path(), ec);
+    }
+  }
+  fs::create_directories(d, ec);
+  if (ec) {
+    std::fprintf(stderr, "driftlab: %s: cannot create the point's folder: %s\n", d.c_str(), ec.message().c_str());
+    return kPointFailed;
+  }
+  const int attempt = count_attempt(dir, point.id);
+  auto file = [&](const char* name) { return (d / name).string(); };
+  nlohmann::json running = {{"host", host_name()}, {"pid", static_cast<int>(::getpid())}, {"attempt", attempt},
+                            {"started", static_cast<int64_t>(std::time(nullptr))}};
+  if (const char* job = std::getenv("SLURM_JOB_ID")) running["slurm_job"] = job;
+  (void)write_atomically(file("running.json"), running.dump() + "\n");
+
+  nlohmann::json params = nlohmann::json::object();
+  for (const auto& [k, v] : point.params) params[k] = v.json();
+  (void)write_atomically(file("params.json"), params.dump(1) + "\n");
+
+  // The point's inputs.
+  const std::string faults = faults_yaml(s, point), config = module_config_yaml(s, point);
+  if (!faults.empty()) (void)write_atomically(file("faults.yaml"), faults);
+  if (!config.empty()) (void)write_atomically(file("replay.yaml"), config);
+  const Value* log = point.get("log");
+  const std::string input = log != nullptr ? log->text : file("sim.lcm");
+  const Value* seed = point.get("seed");
+  const Value* duration = point.get("duration");
+  const std::string restamp = restamp_of(s, point);
+  const bool logs_with_faults = log != nullptr && !faults.empty();
+
+  const std::string& exe = options.driftlab;
+  std::vector<StageRun> stages;
+  for (Stage st : s.stages) {
+    StageRun r{stage_name(st), {exe, stage_name(st)}, ""};
+    switch (st) {
+      case Stage::kSim:
+        r.argv.push_back(s.scenario);
+        r.argv.insert(r.argv.end(), {"-o", file("sim.lcm"), "--json"});
+        if (seed != nullptr || s.seed >= 0) r.argv.insert(r.argv.end(), {"--seed", seed ? seed->text : std::to_string(s.seed)});
+        if (duration != nullptr) {
+          r.argv.insert(r.argv.end(), {"--duration", duration->text});
+        } else if (s.duration > 0) {
+          r.argv.insert(r.argv.end(), {"--duration", Value::of_number(s.duration).text});
+        }
+        if (!faults.empty()) r.argv.insert(r.argv.end(), {"--faults", file("faults.yaml")});
+        r.out = file("sim.json");
+        break;
+      case Stage::kReplay:
+        r.argv.insert(r.argv.end(), {input, "--modules", s.modules, "-o", file("replay.lcm"), "--json"});
+        if (!config.empty()) r.argv.insert(r.argv.end(), {"--config", file("replay.yaml")});
+        if (restamp == "auto") r.argv.insert(r.argv.end(), {"--restamp", "auto"});
+        if (logs_with_faults) r.argv.insert(r.argv.end(), {"--inject", file("faults.yaml")});
+        // The inputs are needed in the output only when the faults were injected here and the diagnosis reads them.
+        if (!(logs_with_faults && s.has(Stage::kDiagnose))) r.argv.push_back("--no-inputs");
+        r.out = file("replay.json");
+        break;
+      case Stage::kDiagnose:
+        r.argv.insert(r.argv.end(), {logs_with_faults && s.has(Stage::kReplay) ? file("replay.lcm") : input, "--json",
+                                     file("diagnosis.json")});
+        r.out = file("diagnose.txt");
+        break;
+      case Stage::kEval: {
+        const std::string est_log = s.has(Stage::kReplay) ? file("replay.lcm") : input;
+        r.argv.insert(r.argv.end(), {"--gt", input + ":" + s.gt_channel, "--est", est_log + ":" + s.est_channel,
+                                     "--align", s.align, "--json", file("eval.json")});
+        r.out = file("eval.txt");
+        break;
+      }
+      case Stage::kReport:
+        r.argv.insert(r.argv.end(), {input, "--diagnosis", file("diagnosis.json"), "-o", file("report")});
+        r.out = file("report.txt");
+        break;
+    }
+    stages.push_back(std::move(r));
+  }
+
+  struct sigaction sa {};
+  sa.sa_handler = on_signal;
+  sigaction(SIGINT, &sa, nullptr);
+  sigaction(SIGTERM, &sa, nullptr);
+
+  nlohmann::json seconds = nlohmann::json::object();
+  const auto t_start = std::chrono::steady_clock::now();
+  auto fail_with = [&](const std::string& stage, int code, const std::string& why) {
+    const nlohmann::json failed = {{"stage", stage}, {"exit_code", code}, {"error", why}, {"attempt", attempt},
+                                   {"host", host_name()}, {"seconds", seconds}};
+    (void)write_atomically(file("failed.json"), failed.dump(1) + "\n");
+    fs::remove(file("running.json"), ec);
+    std::fprintf(stderr, "driftlab: point %s: %s\n", point.id.c_str(), why.c_str());
+    return g_stop ? kPointInterrupted : kPointFailed;
+  };
+  for (const auto& r : stages) {
+    if (g_stop) return fail_with(r.name, kPointInterrupted, "interrupted before " + r.name);
+    const std::string err = file((r.name + ".err").c_str());
+    const auto t0 = std::chrono::steady_clock::now();
+    const pid_t pid = start_process(r.argv, r.out, err);
+    if (pid < 0) return fail_with(r.name, 127, "cannot start " + exe);
+    g_child = pid;
+    if (g_stop) ::kill(pid, SIGTERM);
+    const int code = wait_process(pid);
+    g_child = 0;
+    seconds[r.name] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    if (g_stop) return fail_with(r.name, code, "interrupted during " + r.name);
+    if (code != 0) {
+      const std::string why = last_line_of(err);
+      return fail_with(r.name, code, "driftlab " + r.name + " exited with " + std::to_string(code) +
+                                         (why.empty() ? "" : ": " + why));
+    }
+  }
+  seconds["total"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
+
+  nlohmann::json metrics;
+  try {
+    metrics = point_metrics(plan, d.string(), options);
+  } catch (const nlohmann::json::exception& e) {
+    return fail_with("collect", 1, std::string("reading the stages' JSON: ") + e.what());
+  }
+  if (!s.keep_logs) {
+    fs::remove(file("sim.lcm"), ec);
+    fs::remove(file("replay.lcm"), ec);
+  }
+  const nlohmann::json result = {{"id", point.id}, {"params", params}, {"metrics", metrics}, {"seconds", seconds},
+                                 {"attempt", attempt}, {"host", host_name()}};
+  // The done-marker, last: a point with result.json is whole and never runs again.
+  if (Status st = write_atomically(file("result.json"), result.dump(1) + "\n"); !st) {
+    return fail_with("collect", 1, st.message());
+  }
+  fs::remove(file("running.json"), ec);
+  fs::remove(file("failed.json"), ec);
+  return kPointDone;
+}
+
+}  // namespace driftlab::batch

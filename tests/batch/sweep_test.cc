@@ -1,0 +1,196 @@
+// `driftlab sweep` and `driftlab batch` end to end on the local executor: a tiny sweep of short simulations through
+// the estimator, diagnosis and eval (offsets found where they were injected), resumed without re-running finished
+// points, stopped by Ctrl-C keeping what finished, deterministic across runs; bad specs refused before anything
+// runs; a batch of logs diagnosed and ranked.
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <thread>
+
+#include "tests/batch/sweep_util.h"
+#include "tests/test_util.h"
+
+namespace driftlab {
+namespace {
+
+namespace fs = std::filesystem;
+
+TEST(SweepCli, LocalSweepRunsResumesAndIsDeterministic) {
+  test::TempDir dir;
+  const std::string spec = test::write_tiny_spec(dir);
+  const std::string out = dir.file("sweep");
+  auto r = test::driftlab("sweep " + spec + " -o " + out + " -j 2 --json");
+  ASSERT_EQ(r.code, 0) << r.err << r.out;
+  auto j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["points"], 4);
+  EXPECT_EQ(j["done"], 4);
+  EXPECT_EQ(j["failed"], 0);
+  EXPECT_TRUE(fs::exists(out + "/results.csv"));
+  EXPECT_TRUE(fs::exists(out + "/index.html"));
+
+  const auto rows = test::result_rows(out);
+  ASSERT_EQ(rows.size(), 4u);
+  for (const auto& row : rows) {
+    ASSERT_EQ(row["status"], "done") << row.dump();
+    EXPECT_GT(row["ate_rmse"].get<double>(), 0) << row.dump();
+    EXPECT_GT(row["rpe_rmse"].get<double>(), 0) << row.dump();
+    EXPECT_TRUE(row["estimator.late_rejected"].is_number()) << row.dump();
+  }
+  // The real stages ran with each point's own faults: the IMU clock ahead makes the estimator, which drops late
+  // measurements, reject more of them and drift further, seed by seed.
+  for (int seed : {1, 2}) {
+    nlohmann::json with, without;
+    for (const auto& row : rows) {
+      if (row["seed"] == seed) (row["faults.IMU.clock_offset_s"].get<double>() > 0 ? with : without) = row;
+    }
+    EXPECT_GT(with["estimator.late_rejected"].get<double>(), without["estimator.late_rejected"].get<double>());
+    EXPECT_GT(with["ate_rmse"].get<double>(), without["ate_rmse"].get<double>());
+  }
+  // Running it again runs nothing: the done-markers stand, and their files are untouched.
+  const std::string first_result = out + "/points/" + rows[0]["id"].get<std::string>() + "/result.json";
+  const auto mtime = fs::last_write_time(first_result);
+  r = test::driftlab("sweep " + spec + " -o " + out + " --json");
+  ASSERT_EQ(r.code, 0) << r.err;
+  j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["already_done"], 4);
+  EXPECT_EQ(j["done"], 0);
+  EXPECT_EQ(fs::last_write_time(first_result), mtime);
+
+  // Status and collect from the folder alone.
+  r = test::driftlab("sweep status " + out + " --json");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(nlohmann::json::parse(r.out)["done"], 4);
+  r = test::driftlab("sweep collect " + out + " --no-plots");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("4 of 4 points done"), std::string::npos) << r.out;
+
+  // The same spec with one process at a time gives the same numbers (the pipeline is deterministic).
+  r = test::driftlab("sweep " + spec + " -o " + dir.file("serial") + " -j 1 --json");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(test::metrics_by_id(dir.file("serial")), test::metrics_by_id(out));
+}
+
+TEST(SweepCli, CtrlCKeepsFinishedPointsAndResumes) {
+  test::TempDir dir;
+  const std::string spec = test::write_tiny_spec(dir);
+  const std::string out = dir.file("sweep");
+  // One at a time, so that the interrupt falls between points already done and points not started.
+  const pid_t pid = fork();
+  ASSERT_GE(pid, 0);
+  if (pid == 0) {
+    setpgid(0, 0);  // a process group of its own, as a terminal's foreground job
+    const std::string exe = test::kDriftlab;
+    execl(exe.c_str(), exe.c_str(), "sweep", spec.c_str(), "-o", out.c_str(), "-j", "1", static_cast<char*>(nullptr));
+    _exit(127);
+  }
+  setpgid(pid, pid);
+  // Wait for the first point to finish, then Ctrl-C the whole group (what a terminal does).
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(120);
+  auto done_points = [&] {
+    int n = 0;
+    std::error_code ec;
+    for (const auto& e : fs::directory_iterator(out + "/points", ec)) n += fs::exists(e.path() / "result.json");
+    return n;
+  };
+  while (done_points() < 1 && std::chrono::steady_clock::now() < deadline) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  ASSERT_GE(done_points(), 1);
+  kill(-pid, SIGINT);
+  int status = 0;
+  waitpid(pid, &status, 0);
+  ASSERT_TRUE(WIFEXITED(status));
+  const int kept = done_points();
+  if (kept < 4) {
+    EXPECT_EQ(WEXITSTATUS(status), 130);
+  }
+  EXPECT_GE(kept, 1);
+  // No point is half-marked: each folder has a whole result.json or none.
+  for (const auto& e : fs::directory_iterator(out + "/points")) {
+    EXPECT_FALSE(fs::exists(e.path() / "result.json.partial")) << e.path();
+    if (fs::exists(e.path() / "result.json")) {
+      std::ifstream f(e.path() / "result.json");
+      EXPECT_TRUE(nlohmann::json::accept(f)) << e.path();
+    }
+  }
+  // Resuming runs the rest only.
+  const auto r = test::driftlab("sweep " + spec + " -o " + out + " --json");
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["already_done"].get<int>(), kept);
+  EXPECT_EQ(j["done"].get<int>(), 4 - kept);
+}
+
+TEST(SweepCli, BadSpecIsOneLineExitTwoNothingRun) {
+  test::TempDir dir;
+  struct Case {
+    std::string body, key;
+  };
+  const std::vector<Case> cases = {
+      {"vary:\n  faults.IMU.clock_offset_ms: [0, 0.1]\n", "faults.IMU.clock_offset_ms"},
+      {"vary:\n  seed: []\n", "seed"},
+      {"vary:\n  faults.IMU.latency_s: [0, soon]\n", "faults.IMU.latency_s"},
+      {"vary:\n  wheel_radius: [0.1]\n", "wheel_radius"},
+      // A module key only the replay program knows is wrong: asked of it before anything runs.
+      {"modules: estimator\nvary:\n  estimator.imu_nois: [0.1, 0.2]\n", "estimator.imu_nois"},
+      {"modules: estimator\nvary:\n  estimator.window_s: [0.5, wide]\n", "estimator.window_s"},
+  };
+  for (const auto& c : cases) {
+    std::ofstream(dir.file("bad.yaml")) << "duration: 2\n" << c.body;
+    const std::string out = dir.file("never");
+    for (const char* executor : {"local", "slurm"}) {
+      const auto r = test::driftlab("sweep " + dir.file("bad.yaml") + " -o " + out + " --executor " + executor);
+      EXPECT_EQ(r.code, 2) << c.body << r.err;
+      EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+      EXPECT_NE(r.err.find(dir.file("bad.yaml")), std::string::npos) << r.err;
+      EXPECT_NE(r.err.find(c.key), std::string::npos) << r.err;
+      EXPECT_FALSE(fs::exists(out)) << c.body;  // nothing planned, nothing submitted
+    }
+  }
+}
+
+TEST(BatchCli, DiagnoseManyLogsRanked) {
+  test::TempDir dir;
+  // Three logs: two simulated (one with a bad IMU clock and lossy scans), and the sample log; given as a quoted
+  // pattern and a file of paths.
+  fs::create_directories(dir.file("logs"));
+  std::ofstream(dir.file("bad.yaml")) << "streams:\n  IMU: {clock_offset_s: 0.08}\n  SCAN: {drop_probability: 0.2}\n"
+                                         "  ODOM: {drop_probability: 0.1}\n";
+  std::ofstream(dir.file("good.yaml")) << "streams: {}\n";
+  ASSERT_EQ(test::driftlab("sim --duration 5 --faults " + dir.file("bad.yaml") + " -o " + dir.file("logs/bad.lcm")).code, 0);
+  ASSERT_EQ(test::driftlab("sim --duration 5 --faults " + dir.file("good.yaml") + " -o " + dir.file("logs/good.lcm")).code, 0);
+  std::ofstream(dir.file("list.txt")) << "# logs of the week\n" << std::string(DRIFTLAB_TEST_DATA) << "/sample.lcm\n";
+  const std::string out = dir.file("batch");
+  auto r = test::driftlab("batch diagnose '" + dir.file("logs/*.lcm") + "' @" + dir.file("list.txt") + " -o " + out + " --json");
+  ASSERT_EQ(r.code, 0) << r.err << r.out;
+  EXPECT_EQ(nlohmann::json::parse(r.out)["done"], 3);
+  std::ifstream f(out + "/results.json");
+  const auto j = nlohmann::json::parse(f);
+  ASSERT_EQ(j["ranked"].size(), 3u);
+  // The faulty log ranks first, its worst stream named.
+  EXPECT_EQ(fs::path(j["ranked"][0]["log"].get<std::string>()).filename(), "bad.lcm") << j["ranked"].dump(1);
+  EXPECT_NE(j["ranked"][0]["worst_stream"], "");
+  EXPECT_GT(j["ranked"][0]["drops"].get<int>(), 0);
+  EXPECT_TRUE(fs::exists(out + "/index.html"));
+  EXPECT_TRUE(fs::exists(out + "/ranked.png"));
+  // A log that is not there: one line, exit 2.
+  r = test::driftlab("batch diagnose " + dir.file("nothing.lcm") + " -o " + dir.file("b2"));
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("nothing.lcm"), std::string::npos);
+  // eval over logs that hold both trajectories (the simulator's odometry against its ground truth).
+  r = test::driftlab("batch eval " + dir.file("logs/good.lcm") + " " + dir.file("logs/bad.lcm") +
+                     " --est ODOM -o " + dir.file("evals") + " --json");
+  ASSERT_EQ(r.code, 0) << r.err << r.out;
+  const auto rows = test::result_rows(dir.file("evals"));
+  ASSERT_EQ(rows.size(), 2u);
+  for (const auto& row : rows) EXPECT_GT(row["ate_rmse"].get<double>(), 0) << row.dump();
+}
+
+}  // namespace
+}  // namespace driftlab
