@@ -77,10 +77,9 @@ bool split_log_channel(const std::string& src, std::string* log, std::string* ch
   const size_t colon = src.rfind(':');
   if (colon == std::string::npos || colon == 0 || colon + 1 == src.size()) return false;
   std::error_code ec;
-  // Any file but a folder: a FIFO or device is split too, so the command can refuse it by name.
-  if (!std::filesystem::exists(src.substr(0, colon), ec) || std::filesystem::is_directory(src.substr(0, colon), ec)) {
-    return false;
-  }
+  const std::string log_part = src.substr(0, colon);
+  // Any file or folder (a bag) that exists: a FIFO or device is split too, so the command can refuse it by name.
+  if (!std::filesystem::exists(log_part, ec)) return false;
   std::string whole = src;  // log or channel may alias src
   *log = whole.substr(0, colon);
   *channel = whole.substr(colon + 1);

@@ -39,7 +39,7 @@ int run_program(const std::vector<std::string>& argv, const std::string& stdout_
 Status run_plot_script(const char* script, const std::string& name, const std::string& dir,
                        const std::vector<std::string>& args);
 
-/// Splits "LOG:CHANNEL" at its last ':' when the part before it exists and is not a folder; false (log and channel
+/// Splits "LOG:CHANNEL" at its last ':' when the part before it exists (a file, or a folder: a bag); false (log and channel
 /// untouched) otherwise. Channel names may hold ':' only if the log's name has none after its last one.
 bool split_log_channel(const std::string& src, std::string* log, std::string* channel);
 

@@ -29,6 +29,8 @@ void add_batch_command(CLI::App& app, int* exit_code);
 void add_import_file_command(CLI::App& import_command, int* exit_code);
 /// export tum, export csv, on the `export` subcommand.
 void add_export_commands(CLI::App& export_command, int* exit_code);
+/// export mcap, export rosbag2 (ROS 2 bags in MCAP storage), on the `export` subcommand.
+void add_export_mcap_commands(CLI::App& export_command, int* exit_code);
 
 // In programs of their own:
 void add_sim_command(CLI::App& app, int* exit_code);                 // driftlab-sim

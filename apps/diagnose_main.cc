@@ -10,9 +10,9 @@
 #include "analyzers/timing.h"
 #include "apps/cli_checks.h"
 #include "apps/cli_util.h"
+#include "apps/log_input.h"
 #include "apps/commands.h"
 #include "apps/diagnosis_json.h"
-#include "core/log_reader.h"
 #include "core/same_file.h"
 
 namespace driftlab::apps {
@@ -22,6 +22,7 @@ using analyzers::Diagnosis;
 using analyzers::StreamPair;
 
 struct DiagnoseOptions {
+  std::vector<std::string> inputs;
   std::string log;
   std::string json;
   std::string html;
@@ -118,7 +119,6 @@ int run_diagnose(const DiagnoseOptions& o) {
   for (const auto& [out, option] : {std::pair{o.json, "--json"}, {o.html, "--html"}}) {
     if (Status s = refuse_same_file(out, {o.log}, option); !s) return fail(s.message());
   }
-  if (Status s = check_event_log(o.log); !s) return fail(s.message());
   auto result = analyzers::diagnose(o.log, o.analysis);
   if (!result) return fail(result.error().message);
   const Diagnosis& d = *result;
@@ -147,14 +147,28 @@ void add_diagnose_command(CLI::App& app, int* exit_code) {
   auto o = std::make_shared<DiagnoseOptions>();
   CLI::App* cmd = app.add_subcommand(
       "diagnose", "Find skew, clock offset and drift, latency, drops, duplicates and reordering in a log.");
-  cmd->add_option("log", o->log, "LCM event log")->required();
+  cmd->add_option("log", o->inputs, kLogInputHelp)->required();
   cmd->add_option("--json", o->json, "Also write the diagnosis as JSON to this file ('-': print only the JSON)");
   cmd->add_option("--html", o->html, "Also write the report as an HTML page");
   cmd->add_option("--max-lag", o->analysis.max_lag_s, "Skew search range [s]")
       ->capture_default_str()
       ->check(positive());
   cmd->add_option("--window", o->analysis.window_s, "Skew window [s]")->capture_default_str()->check(positive());
-  cmd->callback([o, exit_code] { *exit_code = run_diagnose(*o); });
+  cmd->callback([o, exit_code] {
+    for (const auto& [out, option] : {std::pair{o->json, "--json"}, {o->html, "--html"}}) {
+      if (Status s = refuse_same_file(out, o->inputs, option); !s) {  // the recording given, not only its conversion
+        *exit_code = fail(s.message());
+        return;
+      }
+    }
+    auto log = event_log_for(o->inputs);
+    if (!log) {
+      *exit_code = fail(log.error().message);
+      return;
+    }
+    o->log = *log;
+    *exit_code = run_diagnose(*o);
+  });
 }
 
 }  // namespace driftlab::apps

@@ -30,6 +30,7 @@ int main(int argc, char** argv) {
   add_sweep_command(app, &exit_code);
   add_batch_command(app, &exit_code);
   add_export_commands(exp, &exit_code);
+  add_export_mcap_commands(exp, &exit_code);
   add_import_file_command(import, &exit_code);
   return parse_and_run(app, argc, argv, exit_code);
 }

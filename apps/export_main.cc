@@ -9,6 +9,7 @@
 
 #include "analyzers/trajectory_io.h"
 #include "apps/cli_util.h"
+#include "apps/log_input.h"
 #include "apps/commands.h"
 #include "core/log_format.h"
 #include "core/log_reader.h"
@@ -26,6 +27,7 @@ struct TumArgs {
 };
 
 struct CsvArgs {
+  std::vector<std::string> inputs;
   std::string log, out, channels;
   size_t max_array = 1024;
   bool bytes = false;
@@ -50,7 +52,6 @@ struct CsvFile {
 };
 
 int run_csv(const CsvArgs& a) {
-  if (Status s = check_event_log(a.log); !s) return fail(s.message());
   ReadOptions ro;
   ro.channels = a.channels;
   auto reader = LogReader::open(a.log, ro);
@@ -148,8 +149,9 @@ int run_tum(TumArgs a) {
     return fail(a.log + ": name the channel as LOG:CHANNEL (or with -c CHANNEL)");
   }
   if (Status s = refuse_same_file(a.out, {a.log}); !s) return fail(s.message());
-  if (Status s = check_event_log(a.log); !s) return fail(s.message());
-  auto t = analyzers::load_log_channel(a.log, a.channel);
+  auto log = event_log_for(a.log);
+  if (!log) return fail(log.error().message);
+  auto t = analyzers::load_log_channel(*log, a.channel);
   if (!t) return fail(t.error().message);
   const std::string partial = a.out + ".partial";
   if (auto s = analyzers::write_tum(partial, *t); !s) {
@@ -171,7 +173,7 @@ void add_export_commands(CLI::App& exp, int* exit_code) {
   auto tum = std::make_shared<TumArgs>();
   CLI::App* t = exp.add_subcommand("tum", "A pose or odometry channel to a TUM trajectory file (for evo).");
   t->footer("One line per pose: \"t x y z qx qy qz qw\", t the header stamp in seconds; evo_ape and evo_traj read it.");
-  t->add_option("log", tum->log, "Log to read, as LOG:CHANNEL (or LOG with -c)")->required();
+  t->add_option("log", tum->log, "Log to read, as LOG:CHANNEL (or LOG with -c); LOG may be a bag (see export csv)")->required();
   t->add_option("-c,--channel", tum->channel, "Channel (driftlab.pose_t or driftlab.odometry_t)");
   t->add_option("-o,--out", tum->out, "TUM file to write")->required();
   t->callback([tum, exit_code] { *exit_code = run_tum(*tum); });
@@ -183,13 +185,21 @@ void add_export_commands(CLI::App& exp, int* exit_code) {
       "percent-encoded: /odom -> %2Fodom.csv): log_time_s (arrival), then every field flattened by its\n"
       "definition in lcmtypes/ (header.seq, header.utime, orientation.w, ranges[0], ...). Columns come from each\n"
       "channel's first message. Files are written as .partial and renamed when complete.");
-  c->add_option("log", csv->log, "Log to read")->required();
+  c->add_option("log", csv->inputs, kLogInputHelp)->required();
   c->add_option("-o,--out", csv->out, "Folder to write the CSV files into")->required();
   c->add_option("-c,--channels", csv->channels, "Only channels fully matching this regex (ECMAScript)");
   c->add_option("--max-array", csv->max_array, "Arrays with more elements are left out (their length stays)")
       ->capture_default_str();
   c->add_flag("--bytes", csv->bytes, "Also write byte arrays (image data) as columns of numbers");
-  c->callback([csv, exit_code] { *exit_code = run_csv(*csv); });
+  c->callback([csv, exit_code] {
+    auto log = event_log_for(csv->inputs);
+    if (!log) {
+      *exit_code = fail(log.error().message);
+      return;
+    }
+    csv->log = *log;
+    *exit_code = run_csv(*csv);
+  });
 }
 
 }  // namespace driftlab::apps

@@ -13,12 +13,13 @@ namespace driftlab::apps {
 namespace {
 
 struct ImportArgs {
-  std::string in, out;
+  std::vector<std::string> in;
+  std::string out;
 };
 
 constexpr int kProblemLines = 20;  // problems printed one by one; the rest counted
 
-void print_summary(const formats::ImportSummary& s, const std::string& from, const std::string& to) {
+void print_summary(const formats::ImportSummary& s, std::string from, const std::string& to) {
   std::printf("%s (%s) -> %s: %s messages\n", from.c_str(), s.format.c_str(), to.c_str(),
               thousands(s.messages).c_str());
   size_t width = 8;
@@ -42,9 +43,12 @@ void add_import_file_command(CLI::App& import, int* exit_code) {
   import.require_subcommand(0, 1);
   import.footer(
       "The format is recognised from the content: ROS 1 bags (format 2.0; uncompressed, bz2 or lz4 chunks; indexed\n"
-      "or not), CARMEN logs (.log/.clf, plain or gzip) and MRPT rawlogs. Header stamps become header.utime, the\n"
-      "recording's receive times the event times. Topics keep their names as channels. See docs/import.md.");
-  import.add_option("file", args->in, "Log to convert");
+      "or not), ROS 2 bags (a folder with metadata.yaml, or one .db3 or .mcap file; zstd-compressed files or\n"
+      "messages), MCAP files (chunks uncompressed, zstd or lz4), CARMEN logs (.log/.clf, plain or gzip) and MRPT\n"
+      "rawlogs. The files of a split recording are one recording: give its folder or all of its files. Header\n"
+      "stamps become header.utime, the recording's receive times the event times. Topics keep their names as\n"
+      "channels. See docs/import.md.");
+  import.add_option("file", args->in, "Log to convert (a bag folder, or the files of one recording)");
   import.add_option("-o,--out", args->out, "Log to write");
   import.callback([&import, args, exit_code] {
     if (import.get_subcommands().size() > 0) return;  // import rawlog
@@ -52,13 +56,13 @@ void add_import_file_command(CLI::App& import, int* exit_code) {
       *exit_code = fail("import: give a FILE and -o OUT.lcm (see 'driftlab import --help')");
       return;
     }
-    if (Status s = refuse_same_file(args->out, {args->in}); !s) {
+    if (Status s = refuse_same_file(args->out, args->in); !s) {
       *exit_code = fail(s.message());
       return;
     }
-    if (formats::detect_format(args->in).format == formats::Format::kMrptRawlog) {
+    if (args->in.size() == 1 && formats::detect_format(args->in[0]).format == formats::Format::kMrptRawlog) {
       // MRPT's rawlogs are read by MRPT itself, in the program that links it.
-      std::vector<std::string> argv = {"driftlab", "import", "rawlog", args->in, "-o", args->out};
+      std::vector<std::string> argv = {"driftlab", "import", "rawlog", args->in[0], "-o", args->out};
       std::vector<char*> c;
       for (auto& a : argv) c.push_back(a.data());
       c.push_back(nullptr);
@@ -78,10 +82,12 @@ void add_import_file_command(CLI::App& import, int* exit_code) {
       return;
     }
     if (problems > kProblemLines) {
-      std::fprintf(stderr, "driftlab: %s: %s more problems\n", args->in.c_str(),
+      std::fprintf(stderr, "driftlab: %s: %s more problems\n", args->in[0].c_str(),
                    thousands(problems - kProblemLines).c_str());
     }
-    print_summary(*r, args->in, args->out);
+    std::string from = args->in[0];
+    if (args->in.size() > 1) from += " and " + std::to_string(args->in.size() - 1) + " more";
+    print_summary(*r, from, args->out);
     // Everything intact is in the log; the exit code still says that not all of the file was.
     if (r->problems > 0) *exit_code = kExitBadInput;
   });

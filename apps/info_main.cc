@@ -10,6 +10,7 @@
 
 #include "apps/cli_checks.h"
 #include "apps/cli_util.h"
+#include "apps/log_input.h"
 #include "apps/commands.h"
 #include "core/log_format.h"
 #include "core/log_index.h"
@@ -22,6 +23,7 @@ namespace driftlab::apps {
 namespace {
 
 struct InfoOptions {
+  std::vector<std::string> inputs;
   std::string log;
   bool json = false;
   int max_problems = 20;
@@ -180,12 +182,20 @@ int run_info(const InfoOptions& o) {
 void add_info_command(CLI::App& app, int* exit_code) {
   auto opts = std::make_shared<InfoOptions>();
   CLI::App* cmd = app.add_subcommand("info", "Summarise a log: channels, message types, rates, time range and problems.");
-  cmd->add_option("log", opts->log, "LCM event log")->required();
+  cmd->add_option("log", opts->inputs, kLogInputHelp)->required();
   cmd->add_flag("--json", opts->json, "Print one JSON object instead of a table");
   cmd->add_option("--max-problems", opts->max_problems, "Problems listed in the table")
       ->capture_default_str()
       ->check(non_negative());
-  cmd->callback([opts, exit_code] { *exit_code = run_info(*opts); });
+  cmd->callback([opts, exit_code] {
+    auto log = log_for(opts->inputs);
+    if (!log) {
+      *exit_code = fail(log.error().message);
+      return;
+    }
+    opts->log = *log;
+    *exit_code = run_info(*opts);
+  });
 }
 
 }  // namespace driftlab::apps

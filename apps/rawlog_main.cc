@@ -6,9 +6,9 @@
 #include <memory>
 
 #include "apps/cli_util.h"
+#include "apps/log_input.h"
 #include "apps/commands.h"
 #include "slam/rawlog.h"
-#include "core/log_reader.h"
 #include "core/same_file.h"
 
 namespace driftlab::apps {
@@ -57,13 +57,16 @@ void add_rawlog_commands(CLI::App& import, CLI::App& exp, int* exit_code) {
   to->add_option("log", out->in, "Log to read")->required();
   to->add_option("-o,--out", out->out, "Rawlog to write")->required();
   to->callback([out, exit_code] {
-    for (const Status& s : {refuse_same_file(out->out, {out->in}), check_event_log(out->in)}) {
-      if (!s) {
-        *exit_code = fail(s.message());
-        return;
-      }
+    if (Status s = refuse_same_file(out->out, {out->in}); !s) {
+      *exit_code = fail(s.message());
+      return;
     }
-    auto r = slam::export_rawlog(out->in, out->out);
+    auto log = event_log_for(out->in);  // another tool's recording: its cached conversion
+    if (!log) {
+      *exit_code = fail(log.error().message);
+      return;
+    }
+    auto r = slam::export_rawlog(*log, out->out);
     if (!r) {  // the log was checked above: what fails now is creating or writing the rawlog
       *exit_code = fail(r.error().message, kExitFailure);
       return;

@@ -14,12 +14,12 @@
 #include "analyzers/timing.h"
 #include "apps/cli_checks.h"
 #include "apps/cli_util.h"
+#include "apps/log_input.h"
 #include "apps/commands.h"
 #include "modules/registry.h"
 #include "replayer/live_runner.h"
 #include "replayer/replayer.h"
 #include "core/config.h"
-#include "core/log_reader.h"
 #include "core/same_file.h"
 
 namespace driftlab::apps {
@@ -113,7 +113,13 @@ void print_modules(const std::vector<replay::ModuleReport>& reports, bool timing
   }
 }
 
-int run_replay(const ReplayArgs& a) {
+int run_replay(ReplayArgs a) {
+  if (Status s = refuse_same_file(a.out, a.logs); !s) return fail(s.message());  // the recordings given
+  for (auto& log : a.logs) {
+    auto converted = event_log_for(log);  // another tool's recording: its cached conversion
+    if (!converted) return fail(converted.error().message);
+    log = *converted;
+  }
   replay::ReplayOptions o;
   o.logs = a.logs;
   o.channels = a.channels;
@@ -131,10 +137,7 @@ int run_replay(const ReplayArgs& a) {
     }
     o.remap.emplace_back(m.substr(0, eq), m.substr(eq + 1));
   }
-  for (const auto& log : a.logs) {
-    if (Status s = check_event_log(log); !s) return fail(s.message());
-  }
-  if (Status s = refuse_same_file(a.out, a.logs); !s) return fail(s.message());
+  if (Status s = refuse_same_file(a.out, a.logs); !s) return fail(s.message());  // and their conversions
   if (a.end > 0 && a.end <= a.start) {
     return fail("--end " + short_number(a.end) + " must be after --start " + short_number(a.start) +
                 " (both in seconds from the start of the logs)");

@@ -20,10 +20,10 @@
 #include "analyzers/timing.h"
 #include "analyzers/trajectory.h"
 #include "apps/cli_util.h"
+#include "apps/log_input.h"
 #include "apps/commands.h"
 #include "apps/diagnosis_json.h"
 #include "apps/report.h"
-#include "core/log_reader.h"
 
 namespace driftlab::apps {
 
@@ -125,11 +125,12 @@ nlohmann::json path_json(const std::string& label, const Trajectory& t, double o
 Result<std::string> make_report(const ReportOptions& o) {
   if (o.logs.empty()) return Error{"report: no log given"};
   std::vector<LogSeries> logs;
-  for (const auto& path : o.logs) {
-    if (Status s = check_event_log(path); !s) return Error{s.message()};
-    auto s = read_log_series(path);
+  for (const auto& given : o.logs) {
+    auto path = event_log_for(given);  // another tool's recording: its cached conversion
+    if (!path) return path.error();
+    auto s = read_log_series(*path);
     if (!s) return s.error();
-    if (s->streams.empty()) return Error{path + ": no events"};
+    if (s->streams.empty()) return Error{given + ": no events"};
     logs.push_back(std::move(*s));
   }
   const LogSeries& first = logs.front();

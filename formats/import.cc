@@ -7,6 +7,10 @@
 #include <cctype>
 #include <cstring>
 #include <map>
+#include <optional>
+
+#include <filesystem>
+#include <memory>
 
 #include "core/log_writer.h"
 #include "lcmtypes/encode.h"
@@ -14,7 +18,10 @@
 #include "driftlab/foreign_schema_t.hpp"
 #include "formats/carmen.h"
 #include "formats/internal/decompress.h"
+#include "formats/mcap.h"
 #include "formats/ros1_bag.h"
+#include "formats/ros2_bag.h"
+#include "formats/ros_definition.h"
 #include "formats/ros_messages.h"
 
 namespace driftlab::formats {
@@ -64,113 +71,385 @@ std::string describe(std::string_view h) {
   return "binary data starting " + bytes;
 }
 
-struct Output {
-  LogWriter writer;
-  ImportSummary summary;
-  std::map<std::string, size_t, std::less<>> topic_index;
-
-  TopicCount& topic(std::string_view channel, std::string_view source_type, const char* driftlab_type) {
-    auto it = topic_index.find(channel);
-    if (it == topic_index.end()) {
-      it = topic_index.emplace(std::string(channel), summary.topics.size()).first;
-      summary.topics.push_back({std::string(channel), std::string(source_type), driftlab_type, 0, 0});
+/// Where a message was met, for problem lines.
+struct Where {
+  enum Kind { kByte, kChunk, kRow } kind = kByte;
+  uint64_t offset = 0;   ///< file offset (kByte, kChunk), or the row id (kRow)
+  int64_t in_chunk = 0;  ///< kChunk: the record's offset in the chunk's records
+  std::string text() const {
+    switch (kind) {
+      case kByte: return "at byte " + std::to_string(offset);
+      case kChunk:
+        return "at byte " + std::to_string(offset) + " (in the chunk there, byte " + std::to_string(in_chunk) +
+               " of its records)";
+      case kRow: return "at row " + std::to_string(offset);
     }
-    return summary.topics[it->second];
-  }
-  Status write(int64_t utime, std::string_view channel, std::span<const uint8_t> bytes) {
-    if (Status s = writer.write(utime, channel, bytes); !s) return s;
-    ++summary.messages;
     return {};
   }
 };
 
-Status import_ros1(const std::string& path, Output& out, const std::function<void(const std::string&)>& problem) {
+/// A message of a ROS bag or MCAP file, as every reader hands it on.
+struct Incoming {
+  std::string_view topic;
+  std::string_view type;                 ///< as the file names it ("sensor_msgs/msg/LaserScan")
+  std::string_view encoding;             ///< "ros1", "cdr", or another MCAP message encoding
+  std::string_view definition;           ///< its schema text ("" when the file has none)
+  std::string_view definition_encoding;  ///< "ros1msg", "ros2msg", "ros2idl", "jsonschema", ...
+  int64_t arrival_us = 0;
+  bool has_sequence = false;  ///< MCAP: a sequence number travels with it
+  uint32_t sequence = 0;
+  std::span<const uint8_t> payload;
+  Where where;
+};
+
+class Importer {
+ public:
+  Importer(LogWriter writer, std::function<void(const std::string&)> on_problem)
+      : writer_(std::move(writer)), on_problem_(std::move(on_problem)) {}
+
+  ImportSummary summary;
+  std::string file;  ///< the file being read, for problem lines
+
+  LogWriter& writer() { return writer_; }
+  const Status& status() const { return status_; }
+
+  void problem(const std::string& line) {
+    ++summary.problems;
+    on_problem_(line);
+  }
+
+  TopicCount& topic(std::string_view channel, std::string_view source_type, const char* driftlab_type) {
+    auto it = topic_index_.find(channel);
+    if (it == topic_index_.end()) {
+      it = topic_index_.emplace(std::string(channel), summary.topics.size()).first;
+      summary.topics.push_back({std::string(channel), std::string(source_type), driftlab_type, 0, 0});
+    }
+    return summary.topics[it->second];
+  }
+  bool write(int64_t utime, std::string_view channel, std::span<const uint8_t> bytes) {
+    if (!status_) return false;
+    status_ = writer_.write(utime, channel, bytes);
+    if (!status_) return false;
+    ++summary.messages;
+    return true;
+  }
+
+  /// Converts one ROS message: a mapped type onto its driftlab type, any other carried as foreign_message_t after
+  /// a check against its schema.
+  void message(const Incoming& m) {
+    if (!status_) return;
+    // A channel name an LCM log can hold: 1 to 255 bytes, no NUL.
+    if (m.topic.empty() || m.topic.size() > 255 || m.topic.find('\0') != std::string_view::npos) {
+      if (bad_topics_++ == 0) {
+        problem(file + ": " + m.where.text() + ": a topic name an LCM log cannot hold (empty, over 255 bytes or "
+                "with a NUL); its messages are left out");
+      }
+      return;
+    }
+    auto sit = state_.find(m.topic);
+    if (sit == state_.end()) sit = state_.emplace(std::string(m.topic), State{}).first;
+    State& st = sit->second;
+    std::span<const uint8_t> payload = m.payload;
+    if (m.encoding == "cdr" && looks_like_zstd(payload)) {
+      // rosbag2's message compression: each payload a zstd frame (a CDR payload starts with a zero byte).
+      if (std::string e = decompressor_.run(internal::Codec::kZstd, payload, 0, unpacked_); !e.empty()) {
+        ++topic(m.topic, m.type, "driftlab.foreign_message_t").malformed;
+        problem(file + ": " + std::string(m.topic) + " " + m.where.text() + ": a compressed message: " + e);
+        return;
+      }
+      payload = unpacked_;
+    }
+    // header.seq where the message carries none: MCAP's sequence once the channel shows one, else the count.
+    if (m.has_sequence && (m.sequence != 0 || st.sequences)) {
+      if (st.sequences && m.sequence < st.last_sequence && st.last_sequence - m.sequence > (1u << 31)) {
+        st.sequence_high += int64_t{1} << 32;  // wrapped
+      }
+      st.sequences = true;
+      st.last_sequence = m.sequence;
+    }
+    const int64_t fallback_seq = st.sequences ? st.sequence_high + m.sequence : st.count;
+    const Serialization ser = m.encoding == "ros1" ? Serialization::kRos1 : Serialization::kCdr;
+    const bool ros = m.encoding == "ros1" || m.encoding == "cdr";
+    const char* mapped = ros ? driftlab_type_for(m.type) : nullptr;
+    TopicCount& t = topic(m.topic, m.type, mapped ? mapped : "driftlab.foreign_message_t");
+    if (mapped) {
+      auto converted = convert_ros_message(m.type, ser, payload, m.arrival_us, fallback_seq, &error_);
+      if (!converted) {
+        ++t.malformed;
+        problem(file + ": " + std::string(m.topic) + " " + m.where.text() + ": " + error_);
+        return;
+      }
+      if (write(m.arrival_us, m.topic, converted->lcm)) {
+        ++t.messages;
+        ++st.count;
+      }
+      return;
+    }
+    if (ros && !st.definition_checked) {
+      st.definition_checked = true;
+      const bool msg_text = m.definition_encoding == "ros1msg" || m.definition_encoding == "ros2msg";
+      if (msg_text && !m.definition.empty()) {
+        auto d = RosDefinition::parse(m.type, m.definition, ser);
+        if (d) {
+          st.definition = std::make_unique<RosDefinition>(std::move(*d));
+        } else {
+          problem(file + ": " + std::string(m.topic) + " " + m.where.text() + ": the schema of " +
+                  std::string(m.type) + " does not parse (" + d.error().message +
+                  "); its messages are carried unchecked");
+        }
+      }
+    }
+    if (st.definition) {
+      if (std::string why = st.definition->check(payload); !why.empty()) {
+        ++t.malformed;
+        problem(file + ": " + std::string(m.topic) + " " + m.where.text() + ": not a " + std::string(m.type) +
+                ": " + why);
+        return;
+      }
+    }
+    // Strings of an LCM message end at their first NUL (LCM encodes them so).
+    auto text = [](std::string_view v) { return std::string(v.substr(0, v.find('\0'))); };
+    if (!st.schema_written) {
+      foreign_schema_t s;
+      s.channel = std::string(m.topic);
+      s.type = text(m.type);
+      s.encoding = text(m.encoding);
+      s.definition = text(m.definition);
+      if (!write(m.arrival_us, kSchemaChannel, encode(s))) return;
+      st.schema_written = true;
+    }
+    foreign_message_t f;
+    f.type = text(m.type);
+    f.encoding = text(m.encoding);
+    f.data.assign(payload.begin(), payload.end());
+    f.size = static_cast<int32_t>(f.data.size());
+    if (write(m.arrival_us, m.topic, encode(f))) {
+      ++t.messages;
+      ++st.count;
+    }
+  }
+
+ private:
+  struct State {
+    int64_t count = 0;
+    bool sequences = false;
+    uint32_t last_sequence = 0;
+    int64_t sequence_high = 0;
+    bool definition_checked = false;
+    bool schema_written = false;
+    std::unique_ptr<RosDefinition> definition;
+  };
+  LogWriter writer_;
+  std::function<void(const std::string&)> on_problem_;
+  std::map<std::string, size_t, std::less<>> topic_index_;
+  std::map<std::string, State, std::less<>> state_;
+  Status status_;
+  std::string error_;
+  int64_t bad_topics_ = 0;
+  internal::Decompressor decompressor_;
+  std::vector<uint8_t> unpacked_;
+};
+
+Status import_ros1(const std::string& path, Importer& out) {
   auto bag = Ros1BagReader::open(path);
   if (!bag) return bag.error();
-  std::map<std::string, int64_t, std::less<>> next_seq;  // for messages that carry no sequence number
-  Status status;
-  std::string error;
   bag->read(
       [&](const BagMessage& m) {
-        if (!status) return;
         const RosConnection& c = *m.connection;
-        const int64_t arrival = m.record_time_ns / 1000;
-        const char* mapped = driftlab_type_for(c.type);
-        TopicCount& t = out.topic(c.topic, c.type, mapped ? mapped : "driftlab.foreign_message_t");
-        if (!mapped) {
-          if (t.messages == 0) {
-            foreign_schema_t s;
-            s.channel = c.topic;
-            s.type = c.type;
-            s.encoding = "ros1";
-            s.definition = c.definition;
-            status = out.write(arrival, kSchemaChannel, encode(s));
-          }
-          foreign_message_t f;
-          f.type = c.type;
-          f.encoding = "ros1";
-          f.data.assign(m.data.begin(), m.data.end());
-          f.size = static_cast<int32_t>(f.data.size());
-          if (status) status = out.write(arrival, c.topic, encode(f));
-          ++t.messages;
-          return;
-        }
-        int64_t& seq = next_seq[c.topic];
-        auto converted = convert_ros_message(c.type, Serialization::kRos1, m.data, arrival, seq, &error);
-        if (!converted) {
-          ++t.malformed;
-          ++out.summary.problems;
-          problem(path + ": " + c.topic + " at byte " + std::to_string(m.offset) + ": " + error);
-          return;
-        }
-        if (!converted->has_seq) ++seq;  // header.seq: the source's, else the count on this topic
-        status = out.write(arrival, c.topic, converted->lcm);
-        ++t.messages;
+        Incoming in;
+        in.topic = c.topic;
+        in.type = c.type;
+        in.encoding = "ros1";
+        in.definition = c.definition;
+        in.definition_encoding = "ros1msg";
+        in.arrival_us = m.record_time_ns / 1000;
+        in.payload = m.data;
+        in.where = {Where::kByte, m.offset, 0};
+        out.message(in);
       },
-      [&](const BagProblem& p) {
-        ++out.summary.problems;
-        problem(path + ": at byte " + std::to_string(p.offset) + ": " + p.what);
-      });
-  return status;
+      [&](const BagProblem& p) { out.problem(path + ": at byte " + std::to_string(p.offset) + ": " + p.what); });
+  return out.status();
 }
 
-Status import_carmen(const std::string& path, Output& out, const std::function<void(const std::string&)>& problem) {
+Status import_mcap(const std::string& path, Importer& out) {
+  auto mcap = McapReader::open(path);
+  if (!mcap) return mcap.error();
+  const int64_t problems_before = out.summary.problems;
+  const int64_t read = mcap->read(
+      [&](const McapMessage& m) {
+        const McapChannel& c = *m.channel;
+        Incoming in;
+        in.topic = c.topic;
+        // A channel whose name is not a ROS name went out under one, with the original beside (driftlab export).
+        for (const auto& [k, v] : c.metadata)
+          if (k == "driftlab_channel" && !v.empty()) in.topic = v;
+        in.type = c.schema ? std::string_view(c.schema->name) : std::string_view();
+        in.encoding = c.message_encoding;
+        in.definition = c.schema ? std::string_view(c.schema->data) : std::string_view();
+        in.definition_encoding = c.schema ? std::string_view(c.schema->encoding) : std::string_view();
+        in.arrival_us = static_cast<int64_t>(m.log_time / 1000);
+        in.has_sequence = true;
+        in.sequence = m.sequence;
+        in.payload = m.data;
+        in.where = m.offset_in_chunk >= 0 ? Where{Where::kChunk, m.offset, m.offset_in_chunk}
+                                          : Where{Where::kByte, m.offset, 0};
+        out.message(in);
+      },
+      [&](const McapProblem& p) { out.problem(path + ": at byte " + std::to_string(p.offset) + ": " + p.what); });
+  // Every message accounted for: the summary's count against what was read (when nothing else was reported).
+  if (const McapStatistics* st = mcap->statistics();
+      st && out.summary.problems == problems_before && st->message_count != static_cast<uint64_t>(read)) {
+    out.problem(path + ": the summary counts " + std::to_string(st->message_count) + " messages; " +
+                std::to_string(read) + " were read");
+  }
+  return out.status();
+}
+
+Status import_sqlite(const std::string& path, Importer& out) {
+  auto db = SqliteBagReader::open(path);
+  if (!db) return db.error();
+  db->read(
+      [&](const Ros2DbMessage& m) {
+        const Ros2TopicInfo& t = *m.topic;
+        Incoming in;
+        in.topic = t.name;
+        in.type = t.type;
+        in.encoding = t.serialization_format;
+        if (auto d = db->definitions().find(t.type); d != db->definitions().end()) {
+          in.definition_encoding = d->second.first;
+          in.definition = d->second.second;
+        }
+        in.arrival_us = m.timestamp_ns / 1000;
+        in.payload = m.data;
+        in.where = {Where::kRow, static_cast<uint64_t>(m.row), 0};
+        out.message(in);
+      },
+      [&](const Ros2DbProblem& p) {
+        out.problem(path + ": " + (p.row ? "at row " + std::to_string(p.row) + ": " : std::string()) + p.what);
+      });
+  return out.status();
+}
+
+Status import_carmen(const std::string& path, Importer& out) {
   auto log = CarmenReader::open(path);
   if (!log) return log.error();
-  Status status;
   log->read(
       [&](const CarmenMessage& m) {
-        if (!status) return;
         const std::string_view source = m.channel.ends_with("_POSE") ? m.channel.substr(0, m.channel.size() - 5)
                                                                       : m.channel;
-        ++out.topic(m.channel, m.channel == "TF_STATIC" ? "PARAM" : source, m.type).messages;
-        status = out.write(m.log_utime, m.channel, m.lcm);
+        if (out.write(m.log_utime, m.channel, m.lcm)) {
+          ++out.topic(m.channel, m.channel == "TF_STATIC" ? "PARAM" : source, m.type).messages;
+        }
       },
-      [&](size_t line, const std::string& what) {
-        ++out.summary.problems;
-        problem(path + ":" + std::to_string(line) + ": " + what);
-      });
+      [&](size_t line, const std::string& what) { out.problem(path + ":" + std::to_string(line) + ": " + what); });
   out.summary.skipped = log->skipped();
-  return status;
+  return out.status();
 }
+
+/// "b_10.mcap" after "b_2.mcap": runs of digits compare as numbers.
+bool natural_less(const std::string& a, const std::string& b) {
+  size_t i = 0, j = 0;
+  auto digit = [](char c) { return std::isdigit(static_cast<unsigned char>(c)) != 0; };
+  while (i < a.size() && j < b.size()) {
+    if (digit(a[i]) && digit(b[j])) {
+      size_t ie = i, je = j;
+      while (ie < a.size() && digit(a[ie])) ++ie;
+      while (je < b.size() && digit(b[je])) ++je;
+      std::string_view da = std::string_view(a).substr(i, ie - i), db = std::string_view(b).substr(j, je - j);
+      da.remove_prefix(std::min(da.find_first_not_of('0'), da.size()));
+      db.remove_prefix(std::min(db.find_first_not_of('0'), db.size()));
+      if (da.size() != db.size()) return da.size() < db.size();
+      if (da != db) return da < db;
+      i = ie;
+      j = je;
+    } else {
+      if (a[i] != b[j]) return a[i] < b[j];
+      ++i;
+      ++j;
+    }
+  }
+  return a.size() - i < b.size() - j;
+}
+
+bool is_dir(const std::string& p) {
+  std::error_code ec;
+  return std::filesystem::is_directory(p, ec);
+}
+bool exists(const std::string& p) {
+  std::error_code ec;
+  return std::filesystem::exists(p, ec);
+}
+
+/// A bag folder's storage files: from metadata.yaml, else every .mcap and .db3 (compressed or not) in it.
+std::vector<std::string> folder_files(const std::string& folder, const Ros2BagMetadata* metadata) {
+  std::vector<std::string> files;
+  if (metadata) {
+    for (const auto& f : metadata->relative_file_paths) {
+      // Older rosbag2 versions list the path with the folder's own name in front.
+      std::string p = folder + "/" + f;
+      const std::string base = folder + "/" + std::filesystem::path(f).filename().string();
+      if (!exists(p) && exists(base)) p = base;
+      files.push_back(p);
+    }
+    return files;
+  }
+  std::error_code ec;
+  for (const auto& e : std::filesystem::directory_iterator(folder, ec)) {
+    const std::string name = e.path().filename().string();
+    for (const char* ext : {".mcap", ".db3", ".mcap.zstd", ".db3.zstd"}) {
+      if (name.ends_with(ext)) {
+        files.push_back(e.path().string());
+        break;
+      }
+    }
+  }
+  std::sort(files.begin(), files.end(), natural_less);
+  return files;
+}
+
+/// The MCAP header's profile ("ros2"), from the first bytes.
+std::string mcap_profile(std::string_view h) {
+  if (h.size() < 8 + 9 + 4 || static_cast<uint8_t>(h[8]) != 0x01) return {};
+  uint32_t n;
+  std::memcpy(&n, h.data() + 17, 4);
+  if (n > h.size() - 21) return {};
+  return std::string(h.substr(21, n));
+}
+
+Detected detect_head(std::string_view h, bool inner = false);
 
 }  // namespace
 
-Detected detect_format(const std::string& path) {
-  const std::string h = head_of(path, 4096);
-  if (Ros1BagReader::looks_like({reinterpret_cast<const uint8_t*>(h.data()), h.size()})) {
-    return {Format::kRos1Bag, "ROS 1 bag", {}};
+namespace {
+
+Detected detect_head(std::string_view h, bool inner) {
+  const auto* u = reinterpret_cast<const uint8_t*>(h.data());
+  if (Ros1BagReader::looks_like({u, h.size()})) return {Format::kRos1Bag, "ROS 1 bag", {}};
+  if (McapReader::looks_like({u, h.size()})) {
+    const std::string profile = mcap_profile(h);
+    return {Format::kMcap, profile == "ros2" ? "ROS 2 bag (MCAP)" : profile == "ros1" ? "ROS 1 MCAP" : "MCAP file", {}};
   }
+  if (SqliteBagReader::looks_like({u, h.size()})) return {Format::kRos2Sqlite, "ROS 2 bag (sqlite3)", {}};
   if (h.size() >= 4 && static_cast<unsigned char>(h[0]) == 0xED && static_cast<unsigned char>(h[1]) == 0xA2 &&
       static_cast<unsigned char>(h[2]) == 0xDA && static_cast<unsigned char>(h[3]) == 0xEA) {
     return {Format::kLcmLog, "LCM log", {}};
   }
-  std::string text = h;
-  if (h.size() >= 2 && static_cast<unsigned char>(h[0]) == 0x1f && static_cast<unsigned char>(h[1]) == 0x8b) {
+  if (!inner && looks_like_zstd({u, h.size()})) {
+    // rosbag2's file compression: look at what the frame holds (its first block is enough).
+    std::vector<uint8_t> head;
+    (void)internal::decompress(internal::Codec::kZstd, {u, h.size()}, 0, head);
+    const std::string text(head.begin(), head.begin() + static_cast<ptrdiff_t>(std::min<size_t>(head.size(), 4096)));
+    Detected d = detect_head(text, true);
+    if (d.format == Format::kMcap || d.format == Format::kRos2Sqlite || d.format == Format::kRos1Bag) {
+      return {Format::kZstd, d.name + ", compressed whole with zstd", {}};
+    }
+    return {Format::kUnknown, "", "zstd data holding " + (text.empty() ? std::string("nothing readable") : describe(text))};
+  }
+  std::string text(h);
+  if (!inner && h.size() >= 2 && static_cast<unsigned char>(h[0]) == 0x1f && static_cast<unsigned char>(h[1]) == 0x8b) {
     // gzip: look at what it holds (a partial inflate of the first block is enough).
     std::vector<uint8_t> inflated;
-    (void)internal::decompress(internal::Codec::kGzip, {reinterpret_cast<const uint8_t*>(h.data()), h.size()}, 0,
-                               inflated);
+    (void)internal::decompress(internal::Codec::kGzip, {u, h.size()}, 0, inflated);
     text.assign(inflated.begin(), inflated.begin() + static_cast<ptrdiff_t>(std::min<size_t>(inflated.size(), 4096)));
     if (text.empty()) return {Format::kUnknown, "", "gzip data that does not inflate"};
   }
@@ -179,24 +458,144 @@ Detected detect_format(const std::string& path) {
   return {Format::kUnknown, "", (text.size() == h.size() ? "" : "gzip holding ") + describe(text)};
 }
 
+constexpr char kKnownFormats[] =
+    "ROS 1 bag, ROS 2 bag (MCAP, sqlite3, or its folder), MCAP file, CARMEN log, MRPT rawlog";
+
+/// Imports one file (not a folder) into out.
+Status import_file(const std::string& path, const std::string& out_path, Importer& out) {
+  const Detected d = detect_format(path);
+  out.file = path;
+  switch (d.format) {
+    case Format::kRos1Bag: return import_ros1(path, out);
+    case Format::kMcap: return import_mcap(path, out);
+    case Format::kRos2Sqlite: return import_sqlite(path, out);
+    case Format::kCarmen: return import_carmen(path, out);
+    case Format::kZstd: {
+      // Decompressed beside the output (a bag may not fit in memory, nor in a RAM-backed /tmp), then read.
+      const std::string plain = out_path + ".unzstd";
+      Status s = decompress_zstd_file(path, plain);
+      if (!s && !exists(plain)) return s;
+      if (!s) out.problem(s.message());
+      const Detected inner = detect_format(plain);
+      Status r = inner.format == Format::kMcap        ? import_mcap(plain, out)
+                 : inner.format == Format::kRos2Sqlite ? import_sqlite(plain, out)
+                 : inner.format == Format::kRos1Bag    ? import_ros1(plain, out)
+                                                       : Status(Error(path + ": decompressed, not a bag"));
+      std::remove(plain.c_str());
+      return r;
+    }
+    case Format::kLcmLog: return Error(path + ": already an LCM log; nothing to import");
+    case Format::kMrptRawlog: return Error(path + ": an MRPT rawlog: use `driftlab import rawlog`");
+    case Format::kRos2Folder: return Error(path + ": a bag folder among files: give the folder alone");
+    case Format::kUnknown: break;
+  }
+  return Error(path + ": not a format driftlab imports (" + kKnownFormats + "): " + d.description);
+}
+
+}  // namespace
+
+Detected detect_format(const std::string& path) {
+  if (is_dir(path)) {
+    if (exists(path + "/metadata.yaml") || !folder_files(path, nullptr).empty()) {
+      return {Format::kRos2Folder, "ROS 2 bag", {}};
+    }
+    return {Format::kUnknown, "", "a folder without metadata.yaml or bag files"};
+  }
+  return detect_head(head_of(path, 4096));
+}
+
+bool is_importable(Format f) {
+  return f != Format::kUnknown && f != Format::kLcmLog && f != Format::kMrptRawlog;
+}
+
+std::vector<std::string> recording_files(const std::vector<std::string>& inputs) {
+  if (inputs.size() == 1 && is_dir(inputs[0])) {
+    auto metadata = read_ros2_metadata(inputs[0]);
+    return folder_files(inputs[0], metadata ? &*metadata : nullptr);
+  }
+  std::vector<std::string> files = inputs;
+  std::sort(files.begin(), files.end(), natural_less);
+  return files;
+}
+
 Result<ImportSummary> import_log(const std::string& in, const std::string& out_path,
                                  const std::function<void(const std::string&)>& on_problem) {
-  const Detected d = detect_format(in);
-  if (d.format == Format::kUnknown) {
-    return Error(in + ": not a format driftlab imports (ROS 1 bag, CARMEN log, MRPT rawlog): " + d.description);
+  return import_log(std::vector<std::string>{in}, out_path, on_problem);
+}
+
+Result<ImportSummary> import_log(const std::vector<std::string>& inputs, const std::string& out_path,
+                                 const std::function<void(const std::string&)>& on_problem) {
+  if (inputs.empty()) return Error("nothing to import");
+  // Everything that can be refused is refused before the output is created.
+  const bool folder = inputs.size() == 1 && is_dir(inputs[0]);
+  std::optional<Ros2BagMetadata> metadata;
+  std::vector<std::string> early_problems;
+  std::vector<std::string> files;
+  std::string format;
+  if (folder) {
+    const Detected d = detect_format(inputs[0]);
+    if (d.format == Format::kUnknown) return Error(inputs[0] + ": not a ROS 2 bag: " + d.description);
+    if (auto m = read_ros2_metadata(inputs[0])) {
+      metadata = std::move(*m);
+    } else {
+      early_problems.push_back(m.error().message + "; reading the bag files in the folder in name order");
+    }
+    files = folder_files(inputs[0], metadata ? &*metadata : nullptr);
+    if (files.empty()) return Error(inputs[0] + ": metadata.yaml lists no files");
+    const std::string storage = metadata ? metadata->storage_identifier : "";
+    format = "ROS 2 bag (" + (storage.empty() ? std::string("folder") : storage) + ")";
+  } else {
+    files = recording_files(inputs);
+    for (const auto& f : files) {
+      if (is_dir(f)) return Error(f + ": a bag folder among files: give the folder alone");
+      const Detected d = detect_format(f);
+      if (!is_importable(d.format) || d.format == Format::kRos2Folder) {
+        if (d.format == Format::kLcmLog) return Error(f + ": already an LCM log; nothing to import");
+        if (d.format == Format::kMrptRawlog) return Error(f + ": an MRPT rawlog: use `driftlab import rawlog`");
+        return Error(f + ": not a format driftlab imports (" + kKnownFormats + "): " + d.description);
+      }
+      if (format.empty()) format = d.name;
+    }
   }
-  if (d.format == Format::kLcmLog) return Error(in + ": already an LCM log; nothing to import");
-  if (d.format == Format::kMrptRawlog) return Error(in + ": an MRPT rawlog: use `driftlab import rawlog`");
+  if (files.size() > 1) format += ", " + std::to_string(files.size()) + " files";
+
   auto writer = LogWriter::create(out_path, {.atomic = true});
   if (!writer) return writer.error();
-  Output out{std::move(*writer), {}, {}};
-  out.summary.format = d.name;
-  Status s = d.format == Format::kRos1Bag ? import_ros1(in, out, on_problem) : import_carmen(in, out, on_problem);
-  if (!s) {
-    out.writer.discard();
-    return Error(s.message());
+  Importer out(std::move(*writer), on_problem);
+  out.summary.format = format;
+  for (const auto& p : early_problems) out.problem(p);
+  for (const auto& f : files) {
+    if (folder && !exists(f)) {
+      out.problem(f + ": listed in metadata.yaml, missing");
+      continue;
+    }
+    Status s = import_file(f, out_path, out);
+    if (!s && out.status()) {
+      // A file that cannot be read at all: fatal alone, a problem among several (the others still convert).
+      if (files.size() == 1) {
+        out.writer().discard();
+        return Error(s.message());
+      }
+      out.problem(s.message());
+    }
+    if (!out.status()) {
+      out.writer().discard();
+      return Error(out.status().message());
+    }
   }
-  if (Status c = out.writer.close(); !c) return Error(c.message());
+  // Every message accounted for: what metadata.yaml counts per topic against what the files held.
+  if (metadata) {
+    for (const auto& t : metadata->topics) {
+      int64_t found = 0;
+      for (const auto& c : out.summary.topics)
+        if (c.channel == t.name) found = c.messages + c.malformed;
+      if (found < t.message_count) {
+        out.problem(inputs[0] + "/metadata.yaml: counts " + std::to_string(t.message_count) + " messages on " +
+                    t.name + "; the files hold " + std::to_string(found));
+      }
+    }
+  }
+  if (Status c = out.writer().close(); !c) return Error(c.message());
   return out.summary;
 }
 

@@ -1,8 +1,5 @@
-// ROS 1 serialization and CDR (ROS 2) read by one Reader, so each message is decoded by one function for both.
-// ROS 1: little endian, packed, strings and arrays prefixed with a uint32 length. CDR (OMG XCDR1, what rosbag2
-// stores): a 4-byte encapsulation header giving the byte order, every primitive aligned to its size counted from
-// the end of that header, strings prefixed with a length that includes their terminating NUL. Written by hand: a
-// reader over a span is shorter than wiring Fast-CDR's buffer classes, and both formats share it.
+// ROS 1 serialization and CDR (ROS 2) read by one Reader (formats/internal/ros_reader.h), so each message is
+// decoded by one function for both.
 #include "formats/ros_messages.h"
 
 #include <algorithm>
@@ -12,6 +9,7 @@
 #include <limits>
 #include <type_traits>
 
+#include "formats/internal/ros_reader.h"
 #include "lcmtypes/encode.h"
 #include "driftlab/image_t.hpp"
 #include "driftlab/imu_t.hpp"
@@ -26,112 +24,16 @@
 namespace driftlab::formats {
 namespace {
 
+using internal::Reader;
 using lcmtypes::encode;
 
-class Reader {
- public:
-  Reader(std::span<const uint8_t> data, Serialization s) : data_(data), cdr_(s == Serialization::kCdr) {
-    if (!cdr_) return;
-    // Encapsulation: 0x00 0x00 big-endian CDR, 0x00 0x01 little-endian (0x02/0x03: the PL_CDR variants).
-    if (data.size() < 4 || data[0] != 0 || data[1] > 3) {
-      fail("no CDR encapsulation header");
-      return;
-    }
-    swap_ = (data[1] & 1) == 0;
-    origin_ = pos_ = 4;
-  }
-
-  bool ok() const { return error_.empty(); }
-  const std::string& error() const { return error_; }
-  size_t remaining() const { return data_.size() - pos_; }
-  /// Whether the message ended where its type does (CDR may pad to its alignment).
-  bool at_end() const { return cdr_ ? remaining() < 8 : remaining() == 0; }
-
-  template <typename T>
-  T get() {
-    static_assert(std::is_arithmetic_v<T>);
-    align(sizeof(T));
-    if (!need(sizeof(T))) return T{};
-    T v;
-    std::memcpy(&v, data_.data() + pos_, sizeof(T));
-    pos_ += sizeof(T);
-    if (swap_ && sizeof(T) > 1) v = swapped(v);
-    return v;
-  }
-  /// A fixed-size array.
-  template <typename T>
-  void get(T* out, size_t n) {
-    for (size_t i = 0; i < n; ++i) out[i] = get<T>();
-  }
-  /// A sequence's length, checked against what is left (each element at least min_element_bytes).
-  uint32_t count(size_t min_element_bytes) {
-    const uint32_t n = get<uint32_t>();
-    if (ok() && min_element_bytes > 0 && n > remaining() / min_element_bytes) {
-      fail("a sequence of " + std::to_string(n) + " elements in " + std::to_string(remaining()) + " bytes");
-      return 0;
-    }
-    return n;
-  }
-  std::string str() {
-    uint32_t n = count(1);
-    if (!ok()) return {};
-    std::string s(reinterpret_cast<const char*>(data_.data() + pos_), n);
-    pos_ += n;
-    if (cdr_ && !s.empty() && s.back() == '\0') s.pop_back();  // CDR counts the NUL
-    return s;
-  }
-  std::span<const uint8_t> bytes(size_t n) {
-    if (!need(n)) return {};
-    auto s = data_.subspan(pos_, n);
-    pos_ += n;
-    return s;
-  }
-  /// builtin_interfaces/Time (ROS 2: int32 sec, uint32 nanosec) or ROS 1 time (uint32, uint32), in microseconds.
-  int64_t time_us() {
-    const int64_t sec = cdr_ ? int64_t{get<int32_t>()} : int64_t{get<uint32_t>()};
-    const int64_t nsec = get<uint32_t>();
-    return sec * 1'000'000 + nsec / 1000;
-  }
-  void fail(std::string what) {
-    if (error_.empty()) error_ = std::move(what);
-    pos_ = data_.size();
-  }
-  /// header.seq for messages that carry none.
-  int64_t fallback_seq = 0;
-
- private:
-  template <typename T>
-  static T swapped(T v) {
-    using U = std::conditional_t<sizeof(T) == 2, uint16_t, std::conditional_t<sizeof(T) == 4, uint32_t, uint64_t>>;
-    U u;
-    std::memcpy(&u, &v, sizeof(T));
-    if constexpr (sizeof(T) == 2) u = __builtin_bswap16(u);
-    if constexpr (sizeof(T) == 4) u = __builtin_bswap32(u);
-    if constexpr (sizeof(T) == 8) u = __builtin_bswap64(u);
-    std::memcpy(&v, &u, sizeof(T));
-    return v;
-  }
-  void align(size_t n) {
-    if (!cdr_ || n <= 1) return;
-    const size_t off = (pos_ - origin_) % n;
-    if (off != 0) pos_ = std::min(data_.size(), pos_ + (n - off));
-  }
-  bool need(size_t n) {
-    if (!ok()) return false;
-    if (remaining() < n) {
-      fail("ends inside the message (" + std::to_string(data_.size()) + " bytes)");
-      return false;
-    }
-    return true;
-  }
-
-  std::span<const uint8_t> data_;
-  size_t pos_ = 0;
-  size_t origin_ = 0;
-  bool cdr_ = false;
-  bool swap_ = false;
-  std::string error_;
-};
+/// A string for a driftlab message: up to its first NUL, as LCM encodes strings (a NUL inside would make the
+/// encoded message longer than its fields).
+std::string lcm_string(Reader& r) {
+  std::string s = r.str();
+  if (const size_t nul = s.find('\0'); nul != std::string::npos) s.resize(nul);
+  return s;
+}
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
@@ -144,7 +46,7 @@ void header(Reader& r, Serialization s, header_t& h, bool* has_seq) {
     h.seq = r.fallback_seq;
   }
   h.utime = r.time_us();
-  h.frame_id = r.str();
+  h.frame_id = lcm_string(r);
 }
 
 void vector3(Reader& r, vector3_t& v) {
@@ -202,7 +104,7 @@ std::vector<uint8_t> imu(Reader& r, Serialization s, int64_t, int64_t* stamp, bo
 std::vector<uint8_t> odometry(Reader& r, Serialization s, int64_t, int64_t* stamp, bool* has_seq) {
   odometry_t m;
   header(r, s, m.header, has_seq);
-  m.child_frame_id = r.str();
+  m.child_frame_id = lcm_string(r);
   vector3(r, m.position);
   quaternion(r, m.orientation);
   r.get(m.pose_covariance, 36);
@@ -236,7 +138,7 @@ std::vector<uint8_t> pose_with_covariance(Reader& r, Serialization s, int64_t, i
 
 void transform_stamped(Reader& r, Serialization s, transform_t& t, bool* has_seq) {
   header(r, s, t.header, has_seq);
-  t.child_frame_id = r.str();
+  t.child_frame_id = lcm_string(r);
   vector3(r, t.translation);
   quaternion(r, t.rotation);
 }
@@ -296,7 +198,7 @@ std::vector<uint8_t> joint_state(Reader& r, Serialization s, int64_t, int64_t* s
   header(r, s, m.header, has_seq);
   const uint32_t n = r.count(4);
   m.name.resize(n);
-  for (auto& name : m.name) name = r.str();
+  for (auto& name : m.name) name = lcm_string(r);
   // position, velocity and effort may each be empty (not measured): NaN then, as driftlab's arrays are njoints.
   auto values = [&](std::vector<double>& out, const char* what) {
     const uint32_t k = r.count(8);
@@ -320,7 +222,7 @@ std::vector<uint8_t> image(Reader& r, Serialization s, int64_t, int64_t* stamp, 
   header(r, s, m.header, has_seq);
   const uint32_t height = r.get<uint32_t>();
   const uint32_t width = r.get<uint32_t>();
-  m.encoding = r.str();
+  m.encoding = lcm_string(r);
   r.get<uint8_t>();  // is_bigendian
   const uint32_t step = r.get<uint32_t>();
   const uint32_t n = r.count(1);
@@ -374,7 +276,7 @@ void image_size(std::span<const uint8_t> d, int32_t* w, int32_t* h) {
 std::vector<uint8_t> compressed_image(Reader& r, Serialization s, int64_t, int64_t* stamp, bool* has_seq) {
   image_t m;
   header(r, s, m.header, has_seq);
-  const std::string format = r.str();
+  const std::string format = lcm_string(r);
   auto data = r.bytes(r.count(1));
   if (!r.ok()) return {};
   m.data.assign(data.begin(), data.end());
@@ -403,7 +305,7 @@ std::vector<uint8_t> point_cloud2(Reader& r, Serialization s, int64_t, int64_t* 
   };
   std::vector<Field> fields(r.count(9));
   for (auto& f : fields) {
-    f.name = r.str();
+    f.name = lcm_string(r);
     f.offset = r.get<uint32_t>();
     f.type = r.get<uint8_t>();
     r.get<uint32_t>();  // count
@@ -462,6 +364,27 @@ std::vector<uint8_t> point_cloud2(Reader& r, Serialization s, int64_t, int64_t* 
   if (fi) m.intensities.resize(npoints);
   if (ft || fns || fabs) m.time_offsets.resize(npoints);
   const double stamp_s = static_cast<double>(m.header.utime) * 1e-6;
+  // The common layout (every field used a float32 in the machine's byte order, as lidar drivers write): copied
+  // field by field without the general conversion, which is most of an import's time on 3D-lidar recordings.
+  const bool native = big == (std::endian::native == std::endian::big);
+  auto f32 = [](const Field* f) { return !f || f->type == 7; };
+  if (native && f32(fx) && f32(fy) && f32(fz) && f32(fi) && f32(ft) && !fns && !fabs) {
+    size_t k = 0;
+    for (uint32_t row = 0; row < height; ++row) {
+      const uint8_t* p = data.data() + uint64_t{row} * row_step;
+      for (uint32_t col = 0; col < width; ++col, ++k, p += point_step) {
+        std::memcpy(&m.x[k], p + fx->offset, 4);
+        std::memcpy(&m.y[k], p + fy->offset, 4);
+        std::memcpy(&m.z[k], p + fz->offset, 4);
+        if (fi) std::memcpy(&m.intensities[k], p + fi->offset, 4);
+        if (ft) std::memcpy(&m.time_offsets[k], p + ft->offset, 4);
+      }
+    }
+    m.nintensities = static_cast<int32_t>(m.intensities.size());
+    m.ntimes = static_cast<int32_t>(m.time_offsets.size());
+    *stamp = m.header.utime;
+    return encode(m);
+  }
   size_t i = 0;
   for (uint32_t row = 0; row < height; ++row) {
     for (uint32_t col = 0; col < width; ++col, ++i) {

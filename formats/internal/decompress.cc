@@ -3,9 +3,14 @@
 #include <bzlib.h>
 #include <lz4frame.h>
 #include <zlib.h>
+#include <zstd.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <climits>
+#include <cstdio>
+#include <cstring>
+#include <memory>
 
 namespace driftlab::formats::internal {
 namespace {
@@ -111,7 +116,127 @@ std::string gzip(std::span<const uint8_t> in, std::vector<uint8_t>& out) {
   return error;
 }
 
+/// zstd: in one call when the frame says its size and is whole (the fast path), else streamed so that a frame cut
+/// short or damaged still gives what was decoded before the damage.
+std::string zstd(ZSTD_DCtx* ctx, std::span<const uint8_t> in, size_t expected_size, std::vector<uint8_t>& out) {
+  const unsigned long long declared = ZSTD_getFrameContentSize(in.data(), in.size());
+  size_t whole = expected_size;
+  if (declared != ZSTD_CONTENTSIZE_UNKNOWN && declared != ZSTD_CONTENTSIZE_ERROR) whole = declared;
+  if (whole > 0 && whole <= (size_t{1} << 34)) {
+    out.resize(whole);
+    const size_t n = ZSTD_decompressDCtx(ctx, out.data(), out.size(), in.data(), in.size());
+    if (!ZSTD_isError(n)) {
+      out.resize(n);
+      return {};
+    }
+  }
+  ZSTD_DCtx_reset(ctx, ZSTD_reset_session_only);
+  ZSTD_inBuffer src{in.data(), in.size(), 0};
+  size_t used = 0;
+  std::string error;
+  for (;;) {
+    const size_t free = room(out, used);
+    ZSTD_outBuffer dst{out.data() + used, free, 0};
+    const size_t rc = ZSTD_decompressStream(ctx, &dst, &src);
+    used += dst.pos;
+    if (ZSTD_isError(rc)) {
+      error = std::string("zstd: ") + ZSTD_getErrorName(rc);
+      break;
+    }
+    if (rc == 0) {
+      if (src.pos == src.size) break;  // frames may follow one another
+      continue;
+    }
+    if (src.pos == src.size && dst.pos < free) {
+      error = "zstd: the compressed block ends early";
+      break;
+    }
+  }
+  out.resize(used);
+  return error;
+}
+
 }  // namespace
+
+Decompressor::Decompressor() : zstd_(ZSTD_createDCtx()) {}
+Decompressor::~Decompressor() { ZSTD_freeDCtx(static_cast<ZSTD_DCtx*>(zstd_)); }
+
+std::string Decompressor::run(Codec codec, std::span<const uint8_t> in, size_t expected_size,
+                              std::vector<uint8_t>& out) {
+  if (codec != Codec::kZstd) return decompress(codec, in, expected_size, out);
+  out.clear();
+  return zstd(static_cast<ZSTD_DCtx*>(zstd_), in, expected_size, out);
+}
+
+Compressor::Compressor(Codec codec, int level) : codec_(codec), level_(level) {
+  if (codec_ == Codec::kZstd) zstd_ = ZSTD_createCCtx();
+}
+Compressor::~Compressor() { ZSTD_freeCCtx(static_cast<ZSTD_CCtx*>(zstd_)); }
+
+std::string Compressor::run(std::span<const uint8_t> in, std::vector<uint8_t>& out) {
+  out.clear();
+  if (codec_ == Codec::kZstd) {
+    out.resize(ZSTD_compressBound(in.size()));
+    const size_t n = ZSTD_compressCCtx(static_cast<ZSTD_CCtx*>(zstd_), out.data(), out.size(), in.data(), in.size(),
+                                       level_);
+    if (ZSTD_isError(n)) return std::string("zstd: ") + ZSTD_getErrorName(n);
+    out.resize(n);
+    return {};
+  }
+  if (codec_ == Codec::kLz4Frame) {
+    LZ4F_preferences_t prefs{};
+    prefs.frameInfo.contentSize = in.size();
+    prefs.compressionLevel = level_;
+    out.resize(LZ4F_compressFrameBound(in.size(), &prefs));
+    const size_t n = LZ4F_compressFrame(out.data(), out.size(), in.data(), in.size(), &prefs);
+    if (LZ4F_isError(n)) return std::string("lz4: ") + LZ4F_getErrorName(n);
+    out.resize(n);
+    return {};
+  }
+  out.assign(in.begin(), in.end());
+  return {};
+}
+
+Status decompress_file(Codec codec, const std::string& in, const std::string& out) {
+  if (codec != Codec::kZstd) return Error(in + ": only zstd files are decompressed whole");
+  std::unique_ptr<FILE, int (*)(FILE*)> src(std::fopen(in.c_str(), "rb"), &std::fclose);
+  if (!src) return Error(in + ": cannot open: " + std::strerror(errno));
+  const std::string partial = out + ".partial";
+  std::unique_ptr<FILE, int (*)(FILE*)> dst(std::fopen(partial.c_str(), "wb"), &std::fclose);
+  if (!dst) return Error(out + ": cannot create: " + std::strerror(errno));
+  std::unique_ptr<ZSTD_DCtx, size_t (*)(ZSTD_DCtx*)> ctx(ZSTD_createDCtx(), &ZSTD_freeDCtx);
+  std::vector<uint8_t> ibuf(ZSTD_DStreamInSize()), obuf(ZSTD_DStreamOutSize());
+  std::string error;
+  size_t last_rc = 0;
+  uint64_t read_total = 0;
+  for (;;) {
+    const size_t got = std::fread(ibuf.data(), 1, ibuf.size(), src.get());
+    if (got == 0) break;
+    ZSTD_inBuffer input{ibuf.data(), got, 0};
+    while (input.pos < input.size && error.empty()) {
+      ZSTD_outBuffer output{obuf.data(), obuf.size(), 0};
+      last_rc = ZSTD_decompressStream(ctx.get(), &output, &input);
+      if (ZSTD_isError(last_rc)) {
+        error = "at byte " + std::to_string(read_total + input.pos) + ": zstd: " + ZSTD_getErrorName(last_rc);
+      }
+      if (output.pos && std::fwrite(obuf.data(), 1, output.pos, dst.get()) != output.pos) {
+        error = "cannot write " + partial + ": " + std::strerror(errno);
+      }
+    }
+    read_total += got;
+    if (!error.empty()) break;
+  }
+  if (error.empty() && last_rc != 0) error = "the compressed file ends early (at byte " + std::to_string(read_total) + ")";
+  const bool closed = std::fclose(dst.release()) == 0;
+  if (error.empty() && !closed) error = "cannot write " + partial;
+  // What was decoded before damage is kept: the reader of the decompressed file reports the cut itself.
+  if (!closed || std::rename(partial.c_str(), out.c_str()) != 0) {
+    std::remove(partial.c_str());
+    return Error(in + ": " + (error.empty() ? "cannot rename into place" : error));
+  }
+  if (!error.empty()) return Error(in + ": " + error);
+  return {};
+}
 
 std::string decompress(Codec codec, std::span<const uint8_t> in, size_t expected_size, std::vector<uint8_t>& out) {
   out.clear();
@@ -123,6 +248,10 @@ std::string decompress(Codec codec, std::span<const uint8_t> in, size_t expected
     case Codec::kBz2: return bz2(in, out);
     case Codec::kLz4Frame: return lz4(in, out);
     case Codec::kGzip: return gzip(in, out);
+    case Codec::kZstd: {
+      Decompressor d;
+      return d.run(codec, in, expected_size, out);
+    }
   }
   return "unknown codec";
 }

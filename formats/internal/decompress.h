@@ -1,5 +1,6 @@
-// Decompression of whole blocks (bag chunks) with Debian's libbz2, liblz4 and zlib. A block cut short or
-// corrupt still gives every byte decoded before the damage, so the intact messages in it can be read.
+// Decompression of whole blocks (bag and MCAP chunks, rosbag2's compressed files and messages) with Debian's libbz2,
+// liblz4, libzstd and zlib, and compression of blocks for the MCAP writer. A block cut short or corrupt still
+// gives every byte decoded before the damage, so the intact messages in it can be read.
 #pragma once
 
 #include <cstdint>
@@ -7,12 +8,50 @@
 #include <string>
 #include <vector>
 
+#include "core/result.h"
+
 namespace driftlab::formats::internal {
 
-enum class Codec { kNone, kBz2, kLz4Frame, kGzip };
+enum class Codec { kNone, kBz2, kLz4Frame, kGzip, kZstd };
 
 /// Decompresses in into out (cleared first; expected_size is a hint, 0 when unknown). Returns an empty string on
 /// success, or what went wrong ("bz2: data integrity error"); out then holds what was decoded before it.
 std::string decompress(Codec codec, std::span<const uint8_t> in, size_t expected_size, std::vector<uint8_t>& out);
+
+/// Decompresses the file in (only kZstd: rosbag2's file compression) into out, streaming (memory stays bounded),
+/// written beside out and renamed when whole. Errors name the file.
+Status decompress_file(Codec codec, const std::string& in, const std::string& out);
+
+/// Reuses one decoder context between blocks (zstd's is worth keeping: it owns a window of the frame's size).
+/// Not thread-safe; one per reader.
+class Decompressor {
+ public:
+  Decompressor();
+  ~Decompressor();
+  Decompressor(const Decompressor&) = delete;
+  Decompressor& operator=(const Decompressor&) = delete;
+  /// As decompress().
+  std::string run(Codec codec, std::span<const uint8_t> in, size_t expected_size, std::vector<uint8_t>& out);
+
+ private:
+  void* zstd_ = nullptr;  // ZSTD_DCtx
+};
+
+/// Compresses in with codec (kZstd at `level`, or kLz4Frame) into out (cleared first). Keeps its context between
+/// calls. Not thread-safe; one per writer.
+class Compressor {
+ public:
+  Compressor(Codec codec, int level);
+  ~Compressor();
+  Compressor(const Compressor&) = delete;
+  Compressor& operator=(const Compressor&) = delete;
+  /// Empty on success, else what went wrong.
+  std::string run(std::span<const uint8_t> in, std::vector<uint8_t>& out);
+
+ private:
+  Codec codec_;
+  int level_;
+  void* zstd_ = nullptr;  // ZSTD_CCtx
+};
 
 }  // namespace driftlab::formats::internal

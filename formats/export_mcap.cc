@@ -1,0 +1,738 @@
+#include "formats/export_mcap.h"
+
+#include <algorithm>
+#include <bit>
+#include <charconv>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <map>
+#include <set>
+
+#include "core/log_reader.h"
+#include "driftlab/foreign_message_t.hpp"
+#include "driftlab/foreign_schema_t.hpp"
+#include "driftlab/image_t.hpp"
+#include "driftlab/imu_t.hpp"
+#include "driftlab/joint_state_t.hpp"
+#include "driftlab/laser_scan_t.hpp"
+#include "driftlab/odometry_t.hpp"
+#include "driftlab/point_cloud_t.hpp"
+#include "driftlab/pose_t.hpp"
+#include "driftlab/tf_t.hpp"
+#include "driftlab/velocity_command_t.hpp"
+#include "formats/ros2_bag.h"
+#include "lcmtypes/schema.h"
+#include "lcmtypes/stream_header.h"
+#include "lcmtypes/type_registry.h"
+#include "lcmtypes/validate.h"
+
+namespace driftlab::formats {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct MsgText {
+  const char* name;
+  const char* text;
+};
+constexpr MsgText kStandard[] = {
+#include "formats/internal/ros2_msg_texts.inc"
+};
+
+const char* standard_text(std::string_view name) {
+  for (const auto& m : kStandard)
+    if (name == m.name) return m.text;
+  return nullptr;
+}
+
+std::string without_msg(std::string_view name) {
+  std::string s(name);
+  if (auto p = s.find("/msg/"); p != std::string::npos) s.erase(p, 4);
+  return s;
+}
+
+// --- driftlab_msgs: ros2msg definitions made from lcmtypes/*.lcm -----------------------------------------------
+
+/// "channel_stats_t" -> "ChannelStats"; header_t -> "Header" (driftlab's, with seq).
+std::string camel(std::string_view lcm_name) {
+  std::string_view n = lcm_name;
+  if (n.ends_with("_t")) n.remove_suffix(2);
+  std::string out;
+  bool up = true;
+  for (const char c : n) {
+    if (c == '_') {
+      up = true;
+      continue;
+    }
+    out += up ? static_cast<char>(std::toupper(static_cast<unsigned char>(c))) : c;
+    up = false;
+  }
+  return out;
+}
+
+const char* ros_primitive(const std::string& lcm_type) {
+  static const std::pair<const char*, const char*> kMap[] = {
+      {"int8_t", "int8"},   {"int16_t", "int16"}, {"int32_t", "int32"},   {"int64_t", "int64"}, {"float", "float32"},
+      {"double", "float64"}, {"string", "string"}, {"boolean", "bool"}, {"byte", "uint8"}};
+  for (const auto& [l, r] : kMap)
+    if (lcm_type == l) return r;
+  return nullptr;
+}
+
+/// Whether every dimension of f is a number (a fixed-size array), and their product.
+bool fixed_dims(const lcmtypes::FieldDef& f, uint64_t* count) {
+  uint64_t n = 1;
+  for (const auto& d : f.dims) {
+    if (d.empty() || !std::isdigit(static_cast<unsigned char>(d[0]))) return false;
+    n *= std::stoull(d);
+  }
+  *count = n;
+  return true;
+}
+
+/// The .msg text of a driftlab type: its fields in order, arrays of several dimensions flattened (row-major), a
+/// variable-length array as a sequence (its length field stays, as in the .lcm).
+std::string driftlab_msg_text(const lcmtypes::StructDef& s) {
+  std::string t = "# driftlab." + s.name + " (lcmtypes/" + s.name + ".lcm), as driftlab exports it\n";
+  for (const auto& f : s.fields) {
+    std::string type;
+    if (const char* p = ros_primitive(f.type)) {
+      type = p;
+    } else {
+      type = "driftlab_msgs/" + camel(f.type);
+    }
+    if (!f.dims.empty()) {
+      uint64_t n = 0;
+      type += fixed_dims(f, &n) ? "[" + std::to_string(n) + "]" : "[]";
+    }
+    t += type + " " + f.name + "\n";
+  }
+  return t;
+}
+
+/// The .msg text of a type by its "pkg/Type" name: standard, or driftlab_msgs made from lcmtypes.
+std::string msg_text(const std::string& name) {
+  if (const char* t = standard_text(name)) return t;
+  if (name.starts_with("driftlab_msgs/")) {
+    const std::string want = name.substr(14);
+    for (const auto& s : lcmtypes::all_structs())
+      if (camel(s.name) == want) return driftlab_msg_text(s);
+  }
+  return {};
+}
+
+/// The message types a .msg text uses, as "pkg/Type" (a bare name is in the text's own package).
+std::set<std::string> dependencies(const std::string& name, const std::string& text) {
+  static const std::set<std::string> kPrimitives = {"bool",   "byte",   "char",  "float32", "float64",
+                                                    "int8",   "uint8",  "int16", "uint16",  "int32",
+                                                    "uint32", "int64",  "uint64", "string", "wstring"};
+  const std::string package = name.substr(0, name.find('/'));
+  std::set<std::string> out;
+  size_t start = 0;
+  while (start < text.size()) {
+    size_t nl = text.find('\n', start);
+    if (nl == std::string::npos) nl = text.size();
+    std::string line = text.substr(start, nl - start);
+    start = nl + 1;
+    if (const size_t h = line.find('#'); h != std::string::npos) line.resize(h);
+    const size_t b = line.find_first_not_of(" \t");
+    if (b == std::string::npos) continue;
+    const size_t e = line.find_first_of(" \t", b);
+    if (e == std::string::npos) continue;
+    const size_t n = line.find_first_not_of(" \t", e);
+    if (n == std::string::npos) continue;
+    const size_t ne = line.find_first_of(" \t=", n);
+    if (ne != std::string::npos && line.find_first_not_of(" \t", ne) != std::string::npos &&
+        line[line.find_first_not_of(" \t", ne)] == '=') {
+      continue;  // a constant
+    }
+    std::string type = line.substr(b, e - b);
+    type = type.substr(0, type.find('['));
+    type = type.substr(0, type.find("<="));
+    if (kPrimitives.count(type)) continue;
+    out.insert(type.find('/') == std::string::npos ? package + "/" + type : without_msg(type));
+  }
+  return out;
+}
+
+// --- CDR, little endian (XCDR1, as rosbag2 stores ROS 2 messages) ----------------------------------------------
+
+class Cdr {
+ public:
+  Cdr() { b_ = {0x00, 0x01, 0x00, 0x00}; }
+  std::vector<uint8_t>& bytes() { return b_; }
+  void reset() { b_.resize(4); }
+  template <typename T>
+  void put(T v) {
+    align(sizeof(T));
+    const size_t n = b_.size();
+    b_.resize(n + sizeof(T));
+    std::memcpy(b_.data() + n, &v, sizeof(T));
+  }
+  template <typename T>
+  void fixed(const T* p, size_t n) {
+    if (n == 0) return;
+    align(sizeof(T));
+    const size_t at = b_.size();
+    b_.resize(at + n * sizeof(T));
+    std::memcpy(b_.data() + at, p, n * sizeof(T));
+  }
+  template <typename T>
+  void sequence(const T* p, size_t n) {
+    put(static_cast<uint32_t>(n));
+    fixed(p, n);
+  }
+  void str(std::string_view s) {
+    put(static_cast<uint32_t>(s.size() + 1));
+    b_.insert(b_.end(), s.begin(), s.end());
+    b_.push_back(0);
+  }
+  void time(int64_t utime) {
+    // builtin_interfaces/Time: whole seconds (rounded down) and the nanoseconds after them.
+    const int64_t sec = utime >= 0 ? utime / 1'000'000 : -((-utime + 999'999) / 1'000'000);
+    put(static_cast<int32_t>(sec));
+    put(static_cast<uint32_t>((utime - sec * 1'000'000) * 1000));
+  }
+  void header(const header_t& h) {
+    time(h.utime);
+    str(h.frame_id);
+  }
+  void vec(const vector3_t& v) {
+    put(v.x);
+    put(v.y);
+    put(v.z);
+  }
+  void quat(const quaternion_t& q) {
+    put(q.x);
+    put(q.y);
+    put(q.z);
+    put(q.w);
+  }
+
+ private:
+  void align(size_t n) {
+    const size_t off = (b_.size() - 4) % n;
+    if (off) b_.resize(b_.size() + n - off, 0);
+  }
+  std::vector<uint8_t> b_;
+};
+static_assert(std::endian::native == std::endian::little, "CDR is written little endian in place");
+
+// Encoders of driftlab's mapped types; each returns the header.seq to use as MCAP sequence.
+
+void laser_scan(Cdr& c, const laser_scan_t& m) {
+  c.header(m.header);
+  for (float v : {m.angle_min, m.angle_max, m.angle_increment, m.time_increment, m.scan_time, m.range_min,
+                  m.range_max}) {
+    c.put(v);
+  }
+  c.sequence(m.ranges.data(), m.ranges.size());
+  c.sequence(m.intensities.data(), m.intensities.size());
+}
+void imu(Cdr& c, const imu_t& m) {
+  c.header(m.header);
+  c.quat(m.orientation);
+  c.fixed(m.orientation_covariance, 9);
+  c.vec(m.angular_velocity);
+  c.fixed(m.angular_velocity_covariance, 9);
+  c.vec(m.linear_acceleration);
+  c.fixed(m.linear_acceleration_covariance, 9);
+}
+void odometry(Cdr& c, const odometry_t& m) {
+  c.header(m.header);
+  c.str(m.child_frame_id);
+  c.vec(m.position);
+  c.quat(m.orientation);
+  c.fixed(m.pose_covariance, 36);
+  c.vec(m.linear_velocity);
+  c.vec(m.angular_velocity);
+  c.fixed(m.twist_covariance, 36);
+}
+void pose(Cdr& c, const pose_t& m) {
+  c.header(m.header);
+  c.vec(m.position);
+  c.quat(m.orientation);
+  c.fixed(m.covariance, 36);
+}
+void tf(Cdr& c, const tf_t& m) {
+  c.put(static_cast<uint32_t>(m.transforms.size()));
+  for (const auto& t : m.transforms) {
+    c.header(t.header);
+    c.str(t.child_frame_id);
+    c.vec(t.translation);
+    c.quat(t.rotation);
+  }
+}
+void twist(Cdr& c, const velocity_command_t& m) {
+  c.header(m.header);
+  c.vec(m.linear);
+  c.vec(m.angular);
+}
+void joint_state(Cdr& c, const joint_state_t& m) {
+  c.header(m.header);
+  c.put(static_cast<uint32_t>(m.name.size()));
+  for (const auto& n : m.name) c.str(n);
+  // Values not measured are NaN in driftlab and an empty array in ROS.
+  for (const auto* v : {&m.position, &m.velocity, &m.effort}) {
+    const bool none = std::all_of(v->begin(), v->end(), [](double x) { return std::isnan(x); });
+    if (none) {
+      c.put<uint32_t>(0);
+    } else {
+      c.sequence(v->data(), v->size());
+    }
+  }
+}
+bool compressed(const image_t& m) { return m.encoding == "jpeg" || m.encoding == "png"; }
+void image(Cdr& c, const image_t& m) {
+  c.header(m.header);
+  c.put(static_cast<uint32_t>(m.height));
+  c.put(static_cast<uint32_t>(m.width));
+  c.str(m.encoding);
+  c.put<uint8_t>(0);  // is_bigendian
+  c.put(static_cast<uint32_t>(m.height > 0 ? m.data.size() / static_cast<size_t>(m.height) : 0));  // step: no padding
+  c.sequence(m.data.data(), m.data.size());
+}
+void compressed_image(Cdr& c, const image_t& m) {
+  c.header(m.header);
+  c.str(m.encoding);
+  c.sequence(m.data.data(), m.data.size());
+}
+void point_cloud(Cdr& c, const point_cloud_t& m) {
+  c.header(m.header);
+  c.put(static_cast<uint32_t>(m.height));
+  c.put(static_cast<uint32_t>(m.width));
+  const bool intensity = m.nintensities == m.npoints && m.npoints > 0;
+  const bool time = m.ntimes == m.npoints && m.npoints > 0;
+  std::vector<std::string> names = {"x", "y", "z"};
+  if (intensity) names.emplace_back("intensity");
+  if (time) names.emplace_back("time");  // seconds after header.stamp, float32: Velodyne's convention
+  c.put(static_cast<uint32_t>(names.size()));
+  for (size_t i = 0; i < names.size(); ++i) {
+    c.str(names[i]);
+    c.put(static_cast<uint32_t>(4 * i));  // offset
+    c.put<uint8_t>(7);                    // FLOAT32
+    c.put<uint32_t>(1);                   // count
+  }
+  const auto point_step = static_cast<uint32_t>(4 * names.size());
+  c.put<uint8_t>(0);  // is_bigendian
+  c.put(point_step);
+  c.put(static_cast<uint32_t>(point_step * static_cast<uint32_t>(m.width)));
+  const size_t n = static_cast<size_t>(m.npoints);
+  c.put(static_cast<uint32_t>(n * point_step));
+  std::vector<uint8_t>& b = c.bytes();
+  size_t at = b.size();
+  b.resize(at + n * point_step);
+  for (size_t i = 0; i < n; ++i) {
+    float p[5] = {m.x[i], m.y[i], m.z[i], 0, 0};
+    size_t k = 3;
+    if (intensity) p[k++] = m.intensities[i];
+    if (time) p[k++] = m.time_offsets[i];
+    std::memcpy(b.data() + at, p, point_step);
+    at += point_step;
+  }
+  const bool dense = std::none_of(m.x.begin(), m.x.end(), [](float v) { return std::isnan(v); });
+  c.put<uint8_t>(dense ? 1 : 0);
+}
+
+// --- driftlab's other types: the LCM bytes walked by their definition into CDR -----------------------------------
+
+/// A driftlab message of any type in CDR by its .lcm definition: lcmtypes::flatten walks the LCM bytes (every
+/// primitive in order, as text that reads back exactly), and the fields are written again in CDR in the same
+/// order, with sequence lengths before variable-length arrays.
+class LcmToCdr {
+ public:
+  LcmToCdr(std::span<const uint8_t> data, Cdr& out) : d_(data), c_(out) {}
+  bool run(const lcmtypes::StructDef& s) {
+    const bool whole = lcmtypes::flatten(
+        s, d_, [&](const std::string&, const std::string& value) { values_.push_back(value); },
+        {.max_array = SIZE_MAX, .bytes = true});
+    return whole && fields(s) && next_ == values_.size();
+  }
+
+ private:
+  bool primitive(const std::string& t, int64_t* value) {
+    if (next_ >= values_.size()) return false;
+    const std::string& v = values_[next_++];
+    if (t == "string") {
+      c_.str(v);
+      return true;
+    }
+    const char* b = v.data();
+    const char* e = b + v.size();
+    if (t == "double" || t == "float") {
+      double d = 0;
+      if (std::from_chars(b, e, d).ec != std::errc()) d = std::strtod(v.c_str(), nullptr);  // nan, inf
+      if (t == "double") {
+        c_.put(d);
+      } else {
+        c_.put(static_cast<float>(d));
+      }
+      return true;
+    }
+    int64_t i = 0;
+    if (std::from_chars(b, e, i).ec != std::errc()) return false;
+    if (value) *value = i;
+    if (t == "int64_t") {
+      c_.put(i);
+    } else if (t == "int32_t") {
+      c_.put(static_cast<int32_t>(i));
+    } else if (t == "int16_t") {
+      c_.put(static_cast<int16_t>(i));
+    } else if (t == "int8_t") {
+      c_.put(static_cast<int8_t>(i));
+    } else {
+      c_.put(static_cast<uint8_t>(i));  // byte, boolean
+    }
+    return true;
+  }
+  bool element(const lcmtypes::FieldDef& f, int64_t* value) {
+    if (const auto* nested = lcmtypes::find_struct(f.type)) return fields(*nested);
+    return primitive(f.type, value);
+  }
+  bool fields(const lcmtypes::StructDef& s) {
+    std::map<std::string, int64_t> ints;  // integer fields seen, for the lengths of later arrays
+    for (const auto& f : s.fields) {
+      if (f.dims.empty()) {
+        int64_t v = 0;
+        if (!element(f, &v)) return false;
+        ints[f.name] = v;
+        continue;
+      }
+      uint64_t total = 1;
+      for (const auto& d : f.dims) {
+        total *= std::isdigit(static_cast<unsigned char>(d[0])) ? std::stoull(d)
+                                                                 : static_cast<uint64_t>(std::max<int64_t>(0, ints[d]));
+      }
+      uint64_t fixed = 0;
+      if (!fixed_dims(f, &fixed)) c_.put(static_cast<uint32_t>(total));
+      for (uint64_t i = 0; i < total; ++i)
+        if (!element(f, nullptr)) return false;
+    }
+    return true;
+  }
+  std::span<const uint8_t> d_;
+  Cdr& c_;
+  std::vector<std::string> values_;
+  size_t next_ = 0;
+};
+
+// --- topics, channels and schemas ----------------------------------------------------------------------------------
+
+/// A valid ROS 2 topic name for a channel: the channel itself when it is one, else its characters outside
+/// [A-Za-z0-9_/] replaced by '_', a token starting with a digit given a leading '_', empty tokens dropped.
+std::string topic_for(const std::string& channel) {
+  std::string out;
+  bool token_start = true;
+  for (size_t i = 0; i < channel.size(); ++i) {
+    char c = channel[i];
+    if (c == '/') {
+      if (!out.empty() && out.back() == '/') continue;
+      out += '/';
+      token_start = true;
+      continue;
+    }
+    if (!std::isalnum(static_cast<unsigned char>(c)) && c != '_') c = '_';
+    if (token_start && std::isdigit(static_cast<unsigned char>(c))) out += '_';
+    out += c;
+    token_start = false;
+  }
+  if (out.size() > 1 && out.back() == '/') out.pop_back();
+  if (out.empty() || out == "/") out = "/_";
+  return out;
+}
+
+std::string qos_profile(bool latched) {
+  // rosbag2's offered_qos_profiles: keep last 10, reliable, volatile (transient local for latched topics), no
+  // deadline, lifespan or liveliness lease (the maximum durations mean "infinite").
+  return std::string("- history: 1\n  depth: 10\n  reliability: 1\n  durability: ") + (latched ? "1" : "2") +
+         "\n  deadline:\n    sec: 2147483647\n    nsec: 4294967295\n  lifespan:\n    sec: 2147483647\n"
+         "    nsec: 4294967295\n  liveliness: 1\n  liveliness_lease_duration:\n    sec: 2147483647\n"
+         "    nsec: 4294967295\n  avoid_ros_namespace_conventions: false";
+}
+
+class Exporter {
+ public:
+  Exporter(McapWriter& w, const std::function<void(const std::string&)>& on_problem)
+      : w_(w), on_problem_(on_problem) {}
+
+  McapExportSummary summary;
+
+  Status event(const Event& e) {
+    if (e.channel == "FOREIGN_SCHEMAS") {
+      foreign_schema_t s;
+      if (lcmtypes::decode(e.data, s)) foreign_[s.channel] = {s.type, s.encoding, s.definition};
+      return {};
+    }
+    if (e.data.size() < 8) return skip(e.channel);
+    int64_t fp = 0;
+    for (int i = 0; i < 8; ++i) fp = static_cast<int64_t>((static_cast<uint64_t>(fp) << 8) | e.data[i]);
+    const char* type = lcmtypes::type_name(fp);
+    if (!type) return skip(e.channel);
+    const std::string_view t = type;
+    const uint64_t log_ns = static_cast<uint64_t>(std::max<int64_t>(0, e.utime)) * 1000;
+    cdr_.reset();
+    std::span<const uint8_t> payload;
+    std::string ros_type, encoding = "cdr", schema_encoding = "ros2msg", schema;
+    int64_t seq = -1;
+    bool ok = true;
+    auto decode = [&](auto& m) {
+      ok = lcmtypes::decode(e.data, m);
+      if (ok) seq = m.header.seq;
+      return ok;
+    };
+    if (t == "driftlab.foreign_message_t") {
+      foreign_message_t f;
+      if (!(ok = lcmtypes::decode(e.data, f))) return malformed(e);
+      payload = {f.data.data(), f.data.size()};
+      ros_type = f.type;
+      encoding = f.encoding;
+      auto it = foreign_.find(std::string(e.channel));
+      schema = it != foreign_.end() ? it->second.definition : "";
+      schema_encoding = encoding == "cdr" ? "ros2msg" : encoding == "ros1" ? "ros1msg" : "";
+      return write(e, ros_type, encoding, schema_encoding, schema, payload, log_ns, -1, type);
+    }
+    if (t == "driftlab.laser_scan_t") {
+      laser_scan_t m;
+      if (decode(m)) laser_scan(cdr_, m);
+    } else if (t == "driftlab.imu_t") {
+      imu_t m;
+      if (decode(m)) imu(cdr_, m);
+    } else if (t == "driftlab.odometry_t") {
+      odometry_t m;
+      if (decode(m)) odometry(cdr_, m);
+    } else if (t == "driftlab.pose_t") {
+      pose_t m;
+      if (decode(m)) pose(cdr_, m);
+    } else if (t == "driftlab.tf_t") {
+      tf_t m;
+      if (decode(m)) tf(cdr_, m);
+    } else if (t == "driftlab.velocity_command_t") {
+      velocity_command_t m;
+      if (decode(m)) twist(cdr_, m);
+    } else if (t == "driftlab.joint_state_t") {
+      joint_state_t m;
+      if (decode(m)) joint_state(cdr_, m);
+    } else if (t == "driftlab.point_cloud_t") {
+      point_cloud_t m;
+      if (decode(m)) point_cloud(cdr_, m);
+    } else if (t == "driftlab.image_t") {
+      image_t m;
+      if (decode(m)) {
+        if (compressed(m)) {
+          compressed_image(cdr_, m);
+          ros_type = "sensor_msgs/msg/CompressedImage";
+        } else {
+          image(cdr_, m);
+          ros_type = "sensor_msgs/msg/Image";
+        }
+      }
+    } else {
+      const lcmtypes::StructDef* s = lcmtypes::find_struct(t);
+      if (!s || !lcmtypes::well_formed(e.data, fp)) return malformed(e);
+      ok = LcmToCdr(e.data, cdr_).run(*s);
+      if (auto h = lcmtypes::read_header(e.data, e.utime)) seq = h->seq;
+    }
+    if (!ok) return malformed(e);
+    if (ros_type.empty()) ros_type = ros2_type_for(t);
+    return write(e, ros_type, encoding, schema_encoding, "", cdr_.bytes(), log_ns, seq, type);
+  }
+
+ private:
+  struct Foreign {
+    std::string type, encoding, definition;
+  };
+  struct Channel {
+    uint16_t id;
+    size_t topic;  // index into summary.topics
+    int64_t count = 0;
+  };
+
+  Status skip(std::string_view channel) {
+    for (auto& [c, n] : summary.skipped) {
+      if (c == channel) {
+        ++n;
+        return {};
+      }
+    }
+    summary.skipped.emplace_back(std::string(channel), 1);
+    return {};
+  }
+  Status malformed(const Event& e) {
+    on_problem_(std::string(e.channel) + " at byte " + std::to_string(e.offset) +
+                ": a message that does not decode as its type; left out");
+    return {};
+  }
+
+  Status write(const Event& e, const std::string& ros_type, const std::string& encoding,
+               const std::string& schema_encoding, std::string schema, std::span<const uint8_t> payload,
+               uint64_t log_ns, int64_t seq, const char* driftlab_type) {
+    const std::string key = std::string(e.channel) + '\0' + ros_type + '\0' + encoding;
+    auto it = channels_.find(key);
+    if (it == channels_.end()) {
+      if (schema_encoding == "ros2msg" && schema.empty()) schema = ros2_schema(ros_type);
+      const std::string skey = ros_type + '\0' + schema_encoding + '\0' + schema;
+      auto sit = schemas_.find(skey);
+      if (sit == schemas_.end()) {
+        sit = schemas_.emplace(skey, schema_encoding.empty() && schema.empty()
+                                         ? uint16_t{0}
+                                         : w_.add_schema(ros_type, schema_encoding, schema)).first;
+      }
+      const std::string channel(e.channel);
+      const std::string topic = topic_for(channel);
+      std::vector<std::pair<std::string, std::string>> metadata = {
+          {"offered_qos_profiles", qos_profile(channel.ends_with("tf_static") || channel == "TF_STATIC")}};
+      if (topic != channel) metadata.emplace_back("driftlab_channel", channel);  // read back by driftlab import
+      const uint16_t id = w_.add_channel(sit->second, topic, encoding, metadata);
+      summary.topics.push_back({channel, topic, driftlab_type, ros_type, encoding, 0});
+      it = channels_.emplace(key, Channel{id, summary.topics.size() - 1}).first;
+    }
+    Channel& c = it->second;
+    // The MCAP sequence: header.seq where the message has one, else the count on the channel.
+    const auto sequence = static_cast<uint32_t>(seq >= 0 ? seq : c.count);
+    if (Status s = w_.write(c.id, sequence, log_ns, log_ns, payload); !s) return s;
+    ++c.count;
+    ++summary.topics[c.topic].messages;
+    if (summary.messages++ == 0) summary.start_ns = static_cast<int64_t>(log_ns);
+    summary.start_ns = std::min(summary.start_ns, static_cast<int64_t>(log_ns));
+    summary.end_ns = std::max(summary.end_ns, static_cast<int64_t>(log_ns));
+    return {};
+  }
+
+  McapWriter& w_;
+  const std::function<void(const std::string&)>& on_problem_;
+  Cdr cdr_;
+  std::map<std::string, Foreign> foreign_;
+  std::map<std::string, Channel> channels_;
+  std::map<std::string, uint16_t> schemas_;
+};
+
+}  // namespace
+
+std::string ros2_type_for(std::string_view t) {
+  static const std::pair<const char*, const char*> kMap[] = {
+      {"driftlab.laser_scan_t", "sensor_msgs/msg/LaserScan"},
+      {"driftlab.imu_t", "sensor_msgs/msg/Imu"},
+      {"driftlab.odometry_t", "nav_msgs/msg/Odometry"},
+      {"driftlab.pose_t", "geometry_msgs/msg/PoseWithCovarianceStamped"},
+      {"driftlab.tf_t", "tf2_msgs/msg/TFMessage"},
+      {"driftlab.velocity_command_t", "geometry_msgs/msg/TwistStamped"},
+      {"driftlab.joint_state_t", "sensor_msgs/msg/JointState"},
+      {"driftlab.point_cloud_t", "sensor_msgs/msg/PointCloud2"},
+      {"driftlab.image_t", "sensor_msgs/msg/Image"},
+  };
+  for (const auto& [d, r] : kMap)
+    if (t == d) return r;
+  std::string_view n = t;
+  if (n.starts_with("driftlab.")) n.remove_prefix(9);
+  return "driftlab_msgs/msg/" + camel(n);
+}
+
+std::string ros2_schema(std::string_view ros_type) {
+  const std::string root = without_msg(ros_type);
+  std::string out = msg_text(root);
+  if (out.empty()) return {};
+  std::set<std::string> seen = {root};
+  std::function<void(const std::string&, const std::string&)> add = [&](const std::string& name,
+                                                                        const std::string& text) {
+    for (const auto& dep : dependencies(name, text)) {
+      if (!seen.insert(dep).second) continue;
+      const std::string t = msg_text(dep);
+      out += "\n" + std::string(80, '=') + "\nMSG: " + dep + "\n" + t;
+      add(dep, t);
+    }
+  };
+  add(root, out);
+  return out;
+}
+
+Result<McapExportSummary> export_mcap(const std::string& log, const std::string& out, const McapExportOptions& options,
+                                      const std::function<void(const std::string&)>& on_problem) {
+  // Damaged spots of the log travel with the file too, as its driftlab.log_problems metadata.
+  McapMetadata problems{"driftlab.log_problems", {}};
+  const std::function<void(const std::string&)> note = [&](const std::string& line) {
+    if (problems.entries.size() < 1000) problems.entries.emplace_back(std::to_string(problems.entries.size() + 1), line);
+    on_problem(line);
+  };
+  auto reader = LogReader::open(
+      log, {.channels = "", .on_problem = [&](const Problem& p) {
+              note(log + ": at byte " + std::to_string(p.offset) + ": " + p.detail);
+            }});
+  if (!reader) return reader.error();
+  auto writer = McapWriter::create(out, {.profile = "ros2",
+                                         .library = "driftlab",
+                                         .compression = options.compression,
+                                         .level = options.level,
+                                         .chunk_bytes = options.chunk_bytes});
+  if (!writer) return writer.error();
+  Exporter ex(*writer, note);
+  Status status;
+  for (Event e; status && reader->next(e);) status = ex.event(e);
+  for (const auto& m : options.metadata) {
+    if (status) status = writer->add_metadata(m.name, m.entries);
+  }
+  if (status && !problems.entries.empty()) status = writer->add_metadata(problems.name, problems.entries);
+  if (!status) {
+    writer->discard();
+    return Error(status.message());
+  }
+  if (Status s = writer->close(); !s) return Error(s.message());
+  ex.summary.bytes = writer->bytes();
+  return ex.summary;
+}
+
+Result<McapExportSummary> export_rosbag2(const std::string& log, const std::string& folder,
+                                         const McapExportOptions& options,
+                                         const std::function<void(const std::string&)>& on_problem) {
+  std::string dir = folder;
+  while (dir.size() > 1 && dir.back() == '/') dir.pop_back();
+  std::error_code ec;
+  if (fs::exists(dir, ec) && !(fs::is_directory(dir, ec) && fs::is_empty(dir, ec))) {
+    return Error(dir + ": exists and is not an empty folder (rosbag2 writes a bag into a new folder)");
+  }
+  const std::string partial = dir + ".partial";
+  fs::remove_all(partial, ec);
+  if (!fs::create_directories(partial, ec)) return Error(partial + ": cannot create: " + ec.message());
+  const std::string name = fs::path(dir).filename().string() + "_0.mcap";
+  auto summary = export_mcap(log, partial + "/" + name, options, on_problem);
+  if (!summary) {
+    fs::remove_all(partial, ec);
+    return summary.error();
+  }
+  std::vector<Ros2TopicInfo> topics;
+  for (const auto& t : summary->topics) {
+    // One topic per ROS topic: a channel that went out on two channels (raw and compressed images) counts once.
+    auto it = std::find_if(topics.begin(), topics.end(), [&](const Ros2TopicInfo& x) { return x.name == t.topic; });
+    if (it != topics.end()) {
+      it->message_count += t.messages;
+      continue;
+    }
+    Ros2TopicInfo ti;
+    ti.name = t.topic;
+    ti.type = t.ros_type;
+    ti.serialization_format = t.encoding;
+    ti.offered_qos_profiles = qos_profile(t.channel.ends_with("tf_static") || t.channel == "TF_STATIC");
+    ti.message_count = t.messages;
+    topics.push_back(std::move(ti));
+  }
+  const Ros2FileInfo file{name, summary->start_ns, summary->end_ns - summary->start_ns, summary->messages};
+  {
+    std::ofstream m(partial + "/metadata.yaml", std::ios::binary);
+    m << ros2_metadata_yaml("mcap", topics, {file});
+    if (!m.flush()) {
+      fs::remove_all(partial, ec);
+      return Error(partial + "/metadata.yaml: cannot write");
+    }
+  }
+  if (fs::exists(dir, ec)) fs::remove(dir, ec);  // the empty folder given
+  fs::rename(partial, dir, ec);
+  if (ec) {
+    fs::remove_all(partial, ec);
+    return Error(dir + ": cannot rename " + partial + " into place");
+  }
+  return summary;
+}
+
+}  // namespace driftlab::formats

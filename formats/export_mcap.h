@@ -1,0 +1,67 @@
+// driftlab logs out as ROS 2 bags in MCAP storage, for Foxglove and `ros2 bag play`: driftlab's sensor, navigation
+// and geometry types become the standard ROS 2 messages (CDR, ros2msg schemas with the exact standard definitions
+// and their dependencies, as rosbag2 writes them); messages carried from another recording (foreign_message_t) go
+// back out as they came, with their own schema; driftlab's other types (statistics, faults, comparisons) go out as
+// CDR with a ros2msg schema made from their .lcm definition (package driftlab_msgs), which Foxglove decodes and
+// plots like any ROS message. The event time is the MCAP log time, header.seq the MCAP sequence.
+// Thread-safety: plain functions.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "core/result.h"
+#include "formats/mcap.h"
+
+namespace driftlab::formats {
+
+struct McapExportOptions {
+  McapCompression compression = McapCompression::kZstd;
+  int level = 1;                  ///< zstd level: 1 is fast (rosbag2 records with its default, 1 too)
+  size_t chunk_bytes = 4 << 20;   ///< uncompressed bytes per chunk
+  /// Extra Metadata records (name, key/value pairs), e.g. a diagnosis's findings.
+  std::vector<McapMetadata> metadata;
+};
+
+struct ExportedTopic {
+  std::string channel;        ///< the driftlab channel
+  std::string topic;          ///< the ROS topic (the channel, or a valid ROS name made from it)
+  std::string driftlab_type;  ///< "driftlab.laser_scan_t"
+  std::string ros_type;       ///< "sensor_msgs/msg/LaserScan"
+  std::string encoding;       ///< "cdr" (or the foreign message's own)
+  int64_t messages = 0;
+};
+
+struct McapExportSummary {
+  std::vector<ExportedTopic> topics;
+  int64_t messages = 0;
+  std::vector<std::pair<std::string, int64_t>> skipped;  ///< channels of types driftlab does not know, with counts
+  int64_t start_ns = 0, end_ns = 0;                      ///< first and last log time written
+  uint64_t bytes = 0;                                    ///< of the file
+};
+
+/// Writes log as the MCAP file out (atomically). Damaged spots of the log and messages that do not decode go to
+/// on_problem (one line each); everything else is written. Errors name the file.
+Result<McapExportSummary> export_mcap(const std::string& log, const std::string& out, const McapExportOptions& options,
+                                      const std::function<void(const std::string&)>& on_problem);
+
+/// Writes log as a rosbag2 folder: folder/metadata.yaml and folder/NAME_0.mcap (NAME: the folder's name). The
+/// folder must not exist yet or be empty; it is made beside as FOLDER.partial and renamed when whole.
+Result<McapExportSummary> export_rosbag2(const std::string& log, const std::string& folder,
+                                         const McapExportOptions& options,
+                                         const std::function<void(const std::string&)>& on_problem);
+
+/// The ROS 2 type a driftlab type goes out as ("sensor_msgs/msg/LaserScan" for "driftlab.laser_scan_t";
+/// "driftlab_msgs/msg/ChannelStats" for types without a standard equivalent).
+std::string ros2_type_for(std::string_view driftlab_type);
+
+/// The ros2msg schema of a type as rosbag2 stores it: its .msg text, then each type it uses (depth first, in
+/// name order, each once) after a line of 80 '=' and "MSG: pkg/Type". Standard types (sensor_msgs,
+/// geometry_msgs, nav_msgs, std_msgs, tf2_msgs, builtin_interfaces) have their exact upstream text; driftlab_msgs
+/// types are made from lcmtypes/. Empty for a type neither knows.
+std::string ros2_schema(std::string_view ros_type);
+
+}  // namespace driftlab::formats

@@ -1,0 +1,403 @@
+// driftlab import of ROS 2 bags and MCAP files end to end, through the command: split recordings, big-endian CDR,
+// rosbag2's file and message compression, bad input named in one line with the rest converted, and every command
+// reading these files directly through a cached conversion.
+#include <gtest/gtest.h>
+#include <sqlite3.h>
+#include <sys/stat.h>
+
+#include <bit>
+#include <cstring>
+#include <filesystem>
+#include <map>
+
+#include "driftlab/foreign_message_t.hpp"
+#include "driftlab/laser_scan_t.hpp"
+#include "formats/internal/decompress.h"
+#include "formats/mcap.h"
+#include "formats/ros2_bag.h"
+#include "formats/ros_messages.h"
+#include "driftlab/velocity_command_t.hpp"
+#include "lcmtypes/validate.h"
+#include "tests/test_util.h"
+
+namespace driftlab {
+namespace {
+
+namespace fs = std::filesystem;
+using test::CmdResult;
+using test::run_capture;
+
+const std::string kDriftlab = std::string(DRIFTLAB_BIN_DIR) + "/driftlab";
+
+CmdResult driftlab(const std::string& args) { return run_capture(kDriftlab + " " + args); }
+
+std::map<std::string, std::vector<test::OwnedEvent>> by_channel(const std::string& log) {
+  std::map<std::string, std::vector<test::OwnedEvent>> m;
+  for (auto& e : test::read_all(log)) m[e.channel].push_back(std::move(e));
+  return m;
+}
+
+/// CDR (XCDR1) written by hand, in either byte order, to feed the importer what rosbag2 stores.
+class Cdr {
+ public:
+  explicit Cdr(bool big) : big_(big) { b_ = {0x00, static_cast<uint8_t>(big ? 0x00 : 0x01), 0x00, 0x00}; }
+  template <typename T>
+  Cdr& put(T v) {
+    while ((b_.size() - 4) % sizeof(T)) b_.push_back(0);
+    uint8_t raw[sizeof(T)];
+    std::memcpy(raw, &v, sizeof(T));
+    if (big_) std::reverse(raw, raw + sizeof(T));
+    b_.insert(b_.end(), raw, raw + sizeof(T));
+    return *this;
+  }
+  Cdr& str(const std::string& s) {
+    put(static_cast<uint32_t>(s.size() + 1));
+    b_.insert(b_.end(), s.begin(), s.end());
+    b_.push_back(0);
+    return *this;
+  }
+  std::vector<uint8_t> bytes() const { return b_; }
+
+ private:
+  bool big_;
+  std::vector<uint8_t> b_;
+};
+
+/// A sensor_msgs/LaserScan: stamp sec.nanosec, frame "laser", 3 ranges.
+std::vector<uint8_t> scan(bool big, int32_t sec, uint32_t nanosec, float first_range) {
+  Cdr c(big);
+  c.put(sec).put(nanosec).str("laser");
+  for (float v : {-1.0F, 1.0F, 1.0F, 0.0F, 0.1F, 0.1F, 30.0F}) c.put(v);
+  c.put<uint32_t>(3).put(first_range).put(2.5F).put(3.5F);
+  c.put<uint32_t>(0);
+  return c.bytes();
+}
+
+constexpr char kScanDefinition[] = "# (not needed: a mapped type)\n";
+
+/// An MCAP file of n scans on /scan, stamps from first_sec on, received 10 ms after.
+void write_scans(const std::string& path, int first, int n, bool big = false) {
+  auto w = formats::McapWriter::create(path);
+  ASSERT_TRUE(w.ok());
+  const uint16_t s = w->add_schema("sensor_msgs/msg/LaserScan", "ros2msg", kScanDefinition);
+  const uint16_t c = w->add_channel(s, "/scan", "cdr");
+  for (int i = first; i < first + n; ++i) {
+    const uint64_t t = 1'700'000'000'000'000'000ull + static_cast<uint64_t>(i) * 100'000'000ull;
+    ASSERT_TRUE(w->write(c, 0, t + 10'000'000, t + 10'000'000,
+                         scan(big, static_cast<int32_t>(t / 1'000'000'000), static_cast<uint32_t>(t % 1'000'000'000),
+                              static_cast<float>(i)))
+                    .ok());
+  }
+  ASSERT_TRUE(w->close().ok());
+}
+
+void write_text(const std::string& path, const std::string& text) { test::write_file(path, {text.begin(), text.end()}); }
+
+// A recording split in two files (named as rosbag2 names its splits, b_2 before b_10) is one recording, given as
+// its folder or as its files in any order; every command reads it.
+TEST(Ros2Import, SplitRecordingIsOneRecording) {
+  test::TempDir dir;
+  const std::string bag = dir.file("bag");
+  fs::create_directories(bag);
+  write_scans(bag + "/b_2.mcap", 0, 5);
+  write_scans(bag + "/b_10.mcap", 5, 5);
+  formats::Ros2TopicInfo topic{"/scan", "sensor_msgs/msg/LaserScan", "cdr", "", "", 10};
+  write_text(bag + "/metadata.yaml",
+             formats::ros2_metadata_yaml("mcap", {topic}, {{"b_2.mcap", 0, 0, 5}, {"b_10.mcap", 0, 0, 5}}));
+
+  CmdResult r = driftlab("import '" + bag + "' -o '" + dir.file("folder.lcm") + "'");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("(ROS 2 bag (mcap), 2 files)"), std::string::npos) << r.out;
+  r = driftlab("import '" + bag + "/b_10.mcap' '" + bag + "/b_2.mcap' -o '" + dir.file("files.lcm") + "'");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(test::read_file(dir.file("folder.lcm")), test::read_file(dir.file("files.lcm")));
+
+  const auto log = by_channel(dir.file("folder.lcm"));
+  ASSERT_EQ(log.at("/scan").size(), 10u);
+  for (int i = 0; i < 10; ++i) {
+    laser_scan_t s;
+    ASSERT_TRUE(lcmtypes::decode(log.at("/scan")[static_cast<size_t>(i)].data, s));
+    EXPECT_EQ(s.ranges[0], static_cast<float>(i));
+    EXPECT_EQ(s.header.seq, i);  // no MCAP sequence: the count on the topic, across the files
+    EXPECT_EQ(s.header.utime, 1'700'000'000'000'000 + int64_t{i} * 100'000);
+    EXPECT_EQ(log.at("/scan")[static_cast<size_t>(i)].utime, s.header.utime + 10'000);
+  }
+  r = driftlab("info --json '" + bag + "'");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("\"events\": 10"), std::string::npos) << r.out;
+  r = driftlab("info --json '" + bag + "/b_2.mcap' '" + bag + "/b_10.mcap'");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("\"events\": 10"), std::string::npos) << r.out;
+}
+
+// A NUL inside a ROS string (found by the fuzzer): the driftlab message keeps the string up to it, as LCM encodes
+// strings, and stays well formed.
+TEST(Ros2Import, StringsEndAtTheirFirstNul) {
+  std::string frame("base", 4);
+  frame += '\0';
+  frame += "link";
+  Cdr c(false);
+  c.put<int32_t>(1).put<uint32_t>(2).str(frame);
+  for (int i = 0; i < 6; ++i) c.put(0.5 * i);
+  std::string error;
+  const auto bytes = c.bytes();
+  auto m = formats::convert_ros_message("geometry_msgs/msg/TwistStamped", formats::Serialization::kCdr, bytes, 0, 0,
+                                        &error);
+  ASSERT_TRUE(m.has_value()) << error;
+  EXPECT_FALSE(lcmtypes::layout_problem(m->lcm).has_value());
+  velocity_command_t v;
+  ASSERT_TRUE(lcmtypes::decode(m->lcm, v));
+  EXPECT_EQ(v.header.frame_id, "base");
+  EXPECT_EQ(v.angular.z, 2.5);
+}
+
+// A bag folder without its metadata.yaml: said in one line, exit 2, and its files still read in name order.
+TEST(Ros2Import, MissingMetadataIsNamedAndTheFilesRead) {
+  test::TempDir dir;
+  const std::string bag = dir.file("bag");
+  fs::create_directories(bag);
+  write_scans(bag + "/b_0.mcap", 0, 3);
+  write_scans(bag + "/b_1.mcap", 3, 3);
+  const CmdResult r = driftlab("import '" + bag + "' -o '" + dir.file("out.lcm") + "'");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_EQ(r.err, "driftlab: " + bag + "/metadata.yaml: cannot be read; reading the bag files in the folder in "
+                   "name order\n");
+  EXPECT_EQ(by_channel(dir.file("out.lcm")).at("/scan").size(), 6u);
+}
+
+// The same scans in big-endian CDR (encapsulation 00 00) give the same driftlab messages.
+TEST(Ros2Import, BigEndianCdr) {
+  test::TempDir dir;
+  write_scans(dir.file("le.mcap"), 0, 4, false);
+  write_scans(dir.file("be.mcap"), 0, 4, true);
+  ASSERT_EQ(driftlab("import '" + dir.file("le.mcap") + "' -o '" + dir.file("le.lcm") + "'").code, 0);
+  ASSERT_EQ(driftlab("import '" + dir.file("be.mcap") + "' -o '" + dir.file("be.lcm") + "'").code, 0);
+  EXPECT_EQ(test::read_file(dir.file("le.lcm")), test::read_file(dir.file("be.lcm")));
+}
+
+/// An MCAP file written record by record, to hold what no writer would write.
+class RawMcap {
+ public:
+  RawMcap() {
+    b_ = {0x89, 'M', 'C', 'A', 'P', '0', '\r', '\n'};
+    std::vector<uint8_t> h;
+    str(h, "ros2");
+    str(h, "test");
+    record(0x01, h);
+  }
+  void schema(uint16_t id, const std::string& name, const std::string& text) {
+    std::vector<uint8_t> c;
+    put(c, id);
+    str(c, name);
+    str(c, "ros2msg");
+    str(c, text);
+    record(0x03, c);
+  }
+  void channel(uint16_t id, uint16_t schema, const std::string& topic) {
+    std::vector<uint8_t> c;
+    put(c, id);
+    put(c, schema);
+    str(c, topic);
+    str(c, "cdr");
+    put<uint32_t>(c, 0);
+    record(0x04, c);
+  }
+  size_t message(uint16_t channel, uint64_t t, const std::vector<uint8_t>& data) {
+    std::vector<uint8_t> c;
+    put(c, channel);
+    put<uint32_t>(c, 0);
+    put(c, t);
+    put(c, t);
+    c.insert(c.end(), data.begin(), data.end());
+    return record(0x05, c);
+  }
+  size_t chunk(const std::string& compression, const std::vector<uint8_t>& records) {
+    std::vector<uint8_t> c;
+    put<uint64_t>(c, 0);
+    put<uint64_t>(c, 0);
+    put<uint64_t>(c, records.size());
+    put<uint32_t>(c, 0);
+    str(c, compression);
+    put<uint64_t>(c, records.size());
+    c.insert(c.end(), records.begin(), records.end());
+    return record(0x06, c);
+  }
+  const std::vector<uint8_t>& bytes() const { return b_; }
+
+ private:
+  template <typename T>
+  static void put(std::vector<uint8_t>& b, T v) {
+    b.insert(b.end(), reinterpret_cast<const uint8_t*>(&v), reinterpret_cast<const uint8_t*>(&v) + sizeof(T));
+  }
+  static void str(std::vector<uint8_t>& b, const std::string& s) {
+    put(b, static_cast<uint32_t>(s.size()));
+    b.insert(b.end(), s.begin(), s.end());
+  }
+  size_t record(uint8_t op, const std::vector<uint8_t>& c) {
+    const size_t at = b_.size();
+    b_.push_back(op);
+    put<uint64_t>(b_, c.size());
+    b_.insert(b_.end(), c.begin(), c.end());
+    return at;
+  }
+  std::vector<uint8_t> b_;
+};
+
+// Bad input, each named in one line with the file, the topic and the offset, exit 2, and everything intact still
+// converted: a message shorter than its schema, a schema that does not parse, a chunk of an unknown compression.
+TEST(Ros2Import, BadInputIsNamedAndTheRestConverted) {
+  test::TempDir dir;
+  RawMcap m;
+  m.schema(1, "sensor_msgs/msg/LaserScan", "");
+  m.schema(2, "demo_msgs/msg/Pair", "int32 a\nfloat64 b\n");
+  m.schema(3, "demo_msgs/msg/Broken", "int32 a\nNoSuchType b\n");
+  m.channel(1, 1, "/scan");
+  m.channel(2, 2, "/pair");
+  m.channel(3, 3, "/broken");
+  m.message(1, 1'000'000'000, scan(false, 1, 0, 1.0F));
+  const std::vector<uint8_t> pair = Cdr(false).put<int32_t>(7).put(2.5).bytes();
+  m.message(2, 1'000'000'000, pair);
+  const size_t short_at = m.message(2, 1'100'000'000, {pair.begin(), pair.begin() + 9});  // ends inside b
+  const size_t broken_at = m.message(3, 1'200'000'000, Cdr(false).put<int32_t>(1).bytes());
+  const size_t chunk_at = m.chunk("brotli", {1, 2, 3});
+  const auto cut_scan = scan(false, 2, 0, 2.0F);
+  const size_t scan_short_at = m.message(1, 2'000'000'000, {cut_scan.begin(), cut_scan.begin() + 20});
+  m.message(1, 3'000'000'000, scan(false, 3, 0, 3.0F));
+  test::write_file(dir.file("bad.mcap"), m.bytes());
+
+  const CmdResult r = driftlab("import '" + dir.file("bad.mcap") + "' -o '" + dir.file("out.lcm") + "'");
+  EXPECT_EQ(r.code, 2);
+  const std::string f = dir.file("bad.mcap");
+  EXPECT_NE(r.err.find("driftlab: " + f + ": /pair at byte " + std::to_string(short_at) +
+                       ": not a demo_msgs/msg/Pair: ends inside the message (9 bytes)\n"),
+            std::string::npos)
+      << r.err;
+  EXPECT_NE(r.err.find("driftlab: " + f + ": /broken at byte " + std::to_string(broken_at) +
+                       ": the schema of demo_msgs/msg/Broken does not parse (line 2: type NoSuchType is not defined "
+                       "in the schema); its messages are carried unchecked\n"),
+            std::string::npos)
+      << r.err;
+  EXPECT_NE(r.err.find("driftlab: " + f + ": at byte " + std::to_string(chunk_at) +
+                       ": a chunk compressed with \"brotli\", which is not known"),
+            std::string::npos)
+      << r.err;
+  EXPECT_NE(r.err.find("driftlab: " + f + ": /scan at byte " + std::to_string(scan_short_at) +
+                       ": not a sensor_msgs/LaserScan: "),
+            std::string::npos)
+      << r.err;
+  const auto log = by_channel(dir.file("out.lcm"));
+  EXPECT_EQ(log.at("/scan").size(), 2u);
+  EXPECT_EQ(log.at("/pair").size(), 1u);
+  EXPECT_EQ(log.at("/broken").size(), 1u);
+  EXPECT_NE(r.out.find("(1 malformed, left out)"), std::string::npos) << r.out;
+}
+
+// rosbag2's compression: a file compressed whole (compression_mode FILE) and every message compressed
+// (MESSAGE) give the same log as the uncompressed bag.
+TEST(Ros2Import, FileAndMessageCompression) {
+  const std::string mcap = test::shared_data("bags/nav2_turtlebot.mcap");
+  const std::string db3 = test::shared_data("bags/tf_example.db3");
+  if (mcap.empty() || db3.empty()) return;
+  test::TempDir dir;
+  formats::internal::Compressor zstd(formats::internal::Codec::kZstd, 3);
+  std::vector<uint8_t> packed;
+  ASSERT_EQ(zstd.run(test::read_file(mcap), packed), "");
+  test::write_file(dir.file("nav2.mcap.zstd"), packed);
+  ASSERT_EQ(driftlab("import '" + mcap + "' -o '" + dir.file("plain.lcm") + "'").code, 0);
+  CmdResult r = driftlab("import '" + dir.file("nav2.mcap.zstd") + "' -o '" + dir.file("packed.lcm") + "'");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("compressed whole with zstd"), std::string::npos) << r.out;
+  EXPECT_EQ(test::read_file(dir.file("plain.lcm")), test::read_file(dir.file("packed.lcm")));
+  EXPECT_FALSE(fs::exists(dir.file("packed.lcm.unzstd")));
+
+  fs::copy_file(db3, dir.file("m.db3"));
+  fs::permissions(dir.file("m.db3"), fs::perms::owner_write, fs::perm_options::add);
+  sqlite3* db = nullptr;
+  ASSERT_EQ(sqlite3_open(dir.file("m.db3").c_str(), &db), SQLITE_OK);
+  std::vector<std::pair<int64_t, std::vector<uint8_t>>> rows;
+  sqlite3_stmt* st = nullptr;
+  sqlite3_prepare_v2(db, "SELECT id, data FROM messages", -1, &st, nullptr);
+  while (sqlite3_step(st) == SQLITE_ROW) {
+    const auto* p = static_cast<const uint8_t*>(sqlite3_column_blob(st, 1));
+    std::vector<uint8_t> z;
+    ASSERT_EQ(zstd.run({p, static_cast<size_t>(sqlite3_column_bytes(st, 1))}, z), "");
+    rows.emplace_back(sqlite3_column_int64(st, 0), std::move(z));
+  }
+  sqlite3_finalize(st);
+  sqlite3_prepare_v2(db, "UPDATE messages SET data = ? WHERE id = ?", -1, &st, nullptr);
+  for (const auto& [id, z] : rows) {
+    sqlite3_bind_blob(st, 1, z.data(), static_cast<int>(z.size()), SQLITE_STATIC);
+    sqlite3_bind_int64(st, 2, id);
+    ASSERT_EQ(sqlite3_step(st), SQLITE_DONE);
+    sqlite3_reset(st);
+  }
+  sqlite3_finalize(st);
+  sqlite3_close(db);
+  ASSERT_EQ(driftlab("import '" + db3 + "' -o '" + dir.file("db_plain.lcm") + "'").code, 0);
+  r = driftlab("import '" + dir.file("m.db3") + "' -o '" + dir.file("db_packed.lcm") + "'");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(test::read_file(dir.file("db_plain.lcm")), test::read_file(dir.file("db_packed.lcm")));
+}
+
+// A sqlite3 bag cut short: the rows before the damage are read, the damage is named, exit 2.
+TEST(Ros2Import, CutSqliteBag) {
+  const std::string db3 = test::shared_data("bags/tf_example.db3");
+  if (db3.empty()) return;
+  test::TempDir dir;
+  auto bytes = test::read_file(db3);
+  bytes.resize(bytes.size() * 2 / 3);
+  test::write_file(dir.file("cut.db3"), bytes);
+  const CmdResult r = driftlab("import '" + dir.file("cut.db3") + "' -o '" + dir.file("cut.lcm") + "'");
+  EXPECT_EQ(r.code, 2) << r.err;
+  EXPECT_NE(r.err.find(dir.file("cut.db3") + ": the file is cut short"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("cannot be read (database disk image is malformed)"), std::string::npos) << r.err;
+  // The rows on the pages before the cut: more than a third of the 517 transforms, fewer than all.
+  const auto log = by_channel(dir.file("cut.lcm"));
+  EXPECT_GT(log.at("/tf").size(), 517u / 3);
+  EXPECT_LT(log.at("/tf").size(), 517u);
+  EXPECT_EQ(log.at("/tf_static").size(), 1u);
+}
+
+// Every command takes these files directly: the conversion is made once beside the file and said on stderr,
+// reused while the file is unchanged, made again when it changes, and kept under XDG_CACHE_HOME when the folder
+// cannot be written.
+TEST(Ros2Import, CommandsReadBagsThroughACache) {
+  const std::string src = test::shared_data("bags/nav2_turtlebot.mcap");
+  if (src.empty()) return;
+  test::TempDir dir;
+  const std::string bag = dir.file("run.mcap");
+  fs::copy_file(src, bag);
+  CmdResult r = driftlab("info '" + bag + "'");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(r.err, "driftlab: " + bag + ": converting it to " + bag + ".dlimport.lcm (kept for later runs)\n" +
+                       "driftlab: " + bag + " (ROS 2 bag (MCAP)): 8,197 messages converted\n");
+  EXPECT_NE(r.out.find("/amcl_pose"), std::string::npos);
+  r = driftlab("diagnose '" + bag + "' --json '" + dir.file("d.json") + "'");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(r.err, "driftlab: " + bag + ": reading its conversion " + bag + ".dlimport.lcm\n");
+  r = driftlab("eval --gt '" + bag + ":/odom' --est '" + bag + ":/amcl_pose' --max-dt 0.05");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("matched"), std::string::npos) << r.out;
+  r = driftlab("export tum '" + bag + ":/odom' -o '" + dir.file("odom.tum") + "'");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("2,639 poses"), std::string::npos) << r.out;
+
+  // Changed (a new modification time): converted again.
+  ASSERT_EQ(test::run("touch -d '2001-01-01' '" + bag + "'"), 0);
+  r = driftlab("info '" + bag + "'");
+  EXPECT_NE(r.err.find("converting it to"), std::string::npos) << r.err;
+
+  // A folder that cannot be written: the cache goes to XDG_CACHE_HOME.
+  const std::string ro = dir.file("ro");
+  fs::create_directories(ro);
+  fs::copy_file(src, ro + "/run.mcap");
+  fs::permissions(ro, fs::perms::owner_read | fs::perms::owner_exec);
+  r = run_capture("XDG_CACHE_HOME='" + dir.file("cache") + "' " + kDriftlab + " info '" + ro + "/run.mcap'");
+  fs::permissions(ro, fs::perms::owner_all);
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.err.find("converting it to " + dir.file("cache") + "/driftlab/run.mcap-"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(ro + "/run.mcap.dlimport.lcm"));
+}
+
+}  // namespace
+}  // namespace driftlab
