@@ -22,6 +22,14 @@ inline constexpr int kExitBadInput = 2;
 /// Prints "driftlab: message" as one line on stderr and returns code.
 int fail(std::string_view message, int code = kExitBadInput);
 
+/// Writes bytes to path+".partial" and renames it to path when whole; on failure removes the partial file, leaves
+/// path as it was and returns an error naming path.
+Status write_atomically(const std::string& path, std::string_view bytes);
+/// The exit code for an error of a command that writes `out` (a file or a folder): kExitFailure (the environment:
+/// a full disk, no permission) when the error names the output (out, its .partial or a file in it: errors name
+/// their file first), else kExitBadInput.
+int exit_code_for(const Error& error, std::string out);
+
 /// Writes text to path, or to standard output when path is "-". On failure prints one line naming the file and
 /// returns false.
 bool write_output(const std::string& path, const std::string& text);

@@ -15,6 +15,7 @@
 #include "core/log_reader.h"
 #include "lcmtypes/schema.h"
 #include "lcmtypes/type_registry.h"
+#include "lcmtypes/validate.h"
 #include "core/same_file.h"
 
 namespace driftlab::apps {
@@ -48,7 +49,7 @@ struct CsvFile {
   std::string path;
   std::map<std::string, size_t> column;  // name -> index
   std::vector<std::string> row;
-  int64_t rows = 0, short_rows = 0;
+  int64_t rows = 0;
 };
 
 int run_csv(const CsvArgs& a) {
@@ -61,6 +62,7 @@ int run_csv(const CsvArgs& a) {
   if (ec) return fail(a.out + ": cannot create: " + ec.message());
   std::map<std::string, CsvFile, std::less<>> files;
   std::map<std::string, int64_t> unknown;  // channel -> messages of a type without a definition here
+  std::map<std::string, std::pair<int64_t, std::string>> malformed;  // channel -> count, the first one's problem
   lcmtypes::FlattenOptions fo;
   fo.max_array = a.max_array;
   fo.bytes = a.bytes;
@@ -80,9 +82,13 @@ int run_csv(const CsvArgs& a) {
       ++unknown[std::string(e.channel)];
       continue;
     }
+    if (auto problem = lcmtypes::layout_problem(e.data)) {  // cut short or lying about a length: no row of it
+      auto& [n, first] = malformed[std::string(e.channel)];
+      if (n++ == 0) first = *problem;
+      continue;
+    }
     values.clear();
-    const bool complete =
-        lcmtypes::flatten(*def, e.data, [&](const std::string& c, const std::string& v) { values.emplace_back(c, v); }, fo);
+    lcmtypes::flatten(*def, e.data, [&](const std::string& c, const std::string& v) { values.emplace_back(c, v); }, fo);
     auto it = files.find(e.channel);
     if (it == files.end()) {
       CsvFile f;
@@ -106,7 +112,6 @@ int run_csv(const CsvArgs& a) {
     for (const auto& [c, v] : values) {
       if (auto k = f.column.find(c); k != f.column.end()) f.row[k->second] = csv_quote(v);
     }
-    if (!complete) ++f.short_rows;
     std::fprintf(f.f, "%.6f", static_cast<double>(e.utime) * 1e-6);
     for (const auto& cell : f.row) {
       std::fputc(',', f.f);
@@ -130,8 +135,11 @@ int run_csv(const CsvArgs& a) {
     if (ec) return fail(f.path + ": cannot rename into place: " + ec.message(), kExitFailure);
   }
   for (const auto& [name, f] : files) {
-    std::printf("%-24s %10s rows  %s%s\n", name.c_str(), thousands(f.rows).c_str(), f.path.c_str(),
-                f.short_rows ? (" (" + thousands(f.short_rows) + " messages shorter than their type)").c_str() : "");
+    std::printf("%-24s %10s rows  %s\n", name.c_str(), thousands(f.rows).c_str(), f.path.c_str());
+  }
+  for (const auto& [name, m] : malformed) {
+    std::printf("%-24s %10s malformed messages skipped (first: %s)\n", name.c_str(), thousands(m.first).c_str(),
+                m.second.c_str());
   }
   for (const auto& [name, n] : unknown) {
     std::printf("%-24s %10s messages of a type that is not driftlab's: skipped\n", name.c_str(), thousands(n).c_str());

@@ -44,7 +44,7 @@ void add_rawlog_commands(CLI::App& import, CLI::App& exp, int* exit_code) {
     }
     auto r = slam::import_rawlog(in->in, in->out);
     if (!r) {
-      *exit_code = fail(r.error().message);
+      *exit_code = fail(r.error().message, exit_code_for(r.error(), in->out));
       return;
     }
     print_counts(*r, in->in, in->out);

@@ -9,6 +9,7 @@
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <regex>
+#include <set>
 
 #include "analyzers/clock_corrections.h"
 #include "analyzers/timing.h"
@@ -20,6 +21,7 @@
 #include "replayer/live_runner.h"
 #include "replayer/replayer.h"
 #include "core/config.h"
+#include "core/log_index.h"
 #include "core/same_file.h"
 
 namespace driftlab::apps {
@@ -113,6 +115,33 @@ void print_modules(const std::vector<replay::ModuleReport>& reports, bool timing
   }
 }
 
+/// Refuses a --restamp or --inject FILE that names a channel none of the logs has: it would change nothing, and
+/// the replay would report success as if it had (a misspelt channel, or a file written for another log).
+Status refuse_absent_channels(const std::string& option, const std::string& file,
+                              const std::vector<std::string>& channels, const std::vector<std::string>& logs) {
+  if (channels.empty()) return {};
+  std::set<std::string> present;
+  for (const auto& log : logs) {
+    auto index = LogIndex::load_or_build(log);
+    if (!index) return index.error();
+    for (const auto& c : index->summary().channels) present.insert(c.name);
+  }
+  for (const auto& channel : channels) {
+    if (present.count(channel) != 0) continue;
+    std::string known;
+    int listed = 0;
+    for (const auto& p : present) {
+      if (listed++ == 8) {
+        known += ", ...";
+        break;
+      }
+      known += (known.empty() ? "" : ", ") + p;
+    }
+    return Error{option + " " + file + ": no channel '" + channel + "' in the logs given (they have: " + known + ")"};
+  }
+  return {};
+}
+
 int run_replay(ReplayArgs a) {
   if (Status s = refuse_same_file(a.out, a.logs); !s) return fail(s.message());  // the recordings given
   for (auto& log : a.logs) {
@@ -162,6 +191,16 @@ int run_replay(ReplayArgs a) {
     auto f = load_faults(a.inject);
     if (!f) return fail(f.error().message);
     o.inject = std::move(*f);
+  }
+  if (!a.restamp.empty() && a.restamp != "auto") {
+    std::vector<std::string> named;
+    for (const auto& [channel, c] : o.restamp) named.push_back(channel);
+    if (Status s = refuse_absent_channels("--restamp", a.restamp, named, a.logs); !s) return fail(s.message());
+  }
+  if (o.inject) {
+    std::vector<std::string> named;
+    for (const auto& [channel, f] : o.inject->streams) named.push_back(channel);
+    if (Status s = refuse_absent_channels("--inject", a.inject, named, a.logs); !s) return fail(s.message());
   }
 
   // The slam module's `auto` backend asks what the replay delivers (after the filter and --remap).

@@ -35,9 +35,9 @@ test::CmdResult driftlab(const std::string& args) { return test::run_capture("ti
 using test::encode;
 using test::put_be32;
 
-/// The golden sample log with hostile messages among its own: a scan with -5 beams, an IMU whose frame name has
-/// length -3, a TF message claiming 0x7fffffff transforms in 1.5 KB, and a ground-truth pose cut to 40 bytes.
-/// Returns how many of each it wrote (one set every 50 events).
+/// The golden sample log with hostile messages among its own: a scan with -5 beams and one claiming 0x7fffffff
+/// beams in 1.5 KB, an IMU whose frame name has length -3, a TF message claiming 0x7fffffff transforms in 1.5 KB,
+/// and a ground-truth pose cut to 40 bytes. Returns how many sets it wrote (one set every 50 events).
 int write_hostile_log(const std::string& path) {
   int sets = 0;
   auto w = LogWriter::create(path);
@@ -53,6 +53,9 @@ int write_hostile_log(const std::string& path) {
     scan.header = {n, e.utime, "laser"};
     auto bad_scan = encode(scan);
     put_be32(bad_scan, lcmtypes::kHeaderFrameOffset + 4 + 6 + 7 * 4, -5);
+    auto huge_scan = encode(scan);  // 0x7fffffff beams in 1.5 KB: memory grew by 330 MB/s (diagnose, export rawlog)
+    put_be32(huge_scan, lcmtypes::kHeaderFrameOffset + 4 + 6 + 7 * 4, 0x7fffffff);
+    huge_scan.resize(1500);
     driftlab::imu_t imu{};
     imu.header = {n, e.utime, "imu"};
     auto bad_imu = encode(imu);
@@ -66,8 +69,8 @@ int write_hostile_log(const std::string& path) {
     pose.header = {n, e.utime, "world"};
     auto cut = encode(pose);
     cut.resize(40);
-    for (const auto& [channel, bytes] : {std::pair{"SCAN", &bad_scan}, {"IMU", &bad_imu}, {"TF", &bad_tf},
-                                         {"GROUND_TRUTH", &cut}}) {
+    for (const auto& [channel, bytes] : {std::pair{"SCAN", &bad_scan}, {"SCAN", &huge_scan}, {"IMU", &bad_imu},
+                                         {"TF", &bad_tf}, {"GROUND_TRUTH", &cut}}) {
       if (!w->write(e.utime, channel, *bytes).ok()) return -1;
     }
     ++sets;
@@ -108,7 +111,8 @@ TEST(HostileLog, EveryCommandCountsTheLiesAndUsesTheRest) {
   const auto j = nlohmann::json::parse(in);
   std::map<std::string, nlohmann::json> by_name;
   for (const auto& c : j["channels"]) by_name[c["name"]] = c;
-  for (const char* channel : {"SCAN", "IMU", "TF", "GROUND_TRUTH"}) EXPECT_EQ(by_name[channel]["malformed"], sets);
+  for (const char* channel : {"IMU", "TF", "GROUND_TRUTH"}) EXPECT_EQ(by_name[channel]["malformed"], sets);
+  EXPECT_EQ(by_name["SCAN"]["malformed"], 2 * sets);
   EXPECT_EQ(by_name["IMU"]["count"], imu);  // every good message still analysed
   EXPECT_EQ(by_name["GROUND_TRUTH"]["verdict"], "fault");
   EXPECT_NE(by_name["SCAN"]["reasons"].dump().find("ranges: length -5"), std::string::npos) << by_name["SCAN"];
@@ -127,12 +131,26 @@ TEST(HostileLog, EveryCommandCountsTheLiesAndUsesTheRest) {
 
   const auto csv = driftlab("export csv " + log + " -o " + dir.file("csv"));
   EXPECT_FALSE(crashed(csv)) << csv.err;
+  // The poses cut short were exported as broken rows: every row has the header's columns, one per intact pose.
+  int64_t poses = 0;
+  for (const auto& e : test::read_all(kSample)) poses += e.channel == "GROUND_TRUTH";
+  std::ifstream gt(dir.file("csv/GROUND_TRUTH.csv"));
+  std::string line;
+  std::vector<size_t> columns;
+  while (std::getline(gt, line)) columns.push_back(static_cast<size_t>(std::count(line.begin(), line.end(), ',')));
+  ASSERT_EQ(columns.size(), static_cast<size_t>(poses) + 1);  // the header, then the intact poses only
+  for (const size_t c : columns) EXPECT_EQ(c, columns[0]);
+  EXPECT_NE(csv.out.find(std::to_string(sets) + " malformed messages skipped (first: position.x: the message ends inside it)"), std::string::npos)
+      << csv.out;
   const auto rawlog = driftlab("export rawlog " + log + " -o " + dir.file("x.rawlog"));
   EXPECT_FALSE(crashed(rawlog)) << rawlog.err;
   const auto tum = driftlab("export tum " + log + ":GROUND_TRUTH -o " + dir.file("gt.tum"));
   EXPECT_FALSE(crashed(tum)) << tum.err;
   const auto eval = driftlab("eval --gt " + log + ":GROUND_TRUTH --est " + log + ":ODOM");
   EXPECT_FALSE(crashed(eval)) << eval.err;
+  for (const auto* r : {&d, &rep, &replay, &csv, &rawlog, &tum, &eval}) {  // vector::_M_default_append was printed
+    EXPECT_FALSE(shows_internals(r->err)) << r->err;
+  }
   expect_no_partial_files(dir.path());
 }
 
@@ -186,7 +204,8 @@ TEST(OutputOverInput, IsRefusedBeforeAnythingIsWritten) {
   for (const std::string& cmd : std::vector<std::string>{
            "replay " + log + " -o " + link, "diagnose --json " + link + " " + log, "export tum " + log +
            ":GROUND_TRUTH -o " + link, "import rawlog " + log + " -o " + log, "export rawlog " + log + " -o " + log,
-           "recover " + log + " -o " + link, "eval --gt " + log + ":GROUND_TRUTH --est " + log + ":GROUND_TRUTH --json " + link}) {
+           "recover " + log + " -o " + link, "eval --gt " + log + ":GROUND_TRUTH --est " + log + ":GROUND_TRUTH --json " + link,
+           "sim " + log + " -o " + link}) {  // a scenario by the name of its output (any content: refused first)
     const auto r = driftlab(cmd);
     EXPECT_EQ(r.code, 2) << cmd << "\n" << r.err;
     EXPECT_NE(r.err.find("is the input"), std::string::npos) << cmd << "\n" << r.err;
@@ -382,22 +401,58 @@ TEST(HostileValues, HugeNumbersAndStampsAreRefusedNotOverflowed) {
   EXPECT_EQ(messages<driftlab::command_comparison_t>(dir.file("out.lcm"), "CMD_COMPARISON").size(), 1u);
 }
 
+/// Every file under dir that is empty or a temporary (.partial) one: what a failed command must not leave.
+std::vector<std::string> left_behind(const std::string& dir) {
+  std::vector<std::string> out;
+  for (const auto& f : fs::recursive_directory_iterator(dir)) {
+    const std::string path = f.path().string();
+    if (path.find(".partial") != std::string::npos || (f.is_regular_file() && f.file_size() == 0)) out.push_back(path);
+  }
+  return out;
+}
+
 TEST(FullDisk, EveryCommandFailsWithCode1AndLeavesNothingBehind) {
   // A file-size limit of 1 KiB (ulimit -f 1) stands for a full disk: the write fails with EFBIG. SIGXFSZ used to
-  // kill export csv and export rawlog halfway, leaving their partial files.
+  // kill export csv and export rawlog halfway, leaving their partial files; sim and replay moved the log cut short
+  // over an existing file of the same name. Every command that writes a file, each over a file the user already
+  // has where it writes one: that file keeps what it held, and nothing empty or partial is left.
   test::TempDir dir;
-  for (const std::string& cmd :
-       {"diagnose --json " + dir.file("d.json") + " " + kSample, "export csv " + kSample + " -o " + dir.file("csv"),
-        "export tum " + kSample + ":GROUND_TRUTH -o " + dir.file("t.tum"), "replay " + kSample + " -o " + dir.file("r.lcm"),
-        "export rawlog " + kSample + " -o " + dir.file("x.rawlog"), "recover " + kSample + " -o " + dir.file("c.lcm")}) {
+  const std::string in = dir.file("in"), out = dir.file("out");
+  fs::create_directories(in);
+  fs::create_directories(out);
+  const std::string rawlog = in + "/s.rawlog", mcap = in + "/s.mcap";
+  ASSERT_EQ(driftlab("export rawlog " + kSample + " -o " + rawlog).code, 0);
+  ASSERT_EQ(driftlab("export mcap " + kSample + " -o " + mcap).code, 0);
+  const std::vector<std::pair<std::string, std::string>> cases = {  // command, the file it writes (or "": a folder)
+      {"diagnose --json " + out + "/d.json " + kSample, "d.json"},
+      {"diagnose --html " + out + "/d.html " + kSample, "d.html"},
+      {"export csv " + kSample + " -o " + out + "/csv", ""},
+      {"export tum " + kSample + ":GROUND_TRUTH -o " + out + "/t.tum", "t.tum"},
+      {"export rawlog " + kSample + " -o " + out + "/x.rawlog", "x.rawlog"},
+      {"export mcap " + kSample + " -o " + out + "/x.mcap", "x.mcap"},
+      {"export rosbag2 " + kSample + " -o " + out + "/bag", ""},
+      {"replay " + kSample + " -o " + out + "/r.lcm", "r.lcm"},
+      {"replay " + kSample + " --modules estimator -o " + out + "/m.lcm", "m.lcm"},
+      {"recover " + kSample + " -o " + out + "/c.lcm", "c.lcm"},
+      {"sim --duration 1 -o " + out + "/s.lcm", "s.lcm"},
+      {"import rawlog " + rawlog + " -o " + out + "/i.lcm", "i.lcm"},
+      {"import " + mcap + " -o " + out + "/j.lcm", "j.lcm"},
+      {"eval --gt " + kSample + ":GROUND_TRUTH --est " + kSample + ":ODOM --json " + out + "/e.json", "e.json"},
+      {"report " + kSample + " -o " + out + "/report", ""},
+  };
+  const std::string precious = "the user's own file\n";
+  for (const auto& [cmd, file] : cases) {
+    if (!file.empty()) std::ofstream(out + "/" + file) << precious;
     const auto r = test::run_capture("ulimit -f 1; timeout 60 " + kDriftlab + " " + cmd);
     EXPECT_EQ(r.code, 1) << cmd << "\n" << r.err;
     EXPECT_FALSE(shows_internals(r.err)) << cmd << "\n" << r.err;  // export rawlog said "==== MRPT exception ===="
-
     EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << cmd << "\n" << r.err;
+    if (!file.empty()) {
+      const auto kept = test::read_file(out + "/" + file);
+      EXPECT_EQ(std::string(kept.begin(), kept.end()), precious) << cmd;
+    }
+    EXPECT_EQ(left_behind(dir.path()), std::vector<std::string>{}) << cmd;
   }
-  for (const char* out : {"d.json", "t.tum", "r.lcm", "x.rawlog", "c.lcm"}) EXPECT_FALSE(fs::exists(dir.file(out))) << out;
-  expect_no_partial_files(dir.path());
 }
 
 TEST(BadInput, RecordAndDemoExitWith2) {
@@ -416,6 +471,27 @@ TEST(BadInput, RecordAndDemoExitWith2) {
   }
   EXPECT_FALSE(fs::exists(dir.file("x.lcm")));
   EXPECT_FALSE(fs::exists(dir.file("demo/sim.json")));  // the failed stage's (empty) output is not kept
+}
+
+TEST(BadInput, InjectAndRestampOnAChannelTheLogLacksAreRefused) {
+  // They changed nothing and the replay reported success, as if the faults or corrections had been applied.
+  test::TempDir dir;
+  std::ofstream(dir.file("inject.yaml")) << "seed: 1\nstreams:\n  ODMO: {drop_probability: 0.5}\n";
+  std::ofstream(dir.file("restamp.yaml")) << "channels:\n  IMU_RAW: {offset_s: 0.01}\n";
+  for (const auto& [args, message] : std::vector<std::pair<std::string, std::string>>{
+           {"--inject " + dir.file("inject.yaml"), "--inject " + dir.file("inject.yaml") + ": no channel 'ODMO' in the logs given (they have: "},
+           {"--restamp " + dir.file("restamp.yaml"),
+            "--restamp " + dir.file("restamp.yaml") + ": no channel 'IMU_RAW' in the logs given (they have: "}}) {
+    const auto r = driftlab("replay " + kSample + " " + args + " -o " + dir.file("r.lcm"));
+    EXPECT_EQ(r.code, 2) << args << "\n" << r.err;
+    EXPECT_EQ(r.err.rfind("driftlab: " + message, 0), 0u) << r.err;
+    EXPECT_NE(r.err.find("GROUND_TRUTH"), std::string::npos) << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+    EXPECT_FALSE(fs::exists(dir.file("r.lcm")));
+  }
+  // The channels the log has are taken as before.
+  std::ofstream(dir.file("inject.yaml")) << "seed: 1\nstreams:\n  ODOM: {drop_probability: 0.5}\n";
+  EXPECT_EQ(driftlab("replay " + kSample + " --inject " + dir.file("inject.yaml") + " -o " + dir.file("r.lcm")).code, 0);
 }
 
 TEST(BadInput, EvalNamesALogGivenWithoutItsChannel) {
