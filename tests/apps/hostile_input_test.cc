@@ -489,6 +489,10 @@ TEST(BadInput, InjectAndRestampOnAChannelTheLogLacksAreRefused) {
     EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
     EXPECT_FALSE(fs::exists(dir.file("r.lcm")));
   }
+  // Contradictory flags pass with a warning: --fast replays as fast as it can, whatever --rate says.
+  const auto fast = driftlab("replay " + kSample + " --fast --rate 5 -o " + dir.file("f.lcm"));
+  EXPECT_EQ(fast.code, 0) << fast.err;
+  EXPECT_EQ(fast.err, "driftlab: warning: --fast ignores --rate\n");
   // The channels the log has are taken as before.
   std::ofstream(dir.file("inject.yaml")) << "seed: 1\nstreams:\n  ODOM: {drop_probability: 0.5}\n";
   EXPECT_EQ(driftlab("replay " + kSample + " --inject " + dir.file("inject.yaml") + " -o " + dir.file("r.lcm")).code, 0);
