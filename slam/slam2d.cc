@@ -199,17 +199,10 @@ Status Slam2d::start(Bus& bus) {
   }
   if (!c.odom_channel.empty()) {
     bus.subscribe(c.odom_channel, [this](const BusMessage& m) {
-      driftlab::odometry_t o;
-      if (!decode_message(m, o)) return void(++impl_->undecodable);
-      if (!impl_->non_finite.finite(m)) return;
-      const double yaw = yaw_of(o.orientation);  // NaN for a quaternion of huge numbers
-      if (!std::isfinite(yaw)) return impl_->non_finite.count(m.channel, "the yaw of orientation = nan");
-      auto& in = impl_->non_finite;
-      if (!in.plausible(m.channel, "position.x", o.position.x) || !in.plausible(m.channel, "position.y", o.position.y)) {
-        return;
-      }
+      const auto o = internal::planar_odometry(m, impl_->non_finite, &impl_->undecodable);
+      if (!o) return;
       ++impl_->odometry;
-      impl_->odom.add(o.header.utime, {o.position.x, o.position.y, yaw});
+      impl_->odom.add(o->first, o->second);
     });
   }
   bus.subscribe(c.scan_channel, [this, &bus](const BusMessage& m) {

@@ -6,8 +6,11 @@
 #include <cstdint>
 #include <deque>
 #include <optional>
+#include <utility>
 
+#include "driftlab/odometry_t.hpp"
 #include "lcmtypes/planar.h"
+#include "lcmtypes/validate.h"
 
 namespace driftlab::slam::internal {
 
@@ -44,5 +47,26 @@ class OdometryBuffer {
   };
   std::deque<Sample> q_;
 };
+
+/// The stamp [us] and planar pose of an odometry message on the bus, or nullopt when it is malformed (counted in
+/// *malformed) or a number of it is not finite or beyond lcmtypes::kMaxMagnitude (counted by `in`, naming it).
+inline std::optional<std::pair<int64_t, Pose2>> planar_odometry(const BusMessage& m, NonFiniteInputs& in,
+                                                                 int64_t* malformed) {
+  driftlab::odometry_t o;
+  if (!decode_message(m, o)) {
+    ++*malformed;
+    return std::nullopt;
+  }
+  if (!in.finite(m)) return std::nullopt;
+  const double yaw = yaw_of(o.orientation);  // NaN for a quaternion of huge numbers
+  if (!std::isfinite(yaw)) {
+    in.count(m.channel, "the yaw of orientation = nan");
+    return std::nullopt;
+  }
+  if (!in.plausible(m.channel, "position.x", o.position.x) || !in.plausible(m.channel, "position.y", o.position.y)) {
+    return std::nullopt;
+  }
+  return std::pair{o.header.utime, Pose2{o.position.x, o.position.y, yaw}};
+}
 
 }  // namespace driftlab::slam::internal
