@@ -47,8 +47,8 @@ int run_program(const std::vector<std::string>& argv, const std::string& stdout_
 Status run_plot_script(const char* script, const std::string& name, const std::string& dir,
                        const std::vector<std::string>& args);
 
-/// Splits "LOG:CHANNEL" at its last ':' when the part before it exists (a file, or a folder: a bag); false (log and channel
-/// untouched) otherwise. Channel names may hold ':' only if the log's name has none after its last one.
+/// Splits "LOG:CHANNEL" at its last ':' when the part before it exists (a file, or a folder: a bag); false (log and
+/// channel untouched) otherwise. Channel names may hold ':' only if the log's name has none after its last one.
 bool split_log_channel(const std::string& src, std::string* log, std::string* channel);
 
 /// A file name for a channel that no other channel maps to: bytes other than [A-Za-z0-9_-] and a leading '.' are

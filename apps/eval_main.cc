@@ -15,8 +15,8 @@
 #include "analyzers/trajectory_io.h"
 #include "apps/cli_checks.h"
 #include "apps/cli_util.h"
-#include "apps/log_input.h"
 #include "apps/commands.h"
+#include "apps/log_input.h"
 #include "core/log_reader.h"
 #include "core/same_file.h"
 
@@ -327,7 +327,8 @@ int run_eval(const EvalOptions& o) {
   if (!gt_src) return fail(gt_src.error().message);
   auto est_src = log_channel_for(o.est);
   if (!est_src) return fail(est_src.error().message);
-  for (const auto& [src, option] : {std::pair{*gt_src, "--gt"}, {*est_src, "--est"}, {o.odometry, "--relations-odometry"}}) {
+  for (const auto& [src, option] :
+       {std::pair{*gt_src, "--gt"}, {*est_src, "--est"}, {o.odometry, "--relations-odometry"}}) {
     if (src.empty()) continue;
     if (Status s = check_source(src, option); !s) return fail(s.message());
   }

@@ -9,14 +9,14 @@
 
 #include "analyzers/trajectory_io.h"
 #include "apps/cli_util.h"
-#include "apps/log_input.h"
 #include "apps/commands.h"
+#include "apps/log_input.h"
 #include "core/log_format.h"
 #include "core/log_reader.h"
+#include "core/same_file.h"
 #include "lcmtypes/schema.h"
 #include "lcmtypes/type_registry.h"
 #include "lcmtypes/validate.h"
-#include "core/same_file.h"
 
 namespace driftlab::apps {
 namespace {
@@ -88,7 +88,8 @@ int run_csv(const CsvArgs& a) {
       continue;
     }
     values.clear();
-    lcmtypes::flatten(*def, e.data, [&](const std::string& c, const std::string& v) { values.emplace_back(c, v); }, fo);
+    lcmtypes::flatten(
+        *def, e.data, [&](const std::string& c, const std::string& v) { values.emplace_back(c, v); }, fo);
     auto it = files.find(e.channel);
     if (it == files.end()) {
       CsvFile f;

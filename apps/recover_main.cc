@@ -39,8 +39,8 @@ int run_recover(const RecoverOptions& o) {
   if (Status s = check_event_log(o.log); !s) return fail(s.message());
   std::vector<Problem> problems;
   auto reader = LogReader::open(o.log, {.on_problem = [&](const Problem& p) {
-                                          if (problems.size() < LogIndex::kMaxStoredProblems) problems.push_back(p);
-                                        }});
+                                  if (problems.size() < LogIndex::kMaxStoredProblems) problems.push_back(p);
+                                }});
   if (!reader) return fail(reader.error().message);
   auto writer = LogWriter::create(o.out, {.atomic = true});
   if (!writer) return fail(writer.error().message, kExitFailure);
@@ -104,7 +104,8 @@ int run_recover(const RecoverOptions& o) {
     return kExitOk;
   }
   if (reader->problems() > 0) {
-    std::printf("\nleft out %s damaged bytes at %s spot%s:\n", thousands(static_cast<int64_t>(total - intact_bytes)).c_str(),
+    std::printf("\nleft out %s damaged bytes at %s spot%s:\n",
+                thousands(static_cast<int64_t>(total - intact_bytes)).c_str(),
                 thousands(static_cast<int64_t>(reader->problems())).c_str(), reader->problems() == 1 ? "" : "s");
     int shown = 0;
     for (const auto& p : problems) {
@@ -119,12 +120,16 @@ int run_recover(const RecoverOptions& o) {
     }
   }
   if (long_channels > 0) {
-    std::printf("\nleft out %s intact events on channels named with more than %d bytes, which LCM's tools cannot "
-                "take\n", thousands(long_channels).c_str(), logfmt::kMaxWriteChannelLength);
+    std::printf(
+        "\nleft out %s intact events on channels named with more than %d bytes, which LCM's tools cannot "
+        "take\n",
+        thousands(long_channels).c_str(), logfmt::kMaxWriteChannelLength);
   }
   if (!malformed.empty()) {
-    std::printf("\nleft out %s intact events whose message does not hold its type's layout (--keep-malformed keeps "
-                "them):\n", thousands(dropped_messages).c_str());
+    std::printf(
+        "\nleft out %s intact events whose message does not hold its type's layout (--keep-malformed keeps "
+        "them):\n",
+        thousands(dropped_messages).c_str());
     for (const auto& [channel, m] : malformed) {
       std::printf("  %s: %s (first: %s)\n", channel.c_str(), thousands(m.count).c_str(), m.first.c_str());
     }

@@ -15,14 +15,14 @@
 #include "analyzers/timing.h"
 #include "apps/cli_checks.h"
 #include "apps/cli_util.h"
-#include "apps/log_input.h"
 #include "apps/commands.h"
-#include "modules/registry.h"
-#include "replayer/live_runner.h"
-#include "replayer/replayer.h"
+#include "apps/log_input.h"
 #include "core/config.h"
 #include "core/log_index.h"
 #include "core/same_file.h"
+#include "modules/registry.h"
+#include "replayer/live_runner.h"
+#include "replayer/replayer.h"
 
 namespace driftlab::apps {
 namespace {

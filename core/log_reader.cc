@@ -129,8 +129,8 @@ std::string not_an_event_log(const std::string& path, uint64_t bytes) {
 Status check_event_log(const std::string& path) {
   std::optional<Problem> first;
   auto reader = LogReader::open(path, {.on_problem = [&](const Problem& p) {
-                                         if (!first) first = p;
-                                       }});
+                                  if (!first) first = p;
+                                }});
   if (!reader) return reader.error();
   Event e;
   if (reader->next(e)) return {};

@@ -133,7 +133,7 @@ bool DelayedEkf::init(int64_t utime, const PoseFix& fix, double v, double w) {
 bool DelayedEkf::older_than_window(int64_t utime) const {
   // The difference in uint64_t: exact whatever the stamps, where int64_t arithmetic could overflow.
   const int64_t now = ekf_.time();
-  return utime < now && static_cast<uint64_t>(now) - static_cast<uint64_t>(utime) > static_cast<uint64_t>(window_);
+  return utime<now&& static_cast<uint64_t>(now) - static_cast<uint64_t>(utime)> static_cast<uint64_t>(window_);
 }
 
 bool DelayedEkf::add(int64_t utime, const Measurement& m) {

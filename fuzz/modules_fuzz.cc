@@ -19,6 +19,7 @@
 
 #include "controller/controller_module.h"
 #include "core/bus.h"
+#include "core/log_format.h"
 #include "driftlab/imu_t.hpp"
 #include "driftlab/laser_scan_t.hpp"
 #include "driftlab/odometry_t.hpp"
@@ -27,16 +28,14 @@
 #include "driftlab/tf_t.hpp"
 #include "driftlab/velocity_command_t.hpp"
 #include "estimator/estimator_module.h"
-#include "tests/fakes/fake_bus.h"
-#include "core/log_format.h"
 #include "lcmtypes/schema.h"
 #include "lcmtypes/type_registry.h"
 #include "lcmtypes/validate.h"
 #include "slam/slam2d.h"
 #include "slam/slam3d.h"
+#include "tests/fakes/fake_bus.h"
 
 namespace {
-
 
 /// Prints the messages of an input as they are delivered (DRIFTLAB_FUZZ_VERBOSE=1), to read a crash's input.
 void describe(const std::string& channel, int64_t t, std::span<const uint8_t> bytes) {
@@ -84,7 +83,7 @@ int64_t hostile_stamp(FuzzedDataProvider& in, int64_t& clock) {
     case 1: return std::numeric_limits<int64_t>::max();
     case 2: return 0;
     case 3: return in.ConsumeIntegral<int64_t>();
-    case 4: return clock - in.ConsumeIntegralInRange<int64_t>(0, 2000000);  // late
+    case 4: return clock - in.ConsumeIntegralInRange<int64_t>(0, 2000000);   // late
     default: return clock += in.ConsumeIntegralInRange<int64_t>(0, 100000);  // in order, up to 0.1 s apart
   }
 }
@@ -114,7 +113,9 @@ void put_quaternion(FuzzedDataProvider& in, driftlab::quaternion_t& q) {
   }
 }
 
-void put_vector(FuzzedDataProvider& in, driftlab::vector3_t& v) { v = {hostile_double(in), hostile_double(in), hostile_double(in)}; }
+void put_vector(FuzzedDataProvider& in, driftlab::vector3_t& v) {
+  v = {hostile_double(in), hostile_double(in), hostile_double(in)};
+}
 
 std::unique_ptr<driftlab::Module> make_module(int which) {
   using namespace driftlab;

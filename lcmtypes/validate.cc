@@ -179,7 +179,8 @@ bool walk(const Plan& plan, std::span<const uint8_t> data, size_t& pos, std::str
         }
         if (op.slot >= 0) slots[static_cast<size_t>(op.slot)] = read_int(data.data() + pos, op.size, op.is_signed);
         // Variable-length arrays of numbers are samples (ranges, points), where NaN and inf say "no return".
-        const bool fixed_size = std::all_of(op.dims.begin(), op.dims.end(), [](const Op::Dim& d) { return d.slot < 0; });
+        const bool fixed_size =
+            std::all_of(op.dims.begin(), op.dims.end(), [](const Op::Dim& d) { return d.slot < 0; });
         if (non_finite != nullptr && non_finite->empty() && op.is_float && fixed_size) {
           double v = 0;
           if (const int64_t k = first_non_finite(data.data() + pos, count, op.size, &v); k >= 0) {

@@ -70,8 +70,8 @@ class NonFiniteInputs {
   /// Counts an input the module found unusable itself: what names the value ("the yaw of orientation = nan").
   void count(std::string_view channel, const std::string& what);
   int64_t dropped() const { return dropped_; }
-  /// "N inputs with NaN, infinite or out-of-range numbers dropped (first: ODOM: linear_velocity.x = nan)", prefixed with
-  /// "MODULE: "; nullopt when none were.
+  /// "N inputs with NaN, infinite or out-of-range numbers dropped (first: ODOM: linear_velocity.x = nan)", prefixed
+  /// with "MODULE: "; nullopt when none were.
   std::optional<std::string> warning(const std::string& module) const;
 
  private:

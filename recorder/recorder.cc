@@ -461,7 +461,8 @@ std::string split_path(const std::string& out, int index) {
 
 Status check_options(const RecordOptions& options) {
   if (auto url = parse_udpm_url(options.url); !url) return url.error();
-  for (const auto& [option, pattern] : {std::pair{"-c/--channels", &options.channels}, {"--exclude", &options.exclude}}) {
+  for (const auto& [option, pattern] :
+       {std::pair{"-c/--channels", &options.channels}, {"--exclude", &options.exclude}}) {
     try {
       std::regex check(*pattern, std::regex::ECMAScript);
     } catch (const std::regex_error& e) {

@@ -196,7 +196,8 @@ Status ModuleHost::fire_timers(int64_t t) {
     }
     if (due == nullptr) return {};
     // t >= next: the difference in uint64_t is exact whatever the two are.
-    const uint64_t behind = (static_cast<uint64_t>(t) - static_cast<uint64_t>(due->next)) / static_cast<uint64_t>(due->period);
+    const uint64_t behind =
+        (static_cast<uint64_t>(t) - static_cast<uint64_t>(due->next)) / static_cast<uint64_t>(due->period);
     if (o_.clock == HostClock::kWall) {
       due->next += static_cast<int64_t>(behind) * due->period;  // the latest only
     } else if (behind > kMaxCatchUpTicks) {

@@ -33,7 +33,6 @@ int64_t to_utime(mrpt::Clock::time_point t) {
   return static_cast<int64_t>(std::llround(mrpt::Clock::toDouble(t) * 1e6));
 }
 
-
 template <typename T>
 Status put(LogWriter& w, int64_t utime, const std::string& channel, const T& msg) {
   std::vector<uint8_t> bytes(static_cast<size_t>(msg.getEncodedSize()));

@@ -175,8 +175,8 @@ Status Slam2d::start(Bus& bus) {
     d.builder.ICP_params.loadFromConfigFile(cfg, "ICP");
     d.builder.initialize();
   } catch (const std::exception& e) {
-    return Error{(c.ini.empty() ? std::string("slam.2d") : c.ini) + ": MRPT rejected the ICP settings: " +
-                 one_line(e.what())};
+    return Error{(c.ini.empty() ? std::string("slam.2d") : c.ini) +
+                 ": MRPT rejected the ICP settings: " + one_line(e.what())};
   }
 
   if (!c.tf_static_channel.empty()) {
@@ -301,8 +301,10 @@ void Slam2d::finish(Bus& bus) {
   const double cells = (x1 - x0) / d.c.map_resolution * ((y1 - y0) / d.c.map_resolution);
   if (!(cells <= kMaxMapCells)) {
     char what[200];
-    std::snprintf(what, sizeof(what), "slam: the map would span %.3g m x %.3g m, %.3g cells at map_resolution %g m: "
-                  "not drawn (a coarser map_resolution draws it)", x1 - x0, y1 - y0, cells, d.c.map_resolution);
+    std::snprintf(what, sizeof(what),
+                  "slam: the map would span %.3g m x %.3g m, %.3g cells at map_resolution %g m: "
+                  "not drawn (a coarser map_resolution draws it)",
+                  x1 - x0, y1 - y0, cells, d.c.map_resolution);
     d.warnings.push_back(what);
     return;
   }

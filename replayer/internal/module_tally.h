@@ -78,7 +78,8 @@ class ModuleTally {
                            first_failure_ + ")");
     }
     if (skipped_ticks_ > 0) {
-      r.warnings.push_back(std::to_string(skipped_ticks_) + " timer ticks skipped where the time jumped ahead (first: " +
+      r.warnings.push_back(std::to_string(skipped_ticks_) +
+                           " timer ticks skipped where the time jumped ahead (first: " +
                            std::to_string(first_skip_.first) + " to " + std::to_string(first_skip_.second) + " us)");
     }
     r.outputs = outputs_;

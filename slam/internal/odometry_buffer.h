@@ -51,7 +51,7 @@ class OdometryBuffer {
 /// The stamp [us] and planar pose of an odometry message on the bus, or nullopt when it is malformed (counted in
 /// *malformed) or a number of it is not finite or beyond lcmtypes::kMaxMagnitude (counted by `in`, naming it).
 inline std::optional<std::pair<int64_t, Pose2>> planar_odometry(const BusMessage& m, NonFiniteInputs& in,
-                                                                 int64_t* malformed) {
+                                                                int64_t* malformed) {
   driftlab::odometry_t o;
   if (!decode_message(m, o)) {
     ++*malformed;

@@ -69,8 +69,11 @@ int write_hostile_log(const std::string& path) {
     pose.header = {n, e.utime, "world"};
     auto cut = encode(pose);
     cut.resize(40);
-    for (const auto& [channel, bytes] : {std::pair{"SCAN", &bad_scan}, {"SCAN", &huge_scan}, {"IMU", &bad_imu},
-                                         {"TF", &bad_tf}, {"GROUND_TRUTH", &cut}}) {
+    for (const auto& [channel, bytes] : {std::pair{"SCAN", &bad_scan},
+                                         {"SCAN", &huge_scan},
+                                         {"IMU", &bad_imu},
+                                         {"TF", &bad_tf},
+                                         {"GROUND_TRUTH", &cut}}) {
       if (!w->write(e.utime, channel, *bytes).ok()) return -1;
     }
     ++sets;
@@ -140,7 +143,9 @@ TEST(HostileLog, EveryCommandCountsTheLiesAndUsesTheRest) {
   while (std::getline(gt, line)) columns.push_back(static_cast<size_t>(std::count(line.begin(), line.end(), ',')));
   ASSERT_EQ(columns.size(), static_cast<size_t>(poses) + 1);  // the header, then the intact poses only
   for (const size_t c : columns) EXPECT_EQ(c, columns[0]);
-  EXPECT_NE(csv.out.find(std::to_string(sets) + " malformed messages skipped (first: position.x: the message ends inside it)"), std::string::npos)
+  EXPECT_NE(csv.out.find(std::to_string(sets) +
+                         " malformed messages skipped (first: position.x: the message ends inside it)"),
+            std::string::npos)
       << csv.out;
   const auto rawlog = driftlab("export rawlog " + log + " -o " + dir.file("x.rawlog"));
   EXPECT_FALSE(crashed(rawlog)) << rawlog.err;
@@ -202,9 +207,10 @@ TEST(OutputOverInput, IsRefusedBeforeAnythingIsWritten) {
   fs::create_hard_link(log, link);
   const auto before = test::read_file(log);
   for (const std::string& cmd : std::vector<std::string>{
-           "replay " + log + " -o " + link, "diagnose --json " + link + " " + log, "export tum " + log +
-           ":GROUND_TRUTH -o " + link, "import rawlog " + log + " -o " + log, "export rawlog " + log + " -o " + log,
-           "recover " + log + " -o " + link, "eval --gt " + log + ":GROUND_TRUTH --est " + log + ":GROUND_TRUTH --json " + link,
+           "replay " + log + " -o " + link, "diagnose --json " + link + " " + log,
+           "export tum " + log + ":GROUND_TRUTH -o " + link, "import rawlog " + log + " -o " + log,
+           "export rawlog " + log + " -o " + log, "recover " + log + " -o " + link,
+           "eval --gt " + log + ":GROUND_TRUTH --est " + log + ":GROUND_TRUTH --json " + link,
            "sim " + log + " -o " + link}) {  // a scenario by the name of its output (any content: refused first)
     const auto r = driftlab(cmd);
     EXPECT_EQ(r.code, 2) << cmd << "\n" << r.err;
@@ -325,9 +331,8 @@ TEST(HostileValues, NanTwistsNeverReachTheEstimate) {
   // NaN in 5% of the odometry twists made nearly every EKF output NaN for the rest of the run, without a warning.
   test::TempDir dir;
   const std::string log = dir.file("nan.lcm");
-  const int nan = rewrite_sample<driftlab::odometry_t>(log, "ODOM", 20, [](driftlab::odometry_t& o, int) {
-    o.linear_velocity.x = NAN;
-  });
+  const int nan = rewrite_sample<driftlab::odometry_t>(log, "ODOM", 20,
+                                                       [](driftlab::odometry_t& o, int) { o.linear_velocity.x = NAN; });
   ASSERT_GT(nan, 1);
   const auto r = driftlab("replay " + log + " --modules estimator,controller --json -o " + dir.file("out.lcm"));
   ASSERT_EQ(r.code, 0) << r.err;
@@ -352,9 +357,8 @@ TEST(HostileValues, SlamSkipsAScanWithANanAngleIncrementAndSaysSo) {
   // leaving OUT.partial behind.
   test::TempDir dir;
   const std::string log = dir.file("nan.lcm");
-  const int nan = rewrite_sample<driftlab::laser_scan_t>(log, "SCAN", 3, [](driftlab::laser_scan_t& s, int) {
-    s.angle_increment = NAN;
-  });
+  const int nan = rewrite_sample<driftlab::laser_scan_t>(
+      log, "SCAN", 3, [](driftlab::laser_scan_t& s, int) { s.angle_increment = NAN; });
   ASSERT_GE(nan, 3);
   const auto r = driftlab("replay " + log + " --modules slam --json -o " + dir.file("out.lcm"));
   ASSERT_EQ(r.code, 0) << r.err;
@@ -373,20 +377,25 @@ TEST(HostileValues, HugeNumbersAndStampsAreRefusedNotOverflowed) {
   // in MRPT's grid, as much again in the image): left undrawn, with a warning.
   test::TempDir dir;
   const std::string log = dir.file("huge.lcm");
-  ASSERT_GT(rewrite_sample<driftlab::tf_t>(log, "TF_STATIC", 1, [](driftlab::tf_t& tf, int) {
-    for (auto& t : tf.transforms) t.translation.x = 1e15;
-  }), 0);
-  ASSERT_GT(rewrite_sample<driftlab::odometry_t>(log, "ODOM", 50, [](driftlab::odometry_t& o, int n) {
-    if (n == 50) o.header.utime = std::numeric_limits<int64_t>::max();  // the last
-  }, log), 0);
-  const int huge = rewrite_sample<driftlab::velocity_command_t>(log, "CMD_VEL", 4, [](driftlab::velocity_command_t& c, int) {
-    c.linear.x = 1e300;
-  }, log);
+  ASSERT_GT(rewrite_sample<driftlab::tf_t>(log, "TF_STATIC", 1,
+                                           [](driftlab::tf_t& tf, int) {
+                                             for (auto& t : tf.transforms) t.translation.x = 1e15;
+                                           }),
+            0);
+  ASSERT_GT(rewrite_sample<driftlab::odometry_t>(
+                log, "ODOM", 50,
+                [](driftlab::odometry_t& o, int n) {
+                  if (n == 50) o.header.utime = std::numeric_limits<int64_t>::max();  // the last
+                },
+                log),
+            0);
+  const int huge = rewrite_sample<driftlab::velocity_command_t>(
+      log, "CMD_VEL", 4, [](driftlab::velocity_command_t& c, int) { c.linear.x = 1e300; }, log);
   ASSERT_GT(huge, 1);
   const std::string config = dir.file("c.yaml");
   std::ofstream(config) << "controller:\n  logged_channel: CMD_VEL\nslam:\n  2d:\n    map_resolution: 0.001\n";
-  const auto r = driftlab("replay " + log + " --modules slam,estimator,controller --config " + config +
-                          " --json -o " + dir.file("out.lcm"));
+  const auto r = driftlab("replay " + log + " --modules slam,estimator,controller --config " + config + " --json -o " +
+                          dir.file("out.lcm"));
   ASSERT_EQ(r.code, 0) << r.err;
   const auto j = nlohmann::json::parse(r.out);
   const auto slam = module_report(j, "slam"), ctl = module_report(j, "controller");
@@ -423,7 +432,8 @@ TEST(FullDisk, EveryCommandFailsWithCode1AndLeavesNothingBehind) {
   const std::string rawlog = in + "/s.rawlog", mcap = in + "/s.mcap";
   ASSERT_EQ(driftlab("export rawlog " + kSample + " -o " + rawlog).code, 0);
   ASSERT_EQ(driftlab("export mcap " + kSample + " -o " + mcap).code, 0);
-  const std::vector<std::pair<std::string, std::string>> cases = {  // command, the file it writes (or "": a folder)
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      // command, the file it writes (or "": a folder)
       {"diagnose --json " + out + "/d.json " + kSample, "d.json"},
       {"diagnose --html " + out + "/d.html " + kSample, "d.html"},
       {"export csv " + kSample + " -o " + out + "/csv", ""},
@@ -458,8 +468,7 @@ TEST(FullDisk, EveryCommandFailsWithCode1AndLeavesNothingBehind) {
 TEST(BadInput, RecordAndDemoExitWith2) {
   // They exited 1 (an environment failure) for options the user got wrong.
   test::TempDir dir;
-  for (const auto& [args, message] :
-       std::vector<std::pair<std::string, std::string>>{
+  for (const auto& [args, message] : std::vector<std::pair<std::string, std::string>>{
            {"record -c '[bad' -o " + dir.file("x.lcm"), "-c/--channels: invalid channel regex '[bad': "},
            {"record --exclude '(' -o " + dir.file("x.lcm"), "--exclude: invalid channel regex '(': "},
            {"record --url bogus:// -o " + dir.file("x.lcm"), "LCM URL 'bogus://': only udpm:// is supported"},
@@ -479,7 +488,8 @@ TEST(BadInput, InjectAndRestampOnAChannelTheLogLacksAreRefused) {
   std::ofstream(dir.file("inject.yaml")) << "seed: 1\nstreams:\n  ODMO: {drop_probability: 0.5}\n";
   std::ofstream(dir.file("restamp.yaml")) << "channels:\n  IMU_RAW: {offset_s: 0.01}\n";
   for (const auto& [args, message] : std::vector<std::pair<std::string, std::string>>{
-           {"--inject " + dir.file("inject.yaml"), "--inject " + dir.file("inject.yaml") + ": no channel 'ODMO' in the logs given (they have: "},
+           {"--inject " + dir.file("inject.yaml"),
+            "--inject " + dir.file("inject.yaml") + ": no channel 'ODMO' in the logs given (they have: "},
            {"--restamp " + dir.file("restamp.yaml"),
             "--restamp " + dir.file("restamp.yaml") + ": no channel 'IMU_RAW' in the logs given (they have: "}}) {
     const auto r = driftlab("replay " + kSample + " " + args + " -o " + dir.file("r.lcm"));
@@ -495,7 +505,8 @@ TEST(BadInput, InjectAndRestampOnAChannelTheLogLacksAreRefused) {
   EXPECT_EQ(fast.err, "driftlab: warning: --fast ignores --rate\n");
   // The channels the log has are taken as before.
   std::ofstream(dir.file("inject.yaml")) << "seed: 1\nstreams:\n  ODOM: {drop_probability: 0.5}\n";
-  EXPECT_EQ(driftlab("replay " + kSample + " --inject " + dir.file("inject.yaml") + " -o " + dir.file("r.lcm")).code, 0);
+  EXPECT_EQ(driftlab("replay " + kSample + " --inject " + dir.file("inject.yaml") + " -o " + dir.file("r.lcm")).code,
+            0);
 }
 
 TEST(BadInput, EvalNamesALogGivenWithoutItsChannel) {

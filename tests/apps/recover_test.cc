@@ -59,7 +59,8 @@ TEST(Recover, WritesEveryIntactEventOfADamagedLogIntoOneLcmReadsToTheEnd) {
     // What was left out, where, as `driftlab info` names it.
     for (const auto& p : problems) {
       EXPECT_NE(r.out.find("at byte " + std::to_string(p.offset) + ": " + to_string(p.kind)), std::string::npos)
-          << name << "\n" << r.out;
+          << name << "\n"
+          << r.out;
     }
   }
 }

@@ -126,9 +126,9 @@ TEST(Ekf, NeverLetsANonFiniteNumberIntoItsState) {
   const auto x = ekf.filter().state();
   // Finite values no robot measures, which would overflow it on the next step (a speed of 1e300 m/s gives a
   // covariance term of 1e600), and an infinite variance (its gain would be 0 * inf).
-  for (const Measurement& m : {Measurement(Twist{1e300, 0, 0, 0}), Measurement(PoseFix{{1e308, -1e308, 0}}),
-                               Measurement(GyroZ{2e9, 0}), Measurement(GyroZ{0.1, INFINITY}),
-                               Measurement(Twist{0.5, 0.25, 0, -INFINITY})}) {
+  for (const Measurement& m :
+       {Measurement(Twist{1e300, 0, 0, 0}), Measurement(PoseFix{{1e308, -1e308, 0}}), Measurement(GyroZ{2e9, 0}),
+        Measurement(GyroZ{0.1, INFINITY}), Measurement(Twist{0.5, 0.25, 0, -INFINITY})}) {
     EXPECT_FALSE(ekf.add(kT0 + 20'000'000, m));
   }
   EXPECT_EQ(ekf.filter().state(), x);

@@ -165,8 +165,9 @@ TEST(NonFinite, ModulesCountTheDroppedAndNameTheFirst) {
   EXPECT_FALSE(inputs.finite({"ODOM", 2, nan}));
   inputs.count("SCAN", "angle_increment * (nranges - 1) = inf");
   EXPECT_EQ(inputs.dropped(), 2);
-  EXPECT_EQ(inputs.warning("estimator"),
-            "estimator: 2 inputs with NaN, infinite or out-of-range numbers dropped (first: ODOM: angular_velocity.z = nan)");
+  EXPECT_EQ(
+      inputs.warning("estimator"),
+      "estimator: 2 inputs with NaN, infinite or out-of-range numbers dropped (first: ODOM: angular_velocity.z = nan)");
 }
 
 }  // namespace

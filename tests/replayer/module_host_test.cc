@@ -88,9 +88,10 @@ TEST(ModuleHost, ALogTimeFarAheadSkipsTheTicksInBetweenAndSaysSo) {
   EXPECT_EQ(ticks.back(), std::numeric_limits<int64_t>::max() / 100000 * 100000);
   const auto report = host.reports().front();
   ASSERT_EQ(report.warnings.size(), 1u);
-  EXPECT_EQ(report.warnings[0].rfind("92216082600545 timer ticks skipped", 0), 0u) << report.warnings[0];  // 1000001 + the rest
-  EXPECT_NE(report.warnings[0].find(" timer ticks skipped where the time jumped ahead (first: " + std::to_string(kT0 + 100000) +
-                                    " to " + std::to_string(far - 50000) + " us)"),
+  EXPECT_EQ(report.warnings[0].rfind("92216082600545 timer ticks skipped", 0), 0u)
+      << report.warnings[0];  // 1000001 + the rest
+  EXPECT_NE(report.warnings[0].find(" timer ticks skipped where the time jumped ahead (first: " +
+                                    std::to_string(kT0 + 100000) + " to " + std::to_string(far - 50000) + " us)"),
             std::string::npos)
       << report.warnings[0];
 }
