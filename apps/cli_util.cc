@@ -21,23 +21,38 @@ int fail(std::string_view message, int code) {
   return code;
 }
 
+Status write_atomically(const std::string& path, std::string_view bytes) {
+  // Beside the target, renamed when whole: a failure leaves what PATH held and no partial file.
+  const std::string partial = path + ".partial";
+  FILE* f = std::fopen(partial.c_str(), "w");
+  bool ok = f != nullptr && std::fwrite(bytes.data(), 1, bytes.size(), f) == bytes.size();
+  if (f != nullptr && std::fclose(f) != 0) ok = false;
+  const int err = errno;
+  if (ok && std::rename(partial.c_str(), path.c_str()) != 0) ok = false;
+  if (ok) return {};
+  const int rename_err = errno;
+  std::remove(partial.c_str());
+  return Error{path + ": cannot write: " + std::strerror(err != 0 ? err : rename_err)};
+}
+
 bool write_output(const std::string& path, const std::string& text) {
   if (path == "-") {
     std::fwrite(text.data(), 1, text.size(), stdout);
     return true;
   }
-  // Beside the target, renamed when whole: a failure leaves what PATH held and no partial file.
-  const std::string partial = path + ".partial";
-  FILE* f = std::fopen(partial.c_str(), "w");
-  bool ok = f != nullptr && std::fwrite(text.data(), 1, text.size(), f) == text.size();
-  if (f != nullptr && std::fclose(f) != 0) ok = false;
-  const int err = errno;
-  if (ok && std::rename(partial.c_str(), path.c_str()) != 0) ok = false;
-  if (!ok) {
-    std::remove(partial.c_str());
-    fail(path + ": cannot write: " + std::strerror(err != 0 ? err : errno), kExitFailure);
+  if (Status s = write_atomically(path, text); !s) {
+    fail(s.message(), kExitFailure);
+    return false;
   }
-  return ok;
+  return true;
+}
+
+int exit_code_for(const Error& error, std::string out) {
+  while (out.size() > 1 && out.back() == '/') out.pop_back();
+  const std::string& m = error.message;
+  if (out.empty() || m.rfind(out, 0) != 0) return kExitBadInput;
+  const char next = m.size() > out.size() ? m[out.size()] : '\0';
+  return next == ':' || next == '/' || m.compare(out.size(), 8, ".partial") == 0 ? kExitFailure : kExitBadInput;
 }
 
 int run_program(const std::vector<std::string>& argv, const std::string& stdout_path, const std::string& stderr_path) {
@@ -78,7 +93,8 @@ bool split_log_channel(const std::string& src, std::string* log, std::string* ch
   if (colon == std::string::npos || colon == 0 || colon + 1 == src.size()) return false;
   std::error_code ec;
   const std::string log_part = src.substr(0, colon);
-  if (!std::filesystem::is_regular_file(log_part, ec) && !std::filesystem::is_directory(log_part, ec)) return false;
+  // Any file or folder (a bag) that exists: a FIFO or device is split too, so the command can refuse it by name.
+  if (!std::filesystem::exists(log_part, ec)) return false;
   std::string whole = src;  // log or channel may alias src
   *log = whole.substr(0, colon);
   *channel = whole.substr(colon + 1);

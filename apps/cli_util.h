@@ -22,6 +22,14 @@ inline constexpr int kExitBadInput = 2;
 /// Prints "driftlab: message" as one line on stderr and returns code.
 int fail(std::string_view message, int code = kExitBadInput);
 
+/// Writes bytes to path+".partial" and renames it to path when whole; on failure removes the partial file, leaves
+/// path as it was and returns an error naming path.
+Status write_atomically(const std::string& path, std::string_view bytes);
+/// The exit code for an error of a command that writes `out` (a file or a folder): kExitFailure (the environment:
+/// a full disk, no permission) when the error names the output (out, its .partial or a file in it: errors name
+/// their file first), else kExitBadInput.
+int exit_code_for(const Error& error, std::string out);
+
 /// Writes text to path, or to standard output when path is "-". On failure prints one line naming the file and
 /// returns false.
 bool write_output(const std::string& path, const std::string& text);
@@ -39,8 +47,8 @@ int run_program(const std::vector<std::string>& argv, const std::string& stdout_
 Status run_plot_script(const char* script, const std::string& name, const std::string& dir,
                        const std::vector<std::string>& args);
 
-/// Splits "LOG:CHANNEL" at its last ':' when the part before it is an existing file or folder (a bag); false (log and channel
-/// untouched) otherwise. Channel names may hold ':' only if the log's name has none after its last one.
+/// Splits "LOG:CHANNEL" at its last ':' when the part before it exists (a file, or a folder: a bag); false (log and
+/// channel untouched) otherwise. Channel names may hold ':' only if the log's name has none after its last one.
 bool split_log_channel(const std::string& src, std::string* log, std::string* channel);
 
 /// A file name for a channel that no other channel maps to: bytes other than [A-Za-z0-9_-] and a leading '.' are

@@ -1,8 +1,8 @@
 // The driftlab subcommands. Each add_*_command registers a subcommand on app; when it runs, its exit
 // code is stored in *exit_code (0 ok, 1 failure while working, 2 bad usage or bad input).
 //
-// `driftlab` itself holds the commands that need no simulator, SLAM or vision library (info, diagnose, eval,
-// export tum/csv, record, report, demo), so they start in milliseconds. The others live in programs of their own
+// `driftlab` itself holds the commands that need no simulator, SLAM or vision library (info, diagnose, recover,
+// eval, export tum/csv, record, report, demo), so they start in milliseconds. The others live in programs of their own
 // beside it (driftlab-sim, driftlab-replay, driftlab-rawlog) and `driftlab` runs them, as git runs git-* programs:
 // `driftlab replay ...` is `driftlab-replay replay ...`. kTools lists them; docs/architecture.md says why.
 #pragma once
@@ -19,6 +19,7 @@ void add_info_command(CLI::App& app, int* exit_code);
 void add_eval_command(CLI::App& app, int* exit_code);
 void add_record_command(CLI::App& app, int* exit_code);
 void add_diagnose_command(CLI::App& app, int* exit_code);
+void add_recover_command(CLI::App& app, int* exit_code);
 void add_report_command(CLI::App& app, int* exit_code);
 void add_demo_command(CLI::App& app, int* exit_code);
 /// sweep SPEC, sweep status|collect, and batch diagnose|eval|report (apps/sweep_main.cc, batch/).

@@ -168,9 +168,13 @@ int run_demo(const DemoArgs& a) {
     stages.push_back({s.args[1], std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count()});
     if (code != 0) {
       const std::string why = last_line_of(errors);
+      // The failed stage's output is not kept (it is empty or cut short), and its exit code is the demo's: 2 when
+      // it was given bad input (a scenario that cannot be read), 1 otherwise.
+      fs::remove(s.stdout_file, ec);
+      fs::remove(errors, ec);
       return fail("demo: " + join_args(s.args) + " failed (exit " + std::to_string(code) + ")" +
                       (why.empty() ? "" : ": " + why),
-                  kExitFailure);
+                  code == kExitBadInput ? kExitBadInput : kExitFailure);
     }
   }
   fs::remove(errors, ec);

@@ -155,7 +155,13 @@ void add_diagnose_command(CLI::App& app, int* exit_code) {
       ->check(positive());
   cmd->add_option("--window", o->analysis.window_s, "Skew window [s]")->capture_default_str()->check(positive());
   cmd->callback([o, exit_code] {
-    auto log = log_for(o->inputs);
+    for (const auto& [out, option] : {std::pair{o->json, "--json"}, {o->html, "--html"}}) {
+      if (Status s = refuse_same_file(out, o->inputs, option); !s) {  // the recording given, not only its conversion
+        *exit_code = fail(s.message());
+        return;
+      }
+    }
+    auto log = event_log_for(o->inputs);
     if (!log) {
       *exit_code = fail(log.error().message);
       return;

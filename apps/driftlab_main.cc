@@ -18,6 +18,7 @@ int main(int argc, char** argv) {
   add_eval_command(app, &exit_code);
   add_record_command(app, &exit_code);
   add_diagnose_command(app, &exit_code);
+  add_recover_command(app, &exit_code);
   // Listed here for --help, run by their own programs (find_tool above takes them before parsing).
   for (const char* word : {"sim", "replay", "run"}) app.add_subcommand(word, tool_description(word))->allow_extras();
   CLI::App& import = add_import_command(app);

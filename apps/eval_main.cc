@@ -15,8 +15,10 @@
 #include "analyzers/trajectory_io.h"
 #include "apps/cli_checks.h"
 #include "apps/cli_util.h"
-#include "apps/log_input.h"
 #include "apps/commands.h"
+#include "apps/log_input.h"
+#include "core/log_reader.h"
+#include "core/same_file.h"
 
 namespace driftlab::apps {
 namespace {
@@ -295,17 +297,41 @@ bool match_by_index(const EvalOptions& o, const Trajectory& gt, const Trajectory
   return true;
 }
 
+/// A source (LOG:CHANNEL, or a trajectory file) checked: a log must hold events, and a log given without its
+/// channel is named as such (rather than read as a TUM file that is "not a number" on line 1).
+Status check_source(const std::string& src, const char* option) {
+  std::string log, channel;
+  if (split_log_channel(src, &log, &channel)) return check_event_log(log);
+  if (check_event_log(src).ok()) {
+    return Error{src + ": an LCM event log: name the channel, as " + option + " " + src + ":CHANNEL"};
+  }
+  return {};
+}
+
 int run_eval(const EvalOptions& o) {
   if (o.gt.empty() && o.relations.empty()) {
     return fail("eval needs --gt (ATE, RPE and drift against a reference), --relations (the SLAM benchmark's relation "
                 "error), or both");
   }
+  // An output over any input is refused before anything is read or converted.
+  std::vector<std::string> inputs;
+  for (const auto* src : {&o.gt, &o.est, &o.odometry}) {
+    std::string log, channel;
+    inputs.push_back(split_log_channel(*src, &log, &channel) ? log : *src);
+  }
+  for (const auto* file : {&o.relations, &o.gt_times, &o.est_times}) inputs.push_back(*file);
+  if (Status s = refuse_same_file(o.json, inputs, "--json"); !s) return fail(s.message());
   // LOG:CHANNEL of another tool's recording: read from its cached conversion (the output names the source given).
   Result<std::string> gt_src = std::string();
   if (!o.gt.empty()) gt_src = log_channel_for(o.gt);
   if (!gt_src) return fail(gt_src.error().message);
   auto est_src = log_channel_for(o.est);
   if (!est_src) return fail(est_src.error().message);
+  for (const auto& [src, option] :
+       {std::pair{*gt_src, "--gt"}, {*est_src, "--est"}, {o.odometry, "--relations-odometry"}}) {
+    if (src.empty()) continue;
+    if (Status s = check_source(src, option); !s) return fail(s.message());
+  }
   // The inputs load in parallel: parsing is most of the work on large trajectories.
   auto pending_gt = std::async(std::launch::async, [&]() -> Result<Trajectory> {
     if (o.gt.empty()) return Trajectory{};

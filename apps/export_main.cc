@@ -9,13 +9,14 @@
 
 #include "analyzers/trajectory_io.h"
 #include "apps/cli_util.h"
-#include "apps/log_input.h"
 #include "apps/commands.h"
+#include "apps/log_input.h"
 #include "core/log_format.h"
 #include "core/log_reader.h"
+#include "core/same_file.h"
 #include "lcmtypes/schema.h"
 #include "lcmtypes/type_registry.h"
-#include "core/same_file.h"
+#include "lcmtypes/validate.h"
 
 namespace driftlab::apps {
 namespace {
@@ -48,7 +49,7 @@ struct CsvFile {
   std::string path;
   std::map<std::string, size_t> column;  // name -> index
   std::vector<std::string> row;
-  int64_t rows = 0, short_rows = 0;
+  int64_t rows = 0;
 };
 
 int run_csv(const CsvArgs& a) {
@@ -61,6 +62,7 @@ int run_csv(const CsvArgs& a) {
   if (ec) return fail(a.out + ": cannot create: " + ec.message());
   std::map<std::string, CsvFile, std::less<>> files;
   std::map<std::string, int64_t> unknown;  // channel -> messages of a type without a definition here
+  std::map<std::string, std::pair<int64_t, std::string>> malformed;  // channel -> count, the first one's problem
   lcmtypes::FlattenOptions fo;
   fo.max_array = a.max_array;
   fo.bytes = a.bytes;
@@ -80,9 +82,14 @@ int run_csv(const CsvArgs& a) {
       ++unknown[std::string(e.channel)];
       continue;
     }
+    if (auto problem = lcmtypes::layout_problem(e.data)) {  // cut short or lying about a length: no row of it
+      auto& [n, first] = malformed[std::string(e.channel)];
+      if (n++ == 0) first = *problem;
+      continue;
+    }
     values.clear();
-    const bool complete =
-        lcmtypes::flatten(*def, e.data, [&](const std::string& c, const std::string& v) { values.emplace_back(c, v); }, fo);
+    lcmtypes::flatten(
+        *def, e.data, [&](const std::string& c, const std::string& v) { values.emplace_back(c, v); }, fo);
     auto it = files.find(e.channel);
     if (it == files.end()) {
       CsvFile f;
@@ -106,7 +113,6 @@ int run_csv(const CsvArgs& a) {
     for (const auto& [c, v] : values) {
       if (auto k = f.column.find(c); k != f.column.end()) f.row[k->second] = csv_quote(v);
     }
-    if (!complete) ++f.short_rows;
     std::fprintf(f.f, "%.6f", static_cast<double>(e.utime) * 1e-6);
     for (const auto& cell : f.row) {
       std::fputc(',', f.f);
@@ -130,8 +136,11 @@ int run_csv(const CsvArgs& a) {
     if (ec) return fail(f.path + ": cannot rename into place: " + ec.message(), kExitFailure);
   }
   for (const auto& [name, f] : files) {
-    std::printf("%-24s %10s rows  %s%s\n", name.c_str(), thousands(f.rows).c_str(), f.path.c_str(),
-                f.short_rows ? (" (" + thousands(f.short_rows) + " messages shorter than their type)").c_str() : "");
+    std::printf("%-24s %10s rows  %s\n", name.c_str(), thousands(f.rows).c_str(), f.path.c_str());
+  }
+  for (const auto& [name, m] : malformed) {
+    std::printf("%-24s %10s malformed messages skipped (first: %s)\n", name.c_str(), thousands(m.first).c_str(),
+                m.second.c_str());
   }
   for (const auto& [name, n] : unknown) {
     std::printf("%-24s %10s messages of a type that is not driftlab's: skipped\n", name.c_str(), thousands(n).c_str());
@@ -149,7 +158,7 @@ int run_tum(TumArgs a) {
     return fail(a.log + ": name the channel as LOG:CHANNEL (or with -c CHANNEL)");
   }
   if (Status s = refuse_same_file(a.out, {a.log}); !s) return fail(s.message());
-  auto log = log_for(a.log);
+  auto log = event_log_for(a.log);
   if (!log) return fail(log.error().message);
   auto t = analyzers::load_log_channel(*log, a.channel);
   if (!t) return fail(t.error().message);
@@ -192,7 +201,7 @@ void add_export_commands(CLI::App& exp, int* exit_code) {
       ->capture_default_str();
   c->add_flag("--bytes", csv->bytes, "Also write byte arrays (image data) as columns of numbers");
   c->callback([csv, exit_code] {
-    auto log = log_for(csv->inputs);
+    auto log = event_log_for(csv->inputs);
     if (!log) {
       *exit_code = fail(log.error().message);
       return;

@@ -78,7 +78,7 @@ void add_import_file_command(CLI::App& import, int* exit_code) {
       if (printed++ < kProblemLines) std::fprintf(stderr, "driftlab: %s\n", line.c_str());
     });
     if (!r) {
-      *exit_code = fail(r.error().message);
+      *exit_code = fail(r.error().message, exit_code_for(r.error(), args->out));
       return;
     }
     if (problems > kProblemLines) {

@@ -156,8 +156,7 @@ int run_info(const InfoOptions& o) {
   const LogSummary& s = index->summary();
   if (s.events == 0 && s.file_bytes > 0 && !s.problems.empty() && s.problems.front().offset == 0 &&
       s.problems.front().kind == ProblemKind::kGarbage) {
-    return fail(o.log + ": not an LCM event log (no event in " + std::to_string(s.file_bytes) +
-                " bytes; an event starts with the sync word 0xEDA1DA01)");
+    return fail(not_an_event_log(o.log, s.file_bytes));
   }
   const auto recorded = recorder_stats(o.log, s);
   if (o.json) {

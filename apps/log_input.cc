@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "apps/cli_util.h"
+#include "core/log_reader.h"
 #include "formats/import.h"
 
 namespace driftlab::apps {
@@ -154,6 +155,13 @@ Result<std::string> log_for(const std::vector<std::string>& inputs) {
     return Error(key_path + ": cannot rename into place");
   }
   return cache;
+}
+
+Result<std::string> event_log_for(const std::vector<std::string>& inputs) {
+  auto log = log_for(inputs);
+  if (!log) return log;
+  if (Status s = check_event_log(*log); !s) return Error{s.message()};
+  return log;
 }
 
 Result<std::string> log_channel_for(const std::string& source) {

@@ -30,6 +30,14 @@ std::string import_cache_path(const std::vector<std::string>& inputs);
 Result<std::string> log_for(const std::vector<std::string>& inputs);
 inline Result<std::string> log_for(const std::string& input) { return log_for(std::vector<std::string>{input}); }
 
+/// log_for(), then check_event_log() on the log it gives: for the commands that have nothing to do without an event
+/// (every one but info, which describes an empty log). A file that is neither another tool's recording nor an LCM
+/// log is "not an LCM event log".
+Result<std::string> event_log_for(const std::vector<std::string>& inputs);
+inline Result<std::string> event_log_for(const std::string& input) {
+  return event_log_for(std::vector<std::string>{input});
+}
+
 /// A LOG:CHANNEL source (eval, export tum) whose LOG is another tool's recording: the same source with LOG
 /// replaced by its conversion. Other sources (LCM logs, TUM files) come back unchanged.
 Result<std::string> log_channel_for(const std::string& source);

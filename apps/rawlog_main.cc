@@ -44,7 +44,7 @@ void add_rawlog_commands(CLI::App& import, CLI::App& exp, int* exit_code) {
     }
     auto r = slam::import_rawlog(in->in, in->out);
     if (!r) {
-      *exit_code = fail(r.error().message);
+      *exit_code = fail(r.error().message, exit_code_for(r.error(), in->out));
       return;
     }
     print_counts(*r, in->in, in->out);
@@ -61,14 +61,14 @@ void add_rawlog_commands(CLI::App& import, CLI::App& exp, int* exit_code) {
       *exit_code = fail(s.message());
       return;
     }
-    auto log = log_for(out->in);  // another tool's recording: its cached conversion
+    auto log = event_log_for(out->in);  // another tool's recording: its cached conversion
     if (!log) {
       *exit_code = fail(log.error().message);
       return;
     }
     auto r = slam::export_rawlog(*log, out->out);
-    if (!r) {
-      *exit_code = fail(r.error().message);
+    if (!r) {  // the log was checked above: what fails now is creating or writing the rawlog
+      *exit_code = fail(r.error().message, kExitFailure);
       return;
     }
     print_counts(*r, out->in, out->out);

@@ -32,6 +32,7 @@ std::string default_out() {
 }
 
 int run_record(recorder::RecordOptions o) {
+  if (Status s = recorder::check_options(o); !s) return fail(s.message());
   if (o.out.empty()) o.out = default_out();
   const bool tty = isatty(STDERR_FILENO) == 1;
   if (tty) o.on_status = [](const std::string& line) { std::fprintf(stderr, "\r\033[K%s", line.c_str()); };
@@ -42,7 +43,6 @@ int run_record(recorder::RecordOptions o) {
   sigaction(SIGINT, &sa, nullptr);
   sigaction(SIGTERM, &sa, nullptr);
   signal(SIGPIPE, SIG_IGN);
-  signal(SIGXFSZ, SIG_IGN);  // a file-size limit shows as a write error, like a full disk
   auto result = rec.run();
   g_recorder.store(nullptr);
   if (tty) std::fprintf(stderr, "\r\033[K");

@@ -6,22 +6,23 @@
 #include <atomic>
 #include <chrono>
 #include <cstdio>
-#include <filesystem>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <regex>
+#include <set>
 
 #include "analyzers/clock_corrections.h"
 #include "analyzers/timing.h"
 #include "apps/cli_checks.h"
 #include "apps/cli_util.h"
-#include "apps/log_input.h"
 #include "apps/commands.h"
+#include "apps/log_input.h"
+#include "core/config.h"
+#include "core/log_index.h"
+#include "core/same_file.h"
 #include "modules/registry.h"
 #include "replayer/live_runner.h"
 #include "replayer/replayer.h"
-#include "core/config.h"
-#include "core/same_file.h"
 
 namespace driftlab::apps {
 namespace {
@@ -114,9 +115,37 @@ void print_modules(const std::vector<replay::ModuleReport>& reports, bool timing
   }
 }
 
+/// Refuses a --restamp or --inject FILE that names a channel none of the logs has: it would change nothing, and
+/// the replay would report success as if it had (a misspelt channel, or a file written for another log).
+Status refuse_absent_channels(const std::string& option, const std::string& file,
+                              const std::vector<std::string>& channels, const std::vector<std::string>& logs) {
+  if (channels.empty()) return {};
+  std::set<std::string> present;
+  for (const auto& log : logs) {
+    auto index = LogIndex::load_or_build(log);
+    if (!index) return index.error();
+    for (const auto& c : index->summary().channels) present.insert(c.name);
+  }
+  for (const auto& channel : channels) {
+    if (present.count(channel) != 0) continue;
+    std::string known;
+    int listed = 0;
+    for (const auto& p : present) {
+      if (listed++ == 8) {
+        known += ", ...";
+        break;
+      }
+      known += (known.empty() ? "" : ", ") + p;
+    }
+    return Error{option + " " + file + ": no channel '" + channel + "' in the logs given (they have: " + known + ")"};
+  }
+  return {};
+}
+
 int run_replay(ReplayArgs a) {
+  if (Status s = refuse_same_file(a.out, a.logs); !s) return fail(s.message());  // the recordings given
   for (auto& log : a.logs) {
-    auto converted = log_for(log);  // another tool's recording: its cached conversion
+    auto converted = event_log_for(log);  // another tool's recording: its cached conversion
     if (!converted) return fail(converted.error().message);
     log = *converted;
   }
@@ -137,10 +166,7 @@ int run_replay(ReplayArgs a) {
     }
     o.remap.emplace_back(m.substr(0, eq), m.substr(eq + 1));
   }
-  for (const auto& log : a.logs) {
-    if (!std::filesystem::is_regular_file(log)) return fail(log + ": no such log file");
-  }
-  if (Status s = refuse_same_file(a.out, a.logs); !s) return fail(s.message());
+  if (Status s = refuse_same_file(a.out, a.logs); !s) return fail(s.message());  // and their conversions
   if (a.end > 0 && a.end <= a.start) {
     return fail("--end " + short_number(a.end) + " must be after --start " + short_number(a.start) +
                 " (both in seconds from the start of the logs)");
@@ -166,6 +192,16 @@ int run_replay(ReplayArgs a) {
     if (!f) return fail(f.error().message);
     o.inject = std::move(*f);
   }
+  if (!a.restamp.empty() && a.restamp != "auto") {
+    std::vector<std::string> named;
+    for (const auto& [channel, c] : o.restamp) named.push_back(channel);
+    if (Status s = refuse_absent_channels("--restamp", a.restamp, named, a.logs); !s) return fail(s.message());
+  }
+  if (o.inject) {
+    std::vector<std::string> named;
+    for (const auto& [channel, f] : o.inject->streams) named.push_back(channel);
+    if (Status s = refuse_absent_channels("--inject", a.inject, named, a.logs); !s) return fail(s.message());
+  }
 
   // The slam module's `auto` backend asks what the replay delivers (after the filter and --remap).
   const modules::HasData has_data = [&o](const std::string& channel, const std::string& type) {
@@ -190,7 +226,6 @@ int run_replay(ReplayArgs a) {
   sa.sa_handler = on_signal;
   sigaction(SIGINT, &sa, nullptr);
   sigaction(SIGTERM, &sa, nullptr);
-  signal(SIGXFSZ, SIG_IGN);
   const auto t0 = std::chrono::steady_clock::now();
   auto report = replayer.run(sink, &g_stop);
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -256,7 +291,6 @@ int run_live(const RunArgs& a) {
   sa.sa_handler = on_signal;
   sigaction(SIGINT, &sa, nullptr);
   sigaction(SIGTERM, &sa, nullptr);
-  signal(SIGXFSZ, SIG_IGN);
   auto report = runner.run(&g_stop);
   if (!report) return fail(report.error().message, kExitFailure);
   if (a.json) {

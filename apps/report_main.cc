@@ -43,14 +43,6 @@ nlohmann::json rounded(const std::vector<double>& v) {
   return a;
 }
 
-Status write_file(const std::string& path, const std::string& bytes) {
-  std::ofstream out(path, std::ios::binary);
-  out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-  out.close();
-  if (!out) return Error{path + ": cannot write"};
-  return {};
-}
-
 std::string label_of(const std::string& log, const std::string& channel) {
   return fs::path(log).filename().string() + ":" + channel;
 }
@@ -126,7 +118,7 @@ Result<std::string> make_report(const ReportOptions& o) {
   if (o.logs.empty()) return Error{"report: no log given"};
   std::vector<LogSeries> logs;
   for (const auto& given : o.logs) {
-    auto path = log_for(given);  // another tool's recording: its cached conversion
+    auto path = event_log_for(given);  // another tool's recording: its cached conversion
     if (!path) return path.error();
     auto s = read_log_series(*path);
     if (!s) return s.error();
@@ -219,14 +211,15 @@ Result<std::string> make_report(const ReportOptions& o) {
   for (const auto& l : logs) {
     for (const auto& m : l.maps) {
       const std::string file = "map-" + fs::path(l.log).stem().string() + "-" + m.channel + ".png";
-      if (auto st = write_file((fs::path(o.out) / file).string(), std::string(m.png.begin(), m.png.end())); !st) return Error{st.message()};
+      const std::string_view png(reinterpret_cast<const char*>(m.png.data()), m.png.size());
+      if (auto st = write_atomically((fs::path(o.out) / file).string(), png); !st) return Error{st.message()};
       data["maps"].push_back({{"label", label_of(l.log, m.channel)}, {"file", file}, {"width", m.width},
                               {"height", m.height}});
     }
   }
 
   const std::string json_path = (fs::path(o.out) / "report.json").string();
-  if (auto st = write_file(json_path, data.dump() + "\n"); !st) return Error{st.message()};
+  if (auto st = write_atomically(json_path, data.dump() + "\n"); !st) return Error{st.message()};
   if (Status st = run_plot_script(kReportPageScript, "report_page.py", o.out, {json_path, o.out}); !st) {
     return Error{"report: " + st.message()};
   }
@@ -252,7 +245,7 @@ void add_report_command(CLI::App& app, int* exit_code) {
   cmd->callback([o, exit_code] {
     auto page = make_report(*o);
     if (!page) {
-      *exit_code = fail(page.error().message);
+      *exit_code = fail(page.error().message, exit_code_for(page.error(), o->out));
       return;
     }
     std::printf("%s\n", page->c_str());

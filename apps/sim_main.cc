@@ -85,7 +85,6 @@ int run_sim(const SimArgs& a) {
   sa.sa_handler = on_signal;
   sigaction(SIGINT, &sa, nullptr);
   sigaction(SIGTERM, &sa, nullptr);
-  signal(SIGXFSZ, SIG_IGN);  // a file-size limit shows as a write error, like a full disk
   const auto t0 = std::chrono::steady_clock::now();
   auto report = (*simulation)->run(o);
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

@@ -27,6 +27,7 @@
 #include "batch/plan.h"
 #include "batch/runner.h"
 #include "batch/store.h"
+#include "core/log_writer.h"
 #include "core/process.h"
 
 namespace driftlab::apps {
@@ -73,7 +74,8 @@ RunnerOptions runner_options() {
   return {self_path(), [](const nlohmann::json& d) { return diagnosis_summary(d); }};
 }
 
-/// Asks the replay program whether it accepts a module config: `driftlab replay` of an empty log with it. Its
+/// Asks the replay program whether it accepts a module config: `driftlab replay` with it of a log holding one event
+/// on a channel no module reads (an empty file is not a log, and would be refused before the config is read). Its
 /// one-line error when it names the config file; "" when it does not complain about the config.
 std::string check_config(const std::string& yaml, const std::string& modules) {
   char tmpl[] = "/tmp/driftlab-sweep-check-XXXXXX";
@@ -81,7 +83,10 @@ std::string check_config(const std::string& yaml, const std::string& modules) {
   const fs::path tmp(tmpl);
   const std::string config = (tmp / "replay.yaml").string(), log = (tmp / "empty.lcm").string();
   std::ofstream(config) << yaml;
-  std::ofstream(log).flush();
+  if (auto w = LogWriter::create(log); w.ok()) {
+    (void)w->write(0, "DRIFTLAB_CONFIG_CHECK", std::string_view());
+    (void)w->close();
+  }
   const std::string err = (tmp / "err").string();
   const int code = run_process({self_path(), "replay", log, "--modules", modules, "--config", config, "-o",
                                 (tmp / "out.lcm").string(), "--no-inputs"},

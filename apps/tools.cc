@@ -7,6 +7,7 @@
 #include <cerrno>
 #include <charconv>
 #include <cmath>
+#include <csignal>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
@@ -115,6 +116,9 @@ void harden(CLI::App& app) {
 }  // namespace
 
 int parse_and_run(CLI::App& app, int argc, char** argv, const int& exit_code) {
+  // A file-size limit (ulimit -f) then shows as a write error (EFBIG), like a full disk, so every command cleans
+  // up its partial outputs and says so, instead of being killed by SIGXFSZ halfway through a write.
+  std::signal(SIGXFSZ, SIG_IGN);
   harden(app);
   try {
     app.parse(argc, argv);

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 
 #include "core/config.h"
 #include "driftlab/command_comparison_t.hpp"
@@ -86,7 +87,9 @@ CommandComparison compare_commands(const std::vector<CommandSample>& recomputed,
     size_t hint = 0;
     CommandSample held;
     for (const CommandSample& r : recomputed) {
-      if (!held_at(logged, r.utime + lag, hint, held)) continue;
+      int64_t at = 0;  // saturated: log times at the end of int64_t (a hostile log) must not overflow
+      if (__builtin_add_overflow(r.utime, lag, &at)) at = lag > 0 ? INT64_MAX : INT64_MIN;
+      if (!held_at(logged, at, hint, held)) continue;
       const double dl = r.linear - held.linear, da = r.angular - held.angular;
       se_l += dl * dl;
       se_a += da * da;
@@ -131,9 +134,15 @@ Status ControllerModule::start(Bus& bus) {
       ++undecodable_;
       return;
     }
+    if (!non_finite_.finite(m)) return;
     if (!c_.estimate_in_world) {  // the estimate's frame starts at the robot's start pose
       const double c = std::cos(c_.start.yaw), s = std::sin(c_.start.yaw);
       p = {c_.start.x + c * p.x - s * p.y, c_.start.y + s * p.x + c * p.y, c_.start.yaw + p.yaw};
+    }
+    // Finite fields can still give a NaN pose (a quaternion of huge numbers has no yaw).
+    if (!std::isfinite(p.yaw)) return non_finite_.count(m.channel, "the yaw of orientation = nan");
+    if (!non_finite_.plausible(m.channel, "position.x", p.x) || !non_finite_.plausible(m.channel, "position.y", p.y)) {
+      return;
     }
     estimate_ = p;
   });
@@ -141,6 +150,7 @@ Status ControllerModule::start(Bus& bus) {
     bus.subscribe(c_.scan_channel, [this](const BusMessage& m) {
       driftlab::laser_scan_t scan;
       if (!decode_message(m, scan)) return void(++undecodable_);
+      if (!non_finite_.finite(m)) return;
       // The nearest return per sector within reach, in the scan's frame (taken as the base's: the obstacle layer
       // only needs directions and distances to within the laser's offset).
       double nearest[kSectors];
@@ -148,7 +158,9 @@ Status ControllerModule::start(Bus& bus) {
       for (int i = 0; i < scan.nranges; ++i) {
         const float r = scan.ranges[static_cast<size_t>(i)];
         if (!(r >= scan.range_min && r <= scan.range_max) || r > kObstacleRange) continue;
-        const double a = scan.angle_min + i * static_cast<double>(scan.angle_increment);
+        // Wrapped first: a huge angle would overflow the sector index.
+        const double a = std::remainder(scan.angle_min + i * static_cast<double>(scan.angle_increment), 2 * M_PI);
+        if (!std::isfinite(a)) continue;
         int k = static_cast<int>(std::floor((a + M_PI) / (2 * M_PI) * kSectors)) % kSectors;
         if (k < 0) k += kSectors;
         nearest[k] = std::min(nearest[k], static_cast<double>(r));
@@ -165,6 +177,10 @@ Status ControllerModule::start(Bus& bus) {
     bus.subscribe(c_.logged_channel, [this](const BusMessage& m) {
       driftlab::velocity_command_t cmd;
       if (!decode_message(m, cmd)) return void(++undecodable_);
+      if (!non_finite_.finite(m) || !non_finite_.plausible(m.channel, "linear.x", cmd.linear.x) ||
+          !non_finite_.plausible(m.channel, "angular.z", cmd.angular.z)) {
+        return;  // a command of 1e300 would make the comparison's RMSE infinite
+      }
       logged_.push_back({m.utime, cmd.linear.x, cmd.angular.z});
     });
   }
@@ -209,7 +225,7 @@ void ControllerModule::finish(Bus& bus) {
 
 ModuleCounters ControllerModule::counters() const {
   ModuleCounters c;
-  c.dropped = undecodable_;
+  c.dropped = undecodable_ + non_finite_.dropped();
   if (comparison_) {
     c.metrics = {{"compared_commands", comparison_->matched},
                  {"linear_rmse_m_s", comparison_->linear_rmse},
@@ -228,6 +244,7 @@ ModuleCounters ControllerModule::counters() const {
   if (undecodable_ > 0) {
     c.warnings.push_back("controller: " + std::to_string(undecodable_) + " messages of the wrong type ignored");
   }
+  if (auto w = non_finite_.warning("controller")) c.warnings.push_back(*w);
   return c;
 }
 

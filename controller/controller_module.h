@@ -15,6 +15,7 @@
 #include "controller/pure_pursuit.h"
 #include "core/bus.h"
 #include "core/result.h"
+#include "lcmtypes/validate.h"
 
 namespace driftlab::controller {
 
@@ -74,6 +75,7 @@ class ControllerModule final : public Module {
   std::optional<Pose2> estimate_;
   std::vector<Point2> obstacles_;
   int64_t seq_ = 0, undecodable_ = 0;
+  NonFiniteInputs non_finite_;
   std::vector<CommandSample> recomputed_, logged_;
   std::optional<CommandComparison> comparison_;
 };

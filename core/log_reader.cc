@@ -121,4 +121,24 @@ uint64_t LogReader::size_bytes() const { return impl_->bytes.size(); }
 uint64_t LogReader::position() const { return impl_->scanner.position(); }
 uint64_t LogReader::problems() const { return impl_->scanner.problems(); }
 
+std::string not_an_event_log(const std::string& path, uint64_t bytes) {
+  return path + ": not an LCM event log (no event in " + std::to_string(bytes) +
+         " bytes; an event starts with the sync word 0xEDA1DA01)";
+}
+
+Status check_event_log(const std::string& path) {
+  std::optional<Problem> first;
+  auto reader = LogReader::open(path, {.on_problem = [&](const Problem& p) {
+                                  if (!first) first = p;
+                                }});
+  if (!reader) return reader.error();
+  Event e;
+  if (reader->next(e)) return {};
+  const uint64_t bytes = reader->size_bytes();
+  if (bytes == 0) return Error{path + ": empty file (0 bytes): no events"};
+  if (first && first->offset == 0 && first->kind == ProblemKind::kGarbage) return Error{not_an_event_log(path, bytes)};
+  return Error{path + ": no intact event in " + std::to_string(bytes) +
+               " bytes: every event is damaged (driftlab info lists where)"};
+}
+
 }  // namespace driftlab

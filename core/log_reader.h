@@ -54,4 +54,14 @@ class LogReader {
   std::unique_ptr<Impl> impl_;
 };
 
+/// Whether the file at path is an LCM event log with at least one intact event, for commands that have nothing to
+/// do without one. Errors, one line naming the file: those of LogReader::open (missing, a directory, a FIFO),
+/// "empty file (0 bytes): no events", not_an_event_log() for a file that neither starts with an event nor holds
+/// one, and "no intact event in N bytes" for a log damaged throughout. Reads up to the first intact event (the
+/// whole file only when it has none).
+Status check_event_log(const std::string& path);
+
+/// "PATH: not an LCM event log (no event in N bytes; an event starts with the sync word 0xEDA1DA01)".
+std::string not_an_event_log(const std::string& path, uint64_t bytes);
+
 }  // namespace driftlab

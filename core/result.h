@@ -26,6 +26,16 @@ struct Error {
   std::string message;
 };
 
+/// An exception's what() in one line for a user: its first line, or for an MRPT exception (a banner line, then
+/// "Message: ...", the source location and a call stack) the message.
+inline std::string one_line(std::string what) {
+  if (const auto at = what.find("Message:"); what.rfind("==== MRPT exception", 0) == 0 && at != std::string::npos) {
+    const auto begin = what.find_first_not_of(' ', at + 8);
+    what = begin == std::string::npos ? std::string() : what.substr(begin);
+  }
+  return what.substr(0, what.find('\n'));
+}
+
 /// Either a T or an Error. Accessing the wrong alternative aborts (a broken invariant).
 template <typename T>
 class [[nodiscard]] Result {

@@ -5,9 +5,29 @@
 #include <algorithm>
 #include <cmath>
 
+#include "lcmtypes/validate.h"
+
 namespace driftlab::estimator {
 
-void Ekf::init(int64_t utime, const PoseFix& fix, double v, double w) {
+namespace {
+
+/// Whether a measurement can be applied: its values plausible (within kMaxMagnitude: so bounded, the state cannot
+/// overflow, the motion model's terms staying below 1e22 with the longest step int64_t stamps allow, 9.2e12 s),
+/// its variances finite (yaw wraps: any finite one).
+bool usable(const Measurement& m) {
+  if (const auto* g = std::get_if<GyroZ>(&m)) return plausible(g->w) && std::isfinite(g->var);
+  if (const auto* t = std::get_if<Twist>(&m)) {
+    return plausible(t->v) && plausible(t->w) && std::isfinite(t->var_v) && std::isfinite(t->var_w);
+  }
+  const auto& p = std::get<PoseFix>(m);
+  return plausible(p.pose.x) && plausible(p.pose.y) && std::isfinite(p.pose.yaw) && std::isfinite(p.var_xy) &&
+         std::isfinite(p.var_yaw);
+}
+
+}  // namespace
+
+bool Ekf::init(int64_t utime, const PoseFix& fix, double v, double w) {
+  if (!usable(Measurement(fix)) || !plausible(v) || !plausible(w)) return false;
   initialized_ = true;
   t_ = utime;
   x_ << fix.pose.x, fix.pose.y, wrap_angle(fix.pose.yaw), v, w, 0;
@@ -16,11 +36,13 @@ void Ekf::init(int64_t utime, const PoseFix& fix, double v, double w) {
   P_(kYaw, kYaw) = fix.var_yaw > 0 ? fix.var_yaw : noise_.pose_yaw * noise_.pose_yaw;
   P_(kV, kV) = P_(kW, kW) = 0.01;
   P_(kBias, kBias) = noise_.initial_bias * noise_.initial_bias;
+  return true;
 }
 
 void Ekf::predict(int64_t utime) {
   if (utime <= t_) return;
-  const double dt = static_cast<double>(utime - t_) * 1e-6;
+  // In doubles: hostile stamps far apart would overflow int64_t (exact for stamps below 2^53 us, 285 years).
+  const double dt = (static_cast<double>(utime) - static_cast<double>(t_)) * 1e-6;
   t_ = utime;
   const double v = x_(kV), w = x_(kW);
   const double heading = x_(kYaw) + 0.5 * w * dt;  // midpoint heading
@@ -57,7 +79,22 @@ void Ekf::correct(const Eigen::Matrix<double, N, 1>& innovation, const Eigen::Ma
   P_ = (P_.array().abs() < 1e-150).select(0.0, P_);
 }
 
-void Ekf::update(int64_t utime, const Measurement& m) {
+bool Ekf::update(int64_t utime, const Measurement& m) {
+  if (!usable(m)) return false;
+  // Whatever slips past the bounds (an innovation that overflows, a variance of 1e308): the state before is kept
+  // and restored unless every number stays finite, so no NaN ever enters the filter.
+  const int64_t t = t_;
+  const State x = x_;
+  const Cov P = P_;
+  apply(utime, m);
+  if (x_.allFinite() && P_.allFinite()) return true;
+  t_ = t;
+  x_ = x;
+  P_ = P;
+  return false;
+}
+
+void Ekf::apply(int64_t utime, const Measurement& m) {
   predict(utime);
   if (const auto* g = std::get_if<GyroZ>(&m)) {
     Eigen::Matrix<double, 1, 6> H = Eigen::Matrix<double, 1, 6>::Zero();
@@ -86,36 +123,51 @@ void Ekf::update(int64_t utime, const Measurement& m) {
   }
 }
 
-void DelayedEkf::init(int64_t utime, const PoseFix& fix, double v, double w) {
-  ekf_.init(utime, fix, v, w);
+bool DelayedEkf::init(int64_t utime, const PoseFix& fix, double v, double w) {
+  if (!ekf_.init(utime, fix, v, w)) return false;
   base_ = ekf_;
   history_.clear();
+  return true;
+}
+
+bool DelayedEkf::older_than_window(int64_t utime) const {
+  // The difference in uint64_t: exact whatever the stamps, where int64_t arithmetic could overflow.
+  const int64_t now = ekf_.time();
+  return utime<now&& static_cast<uint64_t>(now) - static_cast<uint64_t>(utime)> static_cast<uint64_t>(window_);
 }
 
 bool DelayedEkf::add(int64_t utime, const Measurement& m) {
   if (utime >= ekf_.time()) {  // in order: the common case
-    ekf_.update(utime, m);
+    if (!ekf_.update(utime, m)) {
+      ++counters_.refused;
+      return false;
+    }
     history_.push_back({utime, m, ekf_});
     ++counters_.applied;
   } else {
-    if (utime < ekf_.time() - window_ || utime < base_.time()) {
+    if (older_than_window(utime) || utime < base_.time()) {
       ++counters_.rejected;
       return false;
     }
     // Rewind to the state before the first entry stamped after this one, insert it, and re-apply the rest.
     auto pos = std::upper_bound(history_.begin(), history_.end(), utime,
                                 [](int64_t t, const Entry& e) { return t < e.utime; });
-    ekf_ = pos == history_.begin() ? base_ : std::prev(pos)->after;
+    Ekf before = pos == history_.begin() ? base_ : std::prev(pos)->after;
+    if (!before.update(utime, m)) {  // the filter as it was stays
+      ++counters_.refused;
+      return false;
+    }
+    ekf_ = before;
     pos = history_.insert(pos, {utime, m, ekf_});
-    for (auto it = pos; it != history_.end(); ++it) {
-      ekf_.update(it->utime, it->m);
+    for (auto it = std::next(pos); it != history_.end(); ++it) {
+      ekf_.update(it->utime, it->m);  // one refused now leaves the state as it was before it
       it->after = ekf_;
     }
     counters_.replays += static_cast<int64_t>(std::distance(pos, history_.end())) - 1;
     ++counters_.reapplied;
   }
   // Forget what is older than the window; the last forgotten state becomes the base.
-  while (!history_.empty() && history_.front().utime < ekf_.time() - window_) {
+  while (!history_.empty() && older_than_window(history_.front().utime)) {
     base_ = history_.front().after;
     history_.pop_front();
   }

@@ -52,20 +52,24 @@ class Ekf {
 
   explicit Ekf(const EkfNoise& noise = {}) : noise_(noise) {}
 
-  /// Starts at a pose and velocity, at time utime [us].
-  void init(int64_t utime, const PoseFix& fix, double v, double w);
+  /// Starts at a pose and velocity, at time utime [us]; false (and not initialised) when a value is NaN,
+  /// infinite or beyond any robot's (over 1e9 m, m/s or rad/s).
+  bool init(int64_t utime, const PoseFix& fix, double v, double w);
   bool initialized() const { return initialized_; }
 
   /// Moves the state to utime (no-op for earlier times).
   void predict(int64_t utime);
-  /// Predicts to utime and applies a measurement.
-  void update(int64_t utime, const Measurement& m);
+  /// Predicts to utime and applies a measurement. A measurement with a NaN or infinite value, a value beyond any
+  /// robot's (over 1e9 m, m/s or rad/s), or one that would leave a NaN or infinite number in the state or
+  /// covariance is refused: false, and the filter stays as it was. The state is always finite.
+  bool update(int64_t utime, const Measurement& m);
 
   int64_t time() const { return t_; }
   const State& state() const { return x_; }
   const Cov& covariance() const { return P_; }
 
  private:
+  void apply(int64_t utime, const Measurement& m);
   template <int N>
   void correct(const Eigen::Matrix<double, N, 1>& innovation, const Eigen::Matrix<double, N, 6>& H,
                const Eigen::Matrix<double, N, N>& R);
@@ -84,19 +88,22 @@ class DelayedEkf {
     int64_t reapplied = 0;   ///< late measurements inserted into the past (the ones after them re-applied)
     int64_t rejected = 0;    ///< measurements older than the window
     int64_t replays = 0;     ///< measurements re-applied because of late ones
+    int64_t refused = 0;     ///< measurements the filter refused (Ekf::update: implausible or overflowing values)
   };
 
   DelayedEkf(const EkfNoise& noise, double window_s) : ekf_(noise), window_(static_cast<int64_t>(window_s * 1e6)) {}
 
-  void init(int64_t utime, const PoseFix& fix, double v, double w);
+  bool init(int64_t utime, const PoseFix& fix, double v, double w);
   bool initialized() const { return ekf_.initialized(); }
-  /// Applies a measurement stamped utime [us]; false when it was older than the window and rejected.
+  /// Applies a measurement stamped utime [us]; false when it was older than the window and rejected, or refused
+  /// by the filter (Ekf::update).
   bool add(int64_t utime, const Measurement& m);
 
   const Ekf& filter() const { return ekf_; }
   const Counters& counters() const { return counters_; }
 
  private:
+  bool older_than_window(int64_t utime) const;
   struct Entry {
     int64_t utime;
     Measurement m;

@@ -1,6 +1,7 @@
 #include "estimator/estimator_module.h"
 
 #include <cmath>
+#include <cstdint>
 
 #include "core/config.h"
 #include "driftlab/imu_t.hpp"
@@ -74,6 +75,7 @@ Status EstimatorModule::start(Bus& bus) {
     bus.subscribe(c_.imu_channel, [this, &bus](const BusMessage& m) {
       driftlab::imu_t imu;
       if (!decode_message(m, imu)) return void(++undecodable_);
+      if (!non_finite_.finite(m)) return;
       ++imu_;
       const double var = imu.angular_velocity_covariance[0] > 0 ? imu.angular_velocity_covariance[8] : 0;
       add(bus, imu.header.utime, GyroZ{imu.angular_velocity.z, var});
@@ -83,11 +85,14 @@ Status EstimatorModule::start(Bus& bus) {
     bus.subscribe(c_.odom_channel, [this, &bus](const BusMessage& m) {
       driftlab::odometry_t o;
       if (!decode_message(m, o)) return void(++undecodable_);
+      if (!non_finite_.finite(m)) return;
       ++odom_;
       if (!ekf_.initialized() && (c_.pose_channel.empty() || poses_ == 0)) {
+        if (!ekf_.init(o.header.utime, {{o.position.x, o.position.y, yaw_of(o.orientation)}}, o.linear_velocity.x,
+                       o.angular_velocity.z)) {
+          return void(++refused_init_);
+        }
         if (frame_.empty()) frame_ = c_.frame_id.empty() ? o.header.frame_id : c_.frame_id;
-        ekf_.init(o.header.utime, {{o.position.x, o.position.y, yaw_of(o.orientation)}}, o.linear_velocity.x,
-                  o.angular_velocity.z);
         return;
       }
       // Twist covariance over (vx, vy, vz, wx, wy, wz): vx is [0], wz is [35]; 0 or -1: not given.
@@ -99,13 +104,14 @@ Status EstimatorModule::start(Bus& bus) {
     bus.subscribe(c_.pose_channel, [this, &bus](const BusMessage& m) {
       driftlab::pose_t p;
       if (!decode_message(m, p)) return void(++undecodable_);
+      if (!non_finite_.finite(m)) return;
       ++poses_;
       const PoseFix pose{{p.position.x, p.position.y, yaw_of(p.orientation)},
                          std::max(p.covariance[0], p.covariance[7]),
                          p.covariance[35]};
       if (!ekf_.initialized()) {
+        if (!ekf_.init(p.header.utime, pose, 0, 0)) return void(++refused_init_);
         frame_ = c_.frame_id.empty() ? p.header.frame_id : c_.frame_id;
-        ekf_.init(p.header.utime, pose, 0, 0);
         return;
       }
       if (frame_ != p.header.frame_id && c_.frame_id.empty()) frame_ = p.header.frame_id;
@@ -125,8 +131,16 @@ void EstimatorModule::add(Bus& bus, int64_t stamp, const Measurement& m) {
   if (next_publish_ == 0) next_publish_ = t;
   if (t >= next_publish_) {
     publish(bus);
-    const auto period = static_cast<int64_t>(std::llround(1e6 / c_.publish_rate));
-    while (next_publish_ <= t) next_publish_ += period;
+    // The first multiple of the period after t, computed rather than stepped to (a stamp years ahead would take
+    // billions of steps) and saturated at the end of int64_t (a hostile stamp must not overflow).
+    const auto period = static_cast<uint64_t>(std::llround(1e6 / c_.publish_rate));
+    const uint64_t steps = (static_cast<uint64_t>(t) - static_cast<uint64_t>(next_publish_)) / period + 1;
+    int64_t next = 0;
+    if (steps > static_cast<uint64_t>(INT64_MAX) / period ||
+        __builtin_add_overflow(next_publish_, static_cast<int64_t>(steps * period), &next)) {
+      next = INT64_MAX;
+    }
+    next_publish_ = next;
   }
 }
 
@@ -162,11 +176,13 @@ void EstimatorModule::finish(Bus& bus) {
 ModuleCounters EstimatorModule::counters() const {
   ModuleCounters c;
   const DelayedEkf::Counters& k = ekf_.counters();
-  c.dropped = k.rejected + undecodable_;
+  c.dropped = k.rejected + k.refused + undecodable_ + non_finite_.dropped() + refused_init_;
   c.metrics = {{"applied_in_order", static_cast<double>(k.applied)},
                {"late_reapplied", static_cast<double>(k.reapplied)},
                {"late_rejected", static_cast<double>(k.rejected)},
-               {"measurements_replayed", static_cast<double>(k.replays)}};
+               {"measurements_replayed", static_cast<double>(k.replays)},
+               {"non_finite_dropped", static_cast<double>(non_finite_.dropped())},
+               {"refused_by_filter", static_cast<double>(k.refused + refused_init_)}};
   if (!ekf_.initialized()) {
     c.warnings.push_back("estimator: no driftlab.odometry_t on " + (c_.odom_channel.empty() ? "-" : c_.odom_channel) +
                          " and no driftlab.pose_t on " + (c_.pose_channel.empty() ? "-" : c_.pose_channel) +
@@ -177,6 +193,11 @@ ModuleCounters EstimatorModule::counters() const {
   }
   if (undecodable_ > 0) {
     c.warnings.push_back("estimator: " + std::to_string(undecodable_) + " messages of the wrong type ignored");
+  }
+  if (auto w = non_finite_.warning("estimator")) c.warnings.push_back(*w);
+  if (k.refused + refused_init_ > 0) {
+    c.warnings.push_back("estimator: " + std::to_string(k.refused + refused_init_) +
+                         " measurements refused: values so large the filter would overflow");
   }
   return c;
 }

@@ -13,6 +13,7 @@
 #include "core/bus.h"
 #include "core/result.h"
 #include "estimator/ekf.h"
+#include "lcmtypes/validate.h"
 
 namespace driftlab::config {
 template <class T>
@@ -55,7 +56,8 @@ class EstimatorModule final : public Module {
   DelayedEkf ekf_;
   std::string frame_;
   int64_t next_publish_ = 0, seq_ = 0;
-  int64_t imu_ = 0, odom_ = 0, poses_ = 0, undecodable_ = 0, before_init_ = 0;
+  int64_t imu_ = 0, odom_ = 0, poses_ = 0, undecodable_ = 0, before_init_ = 0, refused_init_ = 0;
+  NonFiniteInputs non_finite_;
 };
 
 Result<std::unique_ptr<Module>> make_estimator(const YAML::Node& config, const std::string& origin);

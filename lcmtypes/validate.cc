@@ -1,6 +1,10 @@
 #include "lcmtypes/validate.h"
 
+#include <algorithm>
+#include <bit>
 #include <cctype>
+#include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <limits>
 #include <map>
@@ -19,6 +23,7 @@ struct Op {
   enum Kind { kFixed, kString, kStruct } kind = kFixed;
   size_t size = 0;               ///< kFixed: bytes per element
   bool is_signed = true;         ///< kFixed: an integer is sign-extended (all but byte)
+  bool is_float = false;         ///< kFixed: a double or float
   const struct Plan* nested = nullptr;  ///< kStruct
   int slot = -1;                 ///< a scalar integer kept for later lengths, or -1
   struct Dim {
@@ -80,6 +85,7 @@ class Plans {
         op.kind = Op::kFixed;
         op.size = size;
         op.is_signed = f.type != "byte";
+        op.is_float = f.type == "double" || f.type == "float";
       } else {
         op.kind = Op::kStruct;
         op.nested = compile(f.type);
@@ -94,8 +100,7 @@ class Plans {
         }
         op.dims.push_back(dim);
       }
-      if (op.kind == Op::kFixed && op.dims.empty() && f.type != "double" && f.type != "float" &&
-          plan->slots < kMaxSlots) {
+      if (op.kind == Op::kFixed && op.dims.empty() && !op.is_float && plan->slots < kMaxSlots) {
         op.slot = plan->slots++;
         slot_of[f.name] = op.slot;
       }
@@ -124,8 +129,26 @@ int64_t read_int(const uint8_t* p, size_t n, bool is_signed) {
   return static_cast<int64_t>(v << shift) >> shift;
 }
 
-/// Steps over one struct's encoding from pos; on failure says why in *why.
-bool walk(const Plan& plan, std::span<const uint8_t> data, size_t& pos, std::string* why, int depth) {
+/// The first of n floating-point numbers of `size` bytes at p that is NaN or infinite, or -1.
+int64_t first_non_finite(const uint8_t* p, uint64_t n, size_t size, double* value) {
+  for (uint64_t k = 0; k < n; ++k, p += size) {
+    const uint64_t bits = static_cast<uint64_t>(read_int(p, size, false));
+    const double v = size == 8 ? std::bit_cast<double>(bits) : std::bit_cast<float>(static_cast<uint32_t>(bits));
+    if (!std::isfinite(v)) {
+      *value = v;
+      return static_cast<int64_t>(k);
+    }
+  }
+  return -1;
+}
+
+std::string number_text(double v) { return std::isnan(v) ? "nan" : v > 0 ? "inf" : "-inf"; }
+
+/// Steps over one struct's encoding from pos; on failure says why in *why. With non_finite, also names there the
+/// first NaN or infinite number of a scalar or a fixed-size array ("x = nan", "pose_covariance[3] = inf") unless
+/// it already holds one.
+bool walk(const Plan& plan, std::span<const uint8_t> data, size_t& pos, std::string* why, int depth,
+          std::string* non_finite = nullptr) {
   if (depth > 16) {  // our types nest a few levels; a plan deeper than this is a broken invariant
     *why = "nested too deeply";
     return false;
@@ -155,6 +178,15 @@ bool walk(const Plan& plan, std::span<const uint8_t> data, size_t& pos, std::str
           return false;
         }
         if (op.slot >= 0) slots[static_cast<size_t>(op.slot)] = read_int(data.data() + pos, op.size, op.is_signed);
+        // Variable-length arrays of numbers are samples (ranges, points), where NaN and inf say "no return".
+        const bool fixed_size =
+            std::all_of(op.dims.begin(), op.dims.end(), [](const Op::Dim& d) { return d.slot < 0; });
+        if (non_finite != nullptr && non_finite->empty() && op.is_float && fixed_size) {
+          double v = 0;
+          if (const int64_t k = first_non_finite(data.data() + pos, count, op.size, &v); k >= 0) {
+            *non_finite = op.name + (op.dims.empty() ? "" : "[" + std::to_string(k) + "]") + " = " + number_text(v);
+          }
+        }
         pos += static_cast<size_t>(count) * op.size;
         break;
       }
@@ -176,9 +208,13 @@ bool walk(const Plan& plan, std::span<const uint8_t> data, size_t& pos, std::str
         break;
       case Op::kStruct:
         for (uint64_t k = 0; k < count; ++k) {
-          if (!walk(*op.nested, data, pos, why, depth + 1)) {
+          const bool found_before = non_finite != nullptr && !non_finite->empty();
+          if (!walk(*op.nested, data, pos, why, depth + 1, non_finite)) {
             *why = op.name + "." + *why;
             return false;
+          }
+          if (non_finite != nullptr && !found_before && !non_finite->empty()) {
+            *non_finite = op.name + (op.dims.empty() ? "" : "[" + std::to_string(k) + "]") + "." + *non_finite;
           }
         }
         break;
@@ -187,10 +223,10 @@ bool walk(const Plan& plan, std::span<const uint8_t> data, size_t& pos, std::str
   return true;
 }
 
-std::optional<std::string> check(std::span<const uint8_t> data, const Plan& plan) {
+std::optional<std::string> check(std::span<const uint8_t> data, const Plan& plan, std::string* non_finite = nullptr) {
   std::string why;
   size_t pos = 8;
-  if (!walk(plan, data, pos, &why, 0)) return why;
+  if (!walk(plan, data, pos, &why, 0, non_finite)) return why;
   if (pos != data.size()) {
     return std::to_string(data.size() - pos) + " bytes after the end of its type";
   }
@@ -211,6 +247,15 @@ std::optional<std::string> layout_problem(std::span<const uint8_t> data) {
   return check(data, *plan);
 }
 
+std::optional<std::string> non_finite(std::span<const uint8_t> data) {
+  if (data.size() < 8) return std::nullopt;
+  const Plan* plan = plans().find(fingerprint_of(data));
+  if (plan == nullptr) return std::nullopt;
+  std::string found;
+  if (check(data, *plan, &found).has_value() || found.empty()) return std::nullopt;
+  return found;
+}
+
 bool well_formed(std::span<const uint8_t> data, int64_t fingerprint) {
   if (data.size() < 8 || fingerprint_of(data) != fingerprint) return false;
   const Plan* plan = plans().find(fingerprint);
@@ -218,3 +263,31 @@ bool well_formed(std::span<const uint8_t> data, int64_t fingerprint) {
 }
 
 }  // namespace driftlab::lcmtypes
+
+namespace driftlab {
+
+bool NonFiniteInputs::finite(const BusMessage& m) {
+  const auto what = lcmtypes::non_finite(m.data);
+  if (what) count(m.channel, *what);
+  return !what;
+}
+
+bool NonFiniteInputs::plausible(std::string_view channel, const char* field, double v) {
+  if (driftlab::plausible(v)) return true;
+  char what[96];
+  std::snprintf(what, sizeof(what), "%s = %g, beyond %g", field, v, kMaxMagnitude);
+  count(channel, what);
+  return false;
+}
+
+void NonFiniteInputs::count(std::string_view channel, const std::string& what) {
+  if (dropped_++ == 0) first_ = std::string(channel) + ": " + what;
+}
+
+std::optional<std::string> NonFiniteInputs::warning(const std::string& module) const {
+  if (dropped_ == 0) return std::nullopt;
+  return module + ": " + std::to_string(dropped_) + " input" + (dropped_ == 1 ? "" : "s") +
+         " with NaN, infinite or out-of-range numbers dropped (first: " + first_ + ")";
+}
+
+}  // namespace driftlab

@@ -9,6 +9,7 @@
 #include <optional>
 #include <span>
 #include <string>
+#include <string_view>
 
 #include "core/bus.h"
 
@@ -18,6 +19,13 @@ namespace driftlab::lcmtypes {
 /// "40 bytes, shorter than its type"), or nullopt when it does. Messages of types driftlab does not know (other
 /// fingerprints) have no layout to check: nullopt.
 std::optional<std::string> layout_problem(std::span<const uint8_t> data);
+
+/// The first number of a well-formed message of a driftlab type that is NaN or infinite, named by its field and
+/// value ("linear_velocity.x = nan", "transforms[2].rotation.w = inf"), or nullopt. Scalars and fixed-size arrays
+/// (covariances) are checked, in nested structs and in arrays of structs too; variable-length arrays of numbers
+/// (ranges, points, intensities) are samples, where NaN and inf mean "no return", and are left to the module.
+/// nullopt too for a malformed message or one of an unknown type.
+std::optional<std::string> non_finite(std::span<const uint8_t> data);
 
 /// Whether data is a well-formed message of the driftlab type with this fingerprint.
 bool well_formed(std::span<const uint8_t> data, int64_t fingerprint);
@@ -43,5 +51,32 @@ template <typename T>
 bool decode_message(const BusMessage& m, T& out) {
   return lcmtypes::decode(m.data, out);
 }
+
+/// Positions, speeds and rates beyond this [m, m/s, rad/s] are no robot's (past the Moon's orbit, faster than
+/// light). The modules refuse them as they refuse NaN: below it, their arithmetic cannot overflow.
+inline constexpr double kMaxMagnitude = 1e9;
+/// Whether |v| <= kMaxMagnitude (false for NaN).
+inline bool plausible(double v) { return v >= -kMaxMagnitude && v <= kMaxMagnitude; }
+
+/// The inputs a module drops because a number in them is NaN, infinite (lcmtypes::non_finite) or out of range (not
+/// plausible, or a value the module derives), counted with the first one named, for the module's statistics. Not
+/// thread-safe (one module).
+class NonFiniteInputs {
+ public:
+  /// Whether m's numbers are all finite; counts m (naming the first) when not.
+  bool finite(const BusMessage& m);
+  /// Whether a value the module uses is plausible; counts the input (naming field and value) when not.
+  bool plausible(std::string_view channel, const char* field, double v);
+  /// Counts an input the module found unusable itself: what names the value ("the yaw of orientation = nan").
+  void count(std::string_view channel, const std::string& what);
+  int64_t dropped() const { return dropped_; }
+  /// "N inputs with NaN, infinite or out-of-range numbers dropped (first: ODOM: linear_velocity.x = nan)", prefixed
+  /// with "MODULE: "; nullopt when none were.
+  std::optional<std::string> warning(const std::string& module) const;
+
+ private:
+  int64_t dropped_ = 0;
+  std::string first_;
+};
 
 }  // namespace driftlab

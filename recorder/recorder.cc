@@ -459,6 +459,19 @@ std::string split_path(const std::string& out, int index) {
   return out.substr(0, dot) + suffix + out.substr(dot);
 }
 
+Status check_options(const RecordOptions& options) {
+  if (auto url = parse_udpm_url(options.url); !url) return url.error();
+  for (const auto& [option, pattern] :
+       {std::pair{"-c/--channels", &options.channels}, {"--exclude", &options.exclude}}) {
+    try {
+      std::regex check(*pattern, std::regex::ECMAScript);
+    } catch (const std::regex_error& e) {
+      return Error{std::string(option) + ": invalid channel regex '" + *pattern + "': " + e.what()};
+    }
+  }
+  return {};
+}
+
 Recorder::Recorder(RecordOptions options) : options_(std::move(options)) {}
 
 Result<RecordSummary> Recorder::run() {

@@ -32,6 +32,10 @@ struct RecordOptions {
   std::function<void(const std::string&)> on_status;
 };
 
+/// Checks what the user gave, before anything is opened: the URL and the channel regexes. Errors are one line
+/// naming the option ("LCM URL 'bogus://': only udpm:// is supported", "invalid channel regex '[bad': ...").
+Status check_options(const RecordOptions& options);
+
 /// What a recording did, for the summary at the end.
 struct RecordSummary {
   std::vector<std::string> files;

@@ -125,7 +125,11 @@ Status ModuleHost::record(std::string_view channel, std::span<const uint8_t> dat
 
 Status ModuleHost::finish() {
   for (auto& b : buses_) {
-    b->module_.finish(*b);
+    try {
+      b->module_.finish(*b);
+    } catch (const std::exception& e) {  // as for a message: counted and named, the run and its log complete
+      b->tally_.failed("(finish)", e.what());
+    }
     if (Status s = drain(); !s) return s;
   }
   return publish_stats();
@@ -141,7 +145,9 @@ Status ModuleHost::close() {
 std::optional<int64_t> ModuleHost::next_due() const {
   std::optional<int64_t> due;
   auto earliest = [&due](int64_t t) { due = due ? std::min(*due, t) : t; };
-  for (const Timer& timer : timers_) earliest(timer.next == 0 ? now_ : timer.next);  // unplaced: at the next advance
+  for (const Timer& timer : timers_) {
+    if (timer.next != INT64_MAX) earliest(timer.next == 0 ? now_ : timer.next);  // unplaced: at the next advance
+  }
   if (o_.stats_period_s > 0 && next_stats_ != 0) earliest(next_stats_);
   return due;
 }
@@ -171,21 +177,37 @@ void ModuleHost::publish(HostBus& from, std::string_view channel, std::span<cons
 }
 
 /// Fires, in time order, every timer tick up to t (those at t before the message at t). A timer is placed on its
-/// first whole multiple of the period at or after the time it is first seen here.
+/// first whole multiple of the period at or after the time it is first seen here. Ticks run out at the end of
+/// int64_t, and a jump of more than kMaxCatchUpTicks ticks (a log time far ahead: a corrupt stamp, a clock stepped
+/// by years, which would take billions of ticks) goes straight to the last tick before t, counted as skipped.
 Status ModuleHost::fire_timers(int64_t t) {
+  constexpr int64_t kSpent = INT64_MAX;
+  constexpr uint64_t kMaxCatchUpTicks = 1'000'000;  // 14 h of a 20 Hz controller, 17 min of a 1 kHz timer
   for (;;) {
     Timer* due = nullptr;
     for (Timer& timer : timers_) {
       if (timer.next == 0) {
         const int64_t from = std::max(now_, t);
-        timer.next = (from / timer.period + (from % timer.period != 0 ? 1 : 0)) * timer.period;
+        const int64_t whole = from / timer.period + (from % timer.period != 0 ? 1 : 0);
+        if (__builtin_mul_overflow(whole, timer.period, &timer.next)) timer.next = kSpent;
       }
+      if (timer.next == kSpent) continue;
       if (timer.next <= t && (due == nullptr || timer.next < due->next)) due = &timer;
     }
     if (due == nullptr) return {};
-    if (o_.clock == HostClock::kWall) due->next += (t - due->next) / due->period * due->period;  // the latest only
+    // t >= next: the difference in uint64_t is exact whatever the two are.
+    const uint64_t behind =
+        (static_cast<uint64_t>(t) - static_cast<uint64_t>(due->next)) / static_cast<uint64_t>(due->period);
+    if (o_.clock == HostClock::kWall) {
+      due->next += static_cast<int64_t>(behind) * due->period;  // the latest only
+    } else if (behind > kMaxCatchUpTicks) {
+      const int64_t from = due->next;
+      due->next += static_cast<int64_t>(behind) * due->period;
+      due->bus->tally_.skipped(static_cast<int64_t>(behind), from, due->next);
+    }
     now_ = std::max(now_, due->next);
-    due->next += due->period;
+    const int64_t tick = due->next;
+    if (__builtin_add_overflow(tick, due->period, &due->next)) due->next = kSpent;
     try {
       due->fn();                         // timers_ is a deque: a timer may add timers without moving this one
     } catch (const std::exception& e) {  // as for a message: counted, and the run goes on

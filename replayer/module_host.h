@@ -128,7 +128,7 @@ class ModuleHost {
   };
   struct Timer {
     int64_t period;
-    int64_t next;  ///< 0: not yet placed
+    int64_t next;  ///< 0: not yet placed; INT64_MAX after the last tick int64_t holds
     std::function<void()> fn;
     HostBus* bus;  ///< whose timer
   };

@@ -33,12 +33,6 @@ int64_t to_utime(mrpt::Clock::time_point t) {
   return static_cast<int64_t>(std::llround(mrpt::Clock::toDouble(t) * 1e6));
 }
 
-std::string first_line(const std::exception& e) {
-  std::string what = e.what();
-  const auto nl = what.find('\n');
-  return nl == std::string::npos ? what : what.substr(0, nl);
-}
-
 template <typename T>
 Status put(LogWriter& w, int64_t utime, const std::string& channel, const T& msg) {
   std::vector<uint8_t> bytes(static_cast<size_t>(msg.getEncodedSize()));
@@ -189,7 +183,7 @@ Result<RawlogCounts> import_rawlog(const std::string& rawlog, const std::string&
         return Error{rawlog + ": entry " + std::to_string(entry) + " is cut off: the rawlog is truncated"};
       }
       return Error{rawlog + ": entry " + std::to_string(entry) + " (byte " + std::to_string(before) +
-                   " uncompressed): not an MRPT object: " + first_line(e)};
+                   " uncompressed): not an MRPT object: " + one_line(e.what())};
     }
     Status s;
     if (auto actions = std::dynamic_pointer_cast<mrpt::obs::CActionCollection>(object)) {
@@ -284,7 +278,7 @@ Result<RawlogCounts> export_rawlog(const std::string& log, const std::string& ou
     }
   } catch (const std::exception& e) {
     std::filesystem::remove(tmp);
-    return Error{out_rawlog + ": cannot write the rawlog: " + first_line(e)};
+    return Error{out_rawlog + ": cannot write the rawlog: " + one_line(e.what())};
   }
   std::error_code ec;
   std::filesystem::rename(tmp, out_rawlog, ec);

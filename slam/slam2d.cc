@@ -13,7 +13,10 @@
 
 #include <opencv2/imgcodecs.hpp>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <cstdio>
 #include <fstream>
 #include <limits>
 #include <map>
@@ -36,6 +39,9 @@
 
 namespace driftlab::slam {
 namespace {
+
+/// The largest occupancy map drawn at the end [cells]: 100 MB, 500 m x 500 m at 5 cm.
+constexpr double kMaxMapCells = 1e8;
 
 /// An MRPT icp-slam configuration from ours: [MappingApplication] (map building, a single planar point map, as in
 /// icp-slam_demo_classic.ini) and [ICP]. With an .ini file, its values replace the defaults, and the keys given
@@ -168,6 +174,7 @@ struct Slam2d::Impl {
   std::optional<mrpt::poses::CPose2D> last_odom_at_scan;
   int64_t scans = 0, odometry = 0, undecodable = 0, seq = 0, keyframes = 0, before_odometry = 0;
   int64_t first_scan = -1;  ///< stamp of the first scan [us]
+  NonFiniteInputs non_finite;
   bool tf_missing_warned = false;
   std::vector<std::string> warnings;
   // Method graph: scans wait, in stamp order, for the odometry at their stamps (odom_wait_s).
@@ -256,29 +263,36 @@ Status Slam2d::start(Bus& bus) {
       d.builder.initialize();
     }
   } catch (const std::exception& e) {
-    std::string what = e.what();
-    what = what.substr(0, what.find('\n'));
-    return Error{(c.ini.empty() ? std::string("slam.2d") : c.ini) + ": MRPT rejected the ICP settings: " + what};
+    return Error{(c.ini.empty() ? std::string("slam.2d") : c.ini) +
+                 ": MRPT rejected the ICP settings: " + one_line(e.what())};
   }
 
   if (!c.tf_static_channel.empty()) {
     bus.subscribe(c.tf_static_channel, [this](const BusMessage& m) {
       driftlab::tf_t tf;
       if (!decode_message(m, tf)) return void(++impl_->undecodable);
+      if (!impl_->non_finite.finite(m)) return;
       for (const auto& t : tf.transforms) {
         if (t.header.frame_id != impl_->c.base_frame) continue;
-        impl_->sensor_on_base[t.child_frame_id] = mrpt::poses::CPose2D(t.translation.x, t.translation.y, yaw_of(t.rotation));
+        const double yaw = yaw_of(t.rotation);  // NaN for a quaternion of huge numbers
+        if (!std::isfinite(yaw)) return impl_->non_finite.count(m.channel, "the yaw of " + t.child_frame_id + " = nan");
+        auto& in = impl_->non_finite;
+        if (!in.plausible(m.channel, "translation.x", t.translation.x) ||
+            !in.plausible(m.channel, "translation.y", t.translation.y)) {
+          return;
+        }
+        impl_->sensor_on_base[t.child_frame_id] = mrpt::poses::CPose2D(t.translation.x, t.translation.y, yaw);
       }
     });
   }
   if (!c.odom_channel.empty()) {
     bus.subscribe(c.odom_channel, [this, &bus](const BusMessage& m) {
-      driftlab::odometry_t o;
-      if (!decode_message(m, o)) return void(++impl_->undecodable);
+      const auto o = internal::planar_odometry(m, impl_->non_finite, &impl_->undecodable);
+      if (!o) return;
       ++impl_->odometry;
-      impl_->odom.add(o.header.utime, {o.position.x, o.position.y, yaw_of(o.orientation)});
+      impl_->odom.add(o->first, o->second);
       if (impl_->graph) {
-        impl_->newest_odometry = std::max(impl_->newest_odometry, o.header.utime);
+        impl_->newest_odometry = std::max(impl_->newest_odometry, o->first);
         impl_->drain(bus);
       }
     });
@@ -287,10 +301,17 @@ Status Slam2d::start(Bus& bus) {
     Impl& d = *impl_;
     driftlab::laser_scan_t scan;
     if (!decode_message(m, scan) || scan.nranges < 2) return void(++d.undecodable);
+    // A scan whose geometry is NaN or infinite cannot be placed (MRPT's grid asserts on it): left out, counted.
+    if (!d.non_finite.finite(m)) return;
+    if (!std::isfinite(scan.angle_increment * static_cast<float>(scan.nranges - 1))) {
+      return d.non_finite.count(m.channel, "angle_increment * (nranges - 1) = inf");
+    }
     // With odometry configured, the map starts where the odometry does (as icp-slam starts at its first
     // odometry/scan pair): scans in the first second before any odometry are counted and left out.
     if (d.first_scan < 0) d.first_scan = scan.header.utime;
-    if (!d.c.odom_channel.empty() && d.odom.empty() && scan.header.utime - d.first_scan < 1000000) {
+    const bool first_second = scan.header.utime < d.first_scan ||  // uint64_t: hostile stamps must not overflow
+                              static_cast<uint64_t>(scan.header.utime) - static_cast<uint64_t>(d.first_scan) < 1000000;
+    if (!d.c.odom_channel.empty() && d.odom.empty() && first_second) {
       ++d.before_odometry;
       return;
     }
@@ -356,7 +377,8 @@ void Slam2d::finish(Bus& bus) {
   Impl& d = *impl_;
   if (d.graph) d.drain(bus, true);
   if (d.scans == 0) return;
-  mrpt::maps::COccupancyGridMap2D grid(-10, 10, -10, 10, static_cast<float>(d.c.map_resolution));
+  // The keyframes' scans where the map places them (the graph's as last optimised).
+  std::vector<std::pair<mrpt::obs::CObservation2DRangeScan::Ptr, mrpt::poses::CPose3D>> placed;
   if (d.graph) {
     d.graph->finish();
     // The trajectory as last optimised: a pose per scan, published now with the scans' stamps.
@@ -375,7 +397,7 @@ void Slam2d::finish(Bus& bus) {
     }
     const auto& keyframes = d.graph->keyframes();
     for (size_t i = 0; i < keyframes.size(); ++i) {
-      grid.insertObservation(*keyframes[i].scan, mrpt::poses::CPose3D(d.graph->keyframe_pose(i)));
+      placed.emplace_back(keyframes[i].scan, mrpt::poses::CPose3D(d.graph->keyframe_pose(i)));
     }
   } else {
     mrpt::maps::CSimpleMap keyframes;
@@ -384,9 +406,36 @@ void Slam2d::finish(Bus& bus) {
       mrpt::poses::CPose3DPDF::Ptr pose;
       mrpt::obs::CSensoryFrame::Ptr frame;
       keyframes.get(i, pose, frame);
-      frame->insertObservationsInto(grid, pose->getMeanVal());
+      for (const auto& obs : *frame) {
+        if (auto scan = std::dynamic_pointer_cast<mrpt::obs::CObservation2DRangeScan>(obs)) {
+          placed.emplace_back(scan, pose->getMeanVal());
+        }
+      }
     }
   }
+  // MRPT grows the grid to every scan it inserts, to at most maxDistanceInsertion around the sensor. Scans placed
+  // absurdly far apart (a scanner 1e15 m from the base in a hostile log), or a tiny map_resolution, would ask it for
+  // more cells than memory holds, or than an int counts: past kMaxMapCells the map is not drawn, and the warning
+  // says how to draw it.
+  double x0 = -10, x1 = 10, y0 = -10, y1 = 10;
+  const double reach = mrpt::maps::COccupancyGridMap2D::TInsertionOptions().maxDistanceInsertion;
+  for (const auto& [scan, pose] : placed) {
+    const mrpt::poses::CPose3D at = pose + scan->sensorPose;
+    x0 = std::min(x0, at.x() - reach), x1 = std::max(x1, at.x() + reach);
+    y0 = std::min(y0, at.y() - reach), y1 = std::max(y1, at.y() + reach);
+  }
+  const double cells = (x1 - x0) / d.c.map_resolution * ((y1 - y0) / d.c.map_resolution);
+  if (!(cells <= kMaxMapCells)) {
+    char what[200];
+    std::snprintf(what, sizeof(what),
+                  "slam: the map would span %.3g m x %.3g m, %.3g cells at map_resolution %g m: "
+                  "not drawn (a coarser map_resolution draws it)",
+                  x1 - x0, y1 - y0, cells, d.c.map_resolution);
+    d.warnings.push_back(what);
+    return;
+  }
+  mrpt::maps::COccupancyGridMap2D grid(-10, 10, -10, 10, static_cast<float>(d.c.map_resolution));
+  for (const auto& [scan, pose] : placed) grid.insertObservation(*scan, pose);
   // Free space white, obstacles black, unknown grey; north up.
   const int w = static_cast<int>(grid.getSizeX()), h = static_cast<int>(grid.getSizeY());
   cv::Mat img(h, w, CV_8UC1);
@@ -419,8 +468,9 @@ void Slam2d::finish(Bus& bus) {
 ModuleCounters Slam2d::counters() const {
   const Impl& d = *impl_;
   ModuleCounters c;
-  c.dropped = d.undecodable;
+  c.dropped = d.undecodable + d.non_finite.dropped();
   c.warnings = d.warnings;
+  if (auto w = d.non_finite.warning("slam")) c.warnings.push_back(*w);
   if (d.scans == 0) {
     c.warnings.push_back("slam: no driftlab.laser_scan_t on " + d.c.scan_channel + ": no map built");
   } else if (!d.c.odom_channel.empty() && d.odometry == 0) {

@@ -12,6 +12,7 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <deque>
 #include <filesystem>
 #include <limits>
@@ -106,6 +107,7 @@ struct Slam3d::Impl {
   int64_t clouds = 0, not_clouds = 0, unusable = 0, unconverged = 0, rejected = 0, undecodable = 0;
   int64_t odometry = 0, keyframes = 0, registered = 0, seq = 0;
   double fitness_sum = 0, fitness_max = 0;
+  NonFiniteInputs non_finite;
   bool tf_missing_warned = false;
   std::vector<std::string> warnings;
 
@@ -140,7 +142,9 @@ void Slam3d::Impl::on_cloud(Bus& bus, const BusMessage& m) {
   // cloud to cloud, growing until registration failed).
   const auto odo = odom.at(stamp);
   auto motion_after = [&](double s) -> Eigen::Isometry3d {
-    return planar(*odo).inverse() * planar(*odom.at(stamp + std::llround(s * 1e6)));
+    int64_t at = 0;  // saturated: a hostile stamp near the end of int64_t must not overflow
+    if (__builtin_add_overflow(stamp, std::llround(s * 1e6), &at)) at = s > 0 ? INT64_MAX : INT64_MIN;
+    return planar(*odo).inverse() * planar(*odom.at(at));
   };
 
   // The returns within range, in the base frame at the stamp. An organised cloud is walked column by column, so
@@ -278,8 +282,15 @@ Status Slam3d::start(Bus& bus) {
     bus.subscribe(c.tf_static_channel, [this](const BusMessage& m) {
       driftlab::tf_t tf;
       if (!decode_message(m, tf)) return void(++impl_->undecodable);
+      auto& in = impl_->non_finite;
+      if (!in.finite(m)) return;
       for (const auto& t : tf.transforms) {
         if (t.header.frame_id != impl_->c.base_frame) continue;
+        if (!in.plausible(m.channel, "translation.x", t.translation.x) ||
+            !in.plausible(m.channel, "translation.y", t.translation.y) ||
+            !in.plausible(m.channel, "translation.z", t.translation.z)) {
+          return;
+        }
         Eigen::Isometry3d x = Eigen::Isometry3d::Identity();
         x.translate(Eigen::Vector3d(t.translation.x, t.translation.y, t.translation.z));
         x.rotate(Eigen::Quaterniond(t.rotation.w, t.rotation.x, t.rotation.y, t.rotation.z).normalized());
@@ -289,10 +300,10 @@ Status Slam3d::start(Bus& bus) {
   }
   if (!c.odom_channel.empty()) {
     bus.subscribe(c.odom_channel, [this](const BusMessage& m) {
-      driftlab::odometry_t o;
-      if (!decode_message(m, o)) return void(++impl_->undecodable);
+      const auto o = internal::planar_odometry(m, impl_->non_finite, &impl_->undecodable);
+      if (!o) return;
       ++impl_->odometry;
-      impl_->odom.add(o.header.utime, {o.position.x, o.position.y, yaw_of(o.orientation)});
+      impl_->odom.add(o->first, o->second);
     });
   }
   bus.subscribe(c.cloud_channel, [this, &bus](const BusMessage& m) { impl_->on_cloud(bus, m); });
@@ -320,8 +331,9 @@ void Slam3d::finish(Bus& bus) {
 ModuleCounters Slam3d::counters() const {
   const Impl& d = *impl_;
   ModuleCounters c;
-  c.dropped = d.not_clouds + d.undecodable + d.unusable + d.unconverged + d.rejected;
+  c.dropped = d.not_clouds + d.undecodable + d.unusable + d.unconverged + d.rejected + d.non_finite.dropped();
   c.warnings = d.warnings;
+  if (auto w = d.non_finite.warning("slam3d")) c.warnings.push_back(*w);
   if (d.clouds == 0) {
     std::string w = "slam3d: no driftlab.point_cloud_t on " + d.c.cloud_channel;
     if (d.not_clouds > 0) w += " (" + std::to_string(d.not_clouds) + " messages of another type)";

@@ -40,7 +40,12 @@ class ModuleTally {
   }
   /// An input whose handler threw: the module skipped it (what() says why).
   void failed(const std::string& channel, const char* what) {
-    if (failed_++ == 0) first_failure_ = channel + ": " + what;
+    if (failed_++ == 0) first_failure_ = channel + ": " + one_line(what);  // not MRPT's call stack
+  }
+  /// A timer's ticks left out of a jump in time [us] (a log time far ahead): `ticks` of them, from `from` to `to`.
+  void skipped(int64_t ticks, int64_t from, int64_t to) {
+    if (skipped_ticks_ == 0) first_skip_ = {from, to};
+    skipped_ticks_ += ticks;
   }
   /// An input that arrived at `at` [us] took `seconds` to process: the queue a module with these processing times
   /// has (inputs wait while it is busy).
@@ -72,6 +77,11 @@ class ModuleTally {
       r.warnings.push_back(std::to_string(failed_) + " messages the module failed on and skipped (first: " +
                            first_failure_ + ")");
     }
+    if (skipped_ticks_ > 0) {
+      r.warnings.push_back(std::to_string(skipped_ticks_) +
+                           " timer ticks skipped where the time jumped ahead (first: " +
+                           std::to_string(first_skip_.first) + " to " + std::to_string(first_skip_.second) + " us)");
+    }
     r.outputs = outputs_;
     if (!proc_s_.empty()) {
       double sum = 0, max = 0;
@@ -88,6 +98,8 @@ class ModuleTally {
  private:
   int64_t inputs_ = 0, late_ = 0, out_of_order_ = 0, outputs_ = 0, malformed_ = 0, failed_ = 0;
   std::string first_malformed_, first_failure_;
+  int64_t skipped_ticks_ = 0;
+  std::pair<int64_t, int64_t> first_skip_;
   int64_t latest_stamp_ = std::numeric_limits<int64_t>::min();
   std::unordered_map<const std::string*, int64_t> last_stamp_;
   std::vector<double> proc_s_;

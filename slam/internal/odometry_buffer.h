@@ -6,8 +6,11 @@
 #include <cstdint>
 #include <deque>
 #include <optional>
+#include <utility>
 
+#include "driftlab/odometry_t.hpp"
 #include "lcmtypes/planar.h"
+#include "lcmtypes/validate.h"
 
 namespace driftlab::slam::internal {
 
@@ -17,7 +20,7 @@ class OdometryBuffer {
   void add(int64_t stamp, const Pose2& pose, int64_t depth_us = 5000000) {
     auto at = std::upper_bound(q_.begin(), q_.end(), stamp, [](int64_t t, const Sample& s) { return t < s.stamp; });
     q_.insert(at, {stamp, pose});
-    while (q_.size() > 2 && q_.back().stamp - q_.front().stamp > depth_us) q_.pop_front();
+    while (q_.size() > 2 && span(q_.front().stamp, q_.back().stamp) > static_cast<uint64_t>(depth_us)) q_.pop_front();
   }
   bool empty() const { return q_.empty(); }
 
@@ -29,18 +32,41 @@ class OdometryBuffer {
     if (stamp >= q_.back().stamp) return q_.back().pose;
     auto hi = std::lower_bound(q_.begin(), q_.end(), stamp, [](const Sample& s, int64_t t) { return s.stamp < t; });
     auto lo = std::prev(hi);
-    const double f = static_cast<double>(stamp - lo->stamp) / static_cast<double>(hi->stamp - lo->stamp);
+    const double f = static_cast<double>(span(lo->stamp, stamp)) / static_cast<double>(span(lo->stamp, hi->stamp));
     const double dyaw = wrap_angle(hi->pose.yaw - lo->pose.yaw);
     return Pose2{lo->pose.x + f * (hi->pose.x - lo->pose.x), lo->pose.y + f * (hi->pose.y - lo->pose.y),
                  lo->pose.yaw + f * dyaw};
   }
 
  private:
+  /// b - a for a <= b, exact whatever the stamps (int64_t arithmetic could overflow on hostile ones).
+  static uint64_t span(int64_t a, int64_t b) { return static_cast<uint64_t>(b) - static_cast<uint64_t>(a); }
   struct Sample {
     int64_t stamp;
     Pose2 pose;
   };
   std::deque<Sample> q_;
 };
+
+/// The stamp [us] and planar pose of an odometry message on the bus, or nullopt when it is malformed (counted in
+/// *malformed) or a number of it is not finite or beyond lcmtypes::kMaxMagnitude (counted by `in`, naming it).
+inline std::optional<std::pair<int64_t, Pose2>> planar_odometry(const BusMessage& m, NonFiniteInputs& in,
+                                                                int64_t* malformed) {
+  driftlab::odometry_t o;
+  if (!decode_message(m, o)) {
+    ++*malformed;
+    return std::nullopt;
+  }
+  if (!in.finite(m)) return std::nullopt;
+  const double yaw = yaw_of(o.orientation);  // NaN for a quaternion of huge numbers
+  if (!std::isfinite(yaw)) {
+    in.count(m.channel, "the yaw of orientation = nan");
+    return std::nullopt;
+  }
+  if (!in.plausible(m.channel, "position.x", o.position.x) || !in.plausible(m.channel, "position.y", o.position.y)) {
+    return std::nullopt;
+  }
+  return std::pair{o.header.utime, Pose2{o.position.x, o.position.y, yaw}};
+}
 
 }  // namespace driftlab::slam::internal

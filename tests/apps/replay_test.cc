@@ -211,7 +211,7 @@ TEST_F(ReplayCli, BadInputGetsOneLineAndExitCode2) {
   }
   const auto missing = driftlab("replay " + file("nope.lcm"));
   EXPECT_EQ(missing.code, 2);
-  EXPECT_EQ(missing.err, "driftlab: " + file("nope.lcm") + ": no such log file\n");
+  EXPECT_EQ(missing.err, "driftlab: " + file("nope.lcm") + ": cannot open: No such file or directory\n");
 }
 
 }  // namespace

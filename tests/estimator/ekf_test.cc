@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <random>
 
 namespace driftlab::estimator {
@@ -104,6 +105,49 @@ TEST(DelayedEkf, MeasurementsOlderThanTheWindowAreRejectedAndCounted) {
   strict.init(kT0, {}, 0, 0);
   ASSERT_TRUE(strict.add(kT0 + 10000, GyroZ{0, 0}));
   EXPECT_FALSE(strict.add(kT0 + 5000, GyroZ{0, 0}));
+}
+
+TEST(Ekf, NeverLetsANonFiniteNumberIntoItsState) {
+  // NaN in 5% of the odometry twists used to make nearly every later estimate NaN, for the rest of the run.
+  DelayedEkf ekf(EkfNoise{}, 0.5);
+  ASSERT_TRUE(ekf.init(kT0, {}, 0.5, 0.25));
+  int refused = 0, n = 0;
+  for (auto s : measurements(4)) {
+    if (auto* t = std::get_if<Twist>(&s.m); t != nullptr && ++n % 20 == 0) {
+      t->v = NAN;
+      ++refused;
+    }
+    ekf.add(s.utime, s.m);
+    ASSERT_TRUE(ekf.filter().state().allFinite()) << s.utime;
+    ASSERT_TRUE(ekf.filter().covariance().allFinite()) << s.utime;
+  }
+  EXPECT_EQ(ekf.counters().refused, refused);
+  EXPECT_NEAR(ekf.filter().state()(Ekf::kV), 0.5, 0.02);  // the good ones still tracked
+  const auto x = ekf.filter().state();
+  // Finite values no robot measures, which would overflow it on the next step (a speed of 1e300 m/s gives a
+  // covariance term of 1e600), and an infinite variance (its gain would be 0 * inf).
+  for (const Measurement& m :
+       {Measurement(Twist{1e300, 0, 0, 0}), Measurement(PoseFix{{1e308, -1e308, 0}}), Measurement(GyroZ{2e9, 0}),
+        Measurement(GyroZ{0.1, INFINITY}), Measurement(Twist{0.5, 0.25, 0, -INFINITY})}) {
+    EXPECT_FALSE(ekf.add(kT0 + 20'000'000, m));
+  }
+  EXPECT_EQ(ekf.filter().state(), x);
+  EXPECT_EQ(ekf.counters().refused, refused + 5);
+  // A late measurement that would poison it is refused too, and the filter stays as it was.
+  EXPECT_FALSE(ekf.add(kT0 + 19'900'000, PoseFix{{NAN, 0, 0}}));
+  EXPECT_FALSE(ekf.add(kT0 + 19'900'000, Twist{1e300, 0, 0, 0}));
+  EXPECT_EQ(ekf.filter().state(), x);
+  // Stamps at the ends of int64_t: no overflow (UBSan), old ones rejected.
+  EXPECT_FALSE(ekf.add(std::numeric_limits<int64_t>::min(), Twist{0.5, 0.25, 0, 0}));
+  EXPECT_EQ(ekf.counters().rejected, 1);
+}
+
+TEST(Ekf, StartsOnlyFromFiniteValues) {
+  Ekf ekf;
+  EXPECT_FALSE(ekf.init(kT0, {{NAN, 0, 0}}, 0, 0));
+  EXPECT_FALSE(ekf.init(kT0, {}, INFINITY, 0));
+  EXPECT_FALSE(ekf.initialized());
+  EXPECT_TRUE(ekf.init(kT0, {}, 0, 0));
 }
 
 }  // namespace

@@ -4,11 +4,13 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <limits>
 
 #include "driftlab/image_t.hpp"
 #include "driftlab/imu_t.hpp"
 #include "driftlab/laser_scan_t.hpp"
+#include "driftlab/odometry_t.hpp"
 #include "driftlab/point_cloud_t.hpp"
 #include "driftlab/pose_t.hpp"
 #include "driftlab/tf_t.hpp"
@@ -115,6 +117,57 @@ TEST(Validate, EveryTruncationOfEveryMessageIsRefused) {
       EXPECT_TRUE(layout_problem(std::span(b).first(n)).has_value()) << n;
     }
   }
+}
+
+TEST(NonFinite, NamesTheFirstNanOrInfinityWhereANumberMustBeOne) {
+  driftlab::odometry_t o{};
+  o.header = {0, 1, "odom"};
+  EXPECT_EQ(non_finite(encode(o)), std::nullopt);
+  o.twist_covariance[35] = INFINITY;
+  EXPECT_EQ(non_finite(encode(o)), "twist_covariance[35] = inf");
+  o.linear_velocity.x = NAN;  // earlier in the message: named first
+  EXPECT_EQ(non_finite(encode(o)), "linear_velocity.x = nan");
+  driftlab::tf_t tf{};
+  tf.ntransforms = 3;
+  tf.transforms.resize(3);
+  tf.transforms[2].rotation.w = -INFINITY;
+  EXPECT_EQ(non_finite(encode(tf)), "transforms[2].rotation.w = -inf");
+}
+
+TEST(NonFinite, LeavesSamplesAloneWhereNanMeansNoReturn) {
+  auto scan = scan_of(4);
+  scan.ranges = {1, NAN, INFINITY, 2};  // no return (REP 117)
+  EXPECT_EQ(non_finite(encode(scan)), std::nullopt);
+  scan.angle_increment = NAN;
+  EXPECT_EQ(non_finite(encode(scan)), "angle_increment = nan");
+  driftlab::point_cloud_t pc{};
+  pc.npoints = 2;
+  pc.x = {NAN, 1};
+  pc.y = {NAN, 1};
+  pc.z = {NAN, 1};
+  EXPECT_EQ(non_finite(encode(pc)), std::nullopt);
+  // Nothing to say about what is malformed or of an unknown type.
+  auto bad = encode(scan);
+  bad.resize(bad.size() - 1);
+  EXPECT_EQ(non_finite(bad), std::nullopt);
+  EXPECT_EQ(non_finite(std::vector<uint8_t>(16, 0)), std::nullopt);
+}
+
+TEST(NonFinite, ModulesCountTheDroppedAndNameTheFirst) {
+  NonFiniteInputs inputs;
+  driftlab::odometry_t o{};
+  o.header = {0, 1, "odom"};
+  const auto good = encode(o);
+  o.angular_velocity.z = NAN;
+  const auto nan = encode(o);
+  EXPECT_TRUE(inputs.finite({"ODOM", 1, good}));
+  EXPECT_EQ(inputs.warning("estimator"), std::nullopt);
+  EXPECT_FALSE(inputs.finite({"ODOM", 2, nan}));
+  inputs.count("SCAN", "angle_increment * (nranges - 1) = inf");
+  EXPECT_EQ(inputs.dropped(), 2);
+  EXPECT_EQ(
+      inputs.warning("estimator"),
+      "estimator: 2 inputs with NaN, infinite or out-of-range numbers dropped (first: ODOM: angular_velocity.z = nan)");
 }
 
 }  // namespace

@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <limits>
 #include <stdexcept>
 
 #include "driftlab/imu_t.hpp"
@@ -65,6 +66,34 @@ TEST(ModuleHost, WallClockFiresALateTimerOnceAtItsLatestTick) {
   // Live, a host that fell 320 ms behind runs the controller once, with now() at the latest due tick, not a burst
   // of four stale ticks.
   EXPECT_EQ(ticks_after(HostClock::kWall, kT0 + 420000), (std::vector<int64_t>{kT0 + 400000}));
+}
+
+TEST(ModuleHost, ALogTimeFarAheadSkipsTheTicksInBetweenAndSaysSo) {
+  // One corrupt log time, years ahead, made replay fire every 100 ms tick up to it: 3e11 ticks at the end of
+  // int64_t, where the tick arithmetic also overflowed. Past a million ticks in one jump, the timer goes to the last
+  // tick before the new time, and the skip is counted; at the end of int64_t the ticks run out.
+  ModuleHost host({.stats_period_s = 0});
+  auto probe = std::make_unique<Probe>();
+  std::vector<int64_t> ticks;
+  probe->on_start = [&ticks](Bus& bus) { bus.every(100000, [&ticks, &bus] { ticks.push_back(bus.now()); }); };
+  host.add_module(std::move(probe));
+  ASSERT_TRUE(host.start());
+  ASSERT_TRUE(host.advance(kT0));
+  const int64_t far = kT0 + int64_t{1000000} * 100000 + 250000;  // 1e6 ticks and 2.5 more: skipped
+  ASSERT_TRUE(host.advance(far));
+  EXPECT_EQ(ticks, (std::vector<int64_t>{kT0, far - 50000}));
+  ASSERT_TRUE(host.advance(std::numeric_limits<int64_t>::max()));
+  ASSERT_TRUE(host.advance(std::numeric_limits<int64_t>::max()));
+  EXPECT_EQ(ticks.size(), 3u);
+  EXPECT_EQ(ticks.back(), std::numeric_limits<int64_t>::max() / 100000 * 100000);
+  const auto report = host.reports().front();
+  ASSERT_EQ(report.warnings.size(), 1u);
+  EXPECT_EQ(report.warnings[0].rfind("92216082600545 timer ticks skipped", 0), 0u)
+      << report.warnings[0];  // 1000001 + the rest
+  EXPECT_NE(report.warnings[0].find(" timer ticks skipped where the time jumped ahead (first: " +
+                                    std::to_string(kT0 + 100000) + " to " + std::to_string(far - 50000) + " us)"),
+            std::string::npos)
+      << report.warnings[0];
 }
 
 TEST(ModuleHost, TimeNeverGoesBack) {
