@@ -7,7 +7,9 @@
 namespace driftlab::apps {
 
 std::string interval(const config::Range& r) {
-  const auto bound = [](double v) { return std::isfinite(v) ? config::format_number(v) : std::string(v < 0 ? "-inf" : "inf"); };
+  const auto bound = [](double v) {
+    return std::isfinite(v) ? config::format_number(v) : std::string(v < 0 ? "-inf" : "inf");
+  };
   return std::string(r.min_open || !std::isfinite(r.min) ? "(" : "[") + bound(r.min) + ", " + bound(r.max) +
          (r.max_open || !std::isfinite(r.max) ? ")" : "]");
 }

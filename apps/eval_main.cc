@@ -447,7 +447,8 @@ void add_eval_command(CLI::App& app, int* exit_code) {
           },
           interval(kOffsetRange) + "|auto", kRangeCheck));
   cmd->add_flag("--interpolate", o->interpolate, "Interpolate the reference at the estimate's stamps");
-  cmd->add_option("--max-gap", o->max_gap, "With --interpolate: largest gap between reference poses to interpolate across [s]")
+  cmd->add_option("--max-gap", o->max_gap,
+                  "With --interpolate: largest gap between reference poses to interpolate across [s]")
       ->capture_default_str()
       ->check(in_range(config::above(0, 86400), "s"));
   cmd->add_option("--delta", o->delta, "RPE: distance between the poses of a pair")

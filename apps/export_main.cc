@@ -10,13 +10,13 @@
 #include "analyzers/trajectory_io.h"
 #include "apps/cli_checks.h"
 #include "apps/cli_util.h"
-#include "apps/log_input.h"
 #include "apps/commands.h"
+#include "apps/log_input.h"
 #include "core/log_format.h"
 #include "core/log_reader.h"
+#include "core/same_file.h"
 #include "lcmtypes/schema.h"
 #include "lcmtypes/type_registry.h"
-#include "core/same_file.h"
 
 namespace driftlab::apps {
 namespace {
