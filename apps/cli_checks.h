@@ -1,35 +1,35 @@
-// Number checks for command-line options, with readable messages ("must be > 0, got -1"): CLI11's own print the
-// largest double in full. NaN, infinities and integers beyond their type are refused for every option by
-// parse_and_run (apps/tools.cc).
+// Number checks for command-line options, with the ranges of the declarative config layer (core/config.h): one
+// Range type, one violation text ("must be > 0", "is outside 0..60 s") for YAML values and options alike. An option
+// is refused in one line, "--rate: must be > 0, got -1" (CLI11's own checks print the largest double in full).
+// parse_and_run (apps/tools.cc) refuses NaN, infinities and integers beyond their type for every option, and
+// aborts at start-up on a number option without a range, so none can be added without one.
 #pragma once
 
 #include <CLI/CLI.hpp>
 
-#include <cmath>
-#include <cstdlib>
 #include <string>
+
+#include "core/config.h"
 
 namespace driftlab::apps {
 
-/// A check that the option's value v satisfies ok(v), else "must be WHAT, got V".
-template <typename F>
-CLI::Validator number_check(const char* what, F ok, const char* help_tag = "") {
-  return CLI::Validator(
-      [what, ok](std::string& v) -> std::string {
-        char* end = nullptr;
-        const double d = std::strtod(v.c_str(), &end);
-        if (end == v.c_str() || *end != '\0') return "";  // not a number: the conversion says so
-        if (!std::isfinite(d)) return "must be a finite number, got " + v;
-        return ok(d) ? "" : std::string("must be ") + what + ", got " + v;
-      },
-      help_tag);
-}
+/// The name of every validator made by in_range, by which parse_and_run tells that a number option has its range.
+inline constexpr const char* kRangeCheck = "range";
 
-inline CLI::Validator positive() {
-  return number_check("> 0", [](double d) { return d > 0; }, "POSITIVE");
-}
-inline CLI::Validator non_negative() {
-  return number_check(">= 0", [](double d) { return d >= 0; }, "NONNEGATIVE");
-}
+/// A check that the option's value (each value, for a list) is a finite number within r, else "must be a finite
+/// number, got V" or r's violation (naming unit, when given) and ", got V". --help shows the range as an interval
+/// after the type ("FLOAT:(0, 1e+06]").
+CLI::Validator in_range(config::Range r, const std::string& unit = "");
+
+/// Ranges shared by several commands.
+/// Simulated time [s]: as the scenario's `duration` (sim/scenario.cc).
+inline constexpr config::Range kSimDuration = config::above(0, 1e7);
+/// Random seeds: every whole number a double holds exactly (2^53 - 1), so the check itself is exact.
+inline constexpr config::Range kSeed = config::between(0, 9007199254740991.0);
+/// Pacing against the wall clock, as a multiple of real time.
+inline constexpr config::Range kPaceRate = config::above(0, 1e6);
+
+/// The range as --help shows it: "[0, 60]", "(0, 1e+06]", "[1, 4096]".
+std::string interval(const config::Range& r);
 
 }  // namespace driftlab::apps

@@ -271,13 +271,15 @@ void add_demo_command(CLI::App& app, int* exit_code) {
       "before and after correction, and where the report is; --json prints one JSON object instead.");
   cmd->add_option("scenario", a->scenario, "Scenario file (default: the default indoor scenario)");
   cmd->add_option("-o,--out", a->out, "Folder for the logs, JSON and report")->capture_default_str();
-  cmd->add_option("--duration", a->duration, "Simulated seconds")->capture_default_str()->check(positive());
-  cmd->add_option("--seed", a->seed, "Random seed (default: the scenario's)")->check(non_negative());
+  cmd->add_option("--duration", a->duration, "Simulated seconds")
+      ->capture_default_str()
+      ->check(in_range(kSimDuration, "s"));
+  cmd->add_option("--seed", a->seed, "Random seed (default: the scenario's)")->check(in_range(kSeed));
   cmd->add_option("--estimate", a->estimate, "Channel of the replays scored against ground truth")->capture_default_str();
   cmd->add_option("--estimator-window", a->estimator_window,
                   "How far back the estimator re-applies late measurements [s] (0: drops them, as robot_localization)")
       ->capture_default_str()
-      ->check(number_check("between 0 and 60", [](double d) { return d >= 0 && d <= 60; }, "in [0, 60]"));
+      ->check(in_range(config::between(0, 60), "s"));  // the estimator's window_s
   cmd->add_flag("--json", a->json, "Print one JSON object (report path, ate_before, ate_after in metres, ...)");
   cmd->callback([a, exit_code] { *exit_code = run_demo(*a); });
 }

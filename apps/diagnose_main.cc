@@ -152,8 +152,10 @@ void add_diagnose_command(CLI::App& app, int* exit_code) {
   cmd->add_option("--html", o->html, "Also write the report as an HTML page");
   cmd->add_option("--max-lag", o->analysis.max_lag_s, "Skew search range [s]")
       ->capture_default_str()
-      ->check(positive());
-  cmd->add_option("--window", o->analysis.window_s, "Skew window [s]")->capture_default_str()->check(positive());
+      ->check(in_range(config::above(0, 10), "s"));
+  cmd->add_option("--window", o->analysis.window_s, "Skew window [s]")
+      ->capture_default_str()
+      ->check(in_range(config::above(0, 86400), "s"));
   cmd->callback([o, exit_code] {
     for (const auto& [out, option] : {std::pair{o->json, "--json"}, {o->html, "--html"}}) {
       if (Status s = refuse_same_file(out, o->inputs, option); !s) {  // the recording given, not only its conversion

@@ -25,6 +25,9 @@ namespace {
 
 using namespace analyzers;
 
+/// --offset [s]: up to centuries, so that an estimate stamped since boot meets a reference stamped since the epoch.
+constexpr config::Range kOffsetRange = config::between(-1e10, 1e10);
+
 struct EvalOptions {
   std::string gt, est;
   std::string gt_format = "auto", est_format = "auto";
@@ -457,25 +460,26 @@ void add_eval_command(CLI::App& app, int* exit_code) {
       ->check(CLI::IsMember({"none", "se3", "sim3", "posyaw"}));
   cmd->add_option("--max-dt", o->max_dt, "Largest stamp difference of a matched pair [s]")
       ->capture_default_str()
-      ->check(non_negative());
+      ->check(in_range(config::between(0, 86400), "s"));
   cmd->add_option("--offset", o->offset, "Added to the estimate's stamps before matching [s], or auto: from the motion")
       ->capture_default_str()
       ->check(CLI::Validator(
-          [](std::string& v) -> std::string {
+          [seconds = in_range(kOffsetRange, "s")](std::string& v) -> std::string {
             if (v == "auto") return "";
             char* end = nullptr;
-            const double d = std::strtod(v.c_str(), &end);
+            std::strtod(v.c_str(), &end);
             if (end == v.c_str() || *end != '\0') return "must be a number of seconds or auto, got " + v;
-            return std::isfinite(d) ? "" : "must be a finite number, got " + v;
+            return seconds(v);
           },
-          "SECONDS|auto"));
+          interval(kOffsetRange) + "|auto", kRangeCheck));
   cmd->add_flag("--interpolate", o->interpolate, "Interpolate the reference at the estimate's stamps");
-  cmd->add_option("--max-gap", o->max_gap, "With --interpolate: largest gap between reference poses to interpolate across [s]")
+  cmd->add_option("--max-gap", o->max_gap,
+                  "With --interpolate: largest gap between reference poses to interpolate across [s]")
       ->capture_default_str()
-      ->check(positive());
+      ->check(in_range(config::above(0, 86400), "s"));
   cmd->add_option("--delta", o->delta, "RPE: distance between the poses of a pair")
       ->capture_default_str()
-      ->check(positive());
+      ->check(in_range(config::above(0, 1e9)));
   cmd->add_option("--delta-unit", o->delta_unit, "RPE: unit of --delta (s: elapsed time, not in evo)")
       ->capture_default_str()
       ->check(CLI::IsMember({"frames", "m", "s", "deg", "rad"}));
@@ -485,20 +489,20 @@ void add_eval_command(CLI::App& app, int* exit_code) {
   cmd->add_option("--delta-tol", o->delta_tol,
                   "RPE with --all-pairs in m, s, deg or rad: accepted miss of --delta, relative (evo's rel_delta_tol)")
       ->capture_default_str()
-      ->check(non_negative());
+      ->check(in_range(config::between(0, 1)));
   cmd->add_option("--segments", o->segments,
                   "Drift: segment lengths [m], comma separated (default: 10..50% of the reference path)")
       ->delimiter(',')
-      ->check(positive());
+      ->check(in_range(config::above(0, 1e7), "m"));
   cmd->add_option("--segment-step", o->segment_step, "Drift: a segment starts at every N-th matched pose")
       ->capture_default_str()
-      ->check(positive());
+      ->check(in_range(config::between(1, 1e6)));
   cmd->add_option("--relations", o->relations,
                   "Relations file (t1 t2 x y z roll pitch yaw a line): the SLAM benchmark's relation error");
   cmd->add_option("--relations-max-dt", o->relations_max_dt,
                   "With --relations: largest stamp difference of a relation and the pose it takes [s]")
       ->capture_default_str()
-      ->check(non_negative());
+      ->check(in_range(config::between(0, 86400), "s"));
   cmd->add_option("--relations-odometry", o->odometry,
                   "With --relations: raw odometry (LOG:CHANNEL or TUM file) to carry poses to stamps without one");
   cmd->add_option("--json", o->json, "Also write the results as JSON to this file ('-': print only the JSON)");

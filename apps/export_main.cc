@@ -8,6 +8,7 @@
 #include <memory>
 
 #include "analyzers/trajectory_io.h"
+#include "apps/cli_checks.h"
 #include "apps/cli_util.h"
 #include "apps/commands.h"
 #include "apps/log_input.h"
@@ -198,7 +199,8 @@ void add_export_commands(CLI::App& exp, int* exit_code) {
   c->add_option("-o,--out", csv->out, "Folder to write the CSV files into")->required();
   c->add_option("-c,--channels", csv->channels, "Only channels fully matching this regex (ECMAScript)");
   c->add_option("--max-array", csv->max_array, "Arrays with more elements are left out (their length stays)")
-      ->capture_default_str();
+      ->capture_default_str()
+      ->check(in_range(config::between(0, 1e9)));
   c->add_flag("--bytes", csv->bytes, "Also write byte arrays (image data) as columns of numbers");
   c->callback([csv, exit_code] {
     auto log = event_log_for(csv->inputs);

@@ -115,11 +115,10 @@ void add_export_mcap_commands(CLI::App& exp, int* exit_code) {
         ->check(CLI::IsMember({"zstd", "lz4", "none"}));
     c->add_option("--level", a->level, "zstd level (1: fast, 19: small)")
         ->capture_default_str()
-        ->check(CLI::Range(-7, 22));
+        ->check(in_range(config::between(-7, 22)));
     c->add_option("--chunk-mb", a->chunk_mb, "Uncompressed size of a chunk [MiB]")
         ->capture_default_str()
-        ->check(number_check("between 0.001 and 1024", [](double d) { return d >= 0.001 && d <= 1024; },
-                             "in [0.001, 1024]"));
+        ->check(in_range(config::between(0.001, 1024), "MiB"));
     c->add_option("--diagnosis", a->diagnosis,
                   "Also carry a diagnosis (driftlab diagnose --json) as the file's driftlab.diagnosis metadata");
     c->callback([a, exit_code] { *exit_code = run_mcap(*a); });

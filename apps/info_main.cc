@@ -186,7 +186,7 @@ void add_info_command(CLI::App& app, int* exit_code) {
   cmd->add_flag("--json", opts->json, "Print one JSON object instead of a table");
   cmd->add_option("--max-problems", opts->max_problems, "Problems listed in the table")
       ->capture_default_str()
-      ->check(non_negative());
+      ->check(in_range(config::between(0, 1e9)));
   cmd->callback([opts, exit_code] {
     auto log = log_for(opts->inputs);
     if (!log) {

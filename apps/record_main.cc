@@ -77,23 +77,23 @@ void add_record_command(CLI::App& app, int* exit_code) {
   cmd->add_option("--exclude", o->exclude, "Leave out channels fully matching this regex");
   cmd->add_option("--split-mb", o->split_mb, "Start a new file past this many MB (0: never)")
       ->capture_default_str()
-      ->check(non_negative());
+      ->check(in_range(config::between(0, 1e9), "MB"));
   cmd->add_option("--split-s", o->split_s, "Start a new file after this many seconds (0: never)")
       ->capture_default_str()
-      ->check(non_negative());
+      ->check(in_range(config::between(0, 1e7), "s"));
   cmd->add_option("--duration", o->duration_s, "Stop after this many seconds (0: until stopped)")
       ->capture_default_str()
-      ->check(non_negative());
+      ->check(in_range(config::between(0, 1e7), "s"));
   cmd->add_option("--flush-interval", o->flush_interval_s, "Sync the log to disk this often [s]")
       ->capture_default_str()
-      ->check(positive());
+      ->check(in_range(config::above(0, 3600), "s"));
   cmd->add_option("--stats-interval", o->stats_interval_s, "Write the statistics channel this often [s]")
       ->capture_default_str()
-      ->check(positive());
+      ->check(in_range(config::above(0, 3600), "s"));
   cmd->add_option("--stats-channel", o->stats_channel, "Channel of the recorder's statistics")->capture_default_str();
   cmd->add_option("--queue-bytes", o->queue_max_bytes, "Memory for messages waiting for the disk [bytes]")
       ->capture_default_str()
-      ->check(positive());
+      ->check(in_range(config::between(1, 1099511627776.0), "bytes"));
   cmd->callback([o, exit_code] { *exit_code = run_record(*o); });
 }
 

@@ -330,7 +330,7 @@ void add_run_command(CLI::App& app, int* exit_code) {
   cmd->add_option("-o,--out", a->out, "Log of the module outputs and statistics");
   cmd->add_option("--duration", a->duration, "Stop after this many seconds (0: at Ctrl-C)")
       ->capture_default_str()
-      ->check(non_negative());
+      ->check(in_range(config::between(0, 1e7), "s"));
   cmd->add_flag("--json", a->json, "Print a JSON summary instead of text");
   cmd->callback([a, exit_code] { *exit_code = run_live(*a); });
 }
@@ -351,14 +351,14 @@ void add_replay_command(CLI::App& app, int* exit_code) {
   cmd->add_option("-o,--out", a->out, "Output log: the inputs as dispatched, the module outputs and statistics");
   cmd->add_option("--rate", a->rate, "With --publish: pace at this multiple of real time")
       ->capture_default_str()
-      ->check(positive());
+      ->check(in_range(kPaceRate));
   cmd->add_flag("--fast", a->fast, "With --publish: as fast as possible");
   cmd->add_option("--start", a->start, "Skip this many seconds from the start of the logs")
       ->capture_default_str()
-      ->check(non_negative());
+      ->check(in_range(config::between(0, 1e9), "s"));
   cmd->add_option("--end", a->end, "Stop this many seconds after the start of the logs (0: at the end)")
       ->capture_default_str()
-      ->check(non_negative());
+      ->check(in_range(config::between(0, 1e9), "s"));
   cmd->add_option("-c,--channels", a->channels, "Only channels fully matching this regex (ECMAScript)");
   cmd->add_option("--remap", a->remap, "Deliver channel FROM as TO (FROM=TO, repeatable)");
   cmd->add_option("--order", a->order, "Dispatch order: received (log time) or stamp (header stamps)")
@@ -366,7 +366,7 @@ void add_replay_command(CLI::App& app, int* exit_code) {
       ->check(CLI::IsMember({"received", "stamp"}));
   cmd->add_option("--reorder-window", a->reorder_window, "With --order stamp: wait this long for stragglers [s]")
       ->capture_default_str()
-      ->check(non_negative());
+      ->check(in_range(config::between(0, 3600), "s"));
   cmd->add_option("--restamp", a->restamp, "Clock corrections before dispatch: FILE or auto");
   cmd->add_option("--inject", a->inject, "Faults to add before dispatch (YAML, as the simulator's --faults)");
   cmd->add_option("--publish", a->publish, "Re-publish inputs and outputs on this LCM URL, paced by --rate");

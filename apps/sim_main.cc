@@ -131,14 +131,15 @@ void add_sim_command(CLI::App& app, int* exit_code) {
       "OUT.faults.json. Scenario format: docs/simulator.md; faults: docs/faults.md.");
   cmd->add_option("scenario", a->scenario, "Scenario file (YAML)");
   cmd->add_option("-o,--out", a->out, "Log to write")->capture_default_str();
-  cmd->add_option("--duration", a->duration, "Simulated seconds (default: the scenario's)")->check(positive());
-  cmd->add_option("--seed", a->seed, "Random seed (default: the scenario's)")->check(non_negative());
+  cmd->add_option("--duration", a->duration, "Simulated seconds (default: the scenario's)")
+      ->check(in_range(kSimDuration, "s"));
+  cmd->add_option("--seed", a->seed, "Random seed (default: the scenario's)")->check(in_range(kSeed));
   cmd->add_option("--faults", a->faults, "Fault description (YAML) replacing the scenario's faults");
   add_config_help(*cmd, print_config_help);
   cmd->add_option("--live", a->live_url, "Also publish every message on this LCM URL as it arrives");
   cmd->add_option("--live-rate", a->live_rate, "Pace --live at this multiple of real time (0: as fast as possible)")
       ->capture_default_str()
-      ->check(non_negative());
+      ->check(in_range(config::between(0, kPaceRate.max)));
   cmd->add_option("--rays", a->rays, "Ray casting: grid (fast, exact for the world's shapes) or bullet (Bullet's ray test)")
       ->capture_default_str()
       ->check(CLI::IsMember({"grid", "bullet"}));

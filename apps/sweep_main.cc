@@ -292,12 +292,18 @@ void add_exec_options(CLI::App* cmd, ExecArgs& e) {
   cmd->add_option("--executor", e.executor, "Where the points run: local (a process pool here) or slurm (a job array)")
       ->capture_default_str()
       ->check(CLI::IsMember({"local", "slurm"}));
-  cmd->add_option("-j,--jobs", e.jobs, "local: points at once (0: one per usable core)")->capture_default_str()->check(CLI::NonNegativeNumber);
-  cmd->add_option("--retries", e.retries, "local: run a failed point again up to N times")->capture_default_str()->check(CLI::NonNegativeNumber);
+  cmd->add_option("-j,--jobs", e.jobs, "local: points at once (0: one per usable core)")
+      ->capture_default_str()
+      ->check(in_range(config::between(0, 4096)));
+  cmd->add_option("--retries", e.retries, "local: run a failed point again up to N times")
+      ->capture_default_str()
+      ->check(in_range(config::between(0, 100)));
   cmd->add_option("--max-parallel", e.max_parallel, "slurm: tasks of the array running at once (0: no limit)")
       ->capture_default_str()
-      ->check(CLI::NonNegativeNumber);
-  cmd->add_option("--requeue", e.requeue, "slurm: a failed task requeues itself up to N times")->capture_default_str()->check(CLI::NonNegativeNumber);
+      ->check(in_range(config::between(0, 1e6)));
+  cmd->add_option("--requeue", e.requeue, "slurm: a failed task requeues itself up to N times")
+      ->capture_default_str()
+      ->check(in_range(config::between(0, 100)));
   cmd->add_option("--slurm-opt", e.slurm_opts, "slurm: an sbatch option, passed as it is (repeatable): --partition=P, --time=1:00:00, --mem=4G, --account=A")
       ->allow_extra_args(false);
   cmd->add_flag("--dry-run", e.dry_run, "List the points (id, done or pending, values) and run nothing");

@@ -8,11 +8,13 @@
 #include <charconv>
 #include <cmath>
 #include <csignal>
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <string>
 
+#include "apps/cli_checks.h"
 #include "apps/cli_util.h"
 #include "apps/commands.h"
 
@@ -72,13 +74,27 @@ int exec_tool(const ToolCommand& tool, char** argv) {
 
 namespace {
 
+bool has_range(CLI::Option& opt) {
+  try {
+    return opt.get_validator(kRangeCheck) != nullptr;
+  } catch (const CLI::OptionNotFound&) {
+    return false;
+  }
+}
+
 /// Checks what CLI11's own conversions let through: NaN, infinities and overflowing numbers ("1e309") for
-/// floating options, and integers beyond their type (which CLI11 2.1 clamps silently).
+/// floating options, and integers beyond their type (which CLI11 2.1 clamps silently). A number option without a
+/// range (apps/cli_checks.h) is a bug: it aborts, so that every command's --help (which a test runs) shows it.
 void harden(CLI::App& app) {
   for (CLI::Option* opt : app.get_options()) {
     if (opt->get_type_size() == 0) continue;  // a flag
-    const std::string full = opt->get_type_name();  // "FLOAT", or "FLOAT:POSITIVE" with validators
+    const std::string full = opt->get_type_name();  // "FLOAT", or "FLOAT:[0, 60]" with validators
     const std::string type = full.substr(0, full.find(':'));
+    if ((type == "FLOAT" || type == "INT" || type == "UINT") && !has_range(*opt)) {
+      std::fprintf(stderr, "driftlab: internal error: option %s of '%s' has no range (apps/cli_checks.h)\n",
+                   opt->get_name().c_str(), app.get_name().c_str());
+      std::abort();
+    }
     if (type == "FLOAT") {
       opt->check(CLI::Validator(
           [](std::string& v) -> std::string {

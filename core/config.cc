@@ -14,12 +14,6 @@
 namespace driftlab::config {
 namespace {
 
-/// The text of a bad value as a message quotes it: never more than 24 characters (a 309-digit number is cut).
-std::string quoted(const std::string& text) {
-  if (text.size() <= 24) return text;
-  return text.substr(0, 16) + "... (" + std::to_string(text.size()) + " characters)";
-}
-
 const char* shape(const YAML::Node& n) {
   if (n.IsSequence()) return "a list";
   if (n.IsMap()) return "a map";
@@ -79,6 +73,11 @@ std::string Range::violation(double v, const std::string& unit) const {
     return std::string("must be ") + (min_open ? "> " : ">= ") + format_number(min) + (min != 0 ? with_unit(unit) : "");
   }
   return std::string("must be ") + (max_open ? "< " : "<= ") + format_number(max) + (max != 0 ? with_unit(unit) : "");
+}
+
+std::string quoted(const std::string& text) {
+  if (text.size() <= 24) return text;
+  return text.substr(0, 16) + "... (" + std::to_string(text.size()) + " characters)";
 }
 
 std::string format_number(double v) {

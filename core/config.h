@@ -59,6 +59,8 @@ constexpr Range at_least(double min) { return {min, std::numeric_limits<double>:
 
 /// The shortest text that reads back as exactly v: "1e+07", "0.015", "-1", "1763776800".
 std::string format_number(double v);
+/// The text of a bad value as a message quotes it: never more than 24 characters (a 309-digit number is cut).
+std::string quoted(const std::string& text);
 
 /// A YAML value being read, with the file it came from and its dotted key ("slam.2d.voxel", "route[2]"), so that
 /// every message is "FILE:LINE: KEY ...". The document itself has an empty key.

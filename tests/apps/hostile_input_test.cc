@@ -182,13 +182,26 @@ TEST(NonsenseOptions, AreRefusedWithOneReadableLine) {
       {"replay " + kSample + " --rate nan", "--rate: must be a finite number, got nan"},
       {"replay " + kSample + " --rate -1", "--rate: must be > 0, got -1"},
       {"replay " + kSample + " --start 5 --end 2", "--end 2 must be after --start 5"},
-      {"replay " + kSample + " --start 1e308", "--start 1e+308: nothing to replay after it"},
+      {"replay " + kSample + " --start 1e308", "--start: is outside 0..1e+09 s, got 1e308"},
+      {"replay " + kSample + " --start 900", "--start 900: nothing to replay after it"},
       {"replay " + kSample + " --start 1e309", "--start: must be a finite number, got 1e309"},
       {"sim --duration nan", "--duration: must be a finite number, got nan"},
-      {"sim --seed 18446744073709551615", "--seed: is out of range: 18446744073709551615"},
+      {"sim --seed 18446744073709551615", "--seed: is outside 0..9007199254740991, got 18446744073709551615"},
       {"diagnose --max-lag inf " + kSample, "--max-lag: must be a finite number, got inf"},
       {"record --flush-interval nan -o x.lcm", "--flush-interval: must be a finite number, got nan"},
       {"record --flush-interval -1 -o x.lcm", "--flush-interval: must be > 0, got -1"},
+      // Finite but nonsense: each of these was accepted (a pace of 1e300 times real time, a 1e300 s simulation,
+      // a log synced once in 3e292 years, 99999 processes, an offset no clock has).
+      {"replay " + kSample + " --rate 1e300", "--rate: must be <= 1e+06, got 1e300"},
+      {"sim --duration 1e300", "--duration: must be <= 1e+07 s, got 1e300"},
+      {"record --flush-interval 1e300 -o x.lcm", "--flush-interval: must be <= 3600 s, got 1e300"},
+      {"sweep --jobs 99999 spec.yaml", "--jobs: is outside 0..4096, got 99999"},
+      {"eval --gt a.tum --est b.tum --offset 1e300", "--offset: is outside -1e+10..1e+10 s, got 1e300"},
+      {"eval --gt a.tum --est b.tum --delta-tol 5", "--delta-tol: is outside 0..1, got 5"},
+      {"demo --estimator-window 61", "--estimator-window: is outside 0..60 s, got 61"},
+      {"export mcap " + kSample + " -o x.mcap --chunk-mb 0", "--chunk-mb: is outside 0.001..1024 MiB, got 0"},
+      {"diagnose --max-lag 1e9 " + kSample, "--max-lag: must be <= 10 s, got 1e9"},
+      {"replay " + kSample + " --reorder-window 1e9", "--reorder-window: is outside 0..3600 s, got 1e9"},
   };
   for (const auto& c : cases) {
     const auto r = driftlab(c.args);
