@@ -155,7 +155,7 @@ void add_recover_command(CLI::App& app, int* exit_code) {
   cmd->add_flag("--json", o->json, "Print one JSON object instead of text");
   cmd->add_option("--max-problems", o->max_problems, "Damaged spots listed in the text")
       ->capture_default_str()
-      ->check(non_negative());
+      ->check(in_range(config::between(0, 1e9)));
   cmd->callback([o, exit_code] { *exit_code = run_recover(*o); });
 }
 
