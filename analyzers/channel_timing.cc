@@ -155,6 +155,18 @@ void analyse_period(const Samples& s, ChannelTiming& c, bool record_gaps) {
     c.burst_size = median(sizes);
     return;
   }
+  // A period: a steady stream's intervals gather around it. One losing up to two thirds of its messages at random
+  // still has a third of its intervals at one period (the gaps are geometric), and jitter of a quarter period is
+  // more than a timer-driven source shows. Fewer than that, and the source sends when it has something (a logger
+  // writing as data comes, an event-driven node): there is no period to count missing messages by, only seq.
+  size_t near_median = 0;
+  for (const double i : intervals) near_median += std::abs(i - median_interval) <= 0.25 * median_interval ? 1 : 0;
+  c.regular_fraction = static_cast<double>(near_median) / static_cast<double>(intervals.size());
+  if (sorted.size() >= 10 && 3 * near_median < intervals.size()) {
+    c.irregular = true;
+    c.expected_period_s = mean_interval;
+    return;
+  }
   c.expected_period_s = median_interval;
   if (c.expected_period_s <= 0) return;
   for (size_t i = 1; i < sorted.size(); ++i) {
@@ -257,6 +269,14 @@ void judge(ChannelTiming& c) {
                   "messages come in bursts of about %.0f, %.1f ms apart, %.2f Hz on average: "
                   "drops are told by seq only",
                   c.burst_size, c.burst_interval_s * 1e3, 1 / c.expected_period_s);
+    add("warn", buf);
+  }
+  if (c.irregular) {
+    std::snprintf(buf, sizeof(buf),
+                  "no steady period (%.0f%% of the intervals within a quarter of the median), %.2f Hz on average: "
+                  "%s",
+                  100 * c.regular_fraction, 1 / c.expected_period_s,
+                  c.has_header ? "drops are told by seq only" : "drops cannot be told from the times");
     add("warn", buf);
   }
   if (c.late_stamps > 0) {

@@ -33,7 +33,10 @@ struct ChannelTiming {
   int64_t malformed = 0;            ///< messages that do not hold their type's layout (left out of the rest) [count]
   std::string malformed_example;    ///< why the first of them is malformed
   double rate_hz = 0;               ///< messages per second of arrival time
-  double expected_period_s = 0;     ///< median interval between stamps (arrivals without a header); the mean one when bursty
+  double expected_period_s =
+      0;  ///< median interval between stamps (arrivals without a header); the mean one when bursty or irregular
+  bool irregular = false;           ///< no period: under a third of the intervals within 25% of the median one
+  double regular_fraction = 0;      ///< the intervals within 25% of the median one [fraction]
   bool bursty = false;              ///< messages come in groups (median interval under a quarter of the mean)
   double burst_size = 0;            ///< when bursty: the median number of messages in a group [count]
   double burst_interval_s = 0;      ///< when bursty: the median interval, inside the groups [s]
