@@ -314,7 +314,12 @@ Result<Scenario> parse_scenario(const std::string& text, const std::string& orig
   if (const config::Value world = doc["world"]; world.given()) {
     auto path = world.text();
     if (!path) return path.error();
-    auto w = load_world(resolve(base_dir, *path));
+    // A world that is not there is named where the scenario gives it; a world's own errors name its file.
+    const std::string file = resolve(base_dir, *path);
+    if (std::error_code ec; !std::filesystem::is_regular_file(file, ec)) {
+      return world.error("= " + *path + ": no such world file (" + file + ")");
+    }
+    auto w = load_world(file);
     if (!w) return w.error();
     sc.world = std::move(*w);
   }

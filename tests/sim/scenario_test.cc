@@ -77,7 +77,8 @@ TEST(Scenario, ErrorsNameTheLineAndTheKey) {
   EXPECT_EQ(err(base("  - {channel: A}")), "s.yaml:5: a sensor needs a 'type'");
   EXPECT_EQ(err("world: worlds/building.yaml\nrobot: {urdf: r.urdf}\nroute: [[1, 1], [1, 1]]\nsensors: []\n"),
             "s.yaml:3: route has no length (its points are all the same)");
-  EXPECT_EQ(err("world: nowhere.yaml\n"), kSim + "/nowhere.yaml: cannot open the world description");
+  EXPECT_EQ(err("world: nowhere.yaml\n"),
+            "s.yaml:1: world = nowhere.yaml: no such world file (" + kSim + "/nowhere.yaml)");
   EXPECT_EQ(err("world: [\n"), "s.yaml:2: end of sequence flow not found");
   EXPECT_EQ(err("- 1\n"), "s.yaml:1: a scenario must be a map (name, world, robot, sensors, ...)");
   EXPECT_EQ(err(base("  - {type: imu, channel: I}", "physics_step: 0.5\n")),
