@@ -198,11 +198,16 @@ Status ModuleHost::fire_timers(int64_t t) {
     // t >= next: the difference in uint64_t is exact whatever the two are.
     const uint64_t behind =
         (static_cast<uint64_t>(t) - static_cast<uint64_t>(due->next)) / static_cast<uint64_t>(due->period);
+    // The last tick at or before t, in uint64_t: behind * period can pass INT64_MAX (a tick far in the past and t
+    // far ahead), while the sum, at most t, cannot; unsigned arithmetic wraps to it exactly.
+    const auto last_tick = [&] {
+      return static_cast<int64_t>(static_cast<uint64_t>(due->next) + behind * static_cast<uint64_t>(due->period));
+    };
     if (o_.clock == HostClock::kWall) {
-      due->next += static_cast<int64_t>(behind) * due->period;  // the latest only
+      due->next = last_tick();  // the latest only
     } else if (behind > kMaxCatchUpTicks) {
       const int64_t from = due->next;
-      due->next += static_cast<int64_t>(behind) * due->period;
+      due->next = last_tick();
       due->bus->tally_.skipped(static_cast<int64_t>(behind), from, due->next);
     }
     now_ = std::max(now_, due->next);
