@@ -18,6 +18,30 @@ namespace driftlab::formats {
 struct SqliteBagReader::Db {
   sqlite3* db = nullptr;
   std::vector<uint8_t> image;  // from_memory: sqlite reads the image in place
+  // The work sqlite may do for this file, in progress-handler calls (one per kOpsPerCall virtual machine
+  // operations): a schema is code (a generated column, a view's expression), so a hostile file could ask for
+  // unbounded work. Reading rosbag2's tables costs a few hundred operations per row and a row takes at least a few
+  // bytes, so 64 operations per byte of file plus a floor is far above what any real bag needs.
+  static constexpr int kOpsPerCall = 1000;
+  uint64_t calls_left = 0;
+  bool exhausted = false;
+  void budget(uint64_t file_bytes) {
+    calls_left = (64 * file_bytes + 20'000'000) / kOpsPerCall;
+    sqlite3_progress_handler(db, kOpsPerCall, &Db::on_progress, this);
+    // Views and triggers in the file may not call functions with side effects.
+    sqlite3_db_config(db, SQLITE_DBCONFIG_TRUSTED_SCHEMA, 0, nullptr);
+  }
+  static int on_progress(void* self) {
+    auto* d = static_cast<Db*>(self);
+    if (d->calls_left == 0) return d->exhausted = true;
+    --d->calls_left;
+    return 0;
+  }
+  std::string error() const {
+    return exhausted ? std::string("reading asks for far more work than the file's size allows (a damaged or hostile "
+                                   "schema); stopped")
+                     : std::string(sqlite3_errmsg(db));
+  }
   ~Db() {
     if (db) sqlite3_close(db);
   }
@@ -97,15 +121,15 @@ std::vector<uint8_t> padded_image(const std::string& path) {
 Status SqliteBagReader::load_tables() {
   sqlite3* db = db_->db;
   if (!has_table(db, "topics") || !has_table(db, "messages")) {
-    const char* why = sqlite3_errcode(db) != SQLITE_OK && sqlite3_errcode(db) != SQLITE_ROW &&
+    const std::string why = sqlite3_errcode(db) != SQLITE_OK && sqlite3_errcode(db) != SQLITE_ROW &&
                               sqlite3_errcode(db) != SQLITE_DONE
-                          ? sqlite3_errmsg(db)
-                          : "an SQLite database without rosbag2's topics and messages tables";
+                          ? db_->error()
+                          : std::string("an SQLite database without rosbag2's topics and messages tables");
     return Error(name_ + ": not a ROS 2 bag: " + why);
   }
   {
     Stmt s(db, "SELECT id, name, type, serialization_format, offered_qos_profiles FROM topics ORDER BY id");
-    if (!s.ok()) return Error(name_ + ": topics table: " + sqlite3_errmsg(db));
+    if (!s.ok()) return Error(name_ + ": topics table: " + db_->error());
     int rc;
     while ((rc = sqlite3_step(s.get())) == SQLITE_ROW) {
       Ros2TopicInfo t;
@@ -116,7 +140,7 @@ Status SqliteBagReader::load_tables() {
       t.offered_qos_profiles = s.text(4);
       topics_.emplace(id, std::move(t));
     }
-    if (rc != SQLITE_DONE) return Error(name_ + ": topics table: " + sqlite3_errmsg(db));
+    if (rc != SQLITE_DONE) return Error(name_ + ": topics table: " + db_->error());
   }
   if (has_table(db, "message_definitions")) {
     Stmt s(db, "SELECT topic_type, encoding, encoded_message_definition FROM message_definitions");
@@ -157,6 +181,7 @@ Result<SqliteBagReader> SqliteBagReader::open(const std::string& path) {
       if (immutable) return Error(path + ": " + (r.db_->db ? sqlite3_errmsg(r.db_->db) : "cannot open"));
       continue;
     }
+    r.db_->budget(fs_size(path));
     if (Status s = r.load_tables(); !s) {
       if (!immutable) continue;
       // A file cut short (a recorder killed, a copy interrupted): sqlite reads the pages it has when the missing
@@ -189,6 +214,7 @@ Result<SqliteBagReader> SqliteBagReader::from_memory(std::span<const uint8_t> by
                           static_cast<sqlite3_int64>(r.db_->image.size()), SQLITE_DESERIALIZE_READONLY) != SQLITE_OK) {
     return Error(std::string("db3: ") + sqlite3_errmsg(r.db_->db));
   }
+  r.db_->budget(bytes.size());
   if (Status s = r.load_tables(); !s) return Error(s.message());
   return r;
 }
@@ -202,7 +228,7 @@ int64_t SqliteBagReader::read(const std::function<void(const Ros2DbMessage&)>& o
   // go on from the next id that can be reached.
   Stmt s(db, "SELECT id, topic_id, timestamp, data FROM messages WHERE id > ? ORDER BY id");
   if (!s.ok()) {
-    on_problem({0, std::string("messages table: ") + sqlite3_errmsg(db)});
+    on_problem({0, "messages table: " + db_->error()});
     return 0;
   }
   int64_t last = INT64_MIN;
@@ -217,6 +243,13 @@ int64_t SqliteBagReader::read(const std::function<void(const Ros2DbMessage&)>& o
     int rc;
     while ((rc = sqlite3_step(s.get())) == SQLITE_ROW) {
       const int64_t id = sqlite3_column_int64(s.get(), 0);
+      if (last != INT64_MIN && id <= last) {
+        // rosbag2's ids are integer keys; ids that repeat or are not integers (read as the integer below them)
+        // would have reading go round the same rows for ever.
+        on_problem({last, "message ids after " + std::to_string(last) +
+                              " repeat or are not integers (not rosbag2's messages table); reading stopped there"});
+        return delivered;
+      }
       if (!damage.empty()) {
         on_problem({damaged_after, "rows after id " + std::to_string(damaged_after) + " cannot be read (" + damage +
                                        "); reading went on at id " + std::to_string(id)});
@@ -240,11 +273,15 @@ int64_t SqliteBagReader::read(const std::function<void(const Ros2DbMessage&)>& o
     }
     if (rc == SQLITE_DONE && damage.empty()) break;
     if (rc != SQLITE_DONE && damage.empty()) {
-      damage = sqlite3_errmsg(db);
+      damage = db_->error();
       damaged_after = last == INT64_MIN ? 0 : last;
     }
+    if (db_->exhausted) {
+      on_problem({damaged_after, "rows after id " + std::to_string(damaged_after) + ": " + damage});
+      break;
+    }
     // Try the ids after the damage, further each time (rows are numbered from 1 as they were inserted).
-    if (rc == SQLITE_DONE || attempt >= 40) {
+    if (rc == SQLITE_DONE || attempt >= 40 || damaged_after > INT64_MAX - (int64_t{1} << attempt)) {
       on_problem({damaged_after, "rows after id " + std::to_string(damaged_after) + " cannot be read (" + damage +
                                      "); nothing readable after them"});
       break;

@@ -78,7 +78,7 @@ class SqliteBagReader {
   SqliteBagReader& operator=(SqliteBagReader&&) noexcept;
   ~SqliteBagReader();
 
-  /// Calls on_message for every message in the order rosbag2 plays them (receive time, then id), and on_problem
+  /// Calls on_message for every message in the order rosbag2 wrote them (by id, as they arrived), and on_problem
   /// for every row or part that cannot be read; returns the number delivered. Definitions come from the
   /// message_definitions table (rosbag2 Iron and later); older bags have none.
   int64_t read(const std::function<void(const Ros2DbMessage&)>& on_message,

@@ -358,6 +358,45 @@ TEST(Ros2Import, CutSqliteBag) {
   EXPECT_EQ(log.at("/tf_static").size(), 1u);
 }
 
+// A messages table whose ids are not rosbag2's integer keys (here reals, two of them read as the integer 1): reading
+// stops where the ids stop increasing, says so, and keeps what came before. Before, a damaged page after such ids
+// had reading go round the same rows for ever (found by the ros2 fuzzer). And a table of many small rows is read
+// whole: the work limit a hostile schema meets is far above what rows cost.
+TEST(Ros2Import, MessageIdsThatDoNotIncreaseStopReading) {
+  test::TempDir dir;
+  const auto make = [&](const std::string& name, const std::string& id_type, const std::vector<std::string>& ids) {
+    sqlite3* db = nullptr;
+    EXPECT_EQ(sqlite3_open(dir.file(name).c_str(), &db), SQLITE_OK);
+    std::string sql = "CREATE TABLE topics(id INTEGER PRIMARY KEY, name TEXT, type TEXT, serialization_format TEXT, "
+                      "offered_qos_profiles TEXT); INSERT INTO topics VALUES(1, '/x', 'std_msgs/msg/Empty', 'cdr', '');"
+                      "CREATE TABLE messages(id " + id_type + ", topic_id INTEGER, timestamp INTEGER, data BLOB);"
+                      "BEGIN;";
+    for (size_t i = 0; i < ids.size(); ++i) {
+      sql += "INSERT INTO messages VALUES(" + ids[i] + ", 1, " + std::to_string(1000 + i) + ", x'00010000');";
+    }
+    sql += "COMMIT;";
+    EXPECT_EQ(sqlite3_exec(db, sql.c_str(), nullptr, nullptr, nullptr), SQLITE_OK) << sqlite3_errmsg(db);
+    sqlite3_close(db);
+    auto r = formats::SqliteBagReader::open(dir.file(name));
+    EXPECT_TRUE(r.ok()) << r.error().message;
+    std::vector<int64_t> rows;
+    std::vector<std::string> problems;
+    r->read([&](const formats::Ros2DbMessage& m) { rows.push_back(m.row); },
+            [&](const formats::Ros2DbProblem& p) { problems.push_back(p.what); });
+    return std::make_pair(rows, problems);
+  };
+  const auto [rows, problems] = make("real_ids.db3", "REAL", {"0.5", "1.2", "1.7", "3"});
+  EXPECT_EQ(rows, (std::vector<int64_t>{0, 1}));
+  ASSERT_EQ(problems.size(), 1u);
+  EXPECT_NE(problems[0].find("message ids after 1 repeat or are not integers"), std::string::npos) << problems[0];
+
+  std::vector<std::string> many;
+  for (int i = 1; i <= 200000; ++i) many.push_back(std::to_string(i));
+  const auto [all, none] = make("many.db3", "INTEGER PRIMARY KEY", many);
+  EXPECT_EQ(all.size(), many.size());
+  EXPECT_TRUE(none.empty()) << none.front();
+}
+
 // Every command takes these files directly: the conversion is made once beside the file and said on stderr,
 // reused while the file is unchanged, made again when it changes, and kept under XDG_CACHE_HOME when the folder
 // cannot be written.
