@@ -2,7 +2,6 @@
 
 #include <Eigen/Dense>
 
-#include <algorithm>
 #include <cmath>
 
 namespace driftlab::estimator {
@@ -84,42 +83,6 @@ void Ekf::update(int64_t utime, const Measurement& m) {
     R(2, 2) = p->var_yaw > 0 ? p->var_yaw : noise_.pose_yaw * noise_.pose_yaw;
     correct<3>(z, H, R);
   }
-}
-
-void DelayedEkf::init(int64_t utime, const PoseFix& fix, double v, double w) {
-  ekf_.init(utime, fix, v, w);
-  base_ = ekf_;
-  history_.clear();
-}
-
-bool DelayedEkf::add(int64_t utime, const Measurement& m) {
-  if (utime >= ekf_.time()) {  // in order: the common case
-    ekf_.update(utime, m);
-    history_.push_back({utime, m, ekf_});
-    ++counters_.applied;
-  } else {
-    if (utime < ekf_.time() - window_ || utime < base_.time()) {
-      ++counters_.rejected;
-      return false;
-    }
-    // Rewind to the state before the first entry stamped after this one, insert it, and re-apply the rest.
-    auto pos = std::upper_bound(history_.begin(), history_.end(), utime,
-                                [](int64_t t, const Entry& e) { return t < e.utime; });
-    ekf_ = pos == history_.begin() ? base_ : std::prev(pos)->after;
-    pos = history_.insert(pos, {utime, m, ekf_});
-    for (auto it = pos; it != history_.end(); ++it) {
-      ekf_.update(it->utime, it->m);
-      it->after = ekf_;
-    }
-    counters_.replays += static_cast<int64_t>(std::distance(pos, history_.end())) - 1;
-    ++counters_.reapplied;
-  }
-  // Forget what is older than the window; the last forgotten state becomes the base.
-  while (!history_.empty() && history_.front().utime < ekf_.time() - window_) {
-    base_ = history_.front().after;
-    history_.pop_front();
-  }
-  return true;
 }
 
 }  // namespace driftlab::estimator
