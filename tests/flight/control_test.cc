@@ -11,21 +11,16 @@
 #include <cmath>
 
 #include "flight/vehicle.h"
+#include "tests/flight/rigid_body.h"
 
 namespace driftlab::flight {
 namespace {
 
 constexpr double kG = 9.81;
 
-struct Body {
-  Eigen::Vector3d p = Eigen::Vector3d::Zero(), v = Eigen::Vector3d::Zero(), w = Eigen::Vector3d::Zero();
-  Eigen::Quaterniond q = Eigen::Quaterniond::Identity();
-  Eigen::Vector4d rotor_thrust = Eigen::Vector4d::Zero();
-};
-
 class Flight {
  public:
-  Flight() : mixer_(model_), position_(o_, 4 * model_.max_rotor_thrust / model_.mass), attitude_(o_), rate_(o_) {}
+  Flight() : body_(model_, Eigen::Vector3d(0.6, -0.3, 0)), mixer_(model_), position_(o_, 4 * model_.max_rotor_thrust / model_.mass), attitude_(o_), rate_(o_) {}
 
   /// Flies `seconds` towards the setpoint (position, feed-forward velocity) given by `sp(t)`; `each(t)` after
   /// every millisecond of physics.
@@ -37,58 +32,32 @@ class Flight {
       if (tick_ % 20 == 0) {  // position at 50 Hz
         Eigen::Vector3d p_sp, v_ff;
         sp(t, p_sp, v_ff);
-        thrust_ = position_.update(p_sp, v_ff, 0, b_.p, b_.v, 0.02);
+        thrust_ = position_.update(p_sp, v_ff, 0, body_.p, body_.v, 0.02);
       }
       if (tick_ % 4 == 0) {  // attitude and rates at 250 Hz
         const Eigen::Quaterniond q_sp = attitude_for(thrust_.acceleration, thrust_.yaw);
-        const Eigen::Vector3d rate_sp = attitude_.update(b_.q, q_sp);
-        const Eigen::Vector3d alpha = rate_.update(rate_sp, b_.w, 0.004, saturated_);
-        const double collective = std::max(0.0, thrust_.acceleration.dot(b_.q * Eigen::Vector3d::UnitZ())) * model_.mass;
+        const Eigen::Vector3d rate_sp = attitude_.update(body_.q, q_sp);
+        const Eigen::Vector3d alpha = rate_.update(rate_sp, body_.w, 0.004, saturated_);
+        const double collective = std::max(0.0, thrust_.acceleration.dot(body_.q * Eigen::Vector3d::UnitZ())) * model_.mass;
         const Mix m = mixer_.mix(collective, model_.inertia.cwiseProduct(alpha));
         for (int k = 0; k < 3; ++k) saturated_[k] = m.saturated[k];
-        for (int k = 0; k < 4; ++k) command_(k) = m.control[static_cast<std::size_t>(k)] * model_.max_rotor_thrust;
+        body_.command(m.control);
       }
-      step(1e-3);
+      body_.step(1e-3);
       each(t + 1e-3);
     }
   }
-  const Body& body() const { return b_; }
+  const test::RigidBody& body() const { return body_; }
 
  private:
-  void step(double dt) {
-    b_.rotor_thrust += (command_ - b_.rotor_thrust) * (dt / 0.03);  // motor lag, 30 ms
-    Eigen::VectorXd f(4);
-    f = b_.rotor_thrust;
-    std::vector<double> u(4);
-    for (int k = 0; k < 4; ++k) u[static_cast<std::size_t>(k)] = f(k) / model_.max_rotor_thrust;
-    const Eigen::Vector4d e = mixer_.effect(u);  // the rotors' thrust and torques, from where they are
-    const Eigen::Vector3d wind(0.6, -0.3, 0);  // [N]
-    const Eigen::Vector3d force = b_.q * Eigen::Vector3d(0, 0, e(0)) - 0.25 * b_.v + wind;
-    Eigen::Vector3d a = force / model_.mass - Eigen::Vector3d(0, 0, kG);
-    const Eigen::Vector3d I = model_.inertia;
-    const Eigen::Vector3d torque = e.tail<3>();
-    const Eigen::Vector3d wdot = (torque - b_.w.cross(I.cwiseProduct(b_.w))).cwiseQuotient(I);
-    b_.w += wdot * dt;
-    const double angle = b_.w.norm() * dt;
-    if (angle > 0) b_.q = (b_.q * Eigen::Quaterniond(Eigen::AngleAxisd(angle, b_.w.normalized()))).normalized();
-    b_.v += a * dt;
-    b_.p += b_.v * dt;
-    if (b_.p.z() <= 0) {  // the ground holds it up and stops it
-      b_.p.z() = 0;
-      b_.v.setZero();
-      b_.w.setZero();
-    }
-  }
-
   VehicleModel model_;
+  test::RigidBody body_;
   ControlOptions o_;
   Mixer mixer_;
   PositionControl position_;
   AttitudeControl attitude_;
   RateControl rate_;
-  Body b_;
   ThrustSetpoint thrust_;
-  Eigen::Vector4d command_ = Eigen::Vector4d::Zero();
   int saturated_[3] = {0, 0, 0};
   int64_t tick_ = 0;
 };
