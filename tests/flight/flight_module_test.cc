@@ -9,6 +9,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <utility>
 
 #include "driftlab/motor_command_t.hpp"
 #include "driftlab/odometry_t.hpp"
@@ -100,14 +101,22 @@ std::vector<std::string> modes(const driftlab::test::FakeBus& bus) {
   return out;
 }
 
-TEST(FlightModule, FliesTheMissionAndLands) {
+/// The world, the flight stack and the script on one bus, started.
+struct Stack {
+  explicit Stack(OffboardConfig script = offboard_config()) : flight(flight_config()), offboard(std::move(script)) {
+    bus.add(world);
+    bus.add(flight);
+    bus.add(offboard);
+  }
   World world;
-  FlightModule flight(flight_config());
-  OffboardModule offboard(offboard_config());
+  FlightModule flight;
+  OffboardModule offboard;
   driftlab::test::FakeBus bus;
-  bus.add(world);
-  bus.add(flight);
-  bus.add(offboard);
+};
+
+TEST(FlightModule, FliesTheMissionAndLands) {
+  Stack stack;
+  auto& [world, flight, offboard, bus] = stack;
   ASSERT_TRUE(bus.start());
   double sum = 0, hover_worst = 0;
   int n = 0;
@@ -138,15 +147,10 @@ TEST(FlightModule, FliesTheMissionAndLands) {
 }
 
 TEST(FlightModule, AStreamBelowTwoHertzIsNeverGrantedOffboard) {
-  World world;
-  FlightModule flight(flight_config());
   OffboardConfig o = offboard_config();
   o.mission.stream_rate = 1.5;
-  OffboardModule offboard(o);
-  driftlab::test::FakeBus bus;
-  bus.add(world);
-  bus.add(flight);
-  bus.add(offboard);
+  Stack stack(o);
+  auto& [world, flight, offboard, bus] = stack;
   ASSERT_TRUE(bus.start());
   for (int64_t t = kT0; t < kT0 + 10000000; t += 20000) ASSERT_TRUE(bus.advance(t));
   EXPECT_EQ(offboard.phase(), OffboardModule::Phase::kEngaging);
@@ -157,15 +161,10 @@ TEST(FlightModule, AStreamBelowTwoHertzIsNeverGrantedOffboard) {
 }
 
 TEST(FlightModule, ASetpointGapInFlightIsAnOffboardLossAndTheVehicleHolds) {
-  World world;
+  Stack stack;
+  auto& [world, flight, offboard, bus] = stack;
   world.gap_from = kT0 + 9000000;  // in the hover at 2 m
   world.gap_to = kT0 + 10000000;
-  FlightModule flight(flight_config());
-  OffboardModule offboard(offboard_config());
-  driftlab::test::FakeBus bus;
-  bus.add(world);
-  bus.add(flight);
-  bus.add(offboard);
   ASSERT_TRUE(bus.start());
   double lowest_in_gap = 10;
   for (int64_t t = kT0; t < kT0 + 12000000; t += 20000) {
