@@ -9,6 +9,7 @@
 
 #include <Eigen/Geometry>
 #include <cmath>
+#include <string>
 
 #include "flight/vehicle.h"
 #include "tests/flight/rigid_body.h"
@@ -74,6 +75,7 @@ TEST(Cascade, TakesOffHoldsAgainstWindAndTracksALeg) {
   EXPECT_LT(top, 2.3);  // a small overshoot at most
   double worst = 0;
   f.fly(5, climb, [&](double) { worst = std::max(worst, (f.body().p - Eigen::Vector3d(0, 0, 2)).norm()); });
+  RecordProperty("hover_worst_m", std::to_string(worst));
   EXPECT_LT(worst, 0.1);
 
   // A 4 m leg east at 1 m/s with its feed-forward velocity, then 3 s at its end.
@@ -91,6 +93,7 @@ TEST(Cascade, TakesOffHoldsAgainstWindAndTracksALeg) {
     sum += (f.body().p - p).squaredNorm();
     ++n;
   });
+  RecordProperty("leg_rms_m", std::to_string(std::sqrt(sum / n)));
   EXPECT_LT(std::sqrt(sum / n), 0.3);
   EXPECT_LT((f.body().p - Eigen::Vector3d(4, 0, 2)).norm(), 0.1);
   EXPECT_LT(Eigen::AngleAxisd(f.body().q).angle(), 0.2);  // level, but for the tilt into the wind

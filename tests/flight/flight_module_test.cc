@@ -9,6 +9,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <string>
 #include <utility>
 
 #include "driftlab/motor_command_t.hpp"
@@ -134,6 +135,9 @@ TEST(FlightModule, FliesTheMissionAndLands) {
   }
   EXPECT_EQ(offboard.phase(), OffboardModule::Phase::kDone) << flight.commander().reason();
   EXPECT_FALSE(flight.commander().armed());
+  RecordProperty("hover_worst_m", std::to_string(hover_worst));
+  RecordProperty("tracking_rms_m", std::to_string(std::sqrt(sum / std::max(n, 1))));
+  RecordProperty("top_m", std::to_string(world.top));
   EXPECT_GT(world.top, 1.95);
   EXPECT_LT(world.top, 2.25);  // the climb stops at 1 m/s: a 10% overshoot at most
   EXPECT_LT(hover_worst, 0.1);
