@@ -17,7 +17,6 @@
 namespace driftlab::flight {
 namespace {
 
-constexpr double kG = 9.81;
 
 class Flight {
  public:
