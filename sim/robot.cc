@@ -67,7 +67,111 @@ int line_of(const TiXmlDocument& doc, const char* tag, const std::string& name) 
   return 0;
 }
 
+/// Parses URDF text with urdfdom, its console output captured into the error.
+Result<urdf::ModelInterfaceSharedPtr> parse_urdf(const std::string& xml, const std::string& origin) {
+  // console_bridge's output handler is process-wide.
+  static std::mutex mutex;
+  std::lock_guard lock(mutex);
+  CaptureErrors capture;
+  console_bridge::useOutputHandler(&capture);
+  urdf::ModelInterfaceSharedPtr model = urdf::parseURDF(xml);
+  console_bridge::restorePreviousOutputHandler();
+  if (!model) {
+    std::string why = capture.first_.empty() ? "not a valid URDF robot" : capture.first_;
+    while (!why.empty() && (why.back() == '\n' || why.back() == ' ')) why.pop_back();
+    return Error{origin + ": " + why};
+  }
+  return model;
+}
+
 }  // namespace
+
+Result<MultirotorSpec> read_multirotor(const std::string& xml, const std::string& origin) {
+  TiXmlDocument doc;
+  doc.Parse(xml.c_str());
+  if (doc.Error()) {
+    return Error{origin + ":" + std::to_string(std::max(doc.ErrorRow(), 1)) + ": malformed XML: " + doc.ErrorDesc()};
+  }
+  auto at = [&](const char* tag, const std::string& name) {
+    const int line = line_of(doc, tag, name);
+    return origin + (line > 0 ? ":" + std::to_string(line) : std::string()) + ": " + tag + " '" + name + "'";
+  };
+  auto model = parse_urdf(xml, origin);
+  if (!model) return model.error();
+  const urdf::LinkConstSharedPtr root = (*model)->getRoot();
+  if (!root) return Error{origin + ": the URDF has no root link"};
+  MultirotorSpec spec;
+  spec.name = (*model)->getName();
+  spec.base_link = root->name;
+
+  // Every link's pose in the base frame at zero joint angles, depth first; mass and inertia summed about the base.
+  struct Pending {
+    urdf::LinkConstSharedPtr link;
+    Eigen::Isometry3d in_base;
+  };
+  struct Part {
+    double m;
+    Eigen::Vector3d c;
+    Eigen::Matrix3d inertia;  // about c, base axes
+  };
+  std::vector<Part> parts;
+  std::vector<Pending> stack{{root, Eigen::Isometry3d::Identity()}};
+  while (!stack.empty()) {
+    const Pending p = stack.back();
+    stack.pop_back();
+    if (p.link->inertial) {
+      const urdf::Inertial& in = *p.link->inertial;
+      if (!(in.mass > 0)) return Error{at("link", p.link->name) + ": mass must be positive (a rotor or body without mass cannot fly)"};
+      const Eigen::Isometry3d frame = p.in_base * to_eigen(in.origin);
+      Eigen::Matrix3d local;
+      local << in.ixx, in.ixy, in.ixz, in.ixy, in.iyy, in.iyz, in.ixz, in.iyz, in.izz;
+      parts.push_back({in.mass, frame.translation(), frame.rotation() * local * frame.rotation().transpose()});
+    }
+    for (const auto& joint : p.link->child_joints) {
+      const Eigen::Isometry3d in_base = p.in_base * to_eigen(joint->parent_to_joint_origin_transform);
+      stack.push_back({(*model)->getLink(joint->child_link_name), in_base});
+      if (joint->type != urdf::Joint::CONTINUOUS || p.link != root) continue;
+      // urdfdom gives a joint without <axis> the x axis: a rotor's spin axis must be written out.
+      const TiXmlElement* element = nullptr;
+      for (const TiXmlElement* e = doc.RootElement()->FirstChildElement("joint"); e != nullptr;
+           e = e->NextSiblingElement("joint")) {
+        const char* n = e->Attribute("name");
+        if (n != nullptr && joint->name == n) element = e;
+      }
+      if (element == nullptr || element->FirstChildElement("axis") == nullptr) {
+        return Error{at("joint", joint->name) + ": a rotor joint needs an <axis> (its spin axis, 0 0 1 or 0 0 -1)"};
+      }
+      const Eigen::Vector3d axis =
+          in_base.rotation() * Eigen::Vector3d(joint->axis.x, joint->axis.y, joint->axis.z).normalized();
+      if (std::abs(std::abs(axis.z()) - 1) > 1e-6) {
+        return Error{at("joint", joint->name) + ": a rotor's axis must be along the body's z (0 0 1 or 0 0 -1)"};
+      }
+      spec.rotors.push_back({joint->name, joint->child_link_name, in_base.translation(), axis.z() > 0 ? 1 : -1});
+    }
+  }
+  if (spec.rotors.empty()) {
+    return Error{at("link", root->name) + ": no rotor joints (continuous joints on the base link)"};
+  }
+  for (const Part& part : parts) {
+    spec.mass += part.m;
+    spec.com += part.m * part.c;
+  }
+  if (!(spec.mass > 0)) return Error{at("link", root->name) + ": the robot has no mass (give its links <inertial> masses)"};
+  spec.com /= spec.mass;
+  for (const Part& part : parts) {
+    const Eigen::Vector3d d = part.c - spec.com;
+    spec.inertia += part.inertia + part.m * (d.squaredNorm() * Eigen::Matrix3d::Identity() - d * d.transpose());
+  }
+  return spec;
+}
+
+Result<MultirotorSpec> load_multirotor(const std::string& urdf_path) {
+  std::ifstream f(urdf_path);
+  if (!f) return Error{urdf_path + ": cannot open the URDF file"};
+  std::stringstream text;
+  text << f.rdbuf();
+  return read_multirotor(text.str(), urdf_path);
+}
 
 struct Robot::Impl {
   struct Group {
@@ -157,21 +261,9 @@ Result<std::unique_ptr<Robot>> Robot::create(const std::string& xml, const std::
     return origin + (line > 0 ? ":" + std::to_string(line) : std::string()) + ": " + tag + " '" + name + "'";
   };
 
-  urdf::ModelInterfaceSharedPtr model;
-  {
-    // console_bridge's output handler is process-wide.
-    static std::mutex mutex;
-    std::lock_guard lock(mutex);
-    CaptureErrors capture;
-    console_bridge::useOutputHandler(&capture);
-    model = urdf::parseURDF(xml);
-    console_bridge::restorePreviousOutputHandler();
-    if (!model) {
-      std::string why = capture.first_.empty() ? "not a valid URDF robot" : capture.first_;
-      while (!why.empty() && (why.back() == '\n' || why.back() == ' ')) why.pop_back();
-      return Error{origin + ": " + why};
-    }
-  }
+  auto parsed = parse_urdf(xml, origin);
+  if (!parsed) return parsed.error();
+  const urdf::ModelInterfaceSharedPtr model = *parsed;
 
   auto impl = std::make_unique<Impl>();
   impl->world = &world;
