@@ -67,7 +67,148 @@ int line_of(const TiXmlDocument& doc, const char* tag, const std::string& name) 
   return 0;
 }
 
+/// Parses URDF text with urdfdom, its console output captured into the error.
+Result<urdf::ModelInterfaceSharedPtr> parse_urdf(const std::string& xml, const std::string& origin) {
+  // console_bridge's output handler is process-wide.
+  static std::mutex mutex;
+  std::lock_guard lock(mutex);
+  CaptureErrors capture;
+  console_bridge::useOutputHandler(&capture);
+  urdf::ModelInterfaceSharedPtr model = urdf::parseURDF(xml);
+  console_bridge::restorePreviousOutputHandler();
+  if (!model) {
+    std::string why = capture.first_.empty() ? "not a valid URDF robot" : capture.first_;
+    while (!why.empty() && (why.back() == '\n' || why.back() == ' ')) why.pop_back();
+    return Error{origin + ": " + why};
+  }
+  return model;
+}
+
+/// A link's mass, centre and inertia (about its centre) in some frame.
+struct InertialPart {
+  double m;
+  Eigen::Vector3d c;
+  Eigen::Matrix3d inertia;
+};
+
+/// `in` of a link whose frame is `link_in_frame`.
+InertialPart part_of(const urdf::Inertial& in, const Eigen::Isometry3d& link_in_frame) {
+  const Eigen::Isometry3d frame = link_in_frame * to_eigen(in.origin);
+  Eigen::Matrix3d local;
+  local << in.ixx, in.ixy, in.ixz, in.ixy, in.iyy, in.iyz, in.ixz, in.iyz, in.izz;
+  return {in.mass, frame.translation(), frame.rotation() * local * frame.rotation().transpose()};
+}
+
+/// The parts together: total mass, centre of mass and inertia about it (parallel axis theorem). Needs mass > 0.
+InertialPart combine(const std::vector<InertialPart>& parts) {
+  InertialPart all{0, Eigen::Vector3d::Zero(), Eigen::Matrix3d::Zero()};
+  for (const InertialPart& p : parts) {
+    all.m += p.m;
+    all.c += p.m * p.c;
+  }
+  all.c /= all.m;
+  for (const InertialPart& p : parts) {
+    const Eigen::Vector3d d = p.c - all.c;
+    all.inertia += p.inertia + p.m * (d.squaredNorm() * Eigen::Matrix3d::Identity() - d * d.transpose());
+  }
+  return all;
+}
+
+/// A URDF's XML (for line numbers) and its urdfdom model.
+struct UrdfDocument {
+  std::string origin;
+  std::unique_ptr<TiXmlDocument> doc;
+  urdf::ModelInterfaceSharedPtr model;
+  /// "file:line: tag 'name'" for messages.
+  std::string at(const char* tag, const std::string& name) const {
+    const int line = line_of(*doc, tag, name);
+    return origin + (line > 0 ? ":" + std::to_string(line) : std::string()) + ": " + tag + " '" + name + "'";
+  }
+};
+
+Result<UrdfDocument> open_urdf(const std::string& xml, const std::string& origin) {
+  UrdfDocument u{origin, std::make_unique<TiXmlDocument>(), nullptr};
+  u.doc->Parse(xml.c_str());
+  if (u.doc->Error()) {
+    return Error{origin + ":" + std::to_string(std::max(u.doc->ErrorRow(), 1)) + ": malformed XML: " +
+                 u.doc->ErrorDesc()};
+  }
+  auto model = parse_urdf(xml, origin);
+  if (!model) return model.error();
+  u.model = *model;
+  return u;
+}
+
 }  // namespace
+
+Result<MultirotorSpec> read_multirotor(const std::string& xml, const std::string& origin) {
+  auto u = open_urdf(xml, origin);
+  if (!u) return u.error();
+  const TiXmlDocument& doc = *u->doc;
+  const urdf::ModelInterfaceSharedPtr& model = u->model;
+  auto at = [&](const char* tag, const std::string& name) { return u->at(tag, name); };
+  const urdf::LinkConstSharedPtr root = model->getRoot();
+  if (!root) return Error{origin + ": the URDF has no root link"};
+  MultirotorSpec spec;
+  spec.name = model->getName();
+  spec.base_link = root->name;
+
+  // Every link's pose in the base frame at zero joint angles, depth first; mass and inertia summed about the base.
+  struct Pending {
+    urdf::LinkConstSharedPtr link;
+    Eigen::Isometry3d in_base;
+  };
+  std::vector<InertialPart> parts;  // in the base frame
+  std::vector<Pending> stack{{root, Eigen::Isometry3d::Identity()}};
+  while (!stack.empty()) {
+    const Pending p = stack.back();
+    stack.pop_back();
+    if (p.link->inertial) {
+      if (!(p.link->inertial->mass > 0)) {
+        return Error{at("link", p.link->name) + ": mass must be positive (a rotor or body without mass cannot fly)"};
+      }
+      parts.push_back(part_of(*p.link->inertial, p.in_base));
+    }
+    for (const auto& joint : p.link->child_joints) {
+      const Eigen::Isometry3d in_base = p.in_base * to_eigen(joint->parent_to_joint_origin_transform);
+      stack.push_back({model->getLink(joint->child_link_name), in_base});
+      if (joint->type != urdf::Joint::CONTINUOUS || p.link != root) continue;
+      // urdfdom gives a joint without <axis> the x axis: a rotor's spin axis must be written out.
+      const TiXmlElement* element = nullptr;
+      for (const TiXmlElement* e = doc.RootElement()->FirstChildElement("joint"); e != nullptr;
+           e = e->NextSiblingElement("joint")) {
+        const char* n = e->Attribute("name");
+        if (n != nullptr && joint->name == n) element = e;
+      }
+      if (element == nullptr || element->FirstChildElement("axis") == nullptr) {
+        return Error{at("joint", joint->name) + ": a rotor joint needs an <axis> (its spin axis, 0 0 1 or 0 0 -1)"};
+      }
+      const Eigen::Vector3d axis =
+          in_base.rotation() * Eigen::Vector3d(joint->axis.x, joint->axis.y, joint->axis.z).normalized();
+      if (std::abs(std::abs(axis.z()) - 1) > 1e-6) {
+        return Error{at("joint", joint->name) + ": a rotor's axis must be along the body's z (0 0 1 or 0 0 -1)"};
+      }
+      spec.rotors.push_back({joint->name, joint->child_link_name, in_base.translation(), axis.z() > 0 ? 1 : -1});
+    }
+  }
+  if (spec.rotors.empty()) {
+    return Error{at("link", root->name) + ": no rotor joints (continuous joints on the base link)"};
+  }
+  if (parts.empty()) return Error{at("link", root->name) + ": the robot has no mass (give its links <inertial> masses)"};
+  const InertialPart all = combine(parts);
+  spec.mass = all.m;
+  spec.com = all.c;
+  spec.inertia = all.inertia;
+  return spec;
+}
+
+Result<MultirotorSpec> load_multirotor(const std::string& urdf_path) {
+  std::ifstream f(urdf_path);
+  if (!f) return Error{urdf_path + ": cannot open the URDF file"};
+  std::stringstream text;
+  text << f.rdbuf();
+  return read_multirotor(text.str(), urdf_path);
+}
 
 struct Robot::Impl {
   struct Group {
@@ -147,31 +288,10 @@ Result<std::unique_ptr<Robot>> Robot::load(const std::string& urdf_path, btDiscr
 Result<std::unique_ptr<Robot>> Robot::create(const std::string& xml, const std::string& origin,
                                              btDiscreteDynamicsWorld& world, const Eigen::Vector3d& start,
                                              const DriveOptions& drive) {
-  TiXmlDocument doc;
-  doc.Parse(xml.c_str());
-  if (doc.Error()) {
-    return Error{origin + ":" + std::to_string(std::max(doc.ErrorRow(), 1)) + ": malformed XML: " + doc.ErrorDesc()};
-  }
-  auto at = [&](const char* tag, const std::string& name) {
-    const int line = line_of(doc, tag, name);
-    return origin + (line > 0 ? ":" + std::to_string(line) : std::string()) + ": " + tag + " '" + name + "'";
-  };
-
-  urdf::ModelInterfaceSharedPtr model;
-  {
-    // console_bridge's output handler is process-wide.
-    static std::mutex mutex;
-    std::lock_guard lock(mutex);
-    CaptureErrors capture;
-    console_bridge::useOutputHandler(&capture);
-    model = urdf::parseURDF(xml);
-    console_bridge::restorePreviousOutputHandler();
-    if (!model) {
-      std::string why = capture.first_.empty() ? "not a valid URDF robot" : capture.first_;
-      while (!why.empty() && (why.back() == '\n' || why.back() == ' ')) why.pop_back();
-      return Error{origin + ": " + why};
-    }
-  }
+  auto u = open_urdf(xml, origin);
+  if (!u) return u.error();
+  auto at = [&](const char* tag, const std::string& name) { return u->at(tag, name); };
+  const urdf::ModelInterfaceSharedPtr model = u->model;
 
   auto impl = std::make_unique<Impl>();
   impl->world = &world;
@@ -229,13 +349,7 @@ Result<std::unique_ptr<Robot>> Robot::create(const std::string& xml, const std::
   for (std::size_t gi = 0; gi < impl->groups.size(); ++gi) {
     Impl::Group& g = impl->groups[gi];
     double mass = 0;
-    Eigen::Vector3d com = Eigen::Vector3d::Zero();
-    struct Part {
-      double m;
-      Eigen::Vector3d c;
-      Eigen::Matrix3d inertia;  // about c, in the group root frame
-    };
-    std::vector<Part> parts;
+    std::vector<InertialPart> parts;  // in the group root frame
     struct ShapeAt {
       std::unique_ptr<btCollisionShape> shape;
       Eigen::Isometry3d pose;  // in the group root frame
@@ -245,13 +359,8 @@ Result<std::unique_ptr<Robot>> Robot::create(const std::string& xml, const std::
       if (info.group != static_cast<int>(gi)) continue;
       const urdf::LinkConstSharedPtr link = model->getLink(link_name);
       if (link->inertial && link->inertial->mass > 0) {
-        const urdf::Inertial& in = *link->inertial;
-        const Eigen::Isometry3d frame = info.in_group * to_eigen(in.origin);
-        Eigen::Matrix3d local;
-        local << in.ixx, in.ixy, in.ixz, in.ixy, in.iyy, in.iyz, in.ixz, in.iyz, in.izz;
-        parts.push_back({in.mass, frame.translation(), frame.rotation() * local * frame.rotation().transpose()});
-        mass += in.mass;
-        com += in.mass * frame.translation();
+        parts.push_back(part_of(*link->inertial, info.in_group));
+        mass += link->inertial->mass;
       } else if (link->inertial && link->inertial->mass < 0) {
         return Error{at("link", link_name) + ": negative mass"};
       }
@@ -302,12 +411,9 @@ Result<std::unique_ptr<Robot>> Robot::create(const std::string& xml, const std::
     if (shapes.empty()) {
       return Error{at("link", g.root_link) + ": has no collision shape (it, or a link fixed to it, needs a <collision>)"};
     }
-    com /= mass;
-    Eigen::Matrix3d inertia = Eigen::Matrix3d::Zero();
-    for (const Part& p : parts) {
-      const Eigen::Vector3d d = p.c - com;
-      inertia += p.inertia + p.m * (d.squaredNorm() * Eigen::Matrix3d::Identity() - d * d.transpose());
-    }
+    const InertialPart all = combine(parts);
+    const Eigen::Vector3d& com = all.c;
+    const Eigen::Matrix3d& inertia = all.inertia;
     Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(inertia);
     Eigen::Matrix3d axes = eig.eigenvectors();
     if (axes.determinant() < 0) axes.col(2) = -axes.col(2);

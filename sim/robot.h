@@ -32,6 +32,28 @@ struct JointReading {
   double effort = 0;    ///< motor torque about the joint axis during the last step [N*m]
 };
 
+/// One rotor of a multirotor URDF: a continuous joint on the base link whose axis is the body's z.
+struct RotorSpec {
+  std::string joint, link;
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();  ///< joint origin in the base link's frame [m]
+  int direction = 1;  ///< +1: axis +z, spins counter-clockwise seen from above; -1: axis -z, clockwise
+};
+
+/// What a multirotor URDF says of the vehicle (the flight stack's VehicleModel comes from the same numbers).
+struct MultirotorSpec {
+  std::string name, base_link;
+  double mass = 0;                                      ///< every link together [kg]
+  Eigen::Vector3d com = Eigen::Vector3d::Zero();        ///< centre of mass in the base link's frame [m]
+  Eigen::Matrix3d inertia = Eigen::Matrix3d::Zero();    ///< about the centre of mass, base link axes [kg*m^2]
+  std::vector<RotorSpec> rotors;                        ///< in the order urdfdom lists the base's joints
+};
+
+/// Reads a multirotor from URDF text (`origin` names it in errors). Rotors are the continuous joints on the base
+/// link. Errors, one line naming the file, line and element: malformed XML or URDF, no rotor joints, a link with
+/// zero or negative mass (or none in total), a rotor joint without an <axis>, a rotor axis not along the body z.
+Result<MultirotorSpec> read_multirotor(const std::string& urdf_xml, const std::string& origin);
+Result<MultirotorSpec> load_multirotor(const std::string& urdf_path);
+
 class Robot {
  public:
   /// Parses `urdf_xml` (`origin` names it in errors) and adds the robot to `world`, its base link at
