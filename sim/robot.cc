@@ -360,7 +360,17 @@ Result<std::unique_ptr<Robot>> Robot::create(const std::string& xml, const std::
                                                   to_bt(Eigen::Vector3d(joint_in_pa.rotation() * j.axis)),
                                                   to_bt(Eigen::Vector3d(joint_in_ch.rotation() * j.axis)));
     if (uj.type == urdf::Joint::REVOLUTE && uj.limits) {
-      j.hinge->setLimit(static_cast<btScalar>(uj.limits->lower), static_cast<btScalar>(uj.limits->upper));
+      // Bullet measures a hinge's angle from the bodies' poses when it was made (here: the URDF's zero), and in
+      // its own sense about the axis: find both from the angle now and with the child turned a little by the URDF
+      // axis, and give Bullet the URDF's range in its terms (Bullet's limit takes a span of up to 2 pi).
+      const btTransform ta = pa.body->getCenterOfMassTransform(), tb = ch.body->getCenterOfMassTransform();
+      const Eigen::Vector3d axis_world = to_eigen(ta).rotation() * joint_in_pa.rotation() * j.axis;
+      btTransform turned = tb;
+      turned.setBasis(btMatrix3x3(btQuaternion(to_bt(axis_world), btScalar(0.01))) * tb.getBasis());
+      const double zero = j.hinge->getHingeAngle(ta, tb);
+      const double sense = j.hinge->getHingeAngle(ta, turned) - zero > 0 ? 1.0 : -1.0;
+      const double a = zero + sense * uj.limits->lower, b = zero + sense * uj.limits->upper;
+      j.hinge->setLimit(static_cast<btScalar>(std::min(a, b)), static_cast<btScalar>(std::max(a, b)));
     }
     impl->joints.push_back(std::move(j));
   }
@@ -487,6 +497,54 @@ std::vector<JointReading> Robot::joints() const {
     out.push_back({j.name, j.angle, j.velocity, effort});
   }
   return out;
+}
+
+int Robot::joint_index(const std::string& name) const {
+  for (std::size_t i = 0; i < impl_->joints.size(); ++i) {
+    if (impl_->joints[i].name == name) return static_cast<int>(i);
+  }
+  return -1;
+}
+
+Status Robot::set_initial_positions(const std::map<std::string, double>& positions) {
+  std::vector<double> q(impl_->joints.size(), 0.0);
+  for (const auto& [name, value] : positions) {
+    const int i = joint_index(name);
+    if (i < 0) return Error{"robot '" + impl_->name + "' has no continuous or revolute joint '" + name + "'"};
+    q[static_cast<std::size_t>(i)] = value;
+  }
+  // Groups are created parent first, one per moving joint (group k + 1 below joint k).
+  std::vector<Eigen::Isometry3d> root(impl_->groups.size());
+  root[0] = impl_->groups[0].root_pose();
+  for (std::size_t k = 0; k < impl_->joints.size(); ++k) {
+    Impl::Joint& j = impl_->joints[k];
+    root[static_cast<std::size_t>(j.child_group)] = root[static_cast<std::size_t>(j.parent_group)] *
+                                                    j.origin_in_parent_root * Eigen::AngleAxisd(q[k], j.axis);
+    Impl::Group& g = impl_->groups[static_cast<std::size_t>(j.child_group)];
+    g.body->setWorldTransform(to_bt(root[static_cast<std::size_t>(j.child_group)] * g.com_in_root));
+    g.body->setLinearVelocity(btVector3(0, 0, 0));
+    g.body->setAngularVelocity(btVector3(0, 0, 0));
+    g.motion->setWorldTransform(g.body->getWorldTransform());
+    impl_->world->updateSingleAabb(g.body.get());
+    j.raw = wrap_angle(q[k]);
+    j.angle = q[k];
+    j.velocity = 0;
+  }
+  return {};
+}
+
+void Robot::set_joint_rate(int index, double rate, double max_torque, double dt) {
+  // Bullet's hinge motor target is the rate of the parent relative to the child (see set_wheel_rates).
+  impl_->joints[static_cast<std::size_t>(index)].hinge->enableAngularMotor(
+      true, static_cast<btScalar>(-rate), static_cast<btScalar>(max_torque * dt));
+}
+
+void Robot::ignore_self_collisions() {
+  for (auto& a : impl_->groups) {
+    for (auto& b : impl_->groups) {
+      if (&a != &b) a.body->setIgnoreCollisionCheck(b.body.get(), true);
+    }
+  }
 }
 
 void Robot::after_step(double dt) {
