@@ -249,12 +249,20 @@ Alignment align(const Matched& m, AlignmentType type) {
   const Eigen::Vector3d mu_src = src.rowwise().mean(), mu_dst = dst.rowwise().mean();
   if (type == AlignmentType::kPosYaw) {
     // Rotation about z only: the yaw that best maps the centred est xy onto the centred ref xy.
-    double sin_sum = 0, cos_sum = 0, spread = 0;
+    double sin_sum = 0, cos_sum = 0, src_spread = 0, dst_spread = 0;
     for (size_t i = 0; i < n; ++i) {
       const Eigen::Vector3d s = src.col(static_cast<long>(i)) - mu_src, d = dst.col(static_cast<long>(i)) - mu_dst;
       cos_sum += s.x() * d.x() + s.y() * d.y();
       sin_sum += s.x() * d.y() - s.y() * d.x();
-      spread += s.head<2>().squaredNorm() + d.head<2>().squaredNorm();
+      src_spread += s.head<2>().squaredNorm();
+      dst_spread += d.head<2>().squaredNorm();
+    }
+    const double spread = src_spread + dst_spread;
+    if (spread > 0 && (src_spread == 0 || dst_spread == 0)) {
+      // One side stands still (an estimator that froze): every yaw puts its positions at the same place, so the
+      // position error does not depend on the yaw; the means are matched and the yaw left at 0.
+      a.translation = mu_dst - mu_src;
+      return a;
     }
     if (!(std::hypot(sin_sum, cos_sum) > 1e-12 * spread) || !(spread > 0)) {
       a.problem = "the matched positions do not move in x and y, so no yaw aligns them";

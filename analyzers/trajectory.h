@@ -88,7 +88,8 @@ struct Alignment {
 
 /// Least-squares alignment of est's positions onto ref's (Umeyama; posyaw: translation and yaw about z only).
 /// Needs at least 3 matched poses (2 for posyaw) spanning more than a line (for posyaw, not all on one vertical);
-/// otherwise the identity with `problem` set.
+/// otherwise the identity with `problem` set. posyaw with one side standing still in x and y (a frozen estimate)
+/// matches the means with yaw 0: the position error is the same for every yaw.
 Alignment align(const Matched& m, AlignmentType type);
 /// est with the alignment applied: positions scaled, rotated and moved; orientations rotated.
 Trajectory apply(const Alignment& a, Trajectory t);

@@ -188,6 +188,9 @@ Status check_parameter(const std::string& file, const YAML::Node& node, const Pa
         std::string m = f.error().message;
         if (const size_t colon = m.find(": "); colon != std::string::npos) m = m.substr(colon + 2);
         if (const size_t colon = m.find(": "); colon != std::string::npos && m.rfind("x:", 0) == 0) m = m.substr(colon + 2);
+        // The parser names keys by their place in the YAML above ('streams.IMU.latency_s'); the spec names the field.
+        const std::string place = "'streams." + channel + ".";
+        if (const size_t at = m.find(place); at != std::string::npos) m.replace(at, place.size(), "'");
         return Error{here + ": " + m};
       }
     }

@@ -6,16 +6,16 @@
 #include <string_view>
 
 #include "core/mapped_file.h"
-#include "formats/internal/decompress.h"
+#include "formats/compression.h"
 
-using driftlab::formats::internal::Codec;
+using driftlab::formats::Codec;
 
 int main(int argc, char** argv) {
   if (argc != 2) return 2;
   auto file = driftlab::MappedFile::open(argv[1]);
   if (!file) return 1;
   const auto b = file->bytes();
-  driftlab::formats::internal::Decompressor d;
+  driftlab::formats::Decompressor d;
   std::vector<uint8_t> out;
   uint64_t in_bytes = 0, out_bytes = 0, chunks = 0;
   auto run = [&](std::string_view compression, std::span<const uint8_t> data, size_t size) {

@@ -20,12 +20,12 @@
 #include <optional>
 
 #include "core/mapped_file.h"
-#include "lcmtypes/encode.h"
 #include "driftlab/laser_scan_t.hpp"
 #include "driftlab/odometry_t.hpp"
 #include "driftlab/pose_t.hpp"
 #include "driftlab/tf_t.hpp"
-#include "formats/internal/decompress.h"
+#include "formats/compression.h"
+#include "lcmtypes/encode.h"
 
 namespace driftlab::formats {
 namespace {
@@ -129,7 +129,7 @@ Result<CarmenReader> CarmenReader::open(const std::string& path) {
   CarmenReader r;
   if (bytes.size() >= 2 && bytes[0] == 0x1f && bytes[1] == 0x8b) {
     std::vector<uint8_t> out;
-    const std::string error = internal::decompress(internal::Codec::kGzip, bytes, bytes.size() * 4, out);
+    const std::string error = decompress(Codec::kGzip, bytes, bytes.size() * 4, out);
     if (!error.empty()) return Error(path + ": " + error + " after " + std::to_string(out.size()) + " bytes");
     r.text_.assign(out.begin(), out.end());
   } else {

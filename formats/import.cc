@@ -13,16 +13,16 @@
 #include <memory>
 
 #include "core/log_writer.h"
-#include "lcmtypes/encode.h"
 #include "driftlab/foreign_message_t.hpp"
 #include "driftlab/foreign_schema_t.hpp"
 #include "formats/carmen.h"
-#include "formats/internal/decompress.h"
+#include "formats/compression.h"
 #include "formats/mcap.h"
 #include "formats/ros1_bag.h"
 #include "formats/ros2_bag.h"
 #include "formats/ros_definition.h"
 #include "formats/ros_messages.h"
+#include "lcmtypes/encode.h"
 
 namespace driftlab::formats {
 namespace {
@@ -152,7 +152,7 @@ class Importer {
     std::span<const uint8_t> payload = m.payload;
     if (m.encoding == "cdr" && looks_like_zstd(payload)) {
       // rosbag2's message compression: each payload a zstd frame (a CDR payload starts with a zero byte).
-      if (std::string e = decompressor_.run(internal::Codec::kZstd, payload, 0, unpacked_); !e.empty()) {
+      if (std::string e = decompressor_.run(Codec::kZstd, payload, 0, unpacked_); !e.empty()) {
         ++topic(m.topic, m.type, "driftlab.foreign_message_t").malformed;
         problem(file + ": " + std::string(m.topic) + " " + m.where.text() + ": a compressed message: " + e);
         return;
@@ -246,7 +246,7 @@ class Importer {
   Status status_;
   std::string error_;
   int64_t bad_topics_ = 0;
-  internal::Decompressor decompressor_;
+  Decompressor decompressor_;
   std::vector<uint8_t> unpacked_;
 };
 
@@ -437,7 +437,7 @@ Detected detect_head(std::string_view h, bool inner) {
   if (!inner && looks_like_zstd({u, h.size()})) {
     // rosbag2's file compression: look at what the frame holds (its first block is enough).
     std::vector<uint8_t> head;
-    (void)internal::decompress(internal::Codec::kZstd, {u, h.size()}, 0, head);
+    (void)decompress(Codec::kZstd, {u, h.size()}, 0, head);
     const std::string text(head.begin(), head.begin() + static_cast<ptrdiff_t>(std::min<size_t>(head.size(), 4096)));
     Detected d = detect_head(text, true);
     if (d.format == Format::kMcap || d.format == Format::kRos2Sqlite || d.format == Format::kRos1Bag) {
@@ -449,7 +449,7 @@ Detected detect_head(std::string_view h, bool inner) {
   if (!inner && h.size() >= 2 && static_cast<unsigned char>(h[0]) == 0x1f && static_cast<unsigned char>(h[1]) == 0x8b) {
     // gzip: look at what it holds (a partial inflate of the first block is enough).
     std::vector<uint8_t> inflated;
-    (void)internal::decompress(internal::Codec::kGzip, {u, h.size()}, 0, inflated);
+    (void)decompress(Codec::kGzip, {u, h.size()}, 0, inflated);
     text.assign(inflated.begin(), inflated.begin() + static_cast<ptrdiff_t>(std::min<size_t>(inflated.size(), 4096)));
     if (text.empty()) return {Format::kUnknown, "", "gzip data that does not inflate"};
   }

@@ -14,7 +14,7 @@
 #include <cstdio>
 #include <cstring>
 
-#include "formats/internal/decompress.h"
+#include "formats/compression.h"
 
 namespace driftlab::formats {
 namespace {
@@ -111,7 +111,7 @@ std::string hex32(uint32_t v) {
 struct McapReader::Impl {
   std::map<uint16_t, std::unique_ptr<McapSchema>> schemas;
   std::map<uint16_t, std::unique_ptr<McapChannel>> channels;
-  internal::Decompressor decompressor;
+  Decompressor decompressor;
   std::vector<uint8_t> chunk;
 };
 
@@ -288,11 +288,11 @@ int64_t McapReader::read(const std::function<void(const McapMessage&)>& on_messa
         }
       }
     } else {
-      internal::Codec codec;
+      Codec codec;
       if (compression == "zstd") {
-        codec = internal::Codec::kZstd;
+        codec = Codec::kZstd;
       } else if (compression == "lz4") {
-        codec = internal::Codec::kLz4Frame;
+        codec = Codec::kLz4Frame;
       } else {
         on_problem({where, "a chunk compressed with \"" + std::string(compression) + "\", which is not known " +
                                "(MCAP's are zstd and lz4); its messages are left out"});
@@ -588,7 +588,7 @@ struct McapWriter::Impl {
   Buf out;             // bytes not yet written to the file
   uint64_t flushed = 0;
   uint32_t crc = 0;    // of every byte of the file so far (the data section, until Data End)
-  std::unique_ptr<internal::Compressor> compressor;
+  std::unique_ptr<Compressor> compressor;
   std::vector<uint8_t> compressed;
 
   std::vector<SchemaEntry> schemas;
@@ -702,9 +702,9 @@ Result<McapWriter> McapWriter::create(const std::string& path, McapWriteOptions 
   s.fd = ::open(s.file_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
   if (s.fd < 0) return Error(path + ": cannot create: " + std::strerror(errno));
   if (options.compression == McapCompression::kZstd) {
-    s.compressor = std::make_unique<internal::Compressor>(internal::Codec::kZstd, options.level);
+    s.compressor = std::make_unique<Compressor>(Codec::kZstd, options.level);
   } else if (options.compression == McapCompression::kLz4) {
-    s.compressor = std::make_unique<internal::Compressor>(internal::Codec::kLz4Frame, options.level);
+    s.compressor = std::make_unique<Compressor>(Codec::kLz4Frame, options.level);
   }
   s.out.bytes(kMagic);
   const size_t at = s.out.begin_record(kHeader);

@@ -10,7 +10,7 @@
 #include <string_view>
 #include <vector>
 
-#include "formats/internal/decompress.h"
+#include "formats/compression.h"
 
 namespace driftlab::formats {
 namespace {
@@ -218,19 +218,19 @@ int64_t Ros1BagReader::read(const std::function<void(const BagMessage&)>& on_mes
     } else if (rec->op == kOpChunk) {
       const auto compression = rec->field("compression").value_or("");
       const auto size = rec->u32("size").value_or(0);
-      internal::Codec codec;
+      Codec codec;
       if (compression == "none") {
-        codec = internal::Codec::kNone;
+        codec = Codec::kNone;
       } else if (compression == "bz2") {
-        codec = internal::Codec::kBz2;
+        codec = Codec::kBz2;
       } else if (compression == "lz4") {
-        codec = internal::Codec::kLz4Frame;
+        codec = Codec::kLz4Frame;
       } else {
         on_problem({pos, "a chunk compressed with \"" + std::string(compression) + "\", which is not known"});
         pos = rec->end;
         continue;
       }
-      std::string error = internal::decompress(codec, rec->data, size, chunk);
+      std::string error = decompress(codec, rec->data, size, chunk);
       if (!error.empty() && !truncated) on_problem({pos, "chunk: " + error});
       // Records inside the chunk: every whole one is read, up to the first that does not parse.
       size_t in = 0;

@@ -11,7 +11,7 @@
 #include <filesystem>
 #include <sstream>
 
-#include "formats/internal/decompress.h"
+#include "formats/compression.h"
 
 namespace driftlab::formats {
 
@@ -378,7 +378,7 @@ std::string ros2_metadata_yaml(const std::string& storage_identifier, const std:
 }
 
 Status decompress_zstd_file(const std::string& in, const std::string& out) {
-  return internal::decompress_file(internal::Codec::kZstd, in, out);
+  return decompress_file(Codec::kZstd, in, out);
 }
 
 }  // namespace driftlab::formats

@@ -346,6 +346,17 @@ TEST(Align, RefusesPositionsOnOneLineOrPoint) {
   Trajectory still;
   for (int i = 0; i < 5; ++i) still.push_back(i, Eigen::Vector3d(1, 2, 3), Eigen::Quaterniond::Identity());
   EXPECT_FALSE(align({still, still}, AlignmentType::kPosYaw).problem.empty());
+  // A still estimate against a moving reference: posyaw's position error is the same for every yaw, so the means
+  // are matched (yaw 0) rather than refused.
+  const Trajectory moving = curve(10);
+  Trajectory frozen;
+  for (size_t i = 0; i < moving.size(); ++i) frozen.push_back(moving.stamps[i], Eigen::Vector3d(1, 2, 3), Eigen::Quaterniond::Identity());
+  const Alignment a = align({moving, frozen}, AlignmentType::kPosYaw);
+  EXPECT_TRUE(a.problem.empty()) << a.problem;
+  EXPECT_TRUE(a.rotation.isIdentity());
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (const auto& p : moving.positions) mean += p / static_cast<double>(moving.size());
+  EXPECT_TRUE((a.translation - (mean - Eigen::Vector3d(1, 2, 3))).norm() < 1e-9);
   EXPECT_FALSE(align({curve(2), curve(2)}, AlignmentType::kSe3).problem.empty());
   EXPECT_TRUE(align({curve(10), curve(10)}, AlignmentType::kSim3).problem.empty());
 }

@@ -12,11 +12,11 @@
 
 #include "driftlab/foreign_message_t.hpp"
 #include "driftlab/laser_scan_t.hpp"
-#include "formats/internal/decompress.h"
+#include "driftlab/velocity_command_t.hpp"
+#include "formats/compression.h"
 #include "formats/mcap.h"
 #include "formats/ros2_bag.h"
 #include "formats/ros_messages.h"
-#include "driftlab/velocity_command_t.hpp"
 #include "lcmtypes/validate.h"
 #include "tests/test_util.h"
 
@@ -299,7 +299,7 @@ TEST(Ros2Import, FileAndMessageCompression) {
   const std::string db3 = test::shared_data("bags/tf_example.db3");
   if (mcap.empty() || db3.empty()) return;
   test::TempDir dir;
-  formats::internal::Compressor zstd(formats::internal::Codec::kZstd, 3);
+  formats::Compressor zstd(formats::Codec::kZstd, 3);
   std::vector<uint8_t> packed;
   ASSERT_EQ(zstd.run(test::read_file(mcap), packed), "");
   test::write_file(dir.file("nav2.mcap.zstd"), packed);

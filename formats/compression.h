@@ -10,7 +10,7 @@
 
 #include "core/result.h"
 
-namespace driftlab::formats::internal {
+namespace driftlab::formats {
 
 enum class Codec { kNone, kBz2, kLz4Frame, kGzip, kZstd };
 
@@ -54,4 +54,4 @@ class Compressor {
   void* zstd_ = nullptr;  // ZSTD_CCtx
 };
 
-}  // namespace driftlab::formats::internal
+}  // namespace driftlab::formats

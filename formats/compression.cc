@@ -1,4 +1,4 @@
-#include "formats/internal/decompress.h"
+#include "formats/compression.h"
 
 #include <bzlib.h>
 #include <lz4frame.h>
@@ -12,7 +12,7 @@
 #include <cstring>
 #include <memory>
 
-namespace driftlab::formats::internal {
+namespace driftlab::formats {
 namespace {
 
 constexpr size_t kStep = 1 << 20;
@@ -177,8 +177,8 @@ std::string Compressor::run(std::span<const uint8_t> in, std::vector<uint8_t>& o
   out.clear();
   if (codec_ == Codec::kZstd) {
     out.resize(ZSTD_compressBound(in.size()));
-    const size_t n = ZSTD_compressCCtx(static_cast<ZSTD_CCtx*>(zstd_), out.data(), out.size(), in.data(), in.size(),
-                                       level_);
+    const size_t n =
+        ZSTD_compressCCtx(static_cast<ZSTD_CCtx*>(zstd_), out.data(), out.size(), in.data(), in.size(), level_);
     if (ZSTD_isError(n)) return std::string("zstd: ") + ZSTD_getErrorName(n);
     out.resize(n);
     return {};
@@ -226,7 +226,8 @@ Status decompress_file(Codec codec, const std::string& in, const std::string& ou
     read_total += got;
     if (!error.empty()) break;
   }
-  if (error.empty() && last_rc != 0) error = "the compressed file ends early (at byte " + std::to_string(read_total) + ")";
+  if (error.empty() && last_rc != 0)
+    error = "the compressed file ends early (at byte " + std::to_string(read_total) + ")";
   const bool closed = std::fclose(dst.release()) == 0;
   if (error.empty() && !closed) error = "cannot write " + partial;
   // What was decoded before damage is kept: the reader of the decompressed file reports the cut itself.
@@ -242,9 +243,7 @@ std::string decompress(Codec codec, std::span<const uint8_t> in, size_t expected
   out.clear();
   out.reserve(expected_size);
   switch (codec) {
-    case Codec::kNone:
-      out.assign(in.begin(), in.end());
-      return {};
+    case Codec::kNone: out.assign(in.begin(), in.end()); return {};
     case Codec::kBz2: return bz2(in, out);
     case Codec::kLz4Frame: return lz4(in, out);
     case Codec::kGzip: return gzip(in, out);
@@ -256,4 +255,4 @@ std::string decompress(Codec codec, std::span<const uint8_t> in, size_t expected
   return "unknown codec";
 }
 
-}  // namespace driftlab::formats::internal
+}  // namespace driftlab::formats
