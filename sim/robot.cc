@@ -12,6 +12,7 @@
 #include <mutex>
 #include <sstream>
 
+#include "kinematics/robot_model.h"
 #include "lcmtypes/planar.h"
 
 namespace driftlab::sim {
@@ -152,6 +153,9 @@ Result<std::unique_ptr<Robot>> Robot::create(const std::string& xml, const std::
   if (doc.Error()) {
     return Error{origin + ":" + std::to_string(std::max(doc.ErrorRow(), 1)) + ": malformed XML: " + doc.ErrorDesc()};
   }
+  // The tree's structure (a joint's missing link, two parents, a loop, bad limits) as kinematics reads it: one line
+  // naming the file, line and element, where urdfdom would name neither or miss a loop.
+  if (auto checked = kinematics::RobotModel::parse(xml, origin); !checked) return checked.error();
   auto at = [&](const char* tag, const std::string& name) {
     const int line = line_of(doc, tag, name);
     return origin + (line > 0 ? ":" + std::to_string(line) : std::string()) + ": " + tag + " '" + name + "'";
