@@ -137,6 +137,7 @@ Result<RobotModel> RobotModel::parse(const std::string& xml, const std::string& 
   m.origin_ = origin;
   m.xml_ = xml;
   m.links_ = std::move(links);
+  m.urdf_ = model;
   if (!model->getRoot()) return Error{origin + ": the URDF has no root link"};
   m.root_ = model->getRoot()->name;
   for (const XmlJoint& x : structure) {

@@ -7,11 +7,16 @@
 #pragma once
 
 #include <Eigen/Geometry>
+#include <memory>
 #include <string>
 #include <string_view>
 #include <vector>
 
 #include "core/result.h"
+
+namespace urdf {
+class ModelInterface;
+}
 
 namespace driftlab::kinematics {
 
@@ -47,6 +52,8 @@ class RobotModel {
   const std::string& origin() const { return origin_; }
   const std::string& root() const { return root_; }
   const std::string& xml() const { return xml_; }
+  /// urdfdom's model of the same file (links with their inertias and shapes, for the simulator).
+  const std::shared_ptr<const urdf::ModelInterface>& urdf() const { return urdf_; }
   /// Every joint, in the order of the file.
   const std::vector<ModelJoint>& joints() const { return joints_; }
   const ModelJoint* joint(std::string_view name) const;
@@ -73,6 +80,7 @@ class RobotModel {
   std::string name_, origin_, root_, xml_;
   std::vector<ModelJoint> joints_;
   std::vector<std::string> links_;
+  std::shared_ptr<const urdf::ModelInterface> urdf_;
 };
 
 }  // namespace driftlab::kinematics

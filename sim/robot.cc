@@ -1,7 +1,6 @@
 #include "sim/robot.h"
 
 #include <btBulletDynamicsCommon.h>
-#include <console_bridge/console.h>
 #include <tinyxml.h>
 #include <urdf_parser/urdf_parser.h>
 
@@ -9,7 +8,6 @@
 #include <cmath>
 #include <fstream>
 #include <map>
-#include <mutex>
 #include <sstream>
 
 #include "kinematics/robot_model.h"
@@ -47,15 +45,6 @@ Eigen::Vector3d to_eigen(const btVector3& v) { return {v.x(), v.y(), v.z()}; }
 btVector3 to_bt(const Eigen::Vector3d& v) {
   return btVector3(static_cast<btScalar>(v.x()), static_cast<btScalar>(v.y()), static_cast<btScalar>(v.z()));
 }
-
-/// urdfdom reports parse errors through console_bridge; this keeps the first error of a parse for our message.
-class CaptureErrors : public console_bridge::OutputHandler {
- public:
-  void log(const std::string& text, console_bridge::LogLevel level, const char*, int) override {
-    if (level >= console_bridge::CONSOLE_BRIDGE_LOG_ERROR && first_.empty()) first_ = text;
-  }
-  std::string first_;
-};
 
 /// Line of the first <tag name="name"> element in the document, for messages; 0 when not found.
 int line_of(const TiXmlDocument& doc, const char* tag, const std::string& name) {
@@ -153,29 +142,15 @@ Result<std::unique_ptr<Robot>> Robot::create(const std::string& xml, const std::
   if (doc.Error()) {
     return Error{origin + ":" + std::to_string(std::max(doc.ErrorRow(), 1)) + ": malformed XML: " + doc.ErrorDesc()};
   }
-  // The tree's structure (a joint's missing link, two parents, a loop, bad limits) as kinematics reads it: one line
-  // naming the file, line and element, where urdfdom would name neither or miss a loop.
-  if (auto checked = kinematics::RobotModel::parse(xml, origin); !checked) return checked.error();
+  // urdfdom's model, after the checks of the tree's structure (a joint's missing link, two parents, a loop, bad
+  // limits) urdfdom would report without the line or miss: one line naming the file, line and element.
+  auto checked = kinematics::RobotModel::parse(xml, origin);
+  if (!checked) return checked.error();
+  const std::shared_ptr<const urdf::ModelInterface> model = checked->urdf();
   auto at = [&](const char* tag, const std::string& name) {
     const int line = line_of(doc, tag, name);
     return origin + (line > 0 ? ":" + std::to_string(line) : std::string()) + ": " + tag + " '" + name + "'";
   };
-
-  urdf::ModelInterfaceSharedPtr model;
-  {
-    // console_bridge's output handler is process-wide.
-    static std::mutex mutex;
-    std::lock_guard lock(mutex);
-    CaptureErrors capture;
-    console_bridge::useOutputHandler(&capture);
-    model = urdf::parseURDF(xml);
-    console_bridge::restorePreviousOutputHandler();
-    if (!model) {
-      std::string why = capture.first_.empty() ? "not a valid URDF robot" : capture.first_;
-      while (!why.empty() && (why.back() == '\n' || why.back() == ' ')) why.pop_back();
-      return Error{origin + ": " + why};
-    }
-  }
 
   auto impl = std::make_unique<Impl>();
   impl->world = &world;
