@@ -1,7 +1,6 @@
 #include "sim/robot.h"
 
 #include <btBulletDynamicsCommon.h>
-#include <console_bridge/console.h>
 #include <tinyxml.h>
 #include <urdf_parser/urdf_parser.h>
 
@@ -9,9 +8,9 @@
 #include <cmath>
 #include <fstream>
 #include <map>
-#include <mutex>
 #include <sstream>
 
+#include "kinematics/robot_model.h"
 #include "lcmtypes/planar.h"
 
 namespace driftlab::sim {
@@ -47,15 +46,6 @@ btVector3 to_bt(const Eigen::Vector3d& v) {
   return btVector3(static_cast<btScalar>(v.x()), static_cast<btScalar>(v.y()), static_cast<btScalar>(v.z()));
 }
 
-/// urdfdom reports parse errors through console_bridge; this keeps the first error of a parse for our message.
-class CaptureErrors : public console_bridge::OutputHandler {
- public:
-  void log(const std::string& text, console_bridge::LogLevel level, const char*, int) override {
-    if (level >= console_bridge::CONSOLE_BRIDGE_LOG_ERROR && first_.empty()) first_ = text;
-  }
-  std::string first_;
-};
-
 /// Line of the first <tag name="name"> element in the document, for messages; 0 when not found.
 int line_of(const TiXmlDocument& doc, const char* tag, const std::string& name) {
   const TiXmlElement* robot = doc.RootElement();
@@ -65,23 +55,6 @@ int line_of(const TiXmlDocument& doc, const char* tag, const std::string& name) 
     if (n != nullptr && name == n) return e->Row();
   }
   return 0;
-}
-
-/// Parses URDF text with urdfdom, its console output captured into the error.
-Result<urdf::ModelInterfaceSharedPtr> parse_urdf(const std::string& xml, const std::string& origin) {
-  // console_bridge's output handler is process-wide.
-  static std::mutex mutex;
-  std::lock_guard lock(mutex);
-  CaptureErrors capture;
-  console_bridge::useOutputHandler(&capture);
-  urdf::ModelInterfaceSharedPtr model = urdf::parseURDF(xml);
-  console_bridge::restorePreviousOutputHandler();
-  if (!model) {
-    std::string why = capture.first_.empty() ? "not a valid URDF robot" : capture.first_;
-    while (!why.empty() && (why.back() == '\n' || why.back() == ' ')) why.pop_back();
-    return Error{origin + ": " + why};
-  }
-  return model;
 }
 
 /// A link's mass, centre and inertia (about its centre) in some frame.
@@ -118,7 +91,7 @@ InertialPart combine(const std::vector<InertialPart>& parts) {
 struct UrdfDocument {
   std::string origin;
   std::unique_ptr<TiXmlDocument> doc;
-  urdf::ModelInterfaceSharedPtr model;
+  std::shared_ptr<const urdf::ModelInterface> model;
   /// "file:line: tag 'name'" for messages.
   std::string at(const char* tag, const std::string& name) const {
     const int line = line_of(*doc, tag, name);
@@ -133,9 +106,11 @@ Result<UrdfDocument> open_urdf(const std::string& xml, const std::string& origin
     return Error{origin + ":" + std::to_string(std::max(u.doc->ErrorRow(), 1)) + ": malformed XML: " +
                  u.doc->ErrorDesc()};
   }
-  auto model = parse_urdf(xml, origin);
-  if (!model) return model.error();
-  u.model = *model;
+  // urdfdom's model, after the checks of the tree's structure (a joint's missing link, two parents, a loop, bad
+  // limits) urdfdom would report without the line or miss: one line naming the file, line and element.
+  auto checked = kinematics::RobotModel::parse(xml, origin);
+  if (!checked) return checked.error();
+  u.model = checked->urdf();
   return u;
 }
 
@@ -145,7 +120,7 @@ Result<MultirotorSpec> read_multirotor(const std::string& xml, const std::string
   auto u = open_urdf(xml, origin);
   if (!u) return u.error();
   const TiXmlDocument& doc = *u->doc;
-  const urdf::ModelInterfaceSharedPtr& model = u->model;
+  const auto& model = u->model;
   auto at = [&](const char* tag, const std::string& name) { return u->at(tag, name); };
   const urdf::LinkConstSharedPtr root = model->getRoot();
   if (!root) return Error{origin + ": the URDF has no root link"};
@@ -291,7 +266,7 @@ Result<std::unique_ptr<Robot>> Robot::create(const std::string& xml, const std::
   auto u = open_urdf(xml, origin);
   if (!u) return u.error();
   auto at = [&](const char* tag, const std::string& name) { return u->at(tag, name); };
-  const urdf::ModelInterfaceSharedPtr model = u->model;
+  const auto model = u->model;
 
   auto impl = std::make_unique<Impl>();
   impl->world = &world;
@@ -466,7 +441,17 @@ Result<std::unique_ptr<Robot>> Robot::create(const std::string& xml, const std::
                                                   to_bt(Eigen::Vector3d(joint_in_pa.rotation() * j.axis)),
                                                   to_bt(Eigen::Vector3d(joint_in_ch.rotation() * j.axis)));
     if (uj.type == urdf::Joint::REVOLUTE && uj.limits) {
-      j.hinge->setLimit(static_cast<btScalar>(uj.limits->lower), static_cast<btScalar>(uj.limits->upper));
+      // Bullet measures a hinge's angle from the bodies' poses when it was made (here: the URDF's zero), and in
+      // its own sense about the axis: find both from the angle now and with the child turned a little by the URDF
+      // axis, and give Bullet the URDF's range in its terms (Bullet's limit takes a span of up to 2 pi).
+      const btTransform ta = pa.body->getCenterOfMassTransform(), tb = ch.body->getCenterOfMassTransform();
+      const Eigen::Vector3d axis_world = to_eigen(ta).rotation() * joint_in_pa.rotation() * j.axis;
+      btTransform turned = tb;
+      turned.setBasis(btMatrix3x3(btQuaternion(to_bt(axis_world), btScalar(0.01))) * tb.getBasis());
+      const double zero = j.hinge->getHingeAngle(ta, tb);
+      const double sense = j.hinge->getHingeAngle(ta, turned) - zero > 0 ? 1.0 : -1.0;
+      const double a = zero + sense * uj.limits->lower, b = zero + sense * uj.limits->upper;
+      j.hinge->setLimit(static_cast<btScalar>(std::min(a, b)), static_cast<btScalar>(std::max(a, b)));
     }
     impl->joints.push_back(std::move(j));
   }
@@ -593,6 +578,54 @@ std::vector<JointReading> Robot::joints() const {
     out.push_back({j.name, j.angle, j.velocity, effort});
   }
   return out;
+}
+
+int Robot::joint_index(const std::string& name) const {
+  for (std::size_t i = 0; i < impl_->joints.size(); ++i) {
+    if (impl_->joints[i].name == name) return static_cast<int>(i);
+  }
+  return -1;
+}
+
+Status Robot::set_initial_positions(const std::map<std::string, double>& positions) {
+  std::vector<double> q(impl_->joints.size(), 0.0);
+  for (const auto& [name, value] : positions) {
+    const int i = joint_index(name);
+    if (i < 0) return Error{"robot '" + impl_->name + "' has no continuous or revolute joint '" + name + "'"};
+    q[static_cast<std::size_t>(i)] = value;
+  }
+  // Groups are created parent first, one per moving joint (group k + 1 below joint k).
+  std::vector<Eigen::Isometry3d> root(impl_->groups.size());
+  root[0] = impl_->groups[0].root_pose();
+  for (std::size_t k = 0; k < impl_->joints.size(); ++k) {
+    Impl::Joint& j = impl_->joints[k];
+    root[static_cast<std::size_t>(j.child_group)] = root[static_cast<std::size_t>(j.parent_group)] *
+                                                    j.origin_in_parent_root * Eigen::AngleAxisd(q[k], j.axis);
+    Impl::Group& g = impl_->groups[static_cast<std::size_t>(j.child_group)];
+    g.body->setWorldTransform(to_bt(root[static_cast<std::size_t>(j.child_group)] * g.com_in_root));
+    g.body->setLinearVelocity(btVector3(0, 0, 0));
+    g.body->setAngularVelocity(btVector3(0, 0, 0));
+    g.motion->setWorldTransform(g.body->getWorldTransform());
+    impl_->world->updateSingleAabb(g.body.get());
+    j.raw = wrap_angle(q[k]);
+    j.angle = q[k];
+    j.velocity = 0;
+  }
+  return {};
+}
+
+void Robot::set_joint_rate(int index, double rate, double max_torque, double dt) {
+  // Bullet's hinge motor target is the rate of the parent relative to the child (see set_wheel_rates).
+  impl_->joints[static_cast<std::size_t>(index)].hinge->enableAngularMotor(
+      true, static_cast<btScalar>(-rate), static_cast<btScalar>(max_torque * dt));
+}
+
+void Robot::ignore_self_collisions() {
+  for (auto& a : impl_->groups) {
+    for (auto& b : impl_->groups) {
+      if (&a != &b) a.body->setIgnoreCollisionCheck(b.body.get(), true);
+    }
+  }
 }
 
 void Robot::after_step(double dt) {

@@ -6,6 +6,7 @@
 #pragma once
 
 #include <Eigen/Geometry>
+#include <map>
 #include <memory>
 #include <optional>
 #include <string>
@@ -94,6 +95,18 @@ class Robot {
 
   /// Every continuous and revolute joint (in URDF order).
   std::vector<JointReading> joints() const;
+
+  /// The index of a continuous or revolute joint in joints(), -1 when the robot has none of that name.
+  int joint_index(const std::string& name) const;
+  /// Places the links below the named joints at these positions [rad] (unnamed joints at zero), as the robot is
+  /// switched on: call once, after create() and before the first step. Errors name an unknown joint.
+  Status set_initial_positions(const std::map<std::string, double>& positions);
+  /// Drives a joint's motor towards `rate` [rad/s, the URDF axis' sense] with at most `max_torque` [N*m], for the
+  /// next physics step of dt [s] (as a velocity command interface: the motor holds the joint against gravity).
+  void set_joint_rate(int index, double rate, double max_torque, double dt);
+  /// The robot's bodies stop colliding with each other (an arm whose collision shapes only approximate its links
+  /// would otherwise hit itself where the real one does not); they still collide with the world.
+  void ignore_self_collisions();
 
   /// Call after each physics step of dt [s]: tracks joint angles through full turns.
   void after_step(double dt);
