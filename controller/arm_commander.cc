@@ -50,7 +50,8 @@ const config::Table<ArmCommanderOptions>& arm_commander_table() {
           .text("base_link", &O::base_link, "the frame of the waypoints", config::Text::kNonEmpty)
           .text("tip_link", &O::tip_link, "the link placed at the waypoints", config::Text::kNonEmpty)
           .custom<std::vector<double>>(
-              "home", &O::home, "list of numbers", "rad", "-10..10 each", "joint positions at the start, in chain order",
+              "home", &O::home, "list of numbers", "rad", "-10..10 each",
+              "joint positions at the start, in chain order",
               [](const config::Value& v, std::vector<double>& out) -> Status {
                 if (!v.node().IsSequence()) return v.error("must be a list of joint positions");
                 auto n = v.numbers(v.node().size(), config::between(-10, 10), "rad");
@@ -137,8 +138,8 @@ Eigen::Isometry3d ArmCommander::plan(double s) const {
 const Eigen::VectorXd& ArmCommander::joints_at(int64_t k) {
   if (auto it = solved_.find(k); it != solved_.end()) return it->second;
   // Seeded by the step before (solved first when missing), so the solution follows the arm's branch.
-  Eigen::VectorXd seed = k > 0 ? Eigen::VectorXd(joints_at(k - 1))
-                               : Eigen::Map<const Eigen::VectorXd>(o_.home.data(), chain_.dof());
+  Eigen::VectorXd seed =
+      k > 0 ? Eigen::VectorXd(joints_at(k - 1)) : Eigen::Map<const Eigen::VectorXd>(o_.home.data(), chain_.dof());
   Eigen::VectorXd q = seed;
   if (k > 0) {
     const kinematics::IkResult r = chain_.ik(plan(static_cast<double>(k) / o_.rate), seed);
@@ -149,7 +150,7 @@ const Eigen::VectorXd& ArmCommander::joints_at(int64_t k) {
     }
   }
   // Keep a window of steps behind the newest (commands look back one step).
-  while (!solved_.empty() && solved_.begin()->first < k - 4 * o_.horizon) solved_.erase(solved_.begin());
+  while (!solved_.empty() && solved_.begin()->first < k - 4 * int64_t{o_.horizon}) solved_.erase(solved_.begin());
   return solved_.emplace(k, std::move(q)).first->second;
 }
 

@@ -1,12 +1,11 @@
 // The arm's commander: the part a MATLAB or Python node plays in a real system. It plays a pick-and-place cycle
 // planned in Cartesian space (the tool centre point moved between waypoints by minimum-jerk profiles, the gripper
-// pointing down, turned about the vertical), solves it to joint positions by inverse kinematics (kinematics/arm_chain.h:
-// damped least squares within the joint limits, each solution seeded by the one before), and every period sends a
-// joint trajectory of the next `horizon` points of that plan, a period apart. It closes the loop as such nodes do:
-// each command adds `feedback_gain` times the error between the plan and the last measured joint positions, so the
-// arm catches up when it lags. With the commands late (a slow transport), that correction comes too late and
-// overshoots: the loop oscillates.
-// Thread-safety: one commander per thread.
+// pointing down, turned about the vertical), solves it to joint positions by inverse kinematics
+// (kinematics/arm_chain.h: damped least squares within the joint limits, each solution seeded by the one before), and
+// every period sends a joint trajectory of the next `horizon` points of that plan, a period apart. It closes the loop
+// as such nodes do: each command adds `feedback_gain` times the error between the plan and the last measured joint
+// positions, so the arm catches up when it lags. With the commands late (a slow transport), that correction comes too
+// late and overshoots: the loop oscillates. Thread-safety: one commander per thread.
 #pragma once
 
 #include <Eigen/Geometry>
@@ -28,19 +27,19 @@ namespace driftlab::controller {
 
 struct ArmWaypoint {
   Eigen::Vector3d position = Eigen::Vector3d::Zero();  ///< of the tool centre point in the arm's base frame [m]
-  double yaw = 0;    ///< about the vertical, the gripper pointing down [rad]
-  double move_s = 2;   ///< time to get there from the previous waypoint [s]
-  double dwell_s = 0.5;  ///< time held there [s]
+  double yaw = 0;                                      ///< about the vertical, the gripper pointing down [rad]
+  double move_s = 2;                                   ///< time to get there from the previous waypoint [s]
+  double dwell_s = 0.5;                                ///< time held there [s]
 };
 
 struct ArmCommanderOptions {
-  double rate = 20;           ///< commands per second [Hz]
-  int horizon = 10;           ///< points per command, a period apart
-  double feedback_gain = 0.6;  ///< share of the measured joint error added to each command
-  std::string base_link = "panda_link0";     ///< the frame of the waypoints
-  std::string tip_link = "panda_hand_tcp";   ///< what is placed at them
-  std::vector<double> home;                  ///< joint positions at the start [rad]; the arm's first pose
-  std::vector<ArmWaypoint> waypoints;        ///< the cycle, played again and again from home's pose
+  double rate = 20;                         ///< commands per second [Hz]
+  int horizon = 10;                         ///< points per command, a period apart
+  double feedback_gain = 0.6;               ///< share of the measured joint error added to each command
+  std::string base_link = "panda_link0";    ///< the frame of the waypoints
+  std::string tip_link = "panda_hand_tcp";  ///< what is placed at them
+  std::vector<double> home;                 ///< joint positions at the start [rad]; the arm's first pose
+  std::vector<ArmWaypoint> waypoints;       ///< the cycle, played again and again from home's pose
 };
 
 /// The commander's keys (core/config.h): the scenario's `arm.commander:`.

@@ -10,8 +10,8 @@ namespace driftlab::controller {
 namespace {
 
 /// Cubic Hermite interpolation between (q0, v0) at 0 and (q1, v1) at h, at s in [0, h] [s]: position and velocity.
-void hermite(const Eigen::VectorXd& q0, const Eigen::VectorXd& v0, const Eigen::VectorXd& q1,
-             const Eigen::VectorXd& v1, double h, double s, Eigen::VectorXd& q, Eigen::VectorXd& v) {
+void hermite(const Eigen::VectorXd& q0, const Eigen::VectorXd& v0, const Eigen::VectorXd& q1, const Eigen::VectorXd& v1,
+             double h, double s, Eigen::VectorXd& q, Eigen::VectorXd& v) {
   const double u = s / h, u2 = u * u, u3 = u2 * u;
   const double h00 = 2 * u3 - 3 * u2 + 1, h10 = u3 - 2 * u2 + u, h01 = -2 * u3 + 3 * u2, h11 = u3 - u2;
   const double d00 = (6 * u2 - 6 * u) / h, d10 = 3 * u2 - 4 * u + 1, d01 = (-6 * u2 + 6 * u) / h, d11 = 3 * u2 - 2 * u;
@@ -55,9 +55,9 @@ JointTrajectoryController::JointTrajectoryController(std::vector<std::string> jo
 }
 
 driftlab::joint_trajectory_result_t JointTrajectoryController::result(const Active& a, int64_t now,
-                                                                     const std::string& status,
-                                                                     const std::string& joint, double error,
-                                                                     const std::string& message) {
+                                                                      const std::string& status,
+                                                                      const std::string& joint, double error,
+                                                                      const std::string& message) {
   driftlab::joint_trajectory_result_t r{};
   r.header.seq = result_seq_++;
   r.header.utime = now;
@@ -165,8 +165,8 @@ void JointTrajectoryController::sample(int64_t now) {
 }
 
 std::optional<driftlab::joint_trajectory_result_t> JointTrajectoryController::update(int64_t now,
-                                                                                    const Eigen::VectorXd& position,
-                                                                                    Eigen::VectorXd& command) {
+                                                                                     const Eigen::VectorXd& position,
+                                                                                     Eigen::VectorXd& command) {
   std::optional<driftlab::joint_trajectory_result_t> out;
   const double dt = initialised_ ? static_cast<double>(now - last_update_) * 1e-6 : 0;
   if (!initialised_) {  // hold where the joints are
@@ -188,8 +188,8 @@ std::optional<driftlab::joint_trajectory_result_t> JointTrajectoryController::up
     const std::string& joint = joints_[static_cast<size_t>(worst)];
     char why[200];
     if (now <= end && o_.path_tolerance > 0 && worst_error > o_.path_tolerance) {
-      std::snprintf(why, sizeof(why), "aborted: joint %s is %.4f rad off its path (tolerance %.4f rad)",
-                    joint.c_str(), error[worst], o_.path_tolerance);
+      std::snprintf(why, sizeof(why), "aborted: joint %s is %.4f rad off its path (tolerance %.4f rad)", joint.c_str(),
+                    error[worst], o_.path_tolerance);
       out = result(*active_, now, "path_tolerance_violated", joint, error[worst], why);
       ++counts_.aborted;
       active_.reset();
@@ -200,8 +200,9 @@ std::optional<driftlab::joint_trajectory_result_t> JointTrajectoryController::up
       ++counts_.succeeded;
       active_.reset();
     } else if (now > end + static_cast<int64_t>(std::llround(o_.goal_time * 1e6))) {
-      std::snprintf(why, sizeof(why), "aborted: joint %s is %.4f rad from its goal %.3f s after the end (tolerance %.4f)",
-                    joint.c_str(), error[worst], o_.goal_time, o_.goal_tolerance);
+      std::snprintf(why, sizeof(why),
+                    "aborted: joint %s is %.4f rad from its goal %.3f s after the end (tolerance %.4f)", joint.c_str(),
+                    error[worst], o_.goal_time, o_.goal_tolerance);
       out = result(*active_, now, "goal_tolerance_violated", joint, error[worst], why);
       ++counts_.aborted;
       active_.reset();

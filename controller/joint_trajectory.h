@@ -54,12 +54,11 @@ class JointTrajectoryController {
                             JointTrajectoryOptions options);
 
   /// A trajectory arrives at now [us, the controller's clock]. Returns the result when it is rejected.
-  std::optional<driftlab::joint_trajectory_result_t> receive(const driftlab::joint_trajectory_t& trajectory,
-                                                            int64_t now);
+  std::optional<driftlab::joint_trajectory_result_t> receive(const driftlab::joint_trajectory_t& msg, int64_t now);
   /// One control update at now [us] with the measured positions [rad]: the velocity command of each joint [rad/s]
   /// in `command`. Returns a result when the trajectory ends in this update.
   std::optional<driftlab::joint_trajectory_result_t> update(int64_t now, const Eigen::VectorXd& position,
-                                                           Eigen::VectorXd& command);
+                                                            Eigen::VectorXd& command);
 
   const std::vector<std::string>& joints() const { return joints_; }
   const Eigen::VectorXd& desired_position() const { return desired_q_; }

@@ -40,7 +40,8 @@ class LocalFrame {
     const double c = std::acos(arg);
     const double k = std::abs(c) > 1e-12 ? c / std::sin(c) : 1.0;
     return {k * cos_lat * std::sin(lon - lon0_) * kEarthRadius_m,
-            k * (cos_lat0_ * sin_lat - sin_lat0_ * cos_lat * cos_dlon) * kEarthRadius_m, p.altitude_m - origin_.altitude_m};
+            k * (cos_lat0_ * sin_lat - sin_lat0_ * cos_lat * cos_dlon) * kEarthRadius_m,
+            p.altitude_m - origin_.altitude_m};
   }
 
   LatLonAlt to_global(const Enu& e) const {

@@ -20,11 +20,11 @@ template <class Filter, class M>
 class DelayedFilter {
  public:
   struct Counters {
-    int64_t applied = 0;     ///< measurements applied in stamp order
-    int64_t reapplied = 0;   ///< late measurements inserted into the past (the ones after them re-applied)
-    int64_t rejected = 0;    ///< measurements older than the window
-    int64_t replays = 0;     ///< measurements re-applied because of late ones
-    int64_t refused = 0;     ///< measurements the filter refused (its update: implausible or overflowing values)
+    int64_t applied = 0;    ///< measurements applied in stamp order
+    int64_t reapplied = 0;  ///< late measurements inserted into the past (the ones after them re-applied)
+    int64_t rejected = 0;   ///< measurements older than the window
+    int64_t replays = 0;    ///< measurements re-applied because of late ones
+    int64_t refused = 0;    ///< measurements the filter refused (its update: implausible or overflowing values)
   };
 
   DelayedFilter(Filter filter, double window_s)
@@ -84,7 +84,7 @@ class DelayedFilter {
   bool older_than_window(int64_t utime) const {
     // The difference in uint64_t: exact whatever the stamps, where int64_t arithmetic could overflow.
     const int64_t now = filter_.time();
-    return utime < now && static_cast<uint64_t>(now) - static_cast<uint64_t>(utime) > static_cast<uint64_t>(window_);
+    return utime<now&& static_cast<uint64_t>(now) - static_cast<uint64_t>(utime)> static_cast<uint64_t>(window_);
   }
   struct Entry {
     int64_t utime;

@@ -65,8 +65,8 @@ void DroneEkf::init(int64_t utime, const ImuSample& imu, const MagField& mag, co
   P_.setZero();
   P_.diagonal().segment<3>(kP) << eph * eph, eph * eph, epv * epv;
   P_.diagonal().segment<3>(kV).setConstant(noise_.initial_velocity * noise_.initial_velocity);
-  P_.diagonal().segment<3>(kTheta) << noise_.initial_tilt * noise_.initial_tilt, noise_.initial_tilt * noise_.initial_tilt,
-      noise_.initial_heading * noise_.initial_heading;
+  P_.diagonal().segment<3>(kTheta) << noise_.initial_tilt * noise_.initial_tilt,
+      noise_.initial_tilt * noise_.initial_tilt, noise_.initial_heading * noise_.initial_heading;
   P_.diagonal().segment<3>(kBg).setConstant(noise_.initial_gyro_bias * noise_.initial_gyro_bias);
   P_.diagonal().segment<3>(kBa).setConstant(noise_.initial_accel_bias * noise_.initial_accel_bias);
   P_(kBaro, kBaro) = epv * epv + baro_std * baro_std;

@@ -21,17 +21,17 @@ namespace driftlab::estimator {
 
 /// Process and measurement noise (standard deviations), and the innovation gates.
 struct DroneEkfNoise {
-  double gyro = 0.004;              ///< gyro white noise, as process noise on attitude [rad/s per sqrt(Hz)]
-  double accel = 0.05;              ///< accelerometer white noise, as process noise on velocity [m/s^2 per sqrt(Hz)]
-  double gyro_bias_walk = 1e-4;     ///< gyro bias random walk [rad/s^2 per sqrt(Hz)]
-  double accel_bias_walk = 1e-3;    ///< accelerometer bias random walk [m/s^3 per sqrt(Hz)]
-  double baro_offset_walk = 0.01;   ///< barometer offset random walk [m/s per sqrt(Hz)]
-  double gnss_position = 0.5;       ///< GNSS horizontal position, when the fix gives no accuracy [m]
-  double gnss_height = 0.8;         ///< GNSS height, when the fix gives no accuracy [m]
-  double gnss_velocity = 0.2;       ///< GNSS velocity per axis, when the fix gives no accuracy [m/s]
-  double baro = 0.2;                ///< barometric altitude, when the reading gives no variance [m]
-  double heading = 0.05;            ///< magnetometer heading [rad]
-  double gate = 5;                  ///< innovation test: measurements further than this many standard deviations are outliers
+  double gyro = 0.004;             ///< gyro white noise, as process noise on attitude [rad/s per sqrt(Hz)]
+  double accel = 0.05;             ///< accelerometer white noise, as process noise on velocity [m/s^2 per sqrt(Hz)]
+  double gyro_bias_walk = 1e-4;    ///< gyro bias random walk [rad/s^2 per sqrt(Hz)]
+  double accel_bias_walk = 1e-3;   ///< accelerometer bias random walk [m/s^3 per sqrt(Hz)]
+  double baro_offset_walk = 0.01;  ///< barometer offset random walk [m/s per sqrt(Hz)]
+  double gnss_position = 0.5;      ///< GNSS horizontal position, when the fix gives no accuracy [m]
+  double gnss_height = 0.8;        ///< GNSS height, when the fix gives no accuracy [m]
+  double gnss_velocity = 0.2;      ///< GNSS velocity per axis, when the fix gives no accuracy [m/s]
+  double baro = 0.2;               ///< barometric altitude, when the reading gives no variance [m]
+  double heading = 0.05;           ///< magnetometer heading [rad]
+  double gate = 5;  ///< innovation test: measurements further than this many standard deviations are outliers
   double initial_tilt = 0.05;       ///< initial roll and pitch uncertainty [rad]
   double initial_heading = 0.2;     ///< initial heading uncertainty [rad]
   double initial_velocity = 0.3;    ///< initial velocity uncertainty per axis [m/s]
@@ -91,8 +91,8 @@ class DroneEkf {
 
   int64_t time() const { return t_; }
   const Eigen::Vector3d& position() const { return p_; }
-  const Eigen::Vector3d& velocity() const { return v_; }         ///< in the local frame [m/s]
-  const Eigen::Quaterniond& attitude() const { return q_; }      ///< body to local
+  const Eigen::Vector3d& velocity() const { return v_; }     ///< in the local frame [m/s]
+  const Eigen::Quaterniond& attitude() const { return q_; }  ///< body to local
   const Eigen::Vector3d& gyro_bias() const { return bg_; }
   const Eigen::Vector3d& accel_bias() const { return ba_; }
   double baro_offset() const { return baro_; }

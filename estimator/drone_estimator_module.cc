@@ -33,7 +33,8 @@ const config::Table<DroneEkfNoise>& drone_noise_table() {
           .number("gnss_velocity_noise", &N::gnss_velocity, r, "m/s", "GNSS velocity per axis, when the fix gives none")
           .number("baro_noise", &N::baro, r, "m", "barometric altitude, when the reading gives no variance")
           .number("heading_noise", &N::heading, r, "rad", "magnetometer heading")
-          .number("gate", &N::gate, above(0, 1e3), "", "innovation test: outliers beyond this many standard deviations");
+          .number("gate", &N::gate, above(0, 1e3), "",
+                  "innovation test: outliers beyond this many standard deviations");
   return t;
 }
 
@@ -100,14 +101,16 @@ Status DroneEstimatorModule::start(Bus& bus) {
     BaroAltitude a{geo::altitude_of(b.pressure_pa), 0};
     // The pressure's noise as height: through the slope of the standard atmosphere at this pressure.
     if (b.pressure_variance > 0) {
-      a.std = std::sqrt(b.pressure_variance) * std::abs(geo::altitude_of(b.pressure_pa - 0.5) - geo::altitude_of(b.pressure_pa + 0.5));
+      a.std = std::sqrt(b.pressure_variance) *
+              std::abs(geo::altitude_of(b.pressure_pa - 0.5) - geo::altitude_of(b.pressure_pa + 0.5));
     }
     add(bus, kBaro, b.header.utime, a);
   });
   bus.subscribe(c_.mag_channel, [this, &bus](const BusMessage& m) {
     driftlab::magnetometer_t s;
     if (!decode_message(m, s)) return void(++undecodable_);
-    add(bus, kMag, s.header.utime, MagField{Eigen::Vector3d(s.magnetic_field.x, s.magnetic_field.y, s.magnetic_field.z)});
+    add(bus, kMag, s.header.utime,
+        MagField{Eigen::Vector3d(s.magnetic_field.x, s.magnetic_field.y, s.magnetic_field.z)});
   });
   bus.every(static_cast<int64_t>(std::llround(1e6 / c_.status_rate)), [this, &bus] { publish_status(bus); });
   return {};
@@ -158,9 +161,10 @@ void DroneEstimatorModule::publish_estimate(Bus& bus) {
   o.angular_velocity = {w.x(), w.y(), w.z()};
   const DroneEkf::Cov& P = f.covariance();
   for (int i = 0; i < 3; ++i) {
-    o.pose_covariance[i * 7] = P(DroneEkf::kP + i, DroneEkf::kP + i);
-    o.pose_covariance[(i + 3) * 7] = P(DroneEkf::kTheta + i, DroneEkf::kTheta + i);
-    o.twist_covariance[i * 7] = P(DroneEkf::kV + i, DroneEkf::kV + i);
+    const size_t d = static_cast<size_t>(i) * 7;  // the diagonal of a row-major 6 x 6
+    o.pose_covariance[d] = P(DroneEkf::kP + i, DroneEkf::kP + i);
+    o.pose_covariance[d + 21] = P(DroneEkf::kTheta + i, DroneEkf::kTheta + i);
+    o.twist_covariance[d] = P(DroneEkf::kV + i, DroneEkf::kV + i);
   }
   bus.publish_message(c_.output_channel, o);
 }

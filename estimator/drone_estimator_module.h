@@ -28,17 +28,17 @@ class Table;
 namespace driftlab::estimator {
 
 struct DroneEstimatorConfig {
-  std::string imu_channel = "IMU";                 ///< driftlab.imu_t
-  std::string gnss_channel = "GNSS";               ///< driftlab.gnss_t
-  std::string baro_channel = "BARO";               ///< driftlab.barometer_t
-  std::string mag_channel = "MAG";                 ///< driftlab.magnetometer_t
-  std::string output_channel = "VEHICLE_ODOM_REPLAY";     ///< driftlab.odometry_t out
-  std::string status_channel = "ESTIMATOR_STATUS_REPLAY"; ///< driftlab.estimator_status_t out
-  double window_s = 0.3;       ///< late measurements re-applied this far back [s]
-  double max_age_s = 0.5;      ///< older than this against the bus's clock: stale [s]
-  double max_future_s = 0.1;   ///< further ahead of the bus's clock than this: from the future [s]
-  double status_rate = 1;      ///< [Hz]
-  double declination = 0;      ///< magnetic north east of true north [rad]
+  std::string imu_channel = "IMU";                         ///< driftlab.imu_t
+  std::string gnss_channel = "GNSS";                       ///< driftlab.gnss_t
+  std::string baro_channel = "BARO";                       ///< driftlab.barometer_t
+  std::string mag_channel = "MAG";                         ///< driftlab.magnetometer_t
+  std::string output_channel = "VEHICLE_ODOM_REPLAY";      ///< driftlab.odometry_t out
+  std::string status_channel = "ESTIMATOR_STATUS_REPLAY";  ///< driftlab.estimator_status_t out
+  double window_s = 0.3;                                   ///< late measurements re-applied this far back [s]
+  double max_age_s = 0.5;                                  ///< older than this against the bus's clock: stale [s]
+  double max_future_s = 0.1;  ///< further ahead of the bus's clock than this: from the future [s]
+  double status_rate = 1;     ///< [Hz]
+  double declination = 0;     ///< magnetic north east of true north [rad]
   DroneEkfNoise noise;
 };
 const config::Table<DroneEstimatorConfig>& drone_estimator_config_table();

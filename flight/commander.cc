@@ -94,8 +94,7 @@ bool Commander::command(const std::string& c, int64_t now, bool estimate_ok) {
   if (c == "offboard") {
     while (!setpoints_.empty() && setpoints_.front() < now - 1000000) setpoints_.pop_front();
     const double age = setpoint_age(now);
-    if (age < 0 || age > o_.offboard_timeout_s ||
-        static_cast<double>(setpoints_.size()) < o_.offboard_min_rate) {
+    if (age < 0 || age > o_.offboard_timeout_s || static_cast<double>(setpoints_.size()) < o_.offboard_min_rate) {
       return refuse("setpoints must stream first (" + std::to_string(setpoints_.size()) +
                     " in the last second; at least " + config::format_number(o_.offboard_min_rate) + " per second)");
     }

@@ -24,14 +24,14 @@ class Table;
 namespace driftlab::flight {
 
 struct CommanderOptions {
-  double offboard_timeout_s = 0.5;       ///< [s]
-  double offboard_min_rate = 2;          ///< setpoints per second needed to enter offboard [Hz]
+  double offboard_timeout_s = 0.5;            ///< [s]
+  double offboard_min_rate = 2;               ///< setpoints per second needed to enter offboard [Hz]
   std::string offboard_loss_action = "hold";  ///< hold or land
-  double failsafe_land_after_s = 10;     ///< a hold failsafe lands after this long [s]; 0: never
-  double land_speed = 0.7;               ///< descent speed in land mode [m/s]
-  double land_detect_s = 1.0;            ///< [s]
-  double disarm_after_landing_s = 2.0;   ///< [s]; 0: never
-  double estimate_timeout_s = 0.5;       ///< an estimate older than this is none [s]
+  double failsafe_land_after_s = 10;          ///< a hold failsafe lands after this long [s]; 0: never
+  double land_speed = 0.7;                    ///< descent speed in land mode [m/s]
+  double land_detect_s = 1.0;                 ///< [s]
+  double disarm_after_landing_s = 2.0;        ///< [s]; 0: never
+  double estimate_timeout_s = 0.5;            ///< an estimate older than this is none [s]
 };
 
 /// The keys of the commander options (core/config.h).

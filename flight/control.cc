@@ -21,7 +21,8 @@ const config::Table<ControlOptions>& control_options_table() {
   const auto gain = between(0, 1e4);
   static const auto t =
       config::Table<C>()
-          .number("position_gain_xy", &C::position_gain_xy, gain, "1/s", "horizontal speed per metre of error (MPC_XY_P)")
+          .number("position_gain_xy", &C::position_gain_xy, gain, "1/s",
+                  "horizontal speed per metre of error (MPC_XY_P)")
           .number("position_gain_z", &C::position_gain_z, gain, "1/s", "vertical speed per metre of error (MPC_Z_P)")
           .number("velocity_p_xy", &C::velocity_p_xy, gain, "1/s", "horizontal velocity P (MPC_XY_VEL_P_ACC)")
           .number("velocity_i_xy", &C::velocity_i_xy, gain, "1/s^2", "horizontal velocity I (MPC_XY_VEL_I_ACC)")
@@ -93,8 +94,9 @@ ThrustSetpoint PositionControl::update(const Eigen::Vector3d& position_sp, const
                                        double yaw_sp, const Eigen::Vector3d& position, const Eigen::Vector3d& velocity,
                                        double dt) {
   const Eigen::Vector3d e = position_sp - position;
-  Eigen::Vector3d v = Eigen::Vector3d(o_.position_gain_xy * e.x(), o_.position_gain_xy * e.y(), o_.position_gain_z * e.z()) +
-                      velocity_ff;
+  Eigen::Vector3d v =
+      Eigen::Vector3d(o_.position_gain_xy * e.x(), o_.position_gain_xy * e.y(), o_.position_gain_z * e.z()) +
+      velocity_ff;
   const double h = v.head<2>().norm();
   if (h > o_.max_speed_xy) v.head<2>() *= o_.max_speed_xy / h;
   v.z() = limit(v.z(), -o_.max_speed_down, o_.max_speed_up);
@@ -115,7 +117,8 @@ ThrustSetpoint PositionControl::update_velocity_z(const Eigen::Vector3d& positio
 Eigen::Quaterniond attitude_for(const Eigen::Vector3d& acceleration, double yaw) {
   // PX4's bodyzToAttitude: the body x axis stays in the vertical plane of the heading, so the attitude's heading
   // (heading_of, the ground projection of x) is `yaw` whatever the tilt.
-  const Eigen::Vector3d z = acceleration.norm() > 1e-6 ? Eigen::Vector3d(acceleration.normalized()) : Eigen::Vector3d::UnitZ();
+  const Eigen::Vector3d z =
+      acceleration.norm() > 1e-6 ? Eigen::Vector3d(acceleration.normalized()) : Eigen::Vector3d::UnitZ();
   const Eigen::Vector3d y_c(-std::sin(yaw), std::cos(yaw), 0);
   Eigen::Vector3d x = y_c.cross(z);
   if (x.norm() < 1e-6) x = Eigen::Vector3d(std::cos(yaw), std::sin(yaw), 0).cross(z).cross(z) * -1;  // z along y_c
@@ -166,7 +169,7 @@ Eigen::Vector3d RateControl::update(const Eigen::Vector3d& rate_sp, const Eigen:
   const Eigen::Vector3d p(o_.rate_p_rp, o_.rate_p_rp, o_.rate_p_yaw);
   const Eigen::Vector3d i(o_.rate_i_rp, o_.rate_i_rp, o_.rate_i_yaw);
   const Eigen::Vector3d d(o_.rate_d_rp, o_.rate_d_rp, 0);
-  const Eigen::Vector3d out = p.cwiseProduct(e) + integral_ - d.cwiseProduct(derivative_);
+  Eigen::Vector3d out = p.cwiseProduct(e) + integral_ - d.cwiseProduct(derivative_);
   for (int k = 0; k < 3; ++k) {
     if (saturated[k] * e(k) > 0) continue;  // the mixer already gives all it can that way
     integral_(k) = limit(integral_(k) + i(k) * e(k) * dt, -o_.rate_integral_limit, o_.rate_integral_limit);

@@ -19,33 +19,33 @@ namespace driftlab::flight {
 
 struct ControlOptions {
   // Position and velocity (PX4: MPC_XY_P, MPC_Z_P, MPC_XY_VEL_*_ACC, MPC_Z_VEL_*_ACC, MPC_*_VEL_MAX, MPC_TILTMAX_AIR).
-  double position_gain_xy = 0.95;   ///< horizontal speed per metre of position error [1/s]
-  double position_gain_z = 1.0;     ///< vertical speed per metre of position error [1/s]
-  double velocity_p_xy = 1.8;       ///< [m/s^2 per m/s]
-  double velocity_i_xy = 0.4;       ///< [m/s^2 per m]
-  double velocity_d_xy = 0.2;       ///< [m/s^2 per m/s^2]
-  double velocity_p_z = 4.0;        ///< [m/s^2 per m/s]
-  double velocity_i_z = 2.0;        ///< [m/s^2 per m]
-  double velocity_d_z = 0.0;        ///< [m/s^2 per m/s^2]
-  double max_speed_xy = 5.0;        ///< [m/s]
-  double max_speed_up = 3.0;        ///< [m/s]
-  double max_speed_down = 1.5;      ///< [m/s]
-  double max_tilt = 0.785;          ///< [rad]
-  double min_thrust = 0.12;         ///< collective thrust floor in flight, of the vehicle's maximum [0..1]
-  double max_thrust = 0.9;          ///< collective thrust ceiling, of the vehicle's maximum [0..1]
+  double position_gain_xy = 0.95;  ///< horizontal speed per metre of position error [1/s]
+  double position_gain_z = 1.0;    ///< vertical speed per metre of position error [1/s]
+  double velocity_p_xy = 1.8;      ///< [m/s^2 per m/s]
+  double velocity_i_xy = 0.4;      ///< [m/s^2 per m]
+  double velocity_d_xy = 0.2;      ///< [m/s^2 per m/s^2]
+  double velocity_p_z = 4.0;       ///< [m/s^2 per m/s]
+  double velocity_i_z = 2.0;       ///< [m/s^2 per m]
+  double velocity_d_z = 0.0;       ///< [m/s^2 per m/s^2]
+  double max_speed_xy = 5.0;       ///< [m/s]
+  double max_speed_up = 3.0;       ///< [m/s]
+  double max_speed_down = 1.5;     ///< [m/s]
+  double max_tilt = 0.785;         ///< [rad]
+  double min_thrust = 0.12;        ///< collective thrust floor in flight, of the vehicle's maximum [0..1]
+  double max_thrust = 0.9;         ///< collective thrust ceiling, of the vehicle's maximum [0..1]
   // Attitude (MC_ROLL_P, MC_PITCH_P, MC_YAW_P, MC_*RATE_MAX).
-  double attitude_gain_rp = 6.5;    ///< roll and pitch rate per radian of error [1/s]
-  double attitude_gain_yaw = 2.8;   ///< yaw rate per radian of error [1/s]
-  double max_rate_rp = 3.84;        ///< [rad/s] (220 deg/s)
-  double max_rate_yaw = 3.49;       ///< [rad/s] (200 deg/s)
+  double attitude_gain_rp = 6.5;   ///< roll and pitch rate per radian of error [1/s]
+  double attitude_gain_yaw = 2.8;  ///< yaw rate per radian of error [1/s]
+  double max_rate_rp = 3.84;       ///< [rad/s] (220 deg/s)
+  double max_rate_yaw = 3.49;      ///< [rad/s] (200 deg/s)
   // Body rates (MC_ROLLRATE_*, MC_YAWRATE_*), as angular accelerations.
-  double rate_p_rp = 18;            ///< [rad/s^2 per rad/s]
-  double rate_i_rp = 12;            ///< [rad/s^2 per rad]
-  double rate_d_rp = 0.25;          ///< [rad/s^2 per rad/s^2]
-  double rate_p_yaw = 8;            ///< [rad/s^2 per rad/s]
-  double rate_i_yaw = 3;            ///< [rad/s^2 per rad]
-  double rate_integral_limit = 8;   ///< [rad/s^2]
-  double rate_d_cutoff = 30;        ///< low-pass of the rate derivative [Hz]
+  double rate_p_rp = 18;           ///< [rad/s^2 per rad/s]
+  double rate_i_rp = 12;           ///< [rad/s^2 per rad]
+  double rate_d_rp = 0.25;         ///< [rad/s^2 per rad/s^2]
+  double rate_p_yaw = 8;           ///< [rad/s^2 per rad/s]
+  double rate_i_yaw = 3;           ///< [rad/s^2 per rad]
+  double rate_integral_limit = 8;  ///< [rad/s^2]
+  double rate_d_cutoff = 30;       ///< low-pass of the rate derivative [Hz]
 };
 
 /// The keys of the control options (core/config.h).
@@ -61,7 +61,8 @@ struct ThrustSetpoint {
 class PositionControl {
  public:
   /// max_specific_force: the vehicle's full collective thrust over its mass [m/s^2].
-  PositionControl(const ControlOptions& o, double max_specific_force) : o_(o), max_specific_force_(max_specific_force) {}
+  PositionControl(const ControlOptions& o, double max_specific_force)
+      : o_(o), max_specific_force_(max_specific_force) {}
   /// One step of dt [s]: the position setpoint with its feed-forward velocity, against the estimate.
   ThrustSetpoint update(const Eigen::Vector3d& position_sp, const Eigen::Vector3d& velocity_ff, double yaw_sp,
                         const Eigen::Vector3d& position, const Eigen::Vector3d& velocity, double dt);
@@ -88,7 +89,7 @@ class AttitudeControl {
  public:
   explicit AttitudeControl(const ControlOptions& o) : o_(o) {}
   /// Body rate setpoint [rad/s] to turn `attitude` into `setpoint` (quaternion error, yaw weighted less).
-  Eigen::Vector3d update(const Eigen::Quaterniond& attitude, const Eigen::Quaterniond& setpoint) const;
+  Eigen::Vector3d update(const Eigen::Quaterniond& q, const Eigen::Quaterniond& q_sp) const;
 
  private:
   ControlOptions o_;

@@ -59,9 +59,8 @@ Result<std::unique_ptr<Module>> make_flight(const YAML::Node& config, const std:
 FlightModule::FlightModule(FlightConfig config)
     : c_(std::move(config)),
       mixer_(c_.options.vehicle),
-      position_(c_.options.control,
-                static_cast<double>(c_.options.vehicle.rotors.size()) * c_.options.vehicle.max_rotor_thrust /
-                    c_.options.vehicle.mass),
+      position_(c_.options.control, static_cast<double>(c_.options.vehicle.rotors.size()) *
+                                        c_.options.vehicle.max_rotor_thrust / c_.options.vehicle.mass),
       attitude_(c_.options.control),
       rate_(c_.options.control),
       commander_(c_.options.commander) {}
@@ -112,8 +111,9 @@ bool FlightModule::estimate_fresh(int64_t now) const {
 
 void FlightModule::position_tick(Bus& bus) {
   const int64_t now = bus.now();
-  const double dt = last_position_tick_ > 0 ? std::clamp(static_cast<double>(now - last_position_tick_) * 1e-6, 0.0, 0.1)
-                                            : 1 / c_.options.position_rate;
+  const double dt = last_position_tick_ > 0
+                        ? std::clamp(static_cast<double>(now - last_position_tick_) * 1e-6, 0.0, 0.1)
+                        : 1 / c_.options.position_rate;
   last_position_tick_ = now;
   const bool fresh = estimate_fresh(now);
   const Eigen::Vector3d v = fresh ? estimate_->velocity : Eigen::Vector3d::Zero();
@@ -150,8 +150,8 @@ void FlightModule::position_tick(Bus& bus) {
 
 void FlightModule::on_estimate(Bus& bus) {
   const Estimate& e = *estimate_;
-  const double dt = last_rate_stamp_ > 0 ? std::clamp(static_cast<double>(e.stamp - last_rate_stamp_) * 1e-6, 0.0, 0.05)
-                                         : 0.0;
+  const double dt =
+      last_rate_stamp_ > 0 ? std::clamp(static_cast<double>(e.stamp - last_rate_stamp_) * 1e-6, 0.0, 0.05) : 0.0;
   last_rate_stamp_ = e.stamp;
   if (!commander_.armed() || !thrust_) {
     publish_motors(bus, false, std::vector<double>(c_.options.vehicle.rotors.size(), 0.0));
@@ -178,7 +178,8 @@ void FlightModule::publish_motors(Bus& bus, bool armed, const std::vector<double
   m.control = control;
   bus.publish_message(c_.motor_channel, m);
   ++motor_commands_;
-  if (!c_.logged_motor_channel.empty()) recomputed_.push_back({m.header.utime, armed ? control : std::vector<double>(control.size(), 0.0)});
+  if (!c_.logged_motor_channel.empty())
+    recomputed_.push_back({m.header.utime, armed ? control : std::vector<double>(control.size(), 0.0)});
 }
 
 void FlightModule::publish_status(Bus& bus) {
@@ -224,7 +225,8 @@ ModuleCounters FlightModule::counters() const {
                          " times (setpoints stopped for more than " +
                          config::format_number(c_.options.commander.offboard_timeout_s) + " s)");
   }
-  if (undecodable_ > 0) c.warnings.push_back("flight: " + std::to_string(undecodable_) + " messages of the wrong type ignored");
+  if (undecodable_ > 0)
+    c.warnings.push_back("flight: " + std::to_string(undecodable_) + " messages of the wrong type ignored");
   return c;
 }
 

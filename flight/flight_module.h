@@ -43,12 +43,12 @@ struct FlightOptions {
 const config::Table<FlightOptions>& flight_options_table();
 
 struct FlightConfig {
-  std::string estimate_channel = "VEHICLE_ODOM_REPLAY";    ///< driftlab.odometry_t in
-  std::string setpoint_channel = "SETPOINT";               ///< driftlab.trajectory_setpoint_t in
-  std::string command_channel = "VEHICLE_CMD";             ///< driftlab.vehicle_command_t in
-  std::string motor_channel = "MOTOR_CMD_REPLAY";          ///< driftlab.motor_command_t out
-  std::string status_channel = "VEHICLE_STATUS_REPLAY";    ///< driftlab.vehicle_status_t out
-  std::string logged_motor_channel = "MOTOR_CMD";          ///< the logged commands to compare with; "" for none
+  std::string estimate_channel = "VEHICLE_ODOM_REPLAY";  ///< driftlab.odometry_t in
+  std::string setpoint_channel = "SETPOINT";             ///< driftlab.trajectory_setpoint_t in
+  std::string command_channel = "VEHICLE_CMD";           ///< driftlab.vehicle_command_t in
+  std::string motor_channel = "MOTOR_CMD_REPLAY";        ///< driftlab.motor_command_t out
+  std::string status_channel = "VEHICLE_STATUS_REPLAY";  ///< driftlab.vehicle_status_t out
+  std::string logged_motor_channel = "MOTOR_CMD";        ///< the logged commands to compare with; "" for none
   FlightOptions options;
 };
 /// The keys of the `flight:` map of a replay config.

@@ -28,25 +28,25 @@ class Table;
 namespace driftlab::flight {
 
 struct MissionOptions {
-  double stream_rate = 20;          ///< setpoints per second [Hz]
-  double warmup_s = 2;              ///< setpoints streamed before asking for offboard and arming [s]
-  double retry_s = 1;               ///< how often a refused or lost offboard mode (or arming) is asked for again [s]
-  double takeoff_altitude = 2;      ///< [m] above the start
-  double climb_speed = 1;           ///< [m/s]
-  double hover_s = 5;               ///< hover at the top of the climb [s]
+  double stream_rate = 20;      ///< setpoints per second [Hz]
+  double warmup_s = 2;          ///< setpoints streamed before asking for offboard and arming [s]
+  double retry_s = 1;           ///< how often a refused or lost offboard mode (or arming) is asked for again [s]
+  double takeoff_altitude = 2;  ///< [m] above the start
+  double climb_speed = 1;       ///< [m/s]
+  double hover_s = 5;           ///< hover at the top of the climb [s]
   std::vector<Eigen::Vector3d> waypoints = {{4, 0, 2}, {4, 4, 2}, {0, 4, 2}, {0, 0, 2}};  ///< relative to the start [m]
-  double cruise_speed = 1;          ///< [m/s]
-  double dwell_s = 2;               ///< at each waypoint [s]
-  bool land = true;                 ///< land at the end (else hover at the last waypoint)
+  double cruise_speed = 1;                                                                ///< [m/s]
+  double dwell_s = 2;                                                                     ///< at each waypoint [s]
+  bool land = true;  ///< land at the end (else hover at the last waypoint)
 };
 
 /// The keys of a mission (core/config.h).
 const config::Table<MissionOptions>& mission_options_table();
 
 struct OffboardConfig {
-  std::string estimate_channel = "VEHICLE_ODOM";     ///< driftlab.odometry_t: where the vehicle is
-  std::string status_channel = "VEHICLE_STATUS";     ///< driftlab.vehicle_status_t: armed, mode
-  std::string setpoint_channel = "SETPOINT_REPLAY";  ///< driftlab.trajectory_setpoint_t out
+  std::string estimate_channel = "VEHICLE_ODOM";       ///< driftlab.odometry_t: where the vehicle is
+  std::string status_channel = "VEHICLE_STATUS";       ///< driftlab.vehicle_status_t: armed, mode
+  std::string setpoint_channel = "SETPOINT_REPLAY";    ///< driftlab.trajectory_setpoint_t out
   std::string command_channel = "VEHICLE_CMD_REPLAY";  ///< driftlab.vehicle_command_t out
   MissionOptions mission;
 };

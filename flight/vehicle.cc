@@ -42,7 +42,8 @@ const config::Table<VehicleModel>& vehicle_model_table() {
   static const auto t =
       config::Table<V>()
           .number("mass", &V::mass, config::above(0, 1e4), "kg", "the vehicle's mass, as the controller believes it")
-          .numbers("inertia", &V::inertia, config::above(0, 1e4), "kg*m^2", "principal moments of inertia about x, y, z")
+          .numbers("inertia", &V::inertia, config::above(0, 1e4), "kg*m^2",
+                   "principal moments of inertia about x, y, z")
           .custom<std::vector<Rotor>>("rotors", &V::rotors, "list of [x, y, direction]", "m, m, 1", "at least 4",
                                       "where each rotor's thrust acts in the body frame (x forward, y left) and its "
                                       "spin: 1 counter-clockwise seen from above, -1 clockwise; motor order",
@@ -53,7 +54,8 @@ const config::Table<VehicleModel>& vehicle_model_table() {
                   "a rotor's drag torque per unit of its thrust (k_m / k_f)")
           .check([](const config::Value& v, V& m) -> Status {
             Mixer mixer(m);  // the rotors must be able to make every torque
-            const Eigen::Vector4d e = mixer.effect(mixer.mix(m.mass * 9.81, Eigen::Vector3d(0.01, 0.01, 0.001)).control);
+            const Eigen::Vector4d e =
+                mixer.effect(mixer.mix(m.mass * 9.81, Eigen::Vector3d(0.01, 0.01, 0.001)).control);
             if (!(std::abs(e(1) - 0.01) < 1e-6 && std::abs(e(2) - 0.01) < 1e-6)) {
               return v["rotors"].error("cannot make roll and pitch torques (rotors in a line?)");
             }
@@ -113,7 +115,8 @@ Mix Mixer::mix(double thrust, const Eigen::Vector3d& torque) const {
 
 Eigen::Vector4d Mixer::effect(const std::vector<double>& control) const {
   Eigen::VectorXd f(static_cast<Eigen::Index>(control.size()));
-  for (std::size_t i = 0; i < control.size(); ++i) f(static_cast<Eigen::Index>(i)) = control[i] * model_.max_rotor_thrust;
+  for (std::size_t i = 0; i < control.size(); ++i)
+    f(static_cast<Eigen::Index>(i)) = control[i] * model_.max_rotor_thrust;
   return B_ * f;
 }
 

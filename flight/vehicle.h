@@ -23,11 +23,12 @@ struct Rotor {
 };
 
 struct VehicleModel {
-  double mass = 1.2;                                         ///< [kg]
+  double mass = 1.2;                                                  ///< [kg]
   Eigen::Vector3d inertia = Eigen::Vector3d(0.0118, 0.0118, 0.0205);  ///< principal moments about x, y, z [kg*m^2]
   /// The shipped quadrotor (sim/robots/quadrotor.urdf): X layout, 0.25 m arms, front-right and back-left
   /// counter-clockwise.
-  std::vector<Rotor> rotors = {{0.1768, -0.1768, 1}, {-0.1768, 0.1768, 1}, {0.1768, 0.1768, -1}, {-0.1768, -0.1768, -1}};
+  std::vector<Rotor> rotors = {
+      {0.1768, -0.1768, 1}, {-0.1768, 0.1768, 1}, {0.1768, 0.1768, -1}, {-0.1768, -0.1768, -1}};
   double max_rotor_thrust = 7.07;  ///< thrust of one rotor at full command [N]
   double moment_ratio = 0.06;      ///< drag torque per unit thrust of a rotor (k_m / k_f) [m]
 };
@@ -56,8 +57,8 @@ class Mixer {
 
  private:
   VehicleModel model_;
-  Eigen::Matrix<double, 4, Eigen::Dynamic> B_;     ///< rotor thrusts [N] -> thrust [N], torque [N*m]
-  Eigen::Matrix<double, Eigen::Dynamic, 4> B_inv_; ///< its pseudo-inverse
+  Eigen::Matrix<double, 4, Eigen::Dynamic> B_;      ///< rotor thrusts [N] -> thrust [N], torque [N*m]
+  Eigen::Matrix<double, Eigen::Dynamic, 4> B_inv_;  ///< its pseudo-inverse
 };
 
 }  // namespace driftlab::flight

@@ -52,7 +52,7 @@ struct ArmChain::Impl {
     ik_vel = std::make_unique<KDL::ChainIkSolverVel_wdls>(chain);
     ik_vel->setLambda(o.damping);
     ik_pos = std::make_unique<KDL::ChainIkSolverPos_NR_JL>(chain, q_min, q_max, *fk, *ik_vel,
-                                                          static_cast<unsigned>(o.max_iterations), o.tolerance);
+                                                           static_cast<unsigned>(o.max_iterations), o.tolerance);
     ik_options = o;
   }
 };
@@ -83,8 +83,7 @@ Result<ArmChain> ArmChain::create(const RobotModel& model, const std::string& ba
       case JointType::kPrismatic:
         joint = KDL::Joint(j->name, origin.p, origin.M * to_kdl(j->axis), KDL::Joint::TransAxis);
         break;
-      case JointType::kOther:
-        return Error{model.where(*j) + ": a planar or floating joint cannot be part of an arm"};
+      case JointType::kOther: return Error{model.where(*j) + ": a planar or floating joint cannot be part of an arm"};
     }
     impl->chain.addSegment(KDL::Segment(j->child, joint, origin));
     if (!j->moves()) continue;
@@ -140,8 +139,7 @@ Eigen::MatrixXd ArmChain::jacobian(const Eigen::VectorXd& q) const {
 
 IkResult ArmChain::ik(const Eigen::Isometry3d& target, const Eigen::VectorXd& seed, const IkOptions& options) const {
   const IkOptions& o = impl_->ik_options;
-  if (o.max_iterations != options.max_iterations || o.tolerance != options.tolerance ||
-      o.damping != options.damping) {
+  if (o.max_iterations != options.max_iterations || o.tolerance != options.tolerance || o.damping != options.damping) {
     impl_->make_ik(options);
   }
   IkResult r;

@@ -26,9 +26,9 @@ struct IkOptions {
 
 struct IkResult {
   bool converged = false;
-  Eigen::VectorXd q;            ///< the solution, within the joint limits [rad]
-  double position_error = 0;    ///< of fk(q) from the target [m]
-  double angle_error = 0;       ///< [rad]
+  Eigen::VectorXd q;          ///< the solution, within the joint limits [rad]
+  double position_error = 0;  ///< of fk(q) from the target [m]
+  double angle_error = 0;     ///< [rad]
 };
 
 class ArmChain {

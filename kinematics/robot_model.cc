@@ -26,7 +26,8 @@ class CaptureErrors : public console_bridge::OutputHandler {
 Eigen::Isometry3d to_eigen(const urdf::Pose& p) {
   Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
   t.translation() = Eigen::Vector3d(p.position.x, p.position.y, p.position.z);
-  t.linear() = Eigen::Quaterniond(p.rotation.w, p.rotation.x, p.rotation.y, p.rotation.z).normalized().toRotationMatrix();
+  t.linear() =
+      Eigen::Quaterniond(p.rotation.w, p.rotation.x, p.rotation.y, p.rotation.z).normalized().toRotationMatrix();
   return t;
 }
 
@@ -87,8 +88,7 @@ Status read_structure(const std::string& xml, const std::string& origin, std::ve
     for (size_t hops = 0; hops <= joints.size(); ++hops) {
       if (link == j.child) {
         return Error{origin + ":" + std::to_string(j.line) + ": joint " + quoted(j.name) + " closes a loop: link " +
-                     quoted(j.child) + " is an ancestor of its own parent " + quoted(j.parent) +
-                     " (a URDF is a tree)"};
+                     quoted(j.child) + " is an ancestor of its own parent " + quoted(j.parent) + " (a URDF is a tree)"};
       }
       const auto up = parent_of.find(link);
       if (up == parent_of.end()) break;
@@ -103,12 +103,9 @@ Status read_structure(const std::string& xml, const std::string& origin, std::ve
 Eigen::Isometry3d ModelJoint::transform(double q) const {
   switch (type) {
     case JointType::kRevolute:
-    case JointType::kContinuous:
-      return origin * Eigen::AngleAxisd(q, axis);
-    case JointType::kPrismatic:
-      return origin * Eigen::Translation3d(q * axis);
-    default:
-      return origin;
+    case JointType::kContinuous: return origin * Eigen::AngleAxisd(q, axis);
+    case JointType::kPrismatic: return origin * Eigen::Translation3d(q * axis);
+    default: return origin;
   }
 }
 

@@ -23,10 +23,10 @@ namespace driftlab::kinematics {
 enum class JointType { kFixed, kRevolute, kContinuous, kPrismatic, kOther };
 
 struct JointLimits {
-  bool has_position = false;  ///< lower/upper hold (revolute, prismatic)
+  bool has_position = false;    ///< lower/upper hold (revolute, prismatic)
   double lower = 0, upper = 0;  ///< [rad] or [m]
-  double velocity = 0;        ///< [rad/s] or [m/s]; 0: none given
-  double effort = 0;          ///< [N*m] or [N]; 0: none given
+  double velocity = 0;          ///< [rad/s] or [m/s]; 0: none given
+  double effort = 0;            ///< [N*m] or [N]; 0: none given
 };
 
 struct ModelJoint {

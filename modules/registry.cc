@@ -19,8 +19,8 @@
 namespace driftlab::modules {
 namespace {
 
-constexpr std::array<const char*, 6> kModules = {"slam", "estimator", "controller", "drone_estimator", "flight",
-                                                 "offboard"};
+constexpr std::array<const char*, 6> kModules = {"slam",   "estimator", "controller", "drone_estimator",
+                                                 "flight", "offboard"};
 
 std::string line_of(const std::string& file, const YAML::Mark& mark) {
   return file + ":" + std::to_string(mark.line + 1);

@@ -48,7 +48,8 @@ Result<std::unique_ptr<ArmLoop>> ArmLoop::create(const Scenario& sc, Robot& robo
   bool has_joint_states = false;
   for (const SensorConfig& s : sc.sensors) has_joint_states = has_joint_states || s.type == SensorType::kJointState;
   if (!has_joint_states) {
-    return Error{sc.path + ": arm: the commander reads the joints from a joint_state sensor, and the scenario has none"};
+    return Error{sc.path +
+                 ": arm: the commander reads the joints from a joint_state sensor, and the scenario has none"};
   }
   std::vector<int> index;
   std::map<std::string, double> home;
@@ -103,7 +104,8 @@ void ArmLoop::attach(Output& out, const WheelOdometry& odometry) {
 Eigen::VectorXd ArmLoop::measured() const {
   const std::vector<JointReading> joints = robot_.joints();
   Eigen::VectorXd q(static_cast<Eigen::Index>(index_.size()));
-  for (size_t i = 0; i < index_.size(); ++i) q[static_cast<Eigen::Index>(i)] = joints[static_cast<size_t>(index_[i])].position;
+  for (size_t i = 0; i < index_.size(); ++i)
+    q[static_cast<Eigen::Index>(i)] = joints[static_cast<size_t>(index_[i])].position;
   return q;
 }
 

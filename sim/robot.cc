@@ -103,8 +103,8 @@ Result<UrdfDocument> open_urdf(const std::string& xml, const std::string& origin
   UrdfDocument u{origin, std::make_unique<TiXmlDocument>(), nullptr};
   u.doc->Parse(xml.c_str());
   if (u.doc->Error()) {
-    return Error{origin + ":" + std::to_string(std::max(u.doc->ErrorRow(), 1)) + ": malformed XML: " +
-                 u.doc->ErrorDesc()};
+    return Error{origin + ":" + std::to_string(std::max(u.doc->ErrorRow(), 1)) +
+                 ": malformed XML: " + u.doc->ErrorDesc()};
   }
   // urdfdom's model, after the checks of the tree's structure (a joint's missing link, two parents, a loop, bad
   // limits) urdfdom would report without the line or miss: one line naming the file, line and element.
@@ -169,7 +169,8 @@ Result<MultirotorSpec> read_multirotor(const std::string& xml, const std::string
   if (spec.rotors.empty()) {
     return Error{at("link", root->name) + ": no rotor joints (continuous joints on the base link)"};
   }
-  if (parts.empty()) return Error{at("link", root->name) + ": the robot has no mass (give its links <inertial> masses)"};
+  if (parts.empty())
+    return Error{at("link", root->name) + ": the robot has no mass (give its links <inertial> masses)"};
   const InertialPart all = combine(parts);
   spec.mass = all.m;
   spec.com = all.c;
@@ -599,8 +600,8 @@ Status Robot::set_initial_positions(const std::map<std::string, double>& positio
   root[0] = impl_->groups[0].root_pose();
   for (std::size_t k = 0; k < impl_->joints.size(); ++k) {
     Impl::Joint& j = impl_->joints[k];
-    root[static_cast<std::size_t>(j.child_group)] = root[static_cast<std::size_t>(j.parent_group)] *
-                                                    j.origin_in_parent_root * Eigen::AngleAxisd(q[k], j.axis);
+    root[static_cast<std::size_t>(j.child_group)] =
+        root[static_cast<std::size_t>(j.parent_group)] * j.origin_in_parent_root * Eigen::AngleAxisd(q[k], j.axis);
     Impl::Group& g = impl_->groups[static_cast<std::size_t>(j.child_group)];
     g.body->setWorldTransform(to_bt(root[static_cast<std::size_t>(j.child_group)] * g.com_in_root));
     g.body->setLinearVelocity(btVector3(0, 0, 0));
@@ -616,8 +617,8 @@ Status Robot::set_initial_positions(const std::map<std::string, double>& positio
 
 void Robot::set_joint_rate(int index, double rate, double max_torque, double dt) {
   // Bullet's hinge motor target is the rate of the parent relative to the child (see set_wheel_rates).
-  impl_->joints[static_cast<std::size_t>(index)].hinge->enableAngularMotor(
-      true, static_cast<btScalar>(-rate), static_cast<btScalar>(max_torque * dt));
+  impl_->joints[static_cast<std::size_t>(index)].hinge->enableAngularMotor(true, static_cast<btScalar>(-rate),
+                                                                           static_cast<btScalar>(max_torque * dt));
 }
 
 void Robot::ignore_self_collisions() {

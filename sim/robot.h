@@ -43,10 +43,10 @@ struct RotorSpec {
 /// What a multirotor URDF says of the vehicle (the flight stack's VehicleModel comes from the same numbers).
 struct MultirotorSpec {
   std::string name, base_link;
-  double mass = 0;                                      ///< every link together [kg]
-  Eigen::Vector3d com = Eigen::Vector3d::Zero();        ///< centre of mass in the base link's frame [m]
-  Eigen::Matrix3d inertia = Eigen::Matrix3d::Zero();    ///< about the centre of mass, base link axes [kg*m^2]
-  std::vector<RotorSpec> rotors;                        ///< in the order urdfdom lists the base's joints
+  double mass = 0;                                    ///< every link together [kg]
+  Eigen::Vector3d com = Eigen::Vector3d::Zero();      ///< centre of mass in the base link's frame [m]
+  Eigen::Matrix3d inertia = Eigen::Matrix3d::Zero();  ///< about the centre of mass, base link axes [kg*m^2]
+  std::vector<RotorSpec> rotors;                      ///< in the order urdfdom lists the base's joints
 };
 
 /// Reads a multirotor from URDF text (`origin` names it in errors). Rotors are the continuous joints on the base

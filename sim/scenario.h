@@ -111,7 +111,7 @@ struct Scenario {
   std::string faults_channel = "FAULTS";       ///< the fault manifest (a truth channel)
   std::vector<SensorConfig> sensors;
   FaultConfig faults;
-  ArmConfig arm;                               ///< an arm on the robot (`arm:`; enabled when given)
+  ArmConfig arm;  ///< an arm on the robot (`arm:`; enabled when given)
 };
 
 /// The keys of a scenario file, with units, ranges and defaults (core/config.h); `sensors` and `faults` have tables

@@ -186,7 +186,8 @@ TEST_P(SimCliBadArm, OneLineNamingFileAndElementExitTwo) {
   EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
   // The line of the element in the broken file.
   const std::string element = c.element;
-  const int line = 1 + static_cast<int>(std::count(urdf.begin(), urdf.begin() + static_cast<long>(urdf.find(element)), '\n'));
+  const int line =
+      1 + static_cast<int>(std::count(urdf.begin(), urdf.begin() + static_cast<long>(urdf.find(element)), '\n'));
   EXPECT_EQ(r.err.rfind("driftlab: " + dir.file("arm.urdf") + ":" + std::to_string(line) + ": ", 0), 0u) << r.err;
   EXPECT_NE(r.err.find(c.why), std::string::npos) << r.err;
   EXPECT_FALSE(exists(dir.file("out.lcm")));
@@ -200,8 +201,7 @@ INSTANTIATE_TEST_SUITE_P(
         // The arm's mount hung below its own third link: panda_link0 -> ... -> panda_link3 -> panda_link0.
         BadArm{"Loop", "(<joint name=\"arm_mount\" type=\"fixed\">\\s*<parent link=\")[a-z_]+", "$1panda_link3",
                "<joint name=\"arm_mount\"", "joint 'arm_mount' closes a loop"},
-        BadArm{"JointWithoutLimits",
-               "<joint name=\"panda_joint4\" type=\"revolute\">([\\s\\S]*?)<limit[^>]*/>",
+        BadArm{"JointWithoutLimits", "<joint name=\"panda_joint4\" type=\"revolute\">([\\s\\S]*?)<limit[^>]*/>",
                "<joint name=\"panda_joint4\" type=\"continuous\">$1", "<joint name=\"panda_joint4\"",
                "joint 'panda_joint4': is continuous, without position limits; the joint trajectory controller needs"}),
     [](const auto& info) { return std::string(info.param.name); });

@@ -21,7 +21,8 @@ std::vector<kinematics::JointLimits> limits() {
   return {l, l};
 }
 
-driftlab::joint_trajectory_t trajectory(int64_t stamp, std::vector<std::pair<int64_t, std::vector<double>>> points,
+driftlab::joint_trajectory_t trajectory(int64_t stamp,
+                                        const std::vector<std::pair<int64_t, std::vector<double>>>& points,
                                         bool velocities) {
   driftlab::joint_trajectory_t m{};
   m.header.utime = stamp;

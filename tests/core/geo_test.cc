@@ -28,7 +28,7 @@ TEST(LocalFrame, RoundTripsAndMeasuresDistancesOnTheSphere) {
 
 TEST(StandardAtmosphere, PressureAndAltitudeInvertEachOther) {
   EXPECT_NEAR(pressure_at(0), 101325, 1e-9);
-  EXPECT_NEAR(pressure_at(1000), 89875, 5);  // the ICAO table: 898.75 hPa at 1000 m
+  EXPECT_NEAR(pressure_at(1000), 89875, 5);   // the ICAO table: 898.75 hPa at 1000 m
   EXPECT_NEAR(pressure_at(5000), 54020, 10);  // 540.2 hPa at 5000 m
   for (double h : {-100.0, 0.0, 488.0, 2000.0}) EXPECT_NEAR(altitude_of(pressure_at(h)), h, 1e-6);
 }

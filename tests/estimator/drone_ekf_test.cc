@@ -26,8 +26,8 @@ DroneEkf started() {
   imu.accel = truth.attitude(0).inverse() * (truth.acceleration(0) + Eigen::Vector3d(0, 0, kG));
   GnssFix g;
   g.position = truth.position(0);
-  e.init(kT0, imu, MagField{truth.attitude(0).inverse() * field_world()},
-         g, BaroAltitude{kOriginAlt + truth.position(0).z() + kBaroOffset, 0.1});
+  e.init(kT0, imu, MagField{truth.attitude(0).inverse() * field_world()}, g,
+         BaroAltitude{kOriginAlt + truth.position(0).z() + kBaroOffset, 0.1});
   return e;
 }
 
@@ -97,6 +97,7 @@ TEST(DelayedDroneEkf, LateGnssFixesWithinTheWindowGiveTheInOrderResult) {
   const auto in_order = flight(3);
   // Every GNSS fix 120 ms late, as a receiver's latency makes it (30 IMU samples arrive before it).
   std::vector<std::pair<int64_t, Stamped>> arrivals;
+  arrivals.reserve(in_order.size());
   for (const auto& s : in_order) arrivals.push_back({s.utime + (std::holds_alternative<GnssFix>(s.m) ? 120000 : 0), s});
   std::stable_sort(arrivals.begin(), arrivals.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
   DelayedDroneEkf a(started(), 0.3), b(started(), 0.3);

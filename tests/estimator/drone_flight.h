@@ -15,16 +15,14 @@ namespace driftlab::estimator::test {
 
 constexpr int64_t kT0 = 1763776800000000;
 constexpr double kG = 9.81;
-constexpr double kDeclination = 0.05;   // [rad]
-constexpr double kOriginAlt = 420;      // [m above sea level]
-constexpr double kBaroOffset = 1.5;     // the barometer reads this much above the true height [m]
+constexpr double kDeclination = 0.05;  // [rad]
+constexpr double kOriginAlt = 420;     // [m above sea level]
+constexpr double kBaroOffset = 1.5;    // the barometer reads this much above the true height [m]
 
 /// Circle of radius 5 m at 0.2 rad/s, climbing and sinking by 1 m; heading along the path; roll rocking 0.1 rad.
 struct Truth {
   double r = 5, w = 0.2;
-  Eigen::Vector3d position(double t) const {
-    return {r * std::cos(w * t), r * std::sin(w * t), 2 + std::sin(0.3 * t)};
-  }
+  Eigen::Vector3d position(double t) const { return {r * std::cos(w * t), r * std::sin(w * t), 2 + std::sin(0.3 * t)}; }
   Eigen::Vector3d velocity(double t) const {
     return {-r * w * std::sin(w * t), r * w * std::cos(w * t), 0.3 * std::cos(0.3 * t)};
   }
@@ -37,7 +35,9 @@ struct Truth {
   }
 };
 
-inline Eigen::Vector3d field_world() { return Eigen::Vector3d(std::sin(kDeclination), std::cos(kDeclination), -1.2) * 2e-5; }
+inline Eigen::Vector3d field_world() {
+  return Eigen::Vector3d(std::sin(kDeclination), std::cos(kDeclination), -1.2) * 2e-5;
+}
 
 struct Stamped {
   int64_t utime;
@@ -59,7 +59,7 @@ inline std::vector<Stamped> flight(uint64_t seed) {
   std::vector<Stamped> out;
   for (int i = 1; i <= 15000; ++i) {
     const double t0 = (i - 1) * 0.004, t1 = i * 0.004, tm = 0.5 * (t0 + t1);
-    const int64_t utime = kT0 + i * 4000;
+    const int64_t utime = kT0 + int64_t{i} * 4000;
     // Each sample describes the interval up to its stamp: the rotation over it and the mean specific force.
     const Eigen::AngleAxisd turn(truth.attitude(t0).inverse() * truth.attitude(t1));
     ImuSample imu;

@@ -16,7 +16,7 @@ TEST(Commander, OffboardNeedsAStreamAndArmingAnEstimate) {
   EXPECT_NE(c.reason().find("setpoints must stream first"), std::string::npos) << c.reason();
   c.on_setpoint(0);
   EXPECT_FALSE(c.command("offboard", 100000, true));  // one setpoint is no stream (2 per second needed)
-  for (int i = 1; i <= 20; ++i) c.on_setpoint(i * 50000);
+  for (int i = 1; i <= 20; ++i) c.on_setpoint(int64_t{i} * 50000);
   EXPECT_TRUE(c.command("offboard", kS, true));
   EXPECT_EQ(c.mode(), Mode::kOffboard);
   EXPECT_FALSE(c.command("arm", kS, false));

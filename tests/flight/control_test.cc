@@ -17,10 +17,14 @@
 namespace driftlab::flight {
 namespace {
 
-
 class Flight {
  public:
-  Flight() : body_(model_, Eigen::Vector3d(0.6, -0.3, 0)), mixer_(model_), position_(o_, 4 * model_.max_rotor_thrust / model_.mass), attitude_(o_), rate_(o_) {}
+  Flight()
+      : body_(model_, Eigen::Vector3d(0.6, -0.3, 0)),
+        mixer_(model_),
+        position_(o_, 4 * model_.max_rotor_thrust / model_.mass),
+        attitude_(o_),
+        rate_(o_) {}
 
   /// Flies `seconds` towards the setpoint (position, feed-forward velocity) given by `sp(t)`; `each(t)` after
   /// every millisecond of physics.
@@ -38,7 +42,8 @@ class Flight {
         const Eigen::Quaterniond q_sp = attitude_for(thrust_.acceleration, thrust_.yaw);
         const Eigen::Vector3d rate_sp = attitude_.update(body_.q, q_sp);
         const Eigen::Vector3d alpha = rate_.update(rate_sp, body_.w, 0.004, saturated_);
-        const double collective = std::max(0.0, thrust_.acceleration.dot(body_.q * Eigen::Vector3d::UnitZ())) * model_.mass;
+        const double collective =
+            std::max(0.0, thrust_.acceleration.dot(body_.q * Eigen::Vector3d::UnitZ())) * model_.mass;
         const Mix m = mixer_.mix(collective, model_.inertia.cwiseProduct(alpha));
         for (int k = 0; k < 3; ++k) saturated_[k] = m.saturated[k];
         body_.command(m.control);

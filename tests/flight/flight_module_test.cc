@@ -176,7 +176,7 @@ TEST(FlightModule, ASetpointGapInFlightIsAnOffboardLossAndTheVehicleHolds) {
     if (t > world.gap_from && t < world.gap_to + 500000) lowest_in_gap = std::min(lowest_in_gap, world.body.p.z());
   }
   EXPECT_EQ(flight.commander().offboard_losses(), 1);
-  EXPECT_GT(lowest_in_gap, 1.8);  // held, not dropped
+  EXPECT_GT(lowest_in_gap, 1.8);                          // held, not dropped
   EXPECT_EQ(flight.commander().mode(), Mode::kOffboard);  // the script asked again once the stream was back
   const std::vector<std::string> expected = {"hold", "offboard", "hold", "offboard"};
   EXPECT_EQ(modes(bus), expected);

@@ -7,6 +7,7 @@
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <utility>
 #include <vector>
 
 #include "flight/vehicle.h"
@@ -16,7 +17,7 @@ namespace driftlab::flight::test {
 class RigidBody {
  public:
   explicit RigidBody(const VehicleModel& model, Eigen::Vector3d wind = Eigen::Vector3d::Zero())
-      : model_(model), mixer_(model), wind_(wind), thrust_(model.rotors.size(), 0.0), command_(thrust_) {}
+      : model_(model), mixer_(model), wind_(std::move(wind)), thrust_(model.rotors.size(), 0.0), command_(thrust_) {}
 
   /// Motor commands, per rotor [0..1] of the maximum thrust; all zero when disarmed.
   void command(const std::vector<double>& control) { command_ = control; }

@@ -15,8 +15,8 @@ TEST(Mixer, MeetsFeasibleDemandsExactly) {
   const VehicleModel model;
   const Mixer mixer(model);
   const double hover = model.mass * 9.81;
-  for (const Eigen::Vector3d& torque : {Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(0.3, -0.2, 0.05),
-                                       Eigen::Vector3d(-0.5, 0.4, -0.1)}) {
+  for (const Eigen::Vector3d& torque :
+       {Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(0.3, -0.2, 0.05), Eigen::Vector3d(-0.5, 0.4, -0.1)}) {
     const Mix m = mixer.mix(hover, torque);
     const Eigen::Vector4d e = mixer.effect(m.control);
     EXPECT_NEAR(e(0), hover, 1e-9);
@@ -25,7 +25,8 @@ TEST(Mixer, MeetsFeasibleDemandsExactly) {
     EXPECT_FALSE(m.thrust_limited);
   }
   // Hover: every motor at the same command, a quarter of the weight each.
-  for (double u : mixer.mix(hover, Eigen::Vector3d::Zero()).control) EXPECT_NEAR(u * model.max_rotor_thrust, hover / 4, 1e-9);
+  for (double u : mixer.mix(hover, Eigen::Vector3d::Zero()).control)
+    EXPECT_NEAR(u * model.max_rotor_thrust, hover / 4, 1e-9);
 }
 
 TEST(Mixer, KeepsRollAndPitchWhenYawSaturates) {

@@ -117,23 +117,23 @@ std::string edited(const std::string& from, const std::string& to) {
 
 TEST(RobotModel, BadUrdfsAreOneLineNamingTheElement) {
   // A joint whose child link is missing.
-  auto missing = RobotModel::parse(edited("<child link=\"panda_link5\"/>", "<child link=\"panda_link9\"/>"), "arm.urdf");
+  auto missing =
+      RobotModel::parse(edited("<child link=\"panda_link5\"/>", "<child link=\"panda_link9\"/>"), "arm.urdf");
   ASSERT_FALSE(missing.ok());
   EXPECT_NE(missing.error().message.find("joint 'panda_joint5': its child link 'panda_link9' does not exist"),
             std::string::npos)
       << missing.error().message;
   EXPECT_EQ(missing.error().message.rfind("arm.urdf:", 0), 0u);
   // A loop: link3's joint hangs it below link5, itself below link3.
-  auto loop = RobotModel::parse(
-      edited("<parent link=\"panda_link2\"/>\n    <child link=\"panda_link3\"/>",
-             "<parent link=\"panda_link5\"/>\n    <child link=\"panda_link3\"/>"),
-      "arm.urdf");
+  auto loop = RobotModel::parse(edited("<parent link=\"panda_link2\"/>\n    <child link=\"panda_link3\"/>",
+                                       "<parent link=\"panda_link5\"/>\n    <child link=\"panda_link3\"/>"),
+                                "arm.urdf");
   ASSERT_FALSE(loop.ok());
   EXPECT_NE(loop.error().message.find("closes a loop"), std::string::npos) << loop.error().message;
   // A joint without limits where the controller needs them.
-  auto free = RobotModel::parse(edited("<joint name=\"panda_joint6\" type=\"revolute\">",
-                                       "<joint name=\"panda_joint6\" type=\"continuous\">"),
-                                "arm.urdf");
+  auto free = RobotModel::parse(
+      edited("<joint name=\"panda_joint6\" type=\"revolute\">", "<joint name=\"panda_joint6\" type=\"continuous\">"),
+      "arm.urdf");
   ASSERT_TRUE(free.ok());
   auto chain = ArmChain::create(*free, "panda_link0", "panda_hand_tcp", true);
   ASSERT_FALSE(chain.ok());

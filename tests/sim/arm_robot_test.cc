@@ -35,7 +35,8 @@ struct ArmRig {
   }
   void step(const std::vector<double>& rates) {
     robot->set_wheel_rates(0, 0, kDt);
-    for (int i = 0; i < 7; ++i) robot->set_joint_rate(index[static_cast<size_t>(i)], rates[static_cast<size_t>(i)], 87, kDt);
+    for (int i = 0; i < 7; ++i)
+      robot->set_joint_rate(index[static_cast<size_t>(i)], rates[static_cast<size_t>(i)], 87, kDt);
     physics.dynamics().stepSimulation(static_cast<btScalar>(kDt), 0);
     robot->after_step(kDt);
   }
@@ -50,7 +51,8 @@ struct ArmRig {
       const Eigen::VectorXd e = target - q();
       integral += e * kDt;
       std::vector<double> rates(7);
-      for (int i = 0; i < 7; ++i) rates[static_cast<size_t>(i)] = std::clamp(30.0 * e[i] + 300.0 * integral[i], -2.0, 2.0);
+      for (int i = 0; i < 7; ++i)
+        rates[static_cast<size_t>(i)] = std::clamp(30.0 * e[i] + 300.0 * integral[i], -2.0, 2.0);
       step(rates);
     }
   }
@@ -92,8 +94,8 @@ TEST(ArmRobot, HoldsItsInitialPoseAndMovesAlongItsAxes) {
   ASSERT_TRUE(chain.ok());
   const Eigen::Isometry3d truth = rig.robot->link_pose("base_link").inverse() * rig.robot->link_pose("panda_hand_tcp");
   const Eigen::Isometry3d fk = chain->fk(rig.q());
-  EXPECT_LT(kinematics::position_distance(truth, fk), 1e-3) << truth.translation().transpose() << " vs "
-                                                             << fk.translation().transpose();
+  EXPECT_LT(kinematics::position_distance(truth, fk), 1e-3)
+      << truth.translation().transpose() << " vs " << fk.translation().transpose();
   EXPECT_LT(kinematics::angle_distance(truth, fk), 2e-3);
 }
 

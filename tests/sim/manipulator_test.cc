@@ -89,7 +89,7 @@ class Manipulator : public ::testing::Test {
   }
   /// Poses of a ground-truth channel by their stamp [us].
   static std::map<int64_t, Eigen::Isometry3d> truth(const std::string& channel,
-                                                     const std::vector<test::OwnedEvent>* events = nullptr) {
+                                                    const std::vector<test::OwnedEvent>* events = nullptr) {
     std::map<int64_t, Eigen::Isometry3d> out;
     for (const auto* e : sim::on(events != nullptr ? *events : *events_, channel)) {
       const auto p = decode<driftlab::pose_t>(*e);
@@ -169,8 +169,10 @@ TEST_F(Manipulator, RobotStatePublisherPutsEveryJointOnTf) {
   for (const auto& t : decode<driftlab::tf_t>(*on("TF_STATIC").back()).transforms) {
     parent[t.child_frame_id] = t.header.frame_id;
   }
-  for (const auto& t : decode<driftlab::tf_t>(*on("TF_MAP").back()).transforms) parent[t.child_frame_id] = t.header.frame_id;
-  for (const auto& t : decode<driftlab::tf_t>(*on("TF").back()).transforms) parent[t.child_frame_id] = t.header.frame_id;
+  for (const auto& t : decode<driftlab::tf_t>(*on("TF_MAP").back()).transforms)
+    parent[t.child_frame_id] = t.header.frame_id;
+  for (const auto& t : decode<driftlab::tf_t>(*on("TF").back()).transforms)
+    parent[t.child_frame_id] = t.header.frame_id;
   // The hand reaches map through the arm, base_link and odom.
   std::vector<std::string> path{"panda_hand_tcp"};
   while (parent.count(path.back()) != 0 && path.size() < 30) path.push_back(parent[path.back()]);
@@ -238,7 +240,8 @@ TEST(ManipulatorClock, CommandsStampedInThePastAreRejectedAsStale) {
   test::TempDir dir;
   const auto events = simulate("manipulator_clock.yaml", 30, dir.file("clock.lcm"));
   // The commander's clock loses 2%: at t s into the run its stamps are 0.02 t s behind, and a trajectory whose
-  // 0.5 s horizon ends before it arrives (0.02 t > 0.5: after 25 s, the command at 25.00 s ends as it arrives) is stale.
+  // 0.5 s horizon ends before it arrives (0.02 t > 0.5: after 25 s, the command at 25.00 s ends as it arrives) is
+  // stale.
   int stale = 0, commands_after = 0;
   // Commands up to 29.9 s, and their results, which the controller gives one physics step (1 ms) after their
   // arrival (it takes what the output wrote before that step); the run's last step's are not written.

@@ -46,8 +46,10 @@ std::string body(const std::string& mass = "1.0") {
 std::string rotor(const std::string& axis, const std::string& mass = "0.05") {
   return "  <link name=\"rotor_0\">\n    <inertial><mass value=\"" + mass +
          "\"/><inertia ixx=\"1e-5\" ixy=\"0\" ixz=\"0\" iyy=\"1e-5\" iyz=\"0\" izz=\"2e-5\"/></inertial>\n  </link>\n"
-         "  <joint name=\"rotor_0_joint\" type=\"continuous\">\n    <parent link=\"base_link\"/><child link=\"rotor_0\"/>\n"
-         "    <origin xyz=\"0.18 0.18 0.04\"/>\n" + axis + "  </joint>\n";
+         "  <joint name=\"rotor_0_joint\" type=\"continuous\">\n    <parent link=\"base_link\"/><child "
+         "link=\"rotor_0\"/>\n"
+         "    <origin xyz=\"0.18 0.18 0.04\"/>\n" +
+         axis + "  </joint>\n";
 }
 std::string robot(const std::string& inner) { return "<robot name=\"bad\">\n" + inner + "</robot>\n"; }
 
