@@ -8,10 +8,13 @@
 
 #include "analyzers/internal/channel_samples.h"
 #include "analyzers/internal/channel_timing.h"
+#include "analyzers/internal/command_loop.h"
 #include "analyzers/internal/stream_skew.h"
 #include "analyzers/internal/tf_check.h"
 #include "core/log_format.h"
 #include "core/log_reader.h"
+#include "driftlab/joint_state_t.hpp"
+#include "driftlab/joint_trajectory_t.hpp"
 #include "driftlab/tf_t.hpp"
 #include "lcmtypes/stream_header.h"
 #include "lcmtypes/type_registry.h"
@@ -26,7 +29,10 @@ Result<Diagnosis> diagnose(const std::string& log, const DiagnoseOptions& option
   d.log = log;
   std::map<std::string, internal::Samples, std::less<>> channels;
   internal::TfCheck tf;
+  internal::CommandLoopCheck loops;
   const int64_t tf_hash = driftlab::tf_t::getHash();
+  const int64_t trajectory_hash = driftlab::joint_trajectory_t::getHash();
+  const int64_t joint_state_hash = driftlab::joint_state_t::getHash();
   internal::Samples* last = nullptr;
   std::string_view last_name;
   Event e;
@@ -58,6 +64,8 @@ Result<Diagnosis> diagnose(const std::string& log, const DiagnoseOptions& option
     const int64_t fp = logfmt::fingerprint(e.data);
     s.arrival.push_back(e.utime);
     if (fp == tf_hash) tf.add_tf(e.data, e.utime, internal::is_static_tf_channel(last_name));
+    if (fp == trajectory_hash) loops.add_command(std::string(last_name), e.data, e.utime);
+    if (fp == joint_state_hash) loops.add_state(std::string(last_name), e.data);
     if (s.has_header) {
       if (const auto h = lcmtypes::read_header(e.data, e.utime)) {
         s.seq.push_back(h->seq);
@@ -91,6 +99,7 @@ Result<Diagnosis> diagnose(const std::string& log, const DiagnoseOptions& option
   d.tf = tf.finish();
   // Skew between every two streams that observe the yaw rate: IMU gyro, wheel odometry, poses, scans.
   d.pairs = internal::stream_pairs(channels, d.start_utime, d.end_utime, options);
+  d.command_loops = loops.finish(d.start_utime);
   return d;
 }
 

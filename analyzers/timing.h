@@ -87,12 +87,32 @@ struct TfDiagnosis {
   std::vector<std::string> problems;  ///< in words
 };
 
+/// A command loop seen in the log: a channel of joint trajectories (driftlab.joint_trajectory_t) and the joint
+/// states (driftlab.joint_state_t) of the same joints. The delay from command to motion is measured from the
+/// motion itself (a late command may carry an honest stamp): the lag at which the measured joint positions (at
+/// their stamps) best repeat the commanded ones (each command's plan, from its stamp, until the next command's).
+struct CommandLoop {
+  std::string command_channel, state_channel;
+  int64_t commands = 0;
+  double command_period_s = 0;  ///< median interval between the commands' stamps [s]
+  bool delay_valid = false;     ///< enough motion to measure the delay
+  double delay_s = 0;           ///< the measured joints follow the commanded motion this much later [s]
+  double confidence = 0;        ///< agreement at the delay: 1 - mean squared difference / variance (1: the same motion)
+  /// Commands whose whole plan lay in the past when they arrived (stamp + last point's time < arrival): a
+  /// controller that honours stamps discards them, one that does not runs a plan that is over.
+  int64_t stale = 0;
+  double first_stale_s = 0;                      ///< when the first stale one arrived, from the start of the log [s]
+  double stale_max_s = 0;                        ///< how long its plan had been over when the worst one arrived [s]
+  std::vector<std::pair<double, double>> curve;  ///< (lag [s], agreement) over the lags searched, for plots
+};
+
 struct Diagnosis {
   std::string log;
   int64_t start_utime = 0, end_utime = 0;
   std::vector<ChannelTiming> channels;
   std::vector<StreamPair> pairs;
   TfDiagnosis tf;
+  std::vector<CommandLoop> command_loops;
   uint64_t log_problems = 0;  ///< corruption met while reading
 };
 

@@ -89,6 +89,43 @@ std::vector<std::string> report_lines(const Diagnosis& d, std::vector<std::strin
     lines.push_back("TF: " + std::to_string(d.tf.frames.size()) + " frames, root " + roots);
   }
   for (const auto& p : d.tf.problems) problems->push_back("TF: " + p);
+  for (const auto& l : d.command_loops) {
+    if (l.state_channel.empty() && l.stale == 0) continue;
+    if (lines.back().rfind("command loops", 0) != 0 && lines.back().rfind("  ", 0) != 0) {
+      lines.push_back("");
+      lines.push_back("command loops (the delay from a command to the joints' motion, measured from the motion):");
+    }
+    if (l.delay_valid) {
+      std::snprintf(buf, sizeof(buf), "  %s -> %s: %.1f ms (confidence %.2f), %lld commands every %.0f ms",
+                    l.command_channel.c_str(), l.state_channel.c_str(), l.delay_s * 1e3, l.confidence,
+                    static_cast<long long>(l.commands), l.command_period_s * 1e3);
+    } else {
+      std::snprintf(buf, sizeof(buf),
+                    "  %s -> %s: no delay measured (the joints do not follow the commanded "
+                    "motion clearly: confidence %.2f)",
+                    l.command_channel.c_str(),
+                    l.state_channel.empty() ? "(no joint states of its joints)" : l.state_channel.c_str(),
+                    l.confidence);
+    }
+    lines.push_back(buf);
+    // A loop whose commands take effect more than a command period late corrects against states the next
+    // commands have already moved on from: it lags and overshoots.
+    if (l.delay_valid && l.command_period_s > 0 && l.delay_s > l.command_period_s) {
+      std::snprintf(buf, sizeof(buf),
+                    "%s: the joints follow the commands %.0f ms late, more than the %.0f ms between "
+                    "commands (a slow transport or a controller starting plans late)",
+                    l.command_channel.c_str(), l.delay_s * 1e3, l.command_period_s * 1e3);
+      problems->push_back(buf);
+    }
+    if (l.stale > 0) {
+      std::snprintf(buf, sizeof(buf),
+                    "%s: %lld of %lld commands arrived after their plan was over (the first at %.1f s, "
+                    "the worst %.0f ms over): stamped on a clock behind, or held up",
+                    l.command_channel.c_str(), static_cast<long long>(l.stale), static_cast<long long>(l.commands),
+                    l.first_stale_s, l.stale_max_s * 1e3);
+      problems->push_back(buf);
+    }
+  }
   return lines;
 }
 

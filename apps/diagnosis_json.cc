@@ -67,13 +67,27 @@ nlohmann::json to_json(const analyzers::Diagnosis& d) {
     pairs.push_back({{"a", p.a}, {"b", p.b}, {"offset_s", p.offset_s}, {"confidence", p.confidence},
                      {"method", p.method}, {"windows", windows}, {"curve", curve}});
   }
+  nlohmann::json loops = nlohmann::json::array();
+  for (const auto& l : d.command_loops) {
+    nlohmann::json curve = nlohmann::json::array();
+    for (const auto& [lag, c] : l.curve) curve.push_back({lag, c});
+    loops.push_back({{"command", l.command_channel},
+                     {"state", l.state_channel.empty() ? nlohmann::json() : nlohmann::json(l.state_channel)},
+                     {"commands", l.commands},
+                     {"command_period_s", l.command_period_s},
+                     {"delay_s", l.delay_valid ? nlohmann::json(l.delay_s) : nlohmann::json()},
+                     {"confidence", l.confidence},
+                     {"stale", {{"count", l.stale}, {"first_s", l.first_stale_s}, {"max_s", l.stale_max_s}}},
+                     {"curve", curve}});
+  }
   return {{"log", d.log},
           {"start_utime", d.start_utime},
           {"end_utime", d.end_utime},
           {"log_problems", d.log_problems},
           {"channels", channels},
           {"pairs", pairs},
-          {"tf", {{"frames", d.tf.frames}, {"roots", d.tf.roots}, {"problems", d.tf.problems}}}};
+          {"tf", {{"frames", d.tf.frames}, {"roots", d.tf.roots}, {"problems", d.tf.problems}}},
+          {"command_loops", loops}};
 }
 
 nlohmann::json diagnosis_summary(const nlohmann::json& diagnosis) {

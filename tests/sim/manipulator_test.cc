@@ -8,6 +8,7 @@
 #include <cmath>
 #include <map>
 
+#include "analyzers/timing.h"
 #include "driftlab/joint_state_t.hpp"
 #include "driftlab/joint_trajectory_result_t.hpp"
 #include "driftlab/joint_trajectory_state_t.hpp"
@@ -232,6 +233,22 @@ TEST_F(Manipulator, LatencyScenarioDelaysEveryCommandAndTheArmLags) {
   EXPECT_LT(best, same_time / 3);
   EXPECT_GE(best_shift, 50'000);
   EXPECT_LE(best_shift, 120'000);
+  // driftlab diagnose measures the loop's delay from the motion: the joints repeat the commanded positions 120 ms
+  // after the commands' stamps (the issue asks for 5 ms), where the clean run's repeat them at once (the
+  // controller tracks its plan within a physics step or two).
+  for (const auto& [log, delay] : {std::pair{dir_->file("latency.lcm"), 0.120}, {dir_->file("arm.lcm"), 0.0}}) {
+    const auto d = analyzers::diagnose(log);
+    ASSERT_TRUE(d.ok()) << d.error().message;
+    ASSERT_EQ(d->command_loops.size(), 1u);
+    const analyzers::CommandLoop& loop = d->command_loops[0];
+    EXPECT_EQ(loop.command_channel, "ARM_CMD");
+    EXPECT_EQ(loop.state_channel, "JOINT_STATES");
+    EXPECT_NEAR(loop.command_period_s, 0.05, 1e-6);
+    ASSERT_TRUE(loop.delay_valid) << log << ": confidence " << loop.confidence;
+    EXPECT_NEAR(loop.delay_s, delay, 0.005) << log;
+    EXPECT_GT(loop.confidence, 0.9) << log;
+    EXPECT_EQ(loop.stale, 0) << log;
+  }
   std::printf("latency: hand %.4f m RMS from the clean run, %.4f m at its best shift of %lld ms\n", same_time, best,
               static_cast<long long>(best_shift / 1000));
 }
@@ -260,6 +277,19 @@ TEST(ManipulatorClock, CommandsStampedInThePastAreRejectedAsStale) {
   }
   EXPECT_EQ(stale, commands_after);  // every command after 25 s, and only those
   EXPECT_GT(stale, 90);
+  // driftlab diagnose names them from the commands alone (stamp, plan, arrival): the same commands, the first
+  // after 25 s; the delay is not measured (it grows with the clock's drift, and the arm stops following).
+  const auto d = analyzers::diagnose(dir.file("clock.lcm"));
+  ASSERT_TRUE(d.ok()) << d.error().message;
+  ASSERT_EQ(d->command_loops.size(), 1u);
+  const analyzers::CommandLoop& loop = d->command_loops[0];
+  int64_t all_after = 0;  // to the end of the log (the results stop a step before it)
+  for (const auto* e : sim::on(events, "ARM_CMD")) all_after += e->utime - events.front().utime > 25'000'000;
+  EXPECT_EQ(loop.stale, all_after);
+  EXPECT_GE(loop.stale, stale);
+  EXPECT_NEAR(loop.first_stale_s, 25.0, 0.06);
+  EXPECT_NEAR(loop.stale_max_s, 0.02 * 30 - 0.5, 0.002);
+  EXPECT_FALSE(loop.delay_valid);
 }
 
 }  // namespace

@@ -1,0 +1,203 @@
+#include "analyzers/internal/command_loop.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numeric>
+
+#include "analyzers/internal/channel_samples.h"
+#include "driftlab/joint_state_t.hpp"
+#include "driftlab/joint_trajectory_t.hpp"
+#include "lcmtypes/validate.h"
+
+namespace driftlab::analyzers::internal {
+namespace {
+
+// The lags searched: the joints may follow the commands up to a second later (a slow transport, a controller that
+// starts plans late) or, with a sender's clock behind, up to half a second "earlier" than the stamps say.
+constexpr int64_t kMaxLagUs = 1'000'000;
+constexpr int64_t kMaxLeadUs = 500'000;
+// The signals are sampled at 1 ms (a 5 ms answer needs a finer grid; the peak is refined by a parabola), coarser
+// on long logs so that at most kMaxSamples are held per joint and signal.
+constexpr int64_t kFineUs = 1000;
+constexpr int64_t kMaxSamples = 200'000;
+// The coarse search steps kCoarse samples; the fine one looks kCoarse samples either side of the coarse peak.
+constexpr int64_t kCoarse = 10;
+// Below this agreement at the best lag the motion does not say when the joints follow the commands: no motion, a
+// controller that does not follow them (stale commands rejected), or a delay that changes during the log (a
+// drifting clock). At the true delay the joints repeat the commanded positions up to the controller's tracking
+// error, a few percent of their motion: agreement over 0.9.
+constexpr double kMinConfidence = 0.5;
+
+/// Linear interpolation of y at x in ascending xs, held after the end; before the start, extrapolated along the
+/// first two points when `extrapolate_front` (a plan's first point lies a period after its stamp: the controller
+/// moves towards it from the stamp on), held otherwise.
+double interpolate(const std::vector<int64_t>& xs, const std::vector<double>& ys, int64_t x, bool extrapolate_front) {
+  if (x >= xs.back()) return ys.back();
+  if (x <= xs.front() && (!extrapolate_front || xs.size() < 2)) return ys.front();
+  const auto hi =
+      x <= xs.front() ? size_t{1} : static_cast<size_t>(std::upper_bound(xs.begin(), xs.end(), x) - xs.begin());
+  const double f = static_cast<double>(x - xs[hi - 1]) / static_cast<double>(xs[hi] - xs[hi - 1]);
+  return ys[hi - 1] + f * (ys[hi] - ys[hi - 1]);
+}
+
+/// How well b[i + lag] repeats a[i], over the samples both have, every `stride`-th: 1 - the mean squared difference
+/// over the mean squared deviation of a from its mean (1: b is a, `lag` samples later; 0 or less: no better than
+/// a's mean).
+double agreement(const std::vector<std::vector<double>>& a, const std::vector<std::vector<double>>& b, int64_t lag,
+                 int64_t stride) {
+  double diff = 0, var = 0;
+  for (size_t j = 0; j < a.size(); ++j) {
+    const auto n = static_cast<int64_t>(a[j].size());
+    double sum = 0, sq = 0, count = 0;
+    for (int64_t i = std::max<int64_t>(0, -lag); i < n && i + lag < n; i += stride) {
+      const double x = a[j][static_cast<size_t>(i)], y = b[j][static_cast<size_t>(i + lag)];
+      diff += (x - y) * (x - y);
+      sum += x;
+      sq += x * x;
+      count += 1;
+    }
+    if (count > 0) var += sq - sum * sum / count;
+  }
+  return var > 0 ? 1 - diff / var : 0;
+}
+
+}  // namespace
+
+void CommandLoopCheck::add_command(const std::string& channel, std::span<const uint8_t> data, int64_t arrival) {
+  driftlab::joint_trajectory_t m;
+  if (!lcmtypes::decode(data, m) || m.npoints < 1) return;
+  Commands& c = commands_[channel];
+  if (c.list.empty()) c.joints = m.joint_names;
+  if (m.joint_names != c.joints) return;
+  Command cmd;
+  cmd.stamp = m.header.utime;
+  cmd.arrival = arrival;
+  for (const auto& p : m.points) {
+    if (p.positions.size() != c.joints.size() || (!cmd.t.empty() && p.time_from_start_us <= cmd.t.back())) return;
+    if (!std::all_of(p.positions.begin(), p.positions.end(), [](double v) { return std::isfinite(v); })) return;
+    cmd.t.push_back(p.time_from_start_us);
+    cmd.q.push_back(p.positions);
+  }
+  c.list.push_back(std::move(cmd));
+}
+
+void CommandLoopCheck::add_state(const std::string& channel, std::span<const uint8_t> data) {
+  driftlab::joint_state_t m;
+  if (!lcmtypes::decode(data, m)) return;
+  States& s = states_[channel];
+  if (s.stamp.empty()) {
+    for (size_t i = 0; i < m.name.size(); ++i) s.index.emplace(m.name[i], i);
+  }
+  if (m.position.size() != s.index.size() || (!s.stamp.empty() && m.header.utime <= s.stamp.back())) return;
+  for (const auto& [name, i] : s.index) {
+    if (i >= m.name.size() || m.name[i] != name || !std::isfinite(m.position[i])) return;
+  }
+  s.stamp.push_back(m.header.utime);
+  s.q.push_back(m.position);
+}
+
+std::vector<CommandLoop> CommandLoopCheck::finish(int64_t start_utime) const {
+  std::vector<CommandLoop> out;
+  for (const auto& [channel, c] : commands_) {
+    CommandLoop loop;
+    loop.command_channel = channel;
+    loop.commands = static_cast<int64_t>(c.list.size());
+    for (const Command& cmd : c.list) {
+      const int64_t over = cmd.arrival - (cmd.stamp + cmd.t.back());
+      if (over <= 0) continue;
+      if (loop.stale++ == 0) loop.first_stale_s = static_cast<double>(cmd.arrival - start_utime) * 1e-6;
+      loop.stale_max_s = std::max(loop.stale_max_s, static_cast<double>(over) * 1e-6);
+    }
+    // The state channel with every commanded joint; the one with the most messages.
+    const States* states = nullptr;
+    for (const auto& [name, s] : states_) {
+      const auto& index = s.index;  // a binding cannot be captured before C++20 in clang 14
+      const bool all =
+          std::all_of(c.joints.begin(), c.joints.end(), [&](const std::string& j) { return index.count(j) > 0; });
+      if (all && s.stamp.size() >= 2 && (states == nullptr || s.stamp.size() > states->stamp.size())) {
+        loop.state_channel = name;
+        states = &s;
+      }
+    }
+    std::vector<const Command*> by_stamp;
+    for (const Command& cmd : c.list) by_stamp.push_back(&cmd);
+    std::stable_sort(by_stamp.begin(), by_stamp.end(),
+                     [](const Command* a, const Command* b) { return a->stamp < b->stamp; });
+    if (by_stamp.size() >= 2) {
+      Array<double> gaps;
+      for (size_t i = 1; i < by_stamp.size(); ++i) {
+        gaps.push_back(static_cast<double>(by_stamp[i]->stamp - by_stamp[i - 1]->stamp) * 1e-6);
+      }
+      loop.command_period_s = median(std::move(gaps));
+    }
+    if (states == nullptr || by_stamp.size() < 2) {
+      out.push_back(std::move(loop));
+      continue;
+    }
+    // Both signals on one grid where both are known: the commanded position of each joint is the plan of the last
+    // command stamped at or before the time; the measured one interpolated between joint states.
+    const int64_t t0 = std::max(by_stamp.front()->stamp, states->stamp.front());
+    const int64_t t1 = std::min(by_stamp.back()->stamp + by_stamp.back()->t.back(), states->stamp.back());
+    if (t1 - t0 < 4 * kMaxLagUs) {
+      out.push_back(std::move(loop));
+      continue;
+    }
+    const int64_t step = std::max(kFineUs, (t1 - t0) / kMaxSamples + 1);
+    const auto n = static_cast<size_t>((t1 - t0) / step);
+    const size_t joints = c.joints.size();
+    std::vector<std::vector<double>> commanded(joints, std::vector<double>(n)),
+        measured(joints, std::vector<double>(n));
+    std::vector<std::vector<double>> state_q(joints);
+    for (size_t j = 0; j < joints; ++j) {
+      const size_t col = states->index.at(c.joints[j]);
+      state_q[j].reserve(states->q.size());
+      for (const auto& q : states->q) state_q[j].push_back(q[col]);
+    }
+    size_t active = 0;
+    std::vector<double> plan_j;
+    for (size_t i = 0; i < n; ++i) {
+      const int64_t t = t0 + static_cast<int64_t>(i) * step;
+      while (active + 1 < by_stamp.size() && by_stamp[active + 1]->stamp <= t) ++active;
+      const Command& cmd = *by_stamp[active];
+      for (size_t j = 0; j < joints; ++j) {
+        plan_j.clear();
+        for (const auto& q : cmd.q) plan_j.push_back(q[j]);
+        commanded[j][i] = interpolate(cmd.t, plan_j, t - cmd.stamp, true);
+        measured[j][i] = interpolate(states->stamp, state_q[j], t, false);
+      }
+    }
+    // The lag at which the measured positions best repeat the commanded ones: positions, not velocities, because a
+    // loop whose commander adds a share of the measured error to each command (as the report's does) puts the
+    // measured motion into the commanded one at lag zero, which biases a correlation of velocities towards zero;
+    // the positions the joints reach are the commanded ones, corrections included, one delay later.
+    // Coarse search over every lag, then every sample and lag around the best one.
+    const int64_t lag_lo = -kMaxLeadUs / step, lag_hi = kMaxLagUs / step;
+    int64_t best = 0;
+    double best_r = -std::numeric_limits<double>::infinity();
+    for (int64_t lag = lag_lo; lag <= lag_hi; lag += kCoarse) {
+      const double r = agreement(commanded, measured, lag, kCoarse);
+      loop.curve.emplace_back(static_cast<double>(lag * step) * 1e-6, r);
+      if (r > best_r) best_r = r, best = lag;
+    }
+    const int64_t centre = best;
+    std::vector<double> fine;
+    for (int64_t lag = centre - kCoarse; lag <= centre + kCoarse; ++lag) {
+      fine.push_back(agreement(commanded, measured, lag, 1));
+      if (fine.back() > best_r || lag == centre - kCoarse) best_r = fine.back(), best = lag;
+    }
+    double lag = static_cast<double>(best);
+    const auto k = static_cast<size_t>(best - (centre - kCoarse));
+    if (k > 0 && k + 1 < fine.size()) {  // the parabola through the peak and its neighbours
+      const double a = fine[k - 1], b = fine[k], cc = fine[k + 1], den = a - 2 * b + cc;
+      if (den < 0) lag += 0.5 * (a - cc) / den;
+    }
+    loop.confidence = std::max(0.0, best_r);
+    loop.delay_valid = best_r >= kMinConfidence;
+    loop.delay_s = lag * static_cast<double>(step) * 1e-6;
+    out.push_back(std::move(loop));
+  }
+  return out;
+}
+
+}  // namespace driftlab::analyzers::internal

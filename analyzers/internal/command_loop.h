@@ -1,0 +1,45 @@
+// Command loops for `driftlab diagnose`: the delay from a joint trajectory command to the joints' motion, measured
+// from the motion, and the commands that arrived after their plan was over. Internal to analyzers (used by
+// timing.cc). Thread-safety: plain values.
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "analyzers/timing.h"
+
+namespace driftlab::analyzers::internal {
+
+class CommandLoopCheck {
+ public:
+  /// A driftlab.joint_trajectory_t message on `channel` that arrived at arrival [us].
+  void add_command(const std::string& channel, std::span<const uint8_t> data, int64_t arrival);
+  /// A driftlab.joint_state_t message on `channel`.
+  void add_state(const std::string& channel, std::span<const uint8_t> data);
+  /// One loop per command channel, paired with the state channel that has all its joints (the one with the most
+  /// messages when several do); start_utime: the log's start [us].
+  std::vector<CommandLoop> finish(int64_t start_utime) const;
+
+ private:
+  struct Command {
+    int64_t stamp = 0, arrival = 0;
+    std::vector<int64_t> t;              // points' times from the stamp [us]
+    std::vector<std::vector<double>> q;  // per point, in joints' order
+  };
+  struct Commands {
+    std::vector<std::string> joints;  // of the first command; later ones with other joints are left out
+    std::vector<Command> list;
+  };
+  struct States {
+    std::map<std::string, size_t> index;  // joint name -> column (of the first message)
+    std::vector<int64_t> stamp;
+    std::vector<std::vector<double>> q;
+  };
+  std::map<std::string, Commands> commands_;
+  std::map<std::string, States> states_;
+};
+
+}  // namespace driftlab::analyzers::internal
