@@ -6,13 +6,20 @@
 #include "formats/mcap.h"
 
 #include <fcntl.h>
+#include <pthread.h>
 #include <unistd.h>
 #include <zlib.h>
 
 #include <algorithm>
 #include <cerrno>
+#include <condition_variable>
 #include <cstdio>
 #include <cstring>
+#include <deque>
+#include <exception>
+#include <mutex>
+#include <system_error>
+#include <thread>
 
 #include "formats/compression.h"
 
@@ -111,8 +118,7 @@ std::string hex32(uint32_t v) {
 struct McapReader::Impl {
   std::map<uint16_t, std::unique_ptr<McapSchema>> schemas;
   std::map<uint16_t, std::unique_ptr<McapChannel>> channels;
-  Decompressor decompressor;
-  std::vector<uint8_t> chunk;
+  Decompressor decompressor;  // the reading half's
 };
 
 McapReader::McapReader() : impl_(std::make_unique<Impl>()) {}
@@ -145,6 +151,47 @@ Result<McapReader> McapReader::open(const std::string& path) {
 
 Result<McapReader> McapReader::from_memory(std::span<const uint8_t> bytes) { return check("mcap", bytes); }
 
+namespace {
+
+/// One step of a read, in file order: a record outside chunks, a chunk's records (decompressed and checked), or a
+/// problem the reading side found. Made by the reading side, handed to the calling thread.
+struct Step {
+  enum Kind : uint8_t { kRecord, kChunk, kProblem };
+  Kind kind = kRecord;
+  uint8_t op = 0;                  // kRecord: its opcode
+  bool cut = false;                // kChunk: the file ends inside it
+  uint64_t where = 0;              // the record's file offset
+  uint64_t end = 0;                // kRecord, kChunk: the file offset after the record (0: none)
+  std::span<const uint8_t> bytes;  // kRecord: its content; kChunk: its records, in the file or in buffer
+  std::string what;                // kProblem: the problem; kChunk: what is wrong with it ("": nothing)
+  std::vector<uint8_t> buffer;     // kChunk: the decompressed records (a moved vector keeps its bytes in place)
+  bool decompressed = false;       // kChunk: holds one of the decompression buffers
+};
+using Batch = std::vector<Step>;
+
+/// Thrown on the reading thread when the calling thread stopped (a callback threw): unwinds it.
+struct Stopped {};
+
+constexpr size_t kMaxBatches = 2;        // batches waiting for the calling thread
+constexpr int kMaxDecompressed = 3;      // decompressed chunks alive: one being filled, two waiting or parsed
+constexpr size_t kMaxBatchSteps = 4096;  // records outside chunks per batch
+
+}  // namespace
+
+void McapReader::set_pipelined(bool on) { pipelined_ = on; }
+
+// The read is two halves joined by a bounded queue of batches of Steps. The reading half walks the data section's
+// records, decompresses chunks and checks every CRC; the converting half (the calling thread) parses the records
+// of chunks, keeps schemas and channels, and runs every callback in file order. Pipelined, the reading half runs
+// on a thread of its own, a few chunks ahead; otherwise it hands each batch over by calling the converting half
+// directly. Either way the callbacks see the same calls in the same order.
+// Hand-off (what a race detector would check): the queue, the spare decompression buffers, the counters and the
+// flags are touched only under `mu`. A Step's bytes are written by the reading half before it is queued and read
+// by the calling thread after it is dequeued (the mutex orders them); buffers go back through `spare` the same
+// way. The file's bytes are only read (release_before() only on the calling thread). The schemas and channels
+// are the calling thread's, except that resync() reads the channels after drain() has waited, under `mu`, for
+// every batch queued to be done, while the calling thread waits for more. The reading half alone uses the
+// decompressor, the CRCs and profile_/library_/statistics_, which the caller reads after the thread is joined.
 int64_t McapReader::read(const std::function<void(const McapMessage&)>& on_message,
                          const std::function<void(const McapProblem&)>& on_problem,
                          const std::function<void(const McapMetadata&)>& on_metadata) {
@@ -154,33 +201,7 @@ int64_t McapReader::read(const std::function<void(const McapMessage&)>& on_messa
   has_statistics_ = false;
   statistics_ = {};
 
-  // The Data End record's CRC, known from the footer before reading: computed while reading only when it is set.
-  uint32_t want_data_crc = 0;
-  uint64_t data_end_at = 0;
-  {
-    const size_t tail = kRecordHead + kFooterContent + sizeof(kMagic);
-    if (bytes.size() >= sizeof(kMagic) + tail &&
-        std::memcmp(bytes.data() + bytes.size() - sizeof(kMagic), kMagic, sizeof(kMagic)) == 0) {
-      const uint8_t* f = bytes.data() + bytes.size() - tail;
-      if (f[0] == kFooter && le<uint64_t>(f + 1) == kFooterContent) {
-        const uint64_t summary_start = le<uint64_t>(f + kRecordHead);
-        const uint64_t at = summary_start != 0 ? summary_start - 13 : bytes.size() - tail - 13;
-        if (summary_start <= bytes.size() - tail && at >= sizeof(kMagic) && at + 13 <= bytes.size() &&
-            bytes[at] == kDataEnd && le<uint64_t>(bytes.data() + at + 1) == 4) {
-          data_end_at = at;
-          want_data_crc = le<uint32_t>(bytes.data() + at + kRecordHead);
-        }
-      }
-    }
-  }
-  uint32_t data_crc = 0;
-  uint64_t crc_done = 0;  // data_crc covers bytes [0, crc_done)
-  auto crc_to = [&](uint64_t end) {
-    if (want_data_crc == 0 || end <= crc_done || crc_done > data_end_at) return;
-    end = std::min<uint64_t>(end, data_end_at);
-    data_crc = crc32_of(bytes.subspan(crc_done, end - crc_done), data_crc);
-    crc_done = end;
-  };
+  // --- The converting half (the calling thread) ---------------------------------------------------------------
 
   auto schema = [&](std::span<const uint8_t> c, uint64_t where) {
     Fields f(c);
@@ -255,65 +276,15 @@ int64_t McapReader::read(const std::function<void(const McapMessage&)>& on_messa
     }
     if (on_metadata) on_metadata(md);
   };
-  auto chunk = [&](std::span<const uint8_t> c, uint64_t where, bool cut) {
-    Fields f(c);
-    f.get<uint64_t>();  // message_start_time
-    f.get<uint64_t>();  // message_end_time
-    const uint64_t uncompressed_size = f.get<uint64_t>();
-    const uint32_t crc = f.get<uint32_t>();
-    const std::string_view compression = f.str();
-    const uint64_t records_len = f.get<uint64_t>();
-    if (!f.ok()) {
-      on_problem({where, "a chunk whose fields do not parse"});
-      return;
-    }
-    std::span<const uint8_t> records = c.subspan(f.pos());
-    if (records_len < records.size()) {
-      records = records.first(records_len);
-    } else if (records_len > records.size() && !cut) {
-      on_problem({where, "a chunk whose records (" + std::to_string(records_len) + " bytes) run past the record"});
-      return;
-    }
-    std::string error;
-    if (compression.empty()) {
-      if (!cut && (crc != 0 || want_data_crc != 0)) {
-        // One pass serves both CRCs: the chunk's, and the data section's (combined in, as zlib allows).
-        const uint32_t got = crc32_of(records);
-        if (crc != 0 && got != crc) error = "its records fail their CRC";
-        const auto at = static_cast<uint64_t>(records.data() - bytes.data());
-        if (want_data_crc != 0 && crc_done <= at && at + records.size() <= data_end_at) {
-          crc_to(at);
-          data_crc = static_cast<uint32_t>(::crc32_combine(data_crc, got, static_cast<z_off_t>(records.size())));
-          crc_done = at + records.size();
-        }
-      }
-    } else {
-      Codec codec;
-      if (compression == "zstd") {
-        codec = Codec::kZstd;
-      } else if (compression == "lz4") {
-        codec = Codec::kLz4Frame;
-      } else {
-        on_problem({where, "a chunk compressed with \"" + std::string(compression) + "\", which is not known " +
-                               "(MCAP's are zstd and lz4); its messages are left out"});
-        return;
-      }
-      // A size beyond what the compressed bytes can expand to is a lie: do not allocate for it.
-      const size_t hint = uncompressed_size <= records.size() * 1024 + (1 << 20) ? uncompressed_size : 0;
-      error = s.decompressor.run(codec, records, hint, s.chunk);
-      records = s.chunk;
-      if (error.empty() && records.size() != uncompressed_size) {
-        error = "its records decompress to " + std::to_string(records.size()) + " bytes, not " +
-                std::to_string(uncompressed_size);
-      } else if (error.empty() && crc != 0 && crc32_of(records) != crc) {
-        error = "its records fail their CRC";
-      }
-    }
-    if (!error.empty() && !cut) on_problem({where, "chunk: " + error});
+  // A chunk's records, as the reading half made them ready.
+  auto chunk_records = [&](const Step& st) {
+    const auto records = st.bytes;
+    const uint64_t where = st.where;
+    if (!st.what.empty() && !st.cut) on_problem({where, "chunk: " + st.what});
     size_t in = 0;
     while (in < records.size()) {
       if (records.size() - in < kRecordHead || le<uint64_t>(records.data() + in + 1) > records.size() - in - kRecordHead) {
-        if (error.empty() && !cut) {
+        if (st.what.empty() && !st.cut) {
           on_problem({where, "chunk: a record cut off at byte " + std::to_string(in) + " of " +
                                  std::to_string(records.size())});
         }
@@ -332,158 +303,411 @@ int64_t McapReader::read(const std::function<void(const McapMessage&)>& on_messa
       in += kRecordHead + len;
     }
   };
-
-  // Whether a record whose content parses exactly starts at q (to find where reading can go on after damage).
-  auto plausible = [&](size_t q) -> bool {
-    if (bytes.size() - q < kRecordHead) return false;
-    const uint8_t op = bytes[q];
-    const auto len = le<uint64_t>(bytes.data() + q + 1);
-    if (len > bytes.size() - q - kRecordHead) return false;
-    Fields f(bytes.subspan(q + kRecordHead, len));
-    switch (op) {
-      case kChunk: {
-        f.get<uint64_t>();
-        f.get<uint64_t>();
-        f.get<uint64_t>();
-        f.get<uint32_t>();
-        const auto comp = f.str();
-        const uint64_t n = f.get<uint64_t>();
-        return f.ok() && comp.size() <= 8 && n == f.left();
+  auto consume = [&](const Batch& batch) {
+    for (const Step& st : batch) {
+      switch (st.kind) {
+        case Step::kProblem: on_problem({st.where, st.what}); break;
+        case Step::kChunk: chunk_records(st); break;
+        case Step::kRecord:
+          switch (st.op) {
+            case kSchema: schema(st.bytes, st.where); break;
+            case kChannel: channel(st.bytes, st.where); break;
+            case kMessage: message(st.bytes, st.where, -1); break;
+            case kMetadata: metadata(st.bytes, st.where); break;
+            default: break;
+          }
+          break;
       }
-      case kSchema:
-        f.get<uint16_t>();
-        f.str();
-        f.str();
-        f.str();
-        return f.ok() && f.left() == 0;
-      case kChannel:
-        f.get<uint16_t>();
-        f.get<uint16_t>();
-        f.str();
-        f.str();
-        f.skip_sized();
-        return f.ok() && f.left() == 0;
-      case kMessage:
-        if (len < 22 || !s.channels.count(le<uint16_t>(bytes.data() + q + kRecordHead))) return false;
-        // The next record must start right after it (or the file end there).
-        return q + kRecordHead + len == bytes.size() ||
-               (bytes.size() - (q + kRecordHead + len) >= kRecordHead && bytes[q + kRecordHead + len] != 0 &&
-                le<uint64_t>(bytes.data() + q + kRecordHead + len + 1) <= bytes.size() - q - 2 * kRecordHead - len);
-      case kMessageIndex: {
-        f.get<uint16_t>();
-        const uint32_t n = f.get<uint32_t>();
-        return f.ok() && n % 16 == 0 && n == f.left();
-      }
-      case kMetadata:
-        f.str();
-        f.skip_sized();
-        return f.ok() && f.left() == 0;
-      case kDataEnd: return len == 4;
-      default: return false;
+      if (st.end != 0) file_.release_before(st.end);
     }
   };
-  auto resync = [&](size_t from) {
-    for (size_t q = from; q + kRecordHead <= bytes.size(); ++q) {
+
+  // --- The hand-off -------------------------------------------------------------------------------------------
+
+  bool threaded = pipelined_;
+  std::mutex mu;
+  std::condition_variable cv;  // both sides wait on it (two threads: notify_all)
+  std::deque<Batch> queue;
+  std::vector<std::vector<uint8_t>> spare;  // decompression buffers back from the calling thread
+  int decompressed_alive = 0;
+  uint64_t pushed = 0, done = 0;
+  bool finished = false, stopped = false;
+  std::exception_ptr failure;
+  Batch batch;  // the reading half's batch being filled
+
+  // The calling thread is done with a batch: its decompression buffers go back (under mu when threaded).
+  auto recycle = [&](Batch& b) {
+    for (Step& st : b) {
+      if (!st.decompressed) continue;
+      spare.push_back(std::move(st.buffer));
+      --decompressed_alive;
+    }
+    b.clear();
+  };
+  auto flush = [&] {
+    if (batch.empty()) return;
+    if (!threaded) {
+      consume(batch);
+      recycle(batch);
+      return;
+    }
+    std::unique_lock lk(mu);
+    cv.wait(lk, [&] { return stopped || queue.size() < kMaxBatches; });
+    if (stopped) throw Stopped{};
+    queue.push_back(std::move(batch));
+    ++pushed;
+    batch = Batch();
+    cv.notify_all();
+  };
+  // A buffer to decompress a chunk into, once fewer than kMaxDecompressed are alive.
+  auto take_buffer = [&] {
+    std::unique_lock lk(mu, std::defer_lock);
+    if (threaded) {
+      lk.lock();
+      cv.wait(lk, [&] { return stopped || decompressed_alive < kMaxDecompressed; });
+      if (stopped) throw Stopped{};
+    }
+    ++decompressed_alive;
+    std::vector<uint8_t> b;
+    if (!spare.empty()) {
+      b = std::move(spare.back());
+      spare.pop_back();
+    }
+    return b;
+  };
+  // Waits until the calling thread has done every batch handed over (and is waiting for the next).
+  auto drain = [&] {
+    flush();
+    if (!threaded) return;
+    std::unique_lock lk(mu);
+    cv.wait(lk, [&] { return stopped || done == pushed; });
+    if (stopped) throw Stopped{};
+  };
+  auto problem = [&](uint64_t where, std::string what) {
+    Step st;
+    st.kind = Step::kProblem;
+    st.where = where;
+    st.what = std::move(what);
+    batch.push_back(std::move(st));
+  };
+  auto record = [&](uint8_t op, uint64_t where, uint64_t end, std::span<const uint8_t> content) {
+    Step st;
+    st.op = op;
+    st.where = where;
+    st.end = end;
+    st.bytes = content;
+    batch.push_back(std::move(st));
+    if (batch.size() >= kMaxBatchSteps) flush();
+  };
+
+  // --- The reading half ---------------------------------------------------------------------------------------
+
+  auto produce = [&] {
+    // The Data End record's CRC, known from the footer before reading: computed while reading only when it is set.
+    uint32_t want_data_crc = 0;
+    uint64_t data_end_at = 0;
+    {
+      const size_t tail = kRecordHead + kFooterContent + sizeof(kMagic);
+      if (bytes.size() >= sizeof(kMagic) + tail &&
+          std::memcmp(bytes.data() + bytes.size() - sizeof(kMagic), kMagic, sizeof(kMagic)) == 0) {
+        const uint8_t* f = bytes.data() + bytes.size() - tail;
+        if (f[0] == kFooter && le<uint64_t>(f + 1) == kFooterContent) {
+          const uint64_t summary_start = le<uint64_t>(f + kRecordHead);
+          const uint64_t at = summary_start != 0 ? summary_start - 13 : bytes.size() - tail - 13;
+          if (summary_start <= bytes.size() - tail && at >= sizeof(kMagic) && at + 13 <= bytes.size() &&
+              bytes[at] == kDataEnd && le<uint64_t>(bytes.data() + at + 1) == 4) {
+            data_end_at = at;
+            want_data_crc = le<uint32_t>(bytes.data() + at + kRecordHead);
+          }
+        }
+      }
+    }
+    uint32_t data_crc = 0;
+    uint64_t crc_done = 0;  // data_crc covers bytes [0, crc_done)
+    auto crc_to = [&](uint64_t end) {
+      if (want_data_crc == 0 || end <= crc_done || crc_done > data_end_at) return;
+      end = std::min<uint64_t>(end, data_end_at);
+      data_crc = crc32_of(bytes.subspan(crc_done, end - crc_done), data_crc);
+      crc_done = end;
+    };
+
+    auto chunk = [&](std::span<const uint8_t> c, uint64_t where, uint64_t end, bool cut) {
+      Fields f(c);
+      f.get<uint64_t>();  // message_start_time
+      f.get<uint64_t>();  // message_end_time
+      const uint64_t uncompressed_size = f.get<uint64_t>();
+      const uint32_t crc = f.get<uint32_t>();
+      const std::string_view compression = f.str();
+      const uint64_t records_len = f.get<uint64_t>();
+      if (!f.ok()) {
+        problem(where, "a chunk whose fields do not parse");
+        return;
+      }
+      std::span<const uint8_t> records = c.subspan(f.pos());
+      if (records_len < records.size()) {
+        records = records.first(records_len);
+      } else if (records_len > records.size() && !cut) {
+        problem(where, "a chunk whose records (" + std::to_string(records_len) + " bytes) run past the record");
+        return;
+      }
+      Step st;
+      st.kind = Step::kChunk;
+      st.where = where;
+      st.end = end;
+      st.cut = cut;
+      if (compression.empty()) {
+        if (!cut && (crc != 0 || want_data_crc != 0)) {
+          // One pass serves both CRCs: the chunk's, and the data section's (combined in, as zlib allows).
+          const uint32_t got = crc32_of(records);
+          if (crc != 0 && got != crc) st.what = "its records fail their CRC";
+          const auto at = static_cast<uint64_t>(records.data() - bytes.data());
+          if (want_data_crc != 0 && crc_done <= at && at + records.size() <= data_end_at) {
+            crc_to(at);
+            data_crc = static_cast<uint32_t>(::crc32_combine(data_crc, got, static_cast<z_off_t>(records.size())));
+            crc_done = at + records.size();
+          }
+        }
+      } else {
+        Codec codec;
+        if (compression == "zstd") {
+          codec = Codec::kZstd;
+        } else if (compression == "lz4") {
+          codec = Codec::kLz4Frame;
+        } else {
+          problem(where, "a chunk compressed with \"" + std::string(compression) + "\", which is not known " +
+                             "(MCAP's are zstd and lz4); its messages are left out");
+          return;
+        }
+        // A size beyond what the compressed bytes can expand to is a lie: do not allocate for it.
+        const size_t hint = uncompressed_size <= records.size() * 1024 + (1 << 20) ? uncompressed_size : 0;
+        st.buffer = take_buffer();
+        st.decompressed = true;
+        st.what = s.decompressor.run(codec, records, hint, st.buffer);
+        records = st.buffer;
+        if (st.what.empty() && records.size() != uncompressed_size) {
+          st.what = "its records decompress to " + std::to_string(records.size()) + " bytes, not " +
+                    std::to_string(uncompressed_size);
+        } else if (st.what.empty() && crc != 0 && crc32_of(records) != crc) {
+          st.what = "its records fail their CRC";
+        }
+      }
+      st.bytes = records;
+      batch.push_back(std::move(st));
+      flush();
+    };
+
+    // Whether a record whose content parses exactly starts at q (to find where reading can go on after damage).
+    // Reads the channels: only after drain().
+    auto plausible = [&](size_t q) -> bool {
+      if (bytes.size() - q < kRecordHead) return false;
       const uint8_t op = bytes[q];
-      if ((op >= kSchema && op <= kMessageIndex) || op == kMetadata || op == kDataEnd) {
-        if (plausible(q)) return q;
+      const auto len = le<uint64_t>(bytes.data() + q + 1);
+      if (len > bytes.size() - q - kRecordHead) return false;
+      Fields f(bytes.subspan(q + kRecordHead, len));
+      switch (op) {
+        case kChunk: {
+          f.get<uint64_t>();
+          f.get<uint64_t>();
+          f.get<uint64_t>();
+          f.get<uint32_t>();
+          const auto comp = f.str();
+          const uint64_t n = f.get<uint64_t>();
+          return f.ok() && comp.size() <= 8 && n == f.left();
+        }
+        case kSchema:
+          f.get<uint16_t>();
+          f.str();
+          f.str();
+          f.str();
+          return f.ok() && f.left() == 0;
+        case kChannel:
+          f.get<uint16_t>();
+          f.get<uint16_t>();
+          f.str();
+          f.str();
+          f.skip_sized();
+          return f.ok() && f.left() == 0;
+        case kMessage:
+          if (len < 22 || !s.channels.count(le<uint16_t>(bytes.data() + q + kRecordHead))) return false;
+          // The next record must start right after it (or the file end there).
+          return q + kRecordHead + len == bytes.size() ||
+                 (bytes.size() - (q + kRecordHead + len) >= kRecordHead && bytes[q + kRecordHead + len] != 0 &&
+                  le<uint64_t>(bytes.data() + q + kRecordHead + len + 1) <= bytes.size() - q - 2 * kRecordHead - len);
+        case kMessageIndex: {
+          f.get<uint16_t>();
+          const uint32_t n = f.get<uint32_t>();
+          return f.ok() && n % 16 == 0 && n == f.left();
+        }
+        case kMetadata:
+          f.str();
+          f.skip_sized();
+          return f.ok() && f.left() == 0;
+        case kDataEnd: return len == 4;
+        default: return false;
       }
+    };
+    auto resync = [&](size_t from) {
+      drain();
+      for (size_t q = from; q + kRecordHead <= bytes.size(); ++q) {
+        const uint8_t op = bytes[q];
+        if ((op >= kSchema && op <= kMessageIndex) || op == kMetadata || op == kDataEnd) {
+          if (plausible(q)) return q;
+        }
+      }
+      return bytes.size();
+    };
+
+    size_t pos = sizeof(kMagic);
+    bool in_summary = false;
+    uint64_t summary_start = 0;
+    while (pos < bytes.size()) {
+      if (bytes.size() - pos < kRecordHead) {
+        problem(pos, in_summary ? "the file ends inside its summary (every message was read)"
+                                : "the file ends inside a record's opcode and length");
+        break;
+      }
+      const uint8_t op = bytes[pos];
+      const auto len = le<uint64_t>(bytes.data() + pos + 1);
+      const bool cut = len > bytes.size() - pos - kRecordHead;
+      if (op == kFooter && !in_summary) break;  // the end of a file without summary (or Data End)
+      if ((op == 0 || cut) && in_summary) {     // a damaged summary: the messages are all read already
+        problem(pos, cut ? "the file ends inside its summary (every message was read)"
+                         : "the summary is damaged here (every message was read)");
+        break;
+      }
+      if (op == 0 || cut) {
+        // A record running past the end is the file cut inside it, unless a readable record follows: then its
+        // length (or opcode) is damaged and reading goes on there.
+        const size_t next = resync(pos + 1);
+        if (op != 0 && next == bytes.size()) {
+          problem(pos, "the file ends inside this record (" + std::to_string(bytes.size() - pos - kRecordHead) +
+                           " of its " + std::to_string(len) + " bytes)");
+          if (op == kChunk) chunk(bytes.subspan(pos + kRecordHead), pos, bytes.size(), true);
+          break;
+        }
+        problem(pos, (op == 0 ? std::string("opcode 0, not a record") : "a record length of " + std::to_string(len)) +
+                         (next < bytes.size() ? "; " + std::to_string(next - pos) + " bytes skipped"
+                                              : "; nothing readable after it"));
+        pos = next;
+        continue;
+      }
+      const auto content = bytes.subspan(pos + kRecordHead, len);
+      const size_t end = pos + kRecordHead + len;
+      if (in_summary) {
+        if (op == kStatistics) {
+          Fields f(content);
+          statistics_.message_count = f.get<uint64_t>();
+          f.get<uint16_t>();
+          f.get<uint32_t>();
+          f.get<uint32_t>();
+          f.get<uint32_t>();
+          f.get<uint32_t>();
+          f.get<uint64_t>();
+          f.get<uint64_t>();
+          const uint32_t n = f.get<uint32_t>();
+          for (uint32_t i = 0; f.ok() && i + 10 <= n; i += 10) {
+            const auto id = f.get<uint16_t>();
+            statistics_.channel_message_counts[id] = f.get<uint64_t>();
+          }
+          has_statistics_ = f.ok();
+        } else if (op == kFooter && len == kFooterContent) {
+          const uint32_t want = le<uint32_t>(content.data() + 16);
+          if (want != 0 && summary_start != 0 && summary_start <= pos) {
+            const uint32_t got = crc32_of(bytes.subspan(summary_start, pos + kRecordHead + 16 - summary_start));
+            if (got != want) problem(pos, "the summary fails its CRC (" + hex32(got) + ", not " + hex32(want) + ")");
+          }
+          break;
+        }
+        pos = end;
+        continue;
+      }
+      switch (op) {
+        case kHeader: {
+          Fields f(content);
+          profile_ = f.str();
+          library_ = f.str();
+          break;
+        }
+        case kSchema:
+        case kChannel:
+        case kMessage:
+        case kMetadata: record(op, pos, end, content); break;
+        case kChunk: chunk(content, pos, end, false); break;
+        case kDataEnd: {
+          crc_to(pos);
+          if (want_data_crc != 0 && pos == data_end_at && data_crc != want_data_crc) {
+            problem(pos, "the data section fails its CRC (" + hex32(data_crc) + ", not " + hex32(want_data_crc) + ")");
+          }
+          in_summary = true;
+          summary_start = end;
+          break;
+        }
+        default: break;  // indexes, attachments, records of later versions and private ones: not needed here
+      }
+      crc_to(end);
+      pos = end;
     }
-    return bytes.size();
+    flush();
   };
 
-  size_t pos = sizeof(kMagic);
-  bool in_summary = false;
-  uint64_t summary_start = 0;
-  while (pos < bytes.size()) {
-    if (bytes.size() - pos < kRecordHead) {
-      on_problem({pos, in_summary ? "the file ends inside its summary (every message was read)"
-                                  : "the file ends inside a record's opcode and length"});
-      break;
-    }
-    const uint8_t op = bytes[pos];
-    const auto len = le<uint64_t>(bytes.data() + pos + 1);
-    const bool cut = len > bytes.size() - pos - kRecordHead;
-    if (op == kFooter && !in_summary) break;  // the end of a file without summary (or Data End)
-    if ((op == 0 || cut) && in_summary) {  // a damaged summary: the messages are all read already
-      on_problem({pos, cut ? "the file ends inside its summary (every message was read)"
-                           : "the summary is damaged here (every message was read)"});
-      break;
-    }
-    if (op == 0 || cut) {
-      // A record running past the end is the file cut inside it, unless a readable record follows: then its
-      // length (or opcode) is damaged and reading goes on there.
-      const size_t next = resync(pos + 1);
-      if (op != 0 && next == bytes.size()) {
-        on_problem({pos, "the file ends inside this record (" + std::to_string(bytes.size() - pos - kRecordHead) +
-                             " of its " + std::to_string(len) + " bytes)"});
-        if (op == kChunk) chunk(bytes.subspan(pos + kRecordHead), pos, true);
-        break;
-      }
-      on_problem({pos, (op == 0 ? std::string("opcode 0, not a record") : "a record length of " + std::to_string(len)) +
-                           (next < bytes.size() ? "; " + std::to_string(next - pos) + " bytes skipped"
-                                                : "; nothing readable after it")});
-      pos = next;
-      continue;
-    }
-    const auto content = bytes.subspan(pos + kRecordHead, len);
-    const size_t end = pos + kRecordHead + len;
-    if (in_summary) {
-      if (op == kStatistics) {
-        Fields f(content);
-        statistics_.message_count = f.get<uint64_t>();
-        f.get<uint16_t>();
-        f.get<uint32_t>();
-        f.get<uint32_t>();
-        f.get<uint32_t>();
-        f.get<uint32_t>();
-        f.get<uint64_t>();
-        f.get<uint64_t>();
-        const uint32_t n = f.get<uint32_t>();
-        for (uint32_t i = 0; f.ok() && i + 10 <= n; i += 10) {
-          const auto id = f.get<uint16_t>();
-          statistics_.channel_message_counts[id] = f.get<uint64_t>();
-        }
-        has_statistics_ = f.ok();
-      } else if (op == kFooter && len == kFooterContent) {
-        const uint32_t want = le<uint32_t>(content.data() + 16);
-        if (want != 0 && summary_start != 0 && summary_start <= pos) {
-          const uint32_t got = crc32_of(bytes.subspan(summary_start, pos + kRecordHead + 16 - summary_start));
-          if (got != want) on_problem({pos, "the summary fails its CRC (" + hex32(got) + ", not " + hex32(want) + ")"});
-        }
-        break;
-      }
-      pos = end;
-      continue;
-    }
-    switch (op) {
-      case kHeader: {
-        Fields f(content);
-        profile_ = f.str();
-        library_ = f.str();
-        break;
-      }
-      case kSchema: schema(content, pos); break;
-      case kChannel: channel(content, pos); break;
-      case kMessage: message(content, pos, -1); break;
-      case kChunk: chunk(content, pos, false); break;
-      case kMetadata: metadata(content, pos); break;
-      case kDataEnd: {
-        crc_to(pos);
-        if (want_data_crc != 0 && pos == data_end_at && data_crc != want_data_crc) {
-          on_problem({pos, "the data section fails its CRC (" + hex32(data_crc) + ", not " + hex32(want_data_crc) +
-                               ")"});
-        }
-        in_summary = true;
-        summary_start = end;
-        break;
-      }
-      default: break;  // indexes, attachments, records of later versions and private ones: not needed here
-    }
-    crc_to(end);
-    pos = end;
-    file_.release_before(pos);
+  if (!threaded) {
+    produce();
+    return delivered;
   }
+  std::thread reader;
+  try {
+    reader = std::thread([&] {
+      pthread_setname_np(pthread_self(), "mcap-read");  // its own line in top and perf
+      std::exception_ptr e;
+      try {
+        produce();
+      } catch (const Stopped&) {
+      } catch (...) {
+        e = std::current_exception();
+      }
+      std::lock_guard lk(mu);
+      failure = e;
+      finished = true;
+      cv.notify_all();
+    });
+  } catch (const std::system_error&) {  // no thread to be had: read on this one
+    threaded = false;
+    produce();
+    return delivered;
+  }
+  // However the calling side ends (a callback may throw), the reading thread is stopped and joined.
+  struct Join {
+    std::thread& t;
+    std::mutex& mu;
+    std::condition_variable& cv;
+    bool& stopped;
+    ~Join() {
+      {
+        std::lock_guard lk(mu);
+        stopped = true;
+      }
+      cv.notify_all();
+      t.join();
+    }
+  } join{reader, mu, cv, stopped};
+  for (;;) {
+    Batch b;
+    {
+      std::unique_lock lk(mu);
+      cv.wait(lk, [&] { return !queue.empty() || finished; });
+      if (queue.empty()) break;
+      b = std::move(queue.front());
+      queue.pop_front();
+      cv.notify_all();
+    }
+    consume(b);
+    std::lock_guard lk(mu);
+    recycle(b);
+    ++done;
+    cv.notify_all();
+  }
+  std::lock_guard lk(mu);
+  if (failure) std::rethrow_exception(failure);
   return delivered;
 }
 
