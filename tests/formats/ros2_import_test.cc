@@ -13,11 +13,13 @@
 
 #include "driftlab/foreign_message_t.hpp"
 #include "driftlab/laser_scan_t.hpp"
+#include "driftlab/point_cloud_t.hpp"
 #include "driftlab/velocity_command_t.hpp"
 #include "formats/compression.h"
 #include "formats/mcap.h"
 #include "formats/ros2_bag.h"
 #include "formats/ros_messages.h"
+#include "lcmtypes/encode.h"
 #include "lcmtypes/validate.h"
 #include "tests/test_util.h"
 
@@ -352,6 +354,53 @@ TEST(Ros2Import, CorruptChunkInTheMiddleIsReportedOnceAndTheRestConverted) {
                });
   EXPECT_EQ(serial_problems, r.err);
   EXPECT_EQ(serial_messages, static_cast<int64_t>(want.size()));
+}
+
+// sensor_msgs/PointCloud2 in the layout lidar drivers write (float32 fields in the machine's byte order) is
+// written straight as LCM's bytes: they equal lcm-gen's encoding of the same point_cloud_t, with and without
+// intensity and time, and so do those of the general path (the same points as big-endian data).
+TEST(Ros2Import, PointCloudFastPathEncodesAsLcmGen) {
+  for (const bool extra : {true, false}) {
+    for (const bool big_data : {false, true}) {
+      const uint32_t height = 2, width = 3;
+      std::vector<std::string> names = {"x", "y", "z"};
+      if (extra) names.insert(names.end(), {"intensity", "time"});
+      const auto step = static_cast<uint32_t>(4 * names.size() + 4);  // a float of padding after the fields
+      Cdr c(false);
+      c.put<int32_t>(12).put<uint32_t>(345'678'000).str("lidar").put(height).put(width);
+      c.put(static_cast<uint32_t>(names.size()));
+      for (size_t i = 0; i < names.size(); ++i) {
+        c.str(names[i]).put(static_cast<uint32_t>(4 * i)).put<uint8_t>(7).put<uint32_t>(1);
+      }
+      c.put<uint8_t>(big_data ? 1 : 0).put(step).put(step * width).put(step * width * height);
+      point_cloud_t want;
+      want.header.seq = 7;
+      want.header.utime = 12'345'678;
+      want.header.frame_id = "lidar";
+      want.height = static_cast<int32_t>(height);
+      want.width = static_cast<int32_t>(width);
+      want.npoints = static_cast<int32_t>(height * width);
+      std::vector<float>* arrays[] = {&want.x, &want.y, &want.z, &want.intensities, &want.time_offsets};
+      for (uint32_t k = 0; k < height * width; ++k) {
+        for (size_t f = 0; f <= names.size(); ++f) {
+          const float v = f < names.size() ? static_cast<float>(k) * 10.0F + static_cast<float>(f) + 0.25F : -1.0F;
+          if (f < names.size()) arrays[f]->push_back(v);
+          uint8_t raw[4];
+          std::memcpy(raw, &v, 4);
+          if (big_data) std::reverse(raw, raw + 4);
+          for (uint8_t b : raw) c.put(b);
+        }
+      }
+      c.put<uint8_t>(1);  // is_dense
+      want.nintensities = static_cast<int32_t>(want.intensities.size());
+      want.ntimes = static_cast<int32_t>(want.time_offsets.size());
+      std::string error;
+      auto got = formats::convert_ros_message("sensor_msgs/msg/PointCloud2", formats::Serialization::kCdr, c.bytes(), 0,
+                                              7, &error);
+      ASSERT_TRUE(got) << error;
+      EXPECT_EQ(got->lcm, lcmtypes::encode(want)) << "extra " << extra << ", big-endian data " << big_data;
+    }
+  }
 }
 
 // rosbag2's compression: a file compressed whole (compression_mode FILE) and every message compressed
