@@ -6,6 +6,7 @@
 #include "formats/mcap.h"
 
 #include <fcntl.h>
+#include <libdeflate.h>
 #include <pthread.h>
 #include <unistd.h>
 #include <zlib.h>
@@ -35,9 +36,9 @@ enum Op : uint8_t {
 constexpr size_t kRecordHead = 9;      // opcode + uint64 length
 constexpr size_t kFooterContent = 20;  // summary_start, summary_offset_start, summary_crc
 
-uint32_t crc32_of(std::span<const uint8_t> b, uint32_t crc = 0) {
-  return static_cast<uint32_t>(::crc32_z(crc, b.data(), b.size()));
-}
+/// CRC-32 (zlib's, as MCAP asks) by libdeflate, which folds with the CPU's carry-less multiply: about 4 times zlib
+/// 1.2's speed here (5.7 against 1.5 GB/s), where the CRCs were a fifth of an import's time. zlib still combines.
+uint32_t crc32_of(std::span<const uint8_t> b, uint32_t crc = 0) { return libdeflate_crc32(crc, b.data(), b.size()); }
 
 template <typename T>
 T le(const uint8_t* p) {
@@ -156,7 +157,7 @@ namespace {
 /// One step of a read, in file order: a record outside chunks, a chunk's records (decompressed and checked), or a
 /// problem the reading side found. Made by the reading side, handed to the calling thread.
 struct Step {
-  enum Kind : uint8_t { kRecord, kChunk, kProblem };
+  enum Kind : uint8_t { kRecord, kChunk, kProblem, kCrc, kDataEnd };
   Kind kind = kRecord;
   uint8_t op = 0;                  // kRecord: its opcode
   bool cut = false;                // kChunk: the file ends inside it
@@ -164,8 +165,12 @@ struct Step {
   uint64_t end = 0;                // kRecord, kChunk: the file offset after the record (0: none)
   std::span<const uint8_t> bytes;  // kRecord: its content; kChunk: its records, in the file or in buffer
   std::string what;                // kProblem: the problem; kChunk: what is wrong with it ("": nothing)
+                                   // kCrc: (bytes) the data section's next bytes, for its CRC
   std::vector<uint8_t> buffer;     // kChunk: the decompressed records (a moved vector keeps its bytes in place)
   bool decompressed = false;       // kChunk: holds one of the decompression buffers
+  uint32_t crc = 0;                // kChunk, decompressed whole: the CRC its records must have (0: none);
+                                   // kCrc with crc_known: that of bytes; kDataEnd: the data section's
+  bool crc_known = false;          // kCrc: bytes (the data section's next bytes) are not to be read again
 };
 using Batch = std::vector<Step>;
 
@@ -181,17 +186,20 @@ constexpr size_t kMaxBatchSteps = 4096;  // records outside chunks per batch
 void McapReader::set_pipelined(bool on) { pipelined_ = on; }
 
 // The read is two halves joined by a bounded queue of batches of Steps. The reading half walks the data section's
-// records, decompresses chunks and checks every CRC; the converting half (the calling thread) parses the records
-// of chunks, keeps schemas and channels, and runs every callback in file order. Pipelined, the reading half runs
-// on a thread of its own, a few chunks ahead; otherwise it hands each batch over by calling the converting half
-// directly. Either way the callbacks see the same calls in the same order.
+// records and decompresses chunks; the converting half (the calling thread) checks the CRCs of decompressed chunks
+// and of the data section (the reading half has the decompression to do; it checks an uncompressed chunk's, in
+// the pass that serves the data section's too), parses the records of chunks, keeps schemas and channels, and
+// runs every callback in file order. Pipelined, the reading half runs on a thread of its own, a few chunks ahead;
+// otherwise it hands each batch over by calling the converting half directly. Either way the callbacks see the
+// same calls in the same order.
 // Hand-off (what a race detector would check): the queue, the spare decompression buffers, the counters and the
 // flags are touched only under `mu`. A Step's bytes are written by the reading half before it is queued and read
 // by the calling thread after it is dequeued (the mutex orders them); buffers go back through `spare` the same
-// way. The file's bytes are only read (release_before() only on the calling thread). The schemas and channels
-// are the calling thread's, except that resync() reads the channels after drain() has waited, under `mu`, for
-// every batch queued to be done, while the calling thread waits for more. The reading half alone uses the
-// decompressor, the CRCs and profile_/library_/statistics_, which the caller reads after the thread is joined.
+// way. The file's bytes are only read (release_before() only on the calling thread). The schemas, channels and
+// the data section's running CRC are the calling thread's, except that resync() reads the channels after drain()
+// has waited, under `mu`, for every batch queued to be done, while the calling thread waits for more. The reading
+// half alone uses the decompressor and profile_/library_/statistics_, which the caller reads after the thread is
+// joined.
 int64_t McapReader::read(const std::function<void(const McapMessage&)>& on_message,
                          const std::function<void(const McapProblem&)>& on_problem,
                          const std::function<void(const McapMetadata&)>& on_metadata) {
@@ -280,11 +288,13 @@ int64_t McapReader::read(const std::function<void(const McapMessage&)>& on_messa
   auto chunk_records = [&](const Step& st) {
     const auto records = st.bytes;
     const uint64_t where = st.where;
-    if (!st.what.empty() && !st.cut) on_problem({where, "chunk: " + st.what});
+    std::string_view what = st.what;
+    if (st.crc != 0 && crc32_of(records) != st.crc) what = "its records fail their CRC";
+    if (!what.empty() && !st.cut) on_problem({where, "chunk: " + std::string(what)});
     size_t in = 0;
     while (in < records.size()) {
       if (records.size() - in < kRecordHead || le<uint64_t>(records.data() + in + 1) > records.size() - in - kRecordHead) {
-        if (st.what.empty() && !st.cut) {
+        if (what.empty() && !st.cut) {
           on_problem({where, "chunk: a record cut off at byte " + std::to_string(in) + " of " +
                                  std::to_string(records.size())});
         }
@@ -303,10 +313,23 @@ int64_t McapReader::read(const std::function<void(const McapMessage&)>& on_messa
       in += kRecordHead + len;
     }
   };
+  uint32_t data_crc = 0;  // of the data section's bytes handed over so far
   auto consume = [&](const Batch& batch) {
     for (const Step& st : batch) {
       switch (st.kind) {
         case Step::kProblem: on_problem({st.where, st.what}); break;
+        case Step::kCrc:
+          data_crc =
+              st.crc_known
+                  ? static_cast<uint32_t>(::crc32_combine(data_crc, st.crc, static_cast<z_off_t>(st.bytes.size())))
+                  : crc32_of(st.bytes, data_crc);
+          break;
+        case Step::kDataEnd:
+          if (data_crc != st.crc) {
+            on_problem(
+                {st.where, "the data section fails its CRC (" + hex32(data_crc) + ", not " + hex32(st.crc) + ")"});
+          }
+          break;
         case Step::kChunk: chunk_records(st); break;
         case Step::kRecord:
           switch (st.op) {
@@ -422,13 +445,20 @@ int64_t McapReader::read(const std::function<void(const McapMessage&)>& on_messa
         }
       }
     }
-    uint32_t data_crc = 0;
-    uint64_t crc_done = 0;  // data_crc covers bytes [0, crc_done)
+    // The data section's CRC is the calling thread's to compute (this one has the decompression to do): the
+    // bytes [0, crc_done) are to be in it, [0, crc_sent) of them are handed over already, in order.
+    uint64_t crc_done = 0, crc_sent = 0;
     auto crc_to = [&](uint64_t end) {
       if (want_data_crc == 0 || end <= crc_done || crc_done > data_end_at) return;
-      end = std::min<uint64_t>(end, data_end_at);
-      data_crc = crc32_of(bytes.subspan(crc_done, end - crc_done), data_crc);
-      crc_done = end;
+      crc_done = std::min<uint64_t>(end, data_end_at);
+    };
+    auto send_crc = [&] {
+      if (crc_done <= crc_sent) return;
+      Step st;
+      st.kind = Step::kCrc;
+      st.bytes = bytes.subspan(crc_sent, crc_done - crc_sent);
+      batch.push_back(std::move(st));
+      crc_sent = crc_done;
     };
 
     auto chunk = [&](std::span<const uint8_t> c, uint64_t where, uint64_t end, bool cut) {
@@ -463,8 +493,14 @@ int64_t McapReader::read(const std::function<void(const McapMessage&)>& on_messa
           const auto at = static_cast<uint64_t>(records.data() - bytes.data());
           if (want_data_crc != 0 && crc_done <= at && at + records.size() <= data_end_at) {
             crc_to(at);
-            data_crc = static_cast<uint32_t>(::crc32_combine(data_crc, got, static_cast<z_off_t>(records.size())));
-            crc_done = at + records.size();
+            send_crc();
+            Step known;
+            known.kind = Step::kCrc;
+            known.bytes = records;
+            known.crc = got;
+            known.crc_known = true;
+            batch.push_back(std::move(known));
+            crc_done = crc_sent = at + records.size();
           }
         }
       } else {
@@ -487,11 +523,15 @@ int64_t McapReader::read(const std::function<void(const McapMessage&)>& on_messa
         if (st.what.empty() && records.size() != uncompressed_size) {
           st.what = "its records decompress to " + std::to_string(records.size()) + " bytes, not " +
                     std::to_string(uncompressed_size);
-        } else if (st.what.empty() && crc != 0 && crc32_of(records) != crc) {
-          st.what = "its records fail their CRC";
+        } else if (st.what.empty()) {
+          st.crc = crc;  // checked by the calling thread, which has less to do than this one
         }
       }
       st.bytes = records;
+      if (!cut) {  // the data section's CRC through this record, computed before its records are parsed
+        crc_to(end);
+        send_crc();
+      }
       batch.push_back(std::move(st));
       flush();
     };
@@ -635,8 +675,13 @@ int64_t McapReader::read(const std::function<void(const McapMessage&)>& on_messa
         case kChunk: chunk(content, pos, end, false); break;
         case kDataEnd: {
           crc_to(pos);
-          if (want_data_crc != 0 && pos == data_end_at && data_crc != want_data_crc) {
-            problem(pos, "the data section fails its CRC (" + hex32(data_crc) + ", not " + hex32(want_data_crc) + ")");
+          if (want_data_crc != 0 && pos == data_end_at) {
+            send_crc();
+            Step st;
+            st.kind = Step::kDataEnd;
+            st.where = pos;
+            st.crc = want_data_crc;
+            batch.push_back(std::move(st));
           }
           in_summary = true;
           summary_start = end;
