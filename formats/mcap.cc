@@ -849,21 +849,31 @@ void channel_record(Buf& b, const ChannelEntry& c) {
 
 }  // namespace
 
+// The writer is two halves too: the calling thread builds a chunk's records; a thread of the writer's own
+// compresses each closed chunk, computes its CRCs and writes it with its message indexes, while the next one fills.
+// Bytes outside chunks (the header, metadata) go the same way, so the file is written in order. Hand-off: `jobs`,
+// `busy`, `stop`, `spare` and `io_error` only under `mu`; a Job's bytes are the calling thread's until queued and
+// the writing thread's after it takes them (mu orders both); while the writing thread runs, only it touches the
+// writing side's fields (fd, flushed, crc, the compressor, the indexes), and the calling thread reads them after
+// joining it (close) or after waiting under mu for it to be idle (bytes()).
 struct McapWriter::Impl {
   McapWriteOptions options;
   std::string path, file_path;
+  std::string error;  // the first failure, as the calling thread knows it
+  Buf out;            // the calling thread's bytes outside chunks, not yet handed on
+
+  // The writing side.
   int fd = -1;
-  std::string error;
-  Buf out;             // bytes not yet written to the file
   uint64_t flushed = 0;
   uint32_t crc = 0;    // of every byte of the file so far (the data section, until Data End)
   std::unique_ptr<Compressor> compressor;
   std::vector<uint8_t> compressed;
+  Buf head;  // a chunk's fields and its message indexes on their way to the file
+  std::vector<ChunkIndexEntry> chunk_indexes;
+  std::vector<MetadataIndexEntry> metadata_indexes;
 
   std::vector<SchemaEntry> schemas;
   std::vector<ChannelEntry> channels;
-  std::vector<ChunkIndexEntry> chunk_indexes;
-  std::vector<MetadataIndexEntry> metadata_indexes;
   uint64_t messages = 0, start = UINT64_MAX, end = 0;
 
   Buf chunk;  // the open chunk's records
@@ -871,19 +881,43 @@ struct McapWriter::Impl {
   std::map<uint16_t, std::vector<std::pair<uint64_t, uint64_t>>> chunk_index;  // channel -> (log_time, offset)
   bool closed = false;
 
-  uint64_t offset() const { return flushed + out.size(); }
-  Status fail(const std::string& what, int err) {
-    if (error.empty()) error = file_path + ": " + what + (err ? std::string(": ") + std::strerror(err) : "");
+  /// What goes to the writing thread: a closed chunk, or bytes written as they are (a Metadata record, indexed).
+  struct Job {
+    std::vector<uint8_t> bytes;  // the chunk's records, or the bytes
+    bool chunk = false;
+    uint64_t start = 0, end = 0;  // the chunk's log times
+    std::map<uint16_t, std::vector<std::pair<uint64_t, uint64_t>>> index;
+    bool is_metadata = false;
+    std::string metadata;  // its name
+  };
+  static constexpr size_t kMaxJobs = 2;  // queued or being written: with the open chunk, three chunks in memory
+  std::thread thread;
+  std::mutex mu;
+  std::condition_variable cv;
+  std::deque<Job> jobs;
+  bool busy = false, stop = false;
+  std::string io_error;
+  std::vector<std::vector<uint8_t>> spare;  // chunk buffers back from the writing thread, for the next chunks
+
+  uint64_t offset() const { return flushed + out.size(); }  // with no writing thread running
+  Status io_failure(const std::string& what, int err) const {
+    return Error(file_path + ": " + what + (err ? std::string(": ") + std::strerror(err) : ""));
+  }
+  /// Keeps the first failure (the calling thread's side) and returns it.
+  Status fail(const Status& st) {
+    if (error.empty()) error = st.message();
     return Error(error);
   }
-  /// Writes bytes whose CRC is known (bytes_crc) to the file, straight from the caller's memory.
+  Status fail(const std::string& what, int err) { return fail(io_failure(what, err)); }
+
+  /// Writes bytes whose CRC is known (bytes_crc) to the file, straight from the caller's memory. Writing side.
   Status write_direct(std::span<const uint8_t> b, uint32_t bytes_crc) {
     size_t done = 0;
     while (done < b.size()) {
       const ssize_t n = ::write(fd, b.data() + done, b.size() - done);
       if (n < 0) {
         if (errno == EINTR) continue;
-        return fail("cannot write", errno);
+        return io_failure("cannot write", errno);
       }
       done += static_cast<size_t>(n);
     }
@@ -891,67 +925,162 @@ struct McapWriter::Impl {
     flushed += b.size();
     return {};
   }
-  Status flush_out() {
-    auto& v = out.v();
+  Status flush(Buf& b) {
+    auto& v = b.v();
     if (Status s = write_direct(v, crc32_of(v)); !s) return s;
     v.clear();
     return {};
   }
-  Status maybe_flush() { return out.v().size() >= (1u << 20) ? flush_out() : Status{}; }
+  /// Writes out (with no writing thread running).
+  Status flush_out() {
+    if (Status st = flush(out); !st) return fail(st);
+    return {};
+  }
 
-  Status close_chunk() {
-    if (chunk.v().empty()) return {};
-    const auto& records = chunk.v();
+  /// Compresses a closed chunk and writes it with its message indexes. Writing side.
+  Status write_chunk(Job& j) {
+    const auto& records = j.bytes;
     const uint32_t records_crc = crc32_of(records);
     std::span<const uint8_t> payload = records;
     const char* compression = "";
     if (compressor) {
-      if (std::string e = compressor->run(records, compressed); !e.empty()) return fail(e, 0);
+      if (std::string e = compressor->run(records, compressed); !e.empty()) return io_failure(e, 0);
       payload = compressed;
       compression = options.compression == McapCompression::kZstd ? "zstd" : "lz4";
     }
     ChunkIndexEntry ci{};
-    ci.start = chunk_start;
-    ci.end = chunk_end;
-    ci.offset = offset();
+    ci.start = j.start;
+    ci.end = j.end;
+    ci.offset = flushed;
     ci.compressed = payload.size();
     ci.uncompressed = records.size();
     // The chunk's head through the buffer, its records straight from memory (no copy; for uncompressed records
     // the CRC already computed serves the file's too).
     const uint64_t content = 8 + 8 + 8 + 4 + 4 + std::strlen(compression) + 8 + payload.size();
-    out.u8(kChunk);
-    out.put(content);
-    out.put(chunk_start);
-    out.put(chunk_end);
-    out.put<uint64_t>(records.size());
-    out.put(records_crc);
-    out.str(compression);
-    out.put<uint64_t>(payload.size());
-    if (Status st = flush_out(); !st) return st;
+    head.u8(kChunk);
+    head.put(content);
+    head.put(j.start);
+    head.put(j.end);
+    head.put<uint64_t>(records.size());
+    head.put(records_crc);
+    head.str(compression);
+    head.put<uint64_t>(payload.size());
+    if (Status st = flush(head); !st) return st;
     if (Status st = write_direct(payload, compressor ? crc32_of(payload) : records_crc); !st) return st;
-    ci.length = offset() - ci.offset;
-    const uint64_t index_start = offset();
-    for (auto& [id, entries] : chunk_index) {
-      ci.index_offsets.emplace_back(id, offset());
+    ci.length = flushed - ci.offset;
+    const uint64_t index_start = flushed;
+    for (auto& [id, entries] : j.index) {
+      ci.index_offsets.emplace_back(id, flushed + head.size());
       // Sorted by log time (stable: equal times keep file order), so readers can search them.
       std::stable_sort(entries.begin(), entries.end(),
                        [](const auto& a, const auto& b) { return a.first < b.first; });
-      const size_t r = out.begin_record(kMessageIndex);
-      out.put(id);
-      out.put(static_cast<uint32_t>(entries.size() * 16));
+      const size_t r = head.begin_record(kMessageIndex);
+      head.put(id);
+      head.put(static_cast<uint32_t>(entries.size() * 16));
       for (const auto& [t, o] : entries) {
-        out.put(t);
-        out.put(o);
+        head.put(t);
+        head.put(o);
       }
-      out.end_record(r);
+      head.end_record(r);
     }
-    ci.index_length = offset() - index_start;
+    ci.index_length = flushed + head.size() - index_start;
     chunk_indexes.push_back(std::move(ci));
-    chunk.v().clear();
+    return flush(head);
+  }
+  Status write_job(Job& j) {
+    if (j.chunk) return write_chunk(j);
+    if (j.is_metadata) metadata_indexes.push_back({flushed, j.bytes.size(), std::move(j.metadata)});
+    return write_direct(j.bytes, crc32_of(j.bytes));
+  }
+  /// The writing thread: jobs in order until stopped and none is left; after a failure nothing more is written.
+  void run() {
+    pthread_setname_np(pthread_self(), "mcap-write");  // its own line in top and perf
+    for (;;) {
+      Job j;
+      bool failed = false;
+      {
+        std::unique_lock lk(mu);
+        cv.wait(lk, [&] { return !jobs.empty() || stop; });
+        if (jobs.empty()) return;
+        j = std::move(jobs.front());
+        jobs.pop_front();
+        busy = true;
+        failed = !io_error.empty();
+      }
+      Status st;
+      try {
+        if (!failed) st = write_job(j);
+      } catch (const std::exception& e) {
+        st = io_failure(e.what(), 0);
+      }
+      std::lock_guard lk(mu);
+      if (!st && io_error.empty()) io_error = st.message();
+      if (j.chunk) {
+        j.bytes.clear();
+        spare.push_back(std::move(j.bytes));
+      }
+      busy = false;
+      cv.notify_all();
+    }
+  }
+  /// Hands a job on, once fewer than kMaxJobs are queued or being written (written here without a thread).
+  Status push(Job&& j) {
+    if (!thread.joinable()) {
+      if (Status st = write_job(j); !st) return fail(st);
+      if (j.chunk) {
+        j.bytes.clear();
+        spare.push_back(std::move(j.bytes));
+      }
+      return {};
+    }
+    std::unique_lock lk(mu);
+    cv.wait(lk, [&] { return jobs.size() + (busy ? 1 : 0) < kMaxJobs; });
+    if (!io_error.empty()) return fail(Error(io_error));
+    jobs.push_back(std::move(j));
+    cv.notify_all();
+    return {};
+  }
+  /// Hands on the bytes outside chunks written so far.
+  Status hand_out() {
+    if (out.v().empty()) return {};
+    Job j;
+    j.bytes.swap(out.v());
+    return push(std::move(j));
+  }
+  Status close_chunk() {
+    if (chunk.v().empty()) return {};
+    if (Status st = hand_out(); !st) return st;
+    Job j;
+    j.chunk = true;
+    j.bytes.swap(chunk.v());
+    j.start = chunk_start;
+    j.end = chunk_end;
+    j.index.swap(chunk_index);
     chunk_index.clear();
     chunk_start = UINT64_MAX;
     chunk_end = 0;
-    return flush_out();
+    {
+      std::unique_lock lk(mu, std::defer_lock);
+      if (thread.joinable()) lk.lock();
+      if (!spare.empty()) {
+        chunk.v().swap(spare.back());
+        spare.pop_back();
+      }
+    }
+    return push(std::move(j));
+  }
+  /// Lets the writing thread write everything handed on, and joins it.
+  Status finish() {
+    if (thread.joinable()) {
+      {
+        std::lock_guard lk(mu);
+        stop = true;
+      }
+      cv.notify_all();
+      thread.join();
+    }
+    if (!io_error.empty()) return fail(Error(io_error));
+    return {};
   }
 };
 
@@ -980,6 +1109,10 @@ Result<McapWriter> McapWriter::create(const std::string& path, McapWriteOptions 
   s.out.str(options.profile);
   s.out.str(options.library);
   s.out.end_record(at);
+  try {
+    s.thread = std::thread([impl = &s] { impl->run(); });
+  } catch (const std::system_error&) {  // no thread to be had: chunks are written on the calling thread
+  }
   return w;
 }
 
@@ -1033,29 +1166,38 @@ Status McapWriter::add_metadata(std::string_view name,
   Impl& s = *impl_;
   if (!s.error.empty()) return Error(s.error);
   if (Status st = s.close_chunk(); !st) return st;
-  MetadataIndexEntry mi{s.offset(), 0, std::string(name)};
-  const size_t at = s.out.begin_record(kMetadata);
-  s.out.str(name);
-  s.out.string_map(entries);
-  s.out.end_record(at);
-  mi.length = s.offset() - mi.offset;
-  s.metadata_indexes.push_back(std::move(mi));
-  return s.maybe_flush();
+  if (Status st = s.hand_out(); !st) return st;
+  Buf record;
+  const size_t at = record.begin_record(kMetadata);
+  record.str(name);
+  record.string_map(entries);
+  record.end_record(at);
+  Impl::Job j;
+  j.bytes = std::move(record.v());
+  j.is_metadata = true;
+  j.metadata = std::string(name);
+  return s.push(std::move(j));
 }
 
 uint64_t McapWriter::messages() const { return impl_->messages; }
-uint64_t McapWriter::bytes() const { return impl_->offset(); }
+uint64_t McapWriter::bytes() const {
+  Impl& s = *impl_;
+  if (!s.thread.joinable()) return s.offset();
+  std::unique_lock lk(s.mu);  // what was handed on, once written
+  s.cv.wait(lk, [&] { return s.jobs.empty() && !s.busy; });
+  return s.flushed + s.out.size();
+}
 
 Status McapWriter::close() {
   Impl& s = *impl_;
   if (s.closed) return s.error.empty() ? Status{} : Status(Error(s.error));
   s.closed = true;
   Status st = s.close_chunk();
+  if (st) st = s.hand_out();
+  // Every chunk written (and the writing thread joined): the rest is written here.
+  if (Status f = s.finish(); st) st = f;
   if (st) {
     // Data End: the CRC of every byte before it.
-    st = s.flush_out();
-  }
-  if (st) {
     const size_t at = s.out.begin_record(kDataEnd);
     s.out.put(s.crc);
     s.out.end_record(at);
@@ -1160,6 +1302,11 @@ void McapWriter::discard() {
   Impl& s = *impl_;
   if (s.closed) return;
   s.closed = true;
+  {
+    std::lock_guard lk(s.mu);
+    if (s.io_error.empty()) s.io_error = "discarded";  // what is queued is not written
+  }
+  (void)s.finish();
   if (s.fd >= 0) ::close(s.fd);
   s.fd = -1;
   if (s.options.atomic) std::remove(s.file_path.c_str());

@@ -5,8 +5,9 @@
 // bounded by a few chunks. Corruption goes to the problem callback with
 // the file offset, and reading goes on at the next record that parses. The writer makes indexed files: chunks
 // with message indexes, schemas and channels repeated in the summary, chunk indexes, statistics, metadata
-// indexes, summary offsets, and the data-section and summary CRCs.
-// Thread-safety: one reader or writer per thread.
+// indexes, summary offsets, and the data-section and summary CRCs; it compresses and writes each closed chunk on
+// a thread of its own while the next one fills (at most three chunks in memory).
+// Thread-safety: one reader or writer per thread (each runs a thread of its own inside, invisible to callers).
 #pragma once
 
 #include <cstdint>
@@ -136,7 +137,8 @@ class McapWriter {
   /// Registers a channel on schema_id (0: none); returns its id (0, 1, ...).
   uint16_t add_channel(uint16_t schema_id, std::string_view topic, std::string_view message_encoding,
                        const std::vector<std::pair<std::string, std::string>>& metadata = {});
-  /// Appends a message. Times in ns.
+  /// Appends a message. Times in ns. A failure to write an earlier chunk (on the writing thread) is returned
+  /// here or by close(), naming the file.
   Status write(uint16_t channel_id, uint32_t sequence, uint64_t log_time, uint64_t publish_time,
                std::span<const uint8_t> data);
   /// Adds a Metadata record (written between chunks; indexed in the summary).
@@ -147,7 +149,7 @@ class McapWriter {
   void discard();
 
   uint64_t messages() const;
-  /// Bytes written to the file so far.
+  /// Bytes written to the file so far (waits for the chunks handed to the writing thread to be written).
   uint64_t bytes() const;
 
  private:

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cstring>
+#include <filesystem>
 #include <map>
 #include <stdexcept>
 #include <string>
@@ -280,6 +281,31 @@ TEST(Mcap, ThrowingCallbackStopsThePipelinedRead) {
   const Read again = read_all(*r);
   EXPECT_EQ(again.messages.size(), 1000u);
   EXPECT_TRUE(again.problems.empty());
+}
+
+// The writer compresses and writes closed chunks on a thread of its own: a write that fails there (a full disk)
+// reaches the caller, naming the file, at a later write or at close; nothing after it is written.
+TEST(Mcap, WriteErrorsOnTheWritingThreadReachTheCaller) {
+  auto w = McapWriter::create("/dev/full", {.chunk_bytes = 4 << 10, .atomic = false});
+  ASSERT_TRUE(w.ok()) << w.error().message;
+  const uint16_t c = w->add_channel(0, "/raw", "json");
+  Status st;
+  for (int i = 0; i < 1000 && st; ++i) st = w->write(c, static_cast<uint32_t>(i), 1, 1, payload(i));
+  if (st) st = w->close();
+  ASSERT_FALSE(st);
+  EXPECT_EQ(st.message().find("/dev/full: cannot write: No space left on device"), 0u) << st.message();
+  EXPECT_FALSE(w->write(c, 0, 1, 1, payload(0)));
+}
+
+// Discarding a writer with chunks still queued for its writing thread leaves nothing behind.
+TEST(Mcap, DiscardLeavesNothingBehind) {
+  test::TempDir dir;
+  auto w = McapWriter::create(dir.file("f.mcap"), {.chunk_bytes = 1 << 10});
+  ASSERT_TRUE(w.ok());
+  const uint16_t c = w->add_channel(0, "/raw", "json");
+  for (int i = 0; i < 500; ++i) ASSERT_TRUE(w->write(c, static_cast<uint32_t>(i), 1, 1, payload(i)));
+  w->discard();
+  EXPECT_TRUE(std::filesystem::is_empty(dir.path()));
 }
 
 /// Appends an MCAP record.
