@@ -423,6 +423,56 @@ int64_t McapReader::read(const std::function<void(const McapMessage&)>& on_messa
     if (batch.size() >= kMaxBatchSteps) flush();
   };
 
+  // Whether a record whose content parses exactly starts at q (to find where reading can go on after damage).
+  // Reads the channels: on the reading thread only after drain().
+  auto plausible = [&](size_t q) -> bool {
+    if (bytes.size() - q < kRecordHead) return false;
+    const uint8_t op = bytes[q];
+    const auto len = le<uint64_t>(bytes.data() + q + 1);
+    if (len > bytes.size() - q - kRecordHead) return false;
+    Fields f(bytes.subspan(q + kRecordHead, len));
+    switch (op) {
+      case kChunk: {
+        f.get<uint64_t>();
+        f.get<uint64_t>();
+        f.get<uint64_t>();
+        f.get<uint32_t>();
+        const auto comp = f.str();
+        const uint64_t n = f.get<uint64_t>();
+        return f.ok() && comp.size() <= 8 && n == f.left();
+      }
+      case kSchema:
+        f.get<uint16_t>();
+        f.str();
+        f.str();
+        f.str();
+        return f.ok() && f.left() == 0;
+      case kChannel:
+        f.get<uint16_t>();
+        f.get<uint16_t>();
+        f.str();
+        f.str();
+        f.skip_sized();
+        return f.ok() && f.left() == 0;
+      case kMessage:
+        if (len < 22 || !s.channels.count(le<uint16_t>(bytes.data() + q + kRecordHead))) return false;
+        // The next record must start right after it (or the file end there).
+        return q + kRecordHead + len == bytes.size() ||
+               (bytes.size() - (q + kRecordHead + len) >= kRecordHead && bytes[q + kRecordHead + len] != 0 &&
+                le<uint64_t>(bytes.data() + q + kRecordHead + len + 1) <= bytes.size() - q - 2 * kRecordHead - len);
+      case kMessageIndex: {
+        f.get<uint16_t>();
+        const uint32_t n = f.get<uint32_t>();
+        return f.ok() && n % 16 == 0 && n == f.left();
+      }
+      case kMetadata:
+        f.str();
+        f.skip_sized();
+        return f.ok() && f.left() == 0;
+      case kDataEnd: return len == 4;
+      default: return false;
+    }
+  };
   // --- The reading half ---------------------------------------------------------------------------------------
 
   auto produce = [&] {
@@ -536,56 +586,6 @@ int64_t McapReader::read(const std::function<void(const McapMessage&)>& on_messa
       flush();
     };
 
-    // Whether a record whose content parses exactly starts at q (to find where reading can go on after damage).
-    // Reads the channels: only after drain().
-    auto plausible = [&](size_t q) -> bool {
-      if (bytes.size() - q < kRecordHead) return false;
-      const uint8_t op = bytes[q];
-      const auto len = le<uint64_t>(bytes.data() + q + 1);
-      if (len > bytes.size() - q - kRecordHead) return false;
-      Fields f(bytes.subspan(q + kRecordHead, len));
-      switch (op) {
-        case kChunk: {
-          f.get<uint64_t>();
-          f.get<uint64_t>();
-          f.get<uint64_t>();
-          f.get<uint32_t>();
-          const auto comp = f.str();
-          const uint64_t n = f.get<uint64_t>();
-          return f.ok() && comp.size() <= 8 && n == f.left();
-        }
-        case kSchema:
-          f.get<uint16_t>();
-          f.str();
-          f.str();
-          f.str();
-          return f.ok() && f.left() == 0;
-        case kChannel:
-          f.get<uint16_t>();
-          f.get<uint16_t>();
-          f.str();
-          f.str();
-          f.skip_sized();
-          return f.ok() && f.left() == 0;
-        case kMessage:
-          if (len < 22 || !s.channels.count(le<uint16_t>(bytes.data() + q + kRecordHead))) return false;
-          // The next record must start right after it (or the file end there).
-          return q + kRecordHead + len == bytes.size() ||
-                 (bytes.size() - (q + kRecordHead + len) >= kRecordHead && bytes[q + kRecordHead + len] != 0 &&
-                  le<uint64_t>(bytes.data() + q + kRecordHead + len + 1) <= bytes.size() - q - 2 * kRecordHead - len);
-        case kMessageIndex: {
-          f.get<uint16_t>();
-          const uint32_t n = f.get<uint32_t>();
-          return f.ok() && n % 16 == 0 && n == f.left();
-        }
-        case kMetadata:
-          f.str();
-          f.skip_sized();
-          return f.ok() && f.left() == 0;
-        case kDataEnd: return len == 4;
-        default: return false;
-      }
-    };
     auto resync = [&](size_t from) {
       drain();
       for (size_t q = from; q + kRecordHead <= bytes.size(); ++q) {
