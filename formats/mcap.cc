@@ -886,6 +886,7 @@ struct McapWriter::Impl {
     std::vector<uint8_t> bytes;  // the chunk's records, or the bytes
     bool chunk = false;
     uint64_t start = 0, end = 0;  // the chunk's log times
+    uint32_t records_crc = 0;     // the chunk's records' CRC, computed by the calling thread (less busy)
     std::map<uint16_t, std::vector<std::pair<uint64_t, uint64_t>>> index;
     bool is_metadata = false;
     std::string metadata;  // its name
@@ -940,7 +941,7 @@ struct McapWriter::Impl {
   /// Compresses a closed chunk and writes it with its message indexes. Writing side.
   Status write_chunk(Job& j) {
     const auto& records = j.bytes;
-    const uint32_t records_crc = crc32_of(records);
+    const uint32_t records_crc = j.records_crc;
     std::span<const uint8_t> payload = records;
     const char* compression = "";
     if (compressor) {
@@ -1052,6 +1053,7 @@ struct McapWriter::Impl {
     if (Status st = hand_out(); !st) return st;
     Job j;
     j.chunk = true;
+    j.records_crc = crc32_of(chunk.v());
     j.bytes.swap(chunk.v());
     j.start = chunk_start;
     j.end = chunk_end;
