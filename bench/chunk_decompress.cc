@@ -1,6 +1,8 @@
 // The decompressor's own speed on a bag (scripts/bench import): every chunk of an MCAP file or a ROS 1 bag
-// decompressed, with the same libraries and contexts the readers use, and nothing else done.
-//   chunk_decompress FILE   prints "BYTES_IN BYTES_OUT CHUNKS"
+// decompressed, with the same libraries and contexts the readers use, and nothing else done. With --compress, the
+// compressor's own speed: every chunk of an uncompressed MCAP file compressed with zstd at level 1, as
+// `driftlab export mcap` compresses its chunks.
+//   chunk_decompress [--compress] FILE   prints "BYTES_IN BYTES_OUT CHUNKS"
 #include <cstdio>
 #include <cstring>
 #include <string_view>
@@ -11,11 +13,13 @@
 using driftlab::formats::Codec;
 
 int main(int argc, char** argv) {
-  if (argc != 2) return 2;
-  auto file = driftlab::MappedFile::open(argv[1]);
+  const bool compress = argc == 3 && std::string_view(argv[1]) == "--compress";
+  if (argc != 2 && !compress) return 2;
+  auto file = driftlab::MappedFile::open(argv[argc - 1]);
   if (!file) return 1;
   const auto b = file->bytes();
   driftlab::formats::Decompressor d;
+  driftlab::formats::Compressor z(Codec::kZstd, 1);
   std::vector<uint8_t> out;
   uint64_t in_bytes = 0, out_bytes = 0, chunks = 0;
   auto run = [&](std::string_view compression, std::span<const uint8_t> data, size_t size) {
@@ -23,7 +27,11 @@ int main(int argc, char** argv) {
                     : compression == "lz4" ? Codec::kLz4Frame
                     : compression == "bz2" ? Codec::kBz2
                                            : Codec::kNone;
-    d.run(c, data, size, out);
+    if (compress) {
+      z.run(data, out);
+    } else {
+      d.run(c, data, size, out);
+    }
     in_bytes += data.size();
     out_bytes += out.size();
     ++chunks;

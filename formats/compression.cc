@@ -164,7 +164,8 @@ Decompressor::~Decompressor() { ZSTD_freeDCtx(static_cast<ZSTD_DCtx*>(zstd_)); }
 std::string Decompressor::run(Codec codec, std::span<const uint8_t> in, size_t expected_size,
                               std::vector<uint8_t>& out) {
   if (codec != Codec::kZstd) return decompress(codec, in, expected_size, out);
-  out.clear();
+  // Not cleared first: zstd() sizes out to what it decodes, and a reused buffer is then not zero-filled again
+  // before every block (a memory pass over every chunk of an MCAP file).
   return zstd(static_cast<ZSTD_DCtx*>(zstd_), in, expected_size, out);
 }
 

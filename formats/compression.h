@@ -30,7 +30,8 @@ class Decompressor {
   ~Decompressor();
   Decompressor(const Decompressor&) = delete;
   Decompressor& operator=(const Decompressor&) = delete;
-  /// As decompress().
+  /// As decompress(); out's old bytes are overwritten rather than cleared first (a reused buffer is not
+  /// zero-filled again for every block).
   std::string run(Codec codec, std::span<const uint8_t> in, size_t expected_size, std::vector<uint8_t>& out);
 
  private:

@@ -1,11 +1,13 @@
 // MCAP files (mcap.dev/spec, major version 0), read and written by driftlab's own code: no C++ MCAP library is
 // packaged for Debian. The reader goes front to back through the data section without the summary, so a file
 // cut short or never finished (no summary, no footer) reads like a whole one; chunks are uncompressed, zstd or lz4
-// and are checked against their CRC; memory is bounded by one chunk. Corruption goes to the problem callback with
+// and are checked against their CRC, on a thread of the reader's own a few chunks ahead of the callbacks; memory is
+// bounded by a few chunks. Corruption goes to the problem callback with
 // the file offset, and reading goes on at the next record that parses. The writer makes indexed files: chunks
 // with message indexes, schemas and channels repeated in the summary, chunk indexes, statistics, metadata
-// indexes, summary offsets, and the data-section and summary CRCs.
-// Thread-safety: one reader or writer per thread.
+// indexes, summary offsets, and the data-section and summary CRCs; it compresses and writes each closed chunk on
+// a thread of its own while the next one fills (at most three chunks in memory).
+// Thread-safety: one reader or writer per thread (each runs a thread of its own inside, invisible to callers).
 #pragma once
 
 #include <cstdint>
@@ -80,10 +82,15 @@ class McapReader {
 
   /// Calls on_message for every message of the data section in file order (its channel and schema are known
   /// before it), on_metadata for every Metadata record, and on_problem for every unreadable part; returns the
-  /// number of messages delivered. Message data stays valid until on_message returns.
+  /// number of messages delivered. Message data stays valid until on_message returns. The callbacks run on the
+  /// calling thread, one at a time; pipelined (the default), chunks are read, decompressed and checked on a thread
+  /// of the reader's own meanwhile, at most three chunks ahead. What the callbacks see does not depend on it.
   int64_t read(const std::function<void(const McapMessage&)>& on_message,
                const std::function<void(const McapProblem&)>& on_problem,
                const std::function<void(const McapMetadata&)>& on_metadata = {});
+
+  /// Whether read() decompresses and checks chunks on a second thread (default true); false: all on the caller's.
+  void set_pipelined(bool on);
 
   const std::string& profile() const { return profile_; }
   const std::string& library() const { return library_; }
@@ -101,6 +108,7 @@ class McapReader {
   std::string profile_, library_;
   McapStatistics statistics_;
   bool has_statistics_ = false;
+  bool pipelined_ = true;
 };
 
 enum class McapCompression { kNone, kZstd, kLz4 };
@@ -129,7 +137,8 @@ class McapWriter {
   /// Registers a channel on schema_id (0: none); returns its id (0, 1, ...).
   uint16_t add_channel(uint16_t schema_id, std::string_view topic, std::string_view message_encoding,
                        const std::vector<std::pair<std::string, std::string>>& metadata = {});
-  /// Appends a message. Times in ns.
+  /// Appends a message. Times in ns. A failure to write an earlier chunk (on the writing thread) is returned
+  /// here or by close(), naming the file.
   Status write(uint16_t channel_id, uint32_t sequence, uint64_t log_time, uint64_t publish_time,
                std::span<const uint8_t> data);
   /// Adds a Metadata record (written between chunks; indexed in the summary).
@@ -140,7 +149,7 @@ class McapWriter {
   void discard();
 
   uint64_t messages() const;
-  /// Bytes written to the file so far.
+  /// Bytes written to the file so far (waits for the chunks handed to the writing thread to be written).
   uint64_t bytes() const;
 
  private:

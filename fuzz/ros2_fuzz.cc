@@ -1,7 +1,8 @@
 // Fuzzes the ROS 2 readers: the MCAP container (records, chunks with their compression and CRCs, summary), the
 // rosbag2 sqlite3 storage, and ROS message definitions with the messages walked by them in CDR and ROS 1
 // serialization. Whatever they deliver must be well formed: mapped messages a valid driftlab message, walks a
-// JSON text or a reason.
+// JSON text or a reason; an MCAP file read pipelined (a second thread decompresses and checks its chunks) must give
+// the same calls as read on one thread.
 // Input: a selector byte, then the bytes for the reader it selects.
 #include <cstdint>
 #include <cstdlib>
@@ -49,15 +50,31 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     // An MCAP file: the magic is given, so the fuzzer spends its time on the records.
     std::string bytes = "\x89MCAP0\r\n";
     bytes.append(reinterpret_cast<const char*>(rest.data()), rest.size());
-    auto r = McapReader::from_memory({reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size()});
-    if (!r) std::abort();
-    r->read(
-        [](const McapMessage& m) {
-          const McapSchema* s = m.channel->schema;
-          consume(s ? std::string_view(s->name) : "", m.channel->message_encoding,
-                  s ? std::string_view(s->encoding) : "", s ? std::string_view(s->data) : "", m.data);
-        },
-        [](const McapProblem&) {});
+    // Read twice: pipelined (chunks decompressed and checked on the reader's second thread) and on this thread
+    // alone; the two must make the same calls in the same order.
+    std::string trace[2];
+    for (const bool pipelined : {true, false}) {
+      auto r = McapReader::from_memory({reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size()});
+      if (!r) std::abort();
+      r->set_pipelined(pipelined);
+      std::string& t = trace[pipelined ? 1 : 0];
+      r->read(
+          [&](const McapMessage& m) {
+            t += "m" + std::to_string(m.channel->id) + " " + std::to_string(m.sequence) + " " +
+                 std::to_string(m.log_time) + " " + std::to_string(m.offset) + " " + std::to_string(m.offset_in_chunk) +
+                 " ";
+            t.append(reinterpret_cast<const char*>(m.data.data()), m.data.size());
+            t += '\n';
+            if (!pipelined) return;
+            const McapSchema* s = m.channel->schema;
+            consume(s ? std::string_view(s->name) : "", m.channel->message_encoding,
+                    s ? std::string_view(s->encoding) : "", s ? std::string_view(s->data) : "", m.data);
+          },
+          [&](const McapProblem& p) { t += "p" + std::to_string(p.offset) + " " + p.what + "\n"; },
+          [&](const McapMetadata& md) { t += "d" + md.name + "\n"; });
+      if (r->statistics()) t += "s" + std::to_string(r->statistics()->message_count);
+    }
+    if (trace[0] != trace[1]) std::abort();
   } else if (selector < 160) {
     auto r = SqliteBagReader::from_memory(rest);
     if (!r) return 0;

@@ -5,7 +5,10 @@
 
 #include <algorithm>
 #include <cstring>
+#include <filesystem>
 #include <map>
+#include <stdexcept>
+#include <string>
 
 #include "formats/export_mcap.h"
 #include "formats/mcap.h"
@@ -156,6 +159,153 @@ TEST(Mcap, GarbageIsSkippedToTheNextRecord) {
   EXPECT_EQ(got.problems[0].offset, second);
   EXPECT_NE(got.problems[0].what.find("300 bytes skipped"), std::string::npos) << got.problems[0].what;
   EXPECT_EQ(got.messages.size(), 1000u);
+}
+
+/// The offsets of the chunks that hold messages, in file order.
+std::vector<uint64_t> chunk_offsets(const Read& r) {
+  std::vector<uint64_t> at;
+  for (const auto& m : r.messages)
+    if (at.empty() || at.back() != m.offset) at.push_back(m.offset);
+  return at;
+}
+
+/// A read of a file in memory, pipelined (the default) or on the calling thread alone.
+Read read_bytes(std::span<const uint8_t> bytes, bool pipelined = true) {
+  auto r = McapReader::from_memory(bytes);
+  EXPECT_TRUE(r.ok());
+  if (!r) return {};
+  r->set_pipelined(pipelined);
+  return read_all(*r);
+}
+
+/// What a read gave, message by message and problem by problem, in one comparable text.
+std::string trace(McapReader& r) {
+  const Read got = read_all(r);
+  std::string t;
+  for (size_t i = 0; i < got.messages.size(); ++i) {
+    const auto& m = got.messages[i];
+    t += "message " + m.channel->topic + " " + std::to_string(m.sequence) + " " + std::to_string(m.log_time) + " " +
+         std::to_string(m.offset) + " " + std::to_string(m.offset_in_chunk) + " " + std::to_string(got.data[i].size()) +
+         " " + std::string(got.data[i].begin(), got.data[i].end()) + "\n";
+  }
+  for (const auto& p : got.problems) t += "problem " + std::to_string(p.offset) + " " + p.what + "\n";
+  for (const auto& m : got.metadata) t += "metadata " + m.name + "\n";
+  if (r.statistics()) t += "statistics " + std::to_string(r.statistics()->message_count) + "\n";
+  return t;
+}
+
+// A zstd chunk in the middle that does not decompress (its frame's first bytes overwritten): reported once, at its
+// offset, with the data section's CRC (the bytes changed); every message before and after it is read, in order.
+// The same pipelined (the default: chunks decompressed on a second thread) and on the calling thread alone.
+TEST(Mcap, CorruptChunkInTheMiddleIsReportedOnceAndTheRestRead) {
+  test::TempDir dir;
+  write_file(dir.file("f.mcap"), McapCompression::kZstd);
+  auto bytes = test::read_file(dir.file("f.mcap"));
+  const Read clean = read_bytes(bytes);
+  const auto chunks = chunk_offsets(clean);
+  ASSERT_GE(chunks.size(), 10u);  // enough for the reading thread to run ahead
+  const uint64_t victim = chunks[chunks.size() / 2];
+  // opcode, length, start and end times, uncompressed size, CRC, "zstd", records length: then the frame.
+  const size_t frame = victim + 9 + 8 + 8 + 8 + 4 + 4 + 4 + 8;
+  ASSERT_EQ(bytes[frame], 0x28);  // zstd's magic, little endian: 28 b5 2f fd
+  std::fill_n(bytes.begin() + static_cast<ptrdiff_t>(frame), 4, 0);
+  for (const bool pipelined : {true, false}) {
+    const Read got = read_bytes(bytes, pipelined);
+    ASSERT_EQ(got.problems.size(), 2u);
+    EXPECT_EQ(got.problems[0].offset, victim);
+    EXPECT_EQ(got.problems[0].what, "chunk: zstd: Unknown frame descriptor");
+    EXPECT_NE(got.problems[1].what.find("the data section fails its CRC"), std::string::npos);
+    std::vector<size_t> want;  // the clean read's messages outside the victim
+    for (size_t i = 0; i < clean.messages.size(); ++i)
+      if (clean.messages[i].offset != victim) want.push_back(i);
+    ASSERT_EQ(got.messages.size(), want.size());
+    EXPECT_LT(want.size(), clean.messages.size());
+    for (size_t i = 0; i < want.size(); ++i) {
+      EXPECT_EQ(got.messages[i].sequence, clean.messages[want[i]].sequence);
+      EXPECT_EQ(got.messages[i].offset, clean.messages[want[i]].offset);
+      EXPECT_EQ(got.data[i], clean.data[want[i]]);
+    }
+  }
+}
+
+// The pipelined read makes the same calls in the same order as the read on the calling thread alone, on whole
+// files and on every kind of damage the reader recovers from: a chunk that does not decompress or fails its CRC,
+// garbage between records (reading goes on at the next record, found with the channels known so far), a record
+// length that runs past the end, a file cut inside a chunk.
+TEST(Mcap, PipelinedReadMakesTheSameCalls) {
+  test::TempDir dir;
+  for (auto c : {McapCompression::kNone, McapCompression::kZstd, McapCompression::kLz4}) {
+    write_file(dir.file("f.mcap"), c);
+    const auto whole = test::read_file(dir.file("f.mcap"));
+    const auto chunks = chunk_offsets(read_bytes(whole));
+    ASSERT_GE(chunks.size(), 10u);
+    std::vector<std::vector<uint8_t>> variants = {whole};
+    auto damaged = whole;  // bytes flipped inside three chunks' records
+    for (size_t k : {size_t{1}, chunks.size() / 2, chunks.size() - 2}) damaged[chunks[k] + 200] ^= 0x5a;
+    variants.push_back(damaged);
+    auto garbage = whole;  // garbage before the middle chunk
+    garbage.insert(garbage.begin() + static_cast<ptrdiff_t>(chunks[chunks.size() / 2]), 77, 0xAB);
+    variants.push_back(garbage);
+    auto length = whole;  // the middle chunk's length runs past the end of the file
+    std::fill_n(length.begin() + static_cast<ptrdiff_t>(chunks[chunks.size() / 2] + 1), 8, 0x7f);
+    variants.push_back(length);
+    variants.emplace_back(whole.begin(), whole.begin() + static_cast<ptrdiff_t>(chunks[chunks.size() / 2] + 300));
+    for (size_t v = 0; v < variants.size(); ++v) {
+      auto serial = McapReader::from_memory(variants[v]);
+      auto pipelined = McapReader::from_memory(variants[v]);
+      ASSERT_TRUE(serial.ok() && pipelined.ok());
+      serial->set_pipelined(false);
+      const std::string want = trace(*serial);
+      EXPECT_EQ(trace(*pipelined), want) << "compression " << static_cast<int>(c) << ", variant " << v;
+      if (v > 0) {
+        EXPECT_NE(want.find("problem "), std::string::npos) << "variant " << v << " is not damaged";
+      }
+    }
+  }
+}
+
+// A callback that throws stops the read (the reading thread is stopped and joined), and the reader reads again.
+TEST(Mcap, ThrowingCallbackStopsThePipelinedRead) {
+  test::TempDir dir;
+  write_file(dir.file("f.mcap"), McapCompression::kZstd);
+  auto r = McapReader::open(dir.file("f.mcap"));
+  ASSERT_TRUE(r.ok());
+  int seen = 0;
+  EXPECT_THROW(r->read(
+                   [&](const McapMessage&) {
+                     if (++seen == 10) throw std::runtime_error("enough");
+                   },
+                   [](const McapProblem&) {}),
+               std::runtime_error);
+  EXPECT_EQ(seen, 10);
+  const Read again = read_all(*r);
+  EXPECT_EQ(again.messages.size(), 1000u);
+  EXPECT_TRUE(again.problems.empty());
+}
+
+// The writer compresses and writes closed chunks on a thread of its own: a write that fails there (a full disk)
+// reaches the caller, naming the file, at a later write or at close; nothing after it is written.
+TEST(Mcap, WriteErrorsOnTheWritingThreadReachTheCaller) {
+  auto w = McapWriter::create("/dev/full", {.chunk_bytes = 4 << 10, .atomic = false});
+  ASSERT_TRUE(w.ok()) << w.error().message;
+  const uint16_t c = w->add_channel(0, "/raw", "json");
+  Status st;
+  for (int i = 0; i < 1000 && st; ++i) st = w->write(c, static_cast<uint32_t>(i), 1, 1, payload(i));
+  if (st) st = w->close();
+  ASSERT_FALSE(st);
+  EXPECT_EQ(st.message().find("/dev/full: cannot write: No space left on device"), 0u) << st.message();
+  EXPECT_FALSE(w->write(c, 0, 1, 1, payload(0)));
+}
+
+// Discarding a writer with chunks still queued for its writing thread leaves nothing behind.
+TEST(Mcap, DiscardLeavesNothingBehind) {
+  test::TempDir dir;
+  auto w = McapWriter::create(dir.file("f.mcap"), {.chunk_bytes = 1 << 10});
+  ASSERT_TRUE(w.ok());
+  const uint16_t c = w->add_channel(0, "/raw", "json");
+  for (int i = 0; i < 500; ++i) ASSERT_TRUE(w->write(c, static_cast<uint32_t>(i), 1, 1, payload(i)));
+  w->discard();
+  EXPECT_TRUE(std::filesystem::is_empty(dir.path()));
 }
 
 /// Appends an MCAP record.

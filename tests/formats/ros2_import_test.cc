@@ -5,6 +5,7 @@
 #include <sqlite3.h>
 #include <sys/stat.h>
 
+#include <algorithm>
 #include <bit>
 #include <cstring>
 #include <filesystem>
@@ -12,11 +13,13 @@
 
 #include "driftlab/foreign_message_t.hpp"
 #include "driftlab/laser_scan_t.hpp"
+#include "driftlab/point_cloud_t.hpp"
 #include "driftlab/velocity_command_t.hpp"
 #include "formats/compression.h"
 #include "formats/mcap.h"
 #include "formats/ros2_bag.h"
 #include "formats/ros_messages.h"
+#include "lcmtypes/encode.h"
 #include "lcmtypes/validate.h"
 #include "tests/test_util.h"
 
@@ -75,9 +78,9 @@ std::vector<uint8_t> scan(bool big, int32_t sec, uint32_t nanosec, float first_r
 
 constexpr char kScanDefinition[] = "# (not needed: a mapped type)\n";
 
-/// An MCAP file of n scans on /scan, stamps from first_sec on, received 10 ms after.
-void write_scans(const std::string& path, int first, int n, bool big = false) {
-  auto w = formats::McapWriter::create(path);
+/// An MCAP file of n scans on /scan, stamps from first_sec on, received 10 ms after; zstd chunks of chunk_bytes.
+void write_scans(const std::string& path, int first, int n, bool big = false, size_t chunk_bytes = 4 << 20) {
+  auto w = formats::McapWriter::create(path, {.chunk_bytes = chunk_bytes});
   ASSERT_TRUE(w.ok());
   const uint16_t s = w->add_schema("sensor_msgs/msg/LaserScan", "ros2msg", kScanDefinition);
   const uint16_t c = w->add_channel(s, "/scan", "cdr");
@@ -290,6 +293,114 @@ TEST(Ros2Import, BadInputIsNamedAndTheRestConverted) {
   EXPECT_EQ(log.at("/pair").size(), 1u);
   EXPECT_EQ(log.at("/broken").size(), 1u);
   EXPECT_NE(r.out.find("(1 malformed, left out)"), std::string::npos) << r.out;
+}
+
+// A zstd chunk in the middle of a file that does not decompress (its frame's first bytes overwritten), while
+// the chunks around it are decompressed on the reader's second thread: reported once, naming the file and the
+// chunk's offset (then the data section's CRC, which the damage breaks too), exit 2, and every scan before and
+// after it converted, in order; the same lines and the same log as the reader on one thread gives.
+TEST(Ros2Import, CorruptChunkInTheMiddleIsReportedOnceAndTheRestConverted) {
+  test::TempDir dir;
+  const std::string f = dir.file("scans.mcap");
+  write_scans(f, 0, 300, false, 1024);  // about 8 scans a chunk
+  auto bytes = test::read_file(f);
+  std::vector<uint64_t> chunks;  // each scan's chunk
+  {
+    auto r = formats::McapReader::from_memory(bytes);
+    ASSERT_TRUE(r.ok());
+    r->read([&](const formats::McapMessage& m) { chunks.push_back(m.offset); },
+            [](const formats::McapProblem& p) { ADD_FAILURE() << p.what; });
+  }
+  ASSERT_EQ(chunks.size(), 300u);
+  const uint64_t victim = chunks[150];
+  const size_t frame = victim + 9 + 8 + 8 + 8 + 4 + 4 + 4 + 8;  // the chunk's fields, then its zstd frame
+  ASSERT_EQ(bytes[frame], 0x28);
+  std::fill_n(bytes.begin() + static_cast<ptrdiff_t>(frame), 4, 0);
+  test::write_file(f, bytes);
+
+  const CmdResult r = driftlab("import '" + f + "' -o '" + dir.file("out.lcm") + "'");
+  EXPECT_EQ(r.code, 2);
+  const std::string line =
+      "driftlab: " + f + ": at byte " + std::to_string(victim) + ": chunk: zstd: Unknown frame descriptor\n";
+  ASSERT_EQ(r.err.find(line), 0u) << r.err;
+  EXPECT_EQ(r.err.find(line, 1), std::string::npos) << r.err;
+  const std::string rest = r.err.substr(line.size());
+  EXPECT_EQ(rest.find("driftlab: " + f + ": at byte "), 0u) << r.err;
+  EXPECT_NE(rest.find(": the data section fails its CRC ("), std::string::npos) << r.err;
+  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 2) << r.err;
+
+  std::vector<float> want;  // the scans outside the victim, in order
+  for (int i = 0; i < 300; ++i)
+    if (chunks[static_cast<size_t>(i)] != victim) want.push_back(static_cast<float>(i));
+  ASSERT_LT(want.size(), 300u);
+  ASSERT_GT(want.size(), 280u);
+  const auto log = by_channel(dir.file("out.lcm"));
+  ASSERT_EQ(log.at("/scan").size(), want.size());
+  for (size_t i = 0; i < want.size(); ++i) {
+    laser_scan_t s;
+    ASSERT_TRUE(lcmtypes::decode(log.at("/scan")[i].data, s));
+    EXPECT_EQ(s.ranges[0], want[i]);
+  }
+
+  // The same on the calling thread alone.
+  std::string serial_problems;
+  int64_t serial_messages = 0;
+  auto serial = formats::McapReader::from_memory(bytes);
+  ASSERT_TRUE(serial.ok());
+  serial->set_pipelined(false);
+  serial->read([&](const formats::McapMessage&) { ++serial_messages; },
+               [&](const formats::McapProblem& p) {
+                 serial_problems += "driftlab: " + f + ": at byte " + std::to_string(p.offset) + ": " + p.what + "\n";
+               });
+  EXPECT_EQ(serial_problems, r.err);
+  EXPECT_EQ(serial_messages, static_cast<int64_t>(want.size()));
+}
+
+// sensor_msgs/PointCloud2 in the layout lidar drivers write (float32 fields in the machine's byte order) is
+// written straight as LCM's bytes: they equal lcm-gen's encoding of the same point_cloud_t, with and without
+// intensity and time, and so do those of the general path (the same points as big-endian data).
+TEST(Ros2Import, PointCloudFastPathEncodesAsLcmGen) {
+  for (const bool extra : {true, false}) {
+    for (const bool big_data : {false, true}) {
+      const uint32_t height = 2, width = 3;
+      std::vector<std::string> names = {"x", "y", "z"};
+      if (extra) names.insert(names.end(), {"intensity", "time"});
+      const auto step = static_cast<uint32_t>(4 * names.size() + 4);  // a float of padding after the fields
+      Cdr c(false);
+      c.put<int32_t>(12).put<uint32_t>(345'678'000).str("lidar").put(height).put(width);
+      c.put(static_cast<uint32_t>(names.size()));
+      for (size_t i = 0; i < names.size(); ++i) {
+        c.str(names[i]).put(static_cast<uint32_t>(4 * i)).put<uint8_t>(7).put<uint32_t>(1);
+      }
+      c.put<uint8_t>(big_data ? 1 : 0).put(step).put(step * width).put(step * width * height);
+      point_cloud_t want;
+      want.header.seq = 7;
+      want.header.utime = 12'345'678;
+      want.header.frame_id = "lidar";
+      want.height = static_cast<int32_t>(height);
+      want.width = static_cast<int32_t>(width);
+      want.npoints = static_cast<int32_t>(height * width);
+      std::vector<float>* arrays[] = {&want.x, &want.y, &want.z, &want.intensities, &want.time_offsets};
+      for (uint32_t k = 0; k < height * width; ++k) {
+        for (size_t f = 0; f <= names.size(); ++f) {
+          const float v = f < names.size() ? static_cast<float>(k) * 10.0F + static_cast<float>(f) + 0.25F : -1.0F;
+          if (f < names.size()) arrays[f]->push_back(v);
+          uint8_t raw[4];
+          std::memcpy(raw, &v, 4);
+          if (big_data) std::reverse(raw, raw + 4);
+          for (uint8_t b : raw) c.put(b);
+        }
+      }
+      c.put<uint8_t>(1);  // is_dense
+      want.nintensities = static_cast<int32_t>(want.intensities.size());
+      want.ntimes = static_cast<int32_t>(want.time_offsets.size());
+      std::string error;
+      auto got = formats::convert_ros_message("sensor_msgs/msg/PointCloud2", formats::Serialization::kCdr, c.bytes(), 0,
+                                              7, &error);
+      ASSERT_TRUE(got) << error;
+      EXPECT_EQ(got->lcm, lcmtypes::encode(want)) << "extra " << extra << ", big-endian data " << big_data;
+    }
+  }
 }
 
 // rosbag2's compression: a file compressed whole (compression_mode FILE) and every message compressed
