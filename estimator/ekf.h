@@ -12,6 +12,7 @@
 #include <deque>
 #include <variant>
 
+#include "core/time.h"
 #include "lcmtypes/planar.h"
 
 namespace driftlab::estimator {
@@ -91,7 +92,8 @@ class DelayedEkf {
     int64_t refused = 0;     ///< measurements the filter refused (Ekf::update: implausible or overflowing values)
   };
 
-  DelayedEkf(const EkfNoise& noise, double window_s) : ekf_(noise), window_(static_cast<int64_t>(window_s * 1e6)) {}
+  DelayedEkf(const EkfNoise& noise, double window_s)
+      : ekf_(noise), window_(Duration::from_seconds_truncated(window_s).us()) {}
 
   bool init(int64_t utime, const PoseFix& fix, double v, double w);
   bool initialized() const { return ekf_.initialized(); }
