@@ -2,7 +2,6 @@
 
 #include <Eigen/Dense>
 
-#include <algorithm>
 #include <cmath>
 
 #include "lcmtypes/validate.h"
@@ -121,57 +120,6 @@ void Ekf::apply(int64_t utime, const Measurement& m) {
     R(2, 2) = p->var_yaw > 0 ? p->var_yaw : noise_.pose_yaw * noise_.pose_yaw;
     correct<3>(z, H, R);
   }
-}
-
-bool DelayedEkf::init(int64_t utime, const PoseFix& fix, double v, double w) {
-  if (!ekf_.init(utime, fix, v, w)) return false;
-  base_ = ekf_;
-  history_.clear();
-  return true;
-}
-
-bool DelayedEkf::older_than_window(int64_t utime) const {
-  // The difference in uint64_t: exact whatever the stamps, where int64_t arithmetic could overflow.
-  const int64_t now = ekf_.time();
-  return utime<now&& static_cast<uint64_t>(now) - static_cast<uint64_t>(utime)> static_cast<uint64_t>(window_);
-}
-
-bool DelayedEkf::add(int64_t utime, const Measurement& m) {
-  if (utime >= ekf_.time()) {  // in order: the common case
-    if (!ekf_.update(utime, m)) {
-      ++counters_.refused;
-      return false;
-    }
-    history_.push_back({utime, m, ekf_});
-    ++counters_.applied;
-  } else {
-    if (older_than_window(utime) || utime < base_.time()) {
-      ++counters_.rejected;
-      return false;
-    }
-    // Rewind to the state before the first entry stamped after this one, insert it, and re-apply the rest.
-    auto pos = std::upper_bound(history_.begin(), history_.end(), utime,
-                                [](int64_t t, const Entry& e) { return t < e.utime; });
-    Ekf before = pos == history_.begin() ? base_ : std::prev(pos)->after;
-    if (!before.update(utime, m)) {  // the filter as it was stays
-      ++counters_.refused;
-      return false;
-    }
-    ekf_ = before;
-    pos = history_.insert(pos, {utime, m, ekf_});
-    for (auto it = std::next(pos); it != history_.end(); ++it) {
-      ekf_.update(it->utime, it->m);  // one refused now leaves the state as it was before it
-      it->after = ekf_;
-    }
-    counters_.replays += static_cast<int64_t>(std::distance(pos, history_.end())) - 1;
-    ++counters_.reapplied;
-  }
-  // Forget what is older than the window; the last forgotten state becomes the base.
-  while (!history_.empty() && older_than_window(history_.front().utime)) {
-    base_ = history_.front().after;
-    history_.pop_front();
-  }
-  return true;
 }
 
 }  // namespace driftlab::estimator

@@ -9,10 +9,9 @@
 #include <Eigen/Core>
 
 #include <cstdint>
-#include <deque>
 #include <variant>
 
-#include "core/time.h"
+#include "estimator/delayed_filter.h"
 #include "lcmtypes/planar.h"
 
 namespace driftlab::estimator {
@@ -81,41 +80,22 @@ class Ekf {
   Cov P_ = Cov::Identity();
 };
 
-/// An Ekf that accepts measurements in any order within a window.
-class DelayedEkf {
+/// An Ekf that accepts measurements in any order within a window (delayed_filter.h).
+class DelayedEkf : public DelayedFilter<Ekf, Measurement> {
  public:
-  struct Counters {
-    int64_t applied = 0;     ///< measurements applied in stamp order
-    int64_t reapplied = 0;   ///< late measurements inserted into the past (the ones after them re-applied)
-    int64_t rejected = 0;    ///< measurements older than the window
-    int64_t replays = 0;     ///< measurements re-applied because of late ones
-    int64_t refused = 0;     ///< measurements the filter refused (Ekf::update: implausible or overflowing values)
-  };
+  DelayedEkf(const EkfNoise& noise, double window_s) : DelayedFilter(Ekf(noise), window_s), noise_(noise) {}
 
-  DelayedEkf(const EkfNoise& noise, double window_s)
-      : ekf_(noise), window_(Duration::from_seconds_truncated(window_s).us()) {}
-
-  bool init(int64_t utime, const PoseFix& fix, double v, double w);
-  bool initialized() const { return ekf_.initialized(); }
-  /// Applies a measurement stamped utime [us]; false when it was older than the window and rejected, or refused
-  /// by the filter (Ekf::update).
-  bool add(int64_t utime, const Measurement& m);
-
-  const Ekf& filter() const { return ekf_; }
-  const Counters& counters() const { return counters_; }
+  /// Starts from a first fix; false (and nothing changes) when the filter refuses it (Ekf::init).
+  bool init(int64_t utime, const PoseFix& fix, double v, double w) {
+    Ekf e(noise_);
+    if (!e.init(utime, fix, v, w)) return false;
+    reset(e);
+    return true;
+  }
+  bool initialized() const { return filter().initialized(); }
 
  private:
-  bool older_than_window(int64_t utime) const;
-  struct Entry {
-    int64_t utime;
-    Measurement m;
-    Ekf after;  ///< the filter after applying m
-  };
-  Ekf ekf_;
-  int64_t window_;
-  Ekf base_;                  ///< the filter before the first entry in the history
-  std::deque<Entry> history_; ///< applied measurements within the window, by stamp
-  Counters counters_;
+  EkfNoise noise_;
 };
 
 }  // namespace driftlab::estimator

@@ -9,14 +9,18 @@
 
 #include "controller/controller_module.h"
 #include "core/config.h"
+#include "estimator/drone_estimator_module.h"
 #include "estimator/estimator_module.h"
+#include "flight/flight_module.h"
+#include "flight/offboard_module.h"
 #include "sim/scenario.h"
 #include "slam/slam_module.h"
 
 namespace driftlab::modules {
 namespace {
 
-constexpr std::array<const char*, 3> kModules = {"slam", "estimator", "controller"};
+constexpr std::array<const char*, 6> kModules = {"slam",   "estimator", "controller", "drone_estimator",
+                                                 "flight", "offboard"};
 
 std::string line_of(const std::string& file, const YAML::Mark& mark) {
   return file + ":" + std::to_string(mark.line + 1);
@@ -68,6 +72,9 @@ Result<std::unique_ptr<Module>> make_module(const std::string& name, const YAML:
     return m;
   }
   if (name == "controller") return make_controller(config, origin, config_dir, notes);
+  if (name == "drone_estimator") return estimator::make_drone_estimator(config, origin);
+  if (name == "flight") return flight::make_flight(config, origin);
+  if (name == "offboard") return flight::make_offboard(config, origin);
   return Error{"--modules: unknown module '" + name + "' (known: " + known_modules() + ")"};
 }
 
@@ -77,6 +84,9 @@ std::string config_reference() {
   std::string out = "### slam\n\n" + slam::slam_config_table().reference("slam.");
   out += "\n### estimator\n\n" + estimator::estimator_config_table().reference("estimator.");
   out += "\n### controller\n\n" + controller::controller_config_table().reference("controller.");
+  out += "\n### drone_estimator\n\n" + estimator::drone_estimator_config_table().reference("drone_estimator.");
+  out += "\n### flight\n\n" + flight::flight_config_table().reference("flight.");
+  out += "\n### offboard\n\n" + flight::offboard_config_table().reference("offboard.");
   return out;
 }
 

@@ -22,6 +22,9 @@ bool Output::has_stream(const std::string& channel) const {
 Status Output::write(const std::string& channel, int64_t utime, std::span<const uint8_t> bytes) {
   if (Status s = writer_.write(utime, channel, bytes); !s) return s;
   if (listener_) listener_(channel, utime, bytes);
+  if (!arrivals_.empty()) {
+    if (auto it = arrivals_.find(channel); it != arrivals_.end()) it->second(utime, bytes);
+  }
   ++written_[channel];
   last_arrival_ = utime;
   return {};

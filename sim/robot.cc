@@ -1,7 +1,6 @@
 #include "sim/robot.h"
 
 #include <btBulletDynamicsCommon.h>
-#include <console_bridge/console.h>
 #include <tinyxml.h>
 #include <urdf_parser/urdf_parser.h>
 
@@ -9,9 +8,9 @@
 #include <cmath>
 #include <fstream>
 #include <map>
-#include <mutex>
 #include <sstream>
 
+#include "kinematics/robot_model.h"
 #include "lcmtypes/planar.h"
 
 namespace driftlab::sim {
@@ -47,15 +46,6 @@ btVector3 to_bt(const Eigen::Vector3d& v) {
   return btVector3(static_cast<btScalar>(v.x()), static_cast<btScalar>(v.y()), static_cast<btScalar>(v.z()));
 }
 
-/// urdfdom reports parse errors through console_bridge; this keeps the first error of a parse for our message.
-class CaptureErrors : public console_bridge::OutputHandler {
- public:
-  void log(const std::string& text, console_bridge::LogLevel level, const char*, int) override {
-    if (level >= console_bridge::CONSOLE_BRIDGE_LOG_ERROR && first_.empty()) first_ = text;
-  }
-  std::string first_;
-};
-
 /// Line of the first <tag name="name"> element in the document, for messages; 0 when not found.
 int line_of(const TiXmlDocument& doc, const char* tag, const std::string& name) {
   const TiXmlElement* robot = doc.RootElement();
@@ -67,7 +57,134 @@ int line_of(const TiXmlDocument& doc, const char* tag, const std::string& name) 
   return 0;
 }
 
+/// A link's mass, centre and inertia (about its centre) in some frame.
+struct InertialPart {
+  double m;
+  Eigen::Vector3d c;
+  Eigen::Matrix3d inertia;
+};
+
+/// `in` of a link whose frame is `link_in_frame`.
+InertialPart part_of(const urdf::Inertial& in, const Eigen::Isometry3d& link_in_frame) {
+  const Eigen::Isometry3d frame = link_in_frame * to_eigen(in.origin);
+  Eigen::Matrix3d local;
+  local << in.ixx, in.ixy, in.ixz, in.ixy, in.iyy, in.iyz, in.ixz, in.iyz, in.izz;
+  return {in.mass, frame.translation(), frame.rotation() * local * frame.rotation().transpose()};
+}
+
+/// The parts together: total mass, centre of mass and inertia about it (parallel axis theorem). Needs mass > 0.
+InertialPart combine(const std::vector<InertialPart>& parts) {
+  InertialPart all{0, Eigen::Vector3d::Zero(), Eigen::Matrix3d::Zero()};
+  for (const InertialPart& p : parts) {
+    all.m += p.m;
+    all.c += p.m * p.c;
+  }
+  all.c /= all.m;
+  for (const InertialPart& p : parts) {
+    const Eigen::Vector3d d = p.c - all.c;
+    all.inertia += p.inertia + p.m * (d.squaredNorm() * Eigen::Matrix3d::Identity() - d * d.transpose());
+  }
+  return all;
+}
+
+/// A URDF's XML (for line numbers) and its urdfdom model.
+struct UrdfDocument {
+  std::string origin;
+  std::unique_ptr<TiXmlDocument> doc;
+  std::shared_ptr<const urdf::ModelInterface> model;
+  /// "file:line: tag 'name'" for messages.
+  std::string at(const char* tag, const std::string& name) const {
+    const int line = line_of(*doc, tag, name);
+    return origin + (line > 0 ? ":" + std::to_string(line) : std::string()) + ": " + tag + " '" + name + "'";
+  }
+};
+
+Result<UrdfDocument> open_urdf(const std::string& xml, const std::string& origin) {
+  UrdfDocument u{origin, std::make_unique<TiXmlDocument>(), nullptr};
+  u.doc->Parse(xml.c_str());
+  if (u.doc->Error()) {
+    return Error{origin + ":" + std::to_string(std::max(u.doc->ErrorRow(), 1)) +
+                 ": malformed XML: " + u.doc->ErrorDesc()};
+  }
+  // urdfdom's model, after the checks of the tree's structure (a joint's missing link, two parents, a loop, bad
+  // limits) urdfdom would report without the line or miss: one line naming the file, line and element.
+  auto checked = kinematics::RobotModel::parse(xml, origin);
+  if (!checked) return checked.error();
+  u.model = checked->urdf();
+  return u;
+}
+
 }  // namespace
+
+Result<MultirotorSpec> read_multirotor(const std::string& xml, const std::string& origin) {
+  auto u = open_urdf(xml, origin);
+  if (!u) return u.error();
+  const TiXmlDocument& doc = *u->doc;
+  const auto& model = u->model;
+  auto at = [&](const char* tag, const std::string& name) { return u->at(tag, name); };
+  const urdf::LinkConstSharedPtr root = model->getRoot();
+  if (!root) return Error{origin + ": the URDF has no root link"};
+  MultirotorSpec spec;
+  spec.name = model->getName();
+  spec.base_link = root->name;
+
+  // Every link's pose in the base frame at zero joint angles, depth first; mass and inertia summed about the base.
+  struct Pending {
+    urdf::LinkConstSharedPtr link;
+    Eigen::Isometry3d in_base;
+  };
+  std::vector<InertialPart> parts;  // in the base frame
+  std::vector<Pending> stack{{root, Eigen::Isometry3d::Identity()}};
+  while (!stack.empty()) {
+    const Pending p = stack.back();
+    stack.pop_back();
+    if (p.link->inertial) {
+      if (!(p.link->inertial->mass > 0)) {
+        return Error{at("link", p.link->name) + ": mass must be positive (a rotor or body without mass cannot fly)"};
+      }
+      parts.push_back(part_of(*p.link->inertial, p.in_base));
+    }
+    for (const auto& joint : p.link->child_joints) {
+      const Eigen::Isometry3d in_base = p.in_base * to_eigen(joint->parent_to_joint_origin_transform);
+      stack.push_back({model->getLink(joint->child_link_name), in_base});
+      if (joint->type != urdf::Joint::CONTINUOUS || p.link != root) continue;
+      // urdfdom gives a joint without <axis> the x axis: a rotor's spin axis must be written out.
+      const TiXmlElement* element = nullptr;
+      for (const TiXmlElement* e = doc.RootElement()->FirstChildElement("joint"); e != nullptr;
+           e = e->NextSiblingElement("joint")) {
+        const char* n = e->Attribute("name");
+        if (n != nullptr && joint->name == n) element = e;
+      }
+      if (element == nullptr || element->FirstChildElement("axis") == nullptr) {
+        return Error{at("joint", joint->name) + ": a rotor joint needs an <axis> (its spin axis, 0 0 1 or 0 0 -1)"};
+      }
+      const Eigen::Vector3d axis =
+          in_base.rotation() * Eigen::Vector3d(joint->axis.x, joint->axis.y, joint->axis.z).normalized();
+      if (std::abs(std::abs(axis.z()) - 1) > 1e-6) {
+        return Error{at("joint", joint->name) + ": a rotor's axis must be along the body's z (0 0 1 or 0 0 -1)"};
+      }
+      spec.rotors.push_back({joint->name, joint->child_link_name, in_base.translation(), axis.z() > 0 ? 1 : -1});
+    }
+  }
+  if (spec.rotors.empty()) {
+    return Error{at("link", root->name) + ": no rotor joints (continuous joints on the base link)"};
+  }
+  if (parts.empty())
+    return Error{at("link", root->name) + ": the robot has no mass (give its links <inertial> masses)"};
+  const InertialPart all = combine(parts);
+  spec.mass = all.m;
+  spec.com = all.c;
+  spec.inertia = all.inertia;
+  return spec;
+}
+
+Result<MultirotorSpec> load_multirotor(const std::string& urdf_path) {
+  std::ifstream f(urdf_path);
+  if (!f) return Error{urdf_path + ": cannot open the URDF file"};
+  std::stringstream text;
+  text << f.rdbuf();
+  return read_multirotor(text.str(), urdf_path);
+}
 
 struct Robot::Impl {
   struct Group {
@@ -147,31 +264,10 @@ Result<std::unique_ptr<Robot>> Robot::load(const std::string& urdf_path, btDiscr
 Result<std::unique_ptr<Robot>> Robot::create(const std::string& xml, const std::string& origin,
                                              btDiscreteDynamicsWorld& world, const Eigen::Vector3d& start,
                                              const DriveOptions& drive) {
-  TiXmlDocument doc;
-  doc.Parse(xml.c_str());
-  if (doc.Error()) {
-    return Error{origin + ":" + std::to_string(std::max(doc.ErrorRow(), 1)) + ": malformed XML: " + doc.ErrorDesc()};
-  }
-  auto at = [&](const char* tag, const std::string& name) {
-    const int line = line_of(doc, tag, name);
-    return origin + (line > 0 ? ":" + std::to_string(line) : std::string()) + ": " + tag + " '" + name + "'";
-  };
-
-  urdf::ModelInterfaceSharedPtr model;
-  {
-    // console_bridge's output handler is process-wide.
-    static std::mutex mutex;
-    std::lock_guard lock(mutex);
-    CaptureErrors capture;
-    console_bridge::useOutputHandler(&capture);
-    model = urdf::parseURDF(xml);
-    console_bridge::restorePreviousOutputHandler();
-    if (!model) {
-      std::string why = capture.first_.empty() ? "not a valid URDF robot" : capture.first_;
-      while (!why.empty() && (why.back() == '\n' || why.back() == ' ')) why.pop_back();
-      return Error{origin + ": " + why};
-    }
-  }
+  auto u = open_urdf(xml, origin);
+  if (!u) return u.error();
+  auto at = [&](const char* tag, const std::string& name) { return u->at(tag, name); };
+  const auto model = u->model;
 
   auto impl = std::make_unique<Impl>();
   impl->world = &world;
@@ -229,13 +325,7 @@ Result<std::unique_ptr<Robot>> Robot::create(const std::string& xml, const std::
   for (std::size_t gi = 0; gi < impl->groups.size(); ++gi) {
     Impl::Group& g = impl->groups[gi];
     double mass = 0;
-    Eigen::Vector3d com = Eigen::Vector3d::Zero();
-    struct Part {
-      double m;
-      Eigen::Vector3d c;
-      Eigen::Matrix3d inertia;  // about c, in the group root frame
-    };
-    std::vector<Part> parts;
+    std::vector<InertialPart> parts;  // in the group root frame
     struct ShapeAt {
       std::unique_ptr<btCollisionShape> shape;
       Eigen::Isometry3d pose;  // in the group root frame
@@ -245,13 +335,8 @@ Result<std::unique_ptr<Robot>> Robot::create(const std::string& xml, const std::
       if (info.group != static_cast<int>(gi)) continue;
       const urdf::LinkConstSharedPtr link = model->getLink(link_name);
       if (link->inertial && link->inertial->mass > 0) {
-        const urdf::Inertial& in = *link->inertial;
-        const Eigen::Isometry3d frame = info.in_group * to_eigen(in.origin);
-        Eigen::Matrix3d local;
-        local << in.ixx, in.ixy, in.ixz, in.ixy, in.iyy, in.iyz, in.ixz, in.iyz, in.izz;
-        parts.push_back({in.mass, frame.translation(), frame.rotation() * local * frame.rotation().transpose()});
-        mass += in.mass;
-        com += in.mass * frame.translation();
+        parts.push_back(part_of(*link->inertial, info.in_group));
+        mass += link->inertial->mass;
       } else if (link->inertial && link->inertial->mass < 0) {
         return Error{at("link", link_name) + ": negative mass"};
       }
@@ -302,12 +387,9 @@ Result<std::unique_ptr<Robot>> Robot::create(const std::string& xml, const std::
     if (shapes.empty()) {
       return Error{at("link", g.root_link) + ": has no collision shape (it, or a link fixed to it, needs a <collision>)"};
     }
-    com /= mass;
-    Eigen::Matrix3d inertia = Eigen::Matrix3d::Zero();
-    for (const Part& p : parts) {
-      const Eigen::Vector3d d = p.c - com;
-      inertia += p.inertia + p.m * (d.squaredNorm() * Eigen::Matrix3d::Identity() - d * d.transpose());
-    }
+    const InertialPart all = combine(parts);
+    const Eigen::Vector3d& com = all.c;
+    const Eigen::Matrix3d& inertia = all.inertia;
     Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(inertia);
     Eigen::Matrix3d axes = eig.eigenvectors();
     if (axes.determinant() < 0) axes.col(2) = -axes.col(2);
@@ -360,7 +442,17 @@ Result<std::unique_ptr<Robot>> Robot::create(const std::string& xml, const std::
                                                   to_bt(Eigen::Vector3d(joint_in_pa.rotation() * j.axis)),
                                                   to_bt(Eigen::Vector3d(joint_in_ch.rotation() * j.axis)));
     if (uj.type == urdf::Joint::REVOLUTE && uj.limits) {
-      j.hinge->setLimit(static_cast<btScalar>(uj.limits->lower), static_cast<btScalar>(uj.limits->upper));
+      // Bullet measures a hinge's angle from the bodies' poses when it was made (here: the URDF's zero), and in
+      // its own sense about the axis: find both from the angle now and with the child turned a little by the URDF
+      // axis, and give Bullet the URDF's range in its terms (Bullet's limit takes a span of up to 2 pi).
+      const btTransform ta = pa.body->getCenterOfMassTransform(), tb = ch.body->getCenterOfMassTransform();
+      const Eigen::Vector3d axis_world = to_eigen(ta).rotation() * joint_in_pa.rotation() * j.axis;
+      btTransform turned = tb;
+      turned.setBasis(btMatrix3x3(btQuaternion(to_bt(axis_world), btScalar(0.01))) * tb.getBasis());
+      const double zero = j.hinge->getHingeAngle(ta, tb);
+      const double sense = j.hinge->getHingeAngle(ta, turned) - zero > 0 ? 1.0 : -1.0;
+      const double a = zero + sense * uj.limits->lower, b = zero + sense * uj.limits->upper;
+      j.hinge->setLimit(static_cast<btScalar>(std::min(a, b)), static_cast<btScalar>(std::max(a, b)));
     }
     impl->joints.push_back(std::move(j));
   }
@@ -487,6 +579,54 @@ std::vector<JointReading> Robot::joints() const {
     out.push_back({j.name, j.angle, j.velocity, effort});
   }
   return out;
+}
+
+int Robot::joint_index(const std::string& name) const {
+  for (std::size_t i = 0; i < impl_->joints.size(); ++i) {
+    if (impl_->joints[i].name == name) return static_cast<int>(i);
+  }
+  return -1;
+}
+
+Status Robot::set_initial_positions(const std::map<std::string, double>& positions) {
+  std::vector<double> q(impl_->joints.size(), 0.0);
+  for (const auto& [name, value] : positions) {
+    const int i = joint_index(name);
+    if (i < 0) return Error{"robot '" + impl_->name + "' has no continuous or revolute joint '" + name + "'"};
+    q[static_cast<std::size_t>(i)] = value;
+  }
+  // Groups are created parent first, one per moving joint (group k + 1 below joint k).
+  std::vector<Eigen::Isometry3d> root(impl_->groups.size());
+  root[0] = impl_->groups[0].root_pose();
+  for (std::size_t k = 0; k < impl_->joints.size(); ++k) {
+    Impl::Joint& j = impl_->joints[k];
+    root[static_cast<std::size_t>(j.child_group)] =
+        root[static_cast<std::size_t>(j.parent_group)] * j.origin_in_parent_root * Eigen::AngleAxisd(q[k], j.axis);
+    Impl::Group& g = impl_->groups[static_cast<std::size_t>(j.child_group)];
+    g.body->setWorldTransform(to_bt(root[static_cast<std::size_t>(j.child_group)] * g.com_in_root));
+    g.body->setLinearVelocity(btVector3(0, 0, 0));
+    g.body->setAngularVelocity(btVector3(0, 0, 0));
+    g.motion->setWorldTransform(g.body->getWorldTransform());
+    impl_->world->updateSingleAabb(g.body.get());
+    j.raw = wrap_angle(q[k]);
+    j.angle = q[k];
+    j.velocity = 0;
+  }
+  return {};
+}
+
+void Robot::set_joint_rate(int index, double rate, double max_torque, double dt) {
+  // Bullet's hinge motor target is the rate of the parent relative to the child (see set_wheel_rates).
+  impl_->joints[static_cast<std::size_t>(index)].hinge->enableAngularMotor(true, static_cast<btScalar>(-rate),
+                                                                           static_cast<btScalar>(max_torque * dt));
+}
+
+void Robot::ignore_self_collisions() {
+  for (auto& a : impl_->groups) {
+    for (auto& b : impl_->groups) {
+      if (&a != &b) a.body->setIgnoreCollisionCheck(b.body.get(), true);
+    }
+  }
 }
 
 void Robot::after_step(double dt) {

@@ -6,6 +6,7 @@
 #pragma once
 
 #include <Eigen/Geometry>
+#include <map>
 #include <memory>
 #include <optional>
 #include <string>
@@ -31,6 +32,28 @@ struct JointReading {
   double velocity = 0;  ///< [rad/s]
   double effort = 0;    ///< motor torque about the joint axis during the last step [N*m]
 };
+
+/// One rotor of a multirotor URDF: a continuous joint on the base link whose axis is the body's z.
+struct RotorSpec {
+  std::string joint, link;
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();  ///< joint origin in the base link's frame [m]
+  int direction = 1;  ///< +1: axis +z, spins counter-clockwise seen from above; -1: axis -z, clockwise
+};
+
+/// What a multirotor URDF says of the vehicle (the flight stack's VehicleModel comes from the same numbers).
+struct MultirotorSpec {
+  std::string name, base_link;
+  double mass = 0;                                    ///< every link together [kg]
+  Eigen::Vector3d com = Eigen::Vector3d::Zero();      ///< centre of mass in the base link's frame [m]
+  Eigen::Matrix3d inertia = Eigen::Matrix3d::Zero();  ///< about the centre of mass, base link axes [kg*m^2]
+  std::vector<RotorSpec> rotors;                      ///< in the order urdfdom lists the base's joints
+};
+
+/// Reads a multirotor from URDF text (`origin` names it in errors). Rotors are the continuous joints on the base
+/// link. Errors, one line naming the file, line and element: malformed XML or URDF, no rotor joints, a link with
+/// zero or negative mass (or none in total), a rotor joint without an <axis>, a rotor axis not along the body z.
+Result<MultirotorSpec> read_multirotor(const std::string& urdf_xml, const std::string& origin);
+Result<MultirotorSpec> load_multirotor(const std::string& urdf_path);
 
 class Robot {
  public:
@@ -72,6 +95,18 @@ class Robot {
 
   /// Every continuous and revolute joint (in URDF order).
   std::vector<JointReading> joints() const;
+
+  /// The index of a continuous or revolute joint in joints(), -1 when the robot has none of that name.
+  int joint_index(const std::string& name) const;
+  /// Places the links below the named joints at these positions [rad] (unnamed joints at zero), as the robot is
+  /// switched on: call once, after create() and before the first step. Errors name an unknown joint.
+  Status set_initial_positions(const std::map<std::string, double>& positions);
+  /// Drives a joint's motor towards `rate` [rad/s, the URDF axis' sense] with at most `max_torque` [N*m], for the
+  /// next physics step of dt [s] (as a velocity command interface: the motor holds the joint against gravity).
+  void set_joint_rate(int index, double rate, double max_torque, double dt);
+  /// The robot's bodies stop colliding with each other (an arm whose collision shapes only approximate its links
+  /// would otherwise hit itself where the real one does not); they still collide with the world.
+  void ignore_self_collisions();
 
   /// Call after each physics step of dt [s]: tracks joint angles through full turns.
   void after_step(double dt);

@@ -274,6 +274,8 @@ const config::Table<Scenario>& scenario_table() {
           .section("faults", &S::faults, fault_config_table(),
                    "the faults injected, as a fault description (below); without seed: the scenario's")
           .brief()
+          .section("arm", &S::arm, arm_table(),
+                   "an arm on the robot: its joint trajectory controller and commander (docs/simulator.md)")
           .check([](const config::Value& v, S& sc) -> Status {
             std::set<std::string> channels{sc.controller.channel, sc.tf_static_channel, sc.faults_channel};
             for (std::size_t i = 0; i < sc.sensors.size(); ++i) {
@@ -282,6 +284,7 @@ const config::Table<Scenario>& scenario_table() {
               }
             }
             if (!v["faults"]["seed"].given()) sc.faults.seed = sc.seed;
+            sc.arm.enabled = v["arm"].given();
             return {};
           });
   return t;

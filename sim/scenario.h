@@ -11,6 +11,7 @@
 #include "controller/pure_pursuit.h"
 #include "core/faults.h"
 #include "core/result.h"
+#include "sim/arm_config.h"
 #include "sim/robot.h"
 #include "sim/world.h"
 
@@ -110,6 +111,7 @@ struct Scenario {
   std::string faults_channel = "FAULTS";       ///< the fault manifest (a truth channel)
   std::vector<SensorConfig> sensors;
   FaultConfig faults;
+  ArmConfig arm;  ///< an arm on the robot (`arm:`; enabled when given)
 };
 
 /// The keys of a scenario file, with units, ranges and defaults (core/config.h); `sensors` and `faults` have tables

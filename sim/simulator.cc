@@ -15,6 +15,7 @@
 #include "driftlab/tf_t.hpp"
 #include "driftlab/velocity_command_t.hpp"
 #include "sim/bullet_world.h"
+#include "sim/internal/arm_loop.h"
 #include "sim/internal/output.h"
 #include "sim/internal/sensors.h"
 #include "sim/raycaster.h"
@@ -68,6 +69,7 @@ struct Simulation::Impl {
   std::unique_ptr<BulletWorld> physics;
   std::unique_ptr<Robot> robot;
   std::unique_ptr<RayCaster> caster;
+  std::unique_ptr<ArmLoop> arm;  // the scenario's `arm:`, when given
   bool has_odometry = false;
 };
 
@@ -84,10 +86,18 @@ Result<std::unique_ptr<Simulation>> Simulation::create(const Scenario& scenario,
   auto robot_or = Robot::load(sc.urdf_path, impl->physics->dynamics(), sc.start, sc.drive);
   if (!robot_or) return robot_or.error();
   impl->robot = std::move(*robot_or);
+  if (sc.arm.enabled) {
+    auto arm = ArmLoop::create(sc, *impl->robot);
+    if (!arm) return arm.error();
+    impl->arm = std::move(*arm);
+  }
   const Robot& robot = *impl->robot;
 
   // Every sensor's link must exist; every faulted channel must be published.
   std::set<std::string> channels{sc.controller.channel, sc.tf_static_channel};
+  if (impl->arm) {
+    for (const std::string& c : impl->arm->channels()) channels.insert(c);
+  }
   for (const SensorConfig& s : sc.sensors) {
     if (!s.link.empty() && !robot.has_link(s.link)) {
       return Error{sc.path + ":" + std::to_string(s.line) + ": sensor " + s.channel + " is on link '" + s.link +
@@ -144,6 +154,8 @@ Result<SimReport> Simulation::run(const SimOptions& options) {
   std::vector<std::unique_ptr<Sensor>> sensors;
   for (const SensorConfig& s : sc.sensors) sensors.push_back(make_sensor(s, robot, out, sc.seed, &odometry));
 
+  ArmLoop* arm = impl_->arm.get();
+  if (arm != nullptr) arm->attach(out, odometry);
   controller::PurePursuit pursuit(sc.route, sc.controller.pursuit);
   constexpr int kProximityRays = 36;
   std::vector<controller::Point2> proximity;
@@ -198,8 +210,10 @@ Result<SimReport> Simulation::run(const SimOptions& options) {
         t.rotation = {q.w(), q.x(), q.y(), q.z()};
         tf.transforms.push_back(t);
       }
-      if (has_odometry) {
-        // The odometry frame starts at the robot's start pose in the ground truth's world frame.
+      if (arm != nullptr) arm->add_static(tf, now);
+      if (has_odometry && (arm == nullptr || sc.arm.map_channel.empty())) {
+        // The odometry frame starts at the robot's start pose in the ground truth's world frame (with an arm's
+        // localization, map -> odom takes its place).
         driftlab::transform_t t{};
         t.header.utime = now;
         t.header.frame_id = "world";
@@ -229,6 +243,7 @@ Result<SimReport> Simulation::run(const SimOptions& options) {
         if (std::isfinite(d)) proximity.push_back({local.x() * d, local.y() * d});
       }
       cmd = controller::avoid_obstacles(cmd, proximity, avoid);
+      if (arm != nullptr && arm->holds_base()) cmd = {};
       robot.set_wheel_rates((cmd.linear - cmd.angular * b / 2) / r, (cmd.linear + cmd.angular * b / 2) / r, dt);
       driftlab::velocity_command_t m{};
       m.header.frame_id = robot.base_link();
@@ -237,10 +252,12 @@ Result<SimReport> Simulation::run(const SimOptions& options) {
       out.publish(cmd_stream, m, now, now);
     }
 
+    if (arm != nullptr) arm->publish(now);
     if (Status s = out.flush(now); !s) {
       writer->discard();
       return Error{s.message()};
     }
+    if (arm != nullptr) arm->control(now, dt);
     if (options.progress && t_us >= next_progress) {
       options.progress(Duration::from_us(t_us).seconds(), sc.duration);
       next_progress += 1000000;

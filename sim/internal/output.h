@@ -51,6 +51,11 @@ class Output {
     }
   }
 
+  /// Calls `fn` with every message of `channel` as it is written, at its arrival [us, true clock]: a subscriber
+  /// inside the simulation (the arm's controller and commander), which sees what the log sees.
+  using Arrival = std::function<void(int64_t, std::span<const uint8_t>)>;
+  void on_arrival(const std::string& channel, Arrival fn) { arrivals_[channel] = std::move(fn); }
+
   /// Writes, in arrival order, every message that arrives before `before` [us, true clock].
   Status flush(int64_t before);
   /// Writes a message directly at arrival time `utime` after flushing what arrives before it (the manifest).
@@ -84,6 +89,7 @@ class Output {
   std::priority_queue<Pending, std::vector<Pending>, std::greater<>> queue_;
   uint64_t order_ = 0;
   std::map<std::string, int64_t> written_;
+  std::map<std::string, Arrival> arrivals_;
   int64_t last_arrival_ = 0;
 };
 

@@ -112,6 +112,24 @@ TEST_F(ReplayCli, AModuleWithoutItsInputsWarnsAndStillWritesALog) {
   EXPECT_NE(driftlab("info " + file("w.lcm")).out.find("MODULE_STATS"), std::string::npos);
 }
 
+// The drone's modules are in the registry: on the ground robot's session (an IMU, but no GNSS, barometer or
+// magnetometer) the drone estimator sees the IMU and says what it still lacks, and the flight stack and the offboard
+// script, with no estimate to fly on, say so instead of flying.
+TEST_F(ReplayCli, TheDroneModulesRunAndSayWhatTheyLackOnAGroundSession) {
+  const auto r = driftlab("replay " + log() + " --modules drone_estimator,flight,offboard --json -o " + file("d.lcm"));
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  ASSERT_EQ(j["modules"].size(), 3u);
+  EXPECT_EQ(j["modules"][0]["name"], "drone_estimator");
+  EXPECT_GT(j["modules"][0]["inputs"].get<int64_t>(), 0);
+  EXPECT_NE(j["modules"][0]["warnings"].dump().find("never initialised"), std::string::npos) << r.out;
+  EXPECT_EQ(j["modules"][1]["name"], "flight");
+  EXPECT_NE(j["modules"][1]["warnings"].dump().find("nothing flown"), std::string::npos) << r.out;
+  EXPECT_EQ(j["modules"][2]["name"], "offboard");
+  EXPECT_NE(j["modules"][2]["warnings"].dump().find("the mission never started"), std::string::npos) << r.out;
+  EXPECT_TRUE(std::filesystem::exists(file("d.lcm")));
+}
+
 TEST_F(ReplayCli, SlamMapsTheSessionAndFeedsTheEstimator) {
   const auto r = driftlab("replay " + log() + " --modules slam,estimator --json -o " + file("slam.lcm"));
   ASSERT_EQ(r.code, 0) << r.err;
@@ -178,23 +196,37 @@ TEST_F(ReplayCli, BadInputGetsOneLineAndExitCode2) {
   std::ofstream(file("bad_module_key.yaml")) << "? [slam]\n: {}\n";
   // Rates that used to loop forever (estimator) or abort (controller: a timer period of 0 us).
   std::ofstream(file("huge_rate.yaml")) << "estimator: {publish_rate: 1e7}\n";
+  // The drone's modules read their maps through the same tables: a misspelt or out-of-range key names file and line.
+  std::ofstream(file("bad_flight.yaml")) << "flight:\n  vehicle:\n    mas: 1.2\n";
+  std::ofstream(file("bad_offboard.yaml")) << "offboard:\n  stream_rate: 0\n";
+  std::ofstream(file("bad_drone_estimator.yaml")) << "drone_estimator:\n  window_s: 0.3\n  max_age: 1\n";
   std::ofstream(file("huge_controller_rate.yaml")) << "controller:\n  route: [[0, 0], [1, 0]]\n  rate: 1e308\n";
   const std::vector<Case> cases = {
-      {"--modules estimater", "--modules: unknown module 'estimater' (known: slam, estimator, controller)"},
+      {"--modules estimater",
+       "--modules: unknown module 'estimater' (known: slam, estimator, controller, drone_estimator, flight, offboard)"},
       {"--modules estimator --config " + file("bad_key.yaml"),
        file("bad_key.yaml") + ":3: unknown key 'estimator.gyro_nosie'"},
-      {"--modules estimator --config " + file("bad_module.yaml"), file("bad_module.yaml") + ":1: unknown module 'slamm'"},
-      {"--modules slam --config " + file("bad_slam.yaml"), file("bad_slam.yaml") + ":3: unknown key 'slam.2d.icp_iterations'"},
+      {"--modules estimator --config " + file("bad_module.yaml"),
+       file("bad_module.yaml") + ":1: unknown module 'slamm'"},
+      {"--modules slam --config " + file("bad_slam.yaml"),
+       file("bad_slam.yaml") + ":3: unknown key 'slam.2d.icp_iterations'"},
       {"--modules slam --config " + file("bad_backend.yaml"),
        file("bad_backend.yaml") + ":2: slam.backend = lidar must be auto, 2d or 3d"},
       // Non-scalar values where a name is expected: one line, not std::terminate (YAML::BadConversion).
       {"--modules controller --config " + file("bad_scenario.yaml"),
        file("bad_scenario.yaml") + ":2: controller.scenario: expected a file name"},
-      {"--modules slam --config " + file("bad_module_key.yaml"), file("bad_module_key.yaml") + ":1: expected a module name"},
+      {"--modules slam --config " + file("bad_module_key.yaml"),
+       file("bad_module_key.yaml") + ":1: expected a module name"},
       {"--modules estimator --config " + file("huge_rate.yaml"),
        file("huge_rate.yaml") + ":1: estimator.publish_rate = 1e+07 is outside 0.1..1000 Hz"},
       {"--modules controller --config " + file("huge_controller_rate.yaml"),
        file("huge_controller_rate.yaml") + ":3: controller.rate = 1e+308 is outside 0.1..1000 Hz"},
+      {"--modules flight --config " + file("bad_flight.yaml"),
+       file("bad_flight.yaml") + ":3: unknown key 'flight.vehicle.mas'"},
+      {"--modules offboard --config " + file("bad_offboard.yaml"),
+       file("bad_offboard.yaml") + ":2: offboard.stream_rate = 0 is outside"},
+      {"--modules drone_estimator --config " + file("bad_drone_estimator.yaml"),
+       file("bad_drone_estimator.yaml") + ":3: unknown key 'drone_estimator.max_age'"},
       {"--restamp " + file("bad_restamp.yaml"),
        file("bad_restamp.yaml") + ":1: channels must be a map of CHANNEL: {offset_s, drift_ppm, reference_utime}"},
       {"--restamp " + file("missing.yaml"), file("missing.yaml") + ": cannot open"},

@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <regex>
 #include <thread>
 
 #include "tests/test_util.h"
@@ -155,6 +156,55 @@ TEST(SimCli, MalformedUrdfNamesTheUrdfLine) {
   EXPECT_EQ(r.err.rfind("driftlab: " + dir.file("bad.urdf") + ":4: malformed XML", 0), 0u) << r.err;
   EXPECT_FALSE(exists(dir.file("out.lcm")));
 }
+
+/// The manipulator scenario on a copy of the mobile Panda's URDF with `from` replaced by `to` (regex, first match).
+struct BadArm {
+  const char* name;
+  const char* from;
+  const char* to;
+  const char* element;  // what the message names
+  const char* why;
+};
+
+class SimCliBadArm : public ::testing::TestWithParam<BadArm> {};
+
+TEST_P(SimCliBadArm, OneLineNamingFileAndElementExitTwo) {
+  const BadArm& c = GetParam();
+  test::TempDir dir;
+  const auto u = test::read_file(kSim + "/robots/mobile_panda.urdf");
+  const std::string urdf = std::regex_replace(std::string(u.begin(), u.end()), std::regex(c.from), c.to,
+                                              std::regex_constants::format_first_only);
+  write(dir.file("arm.urdf"), urdf);
+  const auto sb = test::read_file(kSim + "/scenarios/manipulator.yaml");
+  std::string sc(sb.begin(), sb.end());
+  for (std::size_t p; (p = sc.find("../")) != std::string::npos;) sc.replace(p, 3, kSim + "/");
+  sc.replace(sc.find(kSim + "/robots/mobile_panda.urdf"), (kSim + "/robots/mobile_panda.urdf").size(),
+             dir.file("arm.urdf"));
+  write(dir.file("sc.yaml"), sc);
+  const auto r = driftlab("sim " + dir.file("sc.yaml") + " --duration 1 -o " + dir.file("out.lcm"));
+  EXPECT_EQ(r.code, 2) << r.err;
+  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+  // The line of the element in the broken file.
+  const std::string element = c.element;
+  const int line =
+      1 + static_cast<int>(std::count(urdf.begin(), urdf.begin() + static_cast<long>(urdf.find(element)), '\n'));
+  EXPECT_EQ(r.err.rfind("driftlab: " + dir.file("arm.urdf") + ":" + std::to_string(line) + ": ", 0), 0u) << r.err;
+  EXPECT_NE(r.err.find(c.why), std::string::npos) << r.err;
+  EXPECT_FALSE(exists(dir.file("out.lcm")));
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Arm, SimCliBadArm,
+    ::testing::Values(
+        BadArm{"MissingChildLink", "<child link=\"panda_link4\"/>", "<child link=\"panda_link44\"/>",
+               "<joint name=\"panda_joint4\"", "joint 'panda_joint4': its child link 'panda_link44' does not exist"},
+        // The arm's mount hung below its own third link: panda_link0 -> ... -> panda_link3 -> panda_link0.
+        BadArm{"Loop", "(<joint name=\"arm_mount\" type=\"fixed\">\\s*<parent link=\")[a-z_]+", "$1panda_link3",
+               "<joint name=\"arm_mount\"", "joint 'arm_mount' closes a loop"},
+        BadArm{"JointWithoutLimits", "<joint name=\"panda_joint4\" type=\"revolute\">([\\s\\S]*?)<limit[^>]*/>",
+               "<joint name=\"panda_joint4\" type=\"continuous\">$1", "<joint name=\"panda_joint4\"",
+               "joint 'panda_joint4': is continuous, without position limits; the joint trajectory controller needs"}),
+    [](const auto& info) { return std::string(info.param.name); });
 
 TEST(SimCli, MissingScenarioFile) {
   const auto r = driftlab("sim /nonexistent/scenario.yaml");

@@ -1,0 +1,206 @@
+#include "flight/offboard_module.h"
+
+#include <cmath>
+
+#include "core/config.h"
+#include "core/time.h"
+#include "driftlab/odometry_t.hpp"
+#include "driftlab/trajectory_setpoint_t.hpp"
+#include "driftlab/vehicle_command_t.hpp"
+#include "driftlab/vehicle_status_t.hpp"
+#include "lcmtypes/planar.h"
+#include "lcmtypes/validate.h"
+
+namespace driftlab::flight {
+namespace {
+
+Status read_waypoints(const config::Value& v, std::vector<Eigen::Vector3d>& out) {
+  if (!v.node().IsSequence()) return v.error("must be a list of [x, y, z] (relative to the start)");
+  std::vector<Eigen::Vector3d> w;
+  for (std::size_t i = 0; i < v.node().size(); ++i) {
+    auto p = v[i].numbers(3, config::between(-1e5, 1e5), "m");
+    if (!p) return p.error();
+    if ((*p)[2] < 0) return v[i].error("z is the altitude above the start and must be >= 0");
+    w.emplace_back((*p)[0], (*p)[1], (*p)[2]);
+  }
+  out = std::move(w);
+  return {};
+}
+
+std::string show_waypoints(const std::vector<Eigen::Vector3d>& w) { return std::to_string(w.size()) + " points"; }
+
+}  // namespace
+
+const config::Table<MissionOptions>& mission_options_table() {
+  using M = MissionOptions;
+  using config::above;
+  using config::between;
+  static const auto t =
+      config::Table<M>()
+          .number("stream_rate", &M::stream_rate, between(0.1, 1000), "Hz", "setpoints per second")
+          .number("warmup_s", &M::warmup_s, between(0, 1e4), "s",
+                  "setpoints streamed before asking for offboard and arming")
+          .number("retry_s", &M::retry_s, above(0, 1e4), "s",
+                  "how often offboard mode (or arming) is asked for again while it is not granted")
+          .number("takeoff_altitude", &M::takeoff_altitude, above(0, 1e4), "m", "climb to this height above the start")
+          .number("climb_speed", &M::climb_speed, above(0, 100), "m/s", "how fast the setpoint climbs")
+          .number("hover_s", &M::hover_s, between(0, 1e5), "s", "hover at the top of the climb")
+          .custom<std::vector<Eigen::Vector3d>>("waypoints", &M::waypoints, "list of [x, y, z]", "m", "",
+                                                "flown in order; x, y in the estimate's frame and z above the start, "
+                                                "all relative to where the vehicle stood",
+                                                read_waypoints, show_waypoints)
+          .number("cruise_speed", &M::cruise_speed, above(0, 100), "m/s", "how fast the setpoint moves along a leg")
+          .number("dwell_s", &M::dwell_s, between(0, 1e5), "s", "the setpoint rests this long at each waypoint")
+          .flag("land", &M::land, "land at the end (else hover at the last waypoint)");
+  return t;
+}
+
+const config::Table<OffboardConfig>& offboard_config_table() {
+  using C = OffboardConfig;
+  using config::Text;
+  static const auto t =
+      config::Table<C>()
+          .text("estimate_channel", &C::estimate_channel, "driftlab.odometry_t: where the vehicle is", Text::kNonEmpty)
+          .text("status_channel", &C::status_channel, "driftlab.vehicle_status_t: armed and mode", Text::kNonEmpty)
+          .text("setpoint_channel", &C::setpoint_channel, "driftlab.trajectory_setpoint_t out", Text::kNonEmpty)
+          .text("command_channel", &C::command_channel, "driftlab.vehicle_command_t out", Text::kNonEmpty)
+          .include(&C::mission, mission_options_table());
+  return t;
+}
+
+Result<std::unique_ptr<Module>> make_offboard(const YAML::Node& config, const std::string& origin) {
+  auto c = offboard_config_table().parse(config::Value(config, origin, "offboard"));
+  if (!c) return c.error();
+  return std::unique_ptr<Module>(new OffboardModule(std::move(*c)));
+}
+
+OffboardModule::OffboardModule(OffboardConfig config) : c_(std::move(config)) {}
+
+Status OffboardModule::start(Bus& bus) {
+  bus.subscribe(c_.estimate_channel, [this](const BusMessage& m) {
+    driftlab::odometry_t o;
+    if (!decode_message(m, o)) return void(++undecodable_);
+    position_ = Eigen::Vector3d(o.position.x, o.position.y, o.position.z);
+    yaw_ = yaw_of(o.orientation);
+  });
+  bus.subscribe(c_.status_channel, [this](const BusMessage& m) {
+    driftlab::vehicle_status_t s;
+    if (!decode_message(m, s)) return void(++undecodable_);
+    armed_ = s.armed;
+    if (armed_) was_armed_ = true;
+    mode_ = s.mode;
+  });
+  bus.every(Duration::periods_rounded(c_.mission.stream_rate), [this, &bus] { tick(bus); });
+  return {};
+}
+
+void OffboardModule::send(Bus& bus, const std::string& command) {
+  driftlab::vehicle_command_t m{};
+  m.header.seq = command_seq_++;
+  m.header.utime = bus.now().us();
+  m.header.frame_id = "";
+  m.command = command;
+  bus.publish_message(c_.command_channel, m);
+  last_request_ = bus.now().us();
+  ++commands_;
+}
+
+void OffboardModule::tick(Bus& bus) {
+  const int64_t now = bus.now().us();
+  const MissionOptions& o = c_.mission;
+  const int64_t retry = Duration::from_seconds_truncated(o.retry_s).us();
+  auto since = [&](int64_t t) { return Duration::from_us(now - t).seconds(); };
+  if (phase_ == Phase::kWaiting) {
+    if (!position_) return;
+    home_ = *position_;
+    home_yaw_ = yaw_;
+    Eigen::Vector3d at = home_ + Eigen::Vector3d(0, 0, o.takeoff_altitude);
+    legs_ = {{home_, at, o.climb_speed, o.hover_s}};
+    for (const Eigen::Vector3d& w : o.waypoints) {
+      const Eigen::Vector3d to = home_ + w;
+      legs_.push_back({at, to, o.cruise_speed, o.dwell_s});
+      at = to;
+    }
+    phase_ = Phase::kWarmup;
+    phase_since_ = now;
+  }
+  if (phase_ == Phase::kWarmup && since(phase_since_) >= o.warmup_s) {
+    phase_ = Phase::kEngaging;
+    phase_since_ = now;
+    last_request_ = now - retry;
+  }
+  if (phase_ == Phase::kEngaging) {
+    if (mode_ == "offboard" && armed_) {
+      phase_ = Phase::kMission;
+      mission_start_ = now;
+    } else if (now - last_request_ >= retry) {
+      send(bus, mode_ != "offboard" ? "offboard" : "arm");
+    }
+  }
+  // Where the setpoint is: at the start until the mission runs, then along the legs by the time since.
+  Eigen::Vector3d position = home_, velocity = Eigen::Vector3d::Zero();
+  bool finished = false;
+  if (phase_ == Phase::kMission) {
+    if (!armed_) {  // disarmed in flight (landed by a failsafe, or crashed): the script gives up
+      phase_ = Phase::kDone;
+      return;
+    }
+    double t = since(mission_start_);
+    finished = true;
+    for (const Leg& leg : legs_) {
+      const Eigen::Vector3d d = leg.to - leg.from;
+      const double move = d.norm() / leg.speed;
+      if (t < move) {
+        position = leg.from + d * (t / move);
+        velocity = d.normalized() * leg.speed;
+        finished = false;
+        break;
+      }
+      t -= move;
+      position = leg.to;
+      if (t < leg.dwell_s) {
+        finished = false;
+        break;
+      }
+      t -= leg.dwell_s;
+    }
+    if (mode_ != "offboard" && mode_ != "land" && now - last_request_ >= retry) send(bus, "offboard");
+  }
+  if (phase_ == Phase::kMission && finished && o.land) {
+    phase_ = Phase::kLanding;
+    last_request_ = now - retry;
+  }
+  if (phase_ == Phase::kLanding) {
+    if (!armed_ && was_armed_) {
+      phase_ = Phase::kDone;
+    } else if (mode_ != "land" && now - last_request_ >= retry) {
+      send(bus, "land");
+    }
+    return;
+  }
+  if (phase_ == Phase::kDone) return;
+  driftlab::trajectory_setpoint_t sp{};
+  sp.header.seq = setpoint_seq_++;
+  sp.header.utime = now;
+  sp.header.frame_id = "odom";
+  sp.position = {position.x(), position.y(), position.z()};
+  sp.velocity = {velocity.x(), velocity.y(), velocity.z()};
+  sp.yaw = home_yaw_;
+  bus.publish_message(c_.setpoint_channel, sp);
+  ++setpoints_;
+}
+
+ModuleCounters OffboardModule::counters() const {
+  ModuleCounters c;
+  c.dropped = undecodable_;
+  c.metrics = {{"setpoints", static_cast<double>(setpoints_)}, {"commands", static_cast<double>(commands_)}};
+  if (!position_) {
+    c.warnings.push_back("offboard: no driftlab.odometry_t on " + c_.estimate_channel + ": the mission never started");
+  }
+  if (undecodable_ > 0) {
+    c.warnings.push_back("offboard: " + std::to_string(undecodable_) + " messages of the wrong type ignored");
+  }
+  return c;
+}
+
+}  // namespace driftlab::flight

@@ -1,0 +1,189 @@
+// The flight stack and the offboard script as modules on the replay host (the fake bus), closed around a rigid-body
+// quadrotor that a third module integrates at 1 kHz and reports at 250 Hz: the script streams setpoints, is
+// granted offboard and arming, flies the default mission (climb to 2 m, hover, a 4 m square, land) and the vehicle
+// disarms on the ground; the vehicle's own path is compared with the setpoints. A stream below 2 Hz is never
+// granted offboard (PX4's rule); a stream that stops for a second in flight is an offboard loss: the vehicle holds
+// where it was and the script takes it back.
+#include "flight/flight_module.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <string>
+#include <utility>
+
+#include "driftlab/motor_command_t.hpp"
+#include "driftlab/odometry_t.hpp"
+#include "driftlab/trajectory_setpoint_t.hpp"
+#include "driftlab/vehicle_status_t.hpp"
+#include "flight/offboard_module.h"
+#include "lcmtypes/validate.h"
+#include "tests/fakes/fake_bus.h"
+#include "tests/flight/rigid_body.h"
+
+namespace driftlab::flight {
+namespace {
+
+constexpr int64_t kT0 = 1763776800000000;
+
+/// The world: integrates the body at 1 kHz on the motor commands, publishes its true state at 250 Hz on
+/// VEHICLE_ODOM, and relays the script's setpoints (SETPOINT_OUT) to the flight stack (SETPOINT) except in
+/// [gap_from, gap_to).
+class World final : public Module {
+ public:
+  World() : body(VehicleModel{}) {}
+  std::string name() const override { return "world"; }
+  Status start(Bus& bus) override {
+    bus.subscribe("MOTOR_CMD", [this](const BusMessage& m) {
+      driftlab::motor_command_t c;
+      if (!decode_message(m, c)) return;
+      body.command(c.armed ? c.control : std::vector<double>(c.control.size(), 0.0));
+      if (c.armed) armed_commands++;
+    });
+    bus.subscribe("SETPOINT_OUT", [this, &bus](const BusMessage& m) {
+      driftlab::trajectory_setpoint_t s;
+      if (!decode_message(m, s)) return;
+      if (bus.now().us() >= gap_from && bus.now().us() < gap_to) return;
+      setpoint = Eigen::Vector3d(s.position.x, s.position.y, s.position.z);
+      bus.publish(std::string("SETPOINT"), m.data);
+    });
+    bus.every(Duration::from_us(1000), [this, &bus] {
+      body.step(1e-3);
+      top = std::max(top, body.p.z());
+      if (++ticks % 4 != 0) return;
+      driftlab::odometry_t o{};
+      o.header.seq = seq++;
+      o.header.utime = bus.now().us();
+      o.header.frame_id = "odom";
+      o.child_frame_id = "base_link";
+      o.position = {body.p.x(), body.p.y(), body.p.z()};
+      o.orientation = {body.q.w(), body.q.x(), body.q.y(), body.q.z()};
+      const Eigen::Vector3d vb = body.q.inverse() * body.v;
+      o.linear_velocity = {vb.x(), vb.y(), vb.z()};
+      o.angular_velocity = {body.w.x(), body.w.y(), body.w.z()};
+      bus.publish_message("VEHICLE_ODOM", o);
+    });
+    return {};
+  }
+
+  test::RigidBody body;
+  Eigen::Vector3d setpoint = Eigen::Vector3d::Zero();
+  int64_t gap_from = 0, gap_to = 0, ticks = 0, seq = 0, armed_commands = 0;
+  double top = 0;
+};
+
+FlightConfig flight_config() {
+  FlightConfig c;
+  c.estimate_channel = "VEHICLE_ODOM";
+  c.setpoint_channel = "SETPOINT";
+  c.command_channel = "VEHICLE_CMD";
+  c.motor_channel = "MOTOR_CMD";
+  c.status_channel = "VEHICLE_STATUS";
+  c.logged_motor_channel = "";
+  return c;
+}
+
+OffboardConfig offboard_config() {
+  OffboardConfig c;
+  c.estimate_channel = "VEHICLE_ODOM";
+  c.status_channel = "VEHICLE_STATUS";
+  c.setpoint_channel = "SETPOINT_OUT";
+  c.command_channel = "VEHICLE_CMD";
+  return c;
+}
+
+std::vector<std::string> modes(const driftlab::test::FakeBus& bus) {
+  std::vector<std::string> out;
+  for (const auto& e : bus.published("VEHICLE_STATUS")) {
+    driftlab::vehicle_status_t s;
+    if (s.decode(e.data.data(), 0, static_cast<int>(e.data.size())) < 0) continue;
+    if (out.empty() || out.back() != s.mode) out.push_back(s.mode);
+  }
+  return out;
+}
+
+/// The world, the flight stack and the script on one bus, started.
+struct Stack {
+  explicit Stack(OffboardConfig script = offboard_config()) : flight(flight_config()), offboard(std::move(script)) {
+    bus.add(world);
+    bus.add(flight);
+    bus.add(offboard);
+  }
+  World world;
+  FlightModule flight;
+  OffboardModule offboard;
+  driftlab::test::FakeBus bus;
+};
+
+TEST(FlightModule, FliesTheMissionAndLands) {
+  Stack stack;
+  auto& [world, flight, offboard, bus] = stack;
+  ASSERT_TRUE(bus.start());
+  double sum = 0, hover_worst = 0;
+  int n = 0;
+  int64_t mission_start = 0;
+  for (int64_t t = kT0; t < kT0 + 55000000; t += 20000) {
+    ASSERT_TRUE(bus.advance(Time::from_us(t)));
+    if (offboard.phase() != OffboardModule::Phase::kMission) continue;
+    if (mission_start == 0) mission_start = t;
+    const double err = (world.body.p - world.setpoint).norm();
+    sum += err * err;
+    ++n;
+    // The hover at 2 m: the setpoint climbs for 2 s and rests there for 5 s; the last 3 s of it, settled.
+    const double since = static_cast<double>(t - mission_start) * 1e-6;
+    if (since > 4 && since < 7) hover_worst = std::max(hover_worst, (world.body.p - Eigen::Vector3d(0, 0, 2)).norm());
+  }
+  EXPECT_EQ(offboard.phase(), OffboardModule::Phase::kDone) << flight.commander().reason();
+  EXPECT_FALSE(flight.commander().armed());
+  RecordProperty("hover_worst_m", std::to_string(hover_worst));
+  RecordProperty("tracking_rms_m", std::to_string(std::sqrt(sum / std::max(n, 1))));
+  RecordProperty("top_m", std::to_string(world.top));
+  EXPECT_GT(world.top, 1.95);
+  EXPECT_LT(world.top, 2.25);  // the climb stops at 1 m/s: a 10% overshoot at most
+  EXPECT_LT(hover_worst, 0.1);
+  ASSERT_GT(n, 1000);
+  EXPECT_LT(std::sqrt(sum / n), 0.3) << "tracking RMS over " << n << " ticks";
+  EXPECT_LT(world.body.p.z(), 0.01);
+  EXPECT_LT(world.body.p.head<2>().norm(), 0.3);  // landed where it started: the square closes there
+  EXPECT_EQ(flight.commander().offboard_losses(), 0);
+  const std::vector<std::string> expected = {"hold", "offboard", "land"};
+  EXPECT_EQ(modes(bus), expected);
+}
+
+TEST(FlightModule, AStreamBelowTwoHertzIsNeverGrantedOffboard) {
+  OffboardConfig o = offboard_config();
+  o.mission.stream_rate = 1.5;
+  Stack stack(o);
+  auto& [world, flight, offboard, bus] = stack;
+  ASSERT_TRUE(bus.start());
+  for (int64_t t = kT0; t < kT0 + 10000000; t += 20000) ASSERT_TRUE(bus.advance(Time::from_us(t)));
+  EXPECT_EQ(offboard.phase(), OffboardModule::Phase::kEngaging);
+  EXPECT_FALSE(flight.commander().armed());
+  EXPECT_NE(flight.commander().reason().find("setpoints must stream first"), std::string::npos)
+      << flight.commander().reason();
+  EXPECT_EQ(world.armed_commands, 0);
+}
+
+TEST(FlightModule, ASetpointGapInFlightIsAnOffboardLossAndTheVehicleHolds) {
+  Stack stack;
+  auto& [world, flight, offboard, bus] = stack;
+  world.gap_from = kT0 + 9000000;  // in the hover at 2 m
+  world.gap_to = kT0 + 10000000;
+  ASSERT_TRUE(bus.start());
+  double lowest_in_gap = 10;
+  for (int64_t t = kT0; t < kT0 + 12000000; t += 20000) {
+    ASSERT_TRUE(bus.advance(Time::from_us(t)));
+    if (t > world.gap_from && t < world.gap_to + 500000) lowest_in_gap = std::min(lowest_in_gap, world.body.p.z());
+  }
+  EXPECT_EQ(flight.commander().offboard_losses(), 1);
+  EXPECT_GT(lowest_in_gap, 1.8);                          // held, not dropped
+  EXPECT_EQ(flight.commander().mode(), Mode::kOffboard);  // the script asked again once the stream was back
+  const std::vector<std::string> expected = {"hold", "offboard", "hold", "offboard"};
+  EXPECT_EQ(modes(bus), expected);
+  bool warned = false;
+  for (const auto& w : flight.counters().warnings) warned |= w.find("offboard lost 1 times") != std::string::npos;
+  EXPECT_TRUE(warned);
+}
+
+}  // namespace
+}  // namespace driftlab::flight
