@@ -122,7 +122,7 @@ std::optional<driftlab::joint_trajectory_result_t> JointTrajectoryController::re
   if (a.points.back().t < now) {
     ++counts_.stale;
     char why[160];
-    const double late = static_cast<double>(now - a.points.back().t) * 1e-6;
+    const double late = Duration::from_us(now - a.points.back().t).seconds();
     std::snprintf(why, sizeof(why), "stale: the trajectory ended %.3f s before it arrived", late);
     return result(a, now, "stale", "", late, why);
   }
