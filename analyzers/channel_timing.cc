@@ -5,6 +5,8 @@
 #include <cstdio>
 #include <numeric>
 
+#include "core/time.h"
+
 namespace driftlab::analyzers::internal {
 namespace {
 
@@ -29,7 +31,7 @@ void fit_clock(const Samples& s, int64_t log_start, ChannelTiming& c) {
   const size_t n = s.stamp.size();
   if (n < 20) return;
   Array<double> lat(n);
-  for (size_t i = 0; i < n; ++i) lat[i] = static_cast<double>(s.arrival[i] - s.stamp[i]) * 1e-6;
+  for (size_t i = 0; i < n; ++i) lat[i] = Duration::from_us(s.arrival[i] - s.stamp[i]).seconds();
   Array<double> sorted(lat);
   const double p50 = quantile(sorted, 0.5), p10 = quantile(sorted, 0.1);
   // 10 times the spread of the faster half of deliveries, and at least 1 ms (a clock's resolution and a
@@ -37,17 +39,17 @@ void fit_clock(const Samples& s, int64_t log_start, ChannelTiming& c) {
   const double bound = p50 - std::max(kLateStampMin_s, 10 * (p50 - p10));
   for (size_t i = 0; i < n; ++i) {
     if (lat[i] >= bound) continue;
-    if (c.late_stamps++ == 0) c.first_late_stamp_s = static_cast<double>(s.stamp[i] - log_start) * 1e-6;
+    if (c.late_stamps++ == 0) c.first_late_stamp_s = Duration::from_us(s.stamp[i] - log_start).seconds();
     c.late_stamp_max_s = std::max(c.late_stamp_max_s, p50 - lat[i]);
   }
   const auto [lo, hi] = std::minmax_element(s.stamp.begin(), s.stamp.end());
-  const double span = static_cast<double>(*hi - *lo) * 1e-6;
+  const double span = Duration::from_us(*hi - *lo).seconds();
   if (span < 10.0) return;  // too short to tell drift from jitter
   const size_t windows = std::clamp<size_t>(n / 20, 4, 200);
   std::vector<double> min_lat(windows, INFINITY), at_t(windows, 0);
   for (size_t i = 0; i < n; ++i) {
     if (lat[i] < bound) continue;
-    const double t = static_cast<double>(s.stamp[i] - *lo) * 1e-6;
+    const double t = Duration::from_us(s.stamp[i] - *lo).seconds();
     const size_t w = std::min(windows - 1, static_cast<size_t>(t / span * static_cast<double>(windows)));
     if (lat[i] < min_lat[w]) {
       min_lat[w] = lat[i];
@@ -85,7 +87,7 @@ void fit_clock(const Samples& s, int64_t log_start, ChannelTiming& c) {
   std::sort(levels.begin(), levels.end());
   const double level = quantile(levels, 0.5);
   const auto [r_lo, r_hi] = median_ci_ranks(levels.size());
-  const double t0 = static_cast<double>(log_start - *lo) * 1e-6;
+  const double t0 = Duration::from_us(log_start - *lo).seconds();
   c.clock_valid = true;
   c.clock_drift_ppm = -slope * 1e6;
   c.clock_drift_ci_ppm = {-slope_hi * 1e6, -slope_lo * 1e6};
@@ -97,7 +99,7 @@ void fit_clock(const Samples& s, int64_t log_start, ChannelTiming& c) {
   c.clock_offset_ci_s = {c.clock_offset_s - half, c.clock_offset_s + half};
   Array<double> transport(n);
   for (size_t i = 0; i < n; ++i) {
-    const double t = static_cast<double>(s.stamp[i] - *lo) * 1e-6;
+    const double t = Duration::from_us(s.stamp[i] - *lo).seconds();
     transport[i] = lat[i] - (level + slope * (t - tm));
   }
   c.transport_s = distribution(std::move(transport));
@@ -128,12 +130,12 @@ void analyse_period(const Samples& s, ChannelTiming& c, bool record_gaps) {
   if (!std::is_sorted(sorted.begin(), sorted.end())) std::sort(sorted.begin(), sorted.end());
   Array<double> intervals;
   for (size_t i = 1; i < sorted.size(); ++i) {
-    if (sorted[i] > sorted[i - 1]) intervals.push_back(static_cast<double>(sorted[i] - sorted[i - 1]) * 1e-6);
+    if (sorted[i] > sorted[i - 1]) intervals.push_back(Duration::from_us(sorted[i] - sorted[i - 1]).seconds());
   }
   if (intervals.empty()) return;
   const double median_interval = median(intervals);
   const double mean_interval =
-      static_cast<double>(sorted.back() - sorted.front()) * 1e-6 / static_cast<double>(sorted.size() - 1);
+      Duration::from_us(sorted.back() - sorted.front()).seconds() / static_cast<double>(sorted.size() - 1);
   // Bursts: the usual interval far shorter than the average one. A steady stream losing even 80% of its
   // messages at random keeps its median interval above half its mean (the gaps are geometric), so a quarter
   // means the messages come in groups: judged by the average rate, and its long gaps are not drops.
@@ -144,7 +146,7 @@ void analyse_period(const Samples& s, ChannelTiming& c, bool record_gaps) {
     Array<double> sizes;
     double size = 1;
     for (size_t i = 1; i < sorted.size(); ++i) {
-      if (static_cast<double>(sorted[i] - sorted[i - 1]) * 1e-6 < 0.5 * mean_interval) {
+      if (Duration::from_us(sorted[i] - sorted[i - 1]).seconds() < 0.5 * mean_interval) {
         ++size;
       } else {
         sizes.push_back(size);
@@ -170,7 +172,7 @@ void analyse_period(const Samples& s, ChannelTiming& c, bool record_gaps) {
   c.expected_period_s = median_interval;
   if (c.expected_period_s <= 0) return;
   for (size_t i = 1; i < sorted.size(); ++i) {
-    const double gap = static_cast<double>(sorted[i] - sorted[i - 1]) * 1e-6;
+    const double gap = Duration::from_us(sorted[i] - sorted[i - 1]).seconds();
     if (gap > 1.5 * c.expected_period_s) {
       const auto missing = static_cast<int64_t>(std::llround(gap / c.expected_period_s)) - 1;
       if (missing <= 0) continue;
@@ -230,7 +232,7 @@ void judge(ChannelTiming& c) {
   if (c.has_header && c.zero_stamps * 2 < c.count && std::abs(c.latency_s.p50) >= 1.0) {
     const double behind = c.latency_s.p50;  // arrival - stamp [s]
     constexpr double kWallClock = 1e9;      // 2001-09-09 in seconds since the epoch: stamps before are not dates
-    const double stamp_s = static_cast<double>(c.median_stamp_utime) * 1e-6;
+    const double stamp_s = Time::from_us(c.median_stamp_utime).seconds();
     std::string cause;
     auto near = [&](double seconds) { return std::abs(std::abs(behind) - seconds) < 0.5; };
     if (stamp_s < kWallClock && stamp_s + behind >= kWallClock) {
@@ -305,7 +307,7 @@ ChannelTiming channel_timing(const std::string& name, Samples& s, int64_t log_st
   c.malformed_example = s.malformed_example;
   c.count = static_cast<int64_t>(s.arrival.size());
   const auto [a0, a1] = std::minmax_element(s.arrival.begin(), s.arrival.end());
-  if (c.count > 1 && *a1 > *a0) c.rate_hz = static_cast<double>(c.count - 1) / (static_cast<double>(*a1 - *a0) * 1e-6);
+  if (c.count > 1 && *a1 > *a0) c.rate_hz = static_cast<double>(c.count - 1) / Duration::from_us(*a1 - *a0).seconds();
   for (size_t i = 1; i < s.arrival.size(); ++i) {
     if (s.arrival[i] < s.arrival[i - 1]) ++c.out_of_order_arrival;
   }
@@ -319,7 +321,7 @@ ChannelTiming channel_timing(const std::string& name, Samples& s, int64_t log_st
       if (i > 0 && s.stamp[i] == s.stamp[i - 1] && s.seq[i] != s.seq[i - 1]) ++c.repeated_stamps;
       c.zero_stamps += s.stamp[i] == 0;
       newest = std::max(newest, s.stamp[i]);
-      latency[i] = static_cast<double>(s.arrival[i] - s.stamp[i] - s.ready_after_us) * 1e-6;
+      latency[i] = Duration::from_us(s.arrival[i] - s.stamp[i] - s.ready_after_us).seconds();
     }
     c.latency_s = distribution(std::move(latency));
     Array<int64_t> stamps(s.stamp);

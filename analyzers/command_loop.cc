@@ -6,6 +6,7 @@
 #include <numeric>
 
 #include "analyzers/internal/channel_samples.h"
+#include "core/time.h"
 #include "driftlab/joint_state_t.hpp"
 #include "driftlab/joint_trajectory_t.hpp"
 #include "lcmtypes/validate.h"
@@ -23,6 +24,11 @@ constexpr int64_t kFineUs = 1000;
 constexpr int64_t kMaxSamples = 200'000;
 // The coarse search steps kCoarse samples; the fine one looks kCoarse samples either side of the coarse peak.
 constexpr int64_t kCoarse = 10;
+// Stamps and plan times are taken within these bounds (any real clock's microseconds since 1970 are far below 2^62;
+// a plan of over 12 days is not a command), so that sums and differences of two of them cannot overflow.
+constexpr int64_t kMaxStampUs = int64_t{1} << 62;
+constexpr int64_t kMaxPlanUs = int64_t{1} << 40;
+
 // Below this agreement at the best lag the motion does not say when the joints follow the commands: no motion, a
 // controller that does not follow them (stale commands rejected), or a delay that changes during the log (a
 // drifting clock). At the true delay the joints repeat the commanded positions up to the controller's tracking
@@ -70,11 +76,15 @@ void CommandLoopCheck::add_command(const std::string& channel, std::span<const u
   Commands& c = commands_[channel];
   if (c.list.empty()) c.joints = m.joint_names;
   if (m.joint_names != c.joints) return;
+  if (m.header.utime < 0 || m.header.utime >= kMaxStampUs) return;
   Command cmd;
   cmd.stamp = m.header.utime;
   cmd.arrival = arrival;
   for (const auto& p : m.points) {
-    if (p.positions.size() != c.joints.size() || (!cmd.t.empty() && p.time_from_start_us <= cmd.t.back())) return;
+    if (p.positions.size() != c.joints.size() || p.time_from_start_us < 0 || p.time_from_start_us >= kMaxPlanUs ||
+        (!cmd.t.empty() && p.time_from_start_us <= cmd.t.back())) {
+      return;
+    }
     if (!std::all_of(p.positions.begin(), p.positions.end(), [](double v) { return std::isfinite(v); })) return;
     cmd.t.push_back(p.time_from_start_us);
     cmd.q.push_back(p.positions);
@@ -89,7 +99,10 @@ void CommandLoopCheck::add_state(const std::string& channel, std::span<const uin
   if (s.stamp.empty()) {
     for (size_t i = 0; i < m.name.size(); ++i) s.index.emplace(m.name[i], i);
   }
-  if (m.position.size() != s.index.size() || (!s.stamp.empty() && m.header.utime <= s.stamp.back())) return;
+  if (m.position.size() != s.index.size() || m.header.utime < 0 || m.header.utime >= kMaxStampUs ||
+      (!s.stamp.empty() && m.header.utime <= s.stamp.back())) {
+    return;
+  }
   for (const auto& [name, i] : s.index) {
     if (i >= m.name.size() || m.name[i] != name || !std::isfinite(m.position[i])) return;
   }
@@ -104,10 +117,11 @@ std::vector<CommandLoop> CommandLoopCheck::finish(int64_t start_utime) const {
     loop.command_channel = channel;
     loop.commands = static_cast<int64_t>(c.list.size());
     for (const Command& cmd : c.list) {
-      const int64_t over = cmd.arrival - (cmd.stamp + cmd.t.back());
+      // The arrival is any log time: the difference in doubles (a log's arrivals are not bounded like stamps).
+      const double over = Time::from_us(cmd.arrival).seconds_since(Time::from_us(cmd.stamp + cmd.t.back()));
       if (over <= 0) continue;
-      if (loop.stale++ == 0) loop.first_stale_s = static_cast<double>(cmd.arrival - start_utime) * 1e-6;
-      loop.stale_max_s = std::max(loop.stale_max_s, static_cast<double>(over) * 1e-6);
+      if (loop.stale++ == 0) loop.first_stale_s = Time::from_us(cmd.arrival).seconds_since(Time::from_us(start_utime));
+      loop.stale_max_s = std::max(loop.stale_max_s, over);
     }
     // The state channel with every commanded joint; the one with the most messages.
     const States* states = nullptr;
@@ -127,7 +141,7 @@ std::vector<CommandLoop> CommandLoopCheck::finish(int64_t start_utime) const {
     if (by_stamp.size() >= 2) {
       Array<double> gaps;
       for (size_t i = 1; i < by_stamp.size(); ++i) {
-        gaps.push_back(static_cast<double>(by_stamp[i]->stamp - by_stamp[i - 1]->stamp) * 1e-6);
+        gaps.push_back((Time::from_us(by_stamp[i]->stamp) - Time::from_us(by_stamp[i - 1]->stamp)).seconds());
       }
       loop.command_period_s = median(std::move(gaps));
     }
@@ -177,7 +191,7 @@ std::vector<CommandLoop> CommandLoopCheck::finish(int64_t start_utime) const {
     double best_r = -std::numeric_limits<double>::infinity();
     for (int64_t lag = lag_lo; lag <= lag_hi; lag += kCoarse) {
       const double r = agreement(commanded, measured, lag, kCoarse);
-      loop.curve.emplace_back(static_cast<double>(lag * step) * 1e-6, r);
+      loop.curve.emplace_back(Duration::from_us(lag * step).seconds(), r);
       if (r > best_r) best_r = r, best = lag;
     }
     const int64_t centre = best;
@@ -194,7 +208,7 @@ std::vector<CommandLoop> CommandLoopCheck::finish(int64_t start_utime) const {
     }
     loop.confidence = std::max(0.0, best_r);
     loop.delay_valid = best_r >= kMinConfidence;
-    loop.delay_s = lag * static_cast<double>(step) * 1e-6;
+    loop.delay_s = lag * Duration::from_us(step).seconds();
     out.push_back(std::move(loop));
   }
   return out;

@@ -6,6 +6,7 @@
 #include "analyzers/trajectory_io.h"
 #include "core/log_format.h"
 #include "core/log_reader.h"
+#include "core/time.h"
 #include "driftlab/image_t.hpp"
 #include "driftlab/odometry_t.hpp"
 #include "driftlab/pose_t.hpp"
@@ -74,14 +75,14 @@ Result<LogSeries> read_log_series(const std::string& log) {
   for (size_t k = 0; k < out.streams.size(); ++k) {
     StreamSeries& s = out.streams[k];
     s.arrival.reserve(arrivals[k].size());
-    for (int64_t t : arrivals[k]) s.arrival.push_back(static_cast<double>(t - out.start_utime) * 1e-6);
+    for (int64_t t : arrivals[k]) s.arrival.push_back(Duration::from_us(t - out.start_utime).seconds());
     if (!s.has_header || stamps[k].size() != arrivals[k].size()) {
       s.has_header = false;
       continue;
     }
     s.latency.reserve(stamps[k].size());
     for (size_t i = 0; i < stamps[k].size(); ++i) {
-      s.latency.push_back(static_cast<double>(arrivals[k][i] - stamps[k][i] - ready_after[k]) * 1e-6);
+      s.latency.push_back(Duration::from_us(arrivals[k][i] - stamps[k][i] - ready_after[k]).seconds());
     }
   }
   std::sort(out.streams.begin(), out.streams.end(),

@@ -6,6 +6,7 @@
 #include <optional>
 #include <thread>
 
+#include "core/time.h"
 #include "driftlab/laser_scan_t.hpp"
 #include "lcmtypes/planar.h"
 #include "lcmtypes/stream_header.h"
@@ -79,8 +80,8 @@ void add_scan_motion(Samples& s) {
         have_previous = false;
         continue;
       }
-      const double ti = static_cast<double>(current.header.utime) * 1e-6;
-      const double tp = static_cast<double>(previous.header.utime) * 1e-6;
+      const double ti = Time::from_us(current.header.utime).seconds();
+      const double tp = Time::from_us(previous.header.utime).seconds();
       const double span = static_cast<double>(current.angle_increment) * static_cast<double>(current.nranges);
       if (have_previous && i > begin && ti > tp) {
         if (auto d = scan_rotation(previous.ranges, current.ranges, current.angle_increment,
@@ -326,7 +327,7 @@ std::vector<StreamPair> stream_pairs(std::map<std::string, Samples, std::less<>>
   std::stable_sort(moving.begin(), moving.end(), [](const auto* x, const auto* y) {
     return x->second.motion_from_pose > y->second.motion_from_pose;
   });
-  const double log_start = static_cast<double>(start_utime) * 1e-6;
+  const double log_start = Time::from_us(start_utime).seconds();
   // Each pair is independent: two threads share them (this machine has two cores).
   std::vector<std::pair<size_t, size_t>> jobs;
   for (size_t i = 0; i < moving.size(); ++i) {
@@ -334,7 +335,7 @@ std::vector<StreamPair> stream_pairs(std::map<std::string, Samples, std::less<>>
       if (!same_stamps(moving[i]->second, moving[j]->second)) jobs.emplace_back(i, j);
     }
   }
-  const double log_end = static_cast<double>(end_utime) * 1e-6;
+  const double log_end = Time::from_us(end_utime).seconds();
   std::vector<Grid> grids(moving.size());
   std::vector<std::optional<StreamPair>> results(jobs.size());
   auto work = [&](size_t first, size_t stride) {

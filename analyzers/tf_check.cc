@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <set>
 
+#include "core/time.h"
 #include "driftlab/tf_t.hpp"
 #include "lcmtypes/validate.h"
 
@@ -141,9 +142,10 @@ TfDiagnosis TfCheck::finish() const {
       // Stale: the transform stops while the data goes on.
       const int64_t last_data = uses.back().stamp;
       if (!e->newest.empty() && last_data - e->newest.back() > 1000000) {
-        std::snprintf(buf, sizeof(buf), "transform %s -> %s goes stale: its last stamp is %.1f s before the last %s message",
+        std::snprintf(buf, sizeof(buf),
+                      "transform %s -> %s goes stale: its last stamp is %.1f s before the last %s message",
                       quoted(e->parent).c_str(), quoted(child).c_str(),
-                      static_cast<double>(last_data - e->newest.back()) * 1e-6, channel.c_str());
+                      Duration::from_us(last_data - e->newest.back()).seconds(), channel.c_str());
         d.problems.push_back(buf);
       }
     }

@@ -13,6 +13,7 @@
 #include "core/log_index.h"
 #include "core/log_reader.h"
 #include "core/mapped_file.h"
+#include "core/time.h"
 #include "driftlab/odometry_t.hpp"
 #include "driftlab/pose_t.hpp"
 #include "lcmtypes/validate.h"
@@ -188,7 +189,7 @@ Result<Trajectory> load_kitti(const std::string& path, const std::string& times)
 bool append_pose(std::span<const uint8_t> data, Trajectory& t, std::string* why) {
   const int64_t fp = logfmt::fingerprint(data);
   auto add = [&](const auto& m) {
-    const double stamp = static_cast<double>(m.header.utime) * 1e-6;
+    const double stamp = Time::from_us(m.header.utime).seconds();
     const Eigen::Vector3d p(m.position.x, m.position.y, m.position.z);
     const Eigen::Quaterniond q(m.orientation.w, m.orientation.x, m.orientation.y, m.orientation.z);
     std::string problem = pose_problem(stamp, p, q);

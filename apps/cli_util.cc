@@ -1,6 +1,7 @@
 #include "apps/cli_util.h"
 
 #include "core/process.h"
+#include "core/time.h"
 
 #include <lcm/lcm.h>
 #include <unistd.h>
@@ -159,7 +160,7 @@ std::string format_utime(int64_t utime) {
   constexpr int64_t kYear2000 = 946684800LL * 1000000;
   char buf[64];
   if (utime < kYear2000) {
-    std::snprintf(buf, sizeof(buf), "%.6f s", static_cast<double>(utime) * 1e-6);
+    std::snprintf(buf, sizeof(buf), "%.6f s", Time::from_us(utime).seconds());
     return buf;
   }
   const time_t secs = static_cast<time_t>(utime / 1000000);
@@ -172,10 +173,7 @@ std::string format_utime(int64_t utime) {
 }
 
 Progress::Progress(std::string label, Unit unit)
-    : label_(std::move(label)),
-      unit_(unit),
-      enabled_(isatty(STDERR_FILENO) == 1),
-      start_(std::chrono::steady_clock::now()) {}
+    : label_(std::move(label)), unit_(unit), enabled_(isatty(STDERR_FILENO) == 1) {}
 
 Progress::~Progress() {
   if (drawn_) std::fprintf(stderr, "\r\033[K");
@@ -183,10 +181,9 @@ Progress::~Progress() {
 
 void Progress::update(uint64_t done, uint64_t total) {
   if (!enabled_) return;
-  const auto now = std::chrono::steady_clock::now();
   // Stay silent for quick jobs; then redraw at most every 100 ms.
-  if (now - start_ < std::chrono::seconds(1) || now - last_ < std::chrono::milliseconds(100)) return;
-  last_ = now;
+  if (running_.seconds() < 1.0 || (drawn_ && since_drawn_.seconds() < 0.1)) return;
+  since_drawn_.restart();
   drawn_ = true;
   const double pct = total > 0 ? 100.0 * static_cast<double>(done) / static_cast<double>(total) : 0.0;
   if (unit_ == Unit::kBytes) {

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "core/result.h"
+#include "core/wall_clock.h"
 
 struct _lcm_t;
 
@@ -80,7 +81,7 @@ class Progress {
   Unit unit_;
   bool enabled_;
   bool drawn_ = false;
-  std::chrono::steady_clock::time_point start_, last_;
+  Stopwatch running_, since_drawn_;
 };
 
 /// Publishes messages on LCM, paced against the wall clock at `rate` x the messages' own time (0: as fast as

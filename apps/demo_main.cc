@@ -22,6 +22,7 @@
 #include "apps/diagnosis_json.h"
 #include "apps/report.h"
 #include "core/process.h"
+#include "core/wall_clock.h"
 
 namespace driftlab::apps {
 namespace {
@@ -45,9 +46,9 @@ class StageLine {
     what_ = "[" + std::to_string(index) + "/" + std::to_string(total) + "] " + what_;
     if (!enabled_) return;
     ticker_ = std::thread([this] {
-      const auto start = std::chrono::steady_clock::now();
+      const Stopwatch running;
       while (!done_) {
-        const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+        const double s = running.seconds();
         std::fprintf(stderr, "\r\033[K%s ... %.1f s", what_.c_str(), s);
         std::fflush(stderr);
         for (int i = 0; i < 5 && !done_; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(100));
@@ -158,14 +159,14 @@ int run_demo(const DemoArgs& a) {
     const Step& s = steps[i];
     if (!a.json) std::printf("== %s\n", join_args(s.args).c_str());
     std::fflush(stdout);
-    const auto t0 = std::chrono::steady_clock::now();
+    const Stopwatch stage;
     int code = 0;
     {
       StageLine line(static_cast<int>(i) + 1, total, s.what);
       // The stage's errors go to a file (its progress would fight with ours): the last line is the one to show.
       code = run_program(s.args, s.stdout_file, errors);
     }
-    stages.push_back({s.args[1], std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count()});
+    stages.push_back({s.args[1], stage.seconds()});
     if (code != 0) {
       const std::string why = last_line_of(errors);
       // The failed stage's output is not kept (it is empty or cut short), and its exit code is the demo's: 2 when
@@ -191,14 +192,14 @@ int run_demo(const DemoArgs& a) {
                 restamped.c_str(), r.diagnosis.c_str(), r.evals[0].c_str(), r.evals[1].c_str(), report_dir.c_str());
   }
   std::fflush(stdout);
-  const auto t0 = std::chrono::steady_clock::now();
+  const Stopwatch drawing;
   Result<std::string> page = Error{""};
   {
     StageLine line(total, total, "drawing the report");
     page = make_report(r);
   }
   if (!page) return fail("demo: " + page.error().message, kExitFailure);
-  stages.push_back({"report", std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count()});
+  stages.push_back({"report", drawing.seconds()});
 
   // The summary, from the stages' JSON.
   nlohmann::json summary;

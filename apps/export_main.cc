@@ -15,6 +15,7 @@
 #include "core/log_format.h"
 #include "core/log_reader.h"
 #include "core/same_file.h"
+#include "core/time.h"
 #include "lcmtypes/schema.h"
 #include "lcmtypes/type_registry.h"
 #include "lcmtypes/validate.h"
@@ -114,7 +115,7 @@ int run_csv(const CsvArgs& a) {
     for (const auto& [c, v] : values) {
       if (auto k = f.column.find(c); k != f.column.end()) f.row[k->second] = csv_quote(v);
     }
-    std::fprintf(f.f, "%.6f", static_cast<double>(e.utime) * 1e-6);
+    std::fprintf(f.f, "%.6f", Time::from_us(e.utime).seconds());
     for (const auto& cell : f.row) {
       std::fputc(',', f.f);
       std::fputs(cell.c_str(), f.f);

@@ -10,11 +10,12 @@
 
 #include "apps/cli_checks.h"
 #include "apps/cli_util.h"
-#include "apps/log_input.h"
 #include "apps/commands.h"
+#include "apps/log_input.h"
 #include "core/log_format.h"
 #include "core/log_index.h"
 #include "core/log_reader.h"
+#include "core/time.h"
 #include "driftlab/recorder_stats_t.hpp"
 #include "lcmtypes/type_registry.h"
 #include "lcmtypes/validate.h"
@@ -31,7 +32,7 @@ struct InfoOptions {
 
 double rate_hz(const ChannelSummary& c) {
   if (c.count < 2 || c.last_utime <= c.first_utime) return 0.0;
-  return static_cast<double>(c.count - 1) / (static_cast<double>(c.last_utime - c.first_utime) * 1e-6);
+  return static_cast<double>(c.count - 1) / (Time::from_us(c.last_utime) - Time::from_us(c.first_utime)).seconds();
 }
 
 std::string type_of(const ChannelSummary& c) {
@@ -64,7 +65,7 @@ nlohmann::json to_json(const std::string& path, const LogSummary& s) {
           {"events", s.events},
           {"start_utime", s.start_utime},
           {"end_utime", s.end_utime},
-          {"duration_s", static_cast<double>(s.end_utime - s.start_utime) * 1e-6},
+          {"duration_s", (Time::from_us(s.end_utime) - Time::from_us(s.start_utime)).seconds()},
           {"channels", channels},
           {"problems", problems},
           {"problems_total", s.problems_total}};
@@ -72,7 +73,7 @@ nlohmann::json to_json(const std::string& path, const LogSummary& s) {
 
 void print_table(const std::string& path, const LogSummary& s, int max_problems) {
   std::printf("%s: %s, %s events, %.3f s\n", path.c_str(), human_bytes(static_cast<double>(s.file_bytes)).c_str(),
-              thousands(s.events).c_str(), static_cast<double>(s.end_utime - s.start_utime) * 1e-6);
+              thousands(s.events).c_str(), (Time::from_us(s.end_utime) - Time::from_us(s.start_utime)).seconds());
   if (s.events > 0) std::printf("from %s to %s\n", format_utime(s.start_utime).c_str(), format_utime(s.end_utime).c_str());
   size_t name_w = 7, type_w = 4;
   for (const auto& c : s.channels) {
@@ -87,8 +88,8 @@ void print_table(const std::string& path, const LogSummary& s, int max_problems)
     std::printf("%-*s  %-*s  %10s  %10s  %9.2f  %9.3f  %9.3f\n", static_cast<int>(name_w), c.name.c_str(),
                 static_cast<int>(type_w), type_of(c).c_str(), thousands(c.count).c_str(),
                 human_bytes(static_cast<double>(c.bytes)).c_str(), rate_hz(c),
-                static_cast<double>(c.first_utime - s.start_utime) * 1e-6,
-                static_cast<double>(c.last_utime - s.start_utime) * 1e-6);
+                (Time::from_us(c.first_utime) - Time::from_us(s.start_utime)).seconds(),
+                (Time::from_us(c.last_utime) - Time::from_us(s.start_utime)).seconds());
   }
   // What the index saw in time, beside the framing: log times stepping back, frozen stamps.
   std::vector<std::string> timing;

@@ -11,6 +11,7 @@
 #include "apps/cli_checks.h"
 #include "apps/cli_util.h"
 #include "apps/commands.h"
+#include "core/wall_clock.h"
 #include "recorder/recorder.h"
 
 namespace driftlab::apps {
@@ -22,8 +23,8 @@ void on_signal(int) {
   if (auto* r = g_recorder.load()) r->request_stop();
 }
 
-std::string default_out() {
-  const time_t now = time(nullptr);
+std::string default_out(const WallClock& clock) {
+  const auto now = static_cast<time_t>(clock.now().us() / 1000000);  // [s since the epoch]
   std::tm tm{};
   localtime_r(&now, &tm);
   char buf[64];
@@ -33,10 +34,11 @@ std::string default_out() {
 
 int run_record(recorder::RecordOptions o) {
   if (Status s = recorder::check_options(o); !s) return fail(s.message());
-  if (o.out.empty()) o.out = default_out();
+  const SystemWallClock clock;
+  if (o.out.empty()) o.out = default_out(clock);
   const bool tty = isatty(STDERR_FILENO) == 1;
   if (tty) o.on_status = [](const std::string& line) { std::fprintf(stderr, "\r\033[K%s", line.c_str()); };
-  recorder::Recorder rec(o);
+  recorder::Recorder rec(o, clock);
   g_recorder.store(&rec);
   struct sigaction sa {};
   sa.sa_handler = on_signal;

@@ -4,7 +4,6 @@
 #include <signal.h>
 
 #include <atomic>
-#include <chrono>
 #include <cstdio>
 #include <memory>
 #include <nlohmann/json.hpp>
@@ -20,6 +19,8 @@
 #include "core/config.h"
 #include "core/log_index.h"
 #include "core/same_file.h"
+#include "core/time.h"
+#include "core/wall_clock.h"
 #include "modules/registry.h"
 #include "replayer/live_runner.h"
 #include "replayer/replayer.h"
@@ -219,22 +220,22 @@ int run_replay(ReplayArgs a) {
     live = std::move(*p);
   }
   replay::Sink sink;
-  if (live) sink = [&live](const BusMessage& m) { live->publish(m.channel, m.utime, m.data); };
+  if (live) sink = [&live](const BusMessage& m) { live->publish(m.channel, m.time.us(), m.data); };
 
   if (Status s = replayer.open(); !s) return fail(s.message());
   struct sigaction sa {};
   sa.sa_handler = on_signal;
   sigaction(SIGINT, &sa, nullptr);
   sigaction(SIGTERM, &sa, nullptr);
-  const auto t0 = std::chrono::steady_clock::now();
+  const Stopwatch running;
   auto report = replayer.run(sink, &g_stop);
-  const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  const double wall = running.seconds();
   if (!report) return fail(report.error().message, kExitFailure);
   const auto& r = *report;
   if (r.read == 0 && a.start > 0) {
     return fail("--start " + short_number(a.start) + ": nothing to replay after it (past the end of the logs)");
   }
-  const double span = static_cast<double>(r.end_utime - r.start_utime) * 1e-6;
+  const double span = (Time::from_us(r.end_utime) - Time::from_us(r.start_utime)).seconds();
 
   if (a.json) {
     nlohmann::json j;
@@ -284,7 +285,8 @@ int run_live(const RunArgs& a) {
       modules::load_modules(a.modules, a.config, [](const std::string&, const std::string&) { return false; }, notes);
   if (!modules) return fail(modules.error().message);
   if (modules->empty()) return fail("--modules: name at least one module (" + modules::known_modules() + ")");
-  replay::LiveRunner runner({.url = a.url, .out = a.out, .duration_s = a.duration});
+  const SystemWallClock clock;
+  replay::LiveRunner runner({.url = a.url, .out = a.out, .duration_s = a.duration}, clock);
   for (auto& m : *modules) runner.add_module(std::move(m));
   if (Status s = runner.open(); !s) return fail(s.message());
   struct sigaction sa {};

@@ -20,10 +20,11 @@
 #include "analyzers/timing.h"
 #include "analyzers/trajectory.h"
 #include "apps/cli_util.h"
-#include "apps/log_input.h"
 #include "apps/commands.h"
 #include "apps/diagnosis_json.h"
+#include "apps/log_input.h"
 #include "apps/report.h"
+#include "core/time.h"
 
 namespace driftlab::apps {
 
@@ -126,7 +127,7 @@ Result<std::string> make_report(const ReportOptions& o) {
     logs.push_back(std::move(*s));
   }
   const LogSeries& first = logs.front();
-  const double origin_s = static_cast<double>(first.start_utime) * 1e-6;
+  const double origin_s = Time::from_us(first.start_utime).seconds();
 
   nlohmann::json diagnosis;
   if (!o.diagnosis.empty()) {
@@ -157,7 +158,7 @@ Result<std::string> make_report(const ReportOptions& o) {
   for (const auto& l : logs) {
     data["logs"].push_back({{"path", l.log},
                             {"start_utime", l.start_utime},
-                            {"duration_s", static_cast<double>(l.end_utime - l.start_utime) * 1e-6},
+                            {"duration_s", (Time::from_us(l.end_utime) - Time::from_us(l.start_utime)).seconds()},
                             {"problems", l.problems}});
   }
   data["diagnosis"] = diagnosis;

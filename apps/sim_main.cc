@@ -5,7 +5,6 @@
 #include <unistd.h>
 
 #include <atomic>
-#include <chrono>
 #include <cstdio>
 #include <memory>
 #include <nlohmann/json.hpp>
@@ -15,9 +14,10 @@
 #include "apps/cli_util.h"
 #include "apps/commands.h"
 #include "core/config.h"
+#include "core/same_file.h"
+#include "core/wall_clock.h"
 #include "sim/scenario.h"
 #include "sim/simulator.h"
-#include "core/same_file.h"
 
 namespace driftlab::apps {
 namespace {
@@ -85,9 +85,9 @@ int run_sim(const SimArgs& a) {
   sa.sa_handler = on_signal;
   sigaction(SIGINT, &sa, nullptr);
   sigaction(SIGTERM, &sa, nullptr);
-  const auto t0 = std::chrono::steady_clock::now();
+  const Stopwatch running;
   auto report = (*simulation)->run(o);
-  const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  const double wall = running.seconds();
   progress.update(1, 1);
   if (!report) return fail(report.error().message, kExitFailure);
   const auto& r = *report;

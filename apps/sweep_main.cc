@@ -10,7 +10,6 @@
 #include <algorithm>
 #include <atomic>
 #include <cctype>
-#include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -29,6 +28,7 @@
 #include "batch/store.h"
 #include "core/log_writer.h"
 #include "core/process.h"
+#include "core/wall_clock.h"
 
 namespace driftlab::apps {
 
@@ -197,7 +197,7 @@ int run_point_command(const std::string& dir, const std::string& id) {
   auto plan = load_plan(dir);
   if (!plan) return fail(plan.error().message);
   for (const auto& p : plan->points) {
-    if (p.id == id) return run_point(*plan, p, dir, runner_options());
+    if (p.id == id) return run_point(*plan, p, dir, runner_options(), SystemWallClock());
   }
   return fail(dir + ": no point " + id + " in plan.json");
 }
@@ -265,10 +265,10 @@ int execute(const std::string& dir, Plan plan, const ExecArgs& e, const std::str
     return argv;
   };
   install_stop_handlers();
-  const auto t0 = std::chrono::steady_clock::now();
+  const Stopwatch running;
   auto r = make_local_executor(lo)->execute(dir, pending);
   if (!r) return fail(r.error().message, kExitFailure);
-  const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  const double wall = running.seconds();
   auto page = collect(dir, plan, !r->interrupted);
   const int code = r->interrupted ? 130 : r->failed > 0 ? kExitFailure : kExitOk;
   if (e.json) {

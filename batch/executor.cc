@@ -16,12 +16,12 @@
 
 #include "batch/store.h"
 #include "core/process.h"
+#include "core/wall_clock.h"
 
 namespace driftlab::batch {
 namespace {
 
 namespace fs = std::filesystem;
-using Clock = std::chrono::steady_clock;
 
 /// 'text' quoted for sh.
 std::string sh_quote(const std::string& s) {
@@ -53,16 +53,15 @@ class LocalExecutor : public Executor {
     std::map<std::string, int> tries;
     std::map<pid_t, std::string> running;
     const size_t total = ids.size();
-    const auto start = Clock::now();
-    auto last_draw = Clock::time_point{};
+    const Stopwatch since_start;
+    Stopwatch since_draw;
     bool stopping = false;
     bool drawn = false;
     auto draw = [&](bool force) {
       if (!o_.progress) return;
-      const auto now = Clock::now();
-      if (!force && now - last_draw < std::chrono::milliseconds(200)) return;
-      last_draw = now;
-      const double elapsed = std::chrono::duration<double>(now - start).count();
+      if (!force && drawn && since_draw.seconds() < 0.2) return;
+      since_draw.restart();
+      const double elapsed = since_start.seconds();
       const size_t finished = sum.done + sum.failed;
       constexpr int kWidth = 24;
       const int filled = total > 0 ? static_cast<int>(kWidth * finished / total) : kWidth;

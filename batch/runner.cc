@@ -4,14 +4,13 @@
 #include <unistd.h>
 
 #include <atomic>
-#include <chrono>
 #include <cstdio>
-#include <ctime>
 #include <filesystem>
 #include <fstream>
 
 #include "batch/store.h"
 #include "core/process.h"
+#include "core/wall_clock.h"
 
 namespace driftlab::batch {
 namespace {
@@ -85,7 +84,8 @@ nlohmann::json point_metrics(const Plan& plan, const std::string& pdir, const Ru
   return m;
 }
 
-int run_point(const Plan& plan, const Point& point, const std::string& dir, const RunnerOptions& options) {
+int run_point(const Plan& plan, const Point& point, const std::string& dir, const RunnerOptions& options,
+              const WallClock& clock) {
   const Spec& s = plan.spec;
   if (is_done(dir, point.id)) return kPointDone;
   const fs::path d = fs::absolute(point_dir(dir, point.id));
@@ -103,8 +103,10 @@ int run_point(const Plan& plan, const Point& point, const std::string& dir, cons
   }
   const int attempt = count_attempt(dir, point.id);
   auto file = [&](const char* name) { return (d / name).string(); };
-  nlohmann::json running = {{"host", host_name()}, {"pid", static_cast<int>(::getpid())}, {"attempt", attempt},
-                            {"started", static_cast<int64_t>(std::time(nullptr))}};
+  nlohmann::json running = {{"host", host_name()},
+                            {"pid", static_cast<int>(::getpid())},
+                            {"attempt", attempt},
+                            {"started", clock.now().us() / 1000000}};  // [s since the epoch]
   if (const char* job = std::getenv("SLURM_JOB_ID")) running["slurm_job"] = job;
   (void)write_atomically(file("running.json"), running.dump() + "\n");
 
@@ -175,7 +177,7 @@ int run_point(const Plan& plan, const Point& point, const std::string& dir, cons
   sigaction(SIGTERM, &sa, nullptr);
 
   nlohmann::json seconds = nlohmann::json::object();
-  const auto t_start = std::chrono::steady_clock::now();
+  const Stopwatch total;
   auto fail_with = [&](const std::string& stage, int code, const std::string& why) {
     const nlohmann::json failed = {{"stage", stage}, {"exit_code", code}, {"error", why}, {"attempt", attempt},
                                    {"host", host_name()}, {"seconds", seconds}};
@@ -187,14 +189,14 @@ int run_point(const Plan& plan, const Point& point, const std::string& dir, cons
   for (const auto& r : stages) {
     if (g_stop) return fail_with(r.name, kPointInterrupted, "interrupted before " + r.name);
     const std::string err = file((r.name + ".err").c_str());
-    const auto t0 = std::chrono::steady_clock::now();
+    const Stopwatch stage;
     const pid_t pid = start_process(r.argv, r.out, err);
     if (pid < 0) return fail_with(r.name, 127, "cannot start " + exe);
     g_child = pid;
     if (g_stop) ::kill(pid, SIGTERM);
     const int code = wait_process(pid);
     g_child = 0;
-    seconds[r.name] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    seconds[r.name] = stage.seconds();
     if (g_stop) return fail_with(r.name, code, "interrupted during " + r.name);
     if (code != 0) {
       const std::string why = last_line_of(err);
@@ -202,7 +204,7 @@ int run_point(const Plan& plan, const Point& point, const std::string& dir, cons
                                          (why.empty() ? "" : ": " + why));
     }
   }
-  seconds["total"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
+  seconds["total"] = total.seconds();
 
   nlohmann::json metrics;
   try {

@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 
 #include "batch/plan.h"
+#include "core/wall_clock.h"
 
 namespace driftlab::batch {
 
@@ -27,8 +28,9 @@ inline constexpr int kPointInterrupted = 130;
 
 /// Runs the point in dir/points/ID; prints one line on stderr when a stage fails (which stage, its exit code and
 /// its last error line), also kept in failed.json. SIGINT or SIGTERM stops the stage under way and leaves the
-/// point not done (kPointInterrupted).
-int run_point(const Plan& plan, const Point& point, const std::string& dir, const RunnerOptions& options);
+/// point not done (kPointInterrupted). `clock` dates the attempt (running.json's "started").
+int run_point(const Plan& plan, const Point& point, const std::string& dir, const RunnerOptions& options,
+              const WallClock& clock);
 
 /// The metrics of a finished point from its stages' JSON in folder pdir (ate_rmse, rpe_rmse, drops, offsets found,
 /// the worst stream, the estimator's late measurements ...); exposed for tests.

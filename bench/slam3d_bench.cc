@@ -18,6 +18,7 @@
 #include "analyzers/trajectory.h"
 #include "core/bus.h"
 #include "core/log_reader.h"
+#include "core/time.h"
 #include "driftlab/pose_t.hpp"
 #include "replayer/module_host.h"
 #include "sim/scenario.h"
@@ -62,12 +63,14 @@ void BM_Slam3d(benchmark::State& state, const std::string& yaml) {
     host.set_outlet([&path](const BusMessage& m) {
       driftlab::pose_t p;
       if (m.channel != "SLAM_POSE" || p.decode(m.data.data(), 0, static_cast<int>(m.data.size())) < 0) return;
-      path.push_back(static_cast<double>(p.header.utime) * 1e-6, {p.position.x, p.position.y, p.position.z},
+      path.push_back(Time::from_us(p.header.utime).seconds(), {p.position.x, p.position.y, p.position.z},
                      Eigen::Quaterniond(p.orientation.w, p.orientation.x, p.orientation.y, p.orientation.z));
     });
     if (!host.start()) return state.SkipWithError("start failed");
     for (const OwnedEvent& e : g_events) {
-      if (!host.advance(e.utime) || !host.deliver(e.channel, e.data)) return state.SkipWithError("delivery failed");
+      if (!host.advance(Time::from_us(e.utime)) || !host.deliver(e.channel, e.data)) {
+        return state.SkipWithError("delivery failed");
+      }
     }
     if (!host.finish()) return state.SkipWithError("finish failed");
     state.PauseTiming();
@@ -100,7 +103,7 @@ int load(const std::string& path) {
     if (e.channel == "GROUND_TRUTH") {
       driftlab::pose_t p;
       if (p.decode(e.data.data(), 0, static_cast<int>(e.data.size())) < 0) continue;
-      g_truth.push_back(static_cast<double>(p.header.utime) * 1e-6, {p.position.x, p.position.y, p.position.z},
+      g_truth.push_back(Time::from_us(p.header.utime).seconds(), {p.position.x, p.position.y, p.position.z},
                         Eigen::Quaterniond(p.orientation.w, p.orientation.x, p.orientation.y, p.orientation.z));
       continue;
     }
@@ -109,7 +112,7 @@ int load(const std::string& path) {
     g_clouds += e.channel == "POINTS";
     g_events.push_back({std::string(e.channel), e.utime, {e.data.begin(), e.data.end()}});
   }
-  g_span_s = static_cast<double>(last - first) * 1e-6;
+  g_span_s = (Time::from_us(last) - Time::from_us(first)).seconds();
   if (g_clouds == 0) {
     std::fprintf(stderr, "slam3d_bench: no POINTS in %s\n", path.c_str());
     return 2;

@@ -5,6 +5,7 @@
 #include <cstdio>
 
 #include "core/config.h"
+#include "core/time.h"
 
 namespace driftlab::controller {
 namespace {
@@ -157,7 +158,7 @@ const Eigen::VectorXd& ArmCommander::joints_at(int64_t k) {
 driftlab::joint_trajectory_t ArmCommander::command(int64_t t, const std::optional<Eigen::VectorXd>& measured) {
   if (!start_) start_ = t;
   const double period = 1.0 / o_.rate;
-  const auto k = static_cast<int64_t>(std::llround(static_cast<double>(t - *start_) * 1e-6 * o_.rate));
+  const auto k = static_cast<int64_t>(std::llround(Duration::from_us(t - *start_).seconds() * o_.rate));
   const int n = chain_.dof();
   Eigen::VectorXd correction = Eigen::VectorXd::Zero(n);
   if (measured && measured->size() == n) correction = o_.feedback_gain * (joints_at(k) - *measured);
@@ -171,7 +172,7 @@ driftlab::joint_trajectory_t ArmCommander::command(int64_t t, const std::optiona
     const Eigen::VectorXd q = here + correction;
     const Eigen::VectorXd v = (after - before) / (2 * period);
     driftlab::joint_trajectory_point_t p{};
-    p.time_from_start_us = static_cast<int64_t>(std::llround(i * period * 1e6));
+    p.time_from_start_us = Duration::from_seconds_rounded(i * period).us();
     p.npositions = n;
     p.positions.assign(q.data(), q.data() + n);
     p.nvelocities = n;

@@ -5,6 +5,7 @@
 #include <cstdint>
 
 #include "core/config.h"
+#include "core/time.h"
 #include "driftlab/command_comparison_t.hpp"
 #include "driftlab/laser_scan_t.hpp"
 #include "driftlab/odometry_t.hpp"
@@ -181,10 +182,10 @@ Status ControllerModule::start(Bus& bus) {
           !non_finite_.plausible(m.channel, "angular.z", cmd.angular.z)) {
         return;  // a command of 1e300 would make the comparison's RMSE infinite
       }
-      logged_.push_back({m.utime, cmd.linear.x, cmd.angular.z});
+      logged_.push_back({m.time.us(), cmd.linear.x, cmd.angular.z});
     });
   }
-  bus.every(static_cast<int64_t>(std::llround(1e6 / c_.rate)), [this, &bus] { tick(bus); });
+  bus.every(Duration::periods_rounded(c_.rate), [this, &bus] { tick(bus); });
   return {};
 }
 
@@ -196,12 +197,12 @@ void ControllerModule::tick(Bus& bus) {
   cmd = avoid_obstacles(cmd, obstacles_, avoid);
   driftlab::velocity_command_t m{};
   m.header.seq = seq_++;
-  m.header.utime = bus.now();
+  m.header.utime = bus.now().us();
   m.header.frame_id = "base_link";
   m.linear = {cmd.linear, 0, 0};
   m.angular = {0, 0, cmd.angular};
   bus.publish_message(c_.command_channel, m);
-  recomputed_.push_back({bus.now(), cmd.linear, cmd.angular});
+  recomputed_.push_back({bus.now().us(), cmd.linear, cmd.angular});
 }
 
 void ControllerModule::finish(Bus& bus) {
@@ -210,7 +211,7 @@ void ControllerModule::finish(Bus& bus) {
                    [](const CommandSample& a, const CommandSample& b) { return a.utime < b.utime; });
   comparison_ = compare_commands(recomputed_, logged_, c_.max_delay_s);
   driftlab::command_comparison_t r{};
-  r.header.utime = bus.now();
+  r.header.utime = bus.now().us();
   r.recomputed_channel = c_.command_channel;
   r.logged_channel = c_.logged_channel;
   r.matched = comparison_->matched;

@@ -5,6 +5,7 @@
 #include <cstdio>
 
 #include "core/config.h"
+#include "core/time.h"
 
 namespace driftlab::controller {
 namespace {
@@ -121,7 +122,7 @@ std::optional<driftlab::joint_trajectory_result_t> JointTrajectoryController::re
   if (a.points.back().t < now) {
     ++counts_.stale;
     char why[160];
-    const double late = static_cast<double>(now - a.points.back().t) * 1e-6;
+    const double late = Duration::from_us(now - a.points.back().t).seconds();
     std::snprintf(why, sizeof(why), "stale: the trajectory ended %.3f s before it arrived", late);
     return result(a, now, "stale", "", late, why);
   }
@@ -155,7 +156,7 @@ void JointTrajectoryController::sample(int64_t now) {
   const auto next = std::upper_bound(p.begin(), p.end(), now, [](int64_t t, const Point& x) { return t < x.t; });
   const Point& b = *next;
   const Point& a = *(next - 1);
-  const double h = static_cast<double>(b.t - a.t) * 1e-6, s = static_cast<double>(now - a.t) * 1e-6;
+  const double h = Duration::from_us(b.t - a.t).seconds(), s = Duration::from_us(now - a.t).seconds();
   if (a.has_v && b.has_v) {
     hermite(a.q, a.v, b.q, b.v, h, s, desired_q_, desired_v_);
   } else {
@@ -168,7 +169,7 @@ std::optional<driftlab::joint_trajectory_result_t> JointTrajectoryController::up
                                                                                      const Eigen::VectorXd& position,
                                                                                      Eigen::VectorXd& command) {
   std::optional<driftlab::joint_trajectory_result_t> out;
-  const double dt = initialised_ ? static_cast<double>(now - last_update_) * 1e-6 : 0;
+  const double dt = initialised_ ? Duration::from_us(now - last_update_).seconds() : 0;
   if (!initialised_) {  // hold where the joints are
     desired_q_ = position;
     desired_v_.setZero();
@@ -199,7 +200,7 @@ std::optional<driftlab::joint_trajectory_result_t> JointTrajectoryController::up
       out = result(*active_, now, "succeeded", "", error[worst], "succeeded");
       ++counts_.succeeded;
       active_.reset();
-    } else if (now > end + static_cast<int64_t>(std::llround(o_.goal_time * 1e6))) {
+    } else if (now > end + Duration::from_seconds_rounded(o_.goal_time).us()) {
       std::snprintf(why, sizeof(why),
                     "aborted: joint %s is %.4f rad from its goal %.3f s after the end (tolerance %.4f)", joint.c_str(),
                     error[worst], o_.goal_time, o_.goal_tolerance);

@@ -14,14 +14,15 @@
 #include <vector>
 
 #include "core/result.h"
+#include "core/time.h"
 
 namespace driftlab {
 
-/// A message on the bus: its channel, when it arrived [us, the bus's clock], and its encoded bytes (valid during
-/// the handler only).
+/// A message on the bus: its channel, when it arrived (the bus's clock), and its encoded bytes (valid during the
+/// handler only).
 struct BusMessage {
   std::string_view channel;
-  int64_t utime = 0;
+  Time time;
   std::span<const uint8_t> data;
 };
 
@@ -34,11 +35,12 @@ class Bus {
   virtual void subscribe(const std::string& channel_regex, BusHandler handler) = 0;
   /// Publishes encoded bytes on a channel, at the bus's current time.
   virtual void publish(std::string_view channel, std::span<const uint8_t> data) = 0;
-  /// The bus's current time [us]: the arrival time of the message being handled on replay, the wall clock live.
-  virtual int64_t now() const = 0;
-  /// Calls `fn` every `period_us` of bus time, at whole multiples of the period (like a ROS timer on sim time). On
+  /// The bus's current time: the arrival time of the message being handled (on replay the log's, live the
+  /// receiver's wall clock); inside a timer, the tick's.
+  virtual Time now() const = 0;
+  /// Calls `fn` every `period` (positive) of bus time, at whole multiples of it (like a ROS timer on sim time). On
   /// replay a tick fires, with now() at the tick, before the first message at or after it; none after the last.
-  virtual void every(int64_t period_us, std::function<void()> fn) = 0;
+  virtual void every(Duration period, std::function<void()> fn) = 0;
   /// Where a module may write files it produces (maps): a path prefix such as "out/session.replay"; the module
   /// appends its own suffix ("-map.png"). Empty: write no files.
   virtual std::string artifact_prefix() const { return {}; }

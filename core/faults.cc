@@ -5,6 +5,7 @@
 #include <utility>
 
 #include "core/config.h"
+#include "core/time.h"
 
 namespace driftlab {
 namespace {
@@ -114,10 +115,10 @@ void StreamFaultInjector::apply(int64_t seq, int64_t true_utime, std::vector<Del
     delay += f_.reorder_delay_s;
     reordered_.push_back(seq);
   }
-  out.push_back({stamp, true_utime + static_cast<int64_t>(std::llround(delay * 1e6))});
+  out.push_back({stamp, true_utime + Duration::from_seconds_rounded(delay).us()});
   if (u_dup < f_.duplicate_probability) {
     duplicated_.push_back(seq);
-    out.push_back({stamp, true_utime + static_cast<int64_t>(std::llround((delay + jitter2) * 1e6)) + 1});
+    out.push_back({stamp, true_utime + Duration::from_seconds_rounded(delay + jitter2).us() + 1});
   }
 }
 

@@ -14,6 +14,8 @@
 #include <iterator>
 #include <utility>
 
+#include "core/time.h"
+
 namespace driftlab::estimator {
 
 template <class Filter, class M>
@@ -28,7 +30,7 @@ class DelayedFilter {
   };
 
   DelayedFilter(Filter filter, double window_s)
-      : filter_(std::move(filter)), window_(static_cast<int64_t>(window_s * 1e6)) {}
+      : filter_(std::move(filter)), window_(Duration::from_seconds_truncated(window_s).us()) {}
 
   /// Starts again from `filter` (a freshly initialised one): the history is forgotten.
   void reset(const Filter& filter) {

@@ -5,6 +5,7 @@
 #include <type_traits>
 #include <variant>
 
+#include "core/time.h"
 #include "lcmtypes/planar.h"
 
 namespace driftlab::estimator {
@@ -99,7 +100,7 @@ void DroneEkf::propagate(const ImuSample& s, double dt) {
 
 void DroneEkf::predict(int64_t utime) {
   if (!initialized_ || utime <= t_) return;
-  propagate(last_, static_cast<double>(utime - t_) * 1e-6);
+  propagate(last_, Duration::from_us(utime - t_).seconds());
   t_ = utime;
 }
 
@@ -147,7 +148,7 @@ bool DroneEkf::update(int64_t utime, const DroneMeasurement& m) {
   if (!initialized_ || !finite) return false;
   if (const auto* imu = std::get_if<ImuSample>(&m)) {
     if (utime > t_) {
-      propagate(*imu, static_cast<double>(utime - t_) * 1e-6);
+      propagate(*imu, Duration::from_us(utime - t_).seconds());
       t_ = utime;
     }
     last_ = *imu;

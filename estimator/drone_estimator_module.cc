@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "core/config.h"
+#include "core/time.h"
 #include "driftlab/barometer_t.hpp"
 #include "driftlab/estimator_status_t.hpp"
 #include "driftlab/gnss_t.hpp"
@@ -112,7 +113,7 @@ Status DroneEstimatorModule::start(Bus& bus) {
     add(bus, kMag, s.header.utime,
         MagField{Eigen::Vector3d(s.magnetic_field.x, s.magnetic_field.y, s.magnetic_field.z)});
   });
-  bus.every(static_cast<int64_t>(std::llround(1e6 / c_.status_rate)), [this, &bus] { publish_status(bus); });
+  bus.every(Duration::periods_rounded(c_.status_rate), [this, &bus] { publish_status(bus); });
   return {};
 }
 
@@ -126,9 +127,9 @@ void DroneEstimatorModule::try_init(int64_t stamp) {
 void DroneEstimatorModule::add(Bus& bus, Input kind, int64_t stamp, const DroneMeasurement& m) {
   InputCounts& n = inputs_[kind];
   ++n.received;
-  const int64_t now = bus.now();
-  if (static_cast<double>(now - stamp) * 1e-6 > c_.max_age_s) return void(++n.stale);
-  if (static_cast<double>(stamp - now) * 1e-6 > c_.max_future_s) return void(++n.future);
+  const int64_t now = bus.now().us();
+  if (Duration::from_us(now - stamp).seconds() > c_.max_age_s) return void(++n.stale);
+  if (Duration::from_us(stamp - now).seconds() > c_.max_future_s) return void(++n.future);
   if (!ekf_.filter().initialized()) {
     ++n.before_init;
     switch (kind) {
@@ -173,14 +174,14 @@ void DroneEstimatorModule::publish_status(Bus& bus) {
   const DroneEkf& f = ekf_.filter();
   driftlab::estimator_status_t s{};
   s.header.seq = status_seq_++;
-  s.header.utime = bus.now();
+  s.header.utime = bus.now().us();
   s.header.frame_id = "";
   s.attitude_valid = f.initialized();
   s.position_valid = f.initialized() && f.last_position_fix() > 0 && f.time() - f.last_position_fix() < 1000000;
   const DroneEkf::Cov& P = f.covariance();
   s.position_std_m = f.initialized() ? std::sqrt(std::max(P(0, 0), P(1, 1))) : 0;
   s.attitude_std_rad = f.initialized() ? std::sqrt(P.diagonal().segment<3>(DroneEkf::kTheta).maxCoeff()) : 0;
-  s.filter_lag_s = f.initialized() ? static_cast<double>(bus.now() - f.time()) * 1e-6 : 0;
+  s.filter_lag_s = f.initialized() ? (bus.now() - Time::from_us(f.time())).seconds() : 0;
   s.ninputs = 4;
   for (int i = 0; i < 4; ++i) {
     s.input.push_back(kInputNames[i]);

@@ -41,7 +41,7 @@ bool Ekf::init(int64_t utime, const PoseFix& fix, double v, double w) {
 void Ekf::predict(int64_t utime) {
   if (utime <= t_) return;
   // In doubles: hostile stamps far apart would overflow int64_t (exact for stamps below 2^53 us, 285 years).
-  const double dt = (static_cast<double>(utime) - static_cast<double>(t_)) * 1e-6;
+  const double dt = Time::from_us(utime).seconds_since(Time::from_us(t_));
   t_ = utime;
   const double v = x_(kV), w = x_(kW);
   const double heading = x_(kYaw) + 0.5 * w * dt;  // midpoint heading

@@ -4,6 +4,7 @@
 #include <cstdint>
 
 #include "core/config.h"
+#include "core/time.h"
 #include "driftlab/imu_t.hpp"
 #include "driftlab/odometry_t.hpp"
 #include "driftlab/pose_t.hpp"
@@ -133,7 +134,7 @@ void EstimatorModule::add(Bus& bus, int64_t stamp, const Measurement& m) {
     publish(bus);
     // The first multiple of the period after t, computed rather than stepped to (a stamp years ahead would take
     // billions of steps) and saturated at the end of int64_t (a hostile stamp must not overflow).
-    const auto period = static_cast<uint64_t>(std::llround(1e6 / c_.publish_rate));
+    const auto period = static_cast<uint64_t>(Duration::periods_rounded(c_.publish_rate).us());
     const uint64_t steps = (static_cast<uint64_t>(t) - static_cast<uint64_t>(next_publish_)) / period + 1;
     int64_t next = 0;
     if (steps > static_cast<uint64_t>(INT64_MAX) / period ||

@@ -4,6 +4,7 @@
 #include <cstdio>
 
 #include "core/config.h"
+#include "core/time.h"
 
 namespace driftlab::flight {
 namespace {
@@ -63,7 +64,7 @@ void Commander::on_setpoint(int64_t now) {
 }
 
 double Commander::setpoint_age(int64_t now) const {
-  return last_setpoint_ < 0 ? -1.0 : static_cast<double>(now - last_setpoint_) * 1e-6;
+  return last_setpoint_ < 0 ? -1.0 : Duration::from_us(now - last_setpoint_).seconds();
 }
 
 bool Commander::command(const std::string& c, int64_t now, bool estimate_ok) {
@@ -130,7 +131,7 @@ void Commander::update(int64_t now, double thrust_ratio, double vertical_speed, 
     }
   }
   if (failsafe_ && mode_ == Mode::kHold && o_.failsafe_land_after_s > 0 &&
-      static_cast<double>(now - mode_since_) * 1e-6 > o_.failsafe_land_after_s) {
+      Duration::from_us(now - mode_since_).seconds() > o_.failsafe_land_after_s) {
     set(Mode::kLand, "failsafe: held " + seconds(o_.failsafe_land_after_s) + " without offboard: land", now);
   }
 
@@ -150,7 +151,7 @@ void Commander::update(int64_t now, double thrust_ratio, double vertical_speed, 
     const bool still = std::abs(vertical_speed) < 0.2 && horizontal_speed < 0.5;
     if (thrust_ratio < 0.7 && still) {
       if (low_since_ < 0) low_since_ = now;
-      if (static_cast<double>(now - low_since_) * 1e-6 >= o_.land_detect_s) {
+      if (Duration::from_us(now - low_since_).seconds() >= o_.land_detect_s) {
         landed_ = true;
         landed_since_ = now;
         ++events_;
@@ -161,7 +162,7 @@ void Commander::update(int64_t now, double thrust_ratio, double vertical_speed, 
   }
   // Auto-disarm once landed after a flight (or in land mode).
   if (landed_ && (flew_ || mode_ == Mode::kLand) && o_.disarm_after_landing_s > 0 &&
-      static_cast<double>(now - landed_since_) * 1e-6 >= o_.disarm_after_landing_s) {
+      Duration::from_us(now - landed_since_).seconds() >= o_.disarm_after_landing_s) {
     armed_ = false;
     reason_ = "disarmed: landed";
     ++events_;

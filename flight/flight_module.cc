@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "core/config.h"
+#include "core/time.h"
 #include "driftlab/motor_command_t.hpp"
 #include "driftlab/odometry_t.hpp"
 #include "driftlab/trajectory_setpoint_t.hpp"
@@ -15,8 +16,6 @@ namespace driftlab::flight {
 namespace {
 
 constexpr double kGravity = 9.81;  // [m/s^2]
-
-int64_t period_us(double rate_hz) { return static_cast<int64_t>(std::llround(1e6 / rate_hz)); }
 
 }  // namespace
 
@@ -71,7 +70,7 @@ Status FlightModule::start(Bus& bus) {
     if (!decode_message(m, o)) return void(++undecodable_);
     Estimate e;
     e.stamp = o.header.utime;
-    e.arrival = bus.now();
+    e.arrival = bus.now().us();
     e.position = Eigen::Vector3d(o.position.x, o.position.y, o.position.z);
     e.attitude = Eigen::Quaterniond(o.orientation.w, o.orientation.x, o.orientation.y, o.orientation.z).normalized();
     // odometry_t's velocities are in the body (child) frame; the controllers want the local frame's.
@@ -85,12 +84,12 @@ Status FlightModule::start(Bus& bus) {
     if (!decode_message(m, s)) return void(++undecodable_);
     setpoint_ = Setpoint{Eigen::Vector3d(s.position.x, s.position.y, s.position.z),
                          Eigen::Vector3d(s.velocity.x, s.velocity.y, s.velocity.z), s.yaw};
-    commander_.on_setpoint(bus.now());
+    commander_.on_setpoint(bus.now().us());
   });
   bus.subscribe(c_.command_channel, [this, &bus](const BusMessage& m) {
     driftlab::vehicle_command_t c;
     if (!decode_message(m, c)) return void(++undecodable_);
-    commander_.command(c.command, bus.now(), estimate_fresh(bus.now()));
+    commander_.command(c.command, bus.now().us(), estimate_fresh(bus.now().us()));
     position_tick(bus);  // act on it (and say so) now, not at the next tick
   });
   if (!c_.logged_motor_channel.empty()) {
@@ -100,19 +99,19 @@ Status FlightModule::start(Bus& bus) {
       logged_.push_back({c.header.utime, c.armed ? c.control : std::vector<double>(c.control.size(), 0.0)});
     });
   }
-  bus.every(period_us(c_.options.position_rate), [this, &bus] { position_tick(bus); });
-  bus.every(period_us(c_.options.status_rate), [this, &bus] { publish_status(bus); });
+  bus.every(Duration::periods_rounded(c_.options.position_rate), [this, &bus] { position_tick(bus); });
+  bus.every(Duration::periods_rounded(c_.options.status_rate), [this, &bus] { publish_status(bus); });
   return {};
 }
 
 bool FlightModule::estimate_fresh(int64_t now) const {
-  return estimate_ && static_cast<double>(now - estimate_->arrival) * 1e-6 <= c_.options.commander.estimate_timeout_s;
+  return estimate_ && Duration::from_us(now - estimate_->arrival).seconds() <= c_.options.commander.estimate_timeout_s;
 }
 
 void FlightModule::position_tick(Bus& bus) {
-  const int64_t now = bus.now();
+  const int64_t now = bus.now().us();
   const double dt = last_position_tick_ > 0
-                        ? std::clamp(static_cast<double>(now - last_position_tick_) * 1e-6, 0.0, 0.1)
+                        ? std::clamp(Duration::from_us(now - last_position_tick_).seconds(), 0.0, 0.1)
                         : 1 / c_.options.position_rate;
   last_position_tick_ = now;
   const bool fresh = estimate_fresh(now);
@@ -151,7 +150,7 @@ void FlightModule::position_tick(Bus& bus) {
 void FlightModule::on_estimate(Bus& bus) {
   const Estimate& e = *estimate_;
   const double dt =
-      last_rate_stamp_ > 0 ? std::clamp(static_cast<double>(e.stamp - last_rate_stamp_) * 1e-6, 0.0, 0.05) : 0.0;
+      last_rate_stamp_ > 0 ? std::clamp(Duration::from_us(e.stamp - last_rate_stamp_).seconds(), 0.0, 0.05) : 0.0;
   last_rate_stamp_ = e.stamp;
   if (!commander_.armed() || !thrust_) {
     publish_motors(bus, false, std::vector<double>(c_.options.vehicle.rotors.size(), 0.0));
@@ -171,7 +170,7 @@ void FlightModule::on_estimate(Bus& bus) {
 void FlightModule::publish_motors(Bus& bus, bool armed, const std::vector<double>& control) {
   driftlab::motor_command_t m{};
   m.header.seq = motor_seq_++;
-  m.header.utime = bus.now();
+  m.header.utime = bus.now().us();
   m.header.frame_id = "base_link";
   m.armed = armed;
   m.nmotors = static_cast<int32_t>(control.size());
@@ -183,7 +182,7 @@ void FlightModule::publish_motors(Bus& bus, bool armed, const std::vector<double
 }
 
 void FlightModule::publish_status(Bus& bus) {
-  const int64_t now = bus.now();
+  const int64_t now = bus.now().us();
   driftlab::vehicle_status_t s{};
   s.header.seq = status_seq_++;
   s.header.utime = now;

@@ -3,6 +3,7 @@
 #include <cmath>
 
 #include "core/config.h"
+#include "core/time.h"
 #include "driftlab/odometry_t.hpp"
 #include "driftlab/trajectory_setpoint_t.hpp"
 #include "driftlab/vehicle_command_t.hpp"
@@ -89,26 +90,26 @@ Status OffboardModule::start(Bus& bus) {
     if (armed_) was_armed_ = true;
     mode_ = s.mode;
   });
-  bus.every(static_cast<int64_t>(std::llround(1e6 / c_.mission.stream_rate)), [this, &bus] { tick(bus); });
+  bus.every(Duration::periods_rounded(c_.mission.stream_rate), [this, &bus] { tick(bus); });
   return {};
 }
 
 void OffboardModule::send(Bus& bus, const std::string& command) {
   driftlab::vehicle_command_t m{};
   m.header.seq = command_seq_++;
-  m.header.utime = bus.now();
+  m.header.utime = bus.now().us();
   m.header.frame_id = "";
   m.command = command;
   bus.publish_message(c_.command_channel, m);
-  last_request_ = bus.now();
+  last_request_ = bus.now().us();
   ++commands_;
 }
 
 void OffboardModule::tick(Bus& bus) {
-  const int64_t now = bus.now();
+  const int64_t now = bus.now().us();
   const MissionOptions& o = c_.mission;
-  const auto retry = static_cast<int64_t>(o.retry_s * 1e6);
-  auto since = [&](int64_t t) { return static_cast<double>(now - t) * 1e-6; };
+  const int64_t retry = Duration::from_seconds_truncated(o.retry_s).us();
+  auto since = [&](int64_t t) { return Duration::from_us(now - t).seconds(); };
   if (phase_ == Phase::kWaiting) {
     if (!position_) return;
     home_ = *position_;

@@ -20,6 +20,7 @@
 #include <optional>
 
 #include "core/mapped_file.h"
+#include "core/time.h"
 #include "driftlab/laser_scan_t.hpp"
 #include "driftlab/odometry_t.hpp"
 #include "driftlab/pose_t.hpp"
@@ -60,7 +61,7 @@ quaternion_t yaw_quaternion(double yaw) {
   return q;
 }
 
-int64_t to_utime(double s) { return static_cast<int64_t>(std::llround(s * 1e6)); }
+int64_t to_utime(double s) { return Time::from_seconds_rounded(s).us(); }
 
 bool is_laser(std::string_view name) {
   return name == "FLASER" || name == "RLASER" || name.starts_with("RAWLASER") || name.starts_with("ROBOTLASER");

@@ -9,8 +9,7 @@
 #include <limits>
 #include <type_traits>
 
-#include "formats/internal/ros_reader.h"
-#include "lcmtypes/encode.h"
+#include "core/time.h"
 #include "driftlab/image_t.hpp"
 #include "driftlab/imu_t.hpp"
 #include "driftlab/joint_state_t.hpp"
@@ -20,6 +19,8 @@
 #include "driftlab/pose_t.hpp"
 #include "driftlab/tf_t.hpp"
 #include "driftlab/velocity_command_t.hpp"
+#include "formats/internal/ros_reader.h"
+#include "lcmtypes/encode.h"
 
 namespace driftlab::formats {
 namespace {
@@ -414,7 +415,7 @@ std::vector<uint8_t> point_cloud2(Reader& r, Serialization s, int64_t, int64_t* 
   m.z.resize(npoints);
   if (fi) m.intensities.resize(npoints);
   if (ft || fns || fabs) m.time_offsets.resize(npoints);
-  const double stamp_s = static_cast<double>(m.header.utime) * 1e-6;
+  const double stamp_s = Time::from_us(m.header.utime).seconds();
   size_t i = 0;
   for (uint32_t row = 0; row < height; ++row) {
     for (uint32_t col = 0; col < width; ++col, ++i) {

@@ -20,6 +20,7 @@
 #include "controller/controller_module.h"
 #include "core/bus.h"
 #include "core/log_format.h"
+#include "core/time.h"
 #include "driftlab/imu_t.hpp"
 #include "driftlab/laser_scan_t.hpp"
 #include "driftlab/odometry_t.hpp"
@@ -143,7 +144,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   const bool verbose = std::getenv("DRIFTLAB_FUZZ_VERBOSE") != nullptr;
   auto deliver = [&](const std::string& channel, int64_t t, const std::vector<uint8_t>& bytes) {
     if (verbose) describe(channel, t, bytes);
-    if (!bus.deliver(channel, bytes, t).ok()) std::abort();  // no output log to fail
+    if (!bus.deliver(channel, bytes, driftlab::Time::from_us(t)).ok()) std::abort();  // no output log to fail
   };
   // SLAM does real work per scan or cloud: fewer messages keep each input fast.
   const int max_messages = which >= 2 ? 24 : 200;

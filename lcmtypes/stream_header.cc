@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstring>
 
+#include "core/time.h"
 #include "driftlab/imu_t.hpp"
 #include "driftlab/laser_scan_t.hpp"
 #include "driftlab/odometry_t.hpp"
@@ -165,7 +166,7 @@ int64_t ready_after_us(std::span<const uint8_t> data) {
   r.skip(3 * 4);  // scan_time, range_min, range_max
   const auto nranges = static_cast<int32_t>(r.u32());
   if (!r.ok() || nranges <= 1 || !(time_increment > 0 && time_increment < 1)) return 0;
-  return std::llround((nranges - 1) * static_cast<double>(time_increment) * 1e6);
+  return Duration::from_seconds_rounded((nranges - 1) * static_cast<double>(time_increment)).us();
 }
 
 std::optional<Motion> read_motion(std::span<const uint8_t> data) {
@@ -190,7 +191,7 @@ std::optional<Motion> read_motion(std::span<const uint8_t> data) {
     m.value = std::atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z));  // yaw
   }
   if (!r.ok()) return std::nullopt;
-  m.stamp_s = static_cast<double>(static_cast<int64_t>(be64(data.data() + kHeaderStampOffset))) * 1e-6;
+  m.stamp_s = Time::from_us(static_cast<int64_t>(be64(data.data() + kHeaderStampOffset))).seconds();
   return m;
 }
 

@@ -6,7 +6,6 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
-#include <chrono>
 #include <condition_variable>
 #include <cstring>
 #include <deque>
@@ -24,16 +23,6 @@
 
 namespace driftlab::recorder {
 namespace {
-
-using Clock = std::chrono::steady_clock;
-
-int64_t wall_utime() {
-  timespec ts{};
-  clock_gettime(CLOCK_REALTIME, &ts);
-  return static_cast<int64_t>(ts.tv_sec) * 1000000 + ts.tv_nsec / 1000;
-}
-
-double seconds_since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
 /// Messages waiting for the writer, packed: channel and data bytes back to back, plus where each message is.
 struct Chunk {
@@ -178,8 +167,8 @@ Result<int> open_socket(const UdpmUrl& url, const std::string& url_text, int64_t
 
 class Session {
  public:
-  Session(const RecordOptions& o, std::atomic<bool>& stop, int fd)
-      : o_(o), stop_(stop), fd_(fd), queue_(o.queue_max_bytes) {}
+  Session(const RecordOptions& o, const WallClock& clock, std::atomic<bool>& stop, int fd)
+      : o_(o), clock_(clock), stop_(stop), fd_(fd), queue_(o.queue_max_bytes) {}
 
   Status compile_filters() {
     try {
@@ -197,18 +186,18 @@ class Session {
     if (!w) return Error{w.error().message};
     writer_.emplace(std::move(*w));
     summary_.files.push_back(path);
-    part_start_ = Clock::now();
+    part_start_.restart();
     return {};
   }
 
   Result<RecordSummary> run() {
-    start_ = Clock::now();
+    start_.restart();
     std::thread receiver([this] { receive(); });
     const Status written = write();
     stop_.store(true);
     receiver.join();
     if (!written.ok()) return Error{written.message()};
-    summary_.seconds = seconds_since(start_);
+    summary_.seconds = start_.seconds();
     return summary_;
   }
 
@@ -243,7 +232,7 @@ class Session {
     alignas(cmsghdr) char control[kBatch][256];
     LcmReassembler reassembler;
     auto chunk = queue_.take_free();
-    auto last_push = Clock::now(), last_publish = Clock::now();
+    Stopwatch since_push, since_publish;
     for (;;) {
       // On stop, one last pass takes what the kernel already holds, then the loop ends.
       const bool stopping = stop_.load(std::memory_order_relaxed);
@@ -272,7 +261,7 @@ class Session {
               local_.kernel_dropped = dropped;
             }
           }
-          if (utime == 0) utime = wall_utime();
+          if (utime == 0) utime = clock_.now().us();
           const uint64_t sender = (uint64_t{ntohl(from[i].sin_addr.s_addr)} << 16) | ntohs(from[i].sin_port);
           const auto m = reassembler.feed(sender, {buffers.data() + i * kDatagram, msgs[i].msg_len}, utime);
           if (!m) continue;
@@ -295,19 +284,19 @@ class Session {
           if (chunk->bytes.size() >= Chunk::kTargetBytes) {
             queue_.push(std::move(chunk));
             chunk = queue_.take_free();
-            last_push = Clock::now();
+            since_push.restart();
           }
         }
       }
       local_.queue_bytes_max = std::max(local_.queue_bytes_max, queue_.bytes());
-      if (!chunk->records.empty() && seconds_since(last_push) >= 0.01) {
+      if (!chunk->records.empty() && since_push.seconds() >= 0.01) {
         queue_.push(std::move(chunk));
         chunk = queue_.take_free();
-        last_push = Clock::now();
+        since_push.restart();
       }
-      if (seconds_since(last_publish) >= 0.1) {
+      if (since_publish.seconds() >= 0.1) {
         publish(reassembler);
-        last_publish = Clock::now();
+        since_publish.restart();
       }
       if (stopping) break;
     }
@@ -324,7 +313,7 @@ class Session {
     }
     driftlab::recorder_stats_t s{};
     s.header.seq = stats_seq_++;
-    s.header.utime = wall_utime();
+    s.header.utime = clock_.now().us();
     s.header.frame_id = "";
     s.received = c.received;
     s.written = summary_.written;
@@ -362,10 +351,10 @@ class Session {
 
   /// The writer: queue -> log, with periodic sync, statistics and splitting. Runs on the calling thread.
   Status write() {
-    auto last_sync = Clock::now(), last_stats = Clock::now(), last_status = Clock::now();
+    Stopwatch since_sync, since_stats, since_status;
     Status failure;
     for (;;) {
-      if (o_.duration_s > 0 && seconds_since(start_) >= o_.duration_s) stop_.store(true);
+      if (o_.duration_s > 0 && start_.seconds() >= o_.duration_s) stop_.store(true);
       auto chunk = queue_.pop(std::min(o_.flush_interval_s, 0.05));
       if (chunk) {
         for (const auto& r : chunk->records) {
@@ -378,24 +367,24 @@ class Session {
         queue_.recycle(std::move(chunk));
         if (!failure.ok()) break;
         if ((o_.split_mb > 0 && static_cast<double>(writer_->bytes()) >= o_.split_mb * 1e6) ||
-            (o_.split_s > 0 && seconds_since(part_start_) >= o_.split_s)) {
+            (o_.split_s > 0 && part_start_.seconds() >= o_.split_s)) {
           if (failure = write_stats(); !failure.ok()) break;
           summary_.bytes_written += static_cast<int64_t>(writer_->bytes());
           if (failure = writer_->close(); !failure.ok()) break;
           if (failure = open_part(); !failure.ok()) break;
         }
       }
-      if (seconds_since(last_sync) >= o_.flush_interval_s) {
+      if (since_sync.seconds() >= o_.flush_interval_s) {
         if (failure = writer_->sync(); !failure.ok()) break;
-        last_sync = Clock::now();
+        since_sync.restart();
       }
-      if (seconds_since(last_stats) >= o_.stats_interval_s) {
+      if (since_stats.seconds() >= o_.stats_interval_s) {
         if (failure = write_stats(); !failure.ok()) break;
-        last_stats = Clock::now();
+        since_stats.restart();
       }
-      if (o_.on_status && seconds_since(last_status) >= 1.0) {
+      if (o_.on_status && since_status.seconds() >= 1.0) {
         o_.on_status(status_line());
-        last_status = Clock::now();
+        since_status.restart();
       }
       if (!chunk && queue_.drained()) break;
     }
@@ -432,6 +421,7 @@ class Session {
   }
 
   const RecordOptions& o_;
+  const WallClock& clock_;  ///< read from the receive and the writer threads
   std::atomic<bool>& stop_;
   const int fd_;
   ChunkQueue queue_;
@@ -445,7 +435,7 @@ class Session {
   int64_t stats_seq_ = 0;
   std::optional<LogWriter> writer_;
   RecordSummary summary_;
-  Clock::time_point start_, part_start_;
+  Stopwatch start_, part_start_;  ///< since the recording started, since the current part was opened
 };
 
 }  // namespace
@@ -472,7 +462,7 @@ Status check_options(const RecordOptions& options) {
   return {};
 }
 
-Recorder::Recorder(RecordOptions options) : options_(std::move(options)) {}
+Recorder::Recorder(RecordOptions options, const WallClock& clock) : options_(std::move(options)), clock_(clock) {}
 
 Result<RecordSummary> Recorder::run() {
   auto url = parse_udpm_url(options_.url);
@@ -480,7 +470,7 @@ Result<RecordSummary> Recorder::run() {
   const int64_t buffer = url->recv_buf_size > 0 ? url->recv_buf_size : options_.socket_buffer_bytes;
   auto fd = open_socket(*url, options_.url, buffer);
   if (!fd) return fd.error();
-  Session session(options_, stop_, *fd);
+  Session session(options_, clock_, stop_, *fd);
   Result<RecordSummary> result = Error{""};
   if (auto st = session.compile_filters(); !st) {
     result = Error{st.message()};

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "core/result.h"
+#include "core/wall_clock.h"
 
 namespace driftlab::recorder {
 
@@ -47,7 +48,9 @@ struct RecordSummary {
 
 class Recorder {
  public:
-  explicit Recorder(RecordOptions options);
+  /// `clock` (borrowed: it must outlive the recorder) stamps what the kernel did not (a message without a receive
+  /// timestamp) and the statistics; it is read from the receive and the writer threads.
+  Recorder(RecordOptions options, const WallClock& clock);
   /// Records until request_stop(), the duration, or an error. An error (socket, disk) is one line naming the
   /// file or address; everything written before it stays readable.
   Result<RecordSummary> run();
@@ -55,6 +58,7 @@ class Recorder {
 
  private:
   RecordOptions options_;
+  const WallClock& clock_;
   std::atomic<bool> stop_{false};
 };
 

@@ -1,41 +1,23 @@
 #include "replayer/live_runner.h"
 
 #include <lcm/lcm.h>
-#include <sys/time.h>
 
 #include <algorithm>
-#include <chrono>
 
 #include "replayer/module_host.h"
 
 namespace driftlab::replay {
-namespace {
-
-/// The only place the live runner reads a clock: wall time for the host [us], steady time for the duration [s].
-class WallClock {
- public:
-  WallClock() : start_(std::chrono::steady_clock::now()) {}
-  static int64_t now_us() {
-    timeval tv{};
-    gettimeofday(&tv, nullptr);
-    return static_cast<int64_t>(tv.tv_sec) * 1000000 + tv.tv_usec;
-  }
-  double elapsed_s() const { return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count(); }
-
- private:
-  std::chrono::steady_clock::time_point start_;
-};
-
-}  // namespace
 
 struct LiveRunner::Impl {
   LiveOptions o;
+  const WallClock& clock;  ///< moves the host between messages
   ModuleHost host;
   lcm_t* lcm = nullptr;
   Status failure;  ///< the first failure met inside LCM's callback
 
-  explicit Impl(LiveOptions options)
+  Impl(LiveOptions options, const WallClock& wall_clock)
       : o(std::move(options)),
+        clock(wall_clock),
         host({.clock = HostClock::kWall,
               .loopback = false,  // LCM brings what the modules publish back to them
               .out = o.out,
@@ -51,12 +33,13 @@ struct LiveRunner::Impl {
     auto& d = *static_cast<Impl*>(user);
     if (!d.failure.ok()) return;
     const std::span<const uint8_t> data(static_cast<const uint8_t*>(rbuf->data), rbuf->data_size);
-    if (Status s = d.host.advance(rbuf->recv_utime); !s) d.failure = s;
+    if (Status s = d.host.advance(Time::from_us(rbuf->recv_utime)); !s) d.failure = s;  // LCM's arrival stamp
     if (Status s = d.host.deliver(channel, data); !s) d.failure = s;
   }
 };
 
-LiveRunner::LiveRunner(LiveOptions options) : impl_(std::make_unique<Impl>(std::move(options))) {}
+LiveRunner::LiveRunner(LiveOptions options, const WallClock& clock)
+    : impl_(std::make_unique<Impl>(std::move(options), clock)) {}
 LiveRunner::~LiveRunner() = default;
 void LiveRunner::add_module(std::unique_ptr<Module> module) { impl_->host.add_module(std::move(module)); }
 
@@ -87,15 +70,15 @@ Status LiveRunner::open() {
 Result<LiveReport> LiveRunner::run(const std::atomic<bool>* stop) {
   if (Status s = open(); !s) return Error{s.message()};
   Impl& d = *impl_;
-  const WallClock clock;
+  const Stopwatch running;
   auto failed = [&d] { return !d.failure.ok() || !d.host.failure().ok(); };
-  while (!(stop != nullptr && stop->load()) && (d.o.duration_s <= 0 || clock.elapsed_s() < d.o.duration_s) &&
+  while (!(stop != nullptr && stop->load()) && (d.o.duration_s <= 0 || running.seconds() < d.o.duration_s) &&
          !failed()) {
-    const int64_t now = WallClock::now_us();
+    const Time now = d.clock.now();
     if (Status s = d.host.advance(now); !s) break;  // timer ticks and statistics due by now
     // Wait for a message until the host is next due (at most 100 ms, to notice a stop).
     int64_t wait_us = 100000;
-    if (const auto due = d.host.next_due()) wait_us = std::clamp<int64_t>(*due - now, 0, wait_us);
+    if (const auto due = d.host.next_due()) wait_us = std::clamp<int64_t>((*due - now).us(), 0, wait_us);
     if (lcm_handle_timeout(d.lcm, static_cast<int>((wait_us + 999) / 1000)) < 0) {
       return Error{"--url " + d.o.url + ": receiving failed"};
     }
@@ -104,7 +87,7 @@ Result<LiveReport> LiveRunner::run(const std::atomic<bool>* stop) {
   LiveReport report;
   report.received = d.host.deliveries();
   report.outputs = d.host.outputs();
-  report.wall_s = clock.elapsed_s();
+  report.wall_s = running.seconds();
   report.modules = d.host.reports();
   Status closed = d.host.close();
   if (!d.failure.ok()) return Error{d.failure.message()};

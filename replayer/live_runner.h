@@ -1,4 +1,5 @@
-// Runs the same modules live: on an LCM bus (udpm), with the wall clock as their clock. The replay's twin, on the
+// Runs the same modules live: on an LCM bus (udpm), with the wall clock as their clock (the caller's WallClock
+// moves the host between messages; LCM stamps each message's arrival). The replay's twin, on the
 // same host (module_host.h): what a module does here it does there, message for message; here it meets real
 // timing. Every message on a channel a module subscribed to goes to the host, which routes it; what the
 // modules publish goes on the bus (and so back to them) and into an output log, with their statistics
@@ -13,6 +14,7 @@
 
 #include "core/bus.h"
 #include "core/result.h"
+#include "core/wall_clock.h"
 #include "replayer/module_host.h"
 
 namespace driftlab::replay {
@@ -34,7 +36,8 @@ struct LiveReport {
 
 class LiveRunner {
  public:
-  explicit LiveRunner(LiveOptions options);
+  /// `clock` (borrowed: it must outlive the runner) is read on run()'s thread between messages.
+  LiveRunner(LiveOptions options, const WallClock& clock);
   ~LiveRunner();
   void add_module(std::unique_ptr<Module> module);
   /// Opens the LCM URL and the output log and starts the modules; errors name the URL, file or module.

@@ -1,13 +1,13 @@
 #include "replayer/module_host.h"
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <cstdlib>
 #include <exception>
 #include <regex>
 
 #include "core/log_writer.h"
+#include "core/wall_clock.h"
 #include "lcmtypes/stream_header.h"
 #include "lcmtypes/validate.h"
 #include "replayer/internal/module_tally.h"
@@ -47,10 +47,10 @@ class ModuleHost::HostBus final : public Bus {
   void publish(std::string_view channel, std::span<const uint8_t> data) override {
     host_.publish(*this, channel, data);
   }
-  int64_t now() const override { return host_.now_; }
-  void every(int64_t period_us, std::function<void()> fn) override {
-    if (period_us <= 0) std::abort();  // a broken invariant: modules validate their rates
-    host_.timers_.push_back({period_us, 0, std::move(fn), this});
+  Time now() const override { return host_.now(); }
+  void every(Duration period, std::function<void()> fn) override {
+    if (period.us() <= 0) std::abort();  // a broken invariant: modules validate their rates
+    host_.timers_.push_back({period.us(), 0, std::move(fn), this});
   }
   std::string artifact_prefix() const override { return host_.prefix_; }
 
@@ -104,9 +104,9 @@ Status ModuleHost::open_log(std::unique_ptr<LogSink> log) {
   return {};
 }
 
-Status ModuleHost::advance(int64_t t) {
-  if (Status s = fire_timers(t); !s) return s;
-  now_ = std::max(now_, t);
+Status ModuleHost::advance(Time t) {
+  if (Status s = fire_timers(t.us()); !s) return s;
+  now_ = std::max(now_, t.us());
   return maybe_stats();
 }
 
@@ -119,7 +119,7 @@ Status ModuleHost::record(std::string_view channel, std::span<const uint8_t> dat
   if (log) {
     if (Status s = write(channel, data); !s) return s;
   }
-  if (outlet && outlet_) outlet_(BusMessage{channel, now_, data});
+  if (outlet && outlet_) outlet_(BusMessage{channel, now(), data});
   return {};
 }
 
@@ -142,9 +142,9 @@ Status ModuleHost::close() {
   return s;
 }
 
-std::optional<int64_t> ModuleHost::next_due() const {
-  std::optional<int64_t> due;
-  auto earliest = [&due](int64_t t) { due = due ? std::min(*due, t) : t; };
+std::optional<Time> ModuleHost::next_due() const {
+  std::optional<Time> due;
+  auto earliest = [&due](int64_t t) { due = due ? std::min(*due, Time::from_us(t)) : Time::from_us(t); };
   for (const Timer& timer : timers_) {
     if (timer.next != INT64_MAX) earliest(timer.next == 0 ? now_ : timer.next);  // unplaced: at the next advance
   }
@@ -247,18 +247,19 @@ void ModuleHost::dispatch(std::string_view channel, std::span<const uint8_t> dat
     return;
   }
   const auto stamp = lcmtypes::header_stamp(data, now_);
-  const BusMessage m{*name, now_, data};
+  const BusMessage m{*name, now(), data};
   for (const Route& r : targets) {
     HostBus& b = *r.bus;
     b.tally_.input(name, stamp);
-    const auto t0 = o_.timing ? std::chrono::steady_clock::now() : std::chrono::steady_clock::time_point{};
+    std::optional<Stopwatch> watch;
+    if (o_.timing) watch.emplace();
     try {
       b.subs_[r.sub].handler(m);
     } catch (const std::exception& e) {  // one message a module cannot take must not end the run
       b.tally_.failed(*name, e.what());
     }
-    if (o_.timing) {
-      b.tally_.processed(now_, std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+    if (watch) {
+      b.tally_.processed(now_, watch->seconds());
     } else {
       b.tally_.unmeasured();
     }
@@ -283,7 +284,7 @@ Status ModuleHost::write(std::string_view channel, std::span<const uint8_t> data
 }
 
 Status ModuleHost::maybe_stats() {
-  const auto period = static_cast<int64_t>(o_.stats_period_s * 1e6);
+  const int64_t period = Duration::from_seconds_truncated(o_.stats_period_s).us();
   if (period <= 0) return {};
   if (next_stats_ == 0) next_stats_ = now_ + period;
   if (now_ < next_stats_) return {};

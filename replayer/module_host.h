@@ -31,6 +31,7 @@
 #include "core/bus.h"
 #include "core/result.h"
 #include "core/string_hash.h"
+#include "core/time.h"
 
 namespace driftlab::replay {
 
@@ -97,9 +98,9 @@ class ModuleHost {
   /// The channel regexes the modules subscribed to, in order.
   std::vector<std::string> subscriptions() const;
 
-  /// Moves the host's time to t [us]: fires the timer ticks due up to t (those at t too), then publishes the
+  /// Moves the host's time to t: fires the timer ticks due up to t (those at t too), then publishes the
   /// statistics when a period has passed. Time never goes back: an earlier t only fires nothing.
-  Status advance(int64_t t);
+  Status advance(Time t);
   /// Hands one input, at the host's time, to the modules subscribed to its channel (a malformed one is counted
   /// for each and handed to none), then delivers what they publish (loopback).
   Status deliver(std::string_view channel, std::span<const uint8_t> data);
@@ -110,9 +111,9 @@ class ModuleHost {
   /// Closes the output log (an atomic file appears now). Idempotent.
   Status close();
 
-  int64_t now() const { return now_; }
-  /// The next instant the host has something to do on its own (a timer tick, statistics), if any [us].
-  std::optional<int64_t> next_due() const;
+  Time now() const { return Time::from_us(now_); }
+  /// The next instant the host has something to do on its own (a timer tick, statistics), if any.
+  std::optional<Time> next_due() const;
   /// Inputs handed to modules (one per subscribed module, malformed ones included) and outputs they published.
   int64_t deliveries() const { return deliveries_; }
   int64_t outputs() const { return outputs_; }
@@ -126,9 +127,10 @@ class ModuleHost {
     HostBus* bus;
     size_t sub;
   };
+  // Times inside are int64_t microseconds (Time::us()): the tick arithmetic checks for overflow on them.
   struct Timer {
-    int64_t period;
-    int64_t next;  ///< 0: not yet placed; INT64_MAX after the last tick int64_t holds
+    int64_t period;  ///< [us]
+    int64_t next;    ///< [us] 0: not yet placed; INT64_MAX after the last tick int64_t holds
     std::function<void()> fn;
     HostBus* bus;  ///< whose timer
   };

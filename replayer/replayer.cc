@@ -13,6 +13,7 @@
 #include "core/config.h"
 #include "core/log_format.h"
 #include "core/log_reader.h"
+#include "core/time.h"
 #include "driftlab/fault_manifest_t.hpp"
 #include "lcmtypes/stream_header.h"
 #include "lcmtypes/type_registry.h"
@@ -162,9 +163,9 @@ HostOptions host_options(const ReplayOptions& o) {
 /// Hands one input to the modules at its time: the timer ticks before it, the statistics, the input itself (to the
 /// output log when it keeps inputs, and to the sink), and everything the modules publish in turn.
 Status deliver(ModuleHost& host, const ReplayOptions& o, ReplayReport& report, const Item& item) {
-  if (Status s = host.advance(item.time); !s) return s;
-  if (report.dispatched == 0) report.start_utime = host.now();
-  report.end_utime = host.now();
+  if (Status s = host.advance(Time::from_us(item.time)); !s) return s;
+  if (report.dispatched == 0) report.start_utime = host.now().us();
+  report.end_utime = host.now().us();
   ++report.dispatched;
   ++report.channels[*item.channel];
   if (Status s = host.record(*item.channel, item.data(), o.write_inputs, true); !s) return s;
@@ -275,7 +276,7 @@ Result<ReplayReport> Replayer::run(const Sink& sink, const std::atomic<bool>* st
   ItemHeap stamped;   // --order stamp: inputs waiting for stragglers, by stamp
   int64_t order = 0;
   int64_t latest_arrival = std::numeric_limits<int64_t>::min();
-  const auto window = static_cast<int64_t>(std::llround(o.reorder_window_s * kUs));
+  const int64_t window = Duration::from_seconds_rounded(o.reorder_window_s).us();
   std::vector<Delivery> deliveries;
   Status failure;
 
@@ -315,7 +316,7 @@ Result<ReplayReport> Replayer::run(const Sink& sink, const std::atomic<bool>* st
       item.owned.assign(e.data.begin(), e.data.end());
       const bool stamped_msg = lcmtypes::map_stamps(item.owned, e.utime, [&](int64_t s) {
         const double correction = c.offset_s + c.drift_ppm * 1e-6 * static_cast<double>(s - ref) * 1e-6;
-        return s - static_cast<int64_t>(std::llround(correction * kUs));
+        return s - Duration::from_seconds_rounded(correction).us();
       });
       if (!stamped_msg) item.owned.clear();
     }
@@ -361,7 +362,7 @@ Result<ReplayReport> Replayer::run(const Sink& sink, const std::atomic<bool>* st
   });
   if (failure.ok()) failure = host.finish();
   if (failure.ok() && !injected.empty()) {
-    failure = host.record(o.faults_channel, encode_manifest(o, host.now(), injected), true, false);
+    failure = host.record(o.faults_channel, encode_manifest(o, host.now().us(), injected), true, false);
   }
   Status closed = host.close();
   if (!failure.ok()) return Error{failure.message()};

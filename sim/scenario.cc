@@ -11,6 +11,7 @@
 #include <sstream>
 
 #include "core/config.h"
+#include "core/time.h"
 
 namespace driftlab::sim {
 namespace {
@@ -247,10 +248,10 @@ const config::Table<Scenario>& scenario_table() {
               [](const config::Value& v, int64_t& utime) -> Status {
                 auto s = v.number(config::between(0, 4e9), "s");
                 if (!s) return s.error();
-                utime = static_cast<int64_t>(std::llround(*s * 1e6));
+                utime = Time::from_seconds_rounded(*s).us();
                 return {};
               },
-              [](const int64_t& utime) { return config::format_number(static_cast<double>(utime) * 1e-6); })
+              [](const int64_t& utime) { return config::format_number(Time::from_us(utime).seconds()); })
           .number("physics_step", &S::physics_step, config::between(1e-5, 0.02), "s", "the physics time step")
           .integer("solver_iterations", &S::solver_iterations, config::between(1, 1000), "",
                    "Bullet's constraint solver iterations per step")

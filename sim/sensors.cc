@@ -3,6 +3,7 @@
 #include <cmath>
 #include <limits>
 
+#include "core/time.h"
 #include "driftlab/image_t.hpp"
 #include "driftlab/imu_t.hpp"
 #include "driftlab/joint_state_t.hpp"
@@ -89,7 +90,7 @@ class Imu final : public Periodic {
     // The accelerometer measures the mean acceleration over its sample period (the physics' contact forces
     // make instantaneous accelerations spiky), plus the reaction to gravity.
     Eigen::Vector3d a = Eigen::Vector3d::Zero();
-    if (have_prev_) a = (v - prev_v_) / (static_cast<double>(ctx.now_utime - prev_utime_) * 1e-6);
+    if (have_prev_) a = (v - prev_v_) / (Time::from_us(ctx.now_utime) - Time::from_us(prev_utime_)).seconds();
     prev_v_ = v;
     prev_utime_ = ctx.now_utime;
     have_prev_ = true;
@@ -213,7 +214,7 @@ class Spinning : public Periodic {
       }
       const Eigen::Isometry3d pose = ctx.robot.link_pose(link(ctx.robot));
       for (; unit_ < units_ && unit_time(unit_) <= ctx.now_utime; ++unit_) {
-        measure(ctx, pose, unit_, static_cast<double>(unit_time(unit_) - start_) * 1e-6);
+        measure(ctx, pose, unit_, Duration::from_us(unit_time(unit_) - start_).seconds());
       }
       if (unit_ < units_) return;
       publish(ctx, start_);
@@ -236,7 +237,7 @@ class Spinning : public Periodic {
   }
 
  private:
-  int64_t unit_time(int i) const { return start_ + static_cast<int64_t>(std::llround(i * unit_dt_s_ * 1e6)); }
+  int64_t unit_time(int i) const { return start_ + Duration::from_seconds_rounded(i * unit_dt_s_).us(); }
   std::mt19937_64 rng_;
   std::normal_distribution<double> unit_normal_{0, 1};
   int units_;

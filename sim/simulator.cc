@@ -10,6 +10,7 @@
 #include <set>
 
 #include "core/log_writer.h"
+#include "core/time.h"
 #include "driftlab/fault_manifest_t.hpp"
 #include "driftlab/tf_t.hpp"
 #include "driftlab/velocity_command_t.hpp"
@@ -170,9 +171,10 @@ Result<SimReport> Simulation::run(const SimOptions& options) {
     }
   }
 
-  const auto step_us = static_cast<int64_t>(std::llround(sc.physics_step * 1e6));
-  const double dt = static_cast<double>(step_us) * 1e-6;
-  const auto end_us = static_cast<int64_t>(std::llround(sc.duration * 1e6));
+  const Duration step = Duration::from_seconds_rounded(sc.physics_step);
+  const int64_t step_us = step.us();
+  const double dt = step.seconds();
+  const int64_t end_us = Duration::from_seconds_rounded(sc.duration).us();
   const double r = robot.wheel_radius(), b = robot.wheel_separation();
   const double c0 = std::cos(sc.start.z()), s0 = std::sin(sc.start.z());
   SimReport report;
@@ -257,7 +259,7 @@ Result<SimReport> Simulation::run(const SimOptions& options) {
     }
     if (arm != nullptr) arm->control(now, dt);
     if (options.progress && t_us >= next_progress) {
-      options.progress(static_cast<double>(t_us) * 1e-6, sc.duration);
+      options.progress(Duration::from_us(t_us).seconds(), sc.duration);
       next_progress += 1000000;
     }
 
@@ -292,7 +294,7 @@ Result<SimReport> Simulation::run(const SimOptions& options) {
   report.faults_json = faults_json_path(options.out);
   if (Status s = write_faults_json(report.faults_json, sc, end_utime, faults); !s) return Error{s.message()};
 
-  report.simulated_s = static_cast<double>(std::min(t_us, end_us)) * 1e-6;
+  report.simulated_s = Duration::from_us(std::min(t_us, end_us)).seconds();
   report.messages = out.written();
   report.laps = pursuit.laps();
   const Eigen::Vector3d truth = robot.link_pose(robot.base_link()).translation();

@@ -18,20 +18,19 @@
 
 #include "core/log_reader.h"
 #include "core/log_writer.h"
+#include "core/time.h"
 #include "driftlab/imu_t.hpp"
 #include "driftlab/odometry_t.hpp"
 #include "driftlab/pose_t.hpp"
 #include "driftlab/tf_t.hpp"
-#include "slam/internal/mrpt_scan.h"
 #include "lcmtypes/planar.h"
 #include "lcmtypes/validate.h"
+#include "slam/internal/mrpt_scan.h"
 
 namespace driftlab::slam {
 namespace {
 
-int64_t to_utime(mrpt::Clock::time_point t) {
-  return static_cast<int64_t>(std::llround(mrpt::Clock::toDouble(t) * 1e6));
-}
+int64_t to_utime(mrpt::Clock::time_point t) { return Time::from_seconds_rounded(mrpt::Clock::toDouble(t)).us(); }
 
 template <typename T>
 Status put(LogWriter& w, int64_t utime, const std::string& channel, const T& msg) {
@@ -244,7 +243,7 @@ Result<RawlogCounts> export_rawlog(const std::string& log, const std::string& ou
         ++counts.written["CObservation2DRangeScan"];
       } else if (lcmtypes::decode(data, odo)) {
         mrpt::obs::CObservationOdometry obs;
-        obs.timestamp = mrpt::Clock::fromDouble(static_cast<double>(odo.header.utime) * 1e-6);
+        obs.timestamp = mrpt::Clock::fromDouble(Time::from_us(odo.header.utime).seconds());
         obs.sensorLabel = channel;
         obs.odometry = mrpt::poses::CPose2D(odo.position.x, odo.position.y, yaw_of(odo.orientation));
         obs.hasVelocities = true;
@@ -253,7 +252,7 @@ Result<RawlogCounts> export_rawlog(const std::string& log, const std::string& ou
         ++counts.written["CObservationOdometry"];
       } else if (lcmtypes::decode(data, imu)) {
         mrpt::obs::CObservationIMU obs;
-        obs.timestamp = mrpt::Clock::fromDouble(static_cast<double>(imu.header.utime) * 1e-6);
+        obs.timestamp = mrpt::Clock::fromDouble(Time::from_us(imu.header.utime).seconds());
         obs.sensorLabel = channel;
         obs.set(mrpt::obs::IMU_WX, imu.angular_velocity.x);
         obs.set(mrpt::obs::IMU_WY, imu.angular_velocity.y);
@@ -265,7 +264,7 @@ Result<RawlogCounts> export_rawlog(const std::string& log, const std::string& ou
         ++counts.written["CObservationIMU"];
       } else if (channel == "GROUND_TRUTH" && lcmtypes::decode(data, pose)) {
         mrpt::obs::CObservationRobotPose obs;
-        obs.timestamp = mrpt::Clock::fromDouble(static_cast<double>(pose.header.utime) * 1e-6);
+        obs.timestamp = mrpt::Clock::fromDouble(Time::from_us(pose.header.utime).seconds());
         obs.sensorLabel = channel;
         const auto& q = pose.orientation;
         obs.pose.mean = mrpt::poses::CPose3D(mrpt::math::CQuaternionDouble(q.w, q.x, q.y, q.z), pose.position.x,

@@ -25,6 +25,7 @@
 #include <sstream>
 
 #include "core/config.h"
+#include "core/time.h"
 #include "driftlab/image_t.hpp"
 #include "driftlab/laser_scan_t.hpp"
 #include "driftlab/odometry_t.hpp"
@@ -206,7 +207,7 @@ struct Slam2d::Impl {
   /// Matches the waiting scans the odometry has caught up with, and those that waited odom_wait_s (by the scans'
   /// stamps) or, with `all`, every one.
   void drain(Bus& bus, bool all = false) {
-    const auto wait = static_cast<int64_t>(c.odom_wait_s * 1e6);
+    const int64_t wait = Duration::from_seconds_truncated(c.odom_wait_s).us();
     while (!waiting.empty()) {
       const auto it = waiting.begin();
       const bool covered = it->first <= newest_odometry || c.odom_channel.empty();
@@ -445,7 +446,7 @@ void Slam2d::finish(Bus& bus) {
   std::vector<uint8_t> png;
   cv::imencode(".png", img, png);
   driftlab::image_t m{};
-  m.header.utime = bus.now();
+  m.header.utime = bus.now().us();
   m.header.frame_id = "map";
   m.width = w;
   m.height = h;

@@ -19,13 +19,14 @@
 #include <map>
 
 #include "core/config.h"
+#include "core/time.h"
 #include "driftlab/odometry_t.hpp"
 #include "driftlab/point_cloud_t.hpp"
 #include "driftlab/pose_t.hpp"
 #include "driftlab/tf_t.hpp"
-#include "slam/internal/odometry_buffer.h"
 #include "lcmtypes/planar.h"
 #include "lcmtypes/validate.h"
+#include "slam/internal/odometry_buffer.h"
 
 namespace driftlab::slam {
 namespace {
@@ -143,7 +144,7 @@ void Slam3d::Impl::on_cloud(Bus& bus, const BusMessage& m) {
   const auto odo = odom.at(stamp);
   auto motion_after = [&](double s) -> Eigen::Isometry3d {
     int64_t at = 0;  // saturated: a hostile stamp near the end of int64_t must not overflow
-    if (__builtin_add_overflow(stamp, std::llround(s * 1e6), &at)) at = s > 0 ? INT64_MAX : INT64_MIN;
+    if (__builtin_add_overflow(stamp, Duration::from_seconds_rounded(s).us(), &at)) at = s > 0 ? INT64_MAX : INT64_MIN;
     return planar(*odo).inverse() * planar(*odom.at(at));
   };
 

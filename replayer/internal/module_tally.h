@@ -14,6 +14,7 @@
 
 #include "core/bus.h"
 #include "core/quantile.h"
+#include "core/time.h"
 #include "driftlab/module_stats_t.hpp"
 #include "replayer/module_host.h"
 
@@ -53,7 +54,7 @@ class ModuleTally {
     proc_s_.push_back(seconds);
     while (!busy_until_.empty() && busy_until_.front() <= at) busy_until_.pop_front();
     const int64_t begin = busy_until_.empty() ? at : busy_until_.back();
-    busy_until_.push_back(begin + static_cast<int64_t>(std::llround(seconds * 1e6)));
+    busy_until_.push_back(begin + Duration::from_seconds_rounded(seconds).us());
     queue_max_ = std::max(queue_max_, static_cast<int32_t>(busy_until_.size()));
   }
   /// An input handled without measuring its time (a queue of one).

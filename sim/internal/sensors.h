@@ -8,6 +8,7 @@
 #include <random>
 #include <string>
 
+#include "core/time.h"
 #include "sim/internal/output.h"
 #include "sim/robot.h"
 #include "sim/scenario.h"
@@ -71,6 +72,6 @@ std::unique_ptr<Sensor> make_sensor(const SensorConfig& config, const Robot& rob
 uint64_t stream_seed(uint64_t seed, const std::string& name);
 
 /// Due time of the n-th sample of a `rate` Hz stream since the start [us].
-inline int64_t due_us(int64_t n, double rate) { return static_cast<int64_t>(std::llround(static_cast<double>(n) * 1e6 / rate)); }
+inline int64_t due_us(int64_t n, double rate) { return Duration::periods_rounded(rate, n).us(); }
 
 }  // namespace driftlab::sim

@@ -8,6 +8,7 @@
 
 #include <cmath>
 
+#include "core/time.h"
 #include "driftlab/laser_scan_t.hpp"
 
 namespace driftlab::slam::internal {
@@ -34,7 +35,7 @@ inline mrpt::obs::CObservation2DRangeScan::Ptr to_mrpt(const driftlab::laser_sca
   const double centre = scan.angle_min + increment * (n - 1) / 2;
   obs->sensorPose = mrpt::poses::CPose3D(sensor_on_base.x(), sensor_on_base.y(), 0,
                                          sensor_on_base.phi() + centre, 0, 0);
-  obs->timestamp = mrpt::Clock::fromDouble(static_cast<double>(scan.header.utime) * 1e-6);
+  obs->timestamp = mrpt::Clock::fromDouble(Time::from_us(scan.header.utime).seconds());
   return obs;
 }
 

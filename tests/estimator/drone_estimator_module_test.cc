@@ -47,7 +47,7 @@ Status play(driftlab::test::FakeBus& bus, int64_t imu_shift_us, Eigen::Vector3d*
       m.orientation_covariance[0] = -1;
       m.angular_velocity = {imu->gyro.x(), imu->gyro.y(), imu->gyro.z()};
       m.linear_acceleration = {imu->accel.x(), imu->accel.y(), imu->accel.z()};
-      st = bus.deliver_message("IMU", m, s.utime);
+      st = bus.deliver_message("IMU", m, Time::from_us(s.utime));
     } else if (const auto* g = std::get_if<GnssFix>(&s.m)) {
       if (!have_fix && first_fix) *first_fix = g->position;
       have_fix = true;
@@ -63,7 +63,7 @@ Status play(driftlab::test::FakeBus& bus, int64_t imu_shift_us, Eigen::Vector3d*
       m.epv_m = g->epv;
       m.velocity = {g->velocity.x(), g->velocity.y(), g->velocity.z()};
       m.speed_accuracy_m_s = g->speed_accuracy;
-      st = bus.deliver_message("GNSS", m, s.utime);
+      st = bus.deliver_message("GNSS", m, Time::from_us(s.utime));
     } else if (const auto* b = std::get_if<BaroAltitude>(&s.m)) {
       driftlab::barometer_t m{};
       m.header = header(s.utime);
@@ -71,12 +71,12 @@ Status play(driftlab::test::FakeBus& bus, int64_t imu_shift_us, Eigen::Vector3d*
       m.temperature_c = 15;
       const double pa_per_m = geo::pressure_at(b->altitude - 0.5) - geo::pressure_at(b->altitude + 0.5);
       m.pressure_variance = std::pow(b->std * pa_per_m, 2);
-      st = bus.deliver_message("BARO", m, s.utime);
+      st = bus.deliver_message("BARO", m, Time::from_us(s.utime));
     } else if (const auto* mag = std::get_if<MagField>(&s.m)) {
       driftlab::magnetometer_t m{};
       m.header = header(s.utime);
       m.magnetic_field = {mag->field.x(), mag->field.y(), mag->field.z()};
-      st = bus.deliver_message("MAG", m, s.utime);
+      st = bus.deliver_message("MAG", m, Time::from_us(s.utime));
     }
     if (!st) return st;
   }

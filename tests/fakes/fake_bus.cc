@@ -43,9 +43,9 @@ void FakeBus::add(Module& module) { host_->add_module(std::make_unique<Borrowed>
 
 Status FakeBus::start() { return host_->start(std::make_unique<MemoryLog>(recorded_)); }
 
-Status FakeBus::advance(int64_t t) { return host_->advance(t); }
+Status FakeBus::advance(Time t) { return host_->advance(t); }
 
-Status FakeBus::deliver(const std::string& channel, std::span<const uint8_t> data, int64_t t) {
+Status FakeBus::deliver(const std::string& channel, std::span<const uint8_t> data, Time t) {
   if (Status s = host_->advance(t); !s) return s;
   return host_->deliver(channel, data);
 }
@@ -63,7 +63,7 @@ Status FakeBus::play(const std::string& log, const std::string& channels, const 
       rewrite(channel, rewritten);
       data = rewritten;
     }
-    if (Status s = deliver(channel, data, e.utime); !s) return s;
+    if (Status s = deliver(channel, data, Time::from_us(e.utime)); !s) return s;
   }
   return {};
 }

@@ -12,6 +12,7 @@
 
 #include "core/bus.h"
 #include "core/result.h"
+#include "core/time.h"
 #include "replayer/module_host.h"
 #include "tests/test_util.h"
 
@@ -46,12 +47,12 @@ class FakeBus {
   void add(Module& module);
   /// Starts the modules; their start() errors as is.
   Status start();
-  /// Moves the clock to t [us], firing the timer ticks due.
-  Status advance(int64_t t);
-  /// Delivers encoded bytes on a channel at time t [us].
-  Status deliver(const std::string& channel, std::span<const uint8_t> data, int64_t t);
+  /// Moves the clock to t, firing the timer ticks due.
+  Status advance(Time t);
+  /// Delivers encoded bytes on a channel at time t.
+  Status deliver(const std::string& channel, std::span<const uint8_t> data, Time t);
   template <typename T>
-  Status deliver_message(const std::string& channel, const T& message, int64_t t) {
+  Status deliver_message(const std::string& channel, const T& message, Time t) {
     return deliver(channel, encode(message), t);
   }
   /// Delivers a log's events on channels fully matching `channels` (empty: all) at their log times, each through
@@ -63,7 +64,7 @@ class FakeBus {
   /// start(), play(), finish().
   Status run(const std::string& log, const std::string& channels = {}, const Rewrite& rewrite = {});
 
-  int64_t now() const { return host_->now(); }
+  Time now() const { return host_->now(); }
   /// Everything recorded: the modules' outputs and their statistics (MODULE_STATS), at the time they were made.
   const std::vector<OwnedEvent>& recorded() const { return recorded_; }
   /// What the modules published on a channel (".*": every output, statistics left out).

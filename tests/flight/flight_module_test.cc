@@ -43,17 +43,17 @@ class World final : public Module {
     bus.subscribe("SETPOINT_OUT", [this, &bus](const BusMessage& m) {
       driftlab::trajectory_setpoint_t s;
       if (!decode_message(m, s)) return;
-      if (bus.now() >= gap_from && bus.now() < gap_to) return;
+      if (bus.now().us() >= gap_from && bus.now().us() < gap_to) return;
       setpoint = Eigen::Vector3d(s.position.x, s.position.y, s.position.z);
       bus.publish(std::string("SETPOINT"), m.data);
     });
-    bus.every(1000, [this, &bus] {
+    bus.every(Duration::from_us(1000), [this, &bus] {
       body.step(1e-3);
       top = std::max(top, body.p.z());
       if (++ticks % 4 != 0) return;
       driftlab::odometry_t o{};
       o.header.seq = seq++;
-      o.header.utime = bus.now();
+      o.header.utime = bus.now().us();
       o.header.frame_id = "odom";
       o.child_frame_id = "base_link";
       o.position = {body.p.x(), body.p.y(), body.p.z()};
@@ -123,7 +123,7 @@ TEST(FlightModule, FliesTheMissionAndLands) {
   int n = 0;
   int64_t mission_start = 0;
   for (int64_t t = kT0; t < kT0 + 55000000; t += 20000) {
-    ASSERT_TRUE(bus.advance(t));
+    ASSERT_TRUE(bus.advance(Time::from_us(t)));
     if (offboard.phase() != OffboardModule::Phase::kMission) continue;
     if (mission_start == 0) mission_start = t;
     const double err = (world.body.p - world.setpoint).norm();
@@ -156,7 +156,7 @@ TEST(FlightModule, AStreamBelowTwoHertzIsNeverGrantedOffboard) {
   Stack stack(o);
   auto& [world, flight, offboard, bus] = stack;
   ASSERT_TRUE(bus.start());
-  for (int64_t t = kT0; t < kT0 + 10000000; t += 20000) ASSERT_TRUE(bus.advance(t));
+  for (int64_t t = kT0; t < kT0 + 10000000; t += 20000) ASSERT_TRUE(bus.advance(Time::from_us(t)));
   EXPECT_EQ(offboard.phase(), OffboardModule::Phase::kEngaging);
   EXPECT_FALSE(flight.commander().armed());
   EXPECT_NE(flight.commander().reason().find("setpoints must stream first"), std::string::npos)
@@ -172,7 +172,7 @@ TEST(FlightModule, ASetpointGapInFlightIsAnOffboardLossAndTheVehicleHolds) {
   ASSERT_TRUE(bus.start());
   double lowest_in_gap = 10;
   for (int64_t t = kT0; t < kT0 + 12000000; t += 20000) {
-    ASSERT_TRUE(bus.advance(t));
+    ASSERT_TRUE(bus.advance(Time::from_us(t)));
     if (t > world.gap_from && t < world.gap_to + 500000) lowest_in_gap = std::min(lowest_in_gap, world.body.p.z());
   }
   EXPECT_EQ(flight.commander().offboard_losses(), 1);

@@ -160,9 +160,9 @@ TEST(NonFinite, ModulesCountTheDroppedAndNameTheFirst) {
   const auto good = encode(o);
   o.angular_velocity.z = NAN;
   const auto nan = encode(o);
-  EXPECT_TRUE(inputs.finite({"ODOM", 1, good}));
+  EXPECT_TRUE(inputs.finite({"ODOM", Time::from_us(1), good}));
   EXPECT_EQ(inputs.warning("estimator"), std::nullopt);
-  EXPECT_FALSE(inputs.finite({"ODOM", 2, nan}));
+  EXPECT_FALSE(inputs.finite({"ODOM", Time::from_us(2), nan}));
   inputs.count("SCAN", "angle_increment * (nranges - 1) = inf");
   EXPECT_EQ(inputs.dropped(), 2);
   EXPECT_EQ(

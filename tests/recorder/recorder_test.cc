@@ -22,10 +22,12 @@
 
 #include "core/log_format.h"
 #include "core/log_reader.h"
-#include "driftlab/recorder_stats_t.hpp"
+#include "core/wall_clock.h"
+#include "driftlab/imu_t.hpp"
 #include "driftlab/laser_scan_t.hpp"
 #include "driftlab/odometry_t.hpp"
-#include "driftlab/imu_t.hpp"
+#include "driftlab/recorder_stats_t.hpp"
+#include "recorder/recorder.h"
 #include "tests/lcm_netns_fixture.h"
 
 extern char** environ;
@@ -149,6 +151,28 @@ TEST_F(Record, CapturesEveryMessageAndWritesStatistics) {
   ASSERT_EQ(test::run(kDriftlab + " info " + out, &info), 0);
   EXPECT_NE(info.find("recorded by driftlab record: 300 messages received from 1 sender; lost 0"), std::string::npos)
       << info;
+}
+
+// The recorder reads the wall clock it is given, nothing else: its statistics carry that clock's time (messages
+// the kernel stamps on arrival carry the kernel's).
+TEST_F(Record, StampsItsStatisticsWithTheWallClockItIsGiven) {
+  struct FixedClock final : WallClock {
+    Time now() const override { return Time::from_us(1234567890123456); }
+  } clock;
+  recorder::Recorder rec(
+      {.url = test::kLcmUrl, .out = dir_.file("clock.lcm"), .duration_s = 0.4, .stats_interval_s = 0.1}, clock);
+  const auto summary = rec.run();
+  ASSERT_TRUE(summary) << summary.error().message;
+  int stats = 0;
+  for (const auto& e : test::read_all(dir_.file("clock.lcm"))) {
+    if (e.channel != "DRIFTLAB_RECORDER_STATS") continue;
+    driftlab::recorder_stats_t s{};
+    ASSERT_GT(s.decode(e.data.data(), 0, static_cast<int>(e.data.size())), 0);
+    EXPECT_EQ(e.utime, 1234567890123456);
+    EXPECT_EQ(s.header.utime, 1234567890123456);
+    ++stats;
+  }
+  EXPECT_GE(stats, 2);  // every 0.1 s, and once at the end
 }
 
 // `driftlab sim --live` publishes every simulated message on LCM, paced, in arrival order: the recorder gets

@@ -47,13 +47,15 @@ std::vector<int64_t> ticks_after(HostClock clock, int64_t to) {
   ModuleHost host({.clock = clock, .stats_period_s = 0});
   auto probe = std::make_unique<Probe>();
   std::vector<int64_t> ticks;
-  probe->on_start = [&ticks](Bus& bus) { bus.every(100000, [&ticks, &bus] { ticks.push_back(bus.now()); }); };
+  probe->on_start = [&ticks](Bus& bus) {
+    bus.every(Duration::from_us(100000), [&ticks, &bus] { ticks.push_back(bus.now().us()); });
+  };
   host.add_module(std::move(probe));
   EXPECT_TRUE(host.start());
-  EXPECT_TRUE(host.advance(kT0 + 50000));  // the timer is placed: first tick at kT0 + 100 ms
-  EXPECT_EQ(host.next_due(), kT0 + 100000);
-  EXPECT_TRUE(host.advance(to));
-  EXPECT_EQ(host.now(), to);
+  EXPECT_TRUE(host.advance(Time::from_us(kT0 + 50000)));  // the timer is placed: first tick at kT0 + 100 ms
+  EXPECT_EQ(host.next_due(), Time::from_us(kT0 + 100000));
+  EXPECT_TRUE(host.advance(Time::from_us(to)));
+  EXPECT_EQ(host.now().us(), to);
   return ticks;
 }
 
@@ -75,15 +77,17 @@ TEST(ModuleHost, ALogTimeFarAheadSkipsTheTicksInBetweenAndSaysSo) {
   ModuleHost host({.stats_period_s = 0});
   auto probe = std::make_unique<Probe>();
   std::vector<int64_t> ticks;
-  probe->on_start = [&ticks](Bus& bus) { bus.every(100000, [&ticks, &bus] { ticks.push_back(bus.now()); }); };
+  probe->on_start = [&ticks](Bus& bus) {
+    bus.every(Duration::from_us(100000), [&ticks, &bus] { ticks.push_back(bus.now().us()); });
+  };
   host.add_module(std::move(probe));
   ASSERT_TRUE(host.start());
-  ASSERT_TRUE(host.advance(kT0));
+  ASSERT_TRUE(host.advance(Time::from_us(kT0)));
   const int64_t far = kT0 + int64_t{1000000} * 100000 + 250000;  // 1e6 ticks and 2.5 more: skipped
-  ASSERT_TRUE(host.advance(far));
+  ASSERT_TRUE(host.advance(Time::from_us(far)));
   EXPECT_EQ(ticks, (std::vector<int64_t>{kT0, far - 50000}));
-  ASSERT_TRUE(host.advance(std::numeric_limits<int64_t>::max()));
-  ASSERT_TRUE(host.advance(std::numeric_limits<int64_t>::max()));
+  ASSERT_TRUE(host.advance(Time::from_us(std::numeric_limits<int64_t>::max())));
+  ASSERT_TRUE(host.advance(Time::from_us(std::numeric_limits<int64_t>::max())));
   EXPECT_EQ(ticks.size(), 3u);
   EXPECT_EQ(ticks.back(), std::numeric_limits<int64_t>::max() / 100000 * 100000);
   const auto report = host.reports().front();
@@ -101,13 +105,13 @@ TEST(ModuleHost, TimeNeverGoesBack) {
   auto probe = std::make_unique<Probe>();
   std::vector<std::pair<int64_t, int64_t>> seen;  // message time, now()
   probe->on_start = [&seen](Bus& bus) {
-    bus.subscribe("IMU", [&seen, &bus](const BusMessage& m) { seen.emplace_back(m.utime, bus.now()); });
+    bus.subscribe("IMU", [&seen, &bus](const BusMessage& m) { seen.emplace_back(m.time.us(), bus.now().us()); });
   };
   host.add_module(std::move(probe));
   ASSERT_TRUE(host.start());
-  ASSERT_TRUE(host.advance(kT0 + 2000));
+  ASSERT_TRUE(host.advance(Time::from_us(kT0 + 2000)));
   ASSERT_TRUE(host.deliver("IMU", imu(0, kT0 + 2000)));
-  ASSERT_TRUE(host.advance(kT0 + 1000));  // an input stamped earlier by its receiver is handled now
+  ASSERT_TRUE(host.advance(Time::from_us(kT0 + 1000)));  // an input stamped earlier by its receiver is handled now
   ASSERT_TRUE(host.deliver("IMU", imu(1, kT0 + 1000)));
   EXPECT_EQ(seen, (std::vector<std::pair<int64_t, int64_t>>{{kT0 + 2000, kT0 + 2000}, {kT0 + 2000, kT0 + 2000}}));
 }
@@ -123,13 +127,13 @@ TEST(ModuleHost, LoopbackDeliversOutputsInPublicationOrderAtTheSameInstant) {
   };
   std::vector<std::pair<std::string, int64_t>> seen;
   sink.on_start = [&seen](Bus& b) {
-    b.subscribe("FIRST|SECOND", [&seen, &b](const BusMessage& m) { seen.emplace_back(m.channel, b.now()); });
+    b.subscribe("FIRST|SECOND", [&seen, &b](const BusMessage& m) { seen.emplace_back(m.channel, b.now().us()); });
   };
   bus.add(relay);
   bus.add(sink);
   ASSERT_TRUE(bus.start());
-  ASSERT_TRUE(bus.deliver("IN", imu(0, kT0), kT0));
-  ASSERT_TRUE(bus.deliver("IN", imu(1, kT0 + 10), kT0 + 10));
+  ASSERT_TRUE(bus.deliver("IN", imu(0, kT0), Time::from_us(kT0)));
+  ASSERT_TRUE(bus.deliver("IN", imu(1, kT0 + 10), Time::from_us(kT0 + 10)));
   ASSERT_TRUE(bus.finish());
   EXPECT_EQ(seen, (std::vector<std::pair<std::string, int64_t>>{
                       {"FIRST", kT0}, {"SECOND", kT0}, {"FIRST", kT0 + 10}, {"SECOND", kT0 + 10}}));
@@ -155,7 +159,7 @@ TEST(ModuleHost, WithoutLoopbackOutputsGoToTheOutletOnly) {
   std::vector<std::string> outlet;
   host.set_outlet([&outlet](const BusMessage& m) { outlet.emplace_back(m.channel); });
   ASSERT_TRUE(host.start());
-  ASSERT_TRUE(host.advance(kT0));
+  ASSERT_TRUE(host.advance(Time::from_us(kT0)));
   ASSERT_TRUE(host.deliver("IN", imu(0, kT0)));
   EXPECT_EQ(handled, 1);
   EXPECT_EQ(outlet, std::vector<std::string>{"OUT"});
@@ -170,7 +174,7 @@ TEST(ModuleHost, MalformedInputsAndModulesThatThrowAreCountedAndSkipped) {
     b.subscribe("IMU", [&](const BusMessage&) {
       if (++fragile_handled == 2) throw std::runtime_error("cannot take this one");
     });
-    b.every(1000000, [&] {
+    b.every(Duration::from_us(1000000), [&] {
       if (++ticks == 1) throw std::runtime_error("timer trouble");
     });
   };
@@ -181,7 +185,7 @@ TEST(ModuleHost, MalformedInputsAndModulesThatThrowAreCountedAndSkipped) {
   std::vector<uint8_t> bad = imu(9, kT0);
   test::put_be32(bad, 8 + 8 + 8, 1 << 30);  // the frame_id's length: far past the end
   for (int64_t i = 0; i < 4; ++i)
-    ASSERT_TRUE(bus.deliver("IMU", i == 1 ? bad : imu(i, kT0 + i * 700000), kT0 + i * 700000));
+    ASSERT_TRUE(bus.deliver("IMU", i == 1 ? bad : imu(i, kT0 + i * 700000), Time::from_us(kT0 + i * 700000)));
   ASSERT_TRUE(bus.finish());
   EXPECT_EQ(fragile_handled, 3);  // the malformed one reached no handler
   EXPECT_EQ(steady_handled, 3);
@@ -203,7 +207,9 @@ TEST(ModuleHost, StatisticsEveryPeriodOfHostTime) {
   probe.on_start = [](Bus& b) { b.subscribe("IMU", [](const BusMessage&) {}); };
   bus.add(probe);
   ASSERT_TRUE(bus.start());
-  for (int64_t i = 0; i <= 25; ++i) ASSERT_TRUE(bus.deliver("IMU", imu(i, kT0 + i * 100000), kT0 + i * 100000));
+  for (int64_t i = 0; i <= 25; ++i) {
+    ASSERT_TRUE(bus.deliver("IMU", imu(i, kT0 + i * 100000), Time::from_us(kT0 + i * 100000)));
+  }
   ASSERT_TRUE(bus.finish());
   std::vector<int64_t> at;
   for (const auto& e : bus.recorded()) {
@@ -226,7 +232,7 @@ TEST(ModuleHost, OutputLogAppearsWholeOnCloseAndNamesTheArtifactPrefix) {
   host.add_module(std::move(probe));
   ASSERT_TRUE(host.start());
   EXPECT_EQ(prefix, dir.file("run"));
-  ASSERT_TRUE(host.advance(kT0));
+  ASSERT_TRUE(host.advance(Time::from_us(kT0)));
   ASSERT_TRUE(host.record("NOTE", imu(0, kT0), true, false));
   ASSERT_TRUE(host.finish());
   EXPECT_FALSE(std::filesystem::exists(out));

@@ -60,12 +60,12 @@ class Echo : public Module {
   std::string name() const override { return name_; }
   Status start(Bus& bus) override {
     bus.subscribe(regex_, [this, &bus](const BusMessage& m) {
-      seen.push_back({std::string(m.channel), m.utime, bus.now()});
+      seen.push_back({std::string(m.channel), m.time.us(), bus.now().us()});
       if (m.channel.substr(0, 4) != "OUT_") bus.publish("OUT_" + std::string(m.channel), m.data);
     });
     return {};
   }
-  void finish(Bus& bus) override { finished_at = bus.now(); }
+  void finish(Bus& bus) override { finished_at = bus.now().us(); }
   struct Seen {
     std::string channel;
     int64_t utime, now;
@@ -148,7 +148,7 @@ TEST(Replayer, TimersTickAtMultiplesOfTheirPeriodBeforeLaterMessages) {
   struct Ticker : Module {
     std::string name() const override { return "ticker"; }
     Status start(Bus& bus) override {
-      bus.every(20000, [this, &bus] { ticks.push_back(bus.now()); });
+      bus.every(Duration::from_us(20000), [this, &bus] { ticks.push_back(bus.now().us()); });
       return {};
     }
     std::vector<int64_t> ticks;
@@ -285,7 +285,8 @@ TEST(Replayer, StampOrderResortsWithinTheWindow) {
     struct Stamps : Module {
       std::string name() const override { return "stamps"; }
       Status start(Bus& bus) override {
-        bus.subscribe("IMU", [this](const BusMessage& m) { stamps.push_back(*lcmtypes::header_stamp(m.data, m.utime)); });
+        bus.subscribe("IMU",
+                      [this](const BusMessage& m) { stamps.push_back(*lcmtypes::header_stamp(m.data, m.time.us())); });
         return {};
       }
       std::vector<int64_t> stamps;
