@@ -436,7 +436,18 @@ void Slam2d::finish(Bus& bus) {
     return;
   }
   mrpt::maps::COccupancyGridMap2D grid(-10, 10, -10, 10, static_cast<float>(d.c.map_resolution));
-  for (const auto& [scan, pose] : placed) grid.insertObservation(*scan, pose);
+  for (const auto& [scan, pose] : placed) {
+    // MRPT 2.5 grows the grid to a scan's points but ray-traces from the sensor's cell: a sensor outside the grid
+    // (a scanner mounted metres off the base, beams ending inside the map) reads outside it. The grid is grown to
+    // the sensor first (found by the modules fuzzer).
+    const mrpt::poses::CPose3D at = pose + scan->sensorPose;
+    const auto x = static_cast<float>(at.x()), y = static_cast<float>(at.y());
+    if (x <= grid.getXMin() || x >= grid.getXMax() || y <= grid.getYMin() || y >= grid.getYMax()) {
+      grid.resizeGrid(std::min(grid.getXMin(), x - 1), std::max(grid.getXMax(), x + 1), std::min(grid.getYMin(), y - 1),
+                      std::max(grid.getYMax(), y + 1));
+    }
+    grid.insertObservation(*scan, pose);
+  }
   // Free space white, obstacles black, unknown grey; north up.
   const int w = static_cast<int>(grid.getSizeX()), h = static_cast<int>(grid.getSizeY());
   cv::Mat img(h, w, CV_8UC1);

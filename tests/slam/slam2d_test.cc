@@ -9,13 +9,17 @@
 #include <sstream>
 
 #include "core/log_reader.h"
+#include "driftlab/image_t.hpp"
 #include "driftlab/laser_scan_t.hpp"
 #include "driftlab/odometry_t.hpp"
 #include "driftlab/pose_t.hpp"
+#include "driftlab/tf_t.hpp"
 #include "lcmtypes/planar.h"
+#include "lcmtypes/validate.h"
 #include "replayer/replayer.h"
 #include "slam/rawlog.h"
 #include "slam/slam2d.h"
+#include "tests/fakes/fake_bus.h"
 #include "tests/slam/icp_slam.h"
 #include "tests/test_util.h"
 
@@ -120,6 +124,48 @@ TEST(Slam2d, AgreesWithMrptIcpSlamOnTheSenaDataset) {
   std::stringstream text;
   text << yaml.rdbuf();
   EXPECT_NE(text.str().find("resolution: 0.05"), std::string::npos) << text.str();
+}
+
+// A scanner mounted 14.8 m from the base whose short beams end inside the map's first 20 m x 20 m: MRPT grows the
+// grid to the beams' ends but ray-traces from the sensor's cell, which lay outside it (a read out of bounds, found
+// by the modules fuzzer). The map is drawn, the sensor inside it.
+TEST(Slam2d, AScannerMountedFarFromTheBaseIsInsideTheMap) {
+  Slam2dConfig config;
+  config.odom_channel = "";  // scan matching alone (with odometry the first second's scans wait for it)
+  Slam2d slam{config};
+  test::FakeBus bus;
+  bus.add(slam);
+  ASSERT_TRUE(bus.start().ok());
+  driftlab::tf_t tf{};
+  driftlab::transform_t t{};
+  t.header = {0, 1'000'000, "base_link"};
+  t.child_frame_id = "laser";
+  t.translation = {-10.43, -10.43, 0};
+  t.rotation = {std::cos(0.334), 0, 0, std::sin(0.334)};  // yaw 0.668 rad
+  tf.transforms.push_back(t);
+  tf.ntransforms = 1;
+  ASSERT_TRUE(bus.deliver_message("TF_STATIC", tf, Time::from_us(1'000'000)).ok());
+  for (int i = 0; i < 5; ++i) {
+    driftlab::laser_scan_t m{};
+    m.header = {i, 1'100'000 + int64_t{i} * 100'000, "laser"};
+    m.angle_min = -0.0333f;
+    m.angle_increment = 0.0333f;
+    m.nranges = 3;
+    m.angle_max = m.angle_min + 2 * m.angle_increment;
+    m.range_min = 0.1f;
+    m.range_max = 30.0f;
+    m.ranges = {3.96f, 3.96f, 3.96f};
+    ASSERT_TRUE(bus.deliver_message("SCAN", m, Time::from_us(m.header.utime)).ok());
+  }
+  ASSERT_TRUE(bus.finish().ok());
+  const auto maps = bus.published("SLAM_MAP");
+  for (const auto& r : bus.reports()) {
+    for (const auto& w : r.warnings) ADD_FAILURE() << w;
+  }
+  ASSERT_EQ(maps.size(), 1u);
+  driftlab::image_t image;
+  ASSERT_TRUE(lcmtypes::decode(maps[0].data, image));
+  EXPECT_GT(image.width, 0);
 }
 
 TEST(Rawlog, ImportExportImportKeepsScansAndOdometry) {
