@@ -29,6 +29,9 @@ constexpr int64_t kCoarse = 10;
 constexpr int64_t kMaxStampUs = int64_t{1} << 62;
 constexpr int64_t kMaxPlanUs = int64_t{1} << 40;
 
+// More joints than any robot's command carries: left out (the signals hold joints x samples numbers).
+constexpr size_t kMaxJoints = 64;
+
 // Below this agreement at the best lag the motion does not say when the joints follow the commands: no motion, a
 // controller that does not follow them (stale commands rejected), or a delay that changes during the log (a
 // drifting clock). At the true delay the joints repeat the commanded positions up to the controller's tracking
@@ -73,6 +76,7 @@ double agreement(const std::vector<std::vector<double>>& a, const std::vector<st
 void CommandLoopCheck::add_command(const std::string& channel, std::span<const uint8_t> data, int64_t arrival) {
   driftlab::joint_trajectory_t m;
   if (!lcmtypes::decode(data, m) || m.npoints < 1) return;
+  if (m.joint_names.empty() || m.joint_names.size() > kMaxJoints) return;
   Commands& c = commands_[channel];
   if (c.list.empty()) c.joints = m.joint_names;
   if (m.joint_names != c.joints) return;
@@ -95,9 +99,15 @@ void CommandLoopCheck::add_command(const std::string& channel, std::span<const u
 void CommandLoopCheck::add_state(const std::string& channel, std::span<const uint8_t> data) {
   driftlab::joint_state_t m;
   if (!lcmtypes::decode(data, m)) return;
+  if (m.name.empty() || m.name.size() > kMaxJoints || m.position.size() != m.name.size()) return;
   States& s = states_[channel];
   if (s.stamp.empty()) {
+    s.index.clear();
     for (size_t i = 0; i < m.name.size(); ++i) s.index.emplace(m.name[i], i);
+    if (s.index.size() != m.name.size()) {  // a name twice: which one is the joint?
+      s.index.clear();
+      return;
+    }
   }
   if (m.position.size() != s.index.size() || m.header.utime < 0 || m.header.utime >= kMaxStampUs ||
       (!s.stamp.empty() && m.header.utime <= s.stamp.back())) {
