@@ -486,9 +486,12 @@ int64_t McapReader::read(const std::function<void(const McapMessage&)>& on_messa
         const uint8_t* f = bytes.data() + bytes.size() - tail;
         if (f[0] == kFooter && le<uint64_t>(f + 1) == kFooterContent) {
           const uint64_t summary_start = le<uint64_t>(f + kRecordHead);
-          const uint64_t at = summary_start != 0 ? summary_start - 13 : bytes.size() - tail - 13;
-          if (summary_start <= bytes.size() - tail && at >= sizeof(kMagic) && at + 13 <= bytes.size() &&
-              bytes[at] == kDataEnd && le<uint64_t>(bytes.data() + at + 1) == 4) {
+          // A summary start inside the magic or past the footer is damage (its Data End cannot be found).
+          const uint64_t end = summary_start != 0 ? summary_start : bytes.size() - tail;  // the Data End's end
+          const bool where_it_can_be = end >= sizeof(kMagic) + 13 && end <= bytes.size() - tail;
+          const uint64_t at = where_it_can_be ? end - 13 : 0;
+          if (where_it_can_be && at >= sizeof(kMagic) && at + 13 <= bytes.size() && bytes[at] == kDataEnd &&
+              le<uint64_t>(bytes.data() + at + 1) == 4) {
             data_end_at = at;
             want_data_crc = le<uint32_t>(bytes.data() + at + kRecordHead);
           }

@@ -112,6 +112,26 @@ TEST(Mcap, CrcsCatchDamage) {
   EXPECT_GE(got.messages.size(), 990u);
 }
 
+// A footer whose summary start points inside the magic or just past it, where no Data End record can end: the
+// reader looked 13 bytes before it, which wrapped below the file's first byte (found by the ros2 fuzzer); now the
+// summary is damage and every message of the data section is still read.
+TEST(Mcap, SummaryStartInsideTheMagicIsDamage) {
+  test::TempDir dir;
+  write_file(dir.file("f.mcap"), McapCompression::kNone);
+  const auto whole = test::read_file(dir.file("f.mcap"));
+  auto r0 = McapReader::from_memory(whole);
+  ASSERT_TRUE(r0.ok());
+  const size_t all = read_all(*r0).messages.size();
+  for (const uint64_t start : {uint64_t{1}, uint64_t{5}, uint64_t{12}, uint64_t{20}}) {
+    auto bytes = whole;
+    const size_t at = bytes.size() - 8 - 4 - 8 - 8;  // the footer's summary_start: before its two fields and magic
+    for (int i = 0; i < 8; ++i) bytes[at + static_cast<size_t>(i)] = static_cast<uint8_t>(start >> (8 * i));
+    auto r = McapReader::from_memory(bytes);
+    ASSERT_TRUE(r.ok()) << start;
+    EXPECT_EQ(read_all(*r).messages.size(), all) << start;
+  }
+}
+
 // A file cut anywhere: the messages before the cut are read (those of the cut chunk that were decoded whole), the
 // cut is reported with its offset, and nothing is invented.
 TEST(Mcap, CutFilesKeepWhatIsWhole) {
