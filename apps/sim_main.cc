@@ -106,6 +106,7 @@ int run_sim(const SimArgs& a) {
     j["distance_m"] = r.distance_m;
     j["laps"] = r.laps;
     j["odometry_error_m"] = r.odometry_error_m;
+    j["notes"] = r.notes;
     std::printf("%s\n", j.dump(2).c_str());
     return kExitOk;
   }
@@ -113,8 +114,11 @@ int run_sim(const SimArgs& a) {
               r.interrupted ? "interrupted after" : "simulated", r.simulated_s, scenario->name.c_str(), wall,
               wall > 0 ? r.simulated_s / wall : 0.0, thousands(total).c_str(), a.out.c_str());
   for (const auto& [channel, n] : r.messages) std::printf("  %-20s %s\n", channel.c_str(), thousands(n).c_str());
-  std::printf("drove %.1f m (%zu laps); odometry is %.2f m off the truth at the end\n", r.distance_m, r.laps,
-              r.odometry_error_m);
+  if (!scenario->drone.enabled) {
+    std::printf("drove %.1f m (%zu laps); odometry is %.2f m off the truth at the end\n", r.distance_m, r.laps,
+                r.odometry_error_m);
+  }
+  for (const std::string& note : r.notes) std::printf("%s\n", note.c_str());
   std::printf("injected faults: %s\n", r.faults_json.c_str());
   return kExitOk;
 }

@@ -61,7 +61,8 @@ void PositionControl::reset() {
 }
 
 ThrustSetpoint PositionControl::velocity_step(const Eigen::Vector3d& velocity_sp, double yaw_sp,
-                                              const Eigen::Vector3d& velocity, double dt) {
+                                              const Eigen::Vector3d& velocity, double dt,
+                                              const Eigen::Vector3d& acceleration_ff) {
   const Eigen::Vector3d e = velocity_sp - velocity;
   Eigen::Vector3d dv = Eigen::Vector3d::Zero();
   if (have_last_ && dt > 0) dv = (velocity - last_velocity_) / dt;
@@ -70,7 +71,9 @@ ThrustSetpoint PositionControl::velocity_step(const Eigen::Vector3d& velocity_sp
   const Eigen::Vector3d p(o_.velocity_p_xy, o_.velocity_p_xy, o_.velocity_p_z);
   const Eigen::Vector3d i(o_.velocity_i_xy, o_.velocity_i_xy, o_.velocity_i_z);
   const Eigen::Vector3d d(o_.velocity_d_xy, o_.velocity_d_xy, o_.velocity_d_z);
-  Eigen::Vector3d f = p.cwiseProduct(e) + integral_ - d.cwiseProduct(dv) + Eigen::Vector3d(0, 0, kGravity);
+  // As PX4's: the trajectory's acceleration fed forward, the PID on the velocity error taking up the rest.
+  Eigen::Vector3d f =
+      acceleration_ff + p.cwiseProduct(e) + integral_ - d.cwiseProduct(dv) + Eigen::Vector3d(0, 0, kGravity);
 
   // Thrust limits, vertical first (PX4's priority), then the tilt.
   const double lo = o_.min_thrust * max_specific_force_, hi = o_.max_thrust * max_specific_force_;
@@ -92,7 +95,7 @@ ThrustSetpoint PositionControl::velocity_step(const Eigen::Vector3d& velocity_sp
 
 ThrustSetpoint PositionControl::update(const Eigen::Vector3d& position_sp, const Eigen::Vector3d& velocity_ff,
                                        double yaw_sp, const Eigen::Vector3d& position, const Eigen::Vector3d& velocity,
-                                       double dt) {
+                                       double dt, const Eigen::Vector3d& acceleration_ff) {
   const Eigen::Vector3d e = position_sp - position;
   Eigen::Vector3d v =
       Eigen::Vector3d(o_.position_gain_xy * e.x(), o_.position_gain_xy * e.y(), o_.position_gain_z * e.z()) +
@@ -100,7 +103,7 @@ ThrustSetpoint PositionControl::update(const Eigen::Vector3d& position_sp, const
   const double h = v.head<2>().norm();
   if (h > o_.max_speed_xy) v.head<2>() *= o_.max_speed_xy / h;
   v.z() = limit(v.z(), -o_.max_speed_down, o_.max_speed_up);
-  return velocity_step(v, yaw_sp, velocity, dt);
+  return velocity_step(v, yaw_sp, velocity, dt, acceleration_ff);
 }
 
 ThrustSetpoint PositionControl::update_velocity_z(const Eigen::Vector3d& position_sp, double vz_sp, double yaw_sp,

@@ -65,7 +65,8 @@ class PositionControl {
       : o_(o), max_specific_force_(max_specific_force) {}
   /// One step of dt [s]: the position setpoint with its feed-forward velocity, against the estimate.
   ThrustSetpoint update(const Eigen::Vector3d& position_sp, const Eigen::Vector3d& velocity_ff, double yaw_sp,
-                        const Eigen::Vector3d& position, const Eigen::Vector3d& velocity, double dt);
+                        const Eigen::Vector3d& position, const Eigen::Vector3d& velocity, double dt,
+                        const Eigen::Vector3d& acceleration_ff = Eigen::Vector3d::Zero());
   /// Velocity control only (a descent at a set speed): horizontal position still held at position_sp.
   ThrustSetpoint update_velocity_z(const Eigen::Vector3d& position_sp, double vz_sp, double yaw_sp,
                                    const Eigen::Vector3d& position, const Eigen::Vector3d& velocity, double dt);
@@ -73,7 +74,7 @@ class PositionControl {
 
  private:
   ThrustSetpoint velocity_step(const Eigen::Vector3d& velocity_sp, double yaw_sp, const Eigen::Vector3d& velocity,
-                               double dt);
+                               double dt, const Eigen::Vector3d& acceleration_ff = Eigen::Vector3d::Zero());
   ControlOptions o_;
   double max_specific_force_;
   Eigen::Vector3d integral_ = Eigen::Vector3d::Zero();

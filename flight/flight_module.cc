@@ -83,7 +83,8 @@ Status FlightModule::start(Bus& bus) {
     driftlab::trajectory_setpoint_t s;
     if (!decode_message(m, s)) return void(++undecodable_);
     setpoint_ = Setpoint{Eigen::Vector3d(s.position.x, s.position.y, s.position.z),
-                         Eigen::Vector3d(s.velocity.x, s.velocity.y, s.velocity.z), s.yaw};
+                         Eigen::Vector3d(s.velocity.x, s.velocity.y, s.velocity.z),
+                         Eigen::Vector3d(s.acceleration.x, s.acceleration.y, s.acceleration.z), s.yaw};
     commander_.on_setpoint(bus.now().us());
   });
   bus.subscribe(c_.command_channel, [this, &bus](const BusMessage& m) {
@@ -133,7 +134,7 @@ void FlightModule::position_tick(Bus& bus) {
     thrust_ = ThrustSetpoint{Eigen::Vector3d(0, 0, 0.9 * kGravity), hold_yaw_};
   } else if (commander_.mode() == Mode::kOffboard && setpoint_) {
     thrust_ = position_.update(setpoint_->position, setpoint_->velocity, setpoint_->yaw, estimate_->position,
-                               estimate_->velocity, dt);
+                               estimate_->velocity, dt, setpoint_->acceleration);
   } else if (commander_.mode() == Mode::kLand) {
     thrust_ = position_.update_velocity_z(hold_, -c_.options.commander.land_speed, hold_yaw_, estimate_->position,
                                           estimate_->velocity, dt);

@@ -72,7 +72,8 @@ class FlightModule final : public Module {
     Eigen::Vector3d rate = Eigen::Vector3d::Zero();  // body
   };
   struct Setpoint {
-    Eigen::Vector3d position = Eigen::Vector3d::Zero(), velocity = Eigen::Vector3d::Zero();
+    Eigen::Vector3d position = Eigen::Vector3d::Zero(), velocity = Eigen::Vector3d::Zero(),
+                    acceleration = Eigen::Vector3d::Zero();
     double yaw = 0;
   };
   struct Sample {

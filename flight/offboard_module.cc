@@ -50,6 +50,8 @@ const config::Table<MissionOptions>& mission_options_table() {
                                                 "all relative to where the vehicle stood",
                                                 read_waypoints, show_waypoints)
           .number("cruise_speed", &M::cruise_speed, above(0, 100), "m/s", "how fast the setpoint moves along a leg")
+          .number("acceleration", &M::acceleration, above(0, 100), "m/s^2",
+                  "how fast the setpoint speeds up and slows down along a leg (and the climb)")
           .number("dwell_s", &M::dwell_s, between(0, 1e5), "s", "the setpoint rests this long at each waypoint")
           .flag("land", &M::land, "land at the end (else hover at the last waypoint)");
   return t;
@@ -112,17 +114,14 @@ void OffboardModule::tick(Bus& bus) {
   auto since = [&](int64_t t) { return Duration::from_us(now - t).seconds(); };
   if (phase_ == Phase::kWaiting) {
     if (!position_) return;
-    home_ = *position_;
-    home_yaw_ = yaw_;
-    Eigen::Vector3d at = home_ + Eigen::Vector3d(0, 0, o.takeoff_altitude);
-    legs_ = {{home_, at, o.climb_speed, o.hover_s}};
-    for (const Eigen::Vector3d& w : o.waypoints) {
-      const Eigen::Vector3d to = home_ + w;
-      legs_.push_back({at, to, o.cruise_speed, o.dwell_s});
-      at = to;
-    }
     phase_ = Phase::kWarmup;
     phase_since_ = now;
+  }
+  // Until the mission starts, the setpoint is where the vehicle is (as the MAVROS example streams its pose): the
+  // estimate settles while the GNSS fixes average out, and the mission is laid out from where it stands at take-off.
+  if (phase_ == Phase::kWarmup || phase_ == Phase::kEngaging) {
+    home_ = *position_;
+    home_yaw_ = yaw_;
   }
   if (phase_ == Phase::kWarmup && since(phase_since_) >= o.warmup_s) {
     phase_ = Phase::kEngaging;
@@ -133,12 +132,19 @@ void OffboardModule::tick(Bus& bus) {
     if (mode_ == "offboard" && armed_) {
       phase_ = Phase::kMission;
       mission_start_ = now;
+      Eigen::Vector3d at = home_ + Eigen::Vector3d(0, 0, o.takeoff_altitude);
+      legs_ = {{home_, at, o.climb_speed, o.hover_s}};
+      for (const Eigen::Vector3d& w : o.waypoints) {
+        const Eigen::Vector3d to = home_ + w;
+        legs_.push_back({at, to, o.cruise_speed, o.dwell_s});
+        at = to;
+      }
     } else if (now - last_request_ >= retry) {
       send(bus, mode_ != "offboard" ? "offboard" : "arm");
     }
   }
   // Where the setpoint is: at the start until the mission runs, then along the legs by the time since.
-  Eigen::Vector3d position = home_, velocity = Eigen::Vector3d::Zero();
+  Eigen::Vector3d position = home_, velocity = Eigen::Vector3d::Zero(), acceleration = Eigen::Vector3d::Zero();
   bool finished = false;
   if (phase_ == Phase::kMission) {
     if (!armed_) {  // disarmed in flight (landed by a failsafe, or crashed): the script gives up
@@ -149,10 +155,24 @@ void OffboardModule::tick(Bus& bus) {
     finished = true;
     for (const Leg& leg : legs_) {
       const Eigen::Vector3d d = leg.to - leg.from;
-      const double move = d.norm() / leg.speed;
-      if (t < move) {
-        position = leg.from + d * (t / move);
-        velocity = d.normalized() * leg.speed;
+      // A trapezoidal speed profile (a triangle on a short leg): up to speed at `acceleration`, on, and down.
+      const double length = d.norm(), a = o.acceleration;
+      const double top = std::min(leg.speed, std::sqrt(a * length));
+      const double ramp = top / a, cruise = length > 0 ? (length - top * ramp) / top : 0;
+      const double move = 2 * ramp + cruise;
+      if (t < move && length > 0) {
+        double s = 0, v = 0, acc = 0;  // along the leg [m], [m/s], [m/s^2]
+        if (t < ramp) {
+          s = 0.5 * a * t * t, v = a * t, acc = a;
+        } else if (t < ramp + cruise) {
+          s = 0.5 * top * ramp + top * (t - ramp), v = top;
+        } else {
+          const double left = move - t;
+          s = length - 0.5 * a * left * left, v = a * left, acc = -a;
+        }
+        position = leg.from + d * (s / length);
+        velocity = d / length * v;
+        acceleration = d / length * acc;
         finished = false;
         break;
       }
@@ -185,6 +205,7 @@ void OffboardModule::tick(Bus& bus) {
   sp.header.frame_id = "odom";
   sp.position = {position.x(), position.y(), position.z()};
   sp.velocity = {velocity.x(), velocity.y(), velocity.z()};
+  sp.acceleration = {acceleration.x(), acceleration.y(), acceleration.z()};
   sp.yaw = home_yaw_;
   bus.publish_message(c_.setpoint_channel, sp);
   ++setpoints_;

@@ -2,9 +2,10 @@
 // setpoints at `stream_rate` from the moment it knows where the vehicle is, asks for offboard mode and arming once
 // the stream has run for `warmup_s` (and asks again every `retry_s` while the vehicle is not in offboard, as the
 // MAVROS offboard example does), then flies its mission: a climb to `takeoff_altitude` at `climb_speed`, a hover,
-// the waypoints in order at `cruise_speed` (the setpoint moves along each leg with a feed-forward velocity and
-// dwells at its end) and a landing command; it stops when the vehicle has disarmed. Waypoints are relative to
-// where the vehicle stood at the start (x, y [m] in the estimate's frame, z [m] above it). Its clock is the bus's:
+// the waypoints in order at `cruise_speed` (the setpoint moves along each leg with a feed-forward velocity, speeding
+// up and slowing down at `acceleration` as a trajectory generator does, and dwells at its end) and a landing command; it stops when the vehicle has disarmed. Until the mission starts it
+// streams where the vehicle is; waypoints are relative to where the vehicle stood when the mission started (x, y [m]
+// in the estimate's frame, z [m] above it). Its clock is the bus's:
 // the progress along the mission is time-driven, as a simple script's is, whether or not the vehicle follows.
 // Thread-safety: a module is called from its bus's thread only.
 #pragma once
@@ -36,6 +37,7 @@ struct MissionOptions {
   double hover_s = 5;           ///< hover at the top of the climb [s]
   std::vector<Eigen::Vector3d> waypoints = {{4, 0, 2}, {4, 4, 2}, {0, 4, 2}, {0, 0, 2}};  ///< relative to the start [m]
   double cruise_speed = 1;                                                                ///< [m/s]
+  double acceleration = 1;  ///< along a leg, speeding up and slowing down [m/s^2]
   double dwell_s = 2;                                                                     ///< at each waypoint [s]
   bool land = true;  ///< land at the end (else hover at the last waypoint)
 };

@@ -1,5 +1,9 @@
 #include "sim/internal/output.h"
 
+#include <algorithm>
+
+#include "lcmtypes/stream_header.h"
+
 namespace driftlab::sim {
 
 int Output::add_stream(const std::string& channel) {
@@ -19,6 +23,12 @@ bool Output::has_stream(const std::string& channel) const {
   return false;
 }
 
+std::vector<std::string> Output::channels() const {
+  std::vector<std::string> out;
+  for (const Stream& s : streams_) out.push_back(s.channel);
+  return out;
+}
+
 Status Output::write(const std::string& channel, int64_t utime, std::span<const uint8_t> bytes) {
   if (Status s = writer_.write(utime, channel, bytes); !s) return s;
   if (listener_) listener_(channel, utime, bytes);
@@ -32,11 +42,30 @@ Status Output::write(const std::string& channel, int64_t utime, std::span<const 
 
 Status Output::flush(int64_t before) {
   while (!queue_.empty() && queue_.top().arrival < before) {
-    const Pending& p = queue_.top();
-    if (Status s = write(streams_[static_cast<std::size_t>(p.stream)].channel, p.arrival, *p.bytes); !s) return s;
+    const Pending p = queue_.top();  // a copy: an arrival callback may push
     queue_.pop();
+    if (Status s = write(streams_[static_cast<std::size_t>(p.stream)].channel, p.arrival, *p.bytes); !s) return s;
   }
   return {};
+}
+
+void Output::publish_encoded(int stream, std::span<const uint8_t> bytes, int64_t stamp_utime, int64_t ready_utime) {
+  Stream& s = streams_[static_cast<std::size_t>(stream)];
+  const int64_t seq = s.seq++;
+  deliveries_.clear();
+  if (s.injector) {
+    s.injector->apply(seq, stamp_utime, deliveries_);
+  } else {
+    deliveries_.push_back({stamp_utime, stamp_utime});
+  }
+  if (deliveries_.empty()) return;
+  auto data = std::make_shared<std::vector<uint8_t>>(bytes.begin(), bytes.end());
+  if (const int64_t shift = deliveries_.front().stamp_utime - stamp_utime; shift != 0) {
+    lcmtypes::map_stamps(*data, stamp_utime, [shift](int64_t t) { return t + shift; });
+  }
+  for (const Delivery& d : deliveries_) {
+    queue_.push({std::max(ready_utime + (d.arrival_utime - stamp_utime), last_arrival_), order_++, stream, data});
+  }
 }
 
 Status Output::write_now(const std::string& channel, int64_t utime, const std::vector<uint8_t>& bytes) {

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <fstream>
 #include <map>
+#include <optional>
 #include <sstream>
 
 #include "kinematics/robot_model.h"
@@ -218,6 +219,7 @@ struct Robot::Impl {
   std::vector<Group> groups;  // groups[0] holds the base link
   std::map<std::string, LinkInfo> links;
   std::vector<Joint> joints;
+  std::optional<MultirotorSpec> multirotor;
   int left = -1, right = -1;  // drive joints
   double left_forward = 1, right_forward = 1;  // joint rate per forward rolling rate
   double wheel_radius = 0, wheel_separation = 0;
@@ -261,6 +263,16 @@ Result<std::unique_ptr<Robot>> Robot::load(const std::string& urdf_path, btDiscr
   return create(text.str(), urdf_path, world, start, drive);
 }
 
+namespace {
+
+/// The robot's bodies in `world` from an opened URDF: links joined by fixed joints (and, with `rotors_fixed`, the
+/// continuous joints on the root link: a multirotor's rotors) become one body each, the other continuous and
+/// revolute joints hinges. Bodies get `friction`.
+Result<std::unique_ptr<Robot::Impl>> build_bodies(const UrdfDocument& u, btDiscreteDynamicsWorld& world,
+                                                  const Eigen::Vector3d& start, double friction, bool rotors_fixed);
+
+}  // namespace
+
 Result<std::unique_ptr<Robot>> Robot::create(const std::string& xml, const std::string& origin,
                                              btDiscreteDynamicsWorld& world, const Eigen::Vector3d& start,
                                              const DriveOptions& drive) {
@@ -268,6 +280,101 @@ Result<std::unique_ptr<Robot>> Robot::create(const std::string& xml, const std::
   if (!u) return u.error();
   auto at = [&](const char* tag, const std::string& name) { return u->at(tag, name); };
   const auto model = u->model;
+  auto built = build_bodies(*u, world, start, drive.body_friction, false);
+  if (!built) return built.error();
+  std::unique_ptr<Impl> impl = std::move(*built);
+
+  // The drive.
+  auto find_joint = [&](const std::string& name) -> int {
+    for (std::size_t i = 0; i < impl->joints.size(); ++i) {
+      if (impl->joints[i].name == name) return static_cast<int>(i);
+    }
+    return -1;
+  };
+  impl->left = find_joint(drive.left_joint);
+  impl->right = find_joint(drive.right_joint);
+  for (const auto& [idx, jname] : {std::pair{impl->left, drive.left_joint}, std::pair{impl->right, drive.right_joint}}) {
+    if (idx < 0) {
+      return Error{origin + ": drive joint '" + jname + "' is not a continuous or revolute joint of robot '" +
+                   impl->name + "'"};
+    }
+  }
+  double radius[2] = {0, 0};
+  Eigen::Vector3d axle_point[2];
+  for (int side = 0; side < 2; ++side) {
+    Impl::Joint& j = impl->joints[side == 0 ? impl->left : impl->right];
+    if (j.parent_group != 0) return Error{at("joint", j.name) + ": a drive wheel must be attached to the base"};
+    const Impl::Group& wheel = impl->groups[j.child_group];
+    for (const auto& c : model->getLink(wheel.root_link)->collision_array) {
+      if (c->geometry && c->geometry->type == urdf::Geometry::CYLINDER) {
+        radius[side] = static_cast<const urdf::Cylinder&>(*c->geometry).radius;
+      } else if (c->geometry && c->geometry->type == urdf::Geometry::SPHERE) {
+        radius[side] = static_cast<const urdf::Sphere&>(*c->geometry).radius;
+      }
+    }
+    if (radius[side] <= 0) return Error{at("link", wheel.root_link) + ": a drive wheel needs a cylinder or sphere collision"};
+    // Rolling forward (+x of the base) with the contact point below the axle: which sign of the joint rate?
+    const Eigen::Vector3d axis_base = j.origin_in_parent_root.rotation() * j.axis;
+    // The contact point moves against the rolling direction: forward rolling is -(w x r_contact).x per unit rate.
+    const double forward = -axis_base.cross(Eigen::Vector3d(0, 0, -radius[side])).x();
+    if (std::abs(forward) < 1e-6 * radius[side]) {
+      return Error{at("joint", j.name) + ": a drive wheel's axis must be horizontal and across the base"};
+    }
+    (side == 0 ? impl->left_forward : impl->right_forward) = forward > 0 ? 1.0 : -1.0;
+    axle_point[side] = j.origin_in_parent_root.translation();
+    Impl::Group& wheel_group = impl->groups[j.child_group];
+    wheel_group.body->setFriction(static_cast<btScalar>(drive.wheel_friction));
+    // A drive wheel touches the floor at one point below its axle, like the centre of a tyre's contact patch: a
+    // sphere of the wheel's radius stands in for its cylinder. (A rigid cylinder touches at its two rims, and the
+    // small camber that Bullet's hinge allows under load then shifts the effective track by a few percent.)
+    for (int i = wheel_group.shape->getNumChildShapes() - 1; i >= 0; --i) {
+      if (wheel_group.shape->getChildShape(i)->getShapeType() != CYLINDER_SHAPE_PROXYTYPE) continue;
+      const btTransform t = wheel_group.shape->getChildTransform(i);
+      auto sphere = std::make_unique<btSphereShape>(static_cast<btScalar>(radius[side]));
+      wheel_group.shape->removeChildShapeByIndex(i);
+      wheel_group.shape->addChildShape(t, sphere.get());
+      wheel_group.children.push_back(std::move(sphere));
+    }
+    world.updateSingleAabb(wheel_group.body.get());
+  }
+  impl->max_wheel_torque = drive.max_wheel_torque;
+  impl->wheel_radius = 0.5 * (radius[0] + radius[1]);
+  impl->wheel_separation = std::abs(axle_point[0].y() - axle_point[1].y());
+  if (impl->wheel_separation <= 0) return Error{origin + ": the drive wheels sit at the same y: no separation"};
+  return std::unique_ptr<Robot>(new Robot(std::move(impl)));
+}
+
+Result<std::unique_ptr<Robot>> Robot::create_multirotor(const std::string& xml, const std::string& origin,
+                                                        btDiscreteDynamicsWorld& world, const Eigen::Vector3d& start,
+                                                        const MultirotorOptions& options) {
+  auto spec = read_multirotor(xml, origin);
+  if (!spec) return spec.error();
+  auto u = open_urdf(xml, origin);
+  if (!u) return u.error();
+  auto built = build_bodies(*u, world, start, options.body_friction, !options.rotor_bodies);
+  if (!built) return built.error();
+  std::unique_ptr<Impl> impl = std::move(*built);
+  impl->multirotor = std::move(*spec);
+  return std::unique_ptr<Robot>(new Robot(std::move(impl)));
+}
+
+Result<std::unique_ptr<Robot>> Robot::load_multirotor(const std::string& urdf_path, btDiscreteDynamicsWorld& world,
+                                                      const Eigen::Vector3d& start, const MultirotorOptions& options) {
+  std::ifstream f(urdf_path);
+  if (!f) return Error{urdf_path + ": cannot open the URDF file"};
+  std::stringstream text;
+  text << f.rdbuf();
+  return create_multirotor(text.str(), urdf_path, world, start, options);
+}
+
+namespace {
+
+Result<std::unique_ptr<Robot::Impl>> build_bodies(const UrdfDocument& u, btDiscreteDynamicsWorld& world,
+                                                  const Eigen::Vector3d& start, double friction, bool rotors_fixed) {
+  using Impl = Robot::Impl;
+  const std::string& origin = u.origin;
+  auto at = [&](const char* tag, const std::string& name) { return u.at(tag, name); };
+  const auto model = u.model;
 
   auto impl = std::make_unique<Impl>();
   impl->world = &world;
@@ -298,6 +405,11 @@ Result<std::unique_ptr<Robot>> Robot::create(const std::string& xml, const std::
           stack.push_back({child, p.group, origin_in_group});
           break;
         case urdf::Joint::CONTINUOUS:
+          if (rotors_fixed && p.link == root) {  // a rotor: part of the airframe's body, its spin kept apart
+            stack.push_back({child, p.group, origin_in_group});
+            break;
+          }
+          [[fallthrough]];
         case urdf::Joint::REVOLUTE: {
           const int g = static_cast<int>(impl->groups.size());
           impl->groups.emplace_back();
@@ -408,7 +520,7 @@ Result<std::unique_ptr<Robot>> Robot::create(const std::string& xml, const std::
                                                 to_bt(principal));
     g.body = std::make_unique<btRigidBody>(ci);
     g.body->setActivationState(DISABLE_DEACTIVATION);
-    g.body->setFriction(static_cast<btScalar>(drive.body_friction));
+    g.body->setFriction(static_cast<btScalar>(friction));
   }
 
   // Place the base: start x, y, yaw, lowered onto the floor.
@@ -466,65 +578,10 @@ Result<std::unique_ptr<Robot>> Robot::create(const std::string& xml, const std::
     world.addConstraint(j.hinge.get(), /*disableCollisionsBetweenLinkedBodies=*/true);
   }
 
-  // The drive.
-  auto find_joint = [&](const std::string& name) -> int {
-    for (std::size_t i = 0; i < impl->joints.size(); ++i) {
-      if (impl->joints[i].name == name) return static_cast<int>(i);
-    }
-    return -1;
-  };
-  impl->left = find_joint(drive.left_joint);
-  impl->right = find_joint(drive.right_joint);
-  for (const auto& [idx, jname] : {std::pair{impl->left, drive.left_joint}, std::pair{impl->right, drive.right_joint}}) {
-    if (idx < 0) {
-      return Error{origin + ": drive joint '" + jname + "' is not a continuous or revolute joint of robot '" +
-                   impl->name + "'"};
-    }
-  }
-  double radius[2] = {0, 0};
-  Eigen::Vector3d axle_point[2];
-  for (int side = 0; side < 2; ++side) {
-    Impl::Joint& j = impl->joints[side == 0 ? impl->left : impl->right];
-    if (j.parent_group != 0) return Error{at("joint", j.name) + ": a drive wheel must be attached to the base"};
-    const Impl::Group& wheel = impl->groups[j.child_group];
-    for (const auto& c : model->getLink(wheel.root_link)->collision_array) {
-      if (c->geometry && c->geometry->type == urdf::Geometry::CYLINDER) {
-        radius[side] = static_cast<const urdf::Cylinder&>(*c->geometry).radius;
-      } else if (c->geometry && c->geometry->type == urdf::Geometry::SPHERE) {
-        radius[side] = static_cast<const urdf::Sphere&>(*c->geometry).radius;
-      }
-    }
-    if (radius[side] <= 0) return Error{at("link", wheel.root_link) + ": a drive wheel needs a cylinder or sphere collision"};
-    // Rolling forward (+x of the base) with the contact point below the axle: which sign of the joint rate?
-    const Eigen::Vector3d axis_base = j.origin_in_parent_root.rotation() * j.axis;
-    // The contact point moves against the rolling direction: forward rolling is -(w x r_contact).x per unit rate.
-    const double forward = -axis_base.cross(Eigen::Vector3d(0, 0, -radius[side])).x();
-    if (std::abs(forward) < 1e-6 * radius[side]) {
-      return Error{at("joint", j.name) + ": a drive wheel's axis must be horizontal and across the base"};
-    }
-    (side == 0 ? impl->left_forward : impl->right_forward) = forward > 0 ? 1.0 : -1.0;
-    axle_point[side] = j.origin_in_parent_root.translation();
-    Impl::Group& wheel_group = impl->groups[j.child_group];
-    wheel_group.body->setFriction(static_cast<btScalar>(drive.wheel_friction));
-    // A drive wheel touches the floor at one point below its axle, like the centre of a tyre's contact patch: a
-    // sphere of the wheel's radius stands in for its cylinder. (A rigid cylinder touches at its two rims, and the
-    // small camber that Bullet's hinge allows under load then shifts the effective track by a few percent.)
-    for (int i = wheel_group.shape->getNumChildShapes() - 1; i >= 0; --i) {
-      if (wheel_group.shape->getChildShape(i)->getShapeType() != CYLINDER_SHAPE_PROXYTYPE) continue;
-      const btTransform t = wheel_group.shape->getChildTransform(i);
-      auto sphere = std::make_unique<btSphereShape>(static_cast<btScalar>(radius[side]));
-      wheel_group.shape->removeChildShapeByIndex(i);
-      wheel_group.shape->addChildShape(t, sphere.get());
-      wheel_group.children.push_back(std::move(sphere));
-    }
-    world.updateSingleAabb(wheel_group.body.get());
-  }
-  impl->max_wheel_torque = drive.max_wheel_torque;
-  impl->wheel_radius = 0.5 * (radius[0] + radius[1]);
-  impl->wheel_separation = std::abs(axle_point[0].y() - axle_point[1].y());
-  if (impl->wheel_separation <= 0) return Error{origin + ": the drive wheels sit at the same y: no separation"};
-  return std::unique_ptr<Robot>(new Robot(std::move(impl)));
+  return impl;
 }
+
+}  // namespace
 
 const std::string& Robot::name() const { return impl_->name; }
 const std::string& Robot::base_link() const { return impl_->groups[0].root_link; }
@@ -627,6 +684,17 @@ void Robot::ignore_self_collisions() {
       if (&a != &b) a.body->setIgnoreCollisionCheck(b.body.get(), true);
     }
   }
+}
+
+const MultirotorSpec* Robot::multirotor() const { return impl_->multirotor ? &*impl_->multirotor : nullptr; }
+
+void Robot::apply_force(const std::string& link, const Eigen::Vector3d& force, const Eigen::Vector3d& point) {
+  btRigidBody& body = *impl_->groups[impl_->links.at(link).group].body;
+  body.applyForce(to_bt(force), to_bt(Eigen::Vector3d(point - to_eigen(body.getCenterOfMassPosition()))));
+}
+
+void Robot::apply_torque(const std::string& link, const Eigen::Vector3d& torque) {
+  impl_->groups[impl_->links.at(link).group].body->applyTorque(to_bt(torque));
 }
 
 void Robot::after_step(double dt) {

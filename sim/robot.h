@@ -55,6 +55,14 @@ struct MultirotorSpec {
 Result<MultirotorSpec> read_multirotor(const std::string& urdf_xml, const std::string& origin);
 Result<MultirotorSpec> load_multirotor(const std::string& urdf_path);
 
+/// How a multirotor is built in Bullet.
+struct MultirotorOptions {
+  /// false (default): the rotors are part of the airframe's one rigid body and their spin is the caller's (the
+  /// simulator's motor model); true: each rotor is a body of its own on a Bullet hinge, as Gazebo builds it.
+  bool rotor_bodies = false;
+  double body_friction = 0.5;  ///< of every body (landing legs on the floor)
+};
+
 class Robot {
  public:
   /// Parses `urdf_xml` (`origin` names it in errors) and adds the robot to `world`, its base link at
@@ -66,6 +74,13 @@ class Robot {
                                                const DriveOptions& drive);
   static Result<std::unique_ptr<Robot>> load(const std::string& urdf_path, btDiscreteDynamicsWorld& world,
                                              const Eigen::Vector3d& start, const DriveOptions& drive);
+  /// A multirotor (read_multirotor's checks first, errors as there), its base link at `start` (x, y, yaw) on the
+  /// floor. It has no drive: the caller applies the rotors' forces (apply_force, apply_torque).
+  static Result<std::unique_ptr<Robot>> create_multirotor(const std::string& urdf_xml, const std::string& origin,
+                                                          btDiscreteDynamicsWorld& world, const Eigen::Vector3d& start,
+                                                          const MultirotorOptions& options);
+  static Result<std::unique_ptr<Robot>> load_multirotor(const std::string& urdf_path, btDiscreteDynamicsWorld& world,
+                                                        const Eigen::Vector3d& start, const MultirotorOptions& options);
   ~Robot();
   Robot(const Robot&) = delete;
   Robot& operator=(const Robot&) = delete;
@@ -111,8 +126,16 @@ class Robot {
   /// Call after each physics step of dt [s]: tracks joint angles through full turns.
   void after_step(double dt);
 
+  /// A multirotor's rotors, mass and inertia as its URDF gives them; nullptr for other robots.
+  const MultirotorSpec* multirotor() const;
+  /// For the next physics step: a force [N] acting at a point of the link's body, both in the world frame, and a
+  /// torque [N*m] on the link's body (Bullet clears both after each step).
+  void apply_force(const std::string& link, const Eigen::Vector3d& force, const Eigen::Vector3d& point);
+  void apply_torque(const std::string& link, const Eigen::Vector3d& torque);
+
+  struct Impl;  ///< opaque (robot.cc)
+
  private:
-  struct Impl;
   explicit Robot(std::unique_ptr<Impl> impl);
   std::unique_ptr<Impl> impl_;
 };

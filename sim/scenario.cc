@@ -24,7 +24,8 @@ constexpr TypeName kSensorTypes[] = {
     {SensorType::kLidar2d, "lidar2d"},         {SensorType::kLidar3d, "lidar3d"},
     {SensorType::kImu, "imu"},                 {SensorType::kOdometry, "odometry"},
     {SensorType::kCamera, "camera"},           {SensorType::kGroundTruth, "ground_truth"},
-    {SensorType::kJointState, "joint_state"},
+    {SensorType::kJointState, "joint_state"},   {SensorType::kBarometer, "barometer"},
+    {SensorType::kGnss, "gnss"},               {SensorType::kMagnetometer, "magnetometer"},
 };
 
 std::string resolve(const std::string& base_dir, const std::string& path) {
@@ -114,6 +115,58 @@ const config::Table<CameraParams>& camera_table() {
   return t;
 }
 
+const config::Table<BarometerParams>& barometer_table() {
+  using P = BarometerParams;
+  using config::between;
+  static const auto t =
+      config::Table<P>()
+          .number("noise", &P::noise, between(0, 1e4), "Pa", "standard deviation of a reading (1 Pa: about 8 cm)")
+          .number("offset_walk", &P::offset_walk, between(0, 1e3), "Pa/sqrt(s)", "random walk of the offset")
+          .number("offset", &P::offset, between(-1e4, 1e4), "Pa", "initial offset of every reading")
+          .number("temperature", &P::temperature, between(-100, 100), "degC", "reported air temperature");
+  return t;
+}
+
+const config::Table<GnssParams>& gnss_table() {
+  using P = GnssParams;
+  using config::between;
+  static const auto t =
+      config::Table<P>()
+          .number("horizontal_noise", &P::horizontal_noise, between(0, 1e4), "m",
+                  "white noise of east and north, standard deviation")
+          .number("vertical_noise", &P::vertical_noise, between(0, 1e4), "m", "... of the altitude")
+          .number("horizontal_drift", &P::horizontal_drift, between(0, 1e4), "m",
+                  "the slow wander of east and north (first-order Gauss-Markov), standard deviation")
+          .number("vertical_drift", &P::vertical_drift, between(0, 1e4), "m", "... of the altitude")
+          .number("correlation_time", &P::correlation_time, between(0, 1e5), "s", "of the wander; 0: none")
+          .number("velocity_noise", &P::velocity_noise, between(0, 1e3), "m/s",
+                  "white noise of each velocity component")
+          .integer("satellites", &P::satellites, between(0, 200), "", "reported satellites");
+  return t;
+}
+
+const config::Table<MagnetometerParams>& magnetometer_table() {
+  using P = MagnetometerParams;
+  static const auto t = config::Table<P>().number("noise", &P::noise, config::between(0, 1), "T",
+                                                  "standard deviation per axis");
+  return t;
+}
+
+const config::Table<GeoConfig>& geo_table() {
+  using G = GeoConfig;
+  using config::between;
+  static const auto t =
+      config::Table<G>()
+          .number("latitude", &G::latitude, between(-89, 89), "deg", "of the world's origin (WGS-84)")
+          .number("longitude", &G::longitude, between(-180, 180), "deg", "of the world's origin (WGS-84)")
+          .number("altitude", &G::altitude, between(-500, 9000), "m", "of the world's z = 0 above mean sea level")
+          .number("declination", &G::declination, between(-M_PI, M_PI), "rad", "magnetic north east of true north")
+          .number("inclination", &G::inclination, between(-M_PI / 2, M_PI / 2), "rad",
+                  "the magnetic field's dip below the horizontal")
+          .number("field", &G::field, config::above(0, 1e-3), "T", "the magnetic field's strength");
+  return t;
+}
+
 std::vector<std::pair<std::string, SensorType>> sensor_types() {
   std::vector<std::pair<std::string, SensorType>> out;
   for (const TypeName& t : kSensorTypes) out.emplace_back(t.name, t.type);
@@ -141,12 +194,18 @@ const config::Table<SensorConfig>& sensor_table(SensorType type) {
   static const auto imu = sensor_common_table().include(&S::imu, imu_table());
   static const auto odometry = sensor_common_table().include(&S::odometry, odometry_table());
   static const auto camera = sensor_common_table().include(&S::camera, camera_table());
+  static const auto barometer = sensor_common_table().include(&S::barometer, barometer_table());
+  static const auto gnss = sensor_common_table().include(&S::gnss, gnss_table());
+  static const auto magnetometer = sensor_common_table().include(&S::magnetometer, magnetometer_table());
   switch (type) {
     case SensorType::kLidar2d: return lidar2d;
     case SensorType::kLidar3d: return lidar3d;
     case SensorType::kImu: return imu;
     case SensorType::kOdometry: return odometry;
     case SensorType::kCamera: return camera;
+    case SensorType::kBarometer: return barometer;
+    case SensorType::kGnss: return gnss;
+    case SensorType::kMagnetometer: return magnetometer;
     case SensorType::kGroundTruth:
     case SensorType::kJointState: return common;
   }
@@ -264,7 +323,7 @@ const config::Table<Scenario>& scenario_table() {
           .custom<std::vector<controller::Point2>>("route", &S::route, "list of [x, y]", "m", "at least 2 points",
                                                    "driven in order; with loop, it closes on itself",
                                                    controller::read_route, show_route)
-          .required()
+          .shown_default("required unless drone")
           .section("tf", tf, "the fixed frames")
           .text("faults_channel", &S::faults_channel, "driftlab.fault_manifest_t of the injected faults (truth)")
           .custom<std::vector<SensorConfig>>(
@@ -276,7 +335,16 @@ const config::Table<Scenario>& scenario_table() {
           .brief()
           .section("arm", &S::arm, arm_table(),
                    "an arm on the robot: its joint trajectory controller and commander (docs/simulator.md)")
+          .section("drone", &S::drone, drone_table(),
+                   "the robot is a multirotor flown by its flight stack on board (docs/simulator.md)")
+          .section("geo", &S::geo, geo_table(),
+                   "where the world is on Earth (GNSS, barometer, magnetometer)")
           .check([](const config::Value& v, S& sc) -> Status {
+            sc.drone.enabled = v["drone"].given();
+            if (sc.drone.enabled && v["arm"].given()) return v["arm"].error("cannot be on a drone");
+            if (!sc.drone.enabled && !v["route"].given()) {
+              return Error{v.place() + ": missing key 'route' (driven in order; a drone's scenario has none)"};
+            }
             std::set<std::string> channels{sc.controller.channel, sc.tf_static_channel, sc.faults_channel};
             for (std::size_t i = 0; i < sc.sensors.size(); ++i) {
               if (!channels.insert(sc.sensors[i].channel).second) {
@@ -301,7 +369,10 @@ std::string scenario_reference() {
                               {"lidar3d", lidar3d_table().reference()},
                               {"imu", imu_table().reference()},
                               {"odometry", odometry_table().reference()},
-                              {"camera", camera_table().reference()}};
+                              {"camera", camera_table().reference()},
+                              {"barometer", barometer_table().reference()},
+                              {"gnss", gnss_table().reference()},
+                              {"magnetometer", magnetometer_table().reference()}};
   for (const Section& sec : sections) out += std::string("\nand with `type: ") + sec.type + "`:\n\n" + sec.table;
   out += "\n`ground_truth` and `joint_state` have no keys of their own.\n";
   return out;

@@ -12,6 +12,7 @@
 #include "core/faults.h"
 #include "core/result.h"
 #include "sim/arm_config.h"
+#include "sim/drone_config.h"
 #include "sim/robot.h"
 #include "sim/world.h"
 
@@ -22,7 +23,18 @@ class Table;
 
 namespace driftlab::sim {
 
-enum class SensorType { kLidar2d, kLidar3d, kImu, kOdometry, kCamera, kGroundTruth, kJointState };
+enum class SensorType {
+  kLidar2d,
+  kLidar3d,
+  kImu,
+  kOdometry,
+  kCamera,
+  kGroundTruth,
+  kJointState,
+  kBarometer,
+  kGnss,
+  kMagnetometer
+};
 
 struct Lidar2dParams {
   int beams = 360;
@@ -71,6 +83,34 @@ struct CameraParams {
   int quality = 80;         ///< JPEG quality, 1..100
 };
 
+/// A static pressure sensor: the standard atmosphere at the link's altitude (the world's z = 0 is at geo.altitude),
+/// with white noise and a slowly wandering offset.
+struct BarometerParams {
+  double noise = 1.0;        ///< standard deviation of a reading [Pa] (1 Pa is about 8 cm)
+  double offset_walk = 0.1;  ///< random walk of the offset [Pa/sqrt(s)]
+  double offset = 0;         ///< initial offset of every reading [Pa]
+  double temperature = 15;   ///< reported air temperature [degrees Celsius]
+};
+
+/// A GNSS receiver: the link's position as latitude, longitude and altitude about the world's geodetic origin
+/// (geo:), and its velocity east-north-up. A receiver's position error is mostly a slow wander (atmosphere,
+/// multipath; a first-order Gauss-Markov process here) under a little white noise; the accuracy it reports
+/// (eph, epv) is their total standard deviation.
+struct GnssParams {
+  double horizontal_noise = 0.05;  ///< white noise of east and north, standard deviation [m]
+  double vertical_noise = 0.1;     ///< ... of the altitude [m]
+  double horizontal_drift = 0.2;   ///< the wander of east and north, standard deviation [m]
+  double vertical_drift = 0.3;     ///< ... of the altitude [m]
+  double correlation_time = 60;    ///< of the wander [s]; 0: none
+  double velocity_noise = 0.05;    ///< white noise of each velocity component [m/s]
+  int satellites = 12;             ///< reported [count]
+};
+
+/// A 3-axis magnetometer: the world's magnetic field (geo:) in the link's frame, with white noise.
+struct MagnetometerParams {
+  double noise = 2e-7;  ///< standard deviation per axis [tesla]
+};
+
 struct SensorConfig {
   SensorType type = SensorType::kGroundTruth;
   std::string channel;
@@ -82,6 +122,20 @@ struct SensorConfig {
   ImuParams imu;
   OdometryParams odometry;
   CameraParams camera;
+  BarometerParams barometer;
+  GnssParams gnss;
+  MagnetometerParams magnetometer;
+};
+
+/// Where the world is on Earth, for the GNSS, barometer and magnetometer: its origin (x = y = z = 0; x east, y north,
+/// z up) and the Earth's magnetic field there. The defaults are PX4 SITL's home (Zurich).
+struct GeoConfig {
+  double latitude = 47.397742;  ///< [degrees, WGS-84]
+  double longitude = 8.545594;  ///< [degrees, WGS-84]
+  double altitude = 488;        ///< of the world's z = 0 above mean sea level [m]
+  double declination = 0.047;   ///< magnetic north east of true north [rad]
+  double inclination = 1.11;    ///< the field's dip below the horizontal [rad]
+  double field = 4.8e-5;        ///< the field's strength [tesla]
 };
 
 struct ControllerConfig {
@@ -111,7 +165,9 @@ struct Scenario {
   std::string faults_channel = "FAULTS";       ///< the fault manifest (a truth channel)
   std::vector<SensorConfig> sensors;
   FaultConfig faults;
-  ArmConfig arm;  ///< an arm on the robot (`arm:`; enabled when given)
+  ArmConfig arm;      ///< an arm on the robot (`arm:`; enabled when given)
+  DroneConfig drone;  ///< the robot is a multirotor with its flight stack on board (`drone:`; enabled when given)
+  GeoConfig geo;
 };
 
 /// The keys of a scenario file, with units, ranges and defaults (core/config.h); `sensors` and `faults` have tables

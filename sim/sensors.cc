@@ -4,10 +4,14 @@
 #include <limits>
 
 #include "core/time.h"
+#include "core/geo.h"
+#include "driftlab/barometer_t.hpp"
+#include "driftlab/gnss_t.hpp"
 #include "driftlab/image_t.hpp"
 #include "driftlab/imu_t.hpp"
 #include "driftlab/joint_state_t.hpp"
 #include "driftlab/laser_scan_t.hpp"
+#include "driftlab/magnetometer_t.hpp"
 #include "driftlab/odometry_t.hpp"
 #include "driftlab/point_cloud_t.hpp"
 #include "driftlab/pose_t.hpp"
@@ -127,6 +131,99 @@ class Imu final : public Periodic {
   Eigen::Vector3d gyro_bias_, accel_bias_, prev_v_ = Eigen::Vector3d::Zero();
   int64_t prev_utime_ = 0;
   bool have_prev_ = false;
+};
+
+/// The world's magnetic field in its east-north-up frame [T].
+Eigen::Vector3d field_world(const GeoConfig& g) {
+  const double h = g.field * std::cos(g.inclination);
+  return {h * std::sin(g.declination), h * std::cos(g.declination), -g.field * std::sin(g.inclination)};
+}
+
+class Barometer final : public Periodic {
+ public:
+  Barometer(const SensorConfig& c, Output& out, uint64_t seed, const GeoConfig& geo)
+      : Periodic(c, out), rng_(seed), geo_(geo), offset_(c.barometer.offset) {}
+  void step(SensorContext& ctx) override {
+    if (!due(ctx)) return;
+    const BarometerParams& p = config_.barometer;
+    std::normal_distribution<double> n(0, 1);
+    offset_ += p.offset_walk * std::sqrt(1.0 / config_.rate) * n(rng_);
+    const double z = ctx.robot.link_pose(link(ctx.robot)).translation().z();
+    driftlab::barometer_t m{};
+    m.header.frame_id = link(ctx.robot);
+    m.pressure_pa = geo::pressure_at(geo_.altitude + z) + offset_ + p.noise * n(rng_);
+    m.temperature_c = p.temperature;
+    m.pressure_variance = p.noise * p.noise;
+    ctx.out.publish(stream_, m, ctx.now_utime, ctx.now_utime);
+  }
+
+ private:
+  std::mt19937_64 rng_;
+  GeoConfig geo_;
+  double offset_;
+};
+
+class Gnss final : public Periodic {
+ public:
+  Gnss(const SensorConfig& c, Output& out, uint64_t seed, const GeoConfig& geo)
+      : Periodic(c, out), rng_(seed), frame_({geo.latitude, geo.longitude, geo.altitude}) {}
+  void step(SensorContext& ctx) override {
+    if (!due(ctx)) return;
+    const GnssParams& p = config_.gnss;
+    std::normal_distribution<double> n(0, 1);
+    // The wander: a first-order Gauss-Markov process of the given standard deviation, exact in discrete time, from
+    // its stationary distribution; then white noise.
+    const Eigen::Vector3d drift(p.horizontal_drift, p.horizontal_drift, p.vertical_drift);
+    const Eigen::Vector3d white(p.horizontal_noise, p.horizontal_noise, p.vertical_noise);
+    const double a = p.correlation_time > 0 ? std::exp(-1.0 / config_.rate / p.correlation_time) : 0.0;
+    Eigen::Vector3d pos = ctx.robot.link_pose(link(ctx.robot)).translation();
+    for (int i = 0; i < 3; ++i) {
+      drift_[i] = n_ == 1 ? drift[i] * n(rng_) : a * drift_[i] + std::sqrt(1 - a * a) * drift[i] * n(rng_);
+      pos[i] += drift_[i] + white[i] * n(rng_);
+    }
+    const std::string& l = link(ctx.robot);
+    const Eigen::Vector3d vel = ctx.robot.link_linear_velocity(l);
+    const geo::LatLonAlt g = frame_.to_global({pos.x(), pos.y(), pos.z()});
+    driftlab::gnss_t m{};
+    m.header.frame_id = l;
+    m.fix_type = 3;
+    m.satellites = p.satellites;
+    m.latitude_deg = g.latitude_deg;
+    m.longitude_deg = g.longitude_deg;
+    m.altitude_m = g.altitude_m;
+    m.eph_m = std::hypot(p.horizontal_noise, p.horizontal_drift);
+    m.epv_m = std::hypot(p.vertical_noise, p.vertical_drift);
+    m.velocity = {vel.x() + p.velocity_noise * n(rng_), vel.y() + p.velocity_noise * n(rng_),
+                  vel.z() + p.velocity_noise * n(rng_)};
+    m.speed_accuracy_m_s = p.velocity_noise;
+    ctx.out.publish(stream_, m, ctx.now_utime, ctx.now_utime);
+  }
+
+ private:
+  std::mt19937_64 rng_;
+  geo::LocalFrame frame_;
+  Eigen::Vector3d drift_ = Eigen::Vector3d::Zero();  // the wander [m]
+};
+
+class Magnetometer final : public Periodic {
+ public:
+  Magnetometer(const SensorConfig& c, Output& out, uint64_t seed, const GeoConfig& geo)
+      : Periodic(c, out), rng_(seed), field_(field_world(geo)) {}
+  void step(SensorContext& ctx) override {
+    if (!due(ctx)) return;
+    const double s = config_.magnetometer.noise;
+    std::normal_distribution<double> n(0, 1);
+    const Eigen::Vector3d b = ctx.robot.link_pose(link(ctx.robot)).rotation().transpose() * field_;
+    driftlab::magnetometer_t m{};
+    m.header.frame_id = link(ctx.robot);
+    m.magnetic_field = {b.x() + s * n(rng_), b.y() + s * n(rng_), b.z() + s * n(rng_)};
+    for (int i = 0; i < 3; ++i) m.magnetic_field_covariance[4 * i] = s * s;
+    ctx.out.publish(stream_, m, ctx.now_utime, ctx.now_utime);
+  }
+
+ private:
+  std::mt19937_64 rng_;
+  Eigen::Vector3d field_;
 };
 
 class Odometry final : public Periodic {
@@ -376,7 +473,7 @@ void WheelOdometry::update(const Robot& robot, double dt) {
 }
 
 std::unique_ptr<Sensor> make_sensor(const SensorConfig& c, const Robot& robot, Output& out, uint64_t seed,
-                                    WheelOdometry* odometry) {
+                                    WheelOdometry* odometry, const GeoConfig& geo) {
   const uint64_t s = stream_seed(seed, c.channel);
   switch (c.type) {
     case SensorType::kLidar2d: return std::make_unique<Lidar2d>(c, out, s);
@@ -386,6 +483,9 @@ std::unique_ptr<Sensor> make_sensor(const SensorConfig& c, const Robot& robot, O
     case SensorType::kCamera: return std::make_unique<Camera>(c, out);
     case SensorType::kGroundTruth: return std::make_unique<GroundTruth>(c, out);
     case SensorType::kJointState: return std::make_unique<JointStates>(c, out);
+    case SensorType::kBarometer: return std::make_unique<Barometer>(c, out, s, geo);
+    case SensorType::kGnss: return std::make_unique<Gnss>(c, out, s, geo);
+    case SensorType::kMagnetometer: return std::make_unique<Magnetometer>(c, out, s, geo);
   }
   return nullptr;
 }

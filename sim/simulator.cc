@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <set>
 
 #include "core/log_writer.h"
@@ -16,6 +17,7 @@
 #include "driftlab/velocity_command_t.hpp"
 #include "sim/bullet_world.h"
 #include "sim/internal/arm_loop.h"
+#include "sim/internal/drone_loop.h"
 #include "sim/internal/output.h"
 #include "sim/internal/sensors.h"
 #include "sim/raycaster.h"
@@ -69,7 +71,8 @@ struct Simulation::Impl {
   std::unique_ptr<BulletWorld> physics;
   std::unique_ptr<Robot> robot;
   std::unique_ptr<RayCaster> caster;
-  std::unique_ptr<ArmLoop> arm;  // the scenario's `arm:`, when given
+  std::unique_ptr<ArmLoop> arm;      // the scenario's `arm:`, when given
+  std::unique_ptr<DroneLoop> drone;  // the scenario's `drone:`, when given
   bool has_odometry = false;
 };
 
@@ -83,9 +86,17 @@ Result<std::unique_ptr<Simulation>> Simulation::create(const Scenario& scenario,
   const Scenario& sc = impl->sc;
   impl->physics = std::make_unique<BulletWorld>(sc.world);
   impl->physics->dynamics().getSolverInfo().m_numIterations = sc.solver_iterations;
-  auto robot_or = Robot::load(sc.urdf_path, impl->physics->dynamics(), sc.start, sc.drive);
+  auto robot_or = sc.drone.enabled
+                      ? Robot::load_multirotor(sc.urdf_path, impl->physics->dynamics(), sc.start,
+                                               {.rotor_bodies = sc.drone.rotor_bodies})
+                      : Robot::load(sc.urdf_path, impl->physics->dynamics(), sc.start, sc.drive);
   if (!robot_or) return robot_or.error();
   impl->robot = std::move(*robot_or);
+  if (sc.drone.enabled) {
+    auto drone = DroneLoop::create(sc, *impl->robot);
+    if (!drone) return drone.error();
+    impl->drone = std::move(*drone);
+  }
   if (sc.arm.enabled) {
     auto arm = ArmLoop::create(sc, *impl->robot);
     if (!arm) return arm.error();
@@ -94,9 +105,13 @@ Result<std::unique_ptr<Simulation>> Simulation::create(const Scenario& scenario,
   const Robot& robot = *impl->robot;
 
   // Every sensor's link must exist; every faulted channel must be published.
-  std::set<std::string> channels{sc.controller.channel, sc.tf_static_channel};
+  std::set<std::string> channels{sc.tf_static_channel};
+  if (!impl->drone) channels.insert(sc.controller.channel);
   if (impl->arm) {
     for (const std::string& c : impl->arm->channels()) channels.insert(c);
+  }
+  if (impl->drone) {
+    for (const std::string& c : impl->drone->channels()) channels.insert(c);
   }
   for (const SensorConfig& s : sc.sensors) {
     if (!s.link.empty() && !robot.has_link(s.link)) {
@@ -104,6 +119,10 @@ Result<std::unique_ptr<Simulation>> Simulation::create(const Scenario& scenario,
                    "', which robot '" + robot.name() + "' (" + sc.urdf_path + ") does not have"};
     }
     channels.insert(s.channel);
+    if (s.type == SensorType::kOdometry && impl->drone) {
+      return Error{sc.path + ":" + std::to_string(s.line) + ": sensor " + s.channel +
+                   ": wheel odometry needs a wheeled robot, and this one is a drone"};
+    }
     if (s.type == SensorType::kOdometry) {
       impl->has_odometry = true;
       if (!s.odometry.tf_channel.empty()) channels.insert(s.odometry.tf_channel);
@@ -128,6 +147,8 @@ Result<SimReport> Simulation::run(const SimOptions& options) {
   BulletWorld& physics = *impl_->physics;
   const RayCaster& caster = *impl_->caster;
   const bool has_odometry = impl_->has_odometry;
+  DroneLoop* drone = impl_->drone.get();
+  const bool ground = drone == nullptr;  // a wheeled robot, driven along the route
   auto writer = LogWriter::create(options.out, {.atomic = true});
   if (!writer) return writer.error();
   Output out(*writer, sc.faults, sc.start_utime, options.on_message);
@@ -152,16 +173,23 @@ Result<SimReport> Simulation::run(const SimOptions& options) {
   }
   WheelOdometry odometry(hidden, robot, stream_seed(sc.seed, "odometry"));
   std::vector<std::unique_ptr<Sensor>> sensors;
-  for (const SensorConfig& s : sc.sensors) sensors.push_back(make_sensor(s, robot, out, sc.seed, &odometry));
+  for (const SensorConfig& s : sc.sensors) sensors.push_back(make_sensor(s, robot, out, sc.seed, &odometry, sc.geo));
 
   ArmLoop* arm = impl_->arm.get();
   if (arm != nullptr) arm->attach(out, odometry);
-  controller::PurePursuit pursuit(sc.route, sc.controller.pursuit);
+  if (drone != nullptr) {
+    if (Status s = drone->attach(out); !s) {
+      writer->discard();
+      return Error{s.message()};
+    }
+  }
+  std::optional<controller::PurePursuit> pursuit;  // the route follower of a wheeled robot
+  if (ground) pursuit.emplace(sc.route, sc.controller.pursuit);
   constexpr int kProximityRays = 36;
   std::vector<controller::Point2> proximity;
   controller::AvoidOptions avoid;
   avoid.radius = sc.controller.footprint_radius;
-  const int cmd_stream = out.add_stream(sc.controller.channel);
+  const int cmd_stream = ground ? out.add_stream(sc.controller.channel) : -1;
   const int static_stream = out.add_stream(sc.tf_static_channel);
   std::vector<std::string> static_links;
   for (const SensorConfig& s : sc.sensors) {
@@ -188,7 +216,7 @@ Result<SimReport> Simulation::run(const SimOptions& options) {
       break;
     }
     const int64_t now = sc.start_utime + t_us;
-    if (!has_odometry && t_us >= due_us(n_odom, odom_rate)) {
+    if (ground && !has_odometry && t_us >= due_us(n_odom, odom_rate)) {
       ++n_odom;
       odometry.update(robot, 1.0 / odom_rate);
     }
@@ -211,6 +239,7 @@ Result<SimReport> Simulation::run(const SimOptions& options) {
         tf.transforms.push_back(t);
       }
       if (arm != nullptr) arm->add_static(tf, now);
+      if (drone != nullptr) drone->add_static(tf, now);
       if (has_odometry && (arm == nullptr || sc.arm.map_channel.empty())) {
         // The odometry frame starts at the robot's start pose in the ground truth's world frame (with an arm's
         // localization, map -> odom takes its place).
@@ -227,11 +256,11 @@ Result<SimReport> Simulation::run(const SimOptions& options) {
     }
 
     // The controller follows the route from the robot's odometry (started at the robot's start pose).
-    if (t_us >= due_us(n_cmd, sc.controller.rate)) {
+    if (ground && t_us >= due_us(n_cmd, sc.controller.rate)) {
       ++n_cmd;
       const Pose2 estimate{sc.start.x() + c0 * odometry.x() - s0 * odometry.y(),
                            sc.start.y() + s0 * odometry.x() + c0 * odometry.y(), sc.start.z() + odometry.yaw()};
-      controller::Command cmd = pursuit.update(estimate, 1.0 / sc.controller.rate);
+      controller::Command cmd = pursuit->update(estimate, 1.0 / sc.controller.rate);
       // The robot's proximity ring (a bumper-height range-sensor ring) feeds the reactive safety layer.
       const Eigen::Isometry3d base = robot.link_pose(robot.base_link());
       const Eigen::Vector3d ring_origin = base * Eigen::Vector3d(0, 0, 0.05);
@@ -258,6 +287,7 @@ Result<SimReport> Simulation::run(const SimOptions& options) {
       return Error{s.message()};
     }
     if (arm != nullptr) arm->control(now, dt);
+    if (drone != nullptr) drone->control(now, dt);
     if (options.progress && t_us >= next_progress) {
       options.progress(Duration::from_us(t_us).seconds(), sc.duration);
       next_progress += 1000000;
@@ -272,6 +302,12 @@ Result<SimReport> Simulation::run(const SimOptions& options) {
 
   // Deliver what is still in flight, then the manifest, then commit the log.
   const int64_t end_utime = sc.start_utime + std::min(t_us, end_us);
+  if (drone != nullptr) {
+    if (Status s = drone->finish(end_utime); !s) {
+      writer->discard();
+      return Error{sc.path + ": drone: " + s.message()};
+    }
+  }
   if (Status s = out.flush(INT64_MAX); !s) {
     writer->discard();
     return Error{s.message()};
@@ -296,11 +332,12 @@ Result<SimReport> Simulation::run(const SimOptions& options) {
 
   report.simulated_s = Duration::from_us(std::min(t_us, end_us)).seconds();
   report.messages = out.written();
-  report.laps = pursuit.laps();
+  report.laps = pursuit ? pursuit->laps() : 0;
+  if (drone != nullptr) report.notes = drone->summary();
   const Eigen::Vector3d truth = robot.link_pose(robot.base_link()).translation();
   const Eigen::Vector2d estimate(sc.start.x() + c0 * odometry.x() - s0 * odometry.y(),
                                  sc.start.y() + s0 * odometry.x() + c0 * odometry.y());
-  report.odometry_error_m = (truth.head<2>() - estimate).norm();
+  report.odometry_error_m = ground ? (truth.head<2>() - estimate).norm() : 0;
   return report;
 }
 

@@ -12,6 +12,7 @@
 #include <memory>
 #include <span>
 #include <string>
+#include <vector>
 
 #include "core/result.h"
 #include "sim/scenario.h"
@@ -42,6 +43,7 @@ struct SimReport {
   double distance_m = 0;                    ///< true path length driven [m]
   std::size_t laps = 0;                     ///< completed laps of the route (by the controller's estimate)
   double odometry_error_m = 0;              ///< final distance between the odometry's and the true position [m]
+  std::vector<std::string> notes;           ///< what else the run says of itself (a drone's flight), a line each
 };
 
 /// A scenario ready to run: the world and the robot are built and every reference checked.

@@ -27,6 +27,8 @@ class Output {
   /// Registers a stream (once per channel) and returns its id.
   int add_stream(const std::string& channel);
   bool has_stream(const std::string& channel) const;
+  /// Every stream's channel, in the order they were added.
+  std::vector<std::string> channels() const;
 
   /// Publishes msg (any LCM type with a driftlab.header_t `header`) measured at true time `stamp_utime` and
   /// complete at true time `ready_utime` (a lidar's last beam) [us]. Sets header.seq and header.utime.
@@ -51,12 +53,18 @@ class Output {
     }
   }
 
+  /// Publishes an encoded message made elsewhere (an on-board module's, header and all) measured at `stamp_utime`
+  /// and complete at `ready_utime` [us]: the stream's faults apply as for publish(), a clock fault rewriting the
+  /// header stamps; the publisher's own seq is kept. Arrivals never precede what was already written.
+  void publish_encoded(int stream, std::span<const uint8_t> bytes, int64_t stamp_utime, int64_t ready_utime);
+
   /// Calls `fn` with every message of `channel` as it is written, at its arrival [us, true clock]: a subscriber
   /// inside the simulation (the arm's controller and commander), which sees what the log sees.
   using Arrival = std::function<void(int64_t, std::span<const uint8_t>)>;
   void on_arrival(const std::string& channel, Arrival fn) { arrivals_[channel] = std::move(fn); }
 
-  /// Writes, in arrival order, every message that arrives before `before` [us, true clock].
+  /// Writes, in arrival order, every message that arrives before `before` [us, true clock]. An arrival callback
+  /// may publish: what it publishes to arrive before `before` is written in the same call.
   Status flush(int64_t before);
   /// Writes a message directly at arrival time `utime` after flushing what arrives before it (the manifest).
   Status write_now(const std::string& channel, int64_t utime, const std::vector<uint8_t>& bytes);
@@ -89,7 +97,7 @@ class Output {
   std::priority_queue<Pending, std::vector<Pending>, std::greater<>> queue_;
   uint64_t order_ = 0;
   std::map<std::string, int64_t> written_;
-  std::map<std::string, Arrival> arrivals_;
+  std::map<std::string, Arrival, std::less<>> arrivals_;
   int64_t last_arrival_ = 0;
 };
 

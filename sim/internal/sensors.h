@@ -64,9 +64,9 @@ class Sensor {
 };
 
 /// Builds the sensor of a config (links already validated). `odometry` is the robot's dead reckoning, which the
-/// odometry sensor publishes.
+/// odometry sensor publishes; `geo` places the world on Earth for the GNSS, barometer and magnetometer.
 std::unique_ptr<Sensor> make_sensor(const SensorConfig& config, const Robot& robot, Output& out, uint64_t seed,
-                                    WheelOdometry* odometry);
+                                    WheelOdometry* odometry, const GeoConfig& geo);
 
 /// Independent, reproducible random streams: one per sensor, from the run's seed and a name.
 uint64_t stream_seed(uint64_t seed, const std::string& name);
