@@ -38,4 +38,24 @@ ClockCorrections clock_corrections(const Diagnosis& d, std::vector<std::string>*
   return r;
 }
 
+std::map<std::string, Duration> command_retiming(const Diagnosis& d, std::vector<std::string>* notes) {
+  std::map<std::string, Duration> out;
+  char buf[320];
+  for (const CommandLoop& loop : d.command_loops) {
+    if (!loop.delay_valid) continue;
+    const bool sure = loop.confidence >= kRetimeConfidenceMin;
+    if (loop.delay_s >= kRetimeDelayMin_s && sure) {
+      out[loop.command_channel] = Duration::from_seconds_rounded(loop.delay_s);
+      std::snprintf(buf, sizeof(buf), "retime %s: each command starts %.1f ms before it arrived (the delay from "
+                    "command to motion the diagnosis of %s measured, agreement %.2f)", loop.command_channel.c_str(),
+                    loop.delay_s * 1e3, d.log.c_str(), loop.confidence);
+    } else {
+      std::snprintf(buf, sizeof(buf), "not retiming %s: %.1f ms from command to motion%s", loop.command_channel.c_str(),
+                    loop.delay_s * 1e3, sure ? " is the controller's own lag" : ", measured with too little agreement");
+    }
+    if (notes != nullptr) notes->push_back(buf);
+  }
+  return out;
+}
+
 }  // namespace driftlab::analyzers

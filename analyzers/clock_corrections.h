@@ -2,11 +2,13 @@
 // applies and the diagnosis summary (report, demo) names, in one place. Thread-safety: pure functions.
 #pragma once
 
+#include <map>
 #include <string>
 #include <vector>
 
 #include "analyzers/timing.h"
 #include "core/clock_correction.h"
+#include "core/time.h"
 
 namespace driftlab::analyzers {
 
@@ -17,6 +19,17 @@ inline constexpr double kClockDriftMin_ppm = 25;
 
 inline bool clock_ahead(double offset_s) { return offset_s >= kClockAheadMin_s; }
 inline bool clock_drifts(double drift_ppm) { return drift_ppm >= kClockDriftMin_ppm || drift_ppm <= -kClockDriftMin_ppm; }
+
+/// A command loop whose measured delay is this long or longer is re-timed: longer than the controller's own lag
+/// (under a millisecond in the shipped arm), short of any transport worth naming.
+inline constexpr double kRetimeDelayMin_s = 0.01;
+/// ... when the measured joints repeat the commanded motion this closely at that delay (1: the same motion).
+inline constexpr double kRetimeConfidenceMin = 0.8;
+
+/// Per command channel of a diagnosis' command loops, the delay to take off each command's arrival when a
+/// closed-loop replay re-times them (`driftlab replay --closed-loop --retime auto`): the measured command-to-motion
+/// delay, where it is long and sure enough. `notes` receives a line per channel re-timed or left alone.
+std::map<std::string, Duration> command_retiming(const Diagnosis& d, std::vector<std::string>* notes = nullptr);
 
 /// The corrections for the channels of a diagnosis whose clock is ahead or drifts (a clock behind cannot be told
 /// from latency in one log and is left alone), each only where its 95% confidence interval leaves out zero.

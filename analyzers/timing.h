@@ -121,7 +121,8 @@ struct DiagnoseOptions {
   double window_s = 10.0;    ///< skew window [s] (longer on long logs: at most 64 windows)
   /// Bookkeeping, not streams: the recorder's and the replayer's statistics (one seq per module, so they would
   /// look duplicated) and the fault manifests.
-  std::vector<std::string> ignore_channels = {"DRIFTLAB_RECORDER_STATS", "FAULTS", "MODULE_STATS", "REPLAY_FAULTS"};
+  std::vector<std::string> ignore_channels = {"DRIFTLAB_RECORDER_STATS", "FAULTS", "MODULE_STATS", "REPLAY_FAULTS",
+                                              "SIMULATION"};
 };
 
 Result<Diagnosis> diagnose(const std::string& log, const DiagnoseOptions& options = {});

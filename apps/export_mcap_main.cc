@@ -11,6 +11,7 @@
 #include "apps/commands.h"
 #include "apps/log_input.h"
 #include "core/same_file.h"
+#include "core/text_file.h"
 #include "formats/export_mcap.h"
 
 namespace driftlab::apps {
@@ -28,11 +29,11 @@ constexpr int kProblemLines = 20;
 
 /// The findings of `driftlab diagnose --json` as one Metadata record: per channel its verdict and reasons.
 Result<formats::McapMetadata> diagnosis_metadata(const std::string& path) {
-  std::ifstream f(path);
-  if (!f) return Error(path + ": cannot be read");
+  auto text = read_text_file(path, "diagnosis");
+  if (!text) return text.error();
   nlohmann::json j;
   try {
-    j = nlohmann::json::parse(f);
+    j = nlohmann::json::parse(*text);
   } catch (const nlohmann::json::exception& e) {
     return Error(path + ": not JSON: " + e.what());
   }

@@ -24,6 +24,7 @@
 #include "modules/registry.h"
 #include "replayer/live_runner.h"
 #include "replayer/replayer.h"
+#include "sim/simulator.h"
 
 namespace driftlab::apps {
 namespace {
@@ -41,6 +42,8 @@ struct ReplayArgs {
   std::string order = "received";
   double reorder_window = 0.5;
   std::string restamp;
+  std::vector<std::string> retime;
+  bool closed_loop = false;
   std::string inject;
   std::string publish;
   bool timing = false;
@@ -143,7 +146,121 @@ Status refuse_absent_channels(const std::string& option, const std::string& file
   return {};
 }
 
+/// --closed-loop: the simulation that made the log, run again with the corrections applied where its messages are
+/// received on board. A log has no physics to re-run open loop: a drone or an arm moves as its controllers, fed
+/// by what they receive, make it move.
+int run_closed_loop(const ReplayArgs& a, const ReplayArgs& defaults) {
+  if (a.logs.size() != 1) return fail("--closed-loop: give one log, the one the simulation wrote");
+  if (a.out.empty()) return fail("--closed-loop: give -o OUT for the log of the new run");
+  const std::pair<const char*, bool> unused[] = {
+      {"--modules", !a.modules.empty()},     {"--config", !a.config.empty()},
+      {"--inject", !a.inject.empty()},       {"--channels", !a.channels.empty()},
+      {"--remap", !a.remap.empty()},         {"--order", a.order != defaults.order},
+      {"--start", a.start != defaults.start}, {"--end", a.end != defaults.end},
+      {"--publish", !a.publish.empty()},     {"--no-inputs", a.no_inputs},
+      {"--timing", a.timing}};
+  for (const auto& [option, given] : unused) {
+    if (given) {
+      return fail(std::string("--closed-loop runs the simulation's own modules on board: ") + option +
+                  " does not apply");
+    }
+  }
+  if (Status s = refuse_same_file(a.out, a.logs); !s) return fail(s.message());
+  const std::string& log = a.logs[0];
+  auto scenario = sim::scenario_of_log(log);
+  if (!scenario) return fail(scenario.error().message);
+  std::vector<std::string> notes;
+  sim::ReceiveCorrections corrections;
+  std::optional<analyzers::Diagnosis> diagnosis;
+  auto diagnosed = [&]() -> Result<const analyzers::Diagnosis*> {
+    if (!diagnosis) {
+      auto d = analyzers::diagnose(log);
+      if (!d) return d.error();
+      diagnosis = std::move(*d);
+    }
+    return &*diagnosis;
+  };
+  if (a.restamp == "auto") {
+    auto d = diagnosed();
+    if (!d) return fail(d.error().message);
+    corrections.clocks = analyzers::clock_corrections(**d, &notes);
+  } else if (!a.restamp.empty()) {
+    auto r = replay::load_restamp(a.restamp);
+    if (!r) return fail(r.error().message);
+    corrections.clocks = std::move(*r);
+  }
+  for (const std::string& r : a.retime) {
+    if (r == "auto") {
+      auto d = diagnosed();
+      if (!d) return fail(d.error().message);
+      for (const auto& [channel, delay] : analyzers::command_retiming(**d, &notes)) corrections.retime[channel] = delay;
+      continue;
+    }
+    const auto eq = r.find('=');
+    char* end = nullptr;
+    const double s = eq == std::string::npos ? 0 : std::strtod(r.c_str() + eq + 1, &end);
+    if (eq == std::string::npos || eq == 0 || end == r.c_str() + eq + 1 || *end != '\0' || !(s >= 0 && s <= 3600)) {
+      return fail("--retime " + r + ": expected auto or CHANNEL=SECONDS (0..3600)");
+    }
+    corrections.retime[r.substr(0, eq)] = Duration::from_seconds_rounded(s);
+    notes.push_back("retime " + r.substr(0, eq) + ": each command starts " + short_number(s) +
+                    " s before it arrived (--retime)");
+  }
+  auto simulation = sim::Simulation::create(*scenario);
+  if (!simulation) return fail(simulation.error().message);
+  for (const std::string& channel : (*simulation)->recomputed_channels()) {
+    if (corrections.clocks.erase(channel) > 0) {
+      notes.push_back("not restamping " + channel + " on board: the run makes it again from its inputs");
+    }
+  }
+  sim::SimOptions o;
+  o.out = a.out;
+  o.version = DRIFTLAB_VERSION;
+  o.corrections = corrections;
+  o.stop = &g_stop;
+  struct sigaction sa {};
+  sa.sa_handler = on_signal;
+  sigaction(SIGINT, &sa, nullptr);
+  sigaction(SIGTERM, &sa, nullptr);
+  const Stopwatch running;
+  auto report = (*simulation)->run(o);
+  const double wall = running.seconds();
+  if (!report) return fail(report.error().message, kExitFailure);
+  int64_t total = 0;
+  for (const auto& [channel, n] : report->messages) total += n;
+  if (a.json) {
+    nlohmann::json j;
+    j["log"] = log;
+    j["out"] = a.out;
+    j["scenario"] = scenario->path;
+    j["simulated_s"] = report->simulated_s;
+    j["wall_s"] = wall;
+    j["notes"] = notes;
+    j["restamp"] = nlohmann::json::object();
+    for (const auto& [channel, c] : corrections.clocks) {
+      j["restamp"][channel] = {{"offset_s", c.offset_s}, {"drift_ppm", c.drift_ppm}};
+    }
+    j["retime"] = nlohmann::json::object();
+    for (const auto& [channel, d] : corrections.retime) j["retime"][channel] = d.seconds();
+    j["messages"] = report->messages;
+    j["run"] = report->notes;
+    std::printf("%s\n", j.dump(2).c_str());
+    return kExitOk;
+  }
+  for (const auto& n : notes) std::printf("%s\n", n.c_str());
+  if (corrections.clocks.empty() && corrections.retime.empty()) {
+    std::printf("no corrections: the run is the log's simulation again\n");
+  }
+  std::printf("%s %.1f s of %s in closed loop in %.2f s: %s messages -> %s\n",
+              report->interrupted ? "interrupted after" : "ran", report->simulated_s, scenario->name.c_str(), wall,
+              thousands(total).c_str(), a.out.c_str());
+  for (const auto& n : report->notes) std::printf("%s\n", n.c_str());
+  return kExitOk;
+}
+
 int run_replay(ReplayArgs a) {
+  if (a.closed_loop) return run_closed_loop(a, ReplayArgs{});
+  if (!a.retime.empty()) return fail("--retime applies to --closed-loop (commands re-timed as the arm receives them)");
   if (Status s = refuse_same_file(a.out, a.logs); !s) return fail(s.message());  // the recordings given
   for (auto& log : a.logs) {
     auto converted = event_log_for(log);  // another tool's recording: its cached conversion
@@ -345,7 +462,10 @@ void add_replay_command(CLI::App& app, int* exit_code) {
       "what they publish goes to the other modules and to OUT with per-module statistics (MODULE_STATS). The same\n"
       "inputs and options give a byte-identical OUT (unless --timing). --restamp corrects clocks before dispatch\n"
       "(FILE: `channels: {CH: {offset_s, drift_ppm}}`; auto: from the timing diagnosis); --inject adds faults\n"
-      "(the simulator's fault description, docs/faults.md). Module settings: docs/replay.md.");
+      "(the simulator's fault description, docs/faults.md). Module settings: docs/replay.md. --closed-loop runs\n"
+      "again the simulation that wrote the log (its scenario is in the log), the corrections applied where its\n"
+      "modules receive their messages: a drone or an arm moves as its controllers make it, which no log can replay\n"
+      "open loop.");
   cmd->add_option("logs", a->logs, "Logs to replay")->required();
   cmd->add_option("--modules", a->modules, "Modules to run, comma-separated (" + modules::known_modules() + ")");
   cmd->add_option("--config", a->config, "Module settings (YAML: one map per module name)");
@@ -370,6 +490,12 @@ void add_replay_command(CLI::App& app, int* exit_code) {
       ->capture_default_str()
       ->check(in_range(config::between(0, 3600), "s"));
   cmd->add_option("--restamp", a->restamp, "Clock corrections before dispatch: FILE or auto");
+  cmd->add_flag("--closed-loop", a->closed_loop,
+                "Run again the simulation that made the log (its modules on board, closed loop on the physics), with "
+                "--restamp and --retime applied where its messages are received");
+  cmd->add_option("--retime", a->retime,
+                  "With --closed-loop: commands on CHANNEL start when they arrived less SECONDS, on a controller that "
+                  "honours stamps (CHANNEL=SECONDS, or auto: the command-to-motion delay diagnose measures)");
   cmd->add_option("--inject", a->inject, "Faults to add before dispatch (YAML, as the simulator's --faults)");
   cmd->add_option("--publish", a->publish, "Re-publish inputs and outputs on this LCM URL, paced by --rate");
   cmd->add_flag("--timing", a->timing, "Measure processing time per input and the queues it implies");

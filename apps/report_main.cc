@@ -24,6 +24,7 @@
 #include "apps/diagnosis_json.h"
 #include "apps/log_input.h"
 #include "apps/report.h"
+#include "core/text_file.h"
 #include "core/time.h"
 
 namespace driftlab::apps {
@@ -49,10 +50,10 @@ std::string label_of(const std::string& log, const std::string& channel) {
 }
 
 Result<nlohmann::json> read_json(const std::string& path, const char* option) {
-  std::ifstream in(path);
-  if (!in) return Error{std::string(option) + " " + path + ": cannot open"};
+  auto text = read_text_file(path, "JSON file");
+  if (!text) return Error{std::string(option) + " " + text.error().message};
   try {
-    return nlohmann::json::parse(in);
+    return nlohmann::json::parse(*text);
   } catch (const nlohmann::json::parse_error& e) {
     return Error{std::string(option) + " " + path + ": not JSON (byte " + std::to_string(e.byte) + ")"};
   }

@@ -15,6 +15,7 @@
 #include "apps/commands.h"
 #include "core/config.h"
 #include "core/same_file.h"
+#include "core/text_file.h"
 #include "core/wall_clock.h"
 #include "sim/scenario.h"
 #include "sim/simulator.h"
@@ -56,8 +57,12 @@ int run_sim(const SimArgs& a) {
     scenario->faults.seed = static_cast<uint64_t>(a.seed);
   }
   if (!a.faults.empty()) {
-    auto faults = load_faults(a.faults);
+    auto text = read_text_file(a.faults, "fault description");
+    if (!text) return fail(text.error().message);
+    auto faults = parse_faults(*text, a.faults);
     if (!faults) return fail(faults.error().message);
+    scenario->faults_path = a.faults;
+    scenario->faults_text = *text;
     const bool own_seed = faults->seed != 0;
     scenario->faults = std::move(*faults);
     if (!own_seed) scenario->faults.seed = scenario->seed;
@@ -73,6 +78,7 @@ int run_sim(const SimArgs& a) {
   }
   sim::SimOptions o;
   o.out = a.out;
+  o.version = DRIFTLAB_VERSION;
   o.stop = &g_stop;
   if (live) {
     o.on_message = [&live](const std::string& c, int64_t t, std::span<const uint8_t> b) { live->publish(c, t, b); };

@@ -28,6 +28,7 @@
 #include "batch/store.h"
 #include "core/log_writer.h"
 #include "core/process.h"
+#include "core/text_file.h"
 #include "core/wall_clock.h"
 
 namespace driftlab::apps {
@@ -339,8 +340,9 @@ Result<std::vector<std::string>> batch_logs(const BatchArgs& a) {
   };
   std::vector<std::string> items = a.logs;
   auto read_list = [&](const std::string& path) -> Status {
-    std::ifstream in(path);
-    if (!in) return Error{path + ": cannot open the list of logs"};
+    auto text = read_text_file(path, "list of logs");
+    if (!text) return text.error();
+    std::istringstream in(*text);
     for (std::string line; std::getline(in, line);) {
       line.erase(0, line.find_first_not_of(" \t"));
       line.erase(line.find_last_not_of(" \t\r") + 1);

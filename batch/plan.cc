@@ -13,6 +13,7 @@
 #include <sstream>
 
 #include "core/faults.h"
+#include "core/text_file.h"
 
 namespace driftlab::batch {
 namespace {
@@ -293,13 +294,11 @@ const Value* Point::get(const std::string& key) const {
 Result<Spec> load_spec(const std::string& path) {
   Spec s;
   s.file = path;
-  std::ifstream in(path);
-  if (!in) return Error{path + ": cannot open the sweep spec"};
-  std::stringstream text;
-  text << in.rdbuf();
+  auto text = read_text_file(path, "sweep spec");
+  if (!text) return text.error();
   YAML::Node root;
   try {
-    root = YAML::Load(text.str());
+    root = YAML::Load(*text);
   } catch (const YAML::Exception& e) {
     return Error{path + ":" + std::to_string(e.mark.line + 1) + ": " + e.msg};
   }

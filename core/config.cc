@@ -1,5 +1,6 @@
 #include "core/config.h"
 
+
 #include <algorithm>
 #include <cerrno>
 #include <charconv>
@@ -10,6 +11,8 @@
 #include <map>
 #include <sstream>
 #include <type_traits>
+
+#include "core/text_file.h"
 
 namespace driftlab::config {
 namespace {
@@ -104,12 +107,9 @@ Result<YAML::Node> parse_yaml(const std::string& text, const std::string& file) 
 }
 
 Result<YAML::Node> load_yaml(const std::string& path, const std::string& what) {
-  std::ifstream in(path);
-  if (!in) return Error{path + ": cannot open the " + what};
-  std::stringstream text;
-  text << in.rdbuf();
-  if (in.bad()) return Error{path + ": cannot read the " + what};
-  return parse_yaml(text.str(), path);
+  auto text = read_text_file(path, what);
+  if (!text) return text.error();
+  return parse_yaml(*text, path);
 }
 
 Value::Value(YAML::Node node, std::string file, std::string key)

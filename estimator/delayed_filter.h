@@ -5,6 +5,8 @@
 //
 // Filter: copyable, with `int64_t time() const` [us] and `bool update(int64_t utime, const M&)`, which predicts to
 // utime (a no-op for earlier times) and applies the measurement, or refuses it (false) and stays as it was.
+// Rank: orders measurements of the same stamp (lower first), so that the result does not depend on which of them
+// arrived first: the drone's IMU sample, which carries the filter to its stamp, before the corrections at it.
 // Thread-safety: plain values; one thread.
 #pragma once
 
@@ -18,7 +20,15 @@
 
 namespace driftlab::estimator {
 
-template <class Filter, class M>
+/// Every measurement of the same rank: same-stamp measurements stay in arrival order.
+struct SameRank {
+  template <class M>
+  int operator()(const M&) const {
+    return 0;
+  }
+};
+
+template <class Filter, class M, class Rank = SameRank>
 class DelayedFilter {
  public:
   struct Counters {
@@ -30,7 +40,7 @@ class DelayedFilter {
   };
 
   DelayedFilter(Filter filter, double window_s)
-      : filter_(std::move(filter)), window_(Duration::from_seconds_truncated(window_s).us()) {}
+      : filter_(std::move(filter)), window_(Duration::from_seconds_truncated(window_s).us()), base_(filter_) {}
 
   /// Starts again from `filter` (a freshly initialised one): the history is forgotten.
   void reset(const Filter& filter) {
@@ -42,28 +52,35 @@ class DelayedFilter {
   /// Applies a measurement stamped utime [us]; false when it was older than the window and rejected, or refused
   /// by the filter.
   bool add(int64_t utime, const M& m) {
-    if (utime >= filter_.time()) {  // in order: the common case
+    const int rank = Rank()(m);
+    const bool in_order = utime > filter_.time() || (utime == filter_.time() && (history_.empty() ||
+                                                                                 history_.back().utime < utime ||
+                                                                                 history_.back().rank <= rank));
+    if (in_order) {  // the common case
       if (!filter_.update(utime, m)) {
         ++counters_.refused;
         return false;
       }
-      history_.push_back({utime, m, filter_});
+      history_.push_back({utime, rank, m, filter_});
       ++counters_.applied;
     } else {
       if (older_than_window(utime) || utime < base_.time()) {
         ++counters_.rejected;
         return false;
       }
-      // Rewind to the state before the first entry stamped after this one, insert it, and re-apply the rest.
-      auto pos = std::upper_bound(history_.begin(), history_.end(), utime,
-                                  [](int64_t t, const Entry& e) { return t < e.utime; });
+      // Rewind to the state before the first entry after this one (by stamp, then rank), insert it, and re-apply
+      // the rest.
+      auto pos = std::upper_bound(history_.begin(), history_.end(), std::pair{utime, rank},
+                                  [](const std::pair<int64_t, int>& k, const Entry& e) {
+                                    return k.first < e.utime || (k.first == e.utime && k.second < e.rank);
+                                  });
       Filter before = pos == history_.begin() ? base_ : std::prev(pos)->after;
       if (!before.update(utime, m)) {  // the filter as it was stays
         ++counters_.refused;
         return false;
       }
       filter_ = before;
-      pos = history_.insert(pos, {utime, m, filter_});
+      pos = history_.insert(pos, {utime, rank, m, filter_});
       for (auto it = std::next(pos); it != history_.end(); ++it) {
         filter_.update(it->utime, it->m);  // one refused now leaves the state as it was before it
         it->after = filter_;
@@ -90,6 +107,7 @@ class DelayedFilter {
   }
   struct Entry {
     int64_t utime;
+    int rank;
     M m;
     Filter after;  ///< the filter after applying m
   };

@@ -53,6 +53,7 @@ void DroneEkf::init(int64_t utime, const ImuSample& imu, const MagField& mag, co
                     const BaroAltitude& baro) {
   initialized_ = true;
   t_ = utime;
+  last_fix_ = last_baro_ = utime;
   last_ = imu;
   q_ = align(imu.accel, mag.field, declination_);
   p_ = gnss.position;
@@ -167,14 +168,34 @@ bool DroneEkf::update(int64_t utime, const DroneMeasurement& m) {
     H.block<3, 3>(3, kV).setIdentity();
     Eigen::Matrix<double, 6, 6> R = Eigen::Matrix<double, 6, 6>::Zero();
     R.diagonal() << eph * eph, eph * eph, epv * epv, sv * sv, sv * sv, sv * sv;
-    if (correct<6>(y, H, R, 1)) last_fix_ = utime;
+    if (correct<6>(y, H, R, 1)) {
+      last_fix_ = utime;
+    } else if (Duration::from_us(utime - last_fix_).seconds() > noise_.reset_s) {
+      // Every fix an outlier for reset_s: the estimate has left the GNSS behind; start from the fix again.
+      p_ = g->position;
+      v_ = g->velocity;
+      P_.block<6, kN>(kP, 0).setZero();
+      P_.block<kN, 6>(0, kP).setZero();
+      P_.diagonal().segment<6>(kP) << eph * eph, eph * eph, epv * epv, sv * sv, sv * sv, sv * sv;
+      last_fix_ = utime;
+      ++counts_.resets[1];
+    }
   } else if (const auto* b = std::get_if<BaroAltitude>(&m)) {
     const double s = b->std > 0 ? b->std : noise_.baro;
     Eigen::Matrix<double, 1, kN> H = Eigen::Matrix<double, 1, kN>::Zero();
     H(0, kP + 2) = 1;
     H(0, kBaro) = 1;
     const Eigen::Matrix<double, 1, 1> y(b->altitude - (origin_alt_ + p_.z() + baro_));
-    correct<1>(y, H, Eigen::Matrix<double, 1, 1>(s * s), 2);
+    if (correct<1>(y, H, Eigen::Matrix<double, 1, 1>(s * s), 2)) {
+      last_baro_ = utime;
+    } else if (Duration::from_us(utime - last_baro_).seconds() > noise_.reset_s) {
+      baro_ = b->altitude - origin_alt_ - p_.z();  // the barometer's offset from the height, as at the start
+      P_.row(kBaro).setZero();
+      P_.col(kBaro).setZero();
+      P_(kBaro, kBaro) = s * s + P_(kP + 2, kP + 2);
+      last_baro_ = utime;
+      ++counts_.resets[2];
+    }
   } else if (const auto* mag = std::get_if<MagField>(&m)) {
     if (mag->field.norm() <= 0) return true;
     Eigen::Matrix<double, 1, kN> H = Eigen::Matrix<double, 1, kN>::Zero();

@@ -32,6 +32,9 @@ struct DroneEkfNoise {
   double baro = 0.2;               ///< barometric altitude, when the reading gives no variance [m]
   double heading = 0.05;           ///< magnetometer heading [rad]
   double gate = 5;  ///< innovation test: measurements further than this many standard deviations are outliers
+  /// When a sensor's measurements have all been outliers for this long, the state is reset to them, as PX4's
+  /// EKF2 does (GNSS: position and velocity; barometer: its offset) [s].
+  double reset_s = 5;
   double initial_tilt = 0.05;       ///< initial roll and pitch uncertainty [rad]
   double initial_heading = 0.2;     ///< initial heading uncertainty [rad]
   double initial_velocity = 0.3;    ///< initial velocity uncertainty per axis [m/s]
@@ -64,6 +67,7 @@ using DroneMeasurement = std::variant<ImuSample, GnssFix, BaroAltitude, MagField
 struct FusionCounts {
   int64_t fused[4] = {0, 0, 0, 0};
   int64_t outliers[4] = {0, 0, 0, 0};
+  int64_t resets[4] = {0, 0, 0, 0};  ///< the state reset to a sensor after reset_s of outliers
 };
 
 class DroneEkf {
@@ -111,7 +115,7 @@ class DroneEkf {
   DroneEkfNoise noise_;
   double declination_ = 0, origin_alt_ = 0;
   bool initialized_ = false;
-  int64_t t_ = 0, last_fix_ = 0;
+  int64_t t_ = 0, last_fix_ = 0, last_baro_ = 0;
   Eigen::Vector3d p_ = Eigen::Vector3d::Zero(), v_ = Eigen::Vector3d::Zero();
   Eigen::Quaterniond q_ = Eigen::Quaterniond::Identity();
   Eigen::Vector3d bg_ = Eigen::Vector3d::Zero(), ba_ = Eigen::Vector3d::Zero();
@@ -132,6 +136,10 @@ double magnetic_heading(const Eigen::Vector3d& field_body, const Eigen::Quaterni
 /// local].
 Eigen::Quaterniond align(const Eigen::Vector3d& accel, const Eigen::Vector3d& field_body, double declination);
 
-using DelayedDroneEkf = DelayedFilter<DroneEkf, DroneMeasurement>;
+/// At one stamp, the IMU sample (which carries the state to it) before the corrections.
+struct ImuFirst {
+  int operator()(const DroneMeasurement& m) const { return std::holds_alternative<ImuSample>(m) ? 0 : 1; }
+};
+using DelayedDroneEkf = DelayedFilter<DroneEkf, DroneMeasurement, ImuFirst>;
 
 }  // namespace driftlab::estimator

@@ -35,7 +35,9 @@ const config::Table<DroneEkfNoise>& drone_noise_table() {
           .number("baro_noise", &N::baro, r, "m", "barometric altitude, when the reading gives no variance")
           .number("heading_noise", &N::heading, r, "rad", "magnetometer heading")
           .number("gate", &N::gate, above(0, 1e3), "",
-                  "innovation test: outliers beyond this many standard deviations");
+                  "innovation test: outliers beyond this many standard deviations")
+          .number("reset_s", &N::reset_s, above(0, 1e4), "s",
+                  "a sensor all outliers this long resets the state to it (GNSS: position, velocity; baro: offset)");
   return t;
 }
 
@@ -58,6 +60,8 @@ const config::Table<DroneEstimatorConfig>& drone_estimator_config_table() {
           .number("max_future_s", &C::max_future_s, between(0, 3600), "s",
                   "further ahead of the bus's clock than this: from the future")
           .number("status_rate", &C::status_rate, between(0.01, 1000), "Hz", "status messages")
+          .number("align_s", &C::align_s, between(0, 60), "s",
+                  "the start: IMU and magnetometer averaged this long with the vehicle still (tilt and heading)")
           .number("declination", &C::declination, between(-M_PI, M_PI), "rad", "magnetic north east of true north")
           .include(&C::noise, drone_noise_table());
   return t;
@@ -118,9 +122,14 @@ Status DroneEstimatorModule::start(Bus& bus) {
 }
 
 void DroneEstimatorModule::try_init(int64_t stamp) {
-  if (!last_imu_ || !last_mag_ || !last_fix_ || !last_baro_ || !frame_) return;
+  const Alignment& a = align_;
+  if (a.imu == 0 || a.mag == 0 || Duration::from_us(a.last - a.first).seconds() < c_.align_s) return;
+  if (!last_fix_ || !last_baro_ || !frame_) return;
+  ImuSample imu;
+  imu.accel = a.accel / static_cast<double>(a.imu);
+  imu.gyro = a.gyro / static_cast<double>(a.imu);
   DroneEkf e(c_.noise, c_.declination, frame_->origin().altitude_m);
-  e.init(stamp, *last_imu_, *last_mag_, *last_fix_, *last_baro_);
+  e.init(stamp, imu, MagField{a.field / static_cast<double>(a.mag)}, *last_fix_, *last_baro_);
   ekf_.reset(e);
 }
 
@@ -133,10 +142,26 @@ void DroneEstimatorModule::add(Bus& bus, Input kind, int64_t stamp, const DroneM
   if (!ekf_.filter().initialized()) {
     ++n.before_init;
     switch (kind) {
-      case kImu: last_imu_ = std::get<ImuSample>(m); break;
+      case kImu: {
+        // A reading far from gravity (the vehicle moving, or settling on its legs) starts the average again.
+        const ImuSample& s = std::get<ImuSample>(m);
+        if (std::abs(s.accel.norm() - 9.81) > 2) {
+          align_ = {};
+          break;
+        }
+        if (align_.imu == 0) align_.first = stamp;
+        align_.last = std::max(align_.last, stamp);
+        align_.accel += s.accel;
+        align_.gyro += s.gyro;
+        ++align_.imu;
+        break;
+      }
       case kGnss: last_fix_ = std::get<GnssFix>(m); break;
       case kBaro: last_baro_ = std::get<BaroAltitude>(m); break;
-      case kMag: last_mag_ = std::get<MagField>(m); break;
+      case kMag:
+        align_.field += std::get<MagField>(m).field;
+        ++align_.mag;
+        break;
     }
     try_init(stamp);
     return;
@@ -213,6 +238,8 @@ ModuleCounters DroneEstimatorModule::counters() const {
                            " late): is that sensor stamped on another clock?");
     }
   }
+  c.metrics.push_back({"gnss_resets", static_cast<double>(ekf_.filter().counts().resets[kGnss])});
+  c.metrics.push_back({"baro_resets", static_cast<double>(ekf_.filter().counts().resets[kBaro])});
   const int64_t refused = ekf_.counters().refused;
   c.dropped = rejected + undecodable_ + refused;
   c.metrics.push_back({"refused_by_filter", static_cast<double>(refused)});

@@ -38,6 +38,9 @@ struct DroneEstimatorConfig {
   double max_age_s = 0.5;                                  ///< older than this against the bus's clock: stale [s]
   double max_future_s = 0.1;  ///< further ahead of the bus's clock than this: from the future [s]
   double status_rate = 1;     ///< [Hz]
+  /// The filter starts from the IMU and magnetometer averaged over this long with the vehicle still (every
+  /// accelerometer reading within 2 m/s^2 of gravity), as PX4's EKF2 aligns its tilt [s].
+  double align_s = 0.5;
   double declination = 0;     ///< magnetic north east of true north [rad]
   DroneEkfNoise noise;
 };
@@ -70,8 +73,12 @@ class DroneEstimatorModule final : public Module {
   DroneEstimatorConfig c_;
   DelayedDroneEkf ekf_;
   std::optional<geo::LocalFrame> frame_;
-  std::optional<ImuSample> last_imu_;
-  std::optional<MagField> last_mag_;
+  // Before the start: the IMU and magnetometer averaged while the vehicle is still.
+  struct Alignment {
+    int64_t first = 0, last = 0;  ///< stamps of the IMU samples averaged [us]
+    Eigen::Vector3d accel = Eigen::Vector3d::Zero(), gyro = Eigen::Vector3d::Zero(), field = Eigen::Vector3d::Zero();
+    int64_t imu = 0, mag = 0;
+  } align_;
   std::optional<GnssFix> last_fix_;
   std::optional<BaroAltitude> last_baro_;
   std::array<InputCounts, 4> inputs_;

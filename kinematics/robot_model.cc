@@ -11,6 +11,8 @@
 #include <set>
 #include <sstream>
 
+#include "core/text_file.h"
+
 namespace driftlab::kinematics {
 namespace {
 
@@ -174,11 +176,9 @@ Result<RobotModel> RobotModel::parse(const std::string& xml, const std::string& 
 }
 
 Result<RobotModel> RobotModel::load(const std::string& path) {
-  std::ifstream f(path);
-  if (!f) return Error{path + ": cannot open the URDF file"};
-  std::stringstream text;
-  text << f.rdbuf();
-  return parse(text.str(), path);
+  auto text = read_text_file(path, "URDF file");
+  if (!text) return text.error();
+  return parse(*text, path);
 }
 
 const ModelJoint* RobotModel::joint(std::string_view name) const {

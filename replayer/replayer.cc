@@ -312,12 +312,9 @@ Result<ReplayReport> Replayer::run(const Sink& sink, const std::atomic<bool>* st
     item.view = e.data;
     if (auto r = o.restamp.find(input); r != o.restamp.end()) {
       const ClockCorrection& c = r->second;
-      const int64_t ref = c.reference_utime != 0 ? c.reference_utime : merger->base();
       item.owned.assign(e.data.begin(), e.data.end());
-      const bool stamped_msg = lcmtypes::map_stamps(item.owned, e.utime, [&](int64_t s) {
-        const double correction = c.offset_s + c.drift_ppm * 1e-6 * static_cast<double>(s - ref) * 1e-6;
-        return s - Duration::from_seconds_rounded(correction).us();
-      });
+      const bool stamped_msg = lcmtypes::map_stamps(
+          item.owned, e.utime, [&](int64_t s) { return corrected_stamp(c, s, merger->base()); });
       if (!stamped_msg) item.owned.clear();
     }
     if (auto inj = injectors.find(input); inj != injectors.end()) {

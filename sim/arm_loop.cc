@@ -75,9 +75,17 @@ std::vector<std::string> ArmLoop::channels() const {
   return out;
 }
 
-void ArmLoop::attach(Output& out, const WheelOdometry& odometry) {
+void ArmLoop::attach(Output& out, const WheelOdometry& odometry, const ReceiveCorrections& corrections) {
   out_ = &out;
   odometry_ = &odometry;
+  if (auto c = corrections.clocks.find(c_.command_channel); c != corrections.clocks.end()) command_clock_ = c->second;
+  if (auto r = corrections.retime.find(c_.command_channel); r != corrections.retime.end()) {
+    retime_us_ = r->second.us();
+    // A re-timed command starts at its (new) stamp: the controller honours stamps, as ros2_control's does.
+    controller::JointTrajectoryOptions o = jtc_.options();
+    o.start = "stamp";
+    jtc_ = controller::JointTrajectoryController(jtc_.joints(), commander_.chain().limits(), o);
+  }
   cmd_stream_ = out.add_stream(c_.command_channel);
   state_stream_ = out.add_stream(c_.state_channel);
   result_stream_ = out.add_stream(c_.result_channel);
@@ -156,8 +164,11 @@ void ArmLoop::publish(int64_t now) {
 void ArmLoop::control(int64_t now, double dt) {
   while (!commands_.empty()) {
     driftlab::joint_trajectory_t m;
+    const int64_t arrival = commands_.front().utime;
     if (lcmtypes::decode(commands_.front().bytes, m)) {
-      if (auto r = jtc_.receive(m, commands_.front().utime)) out_->publish(result_stream_, *r, now, now);
+      if (command_clock_) m.header.utime = corrected_stamp(*command_clock_, m.header.utime, start_utime_);
+      if (retime_us_) m.header.utime = arrival - *retime_us_;
+      if (auto r = jtc_.receive(m, arrival)) out_->publish(result_stream_, *r, now, now);
     }
     commands_.pop_front();
   }

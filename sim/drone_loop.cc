@@ -11,6 +11,7 @@
 #include "estimator/drone_estimator_module.h"
 #include "flight/flight_module.h"
 #include "flight/offboard_module.h"
+#include "lcmtypes/stream_header.h"
 #include "lcmtypes/validate.h"
 #include "sim/internal/sensors.h"
 
@@ -108,8 +109,9 @@ int DroneLoop::stream(std::string_view channel) {
   return it->second;
 }
 
-Status DroneLoop::attach(Output& out) {
+Status DroneLoop::attach(Output& out, const ClockCorrections& clocks) {
   out_ = &out;
+  clocks_ = clocks;
   for (const std::string& channel : channels()) {
     if (!out.has_stream(channel)) stream(channel);
   }
@@ -142,7 +144,14 @@ Status DroneLoop::attach(Output& out) {
 void DroneLoop::deliver(const std::string& channel, int64_t utime, std::span<const uint8_t> bytes) {
   if (!running_) return;
   Status s = host_.advance(Time::from_us(utime));
-  if (s) s = host_.deliver(channel, bytes);
+  if (auto c = clocks_.find(channel); c != clocks_.end()) {
+    std::vector<uint8_t> corrected(bytes.begin(), bytes.end());
+    lcmtypes::map_stamps(corrected, utime,
+                         [&](int64_t stamp) { return corrected_stamp(c->second, stamp, start_utime_); });
+    if (s) s = host_.deliver(channel, corrected);
+  } else if (s) {
+    s = host_.deliver(channel, bytes);
+  }
   if (!s && failure_) failure_ = s;
 }
 

@@ -11,6 +11,7 @@
 #include <optional>
 #include <sstream>
 
+#include "core/text_file.h"
 #include "kinematics/robot_model.h"
 #include "lcmtypes/planar.h"
 
@@ -180,11 +181,9 @@ Result<MultirotorSpec> read_multirotor(const std::string& xml, const std::string
 }
 
 Result<MultirotorSpec> load_multirotor(const std::string& urdf_path) {
-  std::ifstream f(urdf_path);
-  if (!f) return Error{urdf_path + ": cannot open the URDF file"};
-  std::stringstream text;
-  text << f.rdbuf();
-  return read_multirotor(text.str(), urdf_path);
+  auto text = read_text_file(urdf_path, "URDF file");
+  if (!text) return text.error();
+  return read_multirotor(*text, urdf_path);
 }
 
 struct Robot::Impl {
@@ -256,11 +255,9 @@ Robot::~Robot() = default;
 
 Result<std::unique_ptr<Robot>> Robot::load(const std::string& urdf_path, btDiscreteDynamicsWorld& world,
                                            const Eigen::Vector3d& start, const DriveOptions& drive) {
-  std::ifstream f(urdf_path);
-  if (!f) return Error{urdf_path + ": cannot open the URDF file"};
-  std::stringstream text;
-  text << f.rdbuf();
-  return create(text.str(), urdf_path, world, start, drive);
+  auto text = read_text_file(urdf_path, "URDF file");
+  if (!text) return text.error();
+  return create(*text, urdf_path, world, start, drive);
 }
 
 namespace {
@@ -360,11 +357,9 @@ Result<std::unique_ptr<Robot>> Robot::create_multirotor(const std::string& xml, 
 
 Result<std::unique_ptr<Robot>> Robot::load_multirotor(const std::string& urdf_path, btDiscreteDynamicsWorld& world,
                                                       const Eigen::Vector3d& start, const MultirotorOptions& options) {
-  std::ifstream f(urdf_path);
-  if (!f) return Error{urdf_path + ": cannot open the URDF file"};
-  std::stringstream text;
-  text << f.rdbuf();
-  return create_multirotor(text.str(), urdf_path, world, start, options);
+  auto text = read_text_file(urdf_path, "URDF file");
+  if (!text) return text.error();
+  return create_multirotor(*text, urdf_path, world, start, options);
 }
 
 namespace {

@@ -11,6 +11,7 @@
 #include <sstream>
 
 #include "core/config.h"
+#include "core/text_file.h"
 #include "core/time.h"
 
 namespace driftlab::sim {
@@ -326,6 +327,8 @@ const config::Table<Scenario>& scenario_table() {
           .shown_default("required unless drone")
           .section("tf", tf, "the fixed frames")
           .text("faults_channel", &S::faults_channel, "driftlab.fault_manifest_t of the injected faults (truth)")
+          .text("simulation_channel", &S::simulation_channel,
+                "driftlab.simulation_t: the scenario as run, for driftlab replay --closed-loop (truth)")
           .custom<std::vector<SensorConfig>>(
               "sensors", &S::sensors, "list of sensors", "", "", "each a map of the keys below", read_sensors,
               [](const std::vector<SensorConfig>& s) { return std::to_string(s.size()) + " sensors"; })
@@ -345,7 +348,8 @@ const config::Table<Scenario>& scenario_table() {
             if (!sc.drone.enabled && !v["route"].given()) {
               return Error{v.place() + ": missing key 'route' (driven in order; a drone's scenario has none)"};
             }
-            std::set<std::string> channels{sc.controller.channel, sc.tf_static_channel, sc.faults_channel};
+            std::set<std::string> channels{sc.controller.channel, sc.tf_static_channel, sc.faults_channel,
+                                           sc.simulation_channel};
             for (std::size_t i = 0; i < sc.sensors.size(); ++i) {
               if (!channels.insert(sc.sensors[i].channel).second) {
                 return Error{v["sensors"][i].place() + ": channel '" + sc.sensors[i].channel + "' is used twice"};
@@ -385,6 +389,7 @@ Result<Scenario> parse_scenario(const std::string& text, const std::string& orig
   const config::Value doc(*root, origin);
   Scenario sc;
   sc.path = origin;
+  sc.text = text;
   // The world first: its own errors come before those of the keys after it.
   if (const config::Value world = doc["world"]; world.given()) {
     auto path = world.text();
@@ -405,11 +410,9 @@ Result<Scenario> parse_scenario(const std::string& text, const std::string& orig
 }
 
 Result<Scenario> load_scenario(const std::string& path) {
-  std::ifstream f(path);
-  if (!f) return Error{path + ": cannot open the scenario file"};
-  std::stringstream text;
-  text << f.rdbuf();
-  return parse_scenario(text.str(), path, std::filesystem::path(path).parent_path().string());
+  auto text = read_text_file(path, "scenario file");
+  if (!text) return text.error();
+  return parse_scenario(*text, path, std::filesystem::path(path).parent_path().string());
 }
 
 std::string default_scenario_path() { return std::string(DRIFTLAB_SOURCE_DIR) + "/sim/scenarios/indoor.yaml"; }

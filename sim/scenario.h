@@ -147,6 +147,9 @@ struct ControllerConfig {
 
 struct Scenario {
   std::string path;  ///< the scenario file
+  std::string text;  ///< its YAML, as read
+  /// A fault description that replaced the scenario's `faults:` (`driftlab sim --faults`): its file and YAML.
+  std::string faults_path, faults_text;
   std::string name;
   double duration = 600;                       ///< [s]
   uint64_t seed = 1;
@@ -163,6 +166,7 @@ struct Scenario {
   std::string tf_static_channel = "TF_STATIC";
   double tf_static_rate = 1;                   ///< [Hz]
   std::string faults_channel = "FAULTS";       ///< the fault manifest (a truth channel)
+  std::string simulation_channel = "SIMULATION";  ///< driftlab.simulation_t: how the log was made (a truth channel)
   std::vector<SensorConfig> sensors;
   FaultConfig faults;
   ArmConfig arm;      ///< an arm on the robot (`arm:`; enabled when given)

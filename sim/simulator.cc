@@ -10,9 +10,11 @@
 #include <optional>
 #include <set>
 
+#include "core/log_reader.h"
 #include "core/log_writer.h"
 #include "core/time.h"
 #include "driftlab/fault_manifest_t.hpp"
+#include "driftlab/simulation_t.hpp"
 #include "driftlab/tf_t.hpp"
 #include "driftlab/velocity_command_t.hpp"
 #include "sim/bullet_world.h"
@@ -20,6 +22,7 @@
 #include "sim/internal/drone_loop.h"
 #include "sim/internal/output.h"
 #include "sim/internal/sensors.h"
+#include "lcmtypes/validate.h"
 #include "sim/raycaster.h"
 
 namespace driftlab::sim {
@@ -64,6 +67,33 @@ Status write_faults_json(const std::string& path, const Scenario& sc, int64_t en
 driftlab::vector3_t vec(const Eigen::Vector3d& v) { return {v.x(), v.y(), v.z()}; }
 
 }  // namespace
+
+Result<Scenario> scenario_of_log(const std::string& log) {
+  auto reader = LogReader::open(log, {.channels = "SIMULATION"});
+  if (!reader) return reader.error();
+  Event e;
+  driftlab::simulation_t m;
+  bool found = false;
+  while (!found && reader->next(e)) found = lcmtypes::decode(e.data, m);
+  if (!found) {
+    return Error{log + ": no SIMULATION message: it was not made by driftlab sim (or by one before the message), so "
+                 "there is no simulation to run again"};
+  }
+  auto sc = parse_scenario(m.scenario_yaml, m.scenario_path,
+                           std::filesystem::path(m.scenario_path).parent_path().string());
+  if (!sc) return Error{log + ": its scenario " + m.scenario_path + ": " + sc.error().message};
+  sc->duration = m.duration_s;
+  sc->seed = static_cast<uint64_t>(m.seed);
+  if (!m.faults_yaml.empty()) {
+    auto faults = parse_faults(m.faults_yaml, m.faults_path);
+    if (!faults) return Error{log + ": its faults: " + faults.error().message};
+    sc->faults = std::move(*faults);
+    sc->faults_path = m.faults_path;
+    sc->faults_text = m.faults_yaml;
+  }
+  sc->faults.seed = static_cast<uint64_t>(m.faults_seed);
+  return sc;
+}
 
 struct Simulation::Impl {
   Scenario sc;
@@ -141,6 +171,10 @@ Result<std::unique_ptr<Simulation>> Simulation::create(const Scenario& scenario,
   return std::unique_ptr<Simulation>(new Simulation(std::move(impl)));
 }
 
+std::vector<std::string> Simulation::recomputed_channels() const {
+  return impl_->drone ? impl_->drone->channels() : std::vector<std::string>{};
+}
+
 Result<SimReport> Simulation::run(const SimOptions& options) {
   const Scenario& sc = impl_->sc;
   Robot& robot = *impl_->robot;
@@ -152,6 +186,25 @@ Result<SimReport> Simulation::run(const SimOptions& options) {
   auto writer = LogWriter::create(options.out, {.atomic = true});
   if (!writer) return writer.error();
   Output out(*writer, sc.faults, sc.start_utime, options.on_message);
+  {  // How this log is made, first: a closed-loop replay runs it again from this.
+    driftlab::simulation_t m{};
+    m.header.utime = sc.start_utime;
+    m.header.frame_id = "";
+    m.scenario_path = sc.path;
+    m.scenario_yaml = sc.text;
+    m.faults_path = sc.faults_path;
+    m.faults_yaml = sc.faults_text;
+    m.duration_s = sc.duration;
+    m.seed = static_cast<int64_t>(sc.seed);
+    m.faults_seed = static_cast<int64_t>(sc.faults.seed);
+    m.version = options.version;
+    std::vector<uint8_t> bytes(static_cast<std::size_t>(m.getEncodedSize()));
+    m.encode(bytes.data(), 0, static_cast<int>(bytes.size()));
+    if (Status s = out.write_now(sc.simulation_channel, sc.start_utime, bytes); !s) {
+      writer->discard();
+      return Error{s.message()};
+    }
+  }
 
   RangeFn range;
   if (impl_->rays == RayBackend::kBullet) {
@@ -176,9 +229,9 @@ Result<SimReport> Simulation::run(const SimOptions& options) {
   for (const SensorConfig& s : sc.sensors) sensors.push_back(make_sensor(s, robot, out, sc.seed, &odometry, sc.geo));
 
   ArmLoop* arm = impl_->arm.get();
-  if (arm != nullptr) arm->attach(out, odometry);
+  if (arm != nullptr) arm->attach(out, odometry, options.corrections);
   if (drone != nullptr) {
-    if (Status s = drone->attach(out); !s) {
+    if (Status s = drone->attach(out, options.corrections.clocks); !s) {
       writer->discard();
       return Error{s.message()};
     }

@@ -14,7 +14,9 @@
 #include <string>
 #include <vector>
 
+#include "core/clock_correction.h"
 #include "core/result.h"
+#include "core/time.h"
 #include "sim/scenario.h"
 
 namespace driftlab::sim {
@@ -24,8 +26,19 @@ enum class RayBackend {
   kBullet,  ///< Bullet's generic closest-hit ray test (the baseline in benchmarks)
 };
 
+/// Corrections applied where the simulation's messages are received on board (by the drone's modules, by the
+/// arm's controller), not to what the log records: what `driftlab replay --closed-loop` asks of a run again.
+struct ReceiveCorrections {
+  ClockCorrections clocks;  ///< per channel: its stamps corrected as `driftlab replay --restamp` corrects them
+  /// Per command channel (the arm's): each command starts when it arrived less this (the measured delay), as
+  /// if stamped then, and the controller honours the stamps.
+  std::map<std::string, Duration> retime;
+};
+
 struct SimOptions {
   std::string out;  ///< log path; written as OUT.partial and renamed when complete
+  ReceiveCorrections corrections;
+  std::string version;  ///< of the program, for the log's SIMULATION message
   /// Also called for every message in arrival order (e.g. to publish it live): channel, arrival time
   /// [us, true clock], encoded bytes.
   std::function<void(const std::string&, int64_t, std::span<const uint8_t>)> on_message;
@@ -46,6 +59,11 @@ struct SimReport {
   std::vector<std::string> notes;           ///< what else the run says of itself (a drone's flight), a line each
 };
 
+/// The scenario a log was simulated from, as it was run (its SIMULATION message: the scenario's text, its
+/// duration, seed and replacement faults), for running it again. The world and URDF are read again from beside the
+/// scenario's path. Errors: a log without the message ("not made by driftlab sim"), or the scenario's own.
+Result<Scenario> scenario_of_log(const std::string& log);
+
 /// A scenario ready to run: the world and the robot are built and every reference checked.
 class Simulation {
  public:
@@ -53,6 +71,11 @@ class Simulation {
   /// link or joint, a sensor on a link the robot does not have, faults on a channel the scenario does not publish.
   static Result<std::unique_ptr<Simulation>> create(const Scenario& scenario, RayBackend rays = RayBackend::kGrid);
   ~Simulation();
+
+  /// The channels the on-board software publishes (the drone's estimator, flight stack and offboard script, and
+  /// what the simulator derives from them): a run makes them again from its inputs, so corrections of their
+  /// stamps do not apply.
+  std::vector<std::string> recomputed_channels() const;
 
   /// Runs to the scenario's duration (or until *options.stop), writing options.out and the fault manifest JSON
   /// beside it. Errors are the log's (a full disk); then no partial log is left behind. Call once.

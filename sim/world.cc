@@ -9,6 +9,8 @@
 #include <sstream>
 #include <utility>
 
+#include "core/text_file.h"
+
 namespace driftlab::sim {
 
 Eigen::AlignedBox2d World::bounds() const {
@@ -304,11 +306,9 @@ Result<World> parse_world(const std::string& yaml_text, const std::string& origi
 }
 
 Result<World> load_world(const std::string& path) {
-  std::ifstream f(path);
-  if (!f) return Error{path + ": cannot open the world description"};
-  std::stringstream text;
-  text << f.rdbuf();
-  return parse_world(text.str(), path, std::filesystem::path(path).parent_path().string());
+  auto text = read_text_file(path, "world description");
+  if (!text) return text.error();
+  return parse_world(*text, path, std::filesystem::path(path).parent_path().string());
 }
 
 }  // namespace driftlab::sim

@@ -21,6 +21,7 @@
 #include "sim/internal/sensors.h"
 #include "sim/robot.h"
 #include "sim/scenario.h"
+#include "sim/simulator.h"
 
 namespace driftlab::sim {
 
@@ -35,8 +36,10 @@ class ArmLoop {
   bool holds_base() const { return c_.hold_base; }
 
   /// Registers the streams on `out` and listens to the command and joint state channels' arrivals. `odometry` is
-  /// the robot's dead reckoning (for map -> odom).
-  void attach(Output& out, const WheelOdometry& odometry);
+  /// the robot's dead reckoning (for map -> odom). `corrections` (closed-loop replay) correct the commands'
+  /// stamps as they arrive, or re-time them: each starts when it arrived less the delay given, on a controller
+  /// that honours stamps.
+  void attach(Output& out, const WheelOdometry& odometry, const ReceiveCorrections& corrections = {});
   /// Before the output is flushed at now [us]: the commander, the robot state publisher, the localization.
   void publish(int64_t now);
   /// After the flush: the controller takes what arrived and drives the joints for the next step of dt [s].
@@ -68,6 +71,8 @@ class ArmLoop {
   int64_t n_cmd_ = 0, n_state_ = 0, n_tf_ = 0, n_map_ = 0;
   bool described_ = false;
   std::deque<Arrival> commands_;
+  std::optional<ClockCorrection> command_clock_;
+  std::optional<int64_t> retime_us_;  // commands start at arrival less this [us]
   std::optional<Eigen::VectorXd> last_joint_state_;  // what the commander last received, chain order
   Eigen::VectorXd command_;
 };

@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "core/clock_correction.h"
 #include "core/result.h"
 #include "driftlab/tf_t.hpp"
 #include "flight/vehicle.h"
@@ -36,8 +37,9 @@ class DroneLoop {
   const flight::VehicleModel& vehicle() const { return vehicle_; }
 
   /// Registers the streams on `out`, listens to the arrivals of every channel a module reads and of the motor
-  /// commands, and starts the modules. Errors are the modules' start() errors.
-  Status attach(Output& out);
+  /// commands, and starts the modules; `clocks` corrects the stamps of what the modules receive (closed-loop
+  /// replay). Errors are the modules' start() errors.
+  Status attach(Output& out, const ClockCorrections& clocks = {});
   /// After the output is flushed up to now [us]: the modules' timers due at now, then the rotors and the forces on
   /// the airframe for the next physics step of dt [s]; the rotor states and transforms that fall due.
   void control(int64_t now, double dt);
@@ -67,6 +69,7 @@ class DroneLoop {
   std::vector<Module*> modules_;  // owned by the host
   Output* out_ = nullptr;
   std::map<std::string, int, std::less<>> streams_;
+  ClockCorrections clocks_;
   bool running_ = false;
   Status failure_;  // the first error of the host (a module's), reported at finish()
 

@@ -93,6 +93,28 @@ TEST(DroneEkf, AGnssFixFarOutsideItsAccuracyIsAnOutlier) {
   EXPECT_EQ(ekf.filter().position(), before.position());
 }
 
+// An estimate that has left the GNSS behind (here: every fix from half-way on 20 m east of where the IMU says,
+// as after a divergence) does not stay lost: after reset_s (5 s) of outliers it starts from the fix again, once.
+TEST(DroneEkf, FixesThatAreAllOutliersForFiveSecondsResetThePosition) {
+  const Truth truth;
+  DroneEkf ekf = started();
+  const auto data = flight(2);
+  int64_t reset_at = 0;
+  for (const Stamped& s : data) {
+    DroneMeasurement m = s.m;
+    const bool shifted = s.utime - kT0 > 30000000;
+    if (auto* g = std::get_if<GnssFix>(&m); g != nullptr && shifted) g->position.x() += 20;
+    ekf.update(s.utime, m);
+    if (reset_at == 0 && ekf.counts().resets[1] > 0) reset_at = s.utime;
+  }
+  ASSERT_GT(reset_at, 0);
+  // The first shifted fix at 30.2 s; outliers for more than 5 s: the reset with the first fix after 35.2 s.
+  EXPECT_NEAR(static_cast<double>(reset_at - kT0) * 1e-6, 35.4, 0.25);
+  EXPECT_EQ(ekf.counts().resets[1], 1);
+  const double t = static_cast<double>(ekf.time() - kT0) * 1e-6;
+  EXPECT_LT((ekf.position() - truth.position(t) - Eigen::Vector3d(20, 0, 0)).norm(), 1.0);
+}
+
 TEST(DelayedDroneEkf, LateGnssFixesWithinTheWindowGiveTheInOrderResult) {
   const auto in_order = flight(3);
   // Every GNSS fix 120 ms late, as a receiver's latency makes it (30 IMU samples arrive before it).
@@ -108,6 +130,31 @@ TEST(DelayedDroneEkf, LateGnssFixesWithinTheWindowGiveTheInOrderResult) {
   EXPECT_LT((a.filter().position() - b.filter().position()).cwiseAbs().maxCoeff(), 1e-6);
   EXPECT_LT(a.filter().attitude().angularDistance(b.filter().attitude()), 1e-9);
   EXPECT_LT((a.filter().covariance() - b.filter().covariance()).cwiseAbs().maxCoeff(), 1e-9);
+}
+
+TEST(DelayedDroneEkf, ImuSamplesReorderedByJitterGiveTheInOrderResult) {
+  // Every IMU sample delayed by exponential jitter of 8 ms mean (twice the sample period: a third arrive after a
+  // later one); the others on time.
+  const auto in_order = flight(5);
+  std::mt19937_64 rng(5);
+  std::exponential_distribution<double> jitter(1 / 8000.0);
+  std::vector<std::pair<int64_t, Stamped>> arrivals;
+  for (const auto& s : in_order) {
+    const bool imu = std::holds_alternative<ImuSample>(s.m);
+    arrivals.push_back({s.utime + (imu ? static_cast<int64_t>(jitter(rng)) : 0), s});
+  }
+  std::stable_sort(arrivals.begin(), arrivals.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+  DelayedDroneEkf a(started(), 0.3), b(started(), 0.3);
+  for (const auto& s : in_order) a.add(s.utime, s.m);
+  for (const auto& [arrival, s] : arrivals) {
+    ASSERT_TRUE(b.add(s.utime, s.m)) << "stamp " << s.utime - kT0 << " arrival " << arrival - kT0 << " filter "
+                                     << b.filter().time() - kT0 << " rejected " << b.counters().rejected << " refused "
+                                     << b.counters().refused;
+  }
+  EXPECT_EQ(b.counters().rejected, 0);
+  EXPECT_GT(b.counters().reapplied, 1000);
+  EXPECT_LT((a.filter().position() - b.filter().position()).cwiseAbs().maxCoeff(), 1e-6);
+  EXPECT_LT(a.filter().attitude().angularDistance(b.filter().attitude()), 1e-9);
 }
 
 TEST(DelayedDroneEkf, ImuSamplesOlderThanTheWindowAreRejectedAndCounted) {
