@@ -189,8 +189,7 @@ TfDiagnosis TfCheck::finish() const {
                       "%lld of %zu %s messages find no transform %s -> %s as new as their stamp within %.0f ms of "
                       "arriving (its %.0f ms period and 50 ms): \"extrapolation into the future\"",
                       static_cast<long long>(late), uses.size(), channel.c_str(), quoted(e->parent).c_str(),
-                      quoted(child).c_str(), Duration::from_us(period + kWaitUs).seconds() * 1e3,
-                      c.period_s * 1e3);
+                      quoted(child).c_str(), Duration::from_us(period + kWaitUs).seconds() * 1e3, c.period_s * 1e3);
         lagging[child].push_back(buf);
       }
       // Stale: the transform stops while the data goes on.
@@ -228,10 +227,10 @@ TfDiagnosis TfCheck::finish() const {
                     "period: when a message arrives, a lookup at its stamp lies %.0f to %.0f ms past the newest "
                     "transform (\"extrapolation into the future\"); %s's stamps are %.1f ms older than their "
                     "arrival, %s's %.1f ms (a clock behind, a stamp taken early, or a slow transport)",
-                    quoted(head->parent).c_str(), quoted(child).c_str(), head->tf_channel.c_str(),
-                    head->offset_s * 1e3, head->channel.c_str(), head->period_s * 1e3, head->offset_s * 1e3,
-                    head->lead_s.max * 1e3, head->tf_channel.c_str(), head->tf_latency_s * 1e3,
-                    head->channel.c_str(), head->data_latency_s * 1e3);
+                    quoted(head->parent).c_str(), quoted(child).c_str(), head->tf_channel.c_str(), head->offset_s * 1e3,
+                    head->channel.c_str(), head->period_s * 1e3, head->offset_s * 1e3, head->lead_s.max * 1e3,
+                    head->tf_channel.c_str(), head->tf_latency_s * 1e3, head->channel.c_str(),
+                    head->data_latency_s * 1e3);
       d.problems.push_back(std::string(buf) + (others.empty() ? "" : "; the same for " + others));
     }
     for (auto& c : checks) d.stamps.push_back(std::move(c));

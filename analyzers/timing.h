@@ -103,7 +103,7 @@ struct TfStampCheck {
   /// Median arrival - stamp of the transform and of the data [s]: which of the two the offset comes from (a clock
   /// behind, a stamp taken early and a slow transport look alike in one log).
   double tf_latency_s = 0, data_latency_s = 0;
-  int64_t never = 0;          ///< messages no transform as new as their stamp ever reached [count]
+  int64_t never = 0;  ///< messages no transform as new as their stamp ever reached [count]
 };
 
 /// The TF tree seen in the log (channels of driftlab.tf_t; a channel whose name contains "static", in any case,

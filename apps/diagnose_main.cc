@@ -2,10 +2,10 @@
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
-#include <cmath>
-#include <map>
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
+#include <map>
 #include <memory>
 
 #include "analyzers/timing.h"
@@ -94,7 +94,8 @@ std::vector<std::string> report_lines(const Diagnosis& d, std::vector<std::strin
     for (const auto& c : d.tf.stamps) {
       if (c.messages == 0) continue;
       const analyzers::TfStampCheck*& h = head[{c.parent, c.child}];
-      if (h == nullptr || std::pair(c.frame == c.child, c.messages) > std::pair(h->frame == h->child, h->messages)) h = &c;
+      if (h == nullptr || std::pair(c.frame == c.child, c.messages) > std::pair(h->frame == h->child, h->messages))
+        h = &c;
     }
     for (const auto& [edge, c] : head) {
       std::snprintf(buf, sizeof(buf),

@@ -38,11 +38,11 @@ struct JointCommands {
 /// names differ from the first's, whose stamps do not increase or whose positions are not finite are left out;
 /// a first message naming a joint twice leaves the channel empty.
 struct JointStates {
-  std::vector<std::string> names;        ///< of the first message
-  std::map<std::string, size_t> index;   ///< joint name -> column
-  std::vector<int64_t> stamp;            ///< [us]
-  std::vector<std::vector<double>> q;    ///< positions [rad or m], per message
-  std::vector<std::vector<double>> v;    ///< velocities [rad/s or m/s], per message (empty rows when not sent)
+  std::vector<std::string> names;       ///< of the first message
+  std::map<std::string, size_t> index;  ///< joint name -> column
+  std::vector<int64_t> stamp;           ///< [us]
+  std::vector<std::vector<double>> q;   ///< positions [rad or m], per message
+  std::vector<std::vector<double>> v;   ///< velocities [rad/s or m/s], per message (empty rows when not sent)
   /// Adds an encoded driftlab.joint_state_t; false when left out.
   bool add(std::span<const uint8_t> data);
   /// Whether every one of `joints` is a column.

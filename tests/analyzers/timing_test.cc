@@ -299,7 +299,8 @@ TEST(DiagnoseTf, FindsMissingFramesChangedStaticsFutureStampsLagAndStaleness) {
   write_log(dir.file("gap.lcm"), gap, 7);
   auto g2 = diagnose(dir.file("gap.lcm"));
   ASSERT_TRUE(g2.ok());
-  EXPECT_TRUE(has_problem(*g2, "IMU messages find no transform 'odom' -> 'base_link' as new as their stamp within 70 ms"));
+  EXPECT_TRUE(
+      has_problem(*g2, "IMU messages find no transform 'odom' -> 'base_link' as new as their stamp within 70 ms"));
 
   Faults h;
   h.tf_future = true;
