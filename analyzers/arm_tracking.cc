@@ -30,6 +30,7 @@ using internal::JointStates;
 constexpr double kRadToDeg = 180.0 / M_PI;
 /// Ground truth of the base is interpolated between poses at most this far apart [us].
 constexpr int64_t kMaxTruthGapUs = 100'000;
+constexpr size_t kMaxSpectrumSamples = size_t{1} << 22;
 /// The oscillation's resampling step [us]: 100 Hz, the simulator's ground truth rate (a 50 Hz Nyquist frequency, above
 /// any motion an arm's controller makes).
 constexpr int64_t kSpectrumStepUs = 10'000;
@@ -153,6 +154,9 @@ Oscillation oscillation(const std::vector<int64_t>& ts, const std::vector<Eigen:
   Oscillation o;
   o.cutoff_hz = cutoff_hz;
   if (ts.size() < 2) return o;
+  // At most kMaxSpectrumSamples (11 hours at 100 Hz); a longer span is resampled more coarsely, and a cutoff above
+  // the coarser grid's Nyquist frequency then finds nothing.
+  step_us = std::max(step_us, (ts.back() - ts.front()) / static_cast<int64_t>(kMaxSpectrumSamples) + 1);
   const auto n = static_cast<size_t>((ts.back() - ts.front()) / step_us) + 1;
   if (n < 16) return o;
   const double step_s = Duration::from_us(step_us).seconds();
