@@ -241,6 +241,7 @@ Result<ArmTracking> evaluate_arm(const std::string& log, const ArmTrackingOption
   out.reference = options.reference;
   // The commands.
   std::vector<std::string> command_channels;
+  command_channels.reserve(commands.size());
   for (const auto& [name, c] : commands) command_channels.push_back(name);
   if (!options.command_channel.empty()) {
     if (commands.count(options.command_channel) == 0) {
@@ -269,6 +270,7 @@ Result<ArmTracking> evaluate_arm(const std::string& log, const ArmTrackingOption
   }
   const JointStates& js = states[out.state_channel];
   std::vector<size_t> state_columns;
+  state_columns.reserve(joints.size());
   for (const auto& j : joints) state_columns.push_back(js.index.at(j));
   // The reference.
   const CommandedMotion motion(cmds);
@@ -372,6 +374,7 @@ Result<ArmTracking> evaluate_arm(const std::string& log, const ArmTrackingOption
   };
   const kinematics::ModelJoint* first_joint = model->joint(joints.front());
   std::vector<std::string> pose_channels;
+  pose_channels.reserve(truths.size());
   for (const auto& [name, t] : truths) pose_channels.push_back(name);
   auto pick = [&](const std::string& given, const char* option, auto&& fits, auto&& better) -> Result<std::string> {
     if (!given.empty()) {

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <exception>
 #include <map>
 #include <string>
 
@@ -18,7 +19,9 @@
 #include "sim/robot.h"
 #include "sim/scenario.h"
 
-int main(int argc, char** argv) {
+namespace {
+
+int run(int argc, char** argv) {
   using namespace driftlab;
   if (argc < 2) {
     std::fprintf(stderr, "usage: arm_physics_bench SCENARIO [SECONDS]\n");
@@ -30,8 +33,7 @@ int main(int argc, char** argv) {
   const double seconds = argc > 2 ? std::atof(argv[2]) : sc->duration;
   auto model = kinematics::RobotModel::load(sc->urdf_path);
   if (!model) return std::fprintf(stderr, "%s\n", model.error().message.c_str()), 2;
-  auto chain =
-      kinematics::ArmChain::create(*model, sc->arm.commander.base_link, sc->arm.commander.tip_link, true);
+  auto chain = kinematics::ArmChain::create(*model, sc->arm.commander.base_link, sc->arm.commander.tip_link, true);
   if (!chain) return std::fprintf(stderr, "%s\n", chain.error().message.c_str()), 2;
 
   Stopwatch watch;  // start-up included, as `driftlab sim` reports it
@@ -47,7 +49,8 @@ int main(int argc, char** argv) {
     home.push_back(i < sc->arm.commander.home.size() ? sc->arm.commander.home[i] : 0.0);
     initial[chain->joint_names()[i]] = home.back();
   }
-  if (auto s = (*robot)->set_initial_positions(initial); !s) return std::fprintf(stderr, "%s\n", s.message().c_str()), 2;
+  if (auto s = (*robot)->set_initial_positions(initial); !s)
+    return std::fprintf(stderr, "%s\n", s.message().c_str()), 2;
   (*robot)->ignore_self_collisions();
   const double dt = sc->physics_step;
   const auto steps = static_cast<long>(std::llround(seconds / dt));
@@ -64,7 +67,17 @@ int main(int argc, char** argv) {
     (*robot)->after_step(dt);
   }
   const double wall = watch.seconds();
-  std::printf("{\"simulated_s\": %.3f, \"wall_s\": %.6f, \"real_time_factor\": %.3f}\n", seconds, wall,
-              seconds / wall);
+  std::printf("{\"simulated_s\": %.3f, \"wall_s\": %.6f, \"real_time_factor\": %.3f}\n", seconds, wall, seconds / wall);
   return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  try {
+    return run(argc, argv);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "arm_physics_bench: %s\n", e.what());
+    return 1;
+  }
 }

@@ -450,8 +450,8 @@ std::string write_drone_log(const test::TempDir& dir, const std::function<Eigen:
   auto w = LogWriter::create(dir.file("drone.lcm"));
   EXPECT_TRUE(w.ok());
   const int64_t t0 = 1763776800000000;
-  for (int i = 0; i <= 3000; ++i) {
-    const double t = 0.01 * i;
+  for (int64_t i = 0; i <= 3000; ++i) {
+    const double t = 0.01 * static_cast<double>(i);
     const Eigen::Isometry3d x = truth(t);
     const Eigen::Quaterniond q(x.rotation());
     pose_t p{};
