@@ -110,7 +110,7 @@ TEST(ArmEval, CleanRunTracksThePlanWithin1cmAnd1DegreeAndKeepsTheLimits) {
 // Against the controller's desired state, eval's numbers are what the URDF's FK of ARM_STATE's desired joints gives
 // against the ground truth, computed here on its own from the log (the stamps coincide, so nothing is interpolated).
 TEST(ArmEval, DesiredReferenceEqualsFkOfTheControllerStateAgainstGroundTruth) {
-  const std::string& log = simulated("manipulator", 60);
+  const std::string& log = simulated("manipulator", 20);
   const auto a = eval_arm(log, "--arm-reference desired");
   ASSERT_TRUE(a["ee"].is_object()) << a["ee_problem"];
   EXPECT_EQ(a["channels"]["controller_state"], "ARM_STATE");
@@ -156,7 +156,7 @@ TEST(ArmEval, DesiredReferenceEqualsFkOfTheControllerStateAgainstGroundTruth) {
     ++n;
   }
   EXPECT_EQ(a["ee"]["position_m"]["rmse"].is_number(), true);
-  EXPECT_EQ(n, 6001);
+  EXPECT_EQ(n, 2001);
   EXPECT_NEAR(a["ee"]["position_m"]["max"].get<double>(), max_m, 1e-12);
   EXPECT_NEAR(a["ee"]["position_m"]["rmse"].get<double>(), std::sqrt(sum_sq / n), 1e-12);
   EXPECT_NEAR(a["ee"]["rotation_deg"]["max"].get<double>(), max_rad * 180 / kPi, 1e-9);
@@ -169,8 +169,9 @@ TEST(ArmEval, DesiredReferenceEqualsFkOfTheControllerStateAgainstGroundTruth) {
 // the clean run's is millimetres; against the controller's own desired state both are the same (the controller
 // tracks what it gets: the commands are late), and the hand shakes at the command rate, which the clean one does not.
 TEST(ArmEval, LatencyRunLagsTheCommandsAndShakesAtTheCommandRate) {
-  const auto clean = eval_arm(simulated("manipulator", 60));
-  const auto late = eval_arm(simulated("manipulator_latency", 60));
+  // Two pick-and-place cycles of each (the sanitizer build runs these too).
+  const auto clean = eval_arm(simulated("manipulator", 28));
+  const auto late = eval_arm(simulated("manipulator_latency", 28));
   ASSERT_TRUE(clean["ee"].is_object() && late["ee"].is_object());
   const double clean_rms = clean["ee"]["position_m"]["rmse"].get<double>();
   const double late_rms = late["ee"]["position_m"]["rmse"].get<double>();
@@ -181,8 +182,8 @@ TEST(ArmEval, LatencyRunLagsTheCommandsAndShakesAtTheCommandRate) {
               5 * clean["joints"][j]["error_rad"]["rmse"].get<double>())
         << j;
   }
-  const auto clean_desired = eval_arm(simulated("manipulator", 60), "--arm-reference desired");
-  const auto late_desired = eval_arm(simulated("manipulator_latency", 60), "--arm-reference desired");
+  const auto clean_desired = eval_arm(simulated("manipulator", 28), "--arm-reference desired");
+  const auto late_desired = eval_arm(simulated("manipulator_latency", 28), "--arm-reference desired");
   EXPECT_NEAR(late_desired["ee"]["position_m"]["rmse"].get<double>(),
               clean_desired["ee"]["position_m"]["rmse"].get<double>(),
               0.2 * clean_desired["ee"]["position_m"]["rmse"].get<double>());
@@ -191,7 +192,7 @@ TEST(ArmEval, LatencyRunLagsTheCommandsAndShakesAtTheCommandRate) {
   const auto& calm = clean["ee"]["oscillation"];
   EXPECT_EQ(shake["cutoff_hz"].get<double>(), 5.0);
   EXPECT_GT(shake["rms_m"].get<double>(), 4 * calm["rms_m"].get<double>());
-  const auto d = driftlab("diagnose " + simulated("manipulator_latency", 60) + " --json -");
+  const auto d = driftlab("diagnose " + simulated("manipulator_latency", 28) + " --json -");
   ASSERT_EQ(d.code, 0) << d.err;
   const double period = nlohmann::json::parse(d.out)["command_loops"][0]["command_period_s"].get<double>();
   EXPECT_NEAR(shake["peak_hz"].get<double>(), 1 / period, 1.0);  // 20 Hz: each late command re-plans the arm
@@ -207,8 +208,8 @@ TEST(ArmEval, BadInputIsOneLineAndExitCode2) {
            {"--arm " + sample, "no joint trajectory commands"},
            {"--arm /nonexistent.lcm", "/nonexistent.lcm"},
            {"--arm " + sample + " --gt " + sample + ":GROUND_TRUTH", "give it without --gt"},
-           {"--arm " + simulated("manipulator", 60) + " --arm-ee NOPE", "--arm-ee NOPE is not a channel of poses"},
-           {"--arm " + simulated("manipulator", 60) + " --arm-command EE_TRUTH", "not a channel of joint trajectories"},
+           {"--arm " + simulated("manipulator", 5) + " --arm-ee NOPE", "--arm-ee NOPE is not a channel of poses"},
+           {"--arm " + simulated("manipulator", 5) + " --arm-command EE_TRUTH", "not a channel of joint trajectories"},
        }) {
     const auto r = driftlab("eval " + args);
     EXPECT_EQ(r.code, 2) << args;
