@@ -7,9 +7,6 @@
 
 #include "analyzers/internal/channel_samples.h"
 #include "core/time.h"
-#include "driftlab/joint_state_t.hpp"
-#include "driftlab/joint_trajectory_t.hpp"
-#include "lcmtypes/validate.h"
 
 namespace driftlab::analyzers::internal {
 namespace {
@@ -24,31 +21,11 @@ constexpr int64_t kFineUs = 1000;
 constexpr int64_t kMaxSamples = 200'000;
 // The coarse search steps kCoarse samples; the fine one looks kCoarse samples either side of the coarse peak.
 constexpr int64_t kCoarse = 10;
-// Stamps and plan times are taken within these bounds (any real clock's microseconds since 1970 are far below 2^62;
-// a plan of over 12 days is not a command), so that sums and differences of two of them cannot overflow.
-constexpr int64_t kMaxStampUs = int64_t{1} << 62;
-constexpr int64_t kMaxPlanUs = int64_t{1} << 40;
-
-// More joints than any robot's command carries: left out (the signals hold joints x samples numbers).
-constexpr size_t kMaxJoints = 64;
-
 // Below this agreement at the best lag the motion does not say when the joints follow the commands: no motion, a
 // controller that does not follow them (stale commands rejected), or a delay that changes during the log (a
 // drifting clock). At the true delay the joints repeat the commanded positions up to the controller's tracking
 // error, a few percent of their motion: agreement over 0.9.
 constexpr double kMinConfidence = 0.5;
-
-/// Linear interpolation of y at x in ascending xs, held after the end; before the start, extrapolated along the
-/// first two points when `extrapolate_front` (a plan's first point lies a period after its stamp: the controller
-/// moves towards it from the stamp on), held otherwise.
-double interpolate(const std::vector<int64_t>& xs, const std::vector<double>& ys, int64_t x, bool extrapolate_front) {
-  if (x >= xs.back()) return ys.back();
-  if (x <= xs.front() && (!extrapolate_front || xs.size() < 2)) return ys.front();
-  const auto hi =
-      x <= xs.front() ? size_t{1} : static_cast<size_t>(std::upper_bound(xs.begin(), xs.end(), x) - xs.begin());
-  const double f = static_cast<double>(x - xs[hi - 1]) / static_cast<double>(xs[hi] - xs[hi - 1]);
-  return ys[hi - 1] + f * (ys[hi] - ys[hi - 1]);
-}
 
 /// How well b[i + lag] repeats a[i], over the samples both have, every `stride`-th: 1 - the mean squared difference
 /// over the mean squared deviation of a from its mean (1: b is a, `lag` samples later; 0 or less: no better than
@@ -74,50 +51,11 @@ double agreement(const std::vector<std::vector<double>>& a, const std::vector<st
 }  // namespace
 
 void CommandLoopCheck::add_command(const std::string& channel, std::span<const uint8_t> data, int64_t arrival) {
-  driftlab::joint_trajectory_t m;
-  if (!lcmtypes::decode(data, m) || m.npoints < 1) return;
-  if (m.joint_names.empty() || m.joint_names.size() > kMaxJoints) return;
-  Commands& c = commands_[channel];
-  if (c.list.empty()) c.joints = m.joint_names;
-  if (m.joint_names != c.joints) return;
-  if (m.header.utime < 0 || m.header.utime >= kMaxStampUs) return;
-  Command cmd;
-  cmd.stamp = m.header.utime;
-  cmd.arrival = arrival;
-  for (const auto& p : m.points) {
-    if (p.positions.size() != c.joints.size() || p.time_from_start_us < 0 || p.time_from_start_us >= kMaxPlanUs ||
-        (!cmd.t.empty() && p.time_from_start_us <= cmd.t.back())) {
-      return;
-    }
-    if (!std::all_of(p.positions.begin(), p.positions.end(), [](double v) { return std::isfinite(v); })) return;
-    cmd.t.push_back(p.time_from_start_us);
-    cmd.q.push_back(p.positions);
-  }
-  c.list.push_back(std::move(cmd));
+  commands_[channel].add(data, arrival);
 }
 
 void CommandLoopCheck::add_state(const std::string& channel, std::span<const uint8_t> data) {
-  driftlab::joint_state_t m;
-  if (!lcmtypes::decode(data, m)) return;
-  if (m.name.empty() || m.name.size() > kMaxJoints || m.position.size() != m.name.size()) return;
-  States& s = states_[channel];
-  if (s.stamp.empty()) {
-    s.index.clear();
-    for (size_t i = 0; i < m.name.size(); ++i) s.index.emplace(m.name[i], i);
-    if (s.index.size() != m.name.size()) {  // a name twice: which one is the joint?
-      s.index.clear();
-      return;
-    }
-  }
-  if (m.position.size() != s.index.size() || m.header.utime < 0 || m.header.utime >= kMaxStampUs ||
-      (!s.stamp.empty() && m.header.utime <= s.stamp.back())) {
-    return;
-  }
-  for (const auto& [name, i] : s.index) {
-    if (i >= m.name.size() || m.name[i] != name || !std::isfinite(m.position[i])) return;
-  }
-  s.stamp.push_back(m.header.utime);
-  s.q.push_back(m.position);
+  states_[channel].add(data);
 }
 
 std::vector<CommandLoop> CommandLoopCheck::finish(int64_t start_utime) const {
@@ -126,7 +64,7 @@ std::vector<CommandLoop> CommandLoopCheck::finish(int64_t start_utime) const {
     CommandLoop loop;
     loop.command_channel = channel;
     loop.commands = static_cast<int64_t>(c.list.size());
-    for (const Command& cmd : c.list) {
+    for (const JointCommand& cmd : c.list) {
       // The arrival is any log time: the difference in doubles (a log's arrivals are not bounded like stamps).
       const double over = Time::from_us(cmd.arrival).seconds_since(Time::from_us(cmd.stamp + cmd.t.back()));
       if (over <= 0) continue;
@@ -134,20 +72,15 @@ std::vector<CommandLoop> CommandLoopCheck::finish(int64_t start_utime) const {
       loop.stale_max_s = std::max(loop.stale_max_s, over);
     }
     // The state channel with every commanded joint; the one with the most messages.
-    const States* states = nullptr;
+    const JointStates* states = nullptr;
     for (const auto& [name, s] : states_) {
-      const auto& index = s.index;  // a binding cannot be captured before C++20 in clang 14
-      const bool all =
-          std::all_of(c.joints.begin(), c.joints.end(), [&](const std::string& j) { return index.count(j) > 0; });
-      if (all && s.stamp.size() >= 2 && (states == nullptr || s.stamp.size() > states->stamp.size())) {
+      if (s.has_all(c.joints) && s.stamp.size() >= 2 && (states == nullptr || s.stamp.size() > states->stamp.size())) {
         loop.state_channel = name;
         states = &s;
       }
     }
-    std::vector<const Command*> by_stamp;
-    for (const Command& cmd : c.list) by_stamp.push_back(&cmd);
-    std::stable_sort(by_stamp.begin(), by_stamp.end(),
-                     [](const Command* a, const Command* b) { return a->stamp < b->stamp; });
+    const CommandedMotion motion(c);
+    const std::vector<const JointCommand*>& by_stamp = motion.by_stamp();
     if (by_stamp.size() >= 2) {
       Array<double> gaps;
       for (size_t i = 1; i < by_stamp.size(); ++i) {
@@ -162,7 +95,7 @@ std::vector<CommandLoop> CommandLoopCheck::finish(int64_t start_utime) const {
     // Both signals on one grid where both are known: the commanded position of each joint is the plan of the last
     // command stamped at or before the time; the measured one interpolated between joint states.
     const int64_t t0 = std::max(by_stamp.front()->stamp, states->stamp.front());
-    const int64_t t1 = std::min(by_stamp.back()->stamp + by_stamp.back()->t.back(), states->stamp.back());
+    const int64_t t1 = std::min(motion.end(), states->stamp.back());
     if (t1 - t0 < 4 * kMaxLagUs) {
       out.push_back(std::move(loop));
       continue;
@@ -178,16 +111,12 @@ std::vector<CommandLoop> CommandLoopCheck::finish(int64_t start_utime) const {
       state_q[j].reserve(states->q.size());
       for (const auto& q : states->q) state_q[j].push_back(q[col]);
     }
-    size_t active = 0;
-    std::vector<double> plan_j;
+    std::vector<double> q;
     for (size_t i = 0; i < n; ++i) {
       const int64_t t = t0 + static_cast<int64_t>(i) * step;
-      while (active + 1 < by_stamp.size() && by_stamp[active + 1]->stamp <= t) ++active;
-      const Command& cmd = *by_stamp[active];
+      motion.at(t, q);  // t0 is at or after the first command's stamp
       for (size_t j = 0; j < joints; ++j) {
-        plan_j.clear();
-        for (const auto& q : cmd.q) plan_j.push_back(q[j]);
-        commanded[j][i] = interpolate(cmd.t, plan_j, t - cmd.stamp, true);
+        commanded[j][i] = q[j];
         measured[j][i] = interpolate(states->stamp, state_q[j], t, false);
       }
     }

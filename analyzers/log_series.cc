@@ -2,12 +2,15 @@
 
 #include <algorithm>
 
+#include "analyzers/internal/joint_motion.h"
 #include "analyzers/timing.h"
 #include "analyzers/trajectory_io.h"
 #include "core/log_format.h"
 #include "core/log_reader.h"
 #include "core/time.h"
 #include "driftlab/image_t.hpp"
+#include "driftlab/joint_state_t.hpp"
+#include "driftlab/joint_trajectory_t.hpp"
 #include "driftlab/odometry_t.hpp"
 #include "driftlab/pose_t.hpp"
 #include "lcmtypes/stream_header.h"
@@ -15,6 +18,51 @@
 #include "lcmtypes/validate.h"
 
 namespace driftlab::analyzers {
+namespace {
+
+/// At most this many samples of an arm's joints are kept (a plot has no more pixels).
+constexpr size_t kMaxArmSamples = 20'000;
+
+std::vector<ArmSeries> arm_series(const std::map<std::string, internal::JointCommands>& commands,
+                                  const std::map<std::string, internal::JointStates>& states, int64_t start_utime) {
+  std::vector<ArmSeries> out;
+  for (const auto& [channel, c] : commands) {
+    const internal::JointStates* js = nullptr;
+    ArmSeries a;
+    for (const auto& [name, s] : states) {
+      if (s.has_all(c.joints) && s.stamp.size() >= 2 && (js == nullptr || s.stamp.size() > js->stamp.size())) {
+        js = &s;
+        a.state_channel = name;
+      }
+    }
+    if (js == nullptr || c.list.empty()) continue;
+    a.command_channel = channel;
+    a.joints = c.joints;
+    a.commanded.resize(c.joints.size());
+    a.measured.resize(c.joints.size());
+    const internal::CommandedMotion motion(c);
+    std::vector<size_t> columns;
+    for (const auto& j : c.joints) columns.push_back(js->index.at(j));
+    size_t in_span = 0;
+    for (int64_t t : js->stamp) in_span += t >= motion.start() && t <= motion.end();
+    const size_t every = in_span / kMaxArmSamples + 1;
+    std::vector<double> q;
+    size_t n = 0;
+    for (size_t k = 0; k < js->stamp.size(); ++k) {
+      const int64_t t = js->stamp[k];
+      if (t < motion.start() || t > motion.end() || n++ % every != 0 || !motion.at(t, q)) continue;
+      a.t.push_back(Time::from_us(t).seconds_since(Time::from_us(start_utime)));
+      for (size_t j = 0; j < columns.size(); ++j) {
+        a.commanded[j].push_back(q[j]);
+        a.measured[j].push_back(js->q[k][columns[j]]);
+      }
+    }
+    if (!a.t.empty()) out.push_back(std::move(a));
+  }
+  return out;
+}
+
+}  // namespace
 
 Result<LogSeries> read_log_series(const std::string& log) {
   auto reader = LogReader::open(log);
@@ -25,6 +73,10 @@ Result<LogSeries> read_log_series(const std::string& log) {
   std::vector<std::vector<int64_t>> arrivals, stamps;
   std::vector<int64_t> ready_after;  // per stream, from its first message (a scan's sweep)
   const int64_t image_hash = driftlab::image_t::getHash();
+  const int64_t command_hash = driftlab::joint_trajectory_t::getHash();
+  const int64_t joint_state_hash = driftlab::joint_state_t::getHash();
+  std::map<std::string, internal::JointCommands> commands;
+  std::map<std::string, internal::JointStates> joint_states;
   Event e;
   bool first = true;
   while (reader->next(e)) {
@@ -58,6 +110,10 @@ Result<LogSeries> read_log_series(const std::string& log) {
     const int64_t fp = logfmt::fingerprint(e.data);
     if (fp == driftlab::pose_t::getHash() || fp == driftlab::odometry_t::getHash()) {
       append_pose(e.data, out.poses[s.channel]);
+    } else if (fp == command_hash) {
+      commands[s.channel].add(e.data, e.utime);
+    } else if (fp == joint_state_hash) {
+      joint_states[s.channel].add(e.data);
     } else if (fp == image_hash) {
       driftlab::image_t image;
       if (!lcmtypes::decode(e.data, image) || image.encoding != "png" ||
@@ -72,6 +128,7 @@ Result<LogSeries> read_log_series(const std::string& log) {
     }
   }
   out.problems = reader->problems();
+  out.arms = arm_series(commands, joint_states, out.start_utime);
   for (size_t k = 0; k < out.streams.size(); ++k) {
     StreamSeries& s = out.streams[k];
     s.arrival.reserve(arrivals[k].size());

@@ -28,12 +28,25 @@ struct MapImage {
   std::vector<uint8_t> png;  ///< the image as sent (driftlab.image_t with encoding "png")
 };
 
+/// An arm's command loop: the commanded and measured positions of its joints at the joint states' stamps, where the
+/// commanded motion is defined (the plan of the last command stamped at or before each time, as `driftlab
+/// diagnose` reads it); every joint state, or every k-th so that at most 20,000 are kept.
+struct ArmSeries {
+  std::string command_channel;  ///< driftlab.joint_trajectory_t
+  std::string state_channel;    ///< driftlab.joint_state_t with all its joints (the most messages)
+  std::vector<std::string> joints;
+  std::vector<double> t;                       ///< [s from the log's first event]
+  std::vector<std::vector<double>> commanded;  ///< per joint [rad or m]
+  std::vector<std::vector<double>> measured;   ///< per joint [rad or m]
+};
+
 struct LogSeries {
   std::string log;
   int64_t start_utime = 0, end_utime = 0;      ///< first and last log time [us]
   std::vector<StreamSeries> streams;           ///< by channel name
   std::map<std::string, Trajectory> poses;     ///< driftlab.pose_t and odometry_t channels (stamps: header [s])
   std::vector<MapImage> maps;                  ///< image_t channels whose frame is "map"
+  std::vector<ArmSeries> arms;                 ///< per channel of joint trajectory commands
   uint64_t problems = 0;                       ///< corruption met while reading
 };
 

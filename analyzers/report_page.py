@@ -227,6 +227,67 @@ def plot_skew(page, data):
               "the skew. A sharp single peak is trustworthy; a flat or double-peaked curve is not.")
 
 
+def fastest_window(t, commanded, width):
+    """The [start, end] of `width` seconds where the commanded joints move the most (summed |change|)."""
+    if len(t) < 2 or t[-1] - t[0] <= width:
+        return (t[0], t[-1]) if t else (0, 1)
+    moved = numpy.zeros(len(t))
+    for q in commanded:
+        moved[1:] += numpy.abs(numpy.diff(numpy.asarray(q)))
+    cumulative = numpy.concatenate(([0.0], numpy.cumsum(moved)))
+    tt = numpy.asarray(t)
+    ends = numpy.searchsorted(tt, tt + width)
+    gained = cumulative[numpy.minimum(ends, len(t))] - cumulative[numpy.arange(len(t))]
+    start = int(numpy.argmax(gained[tt + width <= tt[-1]])) if (tt + width <= tt[-1]).any() else 0
+    return tt[start], tt[start] + width
+
+
+def plot_arms(page, data):
+    for i, arm in enumerate(data.get("arms", [])):
+        joints = arm["joints"]
+        if not arm["t"] or not joints:
+            continue
+        delay = arm.get("delay_s")
+        start, end = fastest_window(arm["t"], arm["commanded"], 3.0)
+        t = numpy.asarray(arm["t"])
+        shown = (t >= start) & (t <= end)
+        panels = len(joints) + (1 if arm.get("curve") else 0)
+        fig, axes = grid_of(panels, row_height=2.4)
+        for ax, name, cmd, meas in zip(axes, joints, arm["commanded"], arm["measured"]):
+            cmd, meas = numpy.asarray(cmd), numpy.asarray(meas)
+            ax.plot(t[shown], cmd[shown], color="black", lw=1.3, ls="--", label="commanded")
+            ax.plot(t[shown], meas[shown], color="#d62728", lw=1.4, label="measured")
+            if delay is not None and abs(delay) >= 0.002:
+                ax.plot(t[shown] - delay, meas[shown], color="#1f77b4", lw=1.0, ls=":",
+                        label=f"measured {ms(delay):.1f} ms earlier")
+            ax.set_xlim(start, end)
+            ax.set_title(name, fontsize=9.5)
+            ax.set_xlabel("time [s]")
+            ax.set_ylabel("position [rad]")
+        axes[0].legend(loc="best", fontsize=8)
+        if arm.get("curve"):
+            ax = axes[len(joints)]
+            lags = [ms(c[0]) for c in arm["curve"]]
+            ax.plot(lags, [c[1] for c in arm["curve"]], color="#2ca02c", lw=1.4)
+            if delay is not None:
+                ax.axvline(ms(delay), color="black", lw=1, ls="--")
+            ax.set_ylim(max(-1.0, min(c[1] for c in arm["curve"])), 1.02)
+            ax.set_xlabel("lag [ms]")
+            ax.set_ylabel("agreement")
+            ax.set_title("measured vs commanded, by lag", fontsize=9.5)
+        if delay is None:
+            said = "no delay measured (the joints do not follow the commanded motion clearly)"
+        else:
+            said = f"the joints follow {ms(delay):.1f} ms late (confidence {arm.get('confidence', 0):.2f})"
+        save_grid(page, fig, f"{arm['command_channel']} -> {arm['state_channel']}: {said}", f"arm_{i}.png",
+                  f"Arm: commanded and measured joint motion ({arm['command_channel']})",
+                  "Each joint's commanded position (dashed: the plan of the last command stamped at or before each "
+                  "time) and measured position (red: the joint states), over the 3 s in which the commanded joints "
+                  "move the most; dotted: the measured motion moved earlier by the delay driftlab diagnose measures "
+                  "from the motion. Last panel: how well the measured positions repeat the commanded ones at each "
+                  "lag (1: the same motion); its peak is the delay.")
+
+
 def plot_maps(page, data, out_dir):
     for i, m in enumerate(data["maps"]):
         image = plt.imread(os.path.join(out_dir, m["file"]))
@@ -345,9 +406,33 @@ def problems_list(d):
     return "<ul class='problems'>" + ("".join(items) or "<li class='ok'>no timing problems found</li>") + "</ul>"
 
 
+def arm_table(evals):
+    rows = []
+    for e in evals:
+        a = e["result"]["arm"]
+        ee = a.get("ee")
+        worst = max(a["joints"], key=lambda j: (j["error_rad"] or {}).get("rmse", 0))
+        worst_rmse = math.degrees((worst["error_rad"] or {}).get("rmse", 0))
+        if ee:
+            pos, rot, osc = ee["position_m"], ee["rotation_deg"], ee["oscillation"]
+            cells = (f"<td>{pos['rmse'] * 1e3:.2f}</td><td>{pos['max'] * 1e3:.2f}</td><td>{rot['rmse']:.3f}</td>"
+                     f"<td>{rot['max']:.3f}</td><td>{osc['rms_m'] * 1e3:.3f} mm at {osc['peak_hz']:.1f} Hz</td>")
+        else:
+            cells = f"<td colspan='5'>{esc(a.get('ee_problem') or 'no end effector')}</td>"
+        rows.append(f"<tr><td>{esc(e['file'])}</td><td>{esc(a['log'])}</td><td>{esc(a['reference'])}</td>"
+                    f"<td>{esc(worst['name'])} {worst_rmse:.3f}</td>{cells}</tr>")
+    return ("<section><h2>Arm tracking</h2><table><tr><th>file</th><th>log</th><th>reference</th>"
+            "<th>worst joint rmse [deg]</th><th>EE rmse [mm]</th><th>EE max [mm]</th><th>EE rmse [deg]</th>"
+            "<th>EE max [deg]</th><th>oscillation</th></tr>" + "".join(rows) + "</table></section>")
+
+
 def eval_table(evals):
     if not evals:
         return ""
+    arms = [e for e in evals if "arm" in e["result"]]
+    evals = [e for e in evals if "ate" in e["result"]]
+    if not evals:
+        return arm_table(arms) if arms else ""
     rows = []
     for e in evals:
         r = e["result"]
@@ -360,7 +445,7 @@ def eval_table(evals):
             f"<td>{r['drift']['trans_pct']:.2f} %</td></tr>")
     return ("<section><h2>Trajectory evaluation</h2><table><tr><th>file</th><th>estimate</th><th>alignment</th>"
             "<th>matched</th><th>ATE rmse [m]</th><th>ATE max [m]</th><th>RPE rmse [m]</th><th>drift</th></tr>"
-            + "".join(rows) + "</table></section>")
+            + "".join(rows) + "</table></section>" + (arm_table(arms) if arms else ""))
 
 
 def write_page(page, data, out_dir):
@@ -408,6 +493,7 @@ def main(argv):
     plot_latency(page, data)
     plot_interarrival(page, data)
     plot_skew(page, data)
+    plot_arms(page, data)
     plot_maps(page, data, out_dir)
     write_page(page, data, out_dir)
     return 0

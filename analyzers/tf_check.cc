@@ -5,8 +5,10 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <map>
 #include <set>
 
+#include "analyzers/internal/channel_samples.h"
 #include "core/time.h"
 #include "driftlab/tf_t.hpp"
 #include "lcmtypes/validate.h"
@@ -14,9 +16,22 @@
 namespace driftlab::analyzers::internal {
 namespace {
 constexpr int64_t kFutureToleranceUs = 1000;
-/// How long a consumer may wait for a transform as new as a message's stamp before it fails.
+/// How long a consumer may wait, beyond one period of a transform, for one as new as a message's stamp before it
+/// fails; and how far behind the data a transform may be stamped.
 constexpr int64_t kWaitUs = 50000;
 std::string quoted(const std::string& frame) { return "'" + frame + "'"; }
+
+/// The median interval between a transform's distinct stamps [us]; 0 with fewer than two.
+int64_t period_of(std::vector<int64_t> stamps) {
+  std::sort(stamps.begin(), stamps.end());
+  stamps.erase(std::unique(stamps.begin(), stamps.end()), stamps.end());
+  if (stamps.size() < 2) return 0;
+  std::vector<int64_t> gaps;
+  for (size_t i = 1; i < stamps.size(); ++i) gaps.push_back(stamps[i] - stamps[i - 1]);
+  std::nth_element(gaps.begin(), gaps.begin() + static_cast<std::ptrdiff_t>(gaps.size() / 2), gaps.end());
+  return gaps[gaps.size() / 2];
+}
+
 }  // namespace
 
 bool is_static_tf_channel(std::string_view channel) {
@@ -31,13 +46,14 @@ bool is_static_tf_channel(std::string_view channel) {
   return false;
 }
 
-void TfCheck::add_tf(std::span<const uint8_t> data, int64_t arrival, bool is_static) {
+void TfCheck::add_tf(const std::string& channel, std::span<const uint8_t> data, int64_t arrival, bool is_static) {
   driftlab::tf_t tf;
   if (!lcmtypes::decode(data, tf)) return;
   for (const auto& t : tf.transforms) {
     Edge& e = edges_[t.child_frame_id];
     if (e.parent.empty()) {
       e.parent = t.header.frame_id;
+      e.channel = channel;
     } else if (e.parent != t.header.frame_id &&
                std::find(e.other_parents.begin(), e.other_parents.end(), t.header.frame_id) == e.other_parents.end()) {
       e.other_parents.push_back(t.header.frame_id);
@@ -55,6 +71,7 @@ void TfCheck::add_tf(std::span<const uint8_t> data, int64_t arrival, bool is_sta
     }
     if (t.header.utime > arrival + kFutureToleranceUs) ++e.future_stamps;
     e.newest.push_back(e.newest.empty() ? t.header.utime : std::max(e.newest.back(), t.header.utime));
+    e.stamps.push_back(t.header.utime);
     e.arrival.push_back(arrival);
   }
 }
@@ -86,7 +103,7 @@ TfDiagnosis TfCheck::finish() const {
     }
     return std::string();  // a cycle
   };
-  char buf[512];
+  char buf[1024];
   if (d.roots.size() > 1) {
     std::string list;
     for (const auto& r : d.roots) list += (list.empty() ? "" : ", ") + quoted(r);
@@ -108,6 +125,9 @@ TfDiagnosis TfCheck::finish() const {
       d.problems.push_back(buf);
     }
   }
+  // Per dynamic transform, the data composed with it: the stamps' check of each channel.
+  std::map<std::string, std::vector<TfStampCheck>> by_edge;  // by child frame
+  std::map<std::string, std::vector<std::string>> lagging;   // by child frame: the lagging problems
   for (const auto& [key, uses] : uses_) {
     const auto& [channel, frame] = key;
     if (frames.count(frame) == 0) {
@@ -124,20 +144,53 @@ TfDiagnosis TfCheck::finish() const {
       f = it->second.parent;
     }
     for (const auto& [child, e] : chain) {
-      // Within 50 ms of the message's arrival, had a transform at or after its stamp arrived?
-      int64_t lagging = 0;
+      if (e->arrival.empty()) continue;
+      const int64_t period = period_of(e->stamps);
+      // At each message's arrival: the newest transform received, and when the first as new as its stamp came.
+      TfStampCheck c;
+      c.parent = e->parent;
+      c.child = child;
+      c.tf_channel = e->channel;
+      c.channel = channel;
+      c.frame = frame;
+      c.period_s = Duration::from_us(period).seconds();
+      Array<double> leads, waits;
+      int64_t late = 0;
       for (const Use& u : uses) {
-        const auto at =
-            std::upper_bound(e->arrival.begin(), e->arrival.end(), u.arrival + kWaitUs) - e->arrival.begin();
-        if (at == 0 || e->newest[static_cast<size_t>(at - 1)] < u.stamp) ++lagging;
+        const auto at = std::upper_bound(e->arrival.begin(), e->arrival.end(), u.arrival) - e->arrival.begin();
+        if (at > 0) leads.push_back(Duration::from_us(u.stamp - e->newest[static_cast<size_t>(at - 1)]).seconds());
+        const auto as_new = std::lower_bound(e->newest.begin(), e->newest.end(), u.stamp) - e->newest.begin();
+        if (as_new == static_cast<std::ptrdiff_t>(e->newest.size())) {
+          ++c.never;
+          ++late;
+          continue;
+        }
+        const int64_t wait = std::max<int64_t>(0, e->arrival[static_cast<size_t>(as_new)] - u.arrival);
+        waits.push_back(Duration::from_us(wait).seconds());
+        if (wait > period + kWaitUs) ++late;
       }
-      if (lagging * 10 > static_cast<int64_t>(uses.size())) {
+      c.messages = static_cast<int64_t>(leads.size());
+      if (!leads.empty()) {
+        Array<double> copy = leads;
+        c.offset_s = quantile(copy, 0.01);
+      }
+      c.lead_s = distribution(std::move(leads));
+      c.wait_s = distribution(std::move(waits));
+      Array<double> tf_latency, data_latency;
+      for (size_t k = 0; k < e->arrival.size(); ++k) {
+        tf_latency.push_back(Duration::from_us(e->arrival[k] - e->stamps[k]).seconds());
+      }
+      for (const Use& u : uses) data_latency.push_back(Duration::from_us(u.arrival - u.stamp).seconds());
+      c.tf_latency_s = median(std::move(tf_latency));
+      c.data_latency_s = median(std::move(data_latency));
+      // Within its period and 50 ms of the message's arrival, had a transform at or after its stamp arrived?
+      if (late * 10 > static_cast<int64_t>(uses.size())) {
         std::snprintf(buf, sizeof(buf),
-                      "%lld of %zu %s messages find no transform %s -> %s as new as their stamp within 50 ms of "
-                      "arriving (\"extrapolation into the future\")",
-                      static_cast<long long>(lagging), uses.size(), channel.c_str(), quoted(e->parent).c_str(),
-                      quoted(child).c_str());
-        d.problems.push_back(buf);
+                      "%lld of %zu %s messages find no transform %s -> %s as new as their stamp within %.0f ms of "
+                      "arriving (its %.0f ms period and 50 ms): \"extrapolation into the future\"",
+                      static_cast<long long>(late), uses.size(), channel.c_str(), quoted(e->parent).c_str(),
+                      quoted(child).c_str(), Duration::from_us(period + kWaitUs).seconds() * 1e3, c.period_s * 1e3);
+        lagging[child].push_back(buf);
       }
       // Stale: the transform stops while the data goes on.
       const int64_t last_data = uses.back().stamp;
@@ -148,7 +201,39 @@ TfDiagnosis TfCheck::finish() const {
                       Duration::from_us(last_data - e->newest.back()).seconds(), channel.c_str());
         d.problems.push_back(buf);
       }
+      by_edge[child].push_back(c);
     }
+  }
+  // A transform stamped behind the data it is composed with: one problem per transform, named by the data in its
+  // child frame (composed with it directly: odometry in 'odom' with 'map' -> 'odom'), else the busiest channel.
+  for (auto& [child, checks] : by_edge) {
+    std::vector<const TfStampCheck*> behind;
+    for (const TfStampCheck& c : checks) {
+      if (c.messages > 0 && c.offset_s > Duration::from_us(kWaitUs).seconds()) behind.push_back(&c);
+    }
+    if (behind.empty()) {
+      for (auto& p : lagging[child]) d.problems.push_back(std::move(p));
+    } else {
+      auto in_child_frame = [](const TfStampCheck* c) { return c->frame == c->child; };
+      const TfStampCheck* head = *std::max_element(behind.begin(), behind.end(), [&](const auto* a, const auto* b) {
+        return std::pair(in_child_frame(a), a->messages) < std::pair(in_child_frame(b), b->messages);
+      });
+      std::string others;
+      for (const TfStampCheck* c : behind) {
+        if (c != head) others += (others.empty() ? "" : ", ") + c->channel;
+      }
+      std::snprintf(buf, sizeof(buf),
+                    "transform %s -> %s (%s) is %.1f ms behind %s, which it is composed with, beyond its %.0f ms "
+                    "period: when a message arrives, a lookup at its stamp lies %.0f to %.0f ms past the newest "
+                    "transform (\"extrapolation into the future\"); %s's stamps are %.1f ms older than their "
+                    "arrival, %s's %.1f ms (a clock behind, a stamp taken early, or a slow transport)",
+                    quoted(head->parent).c_str(), quoted(child).c_str(), head->tf_channel.c_str(), head->offset_s * 1e3,
+                    head->channel.c_str(), head->period_s * 1e3, head->offset_s * 1e3, head->lead_s.max * 1e3,
+                    head->tf_channel.c_str(), head->tf_latency_s * 1e3, head->channel.c_str(),
+                    head->data_latency_s * 1e3);
+      d.problems.push_back(std::string(buf) + (others.empty() ? "" : "; the same for " + others));
+    }
+    for (auto& c : checks) d.stamps.push_back(std::move(c));
   }
   return d;
 }

@@ -63,7 +63,7 @@ Result<Diagnosis> diagnose(const std::string& log, const DiagnoseOptions& option
     }
     const int64_t fp = logfmt::fingerprint(e.data);
     s.arrival.push_back(e.utime);
-    if (fp == tf_hash) tf.add_tf(e.data, e.utime, internal::is_static_tf_channel(last_name));
+    if (fp == tf_hash) tf.add_tf(std::string(last_name), e.data, e.utime, internal::is_static_tf_channel(last_name));
     if (fp == trajectory_hash) loops.add_command(std::string(last_name), e.data, e.utime);
     if (fp == joint_state_hash) loops.add_state(std::string(last_name), e.data);
     if (s.has_header) {

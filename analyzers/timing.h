@@ -79,11 +79,39 @@ struct StreamPair {
   std::vector<std::pair<double, double>> curve;
 };
 
+/// How the stamps of a dynamic transform meet those of a channel whose data is composed with it (the transforms
+/// between the data's frame and the root of the tree: `map -> odom` for odometry in `odom`), at the time the data
+/// is used: when each message arrives, how far its stamp lies beyond the newest transform received, i.e. how far a
+/// lookup at its stamp would extrapolate into the future, and how long it waits for a transform as new.
+struct TfStampCheck {
+  std::string parent, child;  ///< the transform
+  std::string tf_channel;     ///< the channel that carries it (the first one seen)
+  std::string channel;        ///< the data's channel
+  std::string frame;          ///< the data's frame (the transform's child: composed with it directly)
+  int64_t messages = 0;       ///< data messages that arrived after the transform's first [count]
+  double period_s = 0;        ///< the transform's median interval between stamps [s]
+  /// Data stamp - the newest transform stamp received at the data's arrival [s]: up to a period of the transform
+  /// when both are stamped alike (data arriving just before the next transform), more when the transform is
+  /// stamped behind the data or arrives late; below zero when it is stamped ahead (post-dated, as AMCL's
+  /// transform_tolerance does on purpose).
+  Distribution lead_s;
+  /// The lead's lower envelope (its 1st percentile): how far the transform's stamps lag the data's even right
+  /// after one arrives, which no period explains [s]. About 0 when both are stamped alike.
+  double offset_s = 0;
+  /// From a message's arrival until a transform as new as its stamp arrives [s] (0 when one already had).
+  Distribution wait_s;
+  /// Median arrival - stamp of the transform and of the data [s]: which of the two the offset comes from (a clock
+  /// behind, a stamp taken early and a slow transport look alike in one log).
+  double tf_latency_s = 0, data_latency_s = 0;
+  int64_t never = 0;  ///< messages no transform as new as their stamp ever reached [count]
+};
+
 /// The TF tree seen in the log (channels of driftlab.tf_t; a channel whose name contains "static", in any case,
 /// holds static transforms) and what would go wrong when data is transformed with it.
 struct TfDiagnosis {
   std::vector<std::string> frames;    ///< every frame, sorted
   std::vector<std::string> roots;     ///< frames that are nobody's child
+  std::vector<TfStampCheck> stamps;   ///< per data channel and dynamic transform it is composed with
   std::vector<std::string> problems;  ///< in words
 };
 

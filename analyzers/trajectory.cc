@@ -226,6 +226,7 @@ const char* to_string(AlignmentType type) {
     case AlignmentType::kSe3: return "se3";
     case AlignmentType::kSim3: return "sim3";
     case AlignmentType::kPosYaw: return "posyaw";
+    case AlignmentType::kOrigin: return "origin";
   }
   return "none";
 }
@@ -235,6 +236,18 @@ Alignment align(const Matched& m, AlignmentType type) {
   a.type = type;
   const size_t n = m.est.size();
   if (type == AlignmentType::kNone) return a;
+  if (type == AlignmentType::kOrigin) {
+    // evo's align_origin: the rigid motion that takes the first matched estimate pose onto the first matched
+    // reference pose, T = T_ref0 T_est0^-1, applied to every estimate pose.
+    if (n == 0) {
+      a.problem = "no matched pose, origin alignment needs 1";
+      return a;
+    }
+    a.rotation =
+        (m.ref.orientations[0].normalized() * m.est.orientations[0].normalized().conjugate()).toRotationMatrix();
+    a.translation = m.ref.positions[0] - a.rotation * m.est.positions[0];
+    return a;
+  }
   const size_t needed = type == AlignmentType::kPosYaw ? 2 : 3;
   if (n < needed) {
     a.problem = std::to_string(n) + " matched pose" + (n == 1 ? "" : "s") + ", " + to_string(type) + " alignment needs " +

@@ -72,7 +72,8 @@ Matched match_interpolated(const Trajectory& ref, const Trajectory& est, double 
 /// Why nothing matched, in one line: both time ranges, the closest pair, and a suggested --offset.
 std::string explain_no_match(const Trajectory& ref, const Trajectory& est, double max_dt, double offset);
 
-enum class AlignmentType { kNone, kSe3, kSim3, kPosYaw };
+/// kOrigin: evo's --align_origin (the estimate moved rigidly so that its first matched pose is the reference's).
+enum class AlignmentType { kNone, kSe3, kSim3, kPosYaw, kOrigin };
 const char* to_string(AlignmentType type);
 
 /// est -> ref: p' = scale * rotation * p + translation.
@@ -86,7 +87,8 @@ struct Alignment {
   std::string problem;
 };
 
-/// Least-squares alignment of est's positions onto ref's (Umeyama; posyaw: translation and yaw about z only).
+/// Least-squares alignment of est's positions onto ref's (Umeyama; posyaw: translation and yaw about z only), or
+/// (origin) the rigid motion T_ref0 T_est0^-1 of the first matched poses, as evo's align_origin (needs one pose).
 /// Needs at least 3 matched poses (2 for posyaw) spanning more than a line (for posyaw, not all on one vertical);
 /// otherwise the identity with `problem` set. posyaw with one side standing still in x and y (a frozen estimate)
 /// matches the means with yaw 0: the position error is the same for every yaw.

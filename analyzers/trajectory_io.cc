@@ -16,6 +16,7 @@
 #include "core/time.h"
 #include "driftlab/odometry_t.hpp"
 #include "driftlab/pose_t.hpp"
+#include "driftlab/trajectory_setpoint_t.hpp"
 #include "lcmtypes/validate.h"
 
 namespace driftlab::analyzers {
@@ -212,7 +213,22 @@ bool append_pose(std::span<const uint8_t> data, Trajectory& t, std::string* why)
     driftlab::odometry_t odom;
     return lcmtypes::decode(data, odom) ? add(odom) : undecodable("driftlab.odometry_t");
   }
-  if (why != nullptr) *why = "is neither driftlab.pose_t nor driftlab.odometry_t";
+  if (fp == driftlab::trajectory_setpoint_t::getHash()) {
+    // A setpoint is a position and a heading: the pose it asks for, level, turned by yaw about z.
+    driftlab::trajectory_setpoint_t sp;
+    if (!lcmtypes::decode(data, sp)) return undecodable("driftlab.trajectory_setpoint_t");
+    if (!std::isfinite(sp.yaw)) {
+      if (why != nullptr) *why = "a number is not finite";
+      return false;
+    }
+    struct {
+      driftlab::header_t header;
+      driftlab::vector3_t position;
+      driftlab::quaternion_t orientation;
+    } pose{sp.header, sp.position, {std::cos(sp.yaw / 2), 0, 0, std::sin(sp.yaw / 2)}};
+    return add(pose);
+  }
+  if (why != nullptr) *why = "is not a driftlab.pose_t, odometry_t or trajectory_setpoint_t";
   return false;
 }
 
@@ -226,8 +242,10 @@ Result<Trajectory> load_log_channel(const std::string& log, const std::string& c
     if (e.channel != channel) continue;
     seen = true;
     const int64_t fp = logfmt::fingerprint(e.data);
-    if (fp != driftlab::pose_t::getHash() && fp != driftlab::odometry_t::getHash()) {
-      return Error{log + ": channel " + channel + " carries neither driftlab.pose_t nor driftlab.odometry_t (event at byte " +
+    if (fp != driftlab::pose_t::getHash() && fp != driftlab::odometry_t::getHash() &&
+        fp != driftlab::trajectory_setpoint_t::getHash()) {
+      return Error{log + ": channel " + channel +
+                   " carries no poses: not a driftlab.pose_t, odometry_t or trajectory_setpoint_t (event at byte " +
                    std::to_string(e.offset) + ")"};
     }
     if (std::string why; !append_pose(e.data, t, &why)) {

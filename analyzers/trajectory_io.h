@@ -16,7 +16,8 @@ namespace driftlab::analyzers {
 enum class TrajectoryFormat { kAuto, kTum, kKitti, kEuroc };
 const char* to_string(TrajectoryFormat format);
 
-/// SRC is "LOG:CHANNEL" (a driftlab.pose_t or driftlab.odometry_t channel, stamped with header.utime) when the
+/// SRC is "LOG:CHANNEL" (a driftlab.pose_t, odometry_t or trajectory_setpoint_t channel, stamped with header.utime;
+/// a setpoint is the pose it asks for: its position, level, turned by its yaw) when the
 /// part before the last ':' is an existing file, else a text file in `format`. kAuto tells the text formats apart
 /// by their first data line: 8 numbers a TUM file, 12 a KITTI file, a "#timestamp" header or more than 8
 /// comma-separated numbers (other than 12) an EuRoC file. `times`: with KITTI, the file of its stamps.
@@ -42,7 +43,8 @@ Result<Trajectory> load_euroc(const std::string& path);
 /// rotation at all, and normalising it would hide the bug that made it).
 std::string pose_problem(double stamp, const Eigen::Vector3d& position, const Eigen::Quaterniond& orientation);
 
-/// Appends the pose of an encoded driftlab.pose_t or odometry_t (stamp: header.utime [s]) when it is usable; false
+/// Appends the pose of an encoded driftlab.pose_t, odometry_t or trajectory_setpoint_t (its position, level, turned
+/// by its yaw) (stamp: header.utime [s]) when it is usable; false
 /// for other types, data that does not decode, or a pose with a pose_problem (said in *why when given).
 bool append_pose(std::span<const uint8_t> data, Trajectory& t, std::string* why = nullptr);
 

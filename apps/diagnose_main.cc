@@ -2,9 +2,10 @@
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
-#include <cmath>
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
+#include <map>
 #include <memory>
 
 #include "analyzers/timing.h"
@@ -87,11 +88,30 @@ std::vector<std::string> report_lines(const Diagnosis& d, std::vector<std::strin
     for (const auto& r : d.tf.roots) roots += (roots.empty() ? "" : ", ") + r;
     lines.push_back("");
     lines.push_back("TF: " + std::to_string(d.tf.frames.size()) + " frames, root " + roots);
+    // Each dynamic transform against the data composed with it: the data in its child frame (odometry in 'odom'
+    // with 'map' -> 'odom'), else the busiest channel.
+    std::map<std::pair<std::string, std::string>, const analyzers::TfStampCheck*> head;
+    for (const auto& c : d.tf.stamps) {
+      if (c.messages == 0) continue;
+      const analyzers::TfStampCheck*& h = head[{c.parent, c.child}];
+      if (h == nullptr || std::pair(c.frame == c.child, c.messages) > std::pair(h->frame == h->child, h->messages))
+        h = &c;
+    }
+    for (const auto& [edge, c] : head) {
+      std::snprintf(buf, sizeof(buf),
+                    "  '%s' -> '%s' (%s, every %.0f ms) with %s: %.1f ms behind it beyond its period; on arrival, "
+                    "%s's stamps are up to %.0f ms past the newest transform",
+                    c->parent.c_str(), c->child.c_str(), c->tf_channel.c_str(), c->period_s * 1e3, c->channel.c_str(),
+                    c->offset_s * 1e3, c->channel.c_str(), c->lead_s.max * 1e3);
+      lines.push_back(buf);
+    }
   }
   for (const auto& p : d.tf.problems) problems->push_back("TF: " + p);
+  bool loops_header = false;
   for (const auto& l : d.command_loops) {
     if (l.state_channel.empty() && l.stale == 0) continue;
-    if (lines.back().rfind("command loops", 0) != 0 && lines.back().rfind("  ", 0) != 0) {
+    if (!loops_header) {
+      loops_header = true;
       lines.push_back("");
       lines.push_back("command loops (the delay from a command to the joints' motion, measured from the motion):");
     }

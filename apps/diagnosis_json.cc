@@ -80,13 +80,28 @@ nlohmann::json to_json(const analyzers::Diagnosis& d) {
                      {"stale", {{"count", l.stale}, {"first_s", l.first_stale_s}, {"max_s", l.stale_max_s}}},
                      {"curve", curve}});
   }
+  nlohmann::json tf_stamps = nlohmann::json::array();
+  for (const auto& c : d.tf.stamps) {
+    tf_stamps.push_back({{"transform", c.parent + " -> " + c.child},
+                         {"tf_channel", c.tf_channel},
+                         {"channel", c.channel},
+                         {"frame", c.frame},
+                         {"messages", c.messages},
+                         {"period_s", c.period_s},
+                         {"offset_s", c.offset_s},
+                         {"lead_s", distribution_json(c.lead_s)},
+                         {"wait_s", distribution_json(c.wait_s)},
+                         {"never", c.never},
+                         {"tf_latency_s", c.tf_latency_s},
+                         {"data_latency_s", c.data_latency_s}});
+  }
   return {{"log", d.log},
           {"start_utime", d.start_utime},
           {"end_utime", d.end_utime},
           {"log_problems", d.log_problems},
           {"channels", channels},
           {"pairs", pairs},
-          {"tf", {{"frames", d.tf.frames}, {"roots", d.tf.roots}, {"problems", d.tf.problems}}},
+          {"tf", {{"frames", d.tf.frames}, {"roots", d.tf.roots}, {"stamps", tf_stamps}, {"problems", d.tf.problems}}},
           {"command_loops", loops}};
 }
 

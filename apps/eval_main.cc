@@ -9,6 +9,7 @@
 #include <future>
 #include <memory>
 
+#include "analyzers/arm_tracking.h"
 #include "analyzers/relations.h"
 #include "analyzers/time_offset.h"
 #include "analyzers/trajectory.h"
@@ -47,6 +48,10 @@ struct EvalOptions {
   std::string relations;
   double relations_max_dt = 1e-4;
   std::string odometry;
+  std::string arm;
+  std::string arm_reference = "commanded";
+  std::string arm_command, arm_ee, arm_base;
+  double arm_cutoff = 5.0;
   std::string json;
 };
 
@@ -311,11 +316,110 @@ Status check_source(const std::string& src, const char* option) {
   return {};
 }
 
-int run_eval(const EvalOptions& o) {
-  if (o.gt.empty() && o.relations.empty()) {
-    return fail("eval needs --gt (ATE, RPE and drift against a reference), --relations (the SLAM benchmark's relation "
-                "error), or both");
+nlohmann::json arm_json(const ArmTracking& a) {
+  auto or_null = [](const std::string& s) { return s.empty() ? nlohmann::json() : nlohmann::json(s); };
+  nlohmann::json joints = nlohmann::json::array();
+  for (const JointTracking& j : a.joints) {
+    joints.push_back(
+        {{"name", j.name},
+         {"error_rad", stats_json(j.error_rad)},
+         {"mean_signed_rad", j.mean_signed_rad},
+         {"limits", j.has_position_limits
+                        ? nlohmann::json{{"lower", j.lower}, {"upper", j.upper}, {"velocity", j.velocity_limit}}
+                        : nlohmann::json()},
+         {"reached", {{"min", j.min}, {"max", j.max}, {"max_speed", j.max_speed}}},
+         {"beyond", {{"position", j.beyond_position}, {"velocity", j.beyond_velocity}}}});
   }
+  nlohmann::json ee;
+  if (a.ee_position_m.count > 0) {
+    ee = {
+        {"base_link", a.base_link},
+        {"tip_link", a.tip_link},
+        {"position_m", stats_json(a.ee_position_m)},
+        {"rotation_deg", stats_json(a.ee_rotation_deg)},
+        {"oscillation",
+         {{"cutoff_hz", a.oscillation.cutoff_hz}, {"rms_m", a.oscillation.rms_m}, {"peak_hz", a.oscillation.peak_hz}}}};
+  }
+  return {{"log", a.log},
+          {"reference", to_string(a.reference)},
+          {"channels",
+           {{"commands", a.command_channel},
+            {"joint_states", a.state_channel},
+            {"controller_state", or_null(a.controller_channel)},
+            {"ee_truth", or_null(a.ee_channel)},
+            {"base_truth", or_null(a.base_channel)}}},
+          {"commands", a.commands},
+          {"span_s", {a.start_s, a.end_s}},
+          {"joints", joints},
+          {"ee", ee},
+          {"ee_problem", or_null(a.ee_problem)}};
+}
+
+void print_arm(const ArmTracking& a) {
+  constexpr double kDeg = 180.0 / M_PI;
+  std::printf("arm tracking of %s: %s against the %s (%s commands on %s), %.3f to %.3f s\n", a.log.c_str(),
+              a.state_channel.c_str(),
+              a.reference == ArmReference::kCommanded ? "commanded plans" : "controller's desired state",
+              thousands(a.commands).c_str(), a.command_channel.c_str(), a.start_s, a.end_s);
+  if (a.reference == ArmReference::kDesired) std::printf("(desired state from %s)\n", a.controller_channel.c_str());
+  std::printf("\n%-16s %10s %10s %10s %22s %22s %16s\n", "joint [deg]", "rmse", "max", "mean", "reached", "limits",
+              "speed max/limit");
+  for (const JointTracking& j : a.joints) {
+    char reached[64], limits[64] = "-", speed[64];
+    std::snprintf(reached, sizeof(reached), "%.1f .. %.1f", j.min * kDeg, j.max * kDeg);
+    if (j.has_position_limits) std::snprintf(limits, sizeof(limits), "%.1f .. %.1f", j.lower * kDeg, j.upper * kDeg);
+    std::snprintf(speed, sizeof(speed), j.velocity_limit > 0 ? "%.2f/%.2f" : "%.2f/-", j.max_speed, j.velocity_limit);
+    std::printf("%-16s %10.4f %10.4f %+10.4f %22s %22s %16s%s\n", j.name.c_str(), j.error_rad.rmse * kDeg,
+                j.error_rad.max * kDeg, j.mean_signed_rad * kDeg, reached, limits, speed,
+                j.beyond_position + j.beyond_velocity > 0 ? "  beyond its limits" : "");
+  }
+  if (a.ee_position_m.count == 0) {
+    std::printf("\nend effector: %s\n", a.ee_problem.c_str());
+    return;
+  }
+  std::printf("\nend effector %s in %s: FK of the %s joints against %s and %s, %s poses\n", a.tip_link.c_str(),
+              a.base_link.c_str(), to_string(a.reference), a.ee_channel.c_str(), a.base_channel.c_str(),
+              thousands(static_cast<int64_t>(a.ee_position_m.count)).c_str());
+  std::printf("%-16s %10s %10s %10s %10s %10s %10s\n", "", "rmse", "mean", "median", "std", "min", "max");
+  const Stats& p = a.ee_position_m;
+  std::printf("%-16s %10.3f %10.3f %10.3f %10.3f %10.3f %10.3f\n", "position [mm]", p.rmse * 1e3, p.mean * 1e3,
+              p.median * 1e3, p.std * 1e3, p.min * 1e3, p.max * 1e3);
+  print_stats_row("rotation [deg]", a.ee_rotation_deg);
+  std::printf("oscillation (the end effector's motion above %g Hz): %.3f mm RMS, strongest at %.2f Hz\n",
+              a.oscillation.cutoff_hz, a.oscillation.rms_m * 1e3, a.oscillation.peak_hz);
+}
+
+/// driftlab eval --arm LOG: the arm's tracking error.
+int run_arm_eval(const EvalOptions& o) {
+  if (!o.gt.empty() || !o.est.empty() || !o.relations.empty()) {
+    return fail("--arm evaluates an arm's tracking in one log: give it without --gt, --est and --relations");
+  }
+  if (Status s = refuse_same_file(o.json, {o.arm}, "--json"); !s) return fail(s.message());
+  auto log = event_log_for(o.arm);  // another tool's recording: its cached conversion
+  if (!log) return fail(log.error().message);
+  ArmTrackingOptions options;
+  options.reference = o.arm_reference == "desired" ? ArmReference::kDesired : ArmReference::kCommanded;
+  options.command_channel = o.arm_command;
+  options.ee_channel = o.arm_ee;
+  options.base_channel = o.arm_base;
+  options.oscillation_cutoff_hz = o.arm_cutoff;
+  auto a = evaluate_arm(*log, options);
+  if (!a) return fail(a.error().message);
+  a->log = o.arm;
+  if (o.json != "-") print_arm(*a);
+  nlohmann::json j = {{"arm", arm_json(*a)}, {"notes", nlohmann::json::array()}};
+  if (!o.json.empty() && !write_output(o.json, j.dump(2) + "\n")) return kExitFailure;
+  return kExitOk;
+}
+
+int run_eval(const EvalOptions& o) {
+  if (!o.arm.empty()) return run_arm_eval(o);
+  if (o.gt.empty() && o.relations.empty()) {
+    return fail(
+        "eval needs --gt (ATE, RPE and drift against a reference), --relations (the SLAM benchmark's relation "
+        "error), or both; or --arm LOG (an arm's tracking error)");
+  }
+  if (o.est.empty()) return fail("--est is required with --gt and --relations");
   // An output over any input is refused before anything is read or converted.
   std::vector<std::string> inputs;
   for (const auto* src : {&o.gt, &o.est, &o.odometry}) {
@@ -389,9 +493,10 @@ int run_eval(const EvalOptions& o) {
                   (o.offset == "auto" ? "" : " (or --offset auto)"));
     }
   }
-  const AlignmentType type = o.align == "se3"    ? AlignmentType::kSe3
-                             : o.align == "sim3" ? AlignmentType::kSim3
+  const AlignmentType type = o.align == "se3"      ? AlignmentType::kSe3
+                             : o.align == "sim3"   ? AlignmentType::kSim3
                              : o.align == "posyaw" ? AlignmentType::kPosYaw
+                             : o.align == "origin" ? AlignmentType::kOrigin
                                                    : AlignmentType::kNone;
   ev.alignment = align(ev.matched, type);
   if (!ev.alignment.problem.empty()) {
@@ -433,10 +538,11 @@ void add_eval_command(CLI::App& app, int* exit_code) {
   auto o = std::make_shared<EvalOptions>();
   CLI::App* cmd = app.add_subcommand(
       "eval",
-      "Trajectory error of an estimate: ATE, RPE and drift against ground truth with evo's semantics, and the SLAM "
-      "benchmark's relation error.");
+      "Trajectory error of an estimate: ATE, RPE and drift against ground truth with evo's semantics, the SLAM "
+      "benchmark's relation error, and an arm's tracking error.");
   cmd->footer(
-      "SRC is LOG:CHANNEL (a driftlab.pose_t or driftlab.odometry_t channel, stamped with header.utime) or a file\n"
+      "SRC is LOG:CHANNEL (a driftlab.pose_t, odometry_t or trajectory_setpoint_t channel, stamped with\n"
+      "header.utime; a setpoint is its position, level, turned by its yaw) or a file\n"
       "in one of the formats evo reads: TUM (t x y z qx qy qz qw), KITTI (12 numbers a line: a 3x4 pose matrix;\n"
       "stamps from --gt-times/--est-times, else compared pose for pose) or EuRoC ground truth CSV (#timestamp [ns],\n"
       "x, y, z, qw, qx, qy, qz, ...), told apart by their first line unless --gt-format/--est-format says. Poses\n"
@@ -447,17 +553,24 @@ void add_eval_command(CLI::App& app, int* exit_code) {
       "correlation) is 0.8 or more. RPE pairs as evo chooses them: along the estimate unless\n"
       "--pairs-from-reference. --relations: Kuemmerle et al.'s error of the estimate's relative poses between the\n"
       "stamps of each relation: mean, std and max of the absolute and squared translation and rotation errors, as\n"
-      "the benchmark's metric evaluator reports them. See docs/trajectory-evaluation.md.");
+      "the benchmark's metric evaluator reports them. --arm LOG: per commanded joint, the RMS and max of\n"
+      "|measured - reference| at the joint states' stamps (reference: the commands' plans at their stamps, or\n"
+      "the controller's desired state), the positions and speeds reached against the URDF's limits, and the end\n"
+      "effector's position and angle error: FK (the URDF the log carries) of the reference joints against its\n"
+      "ground truth, in the arm base's frame; its true motion above --arm-cutoff is reported as oscillation. See\n"
+      "docs/trajectory-evaluation.md.");
   const auto formats = CLI::IsMember({"auto", "tum", "kitti", "euroc"});
   cmd->add_option("--gt", o->gt, "Reference (ground truth): LOG:CHANNEL or a TUM, KITTI or EuRoC file");
-  cmd->add_option("--est", o->est, "Estimate: LOG:CHANNEL or a TUM, KITTI or EuRoC file")->required();
+  cmd->add_option("--est", o->est, "Estimate: LOG:CHANNEL or a TUM, KITTI or EuRoC file");
   cmd->add_option("--gt-format", o->gt_format, "Format of a --gt file")->capture_default_str()->check(formats);
   cmd->add_option("--est-format", o->est_format, "Format of an --est file")->capture_default_str()->check(formats);
   cmd->add_option("--gt-times", o->gt_times, "With KITTI --gt: its stamps, one a line [s]");
   cmd->add_option("--est-times", o->est_times, "With KITTI --est: its stamps, one a line [s]");
-  cmd->add_option("--align", o->align, "Alignment of the estimate onto the reference (Umeyama; posyaw: x, y, z, yaw)")
+  cmd->add_option("--align", o->align,
+                  "Alignment of the estimate onto the reference (Umeyama; posyaw: x, y, z, yaw; origin: the first "
+                  "matched poses made equal, evo's --align_origin)")
       ->capture_default_str()
-      ->check(CLI::IsMember({"none", "se3", "sim3", "posyaw"}));
+      ->check(CLI::IsMember({"none", "se3", "sim3", "posyaw", "origin"}));
   cmd->add_option("--max-dt", o->max_dt, "Largest stamp difference of a matched pair [s]")
       ->capture_default_str()
       ->check(in_range(config::between(0, 86400), "s"));
@@ -505,6 +618,20 @@ void add_eval_command(CLI::App& app, int* exit_code) {
       ->check(in_range(config::between(0, 86400), "s"));
   cmd->add_option("--relations-odometry", o->odometry,
                   "With --relations: raw odometry (LOG:CHANNEL or TUM file) to carry poses to stamps without one");
+  cmd->add_option("--arm", o->arm,
+                  "An arm's tracking error in LOG: per joint and at the end effector against ground truth");
+  cmd->add_option("--arm-reference", o->arm_reference,
+                  "With --arm: compare the joints with the commands' plans or the controller's desired state")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"commanded", "desired"}));
+  cmd->add_option("--arm-command", o->arm_command,
+                  "With --arm: the channel of joint trajectory commands (default: the one with the most)");
+  cmd->add_option("--arm-ee", o->arm_ee, "With --arm: the end effector's ground truth channel (default: found)");
+  cmd->add_option("--arm-base", o->arm_base, "With --arm: the arm base's ground truth channel (default: found)");
+  cmd->add_option("--arm-cutoff", o->arm_cutoff,
+                  "With --arm: the end effector's motion above this frequency is reported as oscillation [Hz]")
+      ->capture_default_str()
+      ->check(in_range(config::above(0, 50), "Hz"));
   cmd->add_option("--json", o->json, "Also write the results as JSON to this file ('-': print only the JSON)");
   cmd->callback([o, exit_code] {
     if (o->delta_unit == "frames" && std::floor(o->delta) != o->delta) {

@@ -1,6 +1,7 @@
 // driftlab report LOG... --out DIR: one self-contained HTML page (and a PNG of each plot) that shows what the
 // logs say: trajectories against ground truth, error over time with drops, gaps and latency spikes on the same
-// axis, latency histograms, inter-arrival times, skew correlation curves and the SLAM map.
+// axis, latency histograms, inter-arrival times, skew correlation curves, the SLAM map, and an arm's commanded
+// against measured joint motion with the delay between them.
 //
 // This file gathers the data (analyzers/log_series.h, the timing diagnosis, trajectory error) into DIR/report.json;
 // matplotlib draws it (analyzers/report_page.py, compiled into the program), since a maintained plotting library
@@ -147,8 +148,8 @@ Result<std::string> make_report(const ReportOptions& o) {
   for (const auto& path : o.evals) {
     auto e = read_json(path, "--eval");
     if (!e) return e.error();
-    if (!e->is_object() || !e->contains("ate")) {
-      return Error{"--eval " + path + ": not the JSON of driftlab eval --json (no \"ate\")"};
+    if (!e->is_object() || (!e->contains("ate") && !e->contains("arm"))) {
+      return Error{"--eval " + path + ": not the JSON of driftlab eval --json (no \"ate\" or \"arm\")"};
     }
     evals.push_back({{"file", fs::path(path).filename().string()}, {"result", std::move(*e)}});
   }
@@ -206,6 +207,30 @@ Result<std::string> make_report(const ReportOptions& o) {
     }
   }
 
+  // Arms: commanded against measured joint motion, with the delay diagnose measured between them.
+  data["arms"] = nlohmann::json::array();
+  for (const auto& a : first.arms) {
+    nlohmann::json loop;
+    for (const auto& l : diagnosis.value("command_loops", nlohmann::json::array())) {
+      if (l.is_object() && l.value("command", "") == a.command_channel) loop = l;
+    }
+    nlohmann::json commanded = nlohmann::json::array(), measured = nlohmann::json::array();
+    for (size_t j = 0; j < a.joints.size(); ++j) {
+      commanded.push_back(rounded(a.commanded[j]));
+      measured.push_back(rounded(a.measured[j]));
+    }
+    data["arms"].push_back(
+        {{"command_channel", a.command_channel},
+         {"state_channel", a.state_channel},
+         {"joints", a.joints},
+         {"t", rounded(a.t)},
+         {"commanded", commanded},
+         {"measured", measured},
+         {"delay_s", loop.is_object() ? loop.value("delay_s", nlohmann::json()) : nlohmann::json()},
+         {"confidence", loop.is_object() ? loop.value("confidence", 0.0) : 0.0},
+         {"curve", loop.is_object() ? loop.value("curve", nlohmann::json::array()) : nlohmann::json::array()}});
+  }
+
   std::error_code ec;
   fs::create_directories(o.out, ec);
   if (ec) return Error{o.out + ": cannot create the report folder: " + ec.message()};
@@ -236,12 +261,13 @@ void add_report_command(CLI::App& app, int* exit_code) {
       "The first LOG is the recording (a simulator or recorder log); later logs are replays of it, whose new pose\n"
       "channels are shown as estimates. Plots: trajectories in the plane (estimates aligned in position and yaw);\n"
       "error over time with drops, gaps and latency spikes on the same axis; latency histograms; inter-arrival times;\n"
-      "skew correlation curves; SLAM maps. Without --diagnosis the first log is diagnosed. Needs python3 with\n"
+      "skew correlation curves; SLAM maps; an arm's commanded and measured joint motion with the delay diagnose\n"
+      "measures between them. Without --diagnosis the first log is diagnosed. Needs python3 with\n"
       "matplotlib. DIR gets index.html, a PNG per plot and report.json (the data plotted).");
   cmd->add_option("logs", o->logs, "Logs: the recording first, then replays of it")->required()->check(CLI::ExistingFile);
   cmd->add_option("-o,--out", o->out, "Folder to write the report into")->required();
   cmd->add_option("--diagnosis", o->diagnosis, "Diagnosis of the first log (driftlab diagnose --json)");
-  cmd->add_option("--eval", o->evals, "Trajectory evaluation to tabulate (driftlab eval --json; repeatable)");
+  cmd->add_option("--eval", o->evals, "Trajectory or arm evaluation to tabulate (driftlab eval --json; repeatable)");
   cmd->add_option("--gt", o->gt_channel, "Ground-truth channel")->capture_default_str();
   cmd->add_option("--title", o->title, "Page title (default: from the first log)");
   cmd->callback([o, exit_code] {

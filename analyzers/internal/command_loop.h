@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "analyzers/internal/joint_motion.h"
 #include "analyzers/timing.h"
 
 namespace driftlab::analyzers::internal {
@@ -24,22 +25,8 @@ class CommandLoopCheck {
   std::vector<CommandLoop> finish(int64_t start_utime) const;
 
  private:
-  struct Command {
-    int64_t stamp = 0, arrival = 0;
-    std::vector<int64_t> t;              // points' times from the stamp [us]
-    std::vector<std::vector<double>> q;  // per point, in joints' order
-  };
-  struct Commands {
-    std::vector<std::string> joints;  // of the first command; later ones with other joints are left out
-    std::vector<Command> list;
-  };
-  struct States {
-    std::map<std::string, size_t> index;  // joint name -> column (of the first message)
-    std::vector<int64_t> stamp;
-    std::vector<std::vector<double>> q;
-  };
-  std::map<std::string, Commands> commands_;
-  std::map<std::string, States> states_;
+  std::map<std::string, JointCommands> commands_;
+  std::map<std::string, JointStates> states_;
 };
 
 }  // namespace driftlab::analyzers::internal

@@ -1,7 +1,8 @@
 // TF tree checks for `driftlab diagnose`: frames missing or disconnected from the root, frames with two parents,
-// transforms stamped in the future, dynamic transforms that go stale or lag the data they are needed for
-// (no transform as new as a message's stamp within 50 ms of its arrival: "extrapolation into the future"),
-// and static transforms republished with other values.
+// transforms stamped in the future, dynamic transforms stamped behind the data they are composed with (the data
+// must wait, or extrapolate, beyond the transform's period: "extrapolation into the future"), that lag it (no
+// transform as new as a message's stamp within the transform's period and 50 ms of its arrival) or go stale, and
+// static transforms republished with other values.
 // Internal to analyzers (used by timing.cc). Thread-safety: plain values.
 #pragma once
 
@@ -22,8 +23,8 @@ bool is_static_tf_channel(std::string_view channel);
 
 class TfCheck {
  public:
-  /// A driftlab.tf_t message that arrived at arrival [us].
-  void add_tf(std::span<const uint8_t> data, int64_t arrival, bool is_static);
+  /// A driftlab.tf_t message on `channel` that arrived at arrival [us].
+  void add_tf(const std::string& channel, std::span<const uint8_t> data, int64_t arrival, bool is_static);
   /// The messages of a stream channel in frame `frame`: their stamps and arrivals [us], in arrival order.
   void add_data(const std::string& channel, const std::string& frame, std::span<const int64_t> stamps,
                 std::span<const int64_t> arrivals);
@@ -32,9 +33,11 @@ class TfCheck {
  private:
   struct Edge {
     std::string parent;
+    std::string channel;  // the first that carried it
     bool is_static = false;
     std::vector<int64_t> arrival;  // dynamic: in arrival order
     std::vector<int64_t> newest;   // newest stamp received by then
+    std::vector<int64_t> stamps;   // each transform's stamp, in arrival order
     int64_t future_stamps = 0;     // stamped ahead of their arrival
     bool static_changed = false;
     double static_values[7] = {};  // translation, rotation (w, x, y, z)

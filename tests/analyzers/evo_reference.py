@@ -8,6 +8,9 @@ driftlab's numbers must equal to 1e-6, and the peer that scripts/bench times dri
 what evo computed on real trajectories: `--expected ../shared/data/evo/expected.json` runs evo's 81 cases and
 fails on any difference (a test runs it).
 
+--align origin is evo's --align_origin: the estimate moved by ref_0 inv(est_0), its first associated pose onto the
+reference's, as evo's PosePath3D.align_origin does with 4x4 matrices.
+
 RPE pairs as evo chooses them (evo.core.filters): from the estimate's poses unless --pairs-from-reference; frames:
 (0, d), (d, 2d), ... or, with --all-pairs, every (i, i + d); metres: consecutive pairs where the path travelled
 since the previous pair's end reaches d (the first pair starting where it first does), or with --all-pairs, from
@@ -15,7 +18,7 @@ each pose the later pose whose path distance is closest to d, kept within --delt
 consecutive pairs where the rotation angles between consecutive poses add up to d (the first pair starting at
 pose 0), or with --all-pairs every later pose whose direct rotation angle is within --delta-tol * d of d.
 
-usage: evo_reference.py REF.tum EST.tum [--align none|se3|sim3] [--max-dt S] [--offset S] [--delta D]
+usage: evo_reference.py REF.tum EST.tum [--align none|se3|sim3|origin] [--max-dt S] [--offset S] [--delta D]
                         [--delta-unit frames|m|deg|rad] [--all-pairs] [--pairs-from-reference] [--delta-tol R]
        evo_reference.py --expected EXPECTED.json
 prints one JSON object with the keys of `driftlab eval --json` that evo defines.
@@ -155,7 +158,12 @@ def evaluate(ref_path, est_path, align="none", max_dt=0.01, offset=0.0, delta=1,
     n = len(ref_p)
 
     r, t, c = np.eye(3), np.zeros(3), 1.0
-    if align != "none":
+    if align == "origin":
+        # evo's align_origin (PosePath3D.align_origin): to_ref_origin = ref.poses_se3[0] @ se3_inverse(est.poses_se3[0]),
+        # left-multiplied onto every pose of the (associated) estimate.
+        to_ref_origin = se3(quat_to_matrix(ref_q[0]), ref_p[0]) @ np.linalg.inv(se3(quat_to_matrix(est_q[0]), est_p[0]))
+        r, t = to_ref_origin[:3, :3], to_ref_origin[:3, 3]
+    elif align != "none":
         r, t, c = umeyama(est_p.T, ref_p.T, align == "sim3")
     ref_poses = [se3(quat_to_matrix(ref_q[i]), ref_p[i]) for i in range(n)]
     est_poses = [se3(r @ quat_to_matrix(est_q[i]), c * r @ est_p[i] + t) for i in range(n)]
@@ -248,7 +256,7 @@ def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("ref")
     ap.add_argument("est")
-    ap.add_argument("--align", default="none", choices=["none", "se3", "sim3"])
+    ap.add_argument("--align", default="none", choices=["none", "se3", "sim3", "origin"])
     ap.add_argument("--max-dt", type=float, default=0.01)
     ap.add_argument("--offset", type=float, default=0.0)
     ap.add_argument("--delta", type=float, default=1)

@@ -39,6 +39,8 @@ struct Faults {
   double tf_delay_s = 0.001;   // how long after its stamp a dynamic transform arrives
   double tf_stops_at_s = 1e9;  // no dynamic transforms after this
   bool tf_future = false;      // dynamic transforms stamped 20 ms ahead of their arrival
+  double tf_period_s = 0.02;   // the dynamic transform's period
+  double tf_stamp_offset_s = 0;  // added to the dynamic transform's stamps (its clock)
   bool laser_static_missing = false;
   bool static_changes = false; // base_link -> imu republished with another offset
   std::string static_channel = "TF_STATIC";
@@ -122,10 +124,10 @@ void write_log(const std::string& path, const Faults& f, uint64_t seed) {
     t.rotation = {1, 0, 0, 0};
     return t;
   };
-  for (int64_t i = 0; i * 0.02 <= kSeconds && i * 0.02 < f.tf_stops_at_s; ++i) {  // dynamic TF, 50 Hz
-    const double t = i * 0.02;
+  for (int64_t i = 0; i * f.tf_period_s <= kSeconds && i * f.tf_period_s < f.tf_stops_at_s; ++i) {  // dynamic TF
+    const double t = i * f.tf_period_s;
     driftlab::tf_t tf{};
-    const int64_t stamp = kT0 + us(t) + (f.tf_future ? 20000 : 0);
+    const int64_t stamp = kT0 + us(t + f.tf_stamp_offset_s) + (f.tf_future ? 20000 : 0);
     tf.header = {i, stamp, "odom"};
     tf.transforms = {transform("odom", "base_link", stamp, t)};
     tf.ntransforms = 1;
@@ -287,8 +289,18 @@ TEST(DiagnoseTf, FindsMissingFramesChangedStaticsFutureStampsLagAndStaleness) {
   write_log(dir.file("b.lcm"), g, 7);
   auto b = diagnose(dir.file("b.lcm"));
   ASSERT_TRUE(b.ok());
-  EXPECT_TRUE(has_problem(*b, "IMU messages find no transform 'odom' -> 'base_link' as new as their stamp"));
+  EXPECT_TRUE(has_problem(*b, "transform 'odom' -> 'base_link' (TF) is 12"));
+  EXPECT_TRUE(has_problem(*b, "behind IMU, which it is composed with"));
+  EXPECT_TRUE(has_problem(*b, "TF's stamps are 120.0 ms older than their arrival"));
   EXPECT_TRUE(has_problem(*b, "transform 'odom' -> 'base_link' goes stale"));
+
+  Faults gap;  // in step with the data, but silent for a second in the middle
+  gap.tf_stops_at_s = 30;
+  write_log(dir.file("gap.lcm"), gap, 7);
+  auto g2 = diagnose(dir.file("gap.lcm"));
+  ASSERT_TRUE(g2.ok());
+  EXPECT_TRUE(
+      has_problem(*g2, "IMU messages find no transform 'odom' -> 'base_link' as new as their stamp within 70 ms"));
 
   Faults h;
   h.tf_future = true;
@@ -296,6 +308,56 @@ TEST(DiagnoseTf, FindsMissingFramesChangedStaticsFutureStampsLagAndStaleness) {
   auto c = diagnose(dir.file("c.lcm"));
   ASSERT_TRUE(c.ok());
   EXPECT_TRUE(has_problem(*c, "transforms 'odom' -> 'base_link' are stamped in the future of their arrival"));
+}
+
+const TfStampCheck* stamp_check(const Diagnosis& d, const std::string& channel, const std::string& child) {
+  for (const auto& c : d.tf.stamps)
+    if (c.channel == channel && c.child == child) return &c;
+  return nullptr;
+}
+
+// The issue's `map -> odom` against `/odom`: a transform published slower than the data it is composed with is
+// waited for up to its period, which is no problem (the check before this one called 40% of the IMU messages
+// "extrapolation into the future" at 10 Hz); one stamped behind the data is, and by how much is measured.
+TEST(DiagnoseTf, ATransformStampedBehindItsDataIsMeasuredOneAtALowerRateIsNot) {
+  test::TempDir dir;
+  Faults slow;
+  slow.tf_period_s = 0.1;  // 10 Hz, stamped when published, arriving 1 ms later
+  write_log(dir.file("slow.lcm"), slow, 3);
+  auto a = diagnose(dir.file("slow.lcm"));
+  ASSERT_TRUE(a.ok()) << a.error().message;
+  EXPECT_TRUE(a->tf.problems.empty()) << a->tf.problems.front();
+  const TfStampCheck* imu = stamp_check(*a, "IMU", "base_link");
+  ASSERT_NE(imu, nullptr);
+  EXPECT_EQ(imu->parent, "odom");
+  EXPECT_EQ(imu->tf_channel, "TF");
+  EXPECT_EQ(imu->frame, "imu");
+  EXPECT_NEAR(imu->period_s, 0.1, 1e-6);
+  // IMU messages stamped up to a period after the last transform; the first after one, an IMU period (5 ms) after
+  // it: the lower envelope is that close to 0.
+  EXPECT_GE(imu->offset_s, 0.0);
+  EXPECT_LE(imu->offset_s, 0.0051);
+  EXPECT_GT(imu->lead_s.max, 0.09);
+  EXPECT_LT(imu->lead_s.max, 0.1);
+  EXPECT_LT(imu->wait_s.max, 0.1);
+  EXPECT_NEAR(imu->tf_latency_s, 0.001, 1e-6);
+
+  Faults behind = slow;
+  behind.tf_stamp_offset_s = -0.25;  // the localization's clock 250 ms behind
+  write_log(dir.file("behind.lcm"), behind, 3);
+  auto b = diagnose(dir.file("behind.lcm"));
+  ASSERT_TRUE(b.ok()) << b.error().message;
+  const TfStampCheck* late = stamp_check(*b, "IMU", "base_link");
+  ASSERT_NE(late, nullptr);
+  EXPECT_NEAR(late->offset_s - imu->offset_s, 0.25, 1e-6);  // moved by the clock's 250 ms, to the microsecond
+  EXPECT_NEAR(late->lead_s.max - imu->lead_s.max, 0.25, 1e-6);
+  EXPECT_NEAR(late->wait_s.p50, 0.30, 0.01);  // 250 ms and half a period
+  EXPECT_NEAR(late->tf_latency_s, 0.251, 1e-6);
+  EXPECT_TRUE(has_problem(*b, "transform 'odom' -> 'base_link' (TF) is 25"));
+  EXPECT_TRUE(has_problem(*b, "ms behind IMU, which it is composed with, beyond its 100 ms period"));
+  EXPECT_TRUE(has_problem(*b, "\"extrapolation into the future\""));
+  EXPECT_TRUE(has_problem(*b, "the same for SCAN"));
+  EXPECT_EQ(b->tf.problems.size(), 1u) << b->tf.problems.back();
 }
 
 TEST(DiagnoseTf, RosStaticChannelPublishedOnceIsStatic) {

@@ -372,7 +372,7 @@ TEST(LoadTrajectory, ReadsPoseAndOdometryChannelsOfALog) {
   EXPECT_EQ(odom->size(), 51u);
   auto imu = load_trajectory(log + ":IMU");
   ASSERT_FALSE(imu.ok());
-  EXPECT_NE(imu.error().message.find("neither driftlab.pose_t nor driftlab.odometry_t"), std::string::npos);
+  EXPECT_NE(imu.error().message.find("not a driftlab.pose_t, odometry_t or trajectory_setpoint_t"), std::string::npos);
   auto missing = load_trajectory(log + ":NOPE");
   ASSERT_FALSE(missing.ok());
   EXPECT_NE(missing.error().message.find("channels: CMD_VEL, GROUND_TRUTH"), std::string::npos);

@@ -9,10 +9,11 @@
 #include <nlohmann/json.hpp>
 #include <random>
 
-#include "core/log_writer.h"
-#include "driftlab/pose_t.hpp"
 #include "analyzers/trajectory.h"
 #include "analyzers/trajectory_io.h"
+#include "core/log_writer.h"
+#include "driftlab/pose_t.hpp"
+#include "driftlab/trajectory_setpoint_t.hpp"
 #include "tests/test_util.h"
 
 namespace driftlab {
@@ -263,11 +264,14 @@ INSTANTIATE_TEST_SUITE_P(
                       Case{"delta5", "--align se3 --delta 5"}, Case{"delta5_all", "--align se3 --delta 5 --all-pairs"},
                       Case{"metres", "--align sim3 --delta 2 --delta-unit m", false, 0.8},
                       Case{"metres_all", "--align sim3 --delta 2 --delta-unit m --all-pairs", false, 0.8},
-                      Case{"metres_reference", "--delta 2 --delta-unit m --pairs-from-reference --all-pairs --delta-tol 0.02"},
+                      Case{"metres_reference",
+                           "--delta 2 --delta-unit m --pairs-from-reference --all-pairs --delta-tol 0.02"},
                       Case{"degrees", "--delta 20 --delta-unit deg"},
                       Case{"degrees_all", "--delta 20 --delta-unit deg --all-pairs --pairs-from-reference"},
                       Case{"radians_all", "--delta 0.5 --delta-unit rad --all-pairs --delta-tol 0.05"},
-                      Case{"no_pairs", "--delta 1000 --delta-unit m"}),
+                      Case{"no_pairs", "--delta 1000 --delta-unit m"}, Case{"origin", "--align origin"},
+                      Case{"origin_est_longer", "--align origin --max-dt 0.005 --delta 2 --delta-unit m", true},
+                      Case{"origin_offset", "--align origin --offset 0.004 --max-dt 0.02"}),
     [](const auto& info) { return info.param.name; });
 
 TEST(Eval, OnLogChannelsRecoversTheOdometryScaleError) {
@@ -437,6 +441,101 @@ TEST(EvalBadPoses, AnAlignmentOfPointsOnALineIsRefused) {
   // (every yaw gives the same position error), not a refusal.
   const auto r = test::run_capture(kDriftlab + " eval --gt " + log + ":GT --est " + log + ":EST --align posyaw");
   EXPECT_EQ(r.code, 0) << r.err;
+}
+
+/// A drone's log: its ground truth GROUND_TRUTH at 100 Hz (`truth` gives the pose at a time) and the setpoints it
+/// was given on SETPOINT at 20 Hz along a climbing, turning path, with `yaw_bias` added to their heading.
+std::string write_drone_log(const test::TempDir& dir, const std::function<Eigen::Isometry3d(double)>& truth,
+                            double yaw_bias) {
+  auto w = LogWriter::create(dir.file("drone.lcm"));
+  EXPECT_TRUE(w.ok());
+  const int64_t t0 = 1763776800000000;
+  for (int64_t i = 0; i <= 3000; ++i) {
+    const double t = 0.01 * static_cast<double>(i);
+    const Eigen::Isometry3d x = truth(t);
+    const Eigen::Quaterniond q(x.rotation());
+    pose_t p{};
+    p.header = {i, t0 + 10000 * i, "world"};
+    p.child_frame_id = "base_link";
+    p.position = {x.translation().x(), x.translation().y(), x.translation().z()};
+    p.orientation = {q.w(), q.x(), q.y(), q.z()};
+    EXPECT_TRUE(w->write(p.header.utime, "GROUND_TRUTH", test::encode(p)).ok());
+    if (i % 5 != 0) continue;
+    driftlab::trajectory_setpoint_t sp{};
+    sp.header = {i / 5, t0 + 10000 * i, "odom"};
+    sp.position = {2 * std::cos(0.3 * t), 2 * std::sin(0.3 * t), 1 + 0.05 * t};
+    sp.yaw = 0.3 * t + M_PI / 2 + yaw_bias;
+    EXPECT_TRUE(w->write(sp.header.utime, "SETPOINT", test::encode(sp)).ok());
+  }
+  EXPECT_TRUE(w->close().ok());
+  return dir.file("drone.lcm");
+}
+
+/// The pose a setpoint of write_drone_log asks for at t (without its yaw bias), in `frame`.
+Eigen::Isometry3d setpoint_pose(double t, const Eigen::Isometry3d& frame = Eigen::Isometry3d::Identity()) {
+  Eigen::Isometry3d x = Eigen::Isometry3d::Identity();
+  x.translation() = Eigen::Vector3d(2 * std::cos(0.3 * t), 2 * std::sin(0.3 * t), 1 + 0.05 * t);
+  x.linear() = Eigen::AngleAxisd(0.3 * t + M_PI / 2, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  return frame * x;
+}
+
+// The drone's setpoint tracking: a setpoint channel read as the poses it asks for (position, level, turned by its
+// yaw), scored against ground truth like any estimate. The vehicle flies 8 cm off each setpoint, and each setpoint's
+// heading is 0.05 rad off the vehicle's: those are the errors, to rounding.
+TEST(EvalSetpoints, ASetpointChannelIsTheTrajectoryItAsksFor) {
+  test::TempDir dir;
+  const Eigen::Vector3d off(0.06, 0.0, -0.0529150262212918);  // 8 cm
+  const std::string log = write_drone_log(
+      dir,
+      [&](double t) {
+        Eigen::Isometry3d x = setpoint_pose(t);
+        x.translation() += off;
+        return x;
+      },
+      0.05);
+  std::string out;
+  ASSERT_EQ(test::run(kDriftlab + " eval --gt " + log + ":GROUND_TRUTH --est " + log + ":SETPOINT --json -", &out), 0);
+  const auto j = nlohmann::json::parse(out);
+  EXPECT_EQ(j["matched"], 601);
+  EXPECT_NEAR(j["ate"]["rmse"].get<double>(), off.norm(), 1e-9);
+  EXPECT_NEAR(j["ate"]["max"].get<double>(), off.norm(), 1e-9);
+  EXPECT_NEAR(j["ate_rot_deg"]["max"].get<double>(), 0.05 * 180 / M_PI, 1e-6);
+  EXPECT_NEAR(j["ate_rot_deg"]["min"].get<double>(), 0.05 * 180 / M_PI, 1e-6);
+  // A setpoint whose heading is not finite is refused like any pose: one line naming the log, byte and channel.
+  test::TempDir nan_dir;
+  const std::string nan_log = write_drone_log(
+      nan_dir, [](double t) { return setpoint_pose(t); }, NAN);
+  const auto bad =
+      test::run_capture(kDriftlab + " eval --gt " + nan_log + ":GROUND_TRUTH --est " + nan_log + ":SETPOINT");
+  EXPECT_EQ(bad.code, 2);
+  EXPECT_NE(bad.err.find(" on SETPOINT: a number is not finite"), std::string::npos) << bad.err;
+  EXPECT_EQ(std::count(bad.err.begin(), bad.err.end(), '\n'), 1) << bad.err;
+}
+
+// --align origin (evo's --align_origin): a ground truth in another frame than the setpoints (rotated 0.4 rad about
+// a tilted axis and moved), otherwise the same motion: moved so its first matched pose is the reference's, the
+// estimate is the reference, and the alignment is that frame's motion; without it, metres off.
+TEST(EvalAlignOrigin, TakesTheFirstMatchedPoseOntoTheReferences) {
+  test::TempDir dir;
+  Eigen::Isometry3d frame = Eigen::Isometry3d::Identity();
+  frame.linear() = Eigen::AngleAxisd(0.4, Eigen::Vector3d(0.1, -0.2, 1).normalized()).toRotationMatrix();
+  frame.translation() = Eigen::Vector3d(2.0, -1.0, 0.5);
+  const std::string log = write_drone_log(
+      dir, [&](double t) { return setpoint_pose(t, frame); }, 0.0);
+  std::string out;
+  const std::string args = " eval --gt " + log + ":GROUND_TRUTH --est " + log + ":SETPOINT --json -";
+  ASSERT_EQ(test::run(kDriftlab + args + " --align origin", &out), 0);
+  const auto j = nlohmann::json::parse(out);
+  EXPECT_EQ(j["alignment"]["type"], "origin");
+  EXPECT_EQ(j["alignment"]["scale"], 1.0);
+  EXPECT_LT(j["ate"]["max"].get<double>(), 1e-9);
+  EXPECT_LT(j["ate_rot_deg"]["max"].get<double>(), 1e-6);
+  for (int r = 0; r < 3; ++r) {
+    EXPECT_NEAR(j["alignment"]["translation"][r].get<double>(), frame.translation()[r], 1e-9);
+    for (int c = 0; c < 3; ++c) EXPECT_NEAR(j["alignment"]["rotation"][r][c].get<double>(), frame.linear()(r, c), 1e-9);
+  }
+  ASSERT_EQ(test::run(kDriftlab + args, &out), 0);
+  EXPECT_GT(nlohmann::json::parse(out)["ate"]["rmse"].get<double>(), 1.0);
 }
 
 TEST(Eval, BadInputExitsWithCode2) {

@@ -71,7 +71,8 @@ TEST(ExportTum, AnUnknownChannelIsOneLineNamingItAndWritesNothing) {
   EXPECT_FALSE(std::filesystem::exists(dir.file("x.tum")));
   const auto wrong = driftlab("export tum " + kSample + " -c IMU -o " + dir.file("x.tum"));
   EXPECT_EQ(wrong.code, 2);
-  EXPECT_NE(wrong.err.find("neither driftlab.pose_t nor driftlab.odometry_t"), std::string::npos) << wrong.err;
+  EXPECT_NE(wrong.err.find("not a driftlab.pose_t, odometry_t or trajectory_setpoint_t"), std::string::npos)
+      << wrong.err;
 }
 
 TEST(ExportCsv, EveryChannelBecomesATableOfItsFields) {
