@@ -8,6 +8,7 @@
 #include "core/log_format.h"
 #include "core/log_reader.h"
 #include "core/time.h"
+#include "driftlab/estimator_status_t.hpp"
 #include "driftlab/image_t.hpp"
 #include "driftlab/joint_state_t.hpp"
 #include "driftlab/joint_trajectory_t.hpp"
@@ -73,6 +74,7 @@ Result<LogSeries> read_log_series(const std::string& log) {
   std::vector<std::vector<int64_t>> arrivals, stamps;
   std::vector<int64_t> ready_after;  // per stream, from its first message (a scan's sweep)
   const int64_t image_hash = driftlab::image_t::getHash();
+  const int64_t status_hash = driftlab::estimator_status_t::getHash();
   const int64_t command_hash = driftlab::joint_trajectory_t::getHash();
   const int64_t joint_state_hash = driftlab::joint_state_t::getHash();
   std::map<std::string, internal::JointCommands> commands;
@@ -114,6 +116,26 @@ Result<LogSeries> read_log_series(const std::string& log) {
       commands[s.channel].add(e.data, e.utime);
     } else if (fp == joint_state_hash) {
       joint_states[s.channel].add(e.data);
+    } else if (fp == status_hash) {
+      driftlab::estimator_status_t st;
+      if (!lcmtypes::decode(e.data, st)) continue;
+      auto es = std::find_if(out.estimators.begin(), out.estimators.end(),
+                             [&](const EstimatorSeries& x) { return x.channel == s.channel; });
+      if (es == out.estimators.end()) {
+        es = out.estimators.insert(out.estimators.end(), EstimatorSeries{s.channel});
+        es->inputs = st.input;
+        const size_t n = st.input.size();
+        es->fused.resize(n), es->stale.resize(n), es->future.resize(n), es->late.resize(n), es->outliers.resize(n);
+      }
+      if (st.input != es->inputs) continue;  // another estimator on the same channel: the first one's kept
+      es->t.push_back(Duration::from_us(e.utime - out.start_utime).seconds());
+      for (size_t i = 0; i < es->inputs.size(); ++i) {
+        es->fused[i].push_back(st.fused[i]);
+        es->stale[i].push_back(st.stale[i]);
+        es->future[i].push_back(st.future[i]);
+        es->late[i].push_back(st.late[i]);
+        es->outliers[i].push_back(st.outliers[i]);
+      }
     } else if (fp == image_hash) {
       driftlab::image_t image;
       if (!lcmtypes::decode(e.data, image) || image.encoding != "png" ||

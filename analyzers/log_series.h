@@ -40,6 +40,16 @@ struct ArmSeries {
   std::vector<std::vector<double>> measured;   ///< per joint [rad or m]
 };
 
+/// What an estimator did with its inputs over time, from its driftlab.estimator_status_t messages (cumulative
+/// counts per input, as the estimator publishes them).
+struct EstimatorSeries {
+  std::string channel;
+  std::vector<std::string> inputs;  ///< "imu", "gnss", ...
+  std::vector<double> t;            ///< [s from the log's first event]
+  /// Per input, per message: measurements fused, and rejected as stale, from the future, late, or outliers.
+  std::vector<std::vector<int64_t>> fused, stale, future, late, outliers;
+};
+
 struct LogSeries {
   std::string log;
   int64_t start_utime = 0, end_utime = 0;      ///< first and last log time [us]
@@ -47,6 +57,7 @@ struct LogSeries {
   std::map<std::string, Trajectory> poses;     ///< driftlab.pose_t and odometry_t channels (stamps: header [s])
   std::vector<MapImage> maps;                  ///< image_t channels whose frame is "map"
   std::vector<ArmSeries> arms;                 ///< per channel of joint trajectory commands
+  std::vector<EstimatorSeries> estimators;     ///< per channel of driftlab.estimator_status_t
   uint64_t problems = 0;                       ///< corruption met while reading
 };
 

@@ -288,6 +288,39 @@ def plot_arms(page, data):
                   "lag (1: the same motion); its peak is the delay.")
 
 
+def plot_estimators(page, data):
+    """Per estimator status channel: each input's share of rejected measurements over time, by reason."""
+    for i, est in enumerate(data.get("estimators", [])):
+        t = numpy.asarray(est["t"])
+        inputs = [x for x in est["inputs"] if x["fused"] and (x["fused"][-1] or x["stale"][-1] or x["future"][-1]
+                                                            or x["late"][-1] or x["outliers"][-1])]
+        if len(t) < 2 or not inputs:
+            continue
+        fig, axes = grid_of(len(inputs), row_height=2.4)
+        for ax, x in zip(axes, inputs):
+            total = (numpy.asarray(x["fused"]) + numpy.asarray(x["stale"]) + numpy.asarray(x["future"])
+                     + numpy.asarray(x["late"]) + numpy.asarray(x["outliers"])).astype(float)
+            total[total == 0] = numpy.nan
+            for reason, color in (("stale", "#9467bd"), ("future", "#d62728"), ("late", "#ff7f0e"),
+                                  ("outliers", "#7f7f7f")):
+                share = 100 * numpy.asarray(x[reason]) / total
+                if numpy.nanmax(numpy.nan_to_num(share)) > 0:
+                    ax.plot(t, share, color=color, lw=1.4, label=reason)
+            ax.set_ylim(0, 100)
+            ax.set_title(f"{x['name']}: {x['fused'][-1]:,} fused", fontsize=9.5)
+            ax.set_xlabel("time [s]")
+            ax.set_ylabel("rejected [% of received]")
+            if ax.get_legend_handles_labels()[0]:
+                ax.legend(loc="best", fontsize=8)
+        save_grid(page, fig, f"{est['label']}: what the estimator rejected", f"estimator_{i}.png",
+                  f"Estimator: rejected measurements ({est['label']})",
+                  "For each input of the estimator, the share of its measurements rejected so far, by reason, from "
+                  "the estimator's own status messages: stale (stamped too long before the estimator's clock), "
+                  "from the future (too far ahead of it: a source clock ahead), late (before the oldest state it "
+                  "keeps) and outliers (failed the innovation test). A sensor on another clock shows as a share "
+                  "that rises and stays.")
+
+
 def plot_maps(page, data, out_dir):
     for i, m in enumerate(data["maps"]):
         image = plt.imread(os.path.join(out_dir, m["file"]))
@@ -494,6 +527,7 @@ def main(argv):
     plot_interarrival(page, data)
     plot_skew(page, data)
     plot_arms(page, data)
+    plot_estimators(page, data)
     plot_maps(page, data, out_dir)
     write_page(page, data, out_dir)
     return 0

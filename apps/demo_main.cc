@@ -21,8 +21,11 @@
 #include "apps/commands.h"
 #include "apps/diagnosis_json.h"
 #include "apps/report.h"
+#include "core/log_reader.h"
 #include "core/process.h"
 #include "core/wall_clock.h"
+#include "driftlab/estimator_status_t.hpp"
+#include "lcmtypes/validate.h"
 
 namespace driftlab::apps {
 namespace {
@@ -36,6 +39,7 @@ struct DemoArgs {
   int64_t seed = -1;
   std::string estimate = "EKF_ODOM";
   double estimator_window = 0;
+  bool drone = false;
   bool json = false;
 };
 
@@ -102,12 +106,194 @@ int64_t late_rejected(const nlohmann::json& replay) {
   return 0;
 }
 
+struct Step {
+  const char* what;
+  std::vector<std::string> args;
+  std::string stdout_file;
+};
+
+/// Runs the steps in turn, each a driftlab subcommand with its output kept in its file, and notes their times in
+/// `stages`; `total` counts them and the report after them. The exit code of the first that fails (the demo's:
+/// 2 when it was given bad input, 1 otherwise), with its last error line, or 0.
+int run_steps(const std::vector<Step>& steps, int total, bool json, const fs::path& dir, std::vector<Stage>& stages) {
+  std::error_code ec;
+  const std::string errors = (dir / "stage.err").string();
+  for (size_t i = 0; i < steps.size(); ++i) {
+    const Step& s = steps[i];
+    if (!json) std::printf("== %s\n", join_args(s.args).c_str());
+    std::fflush(stdout);
+    const Stopwatch stage;
+    int code = 0;
+    {
+      StageLine line(static_cast<int>(i) + 1, total, s.what);
+      // The stage's errors go to a file (its progress would fight with ours): the last line is the one to show.
+      code = run_program(s.args, s.stdout_file, errors);
+    }
+    stages.push_back({s.args[1], stage.seconds()});
+    if (code != 0) {
+      const std::string why = last_line_of(errors);
+      // The failed stage's output is not kept (it is empty or cut short).
+      fs::remove(s.stdout_file, ec);
+      fs::remove(errors, ec);
+      return fail("demo: " + join_args(s.args) + " failed (exit " + std::to_string(code) + ")" +
+                      (why.empty() ? "" : ": " + why),
+                  code == kExitBadInput ? kExitBadInput : kExitFailure);
+    }
+  }
+  fs::remove(errors, ec);
+  return kExitOk;
+}
+
+/// Draws the report as the demo's last stage.
+Result<std::string> draw_report(const ReportOptions& r, int total, bool json, std::vector<Stage>& stages) {
+  if (!json) {
+    std::printf("== driftlab report");
+    for (const auto& log : r.logs) std::printf(" %s", log.c_str());
+    std::printf(" --diagnosis %s", r.diagnosis.c_str());
+    for (const auto& e : r.evals) std::printf(" --eval %s", e.c_str());
+    std::printf(" -o %s\n", r.out.c_str());
+  }
+  std::fflush(stdout);
+  const Stopwatch drawing;
+  Result<std::string> page = Error{""};
+  {
+    StageLine line(total, total, "drawing the report");
+    page = make_report(r);
+  }
+  if (page) stages.push_back({"report", drawing.seconds()});
+  return page;
+}
+
+/// What the drone's estimator did with its IMU: rejected (stale, future or late) of all it received, and how many
+/// of the rejections were from the future, from the last driftlab.estimator_status_t of a log.
+struct ImuRejections {
+  int64_t rejected = 0, received = 0, future = 0;
+};
+ImuRejections imu_rejections(const std::string& log) {
+  ImuRejections out;
+  auto reader = LogReader::open(log, {.channels = "ESTIMATOR_STATUS"});
+  if (!reader) return out;
+  Event e;
+  driftlab::estimator_status_t s;
+  while (reader->next(e)) {
+    if (!lcmtypes::decode(e.data, s) || s.ninputs < 1 || s.input[0] != "imu") continue;
+    out.future = s.future[0];
+    out.rejected = s.stale[0] + s.future[0] + s.late[0];
+    out.received = out.rejected + s.fused[0] + s.outliers[0];
+  }
+  return out;
+}
+
+/// `driftlab demo --drone`: issue 16's story. The clean drone and drone_timebase (its IMU on a clock 110 ms ahead)
+/// simulated, the faulty log diagnosed, flown again in closed loop with the clocks the diagnosis found corrected on
+/// board, the three flights scored (setpoint tracking, the estimate's ATE) and drawn.
+int run_drone_demo(const DemoArgs& a, const fs::path& dir, const std::string& exe) {
+  auto file = [&](const char* name) { return (dir / name).string(); };
+  const std::string scenarios = std::string(DRIFTLAB_SOURCE_DIR) + "/sim/scenarios";
+  const std::string faulty_scenario = a.scenario.empty() ? scenarios + "/drone_timebase.yaml" : a.scenario;
+  const std::string clean = file("clean.lcm"), sim = file("sim.lcm"), restamped = file("restamped.lcm");
+  std::vector<std::string> seed;
+  if (a.seed >= 0) seed = {"--seed", std::to_string(a.seed)};
+  auto with_seed = [&](std::vector<std::string> args) {
+    args.insert(args.end(), seed.begin(), seed.end());
+    return args;
+  };
+  std::vector<Step> steps = {
+      {"simulating the clean flight", with_seed({exe, "sim", scenarios + "/drone.yaml", "-o", clean, "--json"}),
+       file("clean.json")},
+      {"simulating the faulty flight", with_seed({exe, "sim", faulty_scenario, "-o", sim, "--json"}),
+       file("sim.json")},
+      {"diagnosing the log", {exe, "diagnose", sim, "--json", file("diagnosis.json")}, file("diagnosis.txt")},
+      {"flying again with corrected clocks",
+       {exe, "replay", sim, "--closed-loop", "--restamp", "auto", "-o", restamped, "--json"},
+       file("restamped.json")},
+  };
+  const std::pair<const char*, std::string> flights[] = {{"clean", clean}, {"logged", sim}, {"restamped", restamped}};
+  for (const auto& [name, log] : flights) {
+    steps.push_back({"scoring the setpoint tracking",
+                     {exe, "eval", "--gt", log + ":GROUND_TRUTH", "--est", log + ":SETPOINT", "--align", "posyaw",
+                      "--json", file((std::string("tracking-") + name + ".json").c_str())},
+                     file((std::string("tracking-") + name + ".txt").c_str())});
+    steps.push_back({"scoring the estimate",
+                     {exe, "eval", "--gt", log + ":GROUND_TRUTH", "--est", log + ":VEHICLE_ODOM", "--align", "se3",
+                      "--json", file((std::string("estimate-") + name + ".json").c_str())},
+                     file((std::string("estimate-") + name + ".txt").c_str())});
+  }
+  const int total = static_cast<int>(steps.size()) + 1;
+  std::vector<Stage> stages;
+  if (int code = run_steps(steps, total, a.json, dir, stages); code != kExitOk) return code;
+
+  ReportOptions r;
+  r.logs = {sim, restamped};
+  r.out = file("report");
+  r.diagnosis = file("diagnosis.json");
+  r.evals = {file("estimate-logged.json"), file("estimate-restamped.json")};
+  r.title = "driftlab demo --drone: " + fs::path(faulty_scenario).stem().string() + ", as flown and flown again";
+  auto page = draw_report(r, total, a.json, stages);
+  if (!page) return fail("demo: " + page.error().message, kExitFailure);
+
+  nlohmann::json summary;
+  std::map<std::string, double> tracking, estimate;
+  try {
+    summary = diagnosis_summary(read_json(r.diagnosis));
+    for (const auto& [name, log] : flights) {
+      tracking[name] = read_json(file((std::string("tracking-") + name + ".json").c_str()))["ate"]["rmse"];
+      estimate[name] = read_json(file((std::string("estimate-") + name + ".json").c_str()))["ate"]["rmse"];
+    }
+  } catch (const nlohmann::json::exception& e) {
+    return fail("demo: reading the stages' JSON in " + a.out + ": " + e.what(), kExitFailure);
+  }
+  const ImuRejections before = imu_rejections(sim), after = imu_rejections(restamped);
+  auto percent = [](const ImuRejections& r) {
+    return r.received > 0 ? 100.0 * static_cast<double>(r.rejected) / static_cast<double>(r.received) : 0.0;
+  };
+  if (a.json) {
+    nlohmann::json j;
+    j["report"] = *page;
+    j["dir"] = a.out;
+    j["tracking_m"] = tracking;
+    j["estimate_ate_m"] = estimate;
+    j["imu_rejected"] = {{"logged", before.rejected}, {"restamped", after.rejected}};
+    j["imu_received"] = {{"logged", before.received}, {"restamped", after.received}};
+    j["worst_stream"] = summary["worst_stream"];
+    j["clock_offsets_s"] = summary["clocks_ahead_s"];
+    j["stages"] = nlohmann::json::array();
+    for (const auto& s : stages) j["stages"].push_back({{"name", s.name}, {"seconds", s.seconds}});
+    std::printf("%s\n", j.dump(2).c_str());
+    return kExitOk;
+  }
+  std::string worst_text = "none: no stream was flagged";
+  if (const auto& worst = summary["worst_stream"]; worst.is_object()) {
+    worst_text = worst["name"].get<std::string>() + " (" + worst["verdict"].get<std::string>() + ")";
+    if (!worst["reasons"].empty()) worst_text += ": " + worst["reasons"][0].get<std::string>();
+  }
+  std::string offset_text;
+  char buf[160];
+  for (const auto& [name, v] : summary["clocks_ahead_s"].items()) {
+    std::snprintf(buf, sizeof(buf), "%s%s %+.1f ms", offset_text.empty() ? "" : ", ", name.c_str(), v.get<double>() * 1e3);
+    offset_text += buf;
+  }
+  std::printf("\nworst stream:  %s\n", worst_text.c_str());
+  std::printf("clocks ahead:  %s\n", offset_text.empty() ? "none by more than 1 ms" : offset_text.c_str());
+  std::printf("estimator:     rejected %.0f%% of its IMU samples (%s of %s, %s from the future) as logged, %.0f%% "
+              "flown again\n",
+              percent(before), thousands(before.rejected).c_str(), thousands(before.received).c_str(),
+              thousands(before.future).c_str(), percent(after));
+  std::printf("flight error:  setpoints tracked to %.3f m as logged, %.3f m flown again (clean run %.3f m); estimate "
+              "ATE %.3f m, %.3f m (clean %.3f m)\n",
+              tracking["logged"], tracking["restamped"], tracking["clean"], estimate["logged"], estimate["restamped"],
+              estimate["clean"]);
+  std::printf("report:        %s\n", page->c_str());
+  return kExitOk;
+}
+
 int run_demo(const DemoArgs& a) {
   std::error_code ec;
   fs::create_directories(a.out, ec);
   if (ec) return fail(a.out + ": cannot create the demo folder: " + ec.message());
   const fs::path dir(a.out);
   const std::string exe = self_path();
+  if (a.drone) return run_drone_demo(a, dir, exe);
   auto file = [&](const char* name) { return (dir / name).string(); };
   const std::string sim = file("sim.lcm"), replay = file("replay.lcm"), restamped = file("restamped.lcm");
   const std::string report_dir = file("report");
@@ -131,11 +317,6 @@ int run_demo(const DemoArgs& a) {
   }
   const std::string modules = "slam,estimator,controller";
   const std::string gt = sim + ":GROUND_TRUTH";
-  struct Step {
-    const char* what;
-    std::vector<std::string> args;
-    std::string stdout_file;
-  };
   const std::vector<Step> steps = {
       {"simulating the robot", sim_args, file("sim.json")},
       {"diagnosing the log", {exe, "diagnose", sim, "--json", file("diagnosis.json")}, file("diagnosis.txt")},
@@ -154,31 +335,7 @@ int run_demo(const DemoArgs& a) {
   };
   const int total = static_cast<int>(steps.size()) + 1;
   std::vector<Stage> stages;
-  const std::string errors = file("stage.err");
-  for (size_t i = 0; i < steps.size(); ++i) {
-    const Step& s = steps[i];
-    if (!a.json) std::printf("== %s\n", join_args(s.args).c_str());
-    std::fflush(stdout);
-    const Stopwatch stage;
-    int code = 0;
-    {
-      StageLine line(static_cast<int>(i) + 1, total, s.what);
-      // The stage's errors go to a file (its progress would fight with ours): the last line is the one to show.
-      code = run_program(s.args, s.stdout_file, errors);
-    }
-    stages.push_back({s.args[1], stage.seconds()});
-    if (code != 0) {
-      const std::string why = last_line_of(errors);
-      // The failed stage's output is not kept (it is empty or cut short), and its exit code is the demo's: 2 when
-      // it was given bad input (a scenario that cannot be read), 1 otherwise.
-      fs::remove(s.stdout_file, ec);
-      fs::remove(errors, ec);
-      return fail("demo: " + join_args(s.args) + " failed (exit " + std::to_string(code) + ")" +
-                      (why.empty() ? "" : ": " + why),
-                  code == kExitBadInput ? kExitBadInput : kExitFailure);
-    }
-  }
-  fs::remove(errors, ec);
+  if (int code = run_steps(steps, total, a.json, dir, stages); code != kExitOk) return code;
 
   ReportOptions r;
   r.logs = {sim, replay, restamped};
@@ -187,19 +344,8 @@ int run_demo(const DemoArgs& a) {
   r.evals = {file("eval-before.json"), file("eval-after.json")};
   r.title = std::string("driftlab demo: ") + duration + " s of " +
             (a.scenario.empty() ? std::string("the default scenario") : fs::path(a.scenario).stem().string());
-  if (!a.json) {
-    std::printf("== driftlab report %s %s %s --diagnosis %s --eval %s --eval %s -o %s\n", sim.c_str(), replay.c_str(),
-                restamped.c_str(), r.diagnosis.c_str(), r.evals[0].c_str(), r.evals[1].c_str(), report_dir.c_str());
-  }
-  std::fflush(stdout);
-  const Stopwatch drawing;
-  Result<std::string> page = Error{""};
-  {
-    StageLine line(total, total, "drawing the report");
-    page = make_report(r);
-  }
+  auto page = draw_report(r, total, a.json, stages);
   if (!page) return fail("demo: " + page.error().message, kExitFailure);
-  stages.push_back({"report", drawing.seconds()});
 
   // The summary, from the stages' JSON.
   nlohmann::json summary;
@@ -281,6 +427,9 @@ void add_demo_command(CLI::App& app, int* exit_code) {
                   "How far back the estimator re-applies late measurements [s] (0: drops them, as robot_localization)")
       ->capture_default_str()
       ->check(in_range(config::between(0, 60), "s"));  // the estimator's window_s
+  cmd->add_flag("--drone", a->drone,
+                "The drone's story instead: the clean drone and drone_timebase (SCENARIO: another faulty drone "
+                "scenario) simulated, diagnosed, flown again in closed loop with corrected clocks, scored");
   cmd->add_flag("--json", a->json, "Print one JSON object (report path, ate_before, ate_after in metres, ...)");
   cmd->callback([a, exit_code] { *exit_code = run_demo(*a); });
 }

@@ -231,6 +231,23 @@ Result<std::string> make_report(const ReportOptions& o) {
          {"curve", loop.is_object() ? loop.value("curve", nlohmann::json::array()) : nlohmann::json::array()}});
   }
 
+  // Estimators: what each log's estimator did with its inputs, fused and rejected by reason, over time.
+  data["estimators"] = nlohmann::json::array();
+  for (const auto& l : logs) {
+    for (const auto& e : l.estimators) {
+      nlohmann::json inputs = nlohmann::json::array();
+      for (size_t i = 0; i < e.inputs.size(); ++i) {
+        inputs.push_back({{"name", e.inputs[i]},
+                          {"fused", e.fused[i]},
+                          {"stale", e.stale[i]},
+                          {"future", e.future[i]},
+                          {"late", e.late[i]},
+                          {"outliers", e.outliers[i]}});
+      }
+      data["estimators"].push_back({{"label", label_of(l.log, e.channel)}, {"t", rounded(e.t)}, {"inputs", inputs}});
+    }
+  }
+
   std::error_code ec;
   fs::create_directories(o.out, ec);
   if (ec) return Error{o.out + ": cannot create the report folder: " + ec.message()};

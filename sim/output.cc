@@ -23,6 +23,13 @@ bool Output::has_stream(const std::string& channel) const {
   return false;
 }
 
+void Output::shift_stamps(std::vector<uint8_t>& bytes, int64_t shift) {
+  // The message's own stamp is true time, within a day of itself: the header is recognised whatever the type.
+  const auto stamp = lcmtypes::header_stamp(bytes, 0);
+  if (!stamp) return;
+  lcmtypes::map_stamps(bytes, *stamp, [shift](int64_t t) { return t + shift; });
+}
+
 std::vector<std::string> Output::channels() const {
   std::vector<std::string> out;
   for (const Stream& s : streams_) out.push_back(s.channel);
@@ -60,9 +67,7 @@ void Output::publish_encoded(int stream, std::span<const uint8_t> bytes, int64_t
   }
   if (deliveries_.empty()) return;
   auto data = std::make_shared<std::vector<uint8_t>>(bytes.begin(), bytes.end());
-  if (const int64_t shift = deliveries_.front().stamp_utime - stamp_utime; shift != 0) {
-    lcmtypes::map_stamps(*data, stamp_utime, [shift](int64_t t) { return t + shift; });
-  }
+  if (const int64_t shift = deliveries_.front().stamp_utime - stamp_utime; shift != 0) shift_stamps(*data, shift);
   for (const Delivery& d : deliveries_) {
     queue_.push({std::max(ready_utime + (d.arrival_utime - stamp_utime), last_arrival_), order_++, stream, data});
   }

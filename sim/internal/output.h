@@ -44,9 +44,11 @@ class Output {
     }
     if (deliveries_.empty()) return;
     msg.header.seq = seq;
-    msg.header.utime = deliveries_.front().stamp_utime;
+    msg.header.utime = stamp_utime;
     auto bytes = std::make_shared<std::vector<uint8_t>>(static_cast<std::size_t>(msg.getEncodedSize()));
     msg.encode(bytes->data(), 0, static_cast<int>(bytes->size()));
+    // A clock fault moves every stamp the message carries (a tf_t's transforms have their own).
+    if (const int64_t shift = deliveries_.front().stamp_utime - stamp_utime; shift != 0) shift_stamps(*bytes, shift);
     for (const Delivery& d : deliveries_) {
       // The transport delay counts from when the message is complete.
       queue_.push({ready_utime + (d.arrival_utime - stamp_utime), order_++, stream, bytes});
@@ -87,6 +89,7 @@ class Output {
     bool operator>(const Pending& o) const { return arrival != o.arrival ? arrival > o.arrival : order > o.order; }
   };
   Status write(const std::string& channel, int64_t utime, std::span<const uint8_t> bytes);
+  static void shift_stamps(std::vector<uint8_t>& bytes, int64_t shift);
 
   LogWriter& writer_;
   const FaultConfig& faults_;

@@ -140,6 +140,39 @@ TEST(DroneStory, ClosedLoopReplayWithTheCorrectedClockFliesAsTheCleanRun) {
   EXPECT_TRUE(last_on<driftlab::vehicle_status_t>(simulated("drone_timebase"), "VEHICLE_STATUS").armed);
 }
 
+// The estimator's rejections show in the report: a plot per estimator status channel of the share of each input
+// rejected, by reason, over time (the IMU's rising to about 70% from the future and staying there).
+TEST(DroneStory, TheReportShowsTheEstimatorsRejections) {
+  const std::string out = dir().file("report");
+  const auto r = driftlab("report " + simulated("drone_timebase") + " -o " + out);
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_TRUE(std::filesystem::exists(out + "/estimator_0.png"));
+  std::ifstream page(out + "/index.html");
+  const std::string html((std::istreambuf_iterator<char>(page)), std::istreambuf_iterator<char>());
+  EXPECT_NE(html.find("Estimator: rejected measurements"), std::string::npos);
+  std::ifstream data(out + "/report.json");
+  const auto j = nlohmann::json::parse(data);
+  ASSERT_EQ(j["estimators"].size(), 1u);
+  const auto& imu = j["estimators"][0]["inputs"][0];
+  EXPECT_EQ(imu["name"], "imu");
+  const double future = imu["future"].back().get<double>(), fused = imu["fused"].back().get<double>();
+  EXPECT_GT(future / (future + fused), 0.5);
+}
+
+// `driftlab demo --drone` runs the story in one go and says it in its summary: the IMU's clock, the estimator's
+// rejections as logged and flown again, and the flight error of the three flights.
+TEST(DroneStory, DemoDroneTellsTheStory) {
+  const std::string out = dir().file("demo");
+  const auto r = driftlab("demo --drone -o " + out + " --json");
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_NEAR(j["clock_offsets_s"]["IMU"].get<double>(), 0.110, 0.001);
+  EXPECT_GT(j["imu_rejected"]["logged"].get<double>(), 0.5 * j["imu_received"]["logged"].get<double>());
+  EXPECT_LT(j["imu_rejected"]["restamped"].get<double>(), 0.01 * j["imu_received"]["restamped"].get<double>());
+  EXPECT_LT(j["tracking_m"]["restamped"].get<double>(), j["tracking_m"]["logged"].get<double>());
+  EXPECT_TRUE(std::filesystem::exists(j["report"].get<std::string>()));
+}
+
 // A closed-loop replay needs the log's simulation: a log the simulator did not make is one line, exit 2.
 TEST(DroneStory, ClosedLoopReplayOfALogWithoutItsSimulationIsOneLine) {
   const auto r = driftlab("replay " + std::string(DRIFTLAB_TEST_DATA) + "/sample.lcm --closed-loop -o " +

@@ -209,7 +209,7 @@ INSTANTIATE_TEST_SUITE_P(
 TEST(SimCli, MissingScenarioFile) {
   const auto r = driftlab("sim /nonexistent/scenario.yaml");
   EXPECT_EQ(r.code, 2);
-  EXPECT_EQ(r.err, "driftlab: /nonexistent/scenario.yaml: cannot open the scenario file\n");
+  EXPECT_EQ(r.err, "driftlab: /nonexistent/scenario.yaml: cannot open the scenario file: No such file or directory\n");
 }
 
 }  // namespace

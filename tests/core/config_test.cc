@@ -283,7 +283,7 @@ TEST(ConfigValue, ParsesAndLoadsYamlInOneLine) {
   EXPECT_EQ(bad.error().message.rfind("f.yaml:2: ", 0), 0u) << bad.error().message;
   auto missing = load_yaml("/nonexistent/x.yaml", "module config");
   ASSERT_FALSE(missing);
-  EXPECT_EQ(missing.error().message, "/nonexistent/x.yaml: cannot open the module config");
+  EXPECT_EQ(missing.error().message, "/nonexistent/x.yaml: cannot open the module config: No such file or directory");
   // Control characters in a key come out escaped: the message stays one line.
   EXPECT_EQ(error("\"a\\nb\": 1\nmeta: {name: x}\n").rfind("f.yaml:1: unknown key 'opts.a\\x0ab'", 0), 0u);
 }

@@ -83,7 +83,7 @@ TEST(Multirotor, BadDroneFilesGetOneLineNamingFileAndElement) {
   EXPECT_NEAR(good->mass, 1.05, 1e-12);
   auto missing = load_multirotor("/nonexistent/drone.urdf");
   ASSERT_FALSE(missing.ok());
-  EXPECT_EQ(missing.error().message, "/nonexistent/drone.urdf: cannot open the URDF file");
+  EXPECT_EQ(missing.error().message, "/nonexistent/drone.urdf: cannot open the URDF file: No such file or directory");
 }
 
 }  // namespace

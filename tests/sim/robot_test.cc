@@ -176,7 +176,7 @@ TEST(RobotErrors, NameTheFileAndThePlace) {
   BulletWorld physics(world);
   auto missing = Robot::load("/nonexistent/robot.urdf", physics.dynamics(), {0, 0, 0}, {});
   ASSERT_FALSE(missing.ok());
-  EXPECT_EQ(missing.error().message, "/nonexistent/robot.urdf: cannot open the URDF file");
+  EXPECT_EQ(missing.error().message, "/nonexistent/robot.urdf: cannot open the URDF file: No such file or directory");
 }
 
 }  // namespace

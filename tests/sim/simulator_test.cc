@@ -273,6 +273,46 @@ TEST(Simulation, SameScenarioAndSeedGiveTheSameBytes) {
   EXPECT_EQ(test::read_file(dir.file("a.faults.json")), test::read_file(dir.file("b.faults.json")));
 }
 
+// A clock fault moves every stamp a message carries: a tf_t's transforms have stamps of their own, and TF
+// consumers look them up by those (they stayed on true time while the header moved).
+TEST(Simulation, AClockFaultMovesEveryStampATfMessageCarries) {
+  test::TempDir dir;
+  Scenario sc = default_scenario(2);
+  sc.faults.streams.clear();
+  sc.faults.streams["TF"].clock_offset_s = 0.25;
+  run_ok(sc, dir.file("tf.lcm"));
+  int n = 0;
+  for (const auto& e : test::read_all(dir.file("tf.lcm"))) {
+    if (e.channel != "TF") continue;
+    const auto tf = decode<driftlab::tf_t>(e);
+    ASSERT_EQ(tf.header.utime - e.utime, 250000);
+    ASSERT_EQ(tf.ntransforms, 1);
+    EXPECT_EQ(tf.transforms[0].header.utime, tf.header.utime);
+    ++n;
+  }
+  EXPECT_GT(n, 50);
+}
+
+// A log carries the scenario as it was run (the SIMULATION message): run again from the log alone, the
+// simulation writes the same log, byte for byte (what `driftlab replay --closed-loop` starts from).
+TEST(Simulation, ALogCarriesItsScenarioAndRunsAgainTheSame) {
+  test::TempDir dir;
+  Scenario sc = default_scenario(2);
+  sc.seed = 7;
+  sc.faults.seed = 9;
+  run_ok(sc, dir.file("a.lcm"));
+  auto again = scenario_of_log(dir.file("a.lcm"));
+  ASSERT_TRUE(again.ok()) << again.error().message;
+  EXPECT_EQ(again->duration, 2);
+  EXPECT_EQ(again->seed, 7u);
+  EXPECT_EQ(again->faults.seed, 9u);
+  run_ok(*again, dir.file("b.lcm"));
+  EXPECT_EQ(test::read_file(dir.file("a.lcm")), test::read_file(dir.file("b.lcm")));
+  const auto none = scenario_of_log(std::string(DRIFTLAB_TEST_DATA) + "/sample.lcm");
+  ASSERT_FALSE(none.ok());
+  EXPECT_NE(none.error().message.find("no SIMULATION message"), std::string::npos);
+}
+
 TEST(Simulation, StopRequestClosesAValidLog) {
   test::TempDir dir;
   const Scenario sc = default_scenario(600);
