@@ -4,6 +4,7 @@
 #include "analyzers/timing.h"
 
 #include <algorithm>
+#include <cmath>
 #include <map>
 
 #include "analyzers/internal/channel_samples.h"
@@ -15,6 +16,7 @@
 #include "core/log_reader.h"
 #include "driftlab/joint_state_t.hpp"
 #include "driftlab/joint_trajectory_t.hpp"
+#include "driftlab/physics_step_t.hpp"
 #include "driftlab/tf_t.hpp"
 #include "lcmtypes/stream_header.h"
 #include "lcmtypes/type_registry.h"
@@ -33,6 +35,8 @@ Result<Diagnosis> diagnose(const std::string& log, const DiagnoseOptions& option
   const int64_t tf_hash = driftlab::tf_t::getHash();
   const int64_t trajectory_hash = driftlab::joint_trajectory_t::getHash();
   const int64_t joint_state_hash = driftlab::joint_state_t::getHash();
+  const int64_t physics_hash = driftlab::physics_step_t::getHash();
+  std::map<std::string, PhysicsTiming> physics;
   internal::Samples* last = nullptr;
   std::string_view last_name;
   Event e;
@@ -66,6 +70,19 @@ Result<Diagnosis> diagnose(const std::string& log, const DiagnoseOptions& option
     if (fp == tf_hash) tf.add_tf(std::string(last_name), e.data, e.utime, internal::is_static_tf_channel(last_name));
     if (fp == trajectory_hash) loops.add_command(std::string(last_name), e.data, e.utime);
     if (fp == joint_state_hash) loops.add_state(std::string(last_name), e.data);
+    if (fp == physics_hash) {
+      driftlab::physics_step_t m;
+      if (lcmtypes::decode(e.data, m) && m.real_time_factor > 0 && std::isfinite(m.real_time_factor)) {
+        PhysicsTiming& p = physics[std::string(last_name)];
+        p.channel = last_name;
+        p.real_time_factor_mean = (p.real_time_factor_mean * static_cast<double>(p.messages) + m.real_time_factor) /
+                                  static_cast<double>(p.messages + 1);
+        p.real_time_factor_min = p.messages == 0 ? m.real_time_factor : std::min(p.real_time_factor_min, m.real_time_factor);
+        p.sim_step_s = m.sim_step_s;
+        p.wall_step_max_s = std::max(p.wall_step_max_s, m.wall_step_max_s);
+        ++p.messages;
+      }
+    }
     if (s.has_header) {
       if (const auto h = lcmtypes::read_header(e.data, e.utime)) {
         s.seq.push_back(h->seq);
@@ -100,6 +117,7 @@ Result<Diagnosis> diagnose(const std::string& log, const DiagnoseOptions& option
   // Skew between every two streams that observe the yaw rate: IMU gyro, wheel odometry, poses, scans.
   d.pairs = internal::stream_pairs(channels, d.start_utime, d.end_utime, options);
   d.command_loops = loops.finish(d.start_utime);
+  for (auto& [name, p] : physics) d.physics.push_back(std::move(p));
   return d;
 }
 

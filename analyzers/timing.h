@@ -134,6 +134,18 @@ struct CommandLoop {
   std::vector<std::pair<double, double>> curve;  ///< (lag [s], agreement) over the lags searched, for plots
 };
 
+/// A simulator's own step times (driftlab.physics_step_t, as Gazebo's performance metrics): how much slower than
+/// real time it ran. A lockstep simulation slower than the wall clock delivers every stream at that fraction of its
+/// rate to anything on the wall clock, and its stamps (simulated time) fall behind the wall clock's.
+struct PhysicsTiming {
+  std::string channel;
+  int64_t messages = 0;
+  double real_time_factor_mean = 1;  ///< simulated over wall-clock time, over the log
+  double real_time_factor_min = 1;
+  double sim_step_s = 0;             ///< simulated time per physics update [s]
+  double wall_step_max_s = 0;        ///< the longest an update took on the wall clock [s]
+};
+
 struct Diagnosis {
   std::string log;
   int64_t start_utime = 0, end_utime = 0;
@@ -141,6 +153,7 @@ struct Diagnosis {
   std::vector<StreamPair> pairs;
   TfDiagnosis tf;
   std::vector<CommandLoop> command_loops;
+  std::vector<PhysicsTiming> physics;  ///< per channel of driftlab.physics_step_t
   uint64_t log_problems = 0;  ///< corruption met while reading
 };
 

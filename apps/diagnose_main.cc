@@ -107,6 +107,18 @@ std::vector<std::string> report_lines(const Diagnosis& d, std::vector<std::strin
     }
   }
   for (const auto& p : d.tf.problems) problems->push_back("TF: " + p);
+  // A simulator slower than real time: below 0.9, what runs on the wall clock sees every stream slowed. First: it
+  // explains the drifting clocks and the slow rates of every stream on the simulation's clock.
+  for (auto p = d.physics.rbegin(); p != d.physics.rend(); ++p) {
+    if (!(p->real_time_factor_mean < 0.9)) continue;
+    std::snprintf(buf, sizeof(buf),
+                  "%s: the simulation ran at %.0f%% of real time (physics updates of %.1f ms of simulated time took "
+                  "up to %.1f ms): streams on the simulation's clock reach the wall clock at %.0f%% of their rate, "
+                  "their stamps falling behind it",
+                  p->channel.c_str(), p->real_time_factor_mean * 100, p->sim_step_s * 1e3, p->wall_step_max_s * 1e3,
+                  p->real_time_factor_mean * 100);
+    problems->insert(problems->begin(), buf);
+  }
   bool loops_header = false;
   for (const auto& l : d.command_loops) {
     if (l.state_channel.empty() && l.stale == 0) continue;

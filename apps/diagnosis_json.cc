@@ -95,6 +95,15 @@ nlohmann::json to_json(const analyzers::Diagnosis& d) {
                          {"tf_latency_s", c.tf_latency_s},
                          {"data_latency_s", c.data_latency_s}});
   }
+  nlohmann::json physics = nlohmann::json::array();
+  for (const auto& p : d.physics) {
+    physics.push_back({{"channel", p.channel},
+                       {"messages", p.messages},
+                       {"real_time_factor_mean", p.real_time_factor_mean},
+                       {"real_time_factor_min", p.real_time_factor_min},
+                       {"sim_step_s", p.sim_step_s},
+                       {"wall_step_max_s", p.wall_step_max_s}});
+  }
   return {{"log", d.log},
           {"start_utime", d.start_utime},
           {"end_utime", d.end_utime},
@@ -102,7 +111,8 @@ nlohmann::json to_json(const analyzers::Diagnosis& d) {
           {"channels", channels},
           {"pairs", pairs},
           {"tf", {{"frames", d.tf.frames}, {"roots", d.tf.roots}, {"stamps", tf_stamps}, {"problems", d.tf.problems}}},
-          {"command_loops", loops}};
+          {"command_loops", loops},
+          {"physics", physics}};
 }
 
 nlohmann::json diagnosis_summary(const nlohmann::json& diagnosis) {

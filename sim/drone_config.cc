@@ -56,6 +56,9 @@ const config::Table<DroneConfig>& drone_table() {
           .number("tf_rate", &D::tf_rate, config::above(0, 1e4), "Hz", "transforms per second on both")
           .text("stats_channel", &D::stats_channel, "driftlab.module_stats_t of the on-board modules",
                 Text::kNonEmpty)
+          .choice("offboard_clock", &D::offboard_clock, {"simulation", "wall"},
+                  "the offboard script's clock: the simulation's, or the wall clock (a ROS node that trusts it; see "
+                  "physics_cost)")
           .section("estimator", &D::estimator, estimator::drone_estimator_config_table(),
                    "the on-board estimator (the drone_estimator module's keys); declination: the geo's unless given")
           .section("flight", &D::flight, flight::flight_config_table(),

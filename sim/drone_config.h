@@ -43,6 +43,10 @@ struct DroneConfig {
   std::string rotor_tf_channel = "TF_ROTORS";  ///< base link -> rotor links (a robot state publisher)
   double tf_rate = 50;                         ///< [Hz]
   std::string stats_channel = "MODULE_STATS";  ///< the on-board modules' statistics (driftlab.module_stats_t)
+  /// The offboard script's clock: "simulation" (as the flight stack, in lockstep) or "wall" (a ROS node that trusts
+  /// the wall clock: when the simulation runs slower than real time, physics_cost, its timers and its mission run
+  /// faster than the vehicle can follow, and its stamps are wall time).
+  std::string offboard_clock = "simulation";
   estimator::DroneEstimatorConfig estimator;   ///< the on-board estimator
   flight::FlightConfig flight;                 ///< the flight stack
   flight::OffboardConfig offboard;             ///< the offboard script

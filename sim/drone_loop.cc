@@ -62,7 +62,9 @@ DroneLoop::DroneLoop(const Scenario& sc, Robot& robot, flight::VehicleModel vehi
       robot_(robot),
       spec_(*robot.multirotor()),
       vehicle_(std::move(vehicle)),
-      host_(host_options(sc.drone)) {
+      host_(host_options(sc.drone)),
+      wall_host_(host_options(sc.drone)),
+      offboard_on_wall_(sc.drone.offboard_clock == "wall") {
   const std::size_t n = spec_.rotors.size();
   speed_.assign(n, 0.0);
   angle_.assign(n, 0.0);
@@ -92,7 +94,7 @@ Result<std::unique_ptr<DroneLoop>> DroneLoop::create(const Scenario& sc, Robot& 
   loop->modules_ = {estimator.get(), flight.get(), offboard.get()};
   loop->host_.add_module(std::move(estimator));
   loop->host_.add_module(std::move(flight));
-  loop->host_.add_module(std::move(offboard));
+  (loop->offboard_on_wall_ ? loop->wall_host_ : loop->host_).add_module(std::move(offboard));
   return loop;
 }
 
@@ -109,9 +111,10 @@ int DroneLoop::stream(std::string_view channel) {
   return it->second;
 }
 
-Status DroneLoop::attach(Output& out, const ClockCorrections& clocks) {
+Status DroneLoop::attach(Output& out, const ClockCorrections& clocks, std::function<int64_t(int64_t)> wall_clock) {
   out_ = &out;
   clocks_ = clocks;
+  wall_clock_ = std::move(wall_clock);
   for (const std::string& channel : channels()) {
     if (!out.has_stream(channel)) stream(channel);
   }
@@ -122,11 +125,16 @@ Status DroneLoop::attach(Output& out, const ClockCorrections& clocks) {
     const int64_t t = m.time.us();
     out_->publish_encoded(stream(m.channel), m.data, t, t);
   });
+  // What a wall-clock script publishes carries its wall stamps, and leaves at the simulated time being handled.
+  wall_host_.set_outlet(
+      [this](const BusMessage& m) { out_->publish_encoded(stream(m.channel), m.data, sim_now_, sim_now_); });
   if (Status s = host_.start(); !s) return s;
+  if (Status s = wall_host_.start(); !s) return s;
   running_ = true;
   // Every channel a module reads, the motor commands and the estimate (for TF) are taken as they arrive.
   std::vector<std::regex> subscribed;
   for (const std::string& pattern : host_.subscriptions()) subscribed.emplace_back(pattern);
+  for (const std::string& pattern : wall_host_.subscriptions()) subscribed.emplace_back(pattern);
   for (const std::string& channel : out.channels()) {
     const bool read = std::any_of(subscribed.begin(), subscribed.end(),
                                   [&](const std::regex& r) { return std::regex_match(channel, r); });
@@ -143,14 +151,19 @@ Status DroneLoop::attach(Output& out, const ClockCorrections& clocks) {
 
 void DroneLoop::deliver(const std::string& channel, int64_t utime, std::span<const uint8_t> bytes) {
   if (!running_) return;
-  Status s = host_.advance(Time::from_us(utime));
+  sim_now_ = utime;
+  std::vector<uint8_t> corrected;
   if (auto c = clocks_.find(channel); c != clocks_.end()) {
-    std::vector<uint8_t> corrected(bytes.begin(), bytes.end());
+    corrected.assign(bytes.begin(), bytes.end());
     lcmtypes::map_stamps(corrected, utime,
                          [&](int64_t stamp) { return corrected_stamp(c->second, stamp, start_utime_); });
-    if (s) s = host_.deliver(channel, corrected);
-  } else if (s) {
-    s = host_.deliver(channel, bytes);
+    bytes = corrected;
+  }
+  Status s = host_.advance(Time::from_us(utime));
+  if (s) s = host_.deliver(channel, bytes);
+  if (offboard_on_wall_) {
+    if (s) s = wall_host_.advance(Time::from_us(wall_clock_(utime)));
+    if (s) s = wall_host_.deliver(channel, bytes);
   }
   if (!s && failure_) failure_ = s;
 }
@@ -179,7 +192,10 @@ void DroneLoop::on_estimate(int64_t arrival, std::span<const uint8_t> bytes) {
 
 void DroneLoop::control(int64_t now, double dt) {
   if (running_) {
-    if (Status s = host_.advance(Time::from_us(now)); !s && failure_) failure_ = s;
+    sim_now_ = now;
+    Status s = host_.advance(Time::from_us(now));
+    if (s && offboard_on_wall_) s = wall_host_.advance(Time::from_us(wall_clock_(now)));
+    if (!s && failure_) failure_ = s;
   }
   const MotorModel& m = c_.motors;
   const std::string& base = robot_.base_link();
@@ -249,8 +265,11 @@ void DroneLoop::add_static(driftlab::tf_t& tf, int64_t now) const {
 
 Status DroneLoop::finish(int64_t now) {
   if (!running_) return failure_;
+  sim_now_ = now;
   Status s = host_.advance(Time::from_us(now));
   if (s) s = host_.finish();
+  if (s && offboard_on_wall_) s = wall_host_.advance(Time::from_us(wall_clock_(now)));
+  if (s && offboard_on_wall_) s = wall_host_.finish();
   running_ = false;
   if (!s) return s;
   return failure_;

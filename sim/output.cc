@@ -37,8 +37,9 @@ std::vector<std::string> Output::channels() const {
 }
 
 Status Output::write(const std::string& channel, int64_t utime, std::span<const uint8_t> bytes) {
-  if (Status s = writer_.write(utime, channel, bytes); !s) return s;
-  if (listener_) listener_(channel, utime, bytes);
+  const int64_t log_time = to_log_ ? to_log_(utime) : utime;
+  if (Status s = writer_.write(log_time, channel, bytes); !s) return s;
+  if (listener_) listener_(channel, log_time, bytes);
   if (!arrivals_.empty()) {
     if (auto it = arrivals_.find(channel); it != arrivals_.end()) it->second(utime, bytes);
   }

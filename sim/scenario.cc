@@ -315,6 +315,12 @@ const config::Table<Scenario>& scenario_table() {
           .number("physics_step", &S::physics_step, config::between(1e-5, 0.02), "s", "the physics time step")
           .integer("solver_iterations", &S::solver_iterations, config::between(1, 1000), "",
                    "Bullet's constraint solver iterations per step")
+          .number("physics_cost", &S::physics_cost, config::between(0, 10), "s",
+                  "wall-clock time a physics update takes: above physics_step, the simulation runs slower than real "
+                  "time, and the log's times (and a wall-clock offboard script) see it; 0: free")
+          .text("physics_channel", &S::physics_channel,
+                "driftlab.physics_step_t of the simulator's own step times (with physics_cost)", Text::kNonEmpty)
+          .number("physics_rate", &S::physics_rate, config::above(0, 1000), "Hz", "physics_step_t per second")
           .text("world", &S::world_path, "the world file (relative to the scenario; docs/worlds.md)", Text::kNonEmpty)
           .required()
           .section("robot", robot, "the robot: its URDF, start pose and drive")

@@ -155,6 +155,12 @@ struct Scenario {
   uint64_t seed = 1;
   int64_t start_utime = 1763776800000000;      ///< true time of the first step [us since the epoch]
   double physics_step = 0.001;                 ///< [s]
+  /// The wall-clock time one physics update takes [s] (a heavy collision mesh): above physics_step the simulation
+  /// runs in lockstep slower than real time, by physics_step / physics_cost, and what is on the wall clock sees it
+  /// so: the log's recorder (event times) and an offboard script on the wall clock. 0: updates cost nothing.
+  double physics_cost = 0;
+  std::string physics_channel = "PHYSICS";  ///< driftlab.physics_step_t, when physics_cost is given
+  double physics_rate = 1;                  ///< [Hz of simulated time]
   int solver_iterations = 6;                   ///< Bullet's constraint solver iterations per step
   std::string world_path;
   World world;

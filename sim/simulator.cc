@@ -14,6 +14,7 @@
 #include "core/log_writer.h"
 #include "core/time.h"
 #include "driftlab/fault_manifest_t.hpp"
+#include "driftlab/physics_step_t.hpp"
 #include "driftlab/simulation_t.hpp"
 #include "driftlab/tf_t.hpp"
 #include "driftlab/velocity_command_t.hpp"
@@ -136,6 +137,7 @@ Result<std::unique_ptr<Simulation>> Simulation::create(const Scenario& scenario,
 
   // Every sensor's link must exist; every faulted channel must be published.
   std::set<std::string> channels{sc.tf_static_channel};
+  if (sc.physics_cost > 0) channels.insert(sc.physics_channel);
   if (!impl->drone) channels.insert(sc.controller.channel);
   if (impl->arm) {
     for (const std::string& c : impl->arm->channels()) channels.insert(c);
@@ -186,6 +188,13 @@ Result<SimReport> Simulation::run(const SimOptions& options) {
   auto writer = LogWriter::create(options.out, {.atomic = true});
   if (!writer) return writer.error();
   Output out(*writer, sc.faults, sc.start_utime, options.on_message);
+  // A physics update slower than its step: the simulation runs in lockstep slower than real time, and the recorder,
+  // on the wall clock, stamps every event that much later.
+  const double wall_ratio = std::max(1.0, sc.physics_cost / sc.physics_step);
+  const std::function<int64_t(int64_t)> wall_clock = [start = sc.start_utime, wall_ratio](int64_t t) {
+    return start + static_cast<int64_t>(std::llround(static_cast<double>(t - start) * wall_ratio));
+  };
+  if (wall_ratio > 1) out.set_log_clock(wall_clock);
   {  // How this log is made, first: a closed-loop replay runs it again from this.
     driftlab::simulation_t m{};
     m.header.utime = sc.start_utime;
@@ -231,7 +240,7 @@ Result<SimReport> Simulation::run(const SimOptions& options) {
   ArmLoop* arm = impl_->arm.get();
   if (arm != nullptr) arm->attach(out, odometry, options.corrections);
   if (drone != nullptr) {
-    if (Status s = drone->attach(out, options.corrections.clocks); !s) {
+    if (Status s = drone->attach(out, options.corrections.clocks, wall_clock); !s) {
       writer->discard();
       return Error{s.message()};
     }
@@ -243,6 +252,8 @@ Result<SimReport> Simulation::run(const SimOptions& options) {
   controller::AvoidOptions avoid;
   avoid.radius = sc.controller.footprint_radius;
   const int cmd_stream = ground ? out.add_stream(sc.controller.channel) : -1;
+  const int physics_stream = sc.physics_cost > 0 ? out.add_stream(sc.physics_channel) : -1;
+  int64_t n_physics = 0, physics_updates = 0;
   const int static_stream = out.add_stream(sc.tf_static_channel);
   std::vector<std::string> static_links;
   for (const SensorConfig& s : sc.sensors) {
@@ -334,6 +345,18 @@ Result<SimReport> Simulation::run(const SimOptions& options) {
       out.publish(cmd_stream, m, now, now);
     }
 
+    if (physics_stream >= 0 && t_us >= due_us(n_physics, sc.physics_rate)) {
+      // The simulator's own step times, as Gazebo's performance metrics: every update costs physics_cost.
+      driftlab::physics_step_t m{};
+      m.header.frame_id = "";
+      m.updates = static_cast<int32_t>(std::min<int64_t>(physics_updates, INT32_MAX));
+      m.sim_step_s = dt;
+      m.wall_step_mean_s = m.wall_step_max_s = std::max(dt, sc.physics_cost);
+      m.real_time_factor = dt / m.wall_step_mean_s;
+      out.publish(physics_stream, m, now, now);
+      ++n_physics;
+      physics_updates = 0;
+    }
     if (arm != nullptr) arm->publish(now);
     if (Status s = out.flush(now); !s) {
       writer->discard();
@@ -347,6 +370,7 @@ Result<SimReport> Simulation::run(const SimOptions& options) {
     }
 
     physics.dynamics().stepSimulation(static_cast<btScalar>(dt), 0);
+    ++physics_updates;
     robot.after_step(dt);
     const Eigen::Vector3d position = robot.link_pose(robot.base_link()).translation();
     report.distance_m += (position - last_position).head<2>().norm();

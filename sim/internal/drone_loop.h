@@ -8,6 +8,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <map>
 #include <memory>
 #include <string>
@@ -39,7 +40,8 @@ class DroneLoop {
   /// Registers the streams on `out`, listens to the arrivals of every channel a module reads and of the motor
   /// commands, and starts the modules; `clocks` corrects the stamps of what the modules receive (closed-loop
   /// replay). Errors are the modules' start() errors.
-  Status attach(Output& out, const ClockCorrections& clocks = {});
+  Status attach(Output& out, const ClockCorrections& clocks = {},
+                std::function<int64_t(int64_t)> wall_clock = [](int64_t t) { return t; });
   /// After the output is flushed up to now [us]: the modules' timers due at now, then the rotors and the forces on
   /// the airframe for the next physics step of dt [s]; the rotor states and transforms that fall due.
   void control(int64_t now, double dt);
@@ -65,7 +67,11 @@ class DroneLoop {
   Robot& robot_;
   const MultirotorSpec& spec_;
   flight::VehicleModel vehicle_;
-  replay::ModuleHost host_;
+  replay::ModuleHost host_;       // the flight stack's, on the simulation's clock
+  replay::ModuleHost wall_host_;  // the offboard script's when it is on the wall clock (offboard_clock: wall)
+  bool offboard_on_wall_ = false;
+  std::function<int64_t(int64_t)> wall_clock_;  // the wall time [us] of a simulated time
+  int64_t sim_now_ = 0;  // the simulated time being handled [us]
   std::vector<Module*> modules_;  // owned by the host
   Output* out_ = nullptr;
   std::map<std::string, int, std::less<>> streams_;

@@ -24,6 +24,10 @@ class Output {
   Output(LogWriter& writer, const FaultConfig& faults, int64_t start_utime, Listener listener)
       : writer_(writer), faults_(faults), start_utime_(start_utime), listener_(std::move(listener)) {}
 
+  /// The recorder's clock: the log time [us] of a message arriving at true (simulated) time t [us]. The identity
+  /// unless the simulation runs slower than the wall clock the recorder keeps. Arrival callbacks get true times.
+  void set_log_clock(std::function<int64_t(int64_t)> to_log) { to_log_ = std::move(to_log); }
+
   /// Registers a stream (once per channel) and returns its id.
   int add_stream(const std::string& channel);
   bool has_stream(const std::string& channel) const;
@@ -95,6 +99,7 @@ class Output {
   const FaultConfig& faults_;
   int64_t start_utime_;
   Listener listener_;
+  std::function<int64_t(int64_t)> to_log_;
   std::vector<Stream> streams_;
   std::vector<Delivery> deliveries_;
   std::priority_queue<Pending, std::vector<Pending>, std::greater<>> queue_;

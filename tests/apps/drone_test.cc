@@ -173,6 +173,27 @@ TEST(DroneStory, DemoDroneTellsTheStory) {
   EXPECT_TRUE(std::filesystem::exists(j["report"].get<std::string>()));
 }
 
+// The report's second failure: physics updates that take 4.5 ms of wall clock for 1 ms of simulated time. The
+// recorder and the offboard script are on the wall clock: every stream of the simulation reaches the log at 22%
+// of its rate (the 100 Hz ground truth at 22 Hz), the setpoints at their own, and diagnose names the cause from
+// the simulator's own step times before the drifting clocks it explains.
+TEST(DroneStory, ASlowPhysicsStepIsNamedByDiagnose) {
+  const auto r = driftlab("diagnose " + simulated("drone_slow_physics") + " --json -");
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  ASSERT_EQ(j["physics"].size(), 1u);
+  EXPECT_NEAR(j["physics"][0]["real_time_factor_mean"].get<double>(), 1.0 / 4.5, 1e-6);
+  std::map<std::string, double> rate;
+  for (const auto& c : j["channels"]) rate[c["name"]] = c["rate_hz"].get<double>();
+  EXPECT_NEAR(rate["GROUND_TRUTH"], 100 / 4.5, 0.1);
+  EXPECT_NEAR(rate["IMU"], 250 / 4.5, 0.2);
+  EXPECT_NEAR(rate["SETPOINT"], 20, 0.1) << "the offboard script streams on the wall clock";
+  const auto text = driftlab("diagnose " + simulated("drone_slow_physics"));
+  const auto problems = text.out.find("problems:\n");
+  ASSERT_NE(problems, std::string::npos) << text.out;
+  EXPECT_EQ(text.out.find("  PHYSICS: the simulation ran at 22% of real time"), problems + 10) << text.out;
+}
+
 // A closed-loop replay needs the log's simulation: a log the simulator did not make is one line, exit 2.
 TEST(DroneStory, ClosedLoopReplayOfALogWithoutItsSimulationIsOneLine) {
   const auto r = driftlab("replay " + std::string(DRIFTLAB_TEST_DATA) + "/sample.lcm --closed-loop -o " +
