@@ -46,9 +46,10 @@ std::map<std::string, Duration> command_retiming(const Diagnosis& d, std::vector
     const bool sure = loop.confidence >= kRetimeConfidenceMin;
     if (loop.delay_s >= kRetimeDelayMin_s && sure) {
       out[loop.command_channel] = Duration::from_seconds_rounded(loop.delay_s);
-      std::snprintf(buf, sizeof(buf), "retime %s: each command starts %.1f ms before it arrived (the delay from "
-                    "command to motion the diagnosis of %s measured, agreement %.2f)", loop.command_channel.c_str(),
-                    loop.delay_s * 1e3, d.log.c_str(), loop.confidence);
+      std::snprintf(buf, sizeof(buf),
+                    "retime %s: each command starts %.1f ms before it arrived (the delay from "
+                    "command to motion the diagnosis of %s measured, agreement %.2f)",
+                    loop.command_channel.c_str(), loop.delay_s * 1e3, d.log.c_str(), loop.confidence);
     } else {
       std::snprintf(buf, sizeof(buf), "not retiming %s: %.1f ms from command to motion%s", loop.command_channel.c_str(),
                     loop.delay_s * 1e3, sure ? " is the controller's own lag" : ", measured with too little agreement");

@@ -77,7 +77,8 @@ Result<Diagnosis> diagnose(const std::string& log, const DiagnoseOptions& option
         p.channel = last_name;
         p.real_time_factor_mean = (p.real_time_factor_mean * static_cast<double>(p.messages) + m.real_time_factor) /
                                   static_cast<double>(p.messages + 1);
-        p.real_time_factor_min = p.messages == 0 ? m.real_time_factor : std::min(p.real_time_factor_min, m.real_time_factor);
+        p.real_time_factor_min =
+            p.messages == 0 ? m.real_time_factor : std::min(p.real_time_factor_min, m.real_time_factor);
         p.sim_step_s = m.sim_step_s;
         p.wall_step_max_s = std::max(p.wall_step_max_s, m.wall_step_max_s);
         ++p.messages;

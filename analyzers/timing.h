@@ -142,8 +142,8 @@ struct PhysicsTiming {
   int64_t messages = 0;
   double real_time_factor_mean = 1;  ///< simulated over wall-clock time, over the log
   double real_time_factor_min = 1;
-  double sim_step_s = 0;             ///< simulated time per physics update [s]
-  double wall_step_max_s = 0;        ///< the longest an update took on the wall clock [s]
+  double sim_step_s = 0;       ///< simulated time per physics update [s]
+  double wall_step_max_s = 0;  ///< the longest an update took on the wall clock [s]
 };
 
 struct Diagnosis {

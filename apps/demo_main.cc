@@ -201,8 +201,7 @@ int run_drone_demo(const DemoArgs& a, const fs::path& dir, const std::string& ex
   std::vector<Step> steps = {
       {"simulating the clean flight", with_seed({exe, "sim", scenarios + "/drone.yaml", "-o", clean, "--json"}),
        file("clean.json")},
-      {"simulating the faulty flight", with_seed({exe, "sim", faulty_scenario, "-o", sim, "--json"}),
-       file("sim.json")},
+      {"simulating the faulty flight", with_seed({exe, "sim", faulty_scenario, "-o", sim, "--json"}), file("sim.json")},
       {"diagnosing the log", {exe, "diagnose", sim, "--json", file("diagnosis.json")}, file("diagnosis.txt")},
       {"flying again with corrected clocks",
        {exe, "replay", sim, "--closed-loop", "--restamp", "auto", "-o", restamped, "--json"},
@@ -270,19 +269,22 @@ int run_drone_demo(const DemoArgs& a, const fs::path& dir, const std::string& ex
   std::string offset_text;
   char buf[160];
   for (const auto& [name, v] : summary["clocks_ahead_s"].items()) {
-    std::snprintf(buf, sizeof(buf), "%s%s %+.1f ms", offset_text.empty() ? "" : ", ", name.c_str(), v.get<double>() * 1e3);
+    std::snprintf(buf, sizeof(buf), "%s%s %+.1f ms", offset_text.empty() ? "" : ", ", name.c_str(),
+                  v.get<double>() * 1e3);
     offset_text += buf;
   }
   std::printf("\nworst stream:  %s\n", worst_text.c_str());
   std::printf("clocks ahead:  %s\n", offset_text.empty() ? "none by more than 1 ms" : offset_text.c_str());
-  std::printf("estimator:     rejected %.0f%% of its IMU samples (%s of %s, %s from the future) as logged, %.0f%% "
-              "flown again\n",
-              percent(before), thousands(before.rejected).c_str(), thousands(before.received).c_str(),
-              thousands(before.future).c_str(), percent(after));
-  std::printf("flight error:  setpoints tracked to %.3f m as logged, %.3f m flown again (clean run %.3f m); estimate "
-              "ATE %.3f m, %.3f m (clean %.3f m)\n",
-              tracking["logged"], tracking["restamped"], tracking["clean"], estimate["logged"], estimate["restamped"],
-              estimate["clean"]);
+  std::printf(
+      "estimator:     rejected %.0f%% of its IMU samples (%s of %s, %s from the future) as logged, %.0f%% "
+      "flown again\n",
+      percent(before), thousands(before.rejected).c_str(), thousands(before.received).c_str(),
+      thousands(before.future).c_str(), percent(after));
+  std::printf(
+      "flight error:  setpoints tracked to %.3f m as logged, %.3f m flown again (clean run %.3f m); estimate "
+      "ATE %.3f m, %.3f m (clean %.3f m)\n",
+      tracking["logged"], tracking["restamped"], tracking["clean"], estimate["logged"], estimate["restamped"],
+      estimate["clean"]);
   std::printf("report:        %s\n", page->c_str());
   return kExitOk;
 }

@@ -152,13 +152,17 @@ Status refuse_absent_channels(const std::string& option, const std::string& file
 int run_closed_loop(const ReplayArgs& a, const ReplayArgs& defaults) {
   if (a.logs.size() != 1) return fail("--closed-loop: give one log, the one the simulation wrote");
   if (a.out.empty()) return fail("--closed-loop: give -o OUT for the log of the new run");
-  const std::pair<const char*, bool> unused[] = {
-      {"--modules", !a.modules.empty()},     {"--config", !a.config.empty()},
-      {"--inject", !a.inject.empty()},       {"--channels", !a.channels.empty()},
-      {"--remap", !a.remap.empty()},         {"--order", a.order != defaults.order},
-      {"--start", a.start != defaults.start}, {"--end", a.end != defaults.end},
-      {"--publish", !a.publish.empty()},     {"--no-inputs", a.no_inputs},
-      {"--timing", a.timing}};
+  const std::pair<const char*, bool> unused[] = {{"--modules", !a.modules.empty()},
+                                                 {"--config", !a.config.empty()},
+                                                 {"--inject", !a.inject.empty()},
+                                                 {"--channels", !a.channels.empty()},
+                                                 {"--remap", !a.remap.empty()},
+                                                 {"--order", a.order != defaults.order},
+                                                 {"--start", a.start != defaults.start},
+                                                 {"--end", a.end != defaults.end},
+                                                 {"--publish", !a.publish.empty()},
+                                                 {"--no-inputs", a.no_inputs},
+                                                 {"--timing", a.timing}};
   for (const auto& [option, given] : unused) {
     if (given) {
       return fail(std::string("--closed-loop runs the simulation's own modules on board: ") + option +

@@ -1,6 +1,5 @@
 #include "core/config.h"
 
-
 #include <algorithm>
 #include <cerrno>
 #include <charconv>

@@ -113,7 +113,6 @@ Result<YAML::Node> parse_yaml(const std::string& text, const std::string& file);
 /// Reads and parses a YAML file; "PATH: cannot open the WHAT" when it cannot be read.
 Result<YAML::Node> load_yaml(const std::string& path, const std::string& what);
 
-
 namespace detail {
 
 struct Schema;

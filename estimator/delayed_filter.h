@@ -53,9 +53,9 @@ class DelayedFilter {
   /// by the filter.
   bool add(int64_t utime, const M& m) {
     const int rank = Rank()(m);
-    const bool in_order = utime > filter_.time() || (utime == filter_.time() && (history_.empty() ||
-                                                                                 history_.back().utime < utime ||
-                                                                                 history_.back().rank <= rank));
+    const bool in_order =
+        utime > filter_.time() || (utime == filter_.time() &&
+                                   (history_.empty() || history_.back().utime < utime || history_.back().rank <= rank));
     if (in_order) {  // the common case
       if (!filter_.update(utime, m)) {
         ++counters_.refused;

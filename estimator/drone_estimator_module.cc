@@ -34,8 +34,7 @@ const config::Table<DroneEkfNoise>& drone_noise_table() {
           .number("gnss_velocity_noise", &N::gnss_velocity, r, "m/s", "GNSS velocity per axis, when the fix gives none")
           .number("baro_noise", &N::baro, r, "m", "barometric altitude, when the reading gives no variance")
           .number("heading_noise", &N::heading, r, "rad", "magnetometer heading")
-          .number("gate", &N::gate, above(0, 1e3), "",
-                  "innovation test: outliers beyond this many standard deviations")
+          .number("gate", &N::gate, above(0, 1e3), "", "innovation test: outliers beyond this many standard deviations")
           .number("reset_s", &N::reset_s, above(0, 1e4), "s",
                   "a sensor all outliers this long resets the state to it (GNSS: position, velocity; baro: offset)");
   return t;

@@ -3,11 +3,11 @@
 // the stream has run for `warmup_s` (and asks again every `retry_s` while the vehicle is not in offboard, as the
 // MAVROS offboard example does), then flies its mission: a climb to `takeoff_altitude` at `climb_speed`, a hover,
 // the waypoints in order at `cruise_speed` (the setpoint moves along each leg with a feed-forward velocity, speeding
-// up and slowing down at `acceleration` as a trajectory generator does, and dwells at its end) and a landing command; it stops when the vehicle has disarmed. Until the mission starts it
-// streams where the vehicle is; waypoints are relative to where the vehicle stood when the mission started (x, y [m]
-// in the estimate's frame, z [m] above it). Its clock is the bus's:
-// the progress along the mission is time-driven, as a simple script's is, whether or not the vehicle follows.
-// Thread-safety: a module is called from its bus's thread only.
+// up and slowing down at `acceleration` as a trajectory generator does, and dwells at its end) and a landing command;
+// it stops when the vehicle has disarmed. Until the mission starts it streams where the vehicle is; waypoints are
+// relative to where the vehicle stood when the mission started (x, y [m] in the estimate's frame, z [m] above it). Its
+// clock is the bus's: the progress along the mission is time-driven, as a simple script's is, whether or not the
+// vehicle follows. Thread-safety: a module is called from its bus's thread only.
 #pragma once
 
 #include <yaml-cpp/yaml.h>

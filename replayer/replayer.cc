@@ -313,8 +313,8 @@ Result<ReplayReport> Replayer::run(const Sink& sink, const std::atomic<bool>* st
     if (auto r = o.restamp.find(input); r != o.restamp.end()) {
       const ClockCorrection& c = r->second;
       item.owned.assign(e.data.begin(), e.data.end());
-      const bool stamped_msg = lcmtypes::map_stamps(
-          item.owned, e.utime, [&](int64_t s) { return corrected_stamp(c, s, merger->base()); });
+      const bool stamped_msg =
+          lcmtypes::map_stamps(item.owned, e.utime, [&](int64_t s) { return corrected_stamp(c, s, merger->base()); });
       if (!stamped_msg) item.owned.clear();
     }
     if (auto inj = injectors.find(input); inj != injectors.end()) {

@@ -51,11 +51,9 @@ const config::Table<DroneConfig>& drone_table() {
                 Text::kNonEmpty)
           .number("rotor_rate", &D::rotor_rate, config::above(0, 1e4), "Hz", "rotor states per second")
           .text("tf_channel", &D::tf_channel, "driftlab.tf_t of odom -> base link, from the estimate", Text::kNonEmpty)
-          .text("rotor_tf_channel", &D::rotor_tf_channel, "driftlab.tf_t of base link -> rotor links",
-                Text::kNonEmpty)
+          .text("rotor_tf_channel", &D::rotor_tf_channel, "driftlab.tf_t of base link -> rotor links", Text::kNonEmpty)
           .number("tf_rate", &D::tf_rate, config::above(0, 1e4), "Hz", "transforms per second on both")
-          .text("stats_channel", &D::stats_channel, "driftlab.module_stats_t of the on-board modules",
-                Text::kNonEmpty)
+          .text("stats_channel", &D::stats_channel, "driftlab.module_stats_t of the on-board modules", Text::kNonEmpty)
           .choice("offboard_clock", &D::offboard_clock, {"simulation", "wall"},
                   "the offboard script's clock: the simulation's, or the wall clock (a ROS node that trusts it; see "
                   "physics_cost)")

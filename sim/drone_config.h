@@ -47,11 +47,11 @@ struct DroneConfig {
   /// the wall clock: when the simulation runs slower than real time, physics_cost, its timers and its mission run
   /// faster than the vehicle can follow, and its stamps are wall time).
   std::string offboard_clock = "simulation";
-  estimator::DroneEstimatorConfig estimator;   ///< the on-board estimator
-  flight::FlightConfig flight;                 ///< the flight stack
-  flight::OffboardConfig offboard;             ///< the offboard script
-  bool vehicle_given = false;      ///< flight.vehicle was given (else: from the URDF and the motor model)
-  bool declination_given = false;  ///< estimator.declination was given (else: the scenario's geo)
+  estimator::DroneEstimatorConfig estimator;  ///< the on-board estimator
+  flight::FlightConfig flight;                ///< the flight stack
+  flight::OffboardConfig offboard;            ///< the offboard script
+  bool vehicle_given = false;                 ///< flight.vehicle was given (else: from the URDF and the motor model)
+  bool declination_given = false;             ///< estimator.declination was given (else: the scenario's geo)
 };
 
 /// The keys of the `drone:` section (core/config.h).

@@ -81,8 +81,8 @@ Result<std::unique_ptr<DroneLoop>> DroneLoop::create(const Scenario& sc, Robot& 
   DroneConfig c = sc.drone;
   flight::VehicleModel vehicle = c.vehicle_given ? c.flight.options.vehicle : vehicle_of(*spec, c.motors);
   if (vehicle.rotors.size() != spec->rotors.size()) {
-    return Error{sc.path + ": drone.flight.vehicle has " + std::to_string(vehicle.rotors.size()) + " rotors, the URDF (" +
-                 sc.urdf_path + ") " + std::to_string(spec->rotors.size())};
+    return Error{sc.path + ": drone.flight.vehicle has " + std::to_string(vehicle.rotors.size()) +
+                 " rotors, the URDF (" + sc.urdf_path + ") " + std::to_string(spec->rotors.size())};
   }
   Scenario with = sc;
   with.drone.flight.options.vehicle = vehicle;
@@ -99,9 +99,15 @@ Result<std::unique_ptr<DroneLoop>> DroneLoop::create(const Scenario& sc, Robot& 
 }
 
 std::vector<std::string> DroneLoop::channels() const {
-  return {c_.estimator.output_channel, c_.estimator.status_channel, c_.flight.motor_channel,
-          c_.flight.status_channel,    c_.offboard.setpoint_channel, c_.offboard.command_channel,
-          c_.stats_channel,            c_.rotor_channel,             c_.tf_channel,
+  return {c_.estimator.output_channel,
+          c_.estimator.status_channel,
+          c_.flight.motor_channel,
+          c_.flight.status_channel,
+          c_.offboard.setpoint_channel,
+          c_.offboard.command_channel,
+          c_.stats_channel,
+          c_.rotor_channel,
+          c_.tf_channel,
           c_.rotor_tf_channel};
 }
 
@@ -203,7 +209,8 @@ void DroneLoop::control(int64_t now, double dt) {
   double drag_torque = 0;  // about the body's z [N*m]
   for (std::size_t i = 0; i < speed_.size(); ++i) {
     const RotorSpec& r = spec_.rotors[i];
-    const double c = armed_ && i < control_.size() && std::isfinite(control_[i]) ? std::clamp(control_[i], 0.0, 1.0) : 0;
+    const double c =
+        armed_ && i < control_.size() && std::isfinite(control_[i]) ? std::clamp(control_[i], 0.0, 1.0) : 0;
     const double target = m.max_speed * std::sqrt(c);
     const double tau = target > speed_[i] ? m.time_constant_up : m.time_constant_down;
     speed_[i] += (target - speed_[i]) * (1 - std::exp(-dt / tau));
@@ -229,7 +236,8 @@ void DroneLoop::control(int64_t now, double dt) {
   const int64_t t = now - start_utime_;
   if (c_.rotor_bodies) {
     const std::vector<JointReading> joints = robot_.joints();
-    for (std::size_t i = 0; i < angle_.size(); ++i) angle_[i] = joints[static_cast<std::size_t>(rotor_joint_[i])].position;
+    for (std::size_t i = 0; i < angle_.size(); ++i)
+      angle_[i] = joints[static_cast<std::size_t>(rotor_joint_[i])].position;
   }
   if (t >= due_us(n_rotor_, c_.rotor_rate)) {
     ++n_rotor_;

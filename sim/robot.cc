@@ -290,7 +290,8 @@ Result<std::unique_ptr<Robot>> Robot::create(const std::string& xml, const std::
   };
   impl->left = find_joint(drive.left_joint);
   impl->right = find_joint(drive.right_joint);
-  for (const auto& [idx, jname] : {std::pair{impl->left, drive.left_joint}, std::pair{impl->right, drive.right_joint}}) {
+  for (const auto& [idx, jname] :
+       {std::pair{impl->left, drive.left_joint}, std::pair{impl->right, drive.right_joint}}) {
     if (idx < 0) {
       return Error{origin + ": drive joint '" + jname + "' is not a continuous or revolute joint of robot '" +
                    impl->name + "'"};
@@ -309,7 +310,8 @@ Result<std::unique_ptr<Robot>> Robot::create(const std::string& xml, const std::
         radius[side] = static_cast<const urdf::Sphere&>(*c->geometry).radius;
       }
     }
-    if (radius[side] <= 0) return Error{at("link", wheel.root_link) + ": a drive wheel needs a cylinder or sphere collision"};
+    if (radius[side] <= 0)
+      return Error{at("link", wheel.root_link) + ": a drive wheel needs a cylinder or sphere collision"};
     // Rolling forward (+x of the base) with the contact point below the axle: which sign of the joint rate?
     const Eigen::Vector3d axis_base = j.origin_in_parent_root.rotation() * j.axis;
     // The contact point moves against the rolling direction: forward rolling is -(w x r_contact).x per unit rate.

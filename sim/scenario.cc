@@ -22,11 +22,16 @@ struct TypeName {
   const char* name;
 };
 constexpr TypeName kSensorTypes[] = {
-    {SensorType::kLidar2d, "lidar2d"},         {SensorType::kLidar3d, "lidar3d"},
-    {SensorType::kImu, "imu"},                 {SensorType::kOdometry, "odometry"},
-    {SensorType::kCamera, "camera"},           {SensorType::kGroundTruth, "ground_truth"},
-    {SensorType::kJointState, "joint_state"},   {SensorType::kBarometer, "barometer"},
-    {SensorType::kGnss, "gnss"},               {SensorType::kMagnetometer, "magnetometer"},
+    {SensorType::kLidar2d, "lidar2d"},
+    {SensorType::kLidar3d, "lidar3d"},
+    {SensorType::kImu, "imu"},
+    {SensorType::kOdometry, "odometry"},
+    {SensorType::kCamera, "camera"},
+    {SensorType::kGroundTruth, "ground_truth"},
+    {SensorType::kJointState, "joint_state"},
+    {SensorType::kBarometer, "barometer"},
+    {SensorType::kGnss, "gnss"},
+    {SensorType::kMagnetometer, "magnetometer"},
 };
 
 std::string resolve(const std::string& base_dir, const std::string& path) {
@@ -148,8 +153,8 @@ const config::Table<GnssParams>& gnss_table() {
 
 const config::Table<MagnetometerParams>& magnetometer_table() {
   using P = MagnetometerParams;
-  static const auto t = config::Table<P>().number("noise", &P::noise, config::between(0, 1), "T",
-                                                  "standard deviation per axis");
+  static const auto t =
+      config::Table<P>().number("noise", &P::noise, config::between(0, 1), "T", "standard deviation per axis");
   return t;
 }
 
@@ -346,8 +351,7 @@ const config::Table<Scenario>& scenario_table() {
                    "an arm on the robot: its joint trajectory controller and commander (docs/simulator.md)")
           .section("drone", &S::drone, drone_table(),
                    "the robot is a multirotor flown by its flight stack on board (docs/simulator.md)")
-          .section("geo", &S::geo, geo_table(),
-                   "where the world is on Earth (GNSS, barometer, magnetometer)")
+          .section("geo", &S::geo, geo_table(), "where the world is on Earth (GNSS, barometer, magnetometer)")
           .check([](const config::Value& v, S& sc) -> Status {
             sc.drone.enabled = v["drone"].given();
             if (sc.drone.enabled && v["arm"].given()) return v["arm"].error("cannot be on a drone");
@@ -375,14 +379,11 @@ std::string scenario_reference() {
     const char* type;
     std::string table;
   };
-  const Section sections[] = {{"lidar2d", lidar2d_table().reference()},
-                              {"lidar3d", lidar3d_table().reference()},
-                              {"imu", imu_table().reference()},
-                              {"odometry", odometry_table().reference()},
-                              {"camera", camera_table().reference()},
-                              {"barometer", barometer_table().reference()},
-                              {"gnss", gnss_table().reference()},
-                              {"magnetometer", magnetometer_table().reference()}};
+  const Section sections[] = {
+      {"lidar2d", lidar2d_table().reference()}, {"lidar3d", lidar3d_table().reference()},
+      {"imu", imu_table().reference()},         {"odometry", odometry_table().reference()},
+      {"camera", camera_table().reference()},   {"barometer", barometer_table().reference()},
+      {"gnss", gnss_table().reference()},       {"magnetometer", magnetometer_table().reference()}};
   for (const Section& sec : sections) out += std::string("\nand with `type: ") + sec.type + "`:\n\n" + sec.table;
   out += "\n`ground_truth` and `joint_state` have no keys of their own.\n";
   return out;

@@ -159,8 +159,8 @@ struct Scenario {
   /// runs in lockstep slower than real time, by physics_step / physics_cost, and what is on the wall clock sees it
   /// so: the log's recorder (event times) and an offboard script on the wall clock. 0: updates cost nothing.
   double physics_cost = 0;
-  std::string physics_channel = "PHYSICS";  ///< driftlab.physics_step_t, when physics_cost is given
-  double physics_rate = 1;                  ///< [Hz of simulated time]
+  std::string physics_channel = "PHYSICS";     ///< driftlab.physics_step_t, when physics_cost is given
+  double physics_rate = 1;                     ///< [Hz of simulated time]
   int solver_iterations = 6;                   ///< Bullet's constraint solver iterations per step
   std::string world_path;
   World world;

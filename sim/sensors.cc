@@ -3,8 +3,8 @@
 #include <cmath>
 #include <limits>
 
-#include "core/time.h"
 #include "core/geo.h"
+#include "core/time.h"
 #include "driftlab/barometer_t.hpp"
 #include "driftlab/gnss_t.hpp"
 #include "driftlab/image_t.hpp"

@@ -18,12 +18,12 @@
 #include "driftlab/simulation_t.hpp"
 #include "driftlab/tf_t.hpp"
 #include "driftlab/velocity_command_t.hpp"
+#include "lcmtypes/validate.h"
 #include "sim/bullet_world.h"
 #include "sim/internal/arm_loop.h"
 #include "sim/internal/drone_loop.h"
 #include "sim/internal/output.h"
 #include "sim/internal/sensors.h"
-#include "lcmtypes/validate.h"
 #include "sim/raycaster.h"
 
 namespace driftlab::sim {
@@ -77,11 +77,12 @@ Result<Scenario> scenario_of_log(const std::string& log) {
   bool found = false;
   while (!found && reader->next(e)) found = lcmtypes::decode(e.data, m);
   if (!found) {
-    return Error{log + ": no SIMULATION message: it was not made by driftlab sim (or by one before the message), so "
+    return Error{log +
+                 ": no SIMULATION message: it was not made by driftlab sim (or by one before the message), so "
                  "there is no simulation to run again"};
   }
-  auto sc = parse_scenario(m.scenario_yaml, m.scenario_path,
-                           std::filesystem::path(m.scenario_path).parent_path().string());
+  auto sc =
+      parse_scenario(m.scenario_yaml, m.scenario_path, std::filesystem::path(m.scenario_path).parent_path().string());
   if (!sc) return Error{log + ": its scenario " + m.scenario_path + ": " + sc.error().message};
   sc->duration = m.duration_s;
   sc->seed = static_cast<uint64_t>(m.seed);
@@ -117,10 +118,9 @@ Result<std::unique_ptr<Simulation>> Simulation::create(const Scenario& scenario,
   const Scenario& sc = impl->sc;
   impl->physics = std::make_unique<BulletWorld>(sc.world);
   impl->physics->dynamics().getSolverInfo().m_numIterations = sc.solver_iterations;
-  auto robot_or = sc.drone.enabled
-                      ? Robot::load_multirotor(sc.urdf_path, impl->physics->dynamics(), sc.start,
-                                               {.rotor_bodies = sc.drone.rotor_bodies})
-                      : Robot::load(sc.urdf_path, impl->physics->dynamics(), sc.start, sc.drive);
+  auto robot_or = sc.drone.enabled ? Robot::load_multirotor(sc.urdf_path, impl->physics->dynamics(), sc.start,
+                                                            {.rotor_bodies = sc.drone.rotor_bodies})
+                                   : Robot::load(sc.urdf_path, impl->physics->dynamics(), sc.start, sc.drive);
   if (!robot_or) return robot_or.error();
   impl->robot = std::move(*robot_or);
   if (sc.drone.enabled) {

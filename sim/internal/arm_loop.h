@@ -72,7 +72,7 @@ class ArmLoop {
   bool described_ = false;
   std::deque<Arrival> commands_;
   std::optional<ClockCorrection> command_clock_;
-  std::optional<int64_t> retime_us_;  // commands start at arrival less this [us]
+  std::optional<int64_t> retime_us_;                 // commands start at arrival less this [us]
   std::optional<Eigen::VectorXd> last_joint_state_;  // what the commander last received, chain order
   Eigen::VectorXd command_;
 };

@@ -40,8 +40,9 @@ class DroneLoop {
   /// Registers the streams on `out`, listens to the arrivals of every channel a module reads and of the motor
   /// commands, and starts the modules; `clocks` corrects the stamps of what the modules receive (closed-loop
   /// replay). Errors are the modules' start() errors.
-  Status attach(Output& out, const ClockCorrections& clocks = {},
-                std::function<int64_t(int64_t)> wall_clock = [](int64_t t) { return t; });
+  Status attach(
+      Output& out, const ClockCorrections& clocks = {},
+      std::function<int64_t(int64_t)> wall_clock = [](int64_t t) { return t; });
   /// After the output is flushed up to now [us]: the modules' timers due at now, then the rotors and the forces on
   /// the airframe for the next physics step of dt [s]; the rotor states and transforms that fall due.
   void control(int64_t now, double dt);
@@ -71,8 +72,8 @@ class DroneLoop {
   replay::ModuleHost wall_host_;  // the offboard script's when it is on the wall clock (offboard_clock: wall)
   bool offboard_on_wall_ = false;
   std::function<int64_t(int64_t)> wall_clock_;  // the wall time [us] of a simulated time
-  int64_t sim_now_ = 0;  // the simulated time being handled [us]
-  std::vector<Module*> modules_;  // owned by the host
+  int64_t sim_now_ = 0;                         // the simulated time being handled [us]
+  std::vector<Module*> modules_;                // owned by the host
   Output* out_ = nullptr;
   std::map<std::string, int, std::less<>> streams_;
   ClockCorrections clocks_;

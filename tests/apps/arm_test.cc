@@ -211,7 +211,8 @@ TEST(ArmEval, LatencyRunLagsTheCommandsAndShakesAtTheCommandRate) {
 TEST(ArmClosedLoop, RetimedByTheMeasuredDelayTheLateArmTracksAsTheCleanOne) {
   static test::TempDir out;
   const std::string fixed = out.file("late-retimed.lcm");
-  const auto r = driftlab("replay " + simulated("manipulator_latency", 28) + " --closed-loop --retime auto -o " + fixed);
+  const auto r =
+      driftlab("replay " + simulated("manipulator_latency", 28) + " --closed-loop --retime auto -o " + fixed);
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.out.find("retime ARM_CMD: each command starts 120."), std::string::npos) << r.out;
   const auto clean = eval_arm(simulated("manipulator", 28));

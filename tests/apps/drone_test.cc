@@ -59,8 +59,8 @@ const std::string& restamped(int seed) {
 
 /// The ATE RMSE [m] `driftlab eval` gives for an estimate channel against the ground truth.
 double ate(const std::string& log, const std::string& channel, const std::string& align) {
-  const auto r = driftlab("eval --gt " + log + ":GROUND_TRUTH --est " + log + ":" + channel + " --align " + align +
-                          " --json -");
+  const auto r =
+      driftlab("eval --gt " + log + ":GROUND_TRUTH --est " + log + ":" + channel + " --align " + align + " --json -");
   EXPECT_EQ(r.code, 0) << r.err;
   const auto j = nlohmann::json::parse(r.out.empty() ? "{}" : r.out);
   return j.contains("ate") ? j["ate"]["rmse"].get<double>() : -1;
@@ -196,13 +196,13 @@ TEST(DroneStory, ASlowPhysicsStepIsNamedByDiagnose) {
 
 // A closed-loop replay needs the log's simulation: a log the simulator did not make is one line, exit 2.
 TEST(DroneStory, ClosedLoopReplayOfALogWithoutItsSimulationIsOneLine) {
-  const auto r = driftlab("replay " + std::string(DRIFTLAB_TEST_DATA) + "/sample.lcm --closed-loop -o " +
-                          dir().file("x.lcm"));
+  const auto r =
+      driftlab("replay " + std::string(DRIFTLAB_TEST_DATA) + "/sample.lcm --closed-loop -o " + dir().file("x.lcm"));
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("no SIMULATION message"), std::string::npos) << r.err;
   EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
-  const auto modules = driftlab("replay " + simulated("drone") + " --closed-loop --modules estimator -o " +
-                                dir().file("y.lcm"));
+  const auto modules =
+      driftlab("replay " + simulated("drone") + " --closed-loop --modules estimator -o " + dir().file("y.lcm"));
   EXPECT_EQ(modules.code, 2);
   EXPECT_NE(modules.err.find("--modules does not apply"), std::string::npos) << modules.err;
 }
@@ -214,7 +214,8 @@ TEST(DroneCli, BadDroneUrdfIsOneLineNamingTheElement) {
   const std::string urdf((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
   std::ifstream sin(kScenarios + "drone.yaml");
   std::string scenario((std::istreambuf_iterator<char>(sin)), std::istreambuf_iterator<char>());
-  scenario = std::regex_replace(scenario, std::regex("\\.\\./worlds/"), std::string(DRIFTLAB_SOURCE_DIR) + "/sim/worlds/");
+  scenario =
+      std::regex_replace(scenario, std::regex("\\.\\./worlds/"), std::string(DRIFTLAB_SOURCE_DIR) + "/sim/worlds/");
   struct Case {
     const char* name;
     std::string urdf;

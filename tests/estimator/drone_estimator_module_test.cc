@@ -97,7 +97,8 @@ Status play(driftlab::test::FakeBus& bus, int64_t imu_shift_us, Eigen::Vector3d*
     }
     if (!st) return st;
   }
-  std::stable_sort(arrivals.begin(), arrivals.end(), [](const Arrival& a, const Arrival& b) { return a.utime < b.utime; });
+  std::stable_sort(arrivals.begin(), arrivals.end(),
+                   [](const Arrival& a, const Arrival& b) { return a.utime < b.utime; });
   for (const Arrival& a : arrivals) {
     if (Status st = bus.deliver(a.channel, a.bytes, Time::from_us(a.utime)); !st) return st;
   }
@@ -170,7 +171,8 @@ TEST(DroneEstimatorModule, FollowsTheFlightWhenJitterReordersTheImu) {
     ASSERT_GT(o.decode(e.data.data(), 0, static_cast<int>(e.data.size())), 0);
     const double t = static_cast<double>(o.header.utime - kT0) * 1e-6;
     if (t < 10) continue;
-    worst = std::max(worst, (Eigen::Vector3d(o.position.x, o.position.y, o.position.z) + origin - truth.position(t)).norm());
+    worst = std::max(worst,
+                     (Eigen::Vector3d(o.position.x, o.position.y, o.position.z) + origin - truth.position(t)).norm());
   }
   EXPECT_LT(worst, 0.6);
   EXPECT_LT(est.input(DroneEstimatorModule::kImu).late, 10);
