@@ -106,6 +106,31 @@ int64_t late_rejected(const nlohmann::json& replay) {
   return 0;
 }
 
+/// The summary's first two lines: the worst stream with its first reason, and the clocks found ahead.
+void print_worst_and_clocks(const nlohmann::json& summary) {
+  std::string worst_text = "none: no stream was flagged";
+  if (const auto& worst = summary["worst_stream"]; worst.is_object()) {
+    worst_text = worst["name"].get<std::string>() + " (" + worst["verdict"].get<std::string>() + ")";
+    if (!worst["reasons"].empty()) worst_text += ": " + worst["reasons"][0].get<std::string>();
+  }
+  std::string offset_text;
+  char buf[160];
+  for (const auto& [name, v] : summary["clocks_ahead_s"].items()) {
+    std::snprintf(buf, sizeof(buf), "%s%s %+.1f ms", offset_text.empty() ? "" : ", ", name.c_str(),
+                  v.get<double>() * 1e3);
+    offset_text += buf;
+  }
+  std::printf("\nworst stream:  %s\n", worst_text.c_str());
+  std::printf("clocks ahead:  %s\n", offset_text.empty() ? "none by more than 1 ms" : offset_text.c_str());
+}
+
+/// The stages' names and times, for --json.
+nlohmann::json stages_json(const std::vector<Stage>& stages) {
+  nlohmann::json out = nlohmann::json::array();
+  for (const auto& s : stages) out.push_back({{"name", s.name}, {"seconds", s.seconds}});
+  return out;
+}
+
 struct Step {
   const char* what;
   std::vector<std::string> args;
@@ -256,25 +281,11 @@ int run_drone_demo(const DemoArgs& a, const fs::path& dir, const std::string& ex
     j["imu_received"] = {{"logged", before.received}, {"restamped", after.received}};
     j["worst_stream"] = summary["worst_stream"];
     j["clock_offsets_s"] = summary["clocks_ahead_s"];
-    j["stages"] = nlohmann::json::array();
-    for (const auto& s : stages) j["stages"].push_back({{"name", s.name}, {"seconds", s.seconds}});
+    j["stages"] = stages_json(stages);
     std::printf("%s\n", j.dump(2).c_str());
     return kExitOk;
   }
-  std::string worst_text = "none: no stream was flagged";
-  if (const auto& worst = summary["worst_stream"]; worst.is_object()) {
-    worst_text = worst["name"].get<std::string>() + " (" + worst["verdict"].get<std::string>() + ")";
-    if (!worst["reasons"].empty()) worst_text += ": " + worst["reasons"][0].get<std::string>();
-  }
-  std::string offset_text;
-  char buf[160];
-  for (const auto& [name, v] : summary["clocks_ahead_s"].items()) {
-    std::snprintf(buf, sizeof(buf), "%s%s %+.1f ms", offset_text.empty() ? "" : ", ", name.c_str(),
-                  v.get<double>() * 1e3);
-    offset_text += buf;
-  }
-  std::printf("\nworst stream:  %s\n", worst_text.c_str());
-  std::printf("clocks ahead:  %s\n", offset_text.empty() ? "none by more than 1 ms" : offset_text.c_str());
+  print_worst_and_clocks(summary);
   std::printf(
       "estimator:     rejected %.0f%% of its IMU samples (%s of %s, %s from the future) as logged, %.0f%% "
       "flown again\n",
@@ -374,27 +385,15 @@ int run_demo(const DemoArgs& a) {
     j["worst_stream"] = summary["worst_stream"];
     j["clock_offsets_s"] = summary["clocks_ahead_s"];
     j["drops"] = summary["drops"];
-    j["stages"] = nlohmann::json::array();
-    for (const auto& s : stages) j["stages"].push_back({{"name", s.name}, {"seconds", s.seconds}});
+    j["stages"] = stages_json(stages);
     std::printf("%s\n", j.dump(2).c_str());
     return kExitOk;
   }
-  std::string worst_text = "none: no stream was flagged";
-  if (const auto& worst = summary["worst_stream"]; worst.is_object()) {
-    worst_text = worst["name"].get<std::string>() + " (" + worst["verdict"].get<std::string>() + ")";
-    if (!worst["reasons"].empty()) worst_text += ": " + worst["reasons"][0].get<std::string>();
-  }
-  std::string offset_text, drop_text;
-  char buf[128];
-  for (const auto& [name, v] : summary["clocks_ahead_s"].items()) {
-    std::snprintf(buf, sizeof(buf), "%s%s %+.1f ms", offset_text.empty() ? "" : ", ", name.c_str(), v.get<double>() * 1e3);
-    offset_text += buf;
-  }
+  std::string drop_text;
   for (const auto& [name, v] : summary["drops"].items()) {
     drop_text += (drop_text.empty() ? "" : ", ") + name + " " + thousands(v.get<int64_t>());
   }
-  std::printf("\nworst stream:  %s\n", worst_text.c_str());
-  std::printf("clocks ahead:  %s\n", offset_text.empty() ? "none by more than 1 ms" : offset_text.c_str());
+  print_worst_and_clocks(summary);
   std::printf("drops:         %s\n", drop_text.empty() ? "none" : drop_text.c_str());
   std::printf("ATE:           %s %.3f m as logged, %.3f m with corrected clocks (%+.0f%%; late measurements "
               "dropped: %s, then %s)\n",

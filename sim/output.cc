@@ -23,13 +23,6 @@ bool Output::has_stream(const std::string& channel) const {
   return false;
 }
 
-void Output::shift_stamps(std::vector<uint8_t>& bytes, int64_t shift) {
-  // The message's own stamp is true time, within a day of itself: the header is recognised whatever the type.
-  const auto stamp = lcmtypes::header_stamp(bytes, 0);
-  if (!stamp) return;
-  lcmtypes::map_stamps(bytes, *stamp, [shift](int64_t t) { return t + shift; });
-}
-
 std::vector<std::string> Output::channels() const {
   std::vector<std::string> out;
   for (const Stream& s : streams_) out.push_back(s.channel);
@@ -57,7 +50,7 @@ Status Output::flush(int64_t before) {
   return {};
 }
 
-void Output::publish_encoded(int stream, std::span<const uint8_t> bytes, int64_t stamp_utime, int64_t ready_utime) {
+bool Output::faults_for(int stream, int64_t stamp_utime) {
   Stream& s = streams_[static_cast<std::size_t>(stream)];
   const int64_t seq = s.seq++;
   deliveries_.clear();
@@ -66,12 +59,25 @@ void Output::publish_encoded(int stream, std::span<const uint8_t> bytes, int64_t
   } else {
     deliveries_.push_back({stamp_utime, stamp_utime});
   }
-  if (deliveries_.empty()) return;
-  auto data = std::make_shared<std::vector<uint8_t>>(bytes.begin(), bytes.end());
-  if (const int64_t shift = deliveries_.front().stamp_utime - stamp_utime; shift != 0) shift_stamps(*data, shift);
+  return !deliveries_.empty();
+}
+
+void Output::enqueue(int stream, std::vector<uint8_t> bytes, int64_t stamp_utime, int64_t ready_utime) {
+  auto data = std::make_shared<std::vector<uint8_t>>(std::move(bytes));
+  if (const int64_t shift = deliveries_.front().stamp_utime - stamp_utime; shift != 0) {
+    // The message's own stamp is true time: its header is recognised whatever its type.
+    if (const auto stamp = lcmtypes::header_stamp(*data, stamp_utime)) {
+      lcmtypes::map_stamps(*data, *stamp, [shift](int64_t t) { return t + shift; });
+    }
+  }
   for (const Delivery& d : deliveries_) {
     queue_.push({std::max(ready_utime + (d.arrival_utime - stamp_utime), last_arrival_), order_++, stream, data});
   }
+}
+
+void Output::publish_encoded(int stream, std::span<const uint8_t> bytes, int64_t stamp_utime, int64_t ready_utime) {
+  if (!faults_for(stream, stamp_utime)) return;
+  enqueue(stream, std::vector<uint8_t>(bytes.begin(), bytes.end()), stamp_utime, ready_utime);
 }
 
 Status Output::write_now(const std::string& channel, int64_t utime, const std::vector<uint8_t>& bytes) {

@@ -38,25 +38,13 @@ class Output {
   /// complete at true time `ready_utime` (a lidar's last beam) [us]. Sets header.seq and header.utime.
   template <typename T>
   void publish(int stream, T& msg, int64_t stamp_utime, int64_t ready_utime) {
-    Stream& s = streams_[static_cast<std::size_t>(stream)];
-    const int64_t seq = s.seq++;
-    deliveries_.clear();
-    if (s.injector) {
-      s.injector->apply(seq, stamp_utime, deliveries_);
-    } else {
-      deliveries_.push_back({stamp_utime, stamp_utime});
-    }
-    if (deliveries_.empty()) return;
+    const int64_t seq = streams_[static_cast<std::size_t>(stream)].seq;
+    if (!faults_for(stream, stamp_utime)) return;
     msg.header.seq = seq;
     msg.header.utime = stamp_utime;
-    auto bytes = std::make_shared<std::vector<uint8_t>>(static_cast<std::size_t>(msg.getEncodedSize()));
-    msg.encode(bytes->data(), 0, static_cast<int>(bytes->size()));
-    // A clock fault moves every stamp the message carries (a tf_t's transforms have their own).
-    if (const int64_t shift = deliveries_.front().stamp_utime - stamp_utime; shift != 0) shift_stamps(*bytes, shift);
-    for (const Delivery& d : deliveries_) {
-      // The transport delay counts from when the message is complete.
-      queue_.push({ready_utime + (d.arrival_utime - stamp_utime), order_++, stream, bytes});
-    }
+    std::vector<uint8_t> bytes(static_cast<std::size_t>(msg.getEncodedSize()));
+    msg.encode(bytes.data(), 0, static_cast<int>(bytes.size()));
+    enqueue(stream, std::move(bytes), stamp_utime, ready_utime);
   }
 
   /// Publishes an encoded message made elsewhere (an on-board module's, header and all) measured at `stamp_utime`
@@ -93,7 +81,12 @@ class Output {
     bool operator>(const Pending& o) const { return arrival != o.arrival ? arrival > o.arrival : order > o.order; }
   };
   Status write(const std::string& channel, int64_t utime, std::span<const uint8_t> bytes);
-  static void shift_stamps(std::vector<uint8_t>& bytes, int64_t shift);
+  /// The stream's next seq through its faults, into deliveries_: false when the message is lost.
+  bool faults_for(int stream, int64_t stamp_utime);
+  /// Queues the deliveries_ of a message encoded with its true stamp: a clock fault moves every stamp it carries (a
+  /// tf_t's transforms have their own), the transport delay counts from when it was complete (ready_utime), and no
+  /// arrival precedes what was already written.
+  void enqueue(int stream, std::vector<uint8_t> bytes, int64_t stamp_utime, int64_t ready_utime);
 
   LogWriter& writer_;
   const FaultConfig& faults_;

@@ -194,6 +194,24 @@ TEST(DroneStory, ASlowPhysicsStepIsNamedByDiagnose) {
   EXPECT_EQ(text.out.find("  PHYSICS: the simulation ran at 22% of real time"), problems + 10) << text.out;
 }
 
+// Setpoints that come in bursts (the offboard link losing runs of messages): a gap over 0.5 s is an offboard loss,
+// the vehicle holds where it is and the script takes offboard back; diagnose counts the setpoints missing by seq.
+TEST(DroneStory, SetpointBurstsAreOffboardLossesTheVehicleHoldsThrough) {
+  const std::string faults = dir().file("bursts.yaml");
+  std::ofstream(faults) << "streams:\n  SETPOINT: {burst_enter: 0.01, burst_exit: 0.08}\n";
+  const std::string log = dir().file("bursts.lcm");
+  const auto r = driftlab("sim " + kScenarios + "drone.yaml --faults " + faults + " -o " + log);
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto end = last_on<driftlab::vehicle_status_t>(log, "VEHICLE_STATUS");
+  EXPECT_GT(end.offboard_losses, 0);
+  EXPECT_FALSE(end.armed) << "it still finished the mission and landed";
+  const auto d = driftlab("diagnose " + log + " --json -");
+  ASSERT_EQ(d.code, 0) << d.err;
+  for (const auto& c : nlohmann::json::parse(d.out)["channels"]) {
+    if (c["name"] == "SETPOINT") EXPECT_GT(c["drops"]["seq_gaps"].get<int64_t>(), 10) << c.dump();
+  }
+}
+
 // A closed-loop replay needs the log's simulation: a log the simulator did not make is one line, exit 2.
 TEST(DroneStory, ClosedLoopReplayOfALogWithoutItsSimulationIsOneLine) {
   const auto r =

@@ -120,6 +120,25 @@ driftlab::estimator_status_t last_status(const driftlab::test::FakeBus& bus) {
   return s;
 }
 
+/// The largest distance of the published estimates from the truth after the first 10 s (the module's local frame
+/// starts at the first fix `origin`; the truth's at kWorld's origin), and how many estimates there were.
+double worst_error(const driftlab::test::FakeBus& bus, const Eigen::Vector3d& origin, int* count = nullptr) {
+  const Truth truth;
+  double worst = 0;
+  int n = 0;
+  for (const auto& e : bus.published("ODOM_OUT")) {
+    driftlab::odometry_t o;
+    EXPECT_GT(o.decode(e.data.data(), 0, static_cast<int>(e.data.size())), 0);
+    const double t = static_cast<double>(o.header.utime - kT0) * 1e-6;
+    ++n;
+    if (t < 10) continue;
+    worst = std::max(worst,
+                     (Eigen::Vector3d(o.position.x, o.position.y, o.position.z) + origin - truth.position(t)).norm());
+  }
+  if (count != nullptr) *count = n;
+  return worst;
+}
+
 TEST(DroneEstimatorModule, FollowsTheFlightAndRejectsNothing) {
   DroneEstimatorModule est(config());
   driftlab::test::FakeBus bus;
@@ -128,21 +147,9 @@ TEST(DroneEstimatorModule, FollowsTheFlightAndRejectsNothing) {
   Eigen::Vector3d origin;
   ASSERT_TRUE(play(bus, 0, &origin));
   ASSERT_TRUE(bus.finish());
-  // The module's local frame starts at the first fix; the truth's is kWorld's origin.
-  const Truth truth;
-  double worst = 0;
   int n = 0;
-  for (const auto& e : bus.published("ODOM_OUT")) {
-    driftlab::odometry_t o;
-    ASSERT_GT(o.decode(e.data.data(), 0, static_cast<int>(e.data.size())), 0);
-    const double t = static_cast<double>(o.header.utime - kT0) * 1e-6;
-    ++n;
-    if (t < 10) continue;
-    const Eigen::Vector3d p(o.position.x, o.position.y, o.position.z);
-    worst = std::max(worst, (p + origin - truth.position(t)).norm());
-  }
+  EXPECT_LT(worst_error(bus, origin, &n), 0.6);
   EXPECT_GT(n, 14850);  // one estimate per IMU sample after the 0.5 s the start averages
-  EXPECT_LT(worst, 0.6);
   const auto s = last_status(bus);
   ASSERT_EQ(s.ninputs, 4);
   EXPECT_EQ(s.input[0], "imu");
@@ -164,17 +171,7 @@ TEST(DroneEstimatorModule, FollowsTheFlightWhenJitterReordersTheImu) {
   Eigen::Vector3d origin;
   ASSERT_TRUE(play(bus, 0, &origin, 8000));
   ASSERT_TRUE(bus.finish());
-  const Truth truth;
-  double worst = 0;
-  for (const auto& e : bus.published("ODOM_OUT")) {
-    driftlab::odometry_t o;
-    ASSERT_GT(o.decode(e.data.data(), 0, static_cast<int>(e.data.size())), 0);
-    const double t = static_cast<double>(o.header.utime - kT0) * 1e-6;
-    if (t < 10) continue;
-    worst = std::max(worst,
-                     (Eigen::Vector3d(o.position.x, o.position.y, o.position.z) + origin - truth.position(t)).norm());
-  }
-  EXPECT_LT(worst, 0.6);
+  EXPECT_LT(worst_error(bus, origin), 0.6);
   EXPECT_LT(est.input(DroneEstimatorModule::kImu).late, 10);
 }
 
