@@ -227,7 +227,8 @@ std::vector<CommandLoop> CommandLoopCheck::finish(int64_t start_utime) const {
     // measured motion into the commanded one at lag zero, which biases a correlation of velocities towards zero;
     // the positions the joints reach are the commanded ones, corrections included, one delay later.
     const int64_t lag_lo = -kMaxLeadUs / step, lag_hi = kMaxLagUs / step;
-    const auto [lag, best_r] = best_lag(commanded, measured, 0, static_cast<int64_t>(n), lag_lo, lag_hi, step, &loop.curve);
+    const auto [lag, best_r] =
+        best_lag(commanded, measured, 0, static_cast<int64_t>(n), lag_lo, lag_hi, step, &loop.curve);
     loop.delay_s = lag * Duration::from_us(step).seconds();
     // One delay for the whole log only if each third of it has the same (within kSteadyDelayUs): a commander whose
     // clock drifts has a delay from stamp to motion that grows along the log, and one lag fits such slow, smooth

@@ -73,8 +73,8 @@ struct StreamPair {
   double offset_s = 0;     ///< how much later b's stamps are than a's for the same physical instant [s]
                            ///< (the confidence-weighted median over the windows)
   std::array<double, 2> offset_ci_s{};  ///< 95% confidence interval of offset_s: the windows' offsets [s]
-  double confidence = 0;   ///< 0..1: the windows' median peak correlation times their agreement (the
-                           ///< correlation-weighted share of windows within 2 ms of offset_s)
+  double confidence = 0;                ///< 0..1: the windows' median peak correlation times their agreement (the
+                                        ///< correlation-weighted share of windows within 2 ms of offset_s)
   std::string method;      ///< "yaw-rate cross-correlation"
   std::vector<SkewWindow> windows;
   /// (lag [s], correlation) every 10 ms of lag over the search range, the windows' confidence-weighted mean

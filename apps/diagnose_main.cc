@@ -77,8 +77,10 @@ std::vector<std::string> report_lines(const Diagnosis& d, std::vector<std::strin
       }
     }
     if (static_cast<size_t>(confident) < d.pairs.size()) {
-      std::snprintf(buf, sizeof(buf), "  %zu pair%s without a clear, consistent lag (confidence below %.1f): not "
-                    "shown (--json has them)", d.pairs.size() - static_cast<size_t>(confident),
+      std::snprintf(buf, sizeof(buf),
+                    "  %zu pair%s without a clear, consistent lag (confidence below %.1f): not "
+                    "shown (--json has them)",
+                    d.pairs.size() - static_cast<size_t>(confident),
                     d.pairs.size() - static_cast<size_t>(confident) == 1 ? "" : "s", kConfident);
       lines.push_back(buf);
     }

@@ -354,11 +354,11 @@ TEST(Diagnose, NamesStampsThatAreUnsetFrozenOrOnAnotherTimeBase) {
       const int64_t measured = kT0 + i * 10000;
       const std::pair<const char*, int64_t> stamps[] = {
           {"GOOD", measured},
-          {"FROZEN", kT0 + (i / 100) * 1000000},     // a new stamp once a second
+          {"FROZEN", kT0 + (i / 100) * 1000000},  // a new stamp once a second
           {"ZERO", 0},
-          {"SIM", 120000000 + i * 10000},            // 120 s after a simulator started
-          {"TAI", measured + 37000000},              // stamped in TAI, arrivals in UTC
-          {"GPS", measured + 18000000},              // stamped in GPS time (a receiver's), arrivals in UTC
+          {"SIM", 120000000 + i * 10000},  // 120 s after a simulator started
+          {"TAI", measured + 37000000},    // stamped in TAI, arrivals in UTC
+          {"GPS", measured + 18000000},    // stamped in GPS time (a receiver's), arrivals in UTC
           // Every 40th message stamped 0.3, 0.6 or 0.9 s after it arrived (stamped after the fact): 50 of them.
           {"LATE", measured + (i % 40 == 0 ? 300000 * ((i / 40) % 3 + 1) : 0)},
           // Groups of three 1 ms apart every 30 ms: 100 Hz on average, nothing lost.
@@ -431,11 +431,11 @@ TEST(ClockCorrections, SayWhichTheyApplyAndWhichTheyLeaveOutAndWhy) {
     c.clock_drift_ci_ppm = drift_ci;
     d.channels.push_back(c);
   };
-  clock("AHEAD", 0.015, {0.0148, 0.0152}, 0.4, {-2, 2});      // sure: corrected
-  clock("UNSURE", 0.002, {-0.001, 0.005}, 10, {-5, 25});      // ahead, but its interval reaches zero
+  clock("AHEAD", 0.015, {0.0148, 0.0152}, 0.4, {-2, 2});         // sure: corrected
+  clock("UNSURE", 0.002, {-0.001, 0.005}, 10, {-5, 25});         // ahead, but its interval reaches zero
   clock("DRIFTS", -0.004, {-0.0045, -0.0035}, 300, {280, 320});  // behind (left alone) and drifting (corrected)
-  clock("WANDERS", 0.0, {-0.001, 0.001}, 40, {-10, 90});     // a drift its interval cannot tell from none
-  clock("BEHIND", -0.004, {-0.0045, -0.0035}, 0, {-1, 1});    // latency, as far as one log can tell
+  clock("WANDERS", 0.0, {-0.001, 0.001}, 40, {-10, 90});         // a drift its interval cannot tell from none
+  clock("BEHIND", -0.004, {-0.0045, -0.0035}, 0, {-1, 1});       // latency, as far as one log can tell
   clock("NOFIT", 0.5, {0.4, 0.6}, 0, {0, 0}, false);
   std::vector<std::string> notes;
   const auto k = clock_corrections(d, &notes);

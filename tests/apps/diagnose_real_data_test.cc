@@ -157,8 +157,7 @@ TEST(DiagnoseNav2Bag, NamesTheUseSimTimeMistake) {
           why.find("use_sim_time") != std::string::npos) {
         sim_time = true;
         // The reason says where the stamps count from: the median stamp, in whole seconds.
-        EXPECT_NE(why.find("stamps count from " + std::to_string(static_cast<int>(std::lround(median_stamp_s))) +
-                           " s"),
+        EXPECT_NE(why.find("stamps count from " + std::to_string(static_cast<int>(std::lround(median_stamp_s))) + " s"),
                   std::string::npos)
             << why;
       }

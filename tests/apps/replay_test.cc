@@ -107,7 +107,8 @@ TEST_F(ReplayCli, FrozenStampsAreNamedByTheReplay) {
     while (reader->next(e) && (first < 0 || e.utime < first + 10000000)) {  // the first 10 s
       if (first < 0) first = e.utime;
       std::vector<uint8_t> bytes(e.data.begin(), e.data.end());
-      if (std::string(e.channel) != "GROUND_TRUTH") lcmtypes::map_stamps(bytes, e.utime, [&](int64_t) { return first; });
+      if (std::string(e.channel) != "GROUND_TRUTH")
+        lcmtypes::map_stamps(bytes, e.utime, [&](int64_t) { return first; });
       ASSERT_TRUE(writer->write(e.utime, e.channel, bytes).ok());
     }
     ASSERT_TRUE(writer->close().ok());
@@ -119,8 +120,8 @@ TEST_F(ReplayCli, FrozenStampsAreNamedByTheReplay) {
   for (const auto& m : j["modules"]) warnings[m["name"]] = m["warnings"].get<std::vector<std::string>>();
   auto frozen = [&](const std::string& module, const std::string& channel) {
     for (const auto& w : warnings[module]) {
-      if (w.rfind(channel + ": ", 0) == 0 && w.find("inputs repeat the stamp of the one before (frozen stamps") !=
-                                                std::string::npos) {
+      if (w.rfind(channel + ": ", 0) == 0 &&
+          w.find("inputs repeat the stamp of the one before (frozen stamps") != std::string::npos) {
         return true;
       }
     }

@@ -96,6 +96,16 @@ std::string point_of_task(const std::string& out, const std::string& task) {
   return at == std::string::npos ? "" : log.substr(at + 8, 12);
 }
 
+/// Waits until the point a task runs has started its attempt (its running marker is there); returns the point.
+std::string started_point(const std::string& out, const std::string& task, Clock::time_point deadline) {
+  while (Clock::now() < deadline) {
+    std::string id = point_of_task(out, task);
+    if (!id.empty() && fs::exists(out + "/points/" + id + "/running.json")) return id;
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  return "";
+}
+
 TEST(SweepSlurm, JobArrayWithRequeueGivesTheLocalTable) {
   ASSERT_NE(std::getenv("SLURM_CONF"), nullptr) << "run through tests/slurm_run.sh";
   test::TempDir dir;
@@ -178,6 +188,8 @@ TEST(SweepSlurm, TasksKilledOnTheClusterAreRequeuedOrResubmitted) {
   const std::string job = nlohmann::json::parse(r.out)["job_id"];
   const std::string task = running_task(job, deadline);
   ASSERT_FALSE(task.empty()) << "no task was caught running";
+  const std::string requeued = started_point(down, task, deadline);
+  ASSERT_FALSE(requeued.empty()) << "the task's point did not start";
   ASSERT_EQ(test::run("scontrol update NodeName=" + node + " State=DOWN Reason=driftlab-test"), 0);
   std::string record;
   for (int i = 0; i < 100 && record.find("Restarts=1") == std::string::npos; ++i) {
@@ -188,8 +200,6 @@ TEST(SweepSlurm, TasksKilledOnTheClusterAreRequeuedOrResubmitted) {
   (void)test::run("scontrol update NodeName=" + node + " State=RESUME >/dev/null 2>&1");  // ReturnToService may have
   auto status = wait_done("sweep", down, 4, deadline);
   ASSERT_EQ(status["done"], 4) << status.dump(1);
-  const std::string requeued = point_of_task(down, task);
-  ASSERT_FALSE(requeued.empty());
   std::ifstream attempts(down + "/points/" + requeued + "/attempts");
   int n = 0;
   attempts >> n;
@@ -205,6 +215,7 @@ TEST(SweepSlurm, TasksKilledOnTheClusterAreRequeuedOrResubmitted) {
   const std::string job2 = nlohmann::json::parse(r.out)["job_id"];
   const std::string task2 = running_task(job2, deadline);
   ASSERT_FALSE(task2.empty()) << "no task was caught running";
+  ASSERT_FALSE(started_point(cancelled, task2, deadline).empty()) << "the task's point did not start";
   ASSERT_EQ(test::run("scancel --signal=KILL --full " + task2), 0);
   nlohmann::json first;
   while (Clock::now() < deadline) {
@@ -239,8 +250,8 @@ TEST(BatchSlurm, DiagnoseManyLogsAsAJobArray) {
   std::ofstream(dir.file("bad.yaml")) << "streams:\n  IMU: {clock_offset_s: 0.08}\n  SCAN: {drop_probability: 0.2}\n";
   for (const char* name : {"good", "bad"}) {
     const std::string faults = std::string(name) == "bad" ? " --faults " + dir.file("bad.yaml") : "";
-    ASSERT_EQ(test::driftlab("sim --duration 5" + faults + " -o " + dir.file(std::string("logs/") + name + ".lcm")).code,
-              0);
+    ASSERT_EQ(
+        test::driftlab("sim --duration 5" + faults + " -o " + dir.file(std::string("logs/") + name + ".lcm")).code, 0);
   }
   const std::string logs = dir.file("logs/good.lcm") + " " + dir.file("logs/bad.lcm");
   auto r = test::driftlab("batch diagnose " + logs + " -o " + dir.file("local") + " --json");

@@ -11,8 +11,8 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
-#include <sstream>
 #include <nlohmann/json.hpp>
+#include <sstream>
 #include <string>
 #include <thread>
 
@@ -271,8 +271,8 @@ TEST(BatchCli, ReportWritesEachLogsPageAndRanksThem) {
     ASSERT_EQ(r.code, 0) << r.err;
   }
   const std::string out = dir.file("reports");
-  auto r = test::driftlab("batch report " + dir.file("logs/good.lcm") + " " + dir.file("logs/bad.lcm") + " -o " +
-                          out + " --json");
+  auto r = test::driftlab("batch report " + dir.file("logs/good.lcm") + " " + dir.file("logs/bad.lcm") + " -o " + out +
+                          " --json");
   ASSERT_EQ(r.code, 0) << r.err << r.out;
   EXPECT_EQ(nlohmann::json::parse(r.out)["done"], 2);
   const auto rows = test::result_rows(out);

@@ -56,9 +56,8 @@ TEST(RestampOnIntel, AnInjectedScanClockIsFoundCorrectedAndSlamIsNoWorse) {
     restamp_notes += note.rfind("restamp ", 0) == 0 || note.rfind("not restamping ", 0) == 0 ? 1 : 0;
   }
   EXPECT_EQ(restamp_notes, 1) << fixed["notes"].dump();
-  EXPECT_EQ(fixed["notes"][0].get<std::string>().rfind("restamp /scan: +250.0 ms, +0 ppm (from the timing diagnosis of " +
-                                                       shifted + ": offset 95% +",
-                                                       0),
+  EXPECT_EQ(fixed["notes"][0].get<std::string>().rfind(
+                "restamp /scan: +250.0 ms, +0 ppm (from the timing diagnosis of " + shifted + ": offset 95% +", 0),
             0u)
       << fixed["notes"][0];
   const auto fixed_error = test::relation_error(dir.file("fixed.lcm") + ":SLAM_TRAJECTORY", relations);
@@ -77,9 +76,10 @@ TEST(RestampOnIntel, AnInjectedScanClockIsFoundCorrectedAndSlamIsNoWorse) {
   EXPECT_EQ(unscored.code, 2);
   EXPECT_NE(unscored.err.find("no relation has estimate poses at both of its stamps"), std::string::npos)
       << unscored.err;
-  std::printf("relation error, first 500 s of Intel: as recorded %.4f m (%s relations), scans 250 ms ahead and "
-              "restamped %.4f m\n",
-              base_mean, base_error["used"].dump().c_str(), fixed_mean);
+  std::printf(
+      "relation error, first 500 s of Intel: as recorded %.4f m (%s relations), scans 250 ms ahead and "
+      "restamped %.4f m\n",
+      base_mean, base_error["used"].dump().c_str(), fixed_mean);
 }
 
 }  // namespace
