@@ -28,13 +28,12 @@ class ModuleTally {
     if (!stamp) return;
     if (*stamp < latest_stamp_) ++late_;  // older than the newest the module has seen
     latest_stamp_ = std::max(latest_stamp_, *stamp);
-    auto [it, fresh] = last_stamp_.emplace(channel, *stamp);
-    if (!fresh) {
-      if (*stamp < it->second) ++out_of_order_;  // older than the previous one on its channel
-      it->second = std::max(it->second, *stamp);
-    }
     StampRun& run = stamp_runs_[channel];
-    if (run.count++ > 0 && *stamp == run.previous) ++run.repeated;
+    if (run.count++ > 0) {
+      if (*stamp < run.newest) ++out_of_order_;  // older than the previous one on its channel
+      if (*stamp == run.previous) ++run.repeated;
+    }
+    run.newest = run.count > 1 ? std::max(run.newest, *stamp) : *stamp;
     run.previous = *stamp;
   }
   void output() { ++outputs_; }
@@ -119,10 +118,10 @@ class ModuleTally {
   int64_t skipped_ticks_ = 0;
   std::pair<int64_t, int64_t> first_skip_;
   int64_t latest_stamp_ = std::numeric_limits<int64_t>::min();
-  std::unordered_map<const std::string*, int64_t> last_stamp_;
-  /// Per input channel: how many stamped inputs, and how many carried the stamp of the one before.
+  /// Per input channel: how many stamped inputs, the newest stamp and the last one, and how many inputs carried
+  /// the stamp of the one before.
   struct StampRun {
-    int64_t count = 0, repeated = 0, previous = 0;
+    int64_t count = 0, repeated = 0, newest = 0, previous = 0;
   };
   static constexpr int64_t kFrozenMinInputs = 10;
   std::unordered_map<const std::string*, StampRun> stamp_runs_;
