@@ -26,17 +26,20 @@ constexpr int64_t kCoarse = 10;
 // drifting clock). At the true delay the joints repeat the commanded positions up to the controller's tracking
 // error, a few percent of their motion: agreement over 0.9.
 constexpr double kMinConfidence = 0.5;
+// The delays of the log's thirds agree with the whole's within this (the calibration study's yardstick for a right
+// delay; a transport's jitter of a few ms moves each third's by less).
+constexpr double kSteadyDelayUs = 5000;
 
-/// How well b[i + lag] repeats a[i], over the samples both have, every `stride`-th: 1 - the mean squared difference
-/// over the mean squared deviation of a from its mean (1: b is a, `lag` samples later; 0 or less: no better than
-/// a's mean).
+/// How well b[i + lag] repeats a[i], over the samples both have with i in [from, to), every `stride`-th: 1 - the
+/// mean squared difference over the mean squared deviation of a from its mean (1: b is a, `lag` samples later; 0
+/// or less: no better than a's mean).
 double agreement(const std::vector<std::vector<double>>& a, const std::vector<std::vector<double>>& b, int64_t lag,
-                 int64_t stride) {
+                 int64_t stride, int64_t from = 0, int64_t to = std::numeric_limits<int64_t>::max()) {
   double diff = 0, var = 0;
   for (size_t j = 0; j < a.size(); ++j) {
-    const auto n = static_cast<int64_t>(a[j].size());
+    const auto n = std::min(static_cast<int64_t>(a[j].size()), to);
     double sum = 0, sq = 0, count = 0;
-    for (int64_t i = std::max<int64_t>(0, -lag); i < n && i + lag < n; i += stride) {
+    for (int64_t i = std::max<int64_t>(from, -lag); i < n && i + lag < static_cast<int64_t>(b[j].size()); i += stride) {
       const double x = a[j][static_cast<size_t>(i)], y = b[j][static_cast<size_t>(i + lag)];
       diff += (x - y) * (x - y);
       sum += x;
@@ -46,6 +49,34 @@ double agreement(const std::vector<std::vector<double>>& a, const std::vector<st
     if (count > 0) var += sq - sum * sum / count;
   }
   return var > 0 ? 1 - diff / var : 0;
+}
+
+/// The lag [samples, refined between them] at which b best repeats a over i in [from, to), and the agreement there:
+/// a coarse search over every lag from lag_lo to lag_hi (each point into `curve` when given, at `step` us a
+/// sample), then every sample and lag around the best one, and a parabola through the peak and its neighbours.
+std::pair<double, double> best_lag(const std::vector<std::vector<double>>& a, const std::vector<std::vector<double>>& b,
+                                   int64_t from, int64_t to, int64_t lag_lo, int64_t lag_hi, int64_t step,
+                                   std::vector<std::pair<double, double>>* curve) {
+  int64_t best = 0;
+  double best_r = -std::numeric_limits<double>::infinity();
+  for (int64_t lag = lag_lo; lag <= lag_hi; lag += kCoarse) {
+    const double r = agreement(a, b, lag, kCoarse, from, to);
+    if (curve != nullptr) curve->emplace_back(Duration::from_us(lag * step).seconds(), r);
+    if (r > best_r) best_r = r, best = lag;
+  }
+  const int64_t centre = best;
+  std::vector<double> fine;
+  for (int64_t lag = centre - kCoarse; lag <= centre + kCoarse; ++lag) {
+    fine.push_back(agreement(a, b, lag, 1, from, to));
+    if (fine.back() > best_r || lag == centre - kCoarse) best_r = fine.back(), best = lag;
+  }
+  double lag = static_cast<double>(best);
+  const auto k = static_cast<size_t>(best - (centre - kCoarse));
+  if (k > 0 && k + 1 < fine.size()) {  // the parabola through the peak and its neighbours
+    const double y0 = fine[k - 1], y1 = fine[k], y2 = fine[k + 1], den = y0 - 2 * y1 + y2;
+    if (den < 0) lag += 0.5 * (y0 - y2) / den;
+  }
+  return {lag, best_r};
 }
 
 }  // namespace
@@ -124,30 +155,22 @@ std::vector<CommandLoop> CommandLoopCheck::finish(int64_t start_utime) const {
     // loop whose commander adds a share of the measured error to each command (as the report's does) puts the
     // measured motion into the commanded one at lag zero, which biases a correlation of velocities towards zero;
     // the positions the joints reach are the commanded ones, corrections included, one delay later.
-    // Coarse search over every lag, then every sample and lag around the best one.
     const int64_t lag_lo = -kMaxLeadUs / step, lag_hi = kMaxLagUs / step;
-    int64_t best = 0;
-    double best_r = -std::numeric_limits<double>::infinity();
-    for (int64_t lag = lag_lo; lag <= lag_hi; lag += kCoarse) {
-      const double r = agreement(commanded, measured, lag, kCoarse);
-      loop.curve.emplace_back(Duration::from_us(lag * step).seconds(), r);
-      if (r > best_r) best_r = r, best = lag;
-    }
-    const int64_t centre = best;
-    std::vector<double> fine;
-    for (int64_t lag = centre - kCoarse; lag <= centre + kCoarse; ++lag) {
-      fine.push_back(agreement(commanded, measured, lag, 1));
-      if (fine.back() > best_r || lag == centre - kCoarse) best_r = fine.back(), best = lag;
-    }
-    double lag = static_cast<double>(best);
-    const auto k = static_cast<size_t>(best - (centre - kCoarse));
-    if (k > 0 && k + 1 < fine.size()) {  // the parabola through the peak and its neighbours
-      const double a = fine[k - 1], b = fine[k], cc = fine[k + 1], den = a - 2 * b + cc;
-      if (den < 0) lag += 0.5 * (a - cc) / den;
-    }
-    loop.confidence = std::max(0.0, best_r);
-    loop.delay_valid = best_r >= kMinConfidence;
+    const auto [lag, best_r] =
+        best_lag(commanded, measured, 0, static_cast<int64_t>(n), lag_lo, lag_hi, step, &loop.curve);
     loop.delay_s = lag * Duration::from_us(step).seconds();
+    // One delay for the whole log only if each third of it has the same (within kSteadyDelayUs): a commander whose
+    // clock drifts has a delay from stamp to motion that grows along the log, and one lag fits such slow, smooth
+    // motion well (agreement 0.998 at its middle for a clock losing 0.5%, 0.97 for 2%: docs/diagnosis.md,
+    // "Calibration"). The confidence is the agreement times the share of thirds that agree.
+    int steady = 0;
+    for (int part = 0; part < 3; ++part) {
+      const auto from = static_cast<int64_t>(n) * part / 3, to = static_cast<int64_t>(n) * (part + 1) / 3;
+      const double part_lag = best_lag(commanded, measured, from, to, lag_lo, lag_hi, step, nullptr).first;
+      if (std::abs(part_lag - lag) * static_cast<double>(step) <= kSteadyDelayUs) ++steady;
+    }
+    loop.confidence = std::max(0.0, best_r) * steady / 3.0;
+    loop.delay_valid = loop.confidence >= kMinConfidence;
     out.push_back(std::move(loop));
   }
   return out;

@@ -72,7 +72,9 @@ struct StreamPair {
   std::string a, b;
   double offset_s = 0;     ///< how much later b's stamps are than a's for the same physical instant [s]
                            ///< (the confidence-weighted median over the windows)
-  double confidence = 0;   ///< peak normalised correlation, 0..1 (median over the windows)
+  std::array<double, 2> offset_ci_s{};  ///< 95% confidence interval of offset_s: the windows' offsets [s]
+  double confidence = 0;                ///< 0..1: the windows' median peak correlation times their agreement (the
+                                        ///< correlation-weighted share of windows within 2 ms of offset_s)
   std::string method;      ///< "yaw-rate cross-correlation"
   std::vector<SkewWindow> windows;
   /// (lag [s], correlation) every 10 ms of lag over the search range, the windows' confidence-weighted mean
@@ -123,9 +125,11 @@ struct CommandLoop {
   std::string command_channel, state_channel;
   int64_t commands = 0;
   double command_period_s = 0;  ///< median interval between the commands' stamps [s]
-  bool delay_valid = false;     ///< enough motion to measure the delay
+  bool delay_valid = false;     ///< confidence 0.5 or more: one delay the motion shows throughout
   double delay_s = 0;           ///< the measured joints follow the commanded motion this much later [s]
-  double confidence = 0;        ///< agreement at the delay: 1 - mean squared difference / variance (1: the same motion)
+  /// The agreement at the delay (1 - mean squared difference / variance; 1: the same motion) times the share of the
+  /// log's thirds whose own delay is within 5 ms of it (a drifting clock's delay grows along the log)
+  double confidence = 0;
   /// Commands whose whole plan lay in the past when they arrived (stamp + last point's time < arrival): a
   /// controller that honours stamps discards them, one that does not runs a plan that is over.
   int64_t stale = 0;

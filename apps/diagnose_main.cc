@@ -58,7 +58,8 @@ std::vector<std::string> report_lines(const Diagnosis& d, std::vector<std::strin
     lines.push_back(buf);
     for (const auto& r : c.reasons) problems->push_back(c.name + ": " + r);
   }
-  // A skew is shown when its correlation peak is clear; the others stay in --json with their curves.
+  // A skew is shown when the streams' motions match and the windows agree on it (docs/diagnosis.md,
+  // "Calibration"); the others stay in --json with their curves.
   constexpr double kConfident = 0.8;
   const auto confident = std::count_if(d.pairs.begin(), d.pairs.end(),
                                        [&](const StreamPair& p) { return p.confidence >= kConfident; });
@@ -67,8 +68,8 @@ std::vector<std::string> report_lines(const Diagnosis& d, std::vector<std::strin
     lines.push_back("skew (how much later b's stamps are than a's, from the yaw rate both observe):");
     for (const auto& p : d.pairs) {
       if (p.confidence < kConfident) continue;
-      std::snprintf(buf, sizeof(buf), "  %s -> %s: %+.1f ms (confidence %.2f)", p.a.c_str(), p.b.c_str(),
-                    p.offset_s * 1e3, p.confidence);
+      std::snprintf(buf, sizeof(buf), "  %s -> %s: %+.1f ms (95%%: %+.1f to %+.1f; confidence %.2f)", p.a.c_str(),
+                    p.b.c_str(), p.offset_s * 1e3, p.offset_ci_s[0] * 1e3, p.offset_ci_s[1] * 1e3, p.confidence);
       lines.push_back(buf);
       if (std::abs(p.offset_s) >= 0.002) {
         std::snprintf(buf, sizeof(buf), "%s is stamped %.1f ms %s than %s for the same motion", p.b.c_str(),
@@ -77,8 +78,10 @@ std::vector<std::string> report_lines(const Diagnosis& d, std::vector<std::strin
       }
     }
     if (static_cast<size_t>(confident) < d.pairs.size()) {
-      std::snprintf(buf, sizeof(buf), "  %zu pair%s without a clear correlation peak (confidence below %.1f): not "
-                    "shown (--json has them)", d.pairs.size() - static_cast<size_t>(confident),
+      std::snprintf(buf, sizeof(buf),
+                    "  %zu pair%s without a clear, consistent lag (confidence below %.1f): not "
+                    "shown (--json has them)",
+                    d.pairs.size() - static_cast<size_t>(confident),
                     d.pairs.size() - static_cast<size_t>(confident) == 1 ? "" : "s", kConfident);
       lines.push_back(buf);
     }

@@ -64,8 +64,14 @@ nlohmann::json to_json(const analyzers::Diagnosis& d) {
     }
     nlohmann::json curve = nlohmann::json::array();
     for (const auto& [lag, c] : p.curve) curve.push_back({lag, c});
-    pairs.push_back({{"a", p.a}, {"b", p.b}, {"offset_s", p.offset_s}, {"confidence", p.confidence},
-                     {"method", p.method}, {"windows", windows}, {"curve", curve}});
+    pairs.push_back({{"a", p.a},
+                     {"b", p.b},
+                     {"offset_s", p.offset_s},
+                     {"offset_ci_s", p.offset_ci_s},
+                     {"confidence", p.confidence},
+                     {"method", p.method},
+                     {"windows", windows},
+                     {"curve", curve}});
   }
   nlohmann::json loops = nlohmann::json::array();
   for (const auto& l : d.command_loops) {

@@ -174,6 +174,13 @@ class SlurmExecutor : public Executor {
                                      "--requeue", "--chdir=" + dir.string()};
     argv.insert(argv.end(), o_.slurm_options.begin(), o_.slurm_options.end());
     argv.push_back(script);
+    // The command as submitted, beside its answer: what was asked of Slurm (the --slurm-opt options among it) can
+    // be read and run again by hand.
+    std::string command;
+    for (const auto& a : argv) command += (command.empty() ? "" : " ") + sh_quote(a);
+    if (Status s = write_atomically((slurm / (stem + ".sbatch.cmd")).string(), command + "\n"); !s) {
+      return Error{s.message()};
+    }
     const std::string out = (slurm / (stem + ".sbatch.out")).string(), err = (slurm / (stem + ".sbatch.err")).string();
     const int code = run_process(argv, out, err);
     if (code == 127) return Error{o_.sbatch + ": cannot run (is Slurm installed here? docs/batch.md)"};

@@ -154,7 +154,7 @@ int count_attempt(const std::string& dir, const std::string& id) {
 Table merge_results(const std::string& dir, const Plan& plan) {
   Table t;
   t.columns = {"id", "status", "attempts"};
-  if (plan.spec.kind == "batch") t.columns.push_back("log");
+  if (!plan.spec.logs.empty()) t.columns.push_back("log");  // batches, and sweeps over logs
   for (const auto& p : plan.spec.vary) t.columns.push_back(p.key);
   std::set<std::string> metrics, seconds;
   for (const auto& pt : plan.points) {

@@ -3,10 +3,12 @@
 #pragma once
 
 #include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <numeric>
 #include <span>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "analyzers/timing.h"
@@ -54,5 +56,14 @@ inline Distribution distribution(Array<double> v) {
 }
 
 inline double median(Array<double> v) { return v.empty() ? 0 : quantile(v, 0.5); }
+
+/// The ranks of a distribution-free 95% confidence interval for the median of m > 0 sorted values (binomial,
+/// normal approximation): the lower and upper order statistics, clamped to the sample.
+inline std::pair<size_t, size_t> median_ci_ranks(size_t m) {
+  const double half = 1.96 * std::sqrt(static_cast<double>(m)) / 2;
+  const double mid = static_cast<double>(m - 1) / 2;
+  return {static_cast<size_t>(std::max(0.0, std::floor(mid - half))),
+          static_cast<size_t>(std::min(static_cast<double>(m - 1), std::ceil(mid + half)))};
+}
 
 }  // namespace driftlab::analyzers::internal

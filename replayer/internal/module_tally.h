@@ -28,11 +28,13 @@ class ModuleTally {
     if (!stamp) return;
     if (*stamp < latest_stamp_) ++late_;  // older than the newest the module has seen
     latest_stamp_ = std::max(latest_stamp_, *stamp);
-    auto [it, fresh] = last_stamp_.emplace(channel, *stamp);
-    if (!fresh) {
-      if (*stamp < it->second) ++out_of_order_;  // older than the previous one on its channel
-      it->second = std::max(it->second, *stamp);
+    StampRun& run = stamp_runs_[channel];
+    if (run.count++ > 0) {
+      if (*stamp < run.newest) ++out_of_order_;  // older than the previous one on its channel
+      if (*stamp == run.previous) ++run.repeated;
     }
+    run.newest = run.count > 1 ? std::max(run.newest, *stamp) : *stamp;
+    run.previous = *stamp;
   }
   void output() { ++outputs_; }
   /// An input that was not delivered: its bytes are not a well-formed message of its type (why says how).
@@ -83,6 +85,20 @@ class ModuleTally {
                            " timer ticks skipped where the time jumped ahead (first: " +
                            std::to_string(first_skip_.first) + " to " + std::to_string(first_skip_.second) + " us)");
     }
+    // Frozen stamps (issue 15): most inputs of a channel carry the stamp of the one before (a stamp set once, or
+    // one time given to every observation, as MRPT 2.5's carmen2rawlog writes). A module that orders, interpolates
+    // or integrates by stamp cannot tell time from them; `info` and `diagnose` say the same of the log. A few
+    // repeats are a fast source's clock resolution (or a duplicated message), so more than half are needed.
+    std::vector<std::pair<std::string, StampRun>> frozen;
+    for (const auto& [channel, run] : stamp_runs_) {
+      if (run.count >= kFrozenMinInputs && run.repeated * 2 > run.count) frozen.emplace_back(*channel, run);
+    }
+    std::sort(frozen.begin(), frozen.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+    for (const auto& [channel, run] : frozen) {
+      r.warnings.push_back(channel + ": " + std::to_string(run.repeated) + " of " + std::to_string(run.count) +
+                           " inputs repeat the stamp of the one before (frozen stamps: the module cannot tell "
+                           "time from them)");
+    }
     r.outputs = outputs_;
     if (!proc_s_.empty()) {
       double sum = 0, max = 0;
@@ -102,7 +118,13 @@ class ModuleTally {
   int64_t skipped_ticks_ = 0;
   std::pair<int64_t, int64_t> first_skip_;
   int64_t latest_stamp_ = std::numeric_limits<int64_t>::min();
-  std::unordered_map<const std::string*, int64_t> last_stamp_;
+  /// Per input channel: how many stamped inputs, the newest stamp and the last one, and how many inputs carried
+  /// the stamp of the one before.
+  struct StampRun {
+    int64_t count = 0, repeated = 0, newest = 0, previous = 0;
+  };
+  static constexpr int64_t kFrozenMinInputs = 10;
+  std::unordered_map<const std::string*, StampRun> stamp_runs_;
   std::vector<double> proc_s_;
   std::deque<int64_t> busy_until_;  ///< completion times of queued inputs [us]
   int32_t queue_max_ = 0;

@@ -6,6 +6,7 @@
 
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
 #include <nlohmann/json.hpp>
 #include <random>
@@ -404,7 +405,7 @@ bool has_reason(const ChannelTiming& c, const std::string& text) {
 }
 
 TEST(Diagnose, NamesStampsThatAreUnsetFrozenOrOnAnotherTimeBase) {
-  // 20 s of 100 Hz IMU messages on seven channels, each arriving 0.5 ms after it was measured; only the stamps
+  // 20 s of 100 Hz IMU messages on eight channels, each arriving 0.5 ms after it was measured; only the stamps
   // differ. The thresholds: frozen when most repeat the stamp before (a 100 Hz source with a 1 ms clock never
   // repeats); a named time base when the offset is within 0.5 s of the named one (delivery is milliseconds).
   test::TempDir dir;
@@ -415,10 +416,11 @@ TEST(Diagnose, NamesStampsThatAreUnsetFrozenOrOnAnotherTimeBase) {
       const int64_t measured = kT0 + i * 10000;
       const std::pair<const char*, int64_t> stamps[] = {
           {"GOOD", measured},
-          {"FROZEN", kT0 + (i / 100) * 1000000},     // a new stamp once a second
+          {"FROZEN", kT0 + (i / 100) * 1000000},  // a new stamp once a second
           {"ZERO", 0},
-          {"SIM", 120000000 + i * 10000},            // 120 s after a simulator started
-          {"TAI", measured + 37000000},              // stamped in TAI, arrivals in UTC
+          {"SIM", 120000000 + i * 10000},  // 120 s after a simulator started
+          {"TAI", measured + 37000000},    // stamped in TAI, arrivals in UTC
+          {"GPS", measured + 18000000},    // stamped in GPS time (a receiver's), arrivals in UTC
           // Every 40th message stamped 0.3, 0.6 or 0.9 s after it arrived (stamped after the fact): 50 of them.
           {"LATE", measured + (i % 40 == 0 ? 300000 * ((i / 40) % 3 + 1) : 0)},
           // Groups of three 1 ms apart every 30 ms: 100 Hz on average, nothing lost.
@@ -443,6 +445,9 @@ TEST(Diagnose, NamesStampsThatAreUnsetFrozenOrOnAnotherTimeBase) {
   EXPECT_TRUE(has_reason(channel(*d, "ZERO"), "2000 messages are stamped 0"));
   EXPECT_TRUE(has_reason(channel(*d, "SIM"), "stamps count from 130 s while arrivals are wall-clock dates"));
   EXPECT_TRUE(has_reason(channel(*d, "TAI"), "the 37 s between TAI and UTC"));
+  EXPECT_TRUE(has_reason(channel(*d, "GPS"), "ahead of arrival: the 18 s between GPS time and UTC"));
+  EXPECT_FALSE(has_reason(channel(*d, "GPS"), "TAI"));
+  EXPECT_EQ(channel(*d, "GPS").verdict, "fault");
   // The late stamps are found and left out of the clock fit: the clock is the others' (0.5 ms behind arrival).
   const ChannelTiming& late = channel(*d, "LATE");
   EXPECT_EQ(late.late_stamps, 50);
@@ -456,6 +461,8 @@ TEST(Diagnose, NamesStampsThatAreUnsetFrozenOrOnAnotherTimeBase) {
   EXPECT_EQ(corrections.count("GOOD"), 0u);
   ASSERT_EQ(corrections.count("TAI"), 1u);  // 37 s ahead: a clock ahead is corrected
   EXPECT_NEAR(corrections.at("TAI").offset_s, 36.9995, 1e-6);
+  ASSERT_EQ(corrections.count("GPS"), 1u);
+  EXPECT_NEAR(corrections.at("GPS").offset_s, 17.9995, 1e-6);
   // Bursts are burstiness, not drops.
   const ChannelTiming& burst = channel(*d, "BURST");
   EXPECT_TRUE(burst.bursty);
@@ -466,6 +473,49 @@ TEST(Diagnose, NamesStampsThatAreUnsetFrozenOrOnAnotherTimeBase) {
   EXPECT_EQ(burst.seq_gaps, 0);
   EXPECT_TRUE(has_reason(burst, "bursts of about 3, 1.0 ms apart, 100.0"));
   EXPECT_FALSE(channel(*d, "GOOD").bursty);
+}
+
+/// What `driftlab replay --restamp auto` prints and puts in its JSON's notes: each correction applied with the
+/// interval that made the diagnosis sure of it, each one left out with the interval that reaches zero; clocks
+/// behind, steady or without a fit say nothing.
+TEST(ClockCorrections, SayWhichTheyApplyAndWhichTheyLeaveOutAndWhy) {
+  Diagnosis d;
+  d.log = "run.lcm";
+  d.start_utime = kT0;
+  auto clock = [&](const char* name, double offset, std::array<double, 2> offset_ci, double drift,
+                   std::array<double, 2> drift_ci, bool valid = true) {
+    ChannelTiming c;
+    c.name = name;
+    c.clock_valid = valid;
+    c.clock_offset_s = offset;
+    c.clock_offset_ci_s = offset_ci;
+    c.clock_drift_ppm = drift;
+    c.clock_drift_ci_ppm = drift_ci;
+    d.channels.push_back(c);
+  };
+  clock("AHEAD", 0.015, {0.0148, 0.0152}, 0.4, {-2, 2});         // sure: corrected
+  clock("UNSURE", 0.002, {-0.001, 0.005}, 10, {-5, 25});         // ahead, but its interval reaches zero
+  clock("DRIFTS", -0.004, {-0.0045, -0.0035}, 300, {280, 320});  // behind (left alone) and drifting (corrected)
+  clock("WANDERS", 0.0, {-0.001, 0.001}, 40, {-10, 90});         // a drift its interval cannot tell from none
+  clock("BEHIND", -0.004, {-0.0045, -0.0035}, 0, {-1, 1});       // latency, as far as one log can tell
+  clock("NOFIT", 0.5, {0.4, 0.6}, 0, {0, 0}, false);
+  std::vector<std::string> notes;
+  const auto k = clock_corrections(d, &notes);
+  ASSERT_EQ(k.size(), 2u);
+  EXPECT_NEAR(k.at("AHEAD").offset_s, 0.015, 1e-12);
+  EXPECT_EQ(k.at("AHEAD").drift_ppm, 0);  // the drift is not sure: not applied
+  EXPECT_EQ(k.at("AHEAD").reference_utime, kT0);
+  EXPECT_EQ(k.at("DRIFTS").offset_s, 0);
+  EXPECT_NEAR(k.at("DRIFTS").drift_ppm, 300, 1e-12);
+  const std::vector<std::string> expected = {
+      "restamp AHEAD: +15.0 ms, +0 ppm (from the timing diagnosis of run.lcm: offset 95% +14.8 to +15.2 ms, drift -2 "
+      "to +2 ppm)",
+      "not restamping UNSURE: +2.0 ms (95%: -1.0 to +5.0), +10 ppm (95%: -5 to +25) could be zero",
+      "restamp DRIFTS: +0.0 ms, +300 ppm (from the timing diagnosis of run.lcm: offset 95% -4.5 to -3.5 ms, drift "
+      "+280 to +320 ppm)",
+      "not restamping WANDERS: +0.0 ms (95%: -1.0 to +1.0), +40 ppm (95%: -10 to +90) could be zero",
+  };
+  EXPECT_EQ(notes, expected);
 }
 
 /// A log made with the fault model the simulator uses, its manifest written to the FAULTS channel; the

@@ -124,5 +124,55 @@ TEST_P(DiagnoseOnTheBenchmark, AgreesWithAPlainLookAtTheLog) {
 
 INSTANTIATE_TEST_SUITE_P(Carmen, DiagnoseOnTheBenchmark, ::testing::Values("intel", "aces"));
 
+// The Nav2 TurtleBot bag (../shared/data/bags/nav2_turtlebot.mcap, from evo's test data) was recorded in 2026 from
+// a simulated robot whose nodes stamp with the simulator's clock: header stamps near 924-1,040 s against arrivals
+// that are dates, the use_sim_time mistake of the field reports. The diagnosis names that cause on every stream
+// with stamps, and no other time base (not TAI, GPS or a time zone, which a 56-year offset could be mistaken for).
+TEST(DiagnoseNav2Bag, NamesTheUseSimTimeMistake) {
+  const std::string bag = test::shared_data("bags/nav2_turtlebot.mcap");
+  if (bag.empty()) return;
+  test::TempDir dir;
+  const std::string log = dir.file("nav2.lcm");
+  ASSERT_EQ(test::run(kDriftlab + " import " + bag + " -o " + log + " >/dev/null"), 0);
+  const auto r = test::run_capture(kDriftlab + " diagnose " + log + " --json -");
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto d = nlohmann::json::parse(r.out);
+  // Arrivals in 2026 (2026-01-01 to 2027-01-01 UTC, in seconds since the epoch).
+  EXPECT_GT(d["start_utime"].get<double>() * 1e-6, 1767225600.0);
+  EXPECT_LT(d["end_utime"].get<double>() * 1e-6, 1798761600.0);
+  int named = 0;
+  for (const auto& c : d["channels"]) {
+    const std::string name = c["name"];
+    SCOPED_TRACE(name);
+    if (name == "/tf_static") continue;  // one message stamped 0: its own finding
+    // Stamps near 924-1,040 s of simulation time.
+    const double median_stamp_s = c["stamps"]["median_utime"].get<double>() * 1e-6;
+    EXPECT_GT(median_stamp_s, 900.0);
+    EXPECT_LT(median_stamp_s, 1100.0);
+    EXPECT_EQ(c["verdict"], "fault");
+    bool sim_time = false;
+    for (const auto& reason : c["reasons"]) {
+      const std::string why = reason;
+      if (why.find("while arrivals are wall-clock dates") != std::string::npos &&
+          why.find("use_sim_time") != std::string::npos) {
+        sim_time = true;
+        // The reason says where the stamps count from: the median stamp, in whole seconds.
+        EXPECT_NE(why.find("stamps count from " + std::to_string(static_cast<int>(std::lround(median_stamp_s))) + " s"),
+                  std::string::npos)
+            << why;
+      }
+      for (const char* other : {"TAI", "GPS", "time zone"}) EXPECT_EQ(why.find(other), std::string::npos) << why;
+    }
+    EXPECT_TRUE(sim_time) << c["reasons"].dump();
+    named += sim_time ? 1 : 0;
+  }
+  EXPECT_EQ(named, 3);  // /odom, /amcl_pose, /tf
+  // And the text a person reads lists it among the problems.
+  const auto text = test::run_capture(kDriftlab + " diagnose " + log);
+  ASSERT_EQ(text.code, 0) << text.err;
+  EXPECT_NE(text.out.find("/odom: stamps count from"), std::string::npos) << text.out;
+  EXPECT_NE(text.out.find("(use_sim_time?)"), std::string::npos) << text.out;
+}
+
 }  // namespace
 }  // namespace driftlab

@@ -4,8 +4,14 @@
 
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
 
+#include "core/log_reader.h"
+#include "core/log_writer.h"
+#include "lcmtypes/stream_header.h"
 #include "tests/test_util.h"
 
 namespace driftlab {
@@ -76,6 +82,66 @@ TEST_F(ReplayCli, RestampAutoFindsTheImuClockAndLowersTheError) {
   EXPECT_NEAR(j["restamp"]["IMU"]["offset_s"].get<double>(), 0.015, 0.001);
   EXPECT_EQ(j["restamp"].size(), 1u) << after.out;  // the other clocks are fine
   EXPECT_LT(ate(file("after.lcm") + ":EKF_ODOM"), ate(file("before.lcm") + ":EKF_ODOM"));
+  // It says what it applied and from what (the notes' text: tests/analyzers/timing_test.cc, ClockCorrections).
+  ASSERT_EQ(j["notes"].size(), 1u) << after.out;
+  const std::string note = j["notes"][0];
+  EXPECT_EQ(note.rfind("restamp IMU: +15.0 ms, +0 ppm (from the timing diagnosis of " + log() + ": offset 95% +", 0),
+            0u)
+      << note;
+  const auto text = driftlab("replay " + log() + " --modules estimator --restamp auto -o " + file("after2.lcm"));
+  ASSERT_EQ(text.code, 0) << text.err;
+  EXPECT_EQ(text.out.rfind(note + "\n", 0), 0u) << text.out;  // the first line of the text output
+}
+
+/// A log whose stamps are frozen (every message given one stamp, as MRPT 2.5's carmen2rawlog does) replays into
+/// modules that cannot tell time: the replay says so for each module and channel, in its text and its JSON,
+/// as `info` and `diagnose` do for the log.
+TEST_F(ReplayCli, FrozenStampsAreNamedByTheReplay) {
+  {
+    auto reader = LogReader::open(log());
+    ASSERT_TRUE(reader.ok());
+    auto writer = LogWriter::create(file("frozen.lcm"));
+    ASSERT_TRUE(writer.ok());
+    Event e;
+    int64_t first = -1;
+    while (reader->next(e) && (first < 0 || e.utime < first + 10000000)) {  // the first 10 s
+      if (first < 0) first = e.utime;
+      std::vector<uint8_t> bytes(e.data.begin(), e.data.end());
+      if (std::string(e.channel) != "GROUND_TRUTH")
+        lcmtypes::map_stamps(bytes, e.utime, [&](int64_t) { return first; });
+      ASSERT_TRUE(writer->write(e.utime, e.channel, bytes).ok());
+    }
+    ASSERT_TRUE(writer->close().ok());
+  }
+  const auto r = driftlab("replay " + file("frozen.lcm") + " --modules slam,estimator --json -o " + file("fr.lcm"));
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  std::map<std::string, std::vector<std::string>> warnings;
+  for (const auto& m : j["modules"]) warnings[m["name"]] = m["warnings"].get<std::vector<std::string>>();
+  auto frozen = [&](const std::string& module, const std::string& channel) {
+    for (const auto& w : warnings[module]) {
+      if (w.rfind(channel + ": ", 0) == 0 &&
+          w.find("inputs repeat the stamp of the one before (frozen stamps") != std::string::npos) {
+        return true;
+      }
+    }
+    return false;
+  };
+  EXPECT_TRUE(frozen("slam", "SCAN")) << r.out;
+  EXPECT_TRUE(frozen("slam", "ODOM")) << r.out;
+  EXPECT_TRUE(frozen("estimator", "IMU")) << r.out;
+  EXPECT_TRUE(frozen("estimator", "ODOM")) << r.out;
+  // The channel whose stamps were left alone is not named.
+  for (const auto& [module, list] : warnings) {
+    for (const auto& w : list) EXPECT_EQ(w.find("GROUND_TRUTH"), std::string::npos) << w;
+  }
+  // The text output names them too; the unfrozen session says nothing of the kind.
+  const auto text = driftlab("replay " + file("frozen.lcm") + " --modules estimator -o " + file("fr2.lcm"));
+  ASSERT_EQ(text.code, 0) << text.err;
+  EXPECT_NE(text.out.find("warning: IMU: "), std::string::npos) << text.out;
+  const auto clean = driftlab("replay " + log() + " --modules slam,estimator --end 10 -o " + file("nf.lcm"));
+  ASSERT_EQ(clean.code, 0) << clean.err;
+  EXPECT_EQ(clean.out.find("frozen"), std::string::npos) << clean.out;
 }
 
 TEST_F(ReplayCli, TheSameInputsAndOptionsGiveAByteIdenticalLog) {

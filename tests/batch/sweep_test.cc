@@ -10,7 +10,10 @@
 #include <chrono>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <nlohmann/json.hpp>
+#include <sstream>
+#include <string>
 #include <thread>
 
 #include "tests/batch/sweep_util.h"
@@ -190,6 +193,110 @@ TEST(BatchCli, DiagnoseManyLogsRanked) {
   const auto rows = test::result_rows(dir.file("evals"));
   ASSERT_EQ(rows.size(), 2u);
   for (const auto& row : rows) EXPECT_GT(row["ate_rmse"].get<double>(), 0) << row.dump();
+}
+
+/// A sweep over logs (a spec with `logs:` instead of a scenario): each log replayed with each point's faults
+/// injected (`driftlab replay --inject`), diagnosed and scored; the table has the log, the varied value, and what
+/// the diagnosis found: the IMU clock ahead (`offset_s.IMU`, the log's own 15 ms plus the injected offset) and the
+/// odometry messages the injection dropped (`drops.ODOM`, `drops`).
+TEST(SweepCli, SweepOverLogsInjectsEachPointsFaults) {
+  test::TempDir dir;
+  fs::create_directories(dir.file("logs"));
+  for (int seed : {1, 2}) {
+    // 12 s: the clock fit needs 10 s of data. The default scenario's IMU clock is 15 ms ahead.
+    const auto r = test::driftlab("sim --duration 12 --seed " + std::to_string(seed) + " -o " +
+                                  dir.file("logs/run" + std::to_string(seed) + ".lcm"));
+    ASSERT_EQ(r.code, 0) << r.err;
+  }
+  const std::string spec = dir.file("logs.yaml");
+  std::ofstream(spec) << "name: over-logs\n"
+                         "logs: [\"logs/*.lcm\"]\n"  // relative to the spec
+                         "modules: estimator\n"
+                         "settings:\n  estimator: {window_s: 0}\n"
+                         "faults: {streams: {ODOM: {drop_probability: 0.3}}}\n"
+                         "eval: {gt: GROUND_TRUTH, est: EKF_ODOM, align: posyaw}\n"
+                         "pipeline: [replay, diagnose, eval]\n"
+                         "vary:\n"
+                         "  faults.IMU.clock_offset_s: [0, 0.05]\n";
+  const std::string out = dir.file("sweep");
+  auto r = test::driftlab("sweep " + spec + " -o " + out + " -j 2 --json");
+  ASSERT_EQ(r.code, 0) << r.err << r.out;
+  EXPECT_EQ(nlohmann::json::parse(r.out)["done"], 4);
+  const auto rows = test::result_rows(out);
+  ASSERT_EQ(rows.size(), 4u);
+  std::map<std::string, std::map<double, nlohmann::json>> by_log;
+  for (const auto& row : rows) {
+    SCOPED_TRACE(row.dump());
+    ASSERT_EQ(row["status"], "done");
+    const std::string log = row["log"];
+    EXPECT_EQ(fs::path(log).parent_path(), fs::path(dir.file("logs")));
+    const double injected = row["faults.IMU.clock_offset_s"].get<double>();
+    by_log[log][injected] = row;
+    // The IMU clock found ahead by the log's 15 ms and the injected offset (to within the fastest delivery).
+    ASSERT_TRUE(row["offset_s.IMU"].is_number());
+    EXPECT_NEAR(row["offset_s.IMU"].get<double>(), 0.015 + injected, 0.001);
+    // The replay dropped about 30% of the 600 odometry messages; the diagnosis counted them from seq.
+    ASSERT_TRUE(row["drops.ODOM"].is_number());
+    EXPECT_NEAR(row["drops.ODOM"].get<double>(), 180, 50);
+    EXPECT_GE(row["drops"].get<double>(), row["drops.ODOM"].get<double>());
+    EXPECT_GT(row["ate_rmse"].get<double>(), 0);
+  }
+  ASSERT_EQ(by_log.size(), 2u);
+  for (const auto& [log, points] : by_log) {
+    ASSERT_EQ(points.size(), 2u) << log;
+    // Each point's faults were its own: the injected 50 ms shows in its row alone.
+    EXPECT_NEAR(points.at(0.05)["offset_s.IMU"].get<double>() - points.at(0.0)["offset_s.IMU"].get<double>(), 0.05,
+                0.0005)
+        << log;
+    EXPECT_NE(points.at(0.05)["id"], points.at(0.0)["id"]);
+  }
+  // The CSV names the log of each row.
+  std::ifstream csv(out + "/results.csv");
+  std::string header;
+  std::getline(csv, header);
+  EXPECT_EQ(header.rfind("id,status,attempts,log,faults.IMU.clock_offset_s,", 0), 0u) << header;
+  EXPECT_NE(header.find(",offset_s.IMU"), std::string::npos) << header;
+  EXPECT_NE(header.find(",drops.ODOM"), std::string::npos) << header;
+}
+
+/// `driftlab batch report`: each log diagnosed and given its report page, the batch ranked worst first.
+TEST(BatchCli, ReportWritesEachLogsPageAndRanksThem) {
+  test::TempDir dir;
+  fs::create_directories(dir.file("logs"));
+  std::ofstream(dir.file("bad.yaml")) << "streams:\n  IMU: {clock_offset_s: 0.08}\n  SCAN: {drop_probability: 0.2}\n";
+  std::ofstream(dir.file("good.yaml")) << "streams: {}\n";
+  for (const char* name : {"good", "bad"}) {
+    const auto r = test::driftlab("sim --duration 5 --faults " + dir.file(std::string(name) + ".yaml") + " -o " +
+                                  dir.file(std::string("logs/") + name + ".lcm"));
+    ASSERT_EQ(r.code, 0) << r.err;
+  }
+  const std::string out = dir.file("reports");
+  auto r = test::driftlab("batch report " + dir.file("logs/good.lcm") + " " + dir.file("logs/bad.lcm") + " -o " + out +
+                          " --json");
+  ASSERT_EQ(r.code, 0) << r.err << r.out;
+  EXPECT_EQ(nlohmann::json::parse(r.out)["done"], 2);
+  const auto rows = test::result_rows(out);
+  ASSERT_EQ(rows.size(), 2u);
+  for (const auto& row : rows) {
+    SCOPED_TRACE(row.dump());
+    ASSERT_EQ(row["status"], "done");
+    // The page of each log, where the row says, made from the point's own diagnosis.
+    const std::string page = row["report"];
+    EXPECT_TRUE(fs::exists(page));
+    EXPECT_GT(fs::file_size(page), 1000u);
+    const fs::path point = fs::path(page).parent_path().parent_path();
+    EXPECT_TRUE(fs::exists(point / "diagnosis.json"));
+    std::ifstream in(page);
+    std::stringstream html;
+    html << in.rdbuf();
+    EXPECT_NE(html.str().find(fs::path(row["log"].get<std::string>()).filename().string()), std::string::npos);
+  }
+  std::ifstream f(out + "/results.json");
+  const auto j = nlohmann::json::parse(f);
+  ASSERT_EQ(j["ranked"].size(), 2u);
+  EXPECT_EQ(fs::path(j["ranked"][0]["log"].get<std::string>()).filename(), "bad.lcm") << j["ranked"].dump(1);
+  EXPECT_EQ(fs::path(j["ranked"][1]["log"].get<std::string>()).filename(), "good.lcm") << j["ranked"].dump(1);
+  EXPECT_TRUE(fs::exists(out + "/index.html"));
 }
 
 }  // namespace
