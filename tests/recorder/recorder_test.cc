@@ -335,13 +335,14 @@ TEST_F(Record, ModulesRunLiveThroughAFloodOfHostileMessages) {
   bool warned = false;
   for (const auto& w : estimator["warnings"]) warned |= w.get<std::string>().find("malformed") != std::string::npos;
   EXPECT_TRUE(warned) << estimator.dump();
-  // SLAM: the flood's scans (1 in 3) dropped and counted, the simulator's (10 Hz for 4 s) matched.
+  // SLAM reads the scans and the odometry: the flood's (2 in 3) dropped and counted, the simulator's scans (10 Hz
+  // for 4 s) matched (all 40 run alone; most on a loaded machine, as above).
   const auto slam = module("slam");
   int64_t scans = 0;
   for (const auto& e : test::read_all(dir_.file("sim.lcm"))) scans += e.channel == "SCAN";
   ASSERT_GT(scans, 35);
   EXPECT_GT(slam.value("metrics", nlohmann::json::object()).value("scans", 0.0), scans / 2) << slam.dump();
-  EXPECT_GT(slam["dropped"].get<int64_t>(), 2500) << slam.dump();
+  EXPECT_GT(slam["dropped"].get<int64_t>(), 5000) << slam.dump();
   bool slam_warned = false;
   for (const auto& w : slam["warnings"]) slam_warned |= w.get<std::string>().find("malformed") != std::string::npos;
   EXPECT_TRUE(slam_warned) << slam.dump();
