@@ -179,11 +179,14 @@ TEST(HostileConfig, AFifoForAYamlFileIsRefusedAtOnceNotWaitedOn) {
   const std::string fifo = dir.file("pipe.yaml");
   ASSERT_EQ(mkfifo(fifo.c_str(), 0600), 0);
   const std::string out = " -o " + dir.file("out");
-  for (const std::string& cmd : std::vector<std::string>{"replay " + kSample + " --modules estimator --config " + fifo + out,
-                                                         "replay " + kSample + " --restamp " + fifo + out,
-                                                         "replay " + kSample + " --inject " + fifo + out,
-                                                         "sim " + fifo + out,
-                                                         "sweep " + fifo + out}) {
+  const std::vector<std::string> commands = {
+      "replay " + kSample + " --modules estimator --config " + fifo + out,
+      "replay " + kSample + " --restamp " + fifo + out,
+      "replay " + kSample + " --inject " + fifo + out,
+      "sim " + fifo + out,
+      "sweep " + fifo + out,
+  };
+  for (const std::string& cmd : commands) {
     const auto r = driftlab(cmd);
     EXPECT_EQ(r.code, 2) << cmd << "\n" << r.err;
     EXPECT_EQ(r.err.rfind("driftlab: " + fifo + ": ", 0), 0u) << cmd << "\n" << r.err;

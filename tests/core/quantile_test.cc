@@ -63,11 +63,11 @@ void add_cases(const std::vector<int64_t>& v, std::vector<Case>& cases) {
 
 TEST(Quantile, EqualsNumpysDefaultToTheLastBit) {
   std::vector<Case> cases;
-  add_cases(std::vector<double>{3, 1, 2}, cases);                  // odd
-  add_cases(std::vector<double>{4, 1, 3, 2}, cases);               // even
+  add_cases(std::vector<double>{3, 1, 2}, cases);                 // odd
+  add_cases(std::vector<double>{4, 1, 3, 2}, cases);              // even
   add_cases(std::vector<double>{2, 2, 1, 5, 2, 1, 5, 5}, cases);  // duplicates
-  add_cases(std::vector<double>{7, 7, 7}, cases);                  // one value
-  add_cases(std::vector<double>{42.5}, cases);                     // one sample
+  add_cases(std::vector<double>{7, 7, 7}, cases);                 // one value
+  add_cases(std::vector<double>{42.5}, cases);                    // one sample
   add_cases(std::vector<double>{0.1, -3.3, 2.2, 1e-3, 7.77, -0.5, 1e6, 0.1, 2.2}, cases);
   uint64_t x = 88172645463325252ull;
   auto next = [&x] {
@@ -91,8 +91,8 @@ TEST(Quantile, EqualsNumpysDefaultToTheLastBit) {
     for (const Case& c : cases) in << c.line << "\n";
     std::ofstream(dir.file("numpy_quantile.py")) << kNumpy;
   }
-  const auto r = test::run_capture(std::string(DRIFTLAB_PYTHON) + " " + dir.file("numpy_quantile.py") + " " +
-                                   dir.file("in.txt"));
+  const auto r =
+      test::run_capture(std::string(DRIFTLAB_PYTHON) + " " + dir.file("numpy_quantile.py") + " " + dir.file("in.txt"));
   ASSERT_EQ(r.code, 0) << r.err;
   std::istringstream out(r.out);
   size_t i = 0, differ = 0;

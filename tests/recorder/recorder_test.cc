@@ -216,8 +216,8 @@ TEST_F(Record, ReplayRepublishesWhatItWrites) {
 /// a test failure when it did not start within 5 s.
 Process start_run(const std::string& out, const std::string& duration, const std::string& json,
                   const std::string& modules = "estimator,controller") {
-  std::vector<std::string> args = {kDriftlab, "run", "--modules", modules, "--url", kLcmUrl,
-                                   "--duration", duration, "--json", "-o", out};
+  std::vector<std::string> args = {kDriftlab,    "run",    "--modules", modules, "--url", kLcmUrl,
+                                   "--duration", duration, "--json",    "-o",    out};
   std::vector<char*> argv;
   for (auto& a : args) argv.push_back(a.data());
   argv.push_back(nullptr);
