@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <numeric>
 
+#include "core/quantile.h"
 #include "core/time.h"
 
 namespace driftlab::analyzers::internal {
@@ -330,9 +331,14 @@ ChannelTiming channel_timing(const std::string& name, Samples& s, int64_t log_st
       latency[i] = Duration::from_us(s.arrival[i] - s.stamp[i] - s.ready_after_us).seconds();
     }
     c.latency_s = distribution(std::move(latency));
+    // The median stamp by the one quantile definition (core/quantile.h, numpy's), to the nearest microsecond. In
+    // doubles the stamps are exact up to 2^53 us (285 years); hostile ones beyond are held inside int64_t.
     Array<int64_t> stamps(s.stamp);
-    std::nth_element(stamps.begin(), stamps.begin() + static_cast<ptrdiff_t>(stamps.size() / 2), stamps.end());
-    c.median_stamp_utime = stamps.empty() ? 0 : stamps[stamps.size() / 2];
+    if (!stamps.empty()) {
+      constexpr double kLast = 9223372036854774784.0;  // the largest double below 2^63
+      const double median = std::clamp(quantile_in_place(stamps, 0.5), -kLast, kLast);
+      c.median_stamp_utime = static_cast<int64_t>(std::llround(median));
+    }
     // The clock is fitted to when the data was complete (a scan's last beam), then the stamps restored.
     for (auto& t : s.stamp) t += s.ready_after_us;
     fit_clock(s, log_start, c);

@@ -8,6 +8,8 @@
 #include <limits>
 #include <numeric>
 
+#include "core/quantile.h"
+
 namespace driftlab::analyzers {
 namespace {
 
@@ -129,10 +131,7 @@ Stats compute_stats(PoseArray<double> e) {
   double var = 0;
   for (double v : e) var += (v - s.mean) * (v - s.mean);
   s.std = std::sqrt(var / n);
-  const size_t mid = e.size() / 2;
-  std::nth_element(e.begin(), e.begin() + static_cast<long>(mid), e.end());
-  s.median = e[mid];
-  if (e.size() % 2 == 0) s.median = (*std::max_element(e.begin(), e.begin() + static_cast<long>(mid)) + s.median) / 2;
+  s.median = quantile_in_place(e, 0.5);
   return s;
 }
 

@@ -46,7 +46,8 @@ struct StampOrder {
 /// them, as evo does), and says what it found.
 StampOrder sort_by_stamp(Trajectory& t);
 
-/// Error statistics; std is the population standard deviation, median as numpy's.
+/// Error statistics; std is the population standard deviation, median the 0.5 quantile of core/quantile.h (numpy's
+/// np.quantile; evo's np.median averages the two middle errors instead, which can differ in the last bit).
 struct Stats {
   size_t count = 0;
   double rmse = 0, mean = 0, median = 0, std = 0, min = 0, max = 0;

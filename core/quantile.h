@@ -1,6 +1,7 @@
 // One definition of a sample quantile for the whole project: linear interpolation between order statistics, as
-// numpy's default (`np.quantile(v, q)`, method "linear", Hyndman and Fan type 7). The diagnosis, the module
-// statistics, the trajectory errors and the report (numpy) all give the same p50/p95/p99 for the same data.
+// numpy's default (`np.quantile(v, q)`, method "linear", Hyndman and Fan type 7), equal to it to the last bit
+// (tests/core/quantile_test.cc holds it to numpy). The diagnosis, the module statistics, the trajectory errors and
+// the report (numpy) all give the same p50/p95/p99 for the same data.
 // Thread-safety: pure functions.
 #pragma once
 
@@ -23,7 +24,9 @@ double quantile_in_place(RandomIt first, RandomIt last, double q) {
   const double lo = static_cast<double>(*at);
   if (i + 1 >= n) return lo;
   const double hi = static_cast<double>(*std::min_element(at + 1, last));
-  return lo + (hi - lo) * (pos - static_cast<double>(i));
+  // numpy's interpolation to the last bit (numpy/lib/function_base.py, _lerp): from the nearer neighbour.
+  const double t = pos - static_cast<double>(i), diff = hi - lo;
+  return t >= 0.5 ? hi - diff * (1 - t) : lo + diff * t;
 }
 
 /// The q-quantile of a container, partially reordering it; NaN when it is empty.

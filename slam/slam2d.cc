@@ -14,15 +14,20 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include <algorithm>
+#include <cerrno>
+#include <charconv>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <limits>
 #include <map>
 #include <optional>
 #include <set>
 #include <sstream>
+#include <string_view>
 
 #include "core/config.h"
 #include "core/time.h"
@@ -43,6 +48,36 @@ namespace {
 
 /// The largest occupancy map drawn at the end [cells]: 100 MB, 500 m x 500 m at 5 cm.
 constexpr double kMaxMapCells = 1e8;
+
+/// Writes bytes to PATH.partial and renames it to PATH, so a failed write (a full disk, a folder in the way) never
+/// leaves half a file under PATH nor a PATH.partial behind. Why it failed, or nullopt.
+std::optional<std::string> write_aside(const std::string& path, std::string_view bytes) {
+  const std::string partial = path + ".partial";
+  std::error_code ec;
+  std::FILE* f = std::fopen(partial.c_str(), "wb");
+  if (f == nullptr) return "cannot write " + path + ": " + std::strerror(errno);
+  const bool written = std::fwrite(bytes.data(), 1, bytes.size(), f) == bytes.size();
+  const int write_errno = errno;
+  if (std::fclose(f) != 0 || !written) {
+    const std::string why = std::strerror(written ? errno : write_errno);
+    std::filesystem::remove(partial, ec);
+    return "cannot write " + path + ": " + why;
+  }
+  std::filesystem::rename(partial, path, ec);
+  if (ec) {
+    const std::string why = ec.message();
+    std::filesystem::remove(partial, ec);
+    return "cannot write " + path + ": " + why;
+  }
+  return std::nullopt;
+}
+
+/// v in the fewest digits that read back as exactly v (std::to_chars): a map origin at 1234.567 m is not 1234.57.
+std::string exact(double v) {
+  char buf[32];
+  const auto r = std::to_chars(buf, buf + sizeof buf, v);
+  return std::string(buf, r.ptr);
+}
 
 /// An MRPT icp-slam configuration from ours: [MappingApplication] (map building, a single planar point map, as in
 /// icp-slam_demo_classic.ini) and [ICP]. With an .ini file, its values replace the defaults, and the keys given
@@ -455,7 +490,7 @@ void Slam2d::finish(Bus& bus) {
     for (int x = 0; x < w; ++x) img.at<uint8_t>(h - 1 - y, x) = static_cast<uint8_t>(std::lround(grid.getCell(x, y) * 255));
   }
   std::vector<uint8_t> png;
-  cv::imencode(".png", img, png);
+  if (!cv::imencode(".png", img, png)) png.clear();
   driftlab::image_t m{};
   m.header.utime = bus.now().us();
   m.header.frame_id = "map";
@@ -467,13 +502,22 @@ void Slam2d::finish(Bus& bus) {
   bus.publish_message(d.c.map_channel, m);
   const std::string prefix = bus.artifact_prefix();
   if (!prefix.empty()) {
+    // The image first: a description of a map whose image could not be written would describe nothing (or an
+    // older image). The origin is the grid's own number (a float), written whole, not to 6 digits.
     const std::string image = prefix + "-map.png";
-    std::ofstream(image, std::ios::binary).write(reinterpret_cast<const char*>(png.data()), static_cast<std::streamsize>(png.size()));
-    std::ofstream yaml(prefix + "-map.yaml");
-    yaml << "image: " << image.substr(image.rfind('/') + 1) << "\nresolution: " << d.c.map_resolution
-         << "\norigin: [" << grid.getXMin() << ", " << grid.getYMin() << ", 0.0]\nnegate: 0\n"
-         << "occupied_thresh: 0.65\nfree_thresh: 0.196\n";
-    if (!yaml) d.warnings.push_back("slam: cannot write " + prefix + "-map.yaml");
+    if (png.empty()) {
+      d.warnings.push_back("slam: cannot write " + image + ": the PNG encoder failed");
+      return;
+    }
+    if (auto why = write_aside(image, {reinterpret_cast<const char*>(png.data()), png.size()})) {
+      d.warnings.push_back("slam: " + *why);
+      return;
+    }
+    const std::string yaml = "image: " + image.substr(image.rfind('/') + 1) +
+                             "\nresolution: " + exact(d.c.map_resolution) + "\norigin: [" + exact(grid.getXMin()) +
+                             ", " + exact(grid.getYMin()) +
+                             ", 0.0]\nnegate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\n";
+    if (auto why = write_aside(prefix + "-map.yaml", yaml)) d.warnings.push_back("slam: " + *why);
   }
 }
 

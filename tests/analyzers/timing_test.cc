@@ -444,6 +444,10 @@ TEST(Diagnose, NamesStampsThatAreUnsetFrozenOrOnAnotherTimeBase) {
   EXPECT_EQ(channel(*d, "ZERO").zero_stamps, 2000);
   EXPECT_TRUE(has_reason(channel(*d, "ZERO"), "2000 messages are stamped 0"));
   EXPECT_TRUE(has_reason(channel(*d, "SIM"), "stamps count from 130 s while arrivals are wall-clock dates"));
+  // The median stamp is core/quantile.h's, numpy's np.median of the stamps: with 2000 of them, midway between the
+  // 1000th and the 1001st (it was the 1001st alone, another median than every other one driftlab reports).
+  EXPECT_EQ(channel(*d, "GOOD").median_stamp_utime, kT0 + 9'995'000);
+  EXPECT_EQ(channel(*d, "SIM").median_stamp_utime, 129'995'000);
   EXPECT_TRUE(has_reason(channel(*d, "TAI"), "the 37 s between TAI and UTC"));
   EXPECT_TRUE(has_reason(channel(*d, "GPS"), "ahead of arrival: the 18 s between GPS time and UTC"));
   EXPECT_FALSE(has_reason(channel(*d, "GPS"), "TAI"));

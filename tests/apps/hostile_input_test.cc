@@ -172,6 +172,31 @@ TEST(HostileLog, AFifoIsRefusedAtOnceNotWaitedOn) {
   }
 }
 
+TEST(HostileConfig, AFifoForAYamlFileIsRefusedAtOnceNotWaitedOn) {
+  // Every YAML file a command reads goes through core/text_file.h, which refuses what is not a regular file without
+  // waiting for a writer: module settings, restamp files, fault descriptions, scenarios and sweep specs.
+  test::TempDir dir;
+  const std::string fifo = dir.file("pipe.yaml");
+  ASSERT_EQ(mkfifo(fifo.c_str(), 0600), 0);
+  const std::string out = " -o " + dir.file("out");
+  const std::vector<std::string> commands = {
+      "replay " + kSample + " --modules estimator --config " + fifo + out,
+      "replay " + kSample + " --restamp " + fifo + out,
+      "replay " + kSample + " --inject " + fifo + out,
+      "sim " + fifo + out,
+      "sweep " + fifo + out,
+  };
+  for (const std::string& cmd : commands) {
+    const auto r = driftlab(cmd);
+    EXPECT_EQ(r.code, 2) << cmd << "\n" << r.err;
+    EXPECT_EQ(r.err.rfind("driftlab: " + fifo + ": ", 0), 0u) << cmd << "\n" << r.err;
+    EXPECT_NE(r.err.find("not a regular file"), std::string::npos) << cmd << "\n" << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << cmd << "\n" << r.err;
+    EXPECT_FALSE(fs::exists(dir.file("out"))) << cmd;
+  }
+  expect_no_partial_files(dir.path());
+}
+
 TEST(NonsenseOptions, AreRefusedWithOneReadableLine) {
   // NaN, infinities, overflowing numbers and contradictions used to pass (sim --duration nan ran 600 s, the seed
   // was clamped, CLI11 printed the largest double in full).

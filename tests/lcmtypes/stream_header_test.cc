@@ -12,6 +12,8 @@
 #include "driftlab/odometry_t.hpp"
 #include "driftlab/pose_t.hpp"
 #include "driftlab/tf_t.hpp"
+#include "lcmtypes/validate.h"
+#include "tests/lcmtypes/largest_allocation.h"
 #include "tests/test_util.h"
 
 namespace driftlab::lcmtypes {
@@ -96,6 +98,37 @@ TEST(StreamHeader, MapStampsRewritesHeadersAndTransforms) {
   const auto before = t;
   EXPECT_FALSE(map_stamps(t, 0, [](int64_t s) { return s; }));
   EXPECT_EQ(t, before);
+}
+
+TEST(StreamHeader, MapStampsRefusesAnImpossibleTransformCountBeforeAllocatingForIt) {
+  // A 1.5 KB tf_t claiming 2,000,000 transforms: lcm-gen's decoder sized its vector for them (some 270 MB) before
+  // finding the message short, on every TF message `replay --restamp` rewrote (peak memory 393 MB instead of 136).
+  // The layout check refuses the count first: the message is left as it was and nothing near that size is allocated.
+  driftlab::tf_t tf{};
+  tf.header = {1, 1000, ""};
+  tf.ntransforms = 1;
+  tf.transforms.resize(1);
+  tf.transforms[0].header = {0, 1000, "odom"};
+  tf.transforms[0].child_frame_id = "base_link";
+  auto t = encode(tf);
+  test::put_be32(t, kHeaderFrameOffset + 4 + 1, 2'000'000);  // ntransforms follows the empty frame_id
+  t.resize(1500, 0);
+  ASSERT_TRUE(layout_problem(t).has_value());
+  const auto before = t;
+  test::start_counting_allocations();
+  const bool mapped = map_stamps(t, 0, [](int64_t s) { return s + 1; });
+  const std::size_t largest = test::largest_allocation();
+  EXPECT_FALSE(mapped);
+  EXPECT_EQ(t, before);
+  EXPECT_LT(largest, std::size_t{64} << 10) << "an allocation of " << largest << " bytes";
+  // The counter sees a decoder's allocations: a well-formed message of 2,000 transforms is decoded and rewritten.
+  tf.transforms.resize(2000, tf.transforms[0]);
+  tf.ntransforms = 2000;
+  auto big = encode(tf);
+  test::start_counting_allocations();
+  const bool rewritten = map_stamps(big, 0, [](int64_t s) { return s + 1; });
+  EXPECT_GE(test::largest_allocation(), 2000 * sizeof(driftlab::transform_t));
+  EXPECT_TRUE(rewritten);
 }
 
 TEST(StreamHeader, ReadyAfterIsTheSweepToTheLastBeam) {

@@ -211,12 +211,13 @@ TEST_F(Record, ReplayRepublishesWhatItWrites) {
   EXPECT_EQ(recorded(out), written);
 }
 
-/// Starts `driftlab run --modules estimator,controller` for `duration` seconds, its JSON summary going to json,
-/// and waits until it has subscribed (LiveRunner opens its log after the modules start; loaded machines take a
-/// while). pid -1 with a test failure when it did not start within 5 s.
-Process start_run(const std::string& out, const std::string& duration, const std::string& json) {
-  std::vector<std::string> args = {kDriftlab, "run", "--modules", "estimator,controller", "--url", kLcmUrl,
-                                   "--duration", duration, "--json", "-o", out};
+/// Starts `driftlab run --modules MODULES` for `duration` seconds, its JSON summary going to json, and waits until
+/// it has subscribed (LiveRunner opens its log after the modules start; loaded machines take a while). pid -1 with
+/// a test failure when it did not start within 5 s.
+Process start_run(const std::string& out, const std::string& duration, const std::string& json,
+                  const std::string& modules = "estimator,controller") {
+  std::vector<std::string> args = {kDriftlab,    "run",    "--modules", modules, "--url", kLcmUrl,
+                                   "--duration", duration, "--json",    "-o",    out};
   std::vector<char*> argv;
   for (auto& a : args) argv.push_back(a.data());
   argv.push_back(nullptr);
@@ -266,9 +267,10 @@ TEST_F(Record, ModulesRunLiveOnWhatTheSimulatorPublishes) {
 TEST_F(Record, ModulesRunLiveThroughAFloodOfHostileMessages) {
   // Any LCM peer can publish: one sends 10k malformed messages a second on the channels the modules read (an IMU
   // whose frame name has length -3, odometry cut short, a scan with -5 beams) while a simulated robot publishes.
-  // The live modules keep running, drop and count the bad ones, and still process the good ones.
+  // The live modules (the estimator, the controller, and SLAM for the scans) keep running, drop and count the bad
+  // ones, and still process the good ones.
   const std::string out = dir_.file("live.lcm");
-  Process run = start_run(out, "7", dir_.file("run.json"));
+  Process run = start_run(out, "7", dir_.file("run.json"), "estimator,controller,slam");
   ASSERT_GT(run.pid, 0);
 
   auto encoded = [](const auto& m) {
@@ -313,7 +315,14 @@ TEST_F(Record, ModulesRunLiveThroughAFloodOfHostileMessages) {
   std::ifstream summary(dir_.file("run.json"));
   const auto j = nlohmann::json::parse(summary);
   EXPECT_GT(flooded.load(), 15000);  // the simulation's 2 s of wall time (and its start) at 10k msg/s
-  const auto& estimator = j["modules"][0];
+  auto module = [&j](const std::string& name) {
+    for (const auto& m : j["modules"]) {
+      if (m["name"] == name) return m;
+    }
+    ADD_FAILURE() << "no module " << name << " in " << j.dump();
+    return nlohmann::json::object();
+  };
+  const auto estimator = module("estimator");
   // The good IMU and odometry the simulator published: most of them processed. Not all: when the machine is
   // loaded (a parallel ctest seen at load 20 processed 618 of about 1000) the kernel drops datagrams of both kinds
   // from the starved receiver's socket buffer, as LCM does under any overload; run alone it processed over 900.
@@ -326,6 +335,20 @@ TEST_F(Record, ModulesRunLiveThroughAFloodOfHostileMessages) {
   bool warned = false;
   for (const auto& w : estimator["warnings"]) warned |= w.get<std::string>().find("malformed") != std::string::npos;
   EXPECT_TRUE(warned) << estimator.dump();
+  // SLAM reads the scans and the odometry: the flood's (2 in 3) dropped and counted, the simulator's scans (10 Hz
+  // for 4 s) matched (all 40 run alone; most on a loaded machine, as above).
+  const auto slam = module("slam");
+  int64_t scans = 0;
+  for (const auto& e : test::read_all(dir_.file("sim.lcm"))) scans += e.channel == "SCAN";
+  ASSERT_GT(scans, 35);
+  EXPECT_GT(slam.value("metrics", nlohmann::json::object()).value("scans", 0.0), scans / 2) << slam.dump();
+  EXPECT_GT(slam["dropped"].get<int64_t>(), 5000) << slam.dump();
+  bool slam_warned = false;
+  for (const auto& w : slam["warnings"]) slam_warned |= w.get<std::string>().find("malformed") != std::string::npos;
+  EXPECT_TRUE(slam_warned) << slam.dump();
+  int64_t poses = 0;
+  for (const auto& e : test::read_all(out)) poses += e.channel == "SLAM_POSE";
+  EXPECT_GT(poses, scans / 2);
 }
 
 TEST_F(Record, ChannelFiltersKeepOnlyMatchingChannels) {

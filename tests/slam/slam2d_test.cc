@@ -126,22 +126,15 @@ TEST(Slam2d, AgreesWithMrptIcpSlamOnTheSenaDataset) {
   EXPECT_NE(text.str().find("resolution: 0.05"), std::string::npos) << text.str();
 }
 
-// A scanner mounted 14.8 m from the base whose short beams end inside the map's first 20 m x 20 m: MRPT grows the
-// grid to the beams' ends but ray-traces from the sensor's cell, which lay outside it (a read out of bounds, found
-// by the modules fuzzer). The map is drawn, the sensor inside it.
-TEST(Slam2d, AScannerMountedFarFromTheBaseIsInsideTheMap) {
-  Slam2dConfig config;
-  config.odom_channel = "";  // scan matching alone (with odometry the first second's scans wait for it)
-  Slam2d slam{config};
-  test::FakeBus bus;
-  bus.add(slam);
-  ASSERT_TRUE(bus.start().ok());
+/// A scanner mounted at (-10.43, -10.43) m from the base, turned 0.668 rad, seeing a wall 3.96 m away five times:
+/// the map grows past its first 20 m x 20 m to an origin that is no round number.
+void feed_far_scanner(test::FakeBus& bus) {
   driftlab::tf_t tf{};
   driftlab::transform_t t{};
   t.header = {0, 1'000'000, "base_link"};
   t.child_frame_id = "laser";
   t.translation = {-10.43, -10.43, 0};
-  t.rotation = {std::cos(0.334), 0, 0, std::sin(0.334)};  // yaw 0.668 rad
+  t.rotation = {std::cos(0.334), 0, 0, std::sin(0.334)};
   tf.transforms.push_back(t);
   tf.ntransforms = 1;
   ASSERT_TRUE(bus.deliver_message("TF_STATIC", tf, Time::from_us(1'000'000)).ok());
@@ -157,6 +150,26 @@ TEST(Slam2d, AScannerMountedFarFromTheBaseIsInsideTheMap) {
     m.ranges = {3.96f, 3.96f, 3.96f};
     ASSERT_TRUE(bus.deliver_message("SCAN", m, Time::from_us(m.header.utime)).ok());
   }
+}
+
+std::string read_text(const std::string& path) {
+  std::ifstream in(path);
+  std::stringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+// A scanner mounted 14.8 m from the base whose short beams end inside the map's first 20 m x 20 m: MRPT grows the
+// grid to the beams' ends but ray-traces from the sensor's cell, which lay outside it (a read out of bounds, found
+// by the modules fuzzer). The map is drawn, the sensor inside it.
+TEST(Slam2d, AScannerMountedFarFromTheBaseIsInsideTheMap) {
+  Slam2dConfig config;
+  config.odom_channel = "";  // scan matching alone (with odometry the first second's scans wait for it)
+  Slam2d slam{config};
+  test::FakeBus bus;
+  bus.add(slam);
+  ASSERT_TRUE(bus.start().ok());
+  feed_far_scanner(bus);
   ASSERT_TRUE(bus.finish().ok());
   const auto maps = bus.published("SLAM_MAP");
   for (const auto& r : bus.reports()) {
@@ -166,6 +179,64 @@ TEST(Slam2d, AScannerMountedFarFromTheBaseIsInsideTheMap) {
   driftlab::image_t image;
   ASSERT_TRUE(lcmtypes::decode(maps[0].data, image));
   EXPECT_GT(image.width, 0);
+}
+
+TEST(Slam2d, TheMapOriginIsWrittenWhole) {
+  // The origin was written with 6 significant digits ("-16.03"), which is not the grid's corner: MRPT keeps it in
+  // a float, and the number written must read back as exactly that float, so a map server places every cell where
+  // the module drew it.
+  test::TempDir dir;
+  Slam2dConfig config;
+  config.odom_channel = "";
+  config.map_resolution = 0.07;  // not a metre's divisor: the grid's corner, in whole cells, is no round number
+  Slam2d slam{config};
+  test::FakeBus bus({.artifact_prefix = dir.file("slam")});
+  bus.add(slam);
+  ASSERT_TRUE(bus.start().ok());
+  feed_far_scanner(bus);
+  ASSERT_TRUE(bus.finish().ok());
+  for (const auto& r : bus.reports()) {
+    for (const auto& w : r.warnings) ADD_FAILURE() << w;
+  }
+  const std::string yaml = read_text(dir.file("slam-map.yaml"));
+  const auto at = yaml.find("origin: [");
+  ASSERT_NE(at, std::string::npos) << yaml;
+  double x = 0, y = 0;
+  ASSERT_EQ(std::sscanf(yaml.c_str() + at, "origin: [%lf, %lf", &x, &y), 2) << yaml;
+  // The grid grew west and south to the sensor at -10.43 m (MRPT adds a margin): a corner beyond it, no round number.
+  EXPECT_LT(x, -11.43);
+  EXPECT_GT(x, -20);
+  EXPECT_LT(y, -11.43);
+  EXPECT_GT(y, -20);
+  EXPECT_EQ(static_cast<double>(static_cast<float>(x)), x) << yaml;  // the float itself, not a decimal near it
+  EXPECT_EQ(static_cast<double>(static_cast<float>(y)), y) << yaml;
+  EXPECT_NE(yaml.find("resolution: 0.07\n"), std::string::npos) << yaml;
+  EXPECT_NE(yaml.find("image: slam-map.png\n"), std::string::npos) << yaml;
+}
+
+TEST(Slam2d, AMapThatCannotBeWrittenIsAWarningAndLeavesNoPartialFile) {
+  // A failed write of the map's PNG was ignored (and its description written beside the missing image). Here a
+  // folder stands where the image goes: the write is reported, nothing half-written is left, and no description
+  // of a map that is not there is written.
+  test::TempDir dir;
+  std::filesystem::create_directory(dir.file("slam-map.png"));
+  Slam2dConfig config;
+  config.odom_channel = "";
+  Slam2d slam{config};
+  test::FakeBus bus({.artifact_prefix = dir.file("slam")});
+  bus.add(slam);
+  ASSERT_TRUE(bus.start().ok());
+  feed_far_scanner(bus);
+  ASSERT_TRUE(bus.finish().ok());
+  EXPECT_EQ(bus.published("SLAM_MAP").size(), 1u);  // the map is still published
+  std::vector<std::string> warnings;
+  for (const auto& r : bus.reports()) warnings.insert(warnings.end(), r.warnings.begin(), r.warnings.end());
+  ASSERT_EQ(warnings.size(), 1u) << ::testing::PrintToString(warnings);
+  EXPECT_EQ(warnings[0].rfind("slam: cannot write " + dir.file("slam-map.png") + ": ", 0), 0u) << warnings[0];
+  EXPECT_TRUE(std::filesystem::is_directory(dir.file("slam-map.png")));
+  EXPECT_FALSE(std::filesystem::exists(dir.file("slam-map.png.partial")));
+  EXPECT_FALSE(std::filesystem::exists(dir.file("slam-map.yaml")));
+  EXPECT_FALSE(std::filesystem::exists(dir.file("slam-map.yaml.partial")));
 }
 
 TEST(Rawlog, ImportExportImportKeepsScansAndOdometry) {

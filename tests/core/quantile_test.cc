@@ -1,0 +1,118 @@
+// core/quantile.h against numpy's np.quantile (its default method, "linear") run by Debian's Python: the same
+// number, to the last bit, on arrays of odd and even lengths, with duplicates, of one value, of doubles and of
+// int64 stamps, at the quantiles driftlab reports (and the ends).
+#include "core/quantile.h"
+
+#include <gtest/gtest.h>
+
+#include <cinttypes>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "tests/test_util.h"
+
+namespace driftlab {
+namespace {
+
+constexpr double kQs[] = {0.0, 0.01, 0.1, 0.5, 0.95, 0.99, 1.0};
+
+/// Reads lines "Q V1 V2 ..." (doubles) or "Q i V1 V2 ..." (int64) and prints repr(np.quantile(V, Q)) for each.
+constexpr const char* kNumpy = R"(
+import sys, numpy as np
+for line in open(sys.argv[1]):
+    f = line.split()
+    q = float(f[0])
+    v = np.array([int(a) for a in f[2:]], dtype=np.int64) if f[1] == "i" else np.array([float(a) for a in f[1:]])
+    print(repr(float(np.quantile(v, q))))
+)";
+
+struct Case {
+  std::string line;  ///< the input line for the script
+  double ours;       ///< core/quantile.h's answer
+};
+
+std::string exact(double v) {
+  char buf[40];
+  std::snprintf(buf, sizeof buf, "%.17g", v);
+  return buf;
+}
+
+void add_cases(const std::vector<double>& v, std::vector<Case>& cases) {
+  for (double q : kQs) {
+    std::vector<double> copy = v;  // quantile_in_place reorders
+    std::string line = exact(q);
+    for (double x : v) line += " " + exact(x);
+    cases.push_back({line, quantile_in_place(copy, q)});
+  }
+}
+
+void add_cases(const std::vector<int64_t>& v, std::vector<Case>& cases) {
+  for (double q : kQs) {
+    std::vector<int64_t> copy = v;
+    std::string line = exact(q) + " i";
+    for (int64_t x : v) line += " " + std::to_string(x);
+    cases.push_back({line, quantile_in_place(copy, q)});
+  }
+}
+
+TEST(Quantile, EqualsNumpysDefaultToTheLastBit) {
+  std::vector<Case> cases;
+  add_cases(std::vector<double>{3, 1, 2}, cases);                 // odd
+  add_cases(std::vector<double>{4, 1, 3, 2}, cases);              // even
+  add_cases(std::vector<double>{2, 2, 1, 5, 2, 1, 5, 5}, cases);  // duplicates
+  add_cases(std::vector<double>{7, 7, 7}, cases);                 // one value
+  add_cases(std::vector<double>{42.5}, cases);                    // one sample
+  add_cases(std::vector<double>{0.1, -3.3, 2.2, 1e-3, 7.77, -0.5, 1e6, 0.1, 2.2}, cases);
+  uint64_t x = 88172645463325252ull;
+  auto next = [&x] {
+    x ^= x << 13, x ^= x >> 7, x ^= x << 17;
+    return static_cast<double>(x >> 11) / 9007199254740992.0 * 200 - 100;  // [-100, 100)
+  };
+  for (size_t n : {2, 3, 10, 11, 100, 101}) {
+    for (int rep = 0; rep < 5; ++rep) {
+      std::vector<double> v(n);
+      for (double& e : v) e = next();
+      add_cases(v, cases);
+    }
+  }
+  // Header stamps in microseconds of the epoch, as the diagnosis takes their median.
+  add_cases(std::vector<int64_t>{1764000000123457, 1764000000100001, 1764000000200003, 1764000000150002}, cases);
+  add_cases(std::vector<int64_t>{1764000000123457, 1764000000100001, 1764000000200003}, cases);
+
+  test::TempDir dir;
+  {
+    std::ofstream in(dir.file("in.txt"));
+    for (const Case& c : cases) in << c.line << "\n";
+    std::ofstream(dir.file("numpy_quantile.py")) << kNumpy;
+  }
+  const auto r =
+      test::run_capture(std::string(DRIFTLAB_PYTHON) + " " + dir.file("numpy_quantile.py") + " " + dir.file("in.txt"));
+  ASSERT_EQ(r.code, 0) << r.err;
+  std::istringstream out(r.out);
+  size_t i = 0, differ = 0;
+  for (std::string line; std::getline(out, line); ++i) {
+    ASSERT_LT(i, cases.size());
+    const double numpy = std::strtod(line.c_str(), nullptr);
+    if (numpy != cases[i].ours) {
+      ++differ;
+      ADD_FAILURE() << "np.quantile " << line << ", core/quantile.h " << exact(cases[i].ours) << " for q and values "
+                    << cases[i].line;
+    }
+  }
+  EXPECT_EQ(i, cases.size());
+  EXPECT_EQ(differ, 0u);
+}
+
+TEST(Quantile, IsNanOnNothing) {
+  std::vector<double> none;
+  EXPECT_TRUE(std::isnan(quantile_in_place(none, 0.5)));
+}
+
+}  // namespace
+}  // namespace driftlab
