@@ -53,6 +53,14 @@ std::optional<double> number(std::string_view s) {
   return v;
 }
 
+/// The problem with a count (of readings, of remissions) larger than the numbers on its line: it cannot be met,
+/// and one beyond size_t's range was undefined to convert (UBSan, the import fuzzer: "FLASER 1.7e47 ...").
+std::string more_than_given(double count, const char* what, size_t numbers) {
+  char text[32];
+  const auto end = std::to_chars(text, text + sizeof text, count).ptr;
+  return std::string(text, end) + " " + what + " announced, " + std::to_string(numbers) + " numbers on the line";
+}
+
 quaternion_t yaw_quaternion(double yaw) {
   quaternion_t q;
   q.w = std::cos(yaw / 2);
@@ -266,6 +274,7 @@ int64_t CarmenReader::read(const std::function<void(const CarmenMessage&)>& on_m
     const bool flaser = name == "FLASER" || name == "RLASER";
     if (flaser) {
       if (v.empty() || v[0] < 0 || v[0] != std::floor(v[0])) return bad("no reading count");
+      if (v[0] >= static_cast<double>(v.size())) return bad(more_than_given(v[0], "readings", v.size()));
       const auto n = static_cast<size_t>(v[0]);
       if (v.size() != 1 + n + 6) {
         return bad(std::to_string(n) + " readings and a pose need " + std::to_string(n + 7) + " numbers, got " +
@@ -288,10 +297,12 @@ int64_t CarmenReader::read(const std::function<void(const CarmenMessage&)>& on_m
     } else {
       // RAWLASER/ROBOTLASER: type start fov resolution max_range accuracy remission_mode n ... m ...
       if (v.size() < 8 || v[7] < 0 || v[7] != std::floor(v[7])) return bad("no reading count");
+      if (v[7] >= static_cast<double>(v.size())) return bad(more_than_given(v[7], "readings", v.size()));
       const auto n = static_cast<size_t>(v[7]);
       if (v.size() < 8 + n + 1) return bad(std::to_string(n) + " readings announced, fewer given");
       const double m = v[8 + n];
       if (m < 0 || m != std::floor(m)) return bad("no remission count");
+      if (m >= static_cast<double>(v.size())) return bad(more_than_given(m, "remissions", v.size()));
       const size_t need = 9 + n + static_cast<size_t>(m) + (name.starts_with("ROBOTLASER") ? 11 : 0);
       if (v.size() != need) {
         return bad("expected " + std::to_string(need) + " numbers, got " + std::to_string(v.size()));

@@ -14,7 +14,14 @@ namespace driftlab::formats {
 
 enum class Codec { kNone, kBz2, kLz4Frame, kGzip, kZstd };
 
-/// Decompresses in into out (cleared first; expected_size is a hint, 0 when unknown). Returns an empty string on
+/// Whether `compressed` bytes could plausibly decompress to `size`: at most 1024 times as many, and 1 MiB more. A
+/// size a file declares beyond that (a bag's or MCAP chunk's header, a zstd frame's own) is a claim that is not
+/// allocated for up front; the data is still decoded whole if it really expands that far, into a buffer grown as
+/// its bytes come out.
+bool plausible_size(size_t compressed, uint64_t size);
+
+/// Decompresses in into out (cleared first; expected_size is a hint, 0 when unknown, reserved only when
+/// plausible_size). Returns an empty string on
 /// success, or what went wrong ("bz2: data integrity error"); out then holds what was decoded before it.
 std::string decompress(Codec codec, std::span<const uint8_t> in, size_t expected_size, std::vector<uint8_t>& out);
 

@@ -568,7 +568,7 @@ int64_t McapReader::read(const std::function<void(const McapMessage&)>& on_messa
           return;
         }
         // A size beyond what the compressed bytes can expand to is a lie: do not allocate for it.
-        const size_t hint = uncompressed_size <= records.size() * 1024 + (1 << 20) ? uncompressed_size : 0;
+        const size_t hint = plausible_size(records.size(), uncompressed_size) ? uncompressed_size : 0;
         st.buffer = take_buffer();
         st.decompressed = true;
         st.what = s.decompressor.run(codec, records, hint, st.buffer);

@@ -15,6 +15,7 @@
 #include "driftlab/odometry_t.hpp"
 #include "driftlab/pose_t.hpp"
 #include "driftlab/tf_t.hpp"
+#include "formats/carmen.h"
 #include "formats/import.h"
 #include "lcmtypes/validate.h"
 #include "tests/test_util.h"
@@ -376,6 +377,29 @@ TEST(Import, CarmenMessagesAndBrokenLines) {
   ASSERT_GE(tf.ntransforms, 1);
   EXPECT_EQ(tf.transforms[0].child_frame_id, "laser");
   EXPECT_EQ(tf.transforms[0].translation.x, 0.25);
+}
+
+// Reading counts larger than the numbers on their line are broken lines, named with the count: one beyond
+// size_t's range (1.7e47, found by the import fuzzer) was converted to size_t, which is undefined (UBSan stopped
+// there; elsewhere the message showed whatever the conversion gave).
+TEST(Import, CarmenCountsBeyondTheirLineAreBrokenLines) {
+  auto log = formats::CarmenReader::from_text(
+      "FLASER 1.7e47 1 2 0 0 0 0 0 0 10.03 host 10.03\n"
+      "RLASER 9 1 2 0 0 0 0 0 0 10.03 host 10.03\n"
+      "RAWLASER1 0 -1.5708 3.1416 0.0175 30.0 0.01 0 1e300 1.0 0 10.02 host 10.025\n"
+      "ROBOTLASER1 0 -0.5 1.0 0.5 8.0 0.01 0 1 1.0 2e19 0 0 0 0 0 0 0 0 0 0 0 10.04 host 10.05\n"
+      "FLASER 2 1 2 0 0 0 0 0 0 10.05 host 10.05\n");
+  std::vector<std::string> problems;
+  std::vector<std::string> channels;
+  EXPECT_EQ(
+      log.read([&](const formats::CarmenMessage& m) { channels.emplace_back(m.channel); },
+               [&](size_t line, const std::string& what) { problems.push_back(std::to_string(line) + ": " + what); }),
+      3);
+  EXPECT_EQ(problems, (std::vector<std::string>{"1: FLASER: 1.7e+47 readings announced, 9 numbers on the line",
+                                                "2: RLASER: 9 readings announced, 9 numbers on the line",
+                                                "3: RAWLASER1: 1e+300 readings announced, 10 numbers on the line",
+                                                "4: ROBOTLASER1: 2e+19 remissions announced, 21 numbers on the line"}));
+  EXPECT_EQ(channels, (std::vector<std::string>{"TF_STATIC", "FLASER", "FLASER_POSE"}));
 }
 
 }  // namespace
