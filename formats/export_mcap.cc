@@ -8,16 +8,20 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <limits>
 #include <map>
 #include <set>
 
 #include "core/log_reader.h"
+#include "driftlab/barometer_t.hpp"
 #include "driftlab/foreign_message_t.hpp"
 #include "driftlab/foreign_schema_t.hpp"
+#include "driftlab/gnss_t.hpp"
 #include "driftlab/image_t.hpp"
 #include "driftlab/imu_t.hpp"
 #include "driftlab/joint_state_t.hpp"
 #include "driftlab/laser_scan_t.hpp"
+#include "driftlab/magnetometer_t.hpp"
 #include "driftlab/odometry_t.hpp"
 #include "driftlab/point_cloud_t.hpp"
 #include "driftlab/pose_t.hpp"
@@ -285,6 +289,34 @@ void joint_state(Cdr& c, const joint_state_t& m) {
     }
   }
 }
+/// gnss_t as sensor_msgs/NavSatFix, what Foxglove's map shows: the fix type as the status (no fix below 2D, a
+/// ground-augmented fix for PX4's differential and RTK types from 4), a 2D fix without its altitude (NaN, as ROS
+/// says "none"), the accuracies as a diagonal covariance (east and north eph^2, up epv^2; unknown when both are 0).
+/// NavSatFix has no place for the velocity, its accuracy or the satellite count: they are not carried.
+void nav_sat_fix(Cdr& c, const gnss_t& m) {
+  c.header(m.header);
+  c.put<int8_t>(m.fix_type < 2 ? -1 : m.fix_type >= 4 ? 2 : 0);
+  c.put<uint16_t>(0);  // service: the log does not say which systems
+  c.put(m.latitude_deg);
+  c.put(m.longitude_deg);
+  c.put(m.fix_type == 2 && !std::isnan(m.altitude_m) ? std::numeric_limits<double>::quiet_NaN() : m.altitude_m);
+  const bool known = !(m.eph_m == 0 && m.epv_m == 0);
+  const double h = known ? m.eph_m * m.eph_m : 0, v = known ? m.epv_m * m.epv_m : 0;
+  const double covariance[9] = {h, 0, 0, 0, h, 0, 0, 0, v};
+  c.fixed(covariance, 9);
+  c.put<uint8_t>(known ? 2 : 0);  // COVARIANCE_TYPE_DIAGONAL_KNOWN, or UNKNOWN
+}
+void magnetic_field(Cdr& c, const magnetometer_t& m) {
+  c.header(m.header);
+  c.vec(m.magnetic_field);
+  c.fixed(m.magnetic_field_covariance, 9);
+}
+/// barometer_t as sensor_msgs/FluidPressure; its temperature has no place there and is not carried.
+void fluid_pressure(Cdr& c, const barometer_t& m) {
+  c.header(m.header);
+  c.put(m.pressure_pa);
+  c.put(m.pressure_variance);
+}
 bool compressed(const image_t& m) { return m.encoding == "jpeg" || m.encoding == "png"; }
 void image(Cdr& c, const image_t& m) {
   c.header(m.header);
@@ -515,6 +547,15 @@ class Exporter {
     } else if (t == "driftlab.joint_state_t") {
       joint_state_t m;
       if (decode(m)) joint_state(cdr_, m);
+    } else if (t == "driftlab.gnss_t") {
+      gnss_t m;
+      if (decode(m)) nav_sat_fix(cdr_, m);
+    } else if (t == "driftlab.magnetometer_t") {
+      magnetometer_t m;
+      if (decode(m)) magnetic_field(cdr_, m);
+    } else if (t == "driftlab.barometer_t") {
+      barometer_t m;
+      if (decode(m)) fluid_pressure(cdr_, m);
     } else if (t == "driftlab.point_cloud_t") {
       point_cloud_t m;
       if (decode(m)) point_cloud(cdr_, m);
@@ -622,6 +663,9 @@ std::string ros2_type_for(std::string_view t) {
       {"driftlab.joint_state_t", "sensor_msgs/msg/JointState"},
       {"driftlab.point_cloud_t", "sensor_msgs/msg/PointCloud2"},
       {"driftlab.image_t", "sensor_msgs/msg/Image"},
+      {"driftlab.gnss_t", "sensor_msgs/msg/NavSatFix"},
+      {"driftlab.magnetometer_t", "sensor_msgs/msg/MagneticField"},
+      {"driftlab.barometer_t", "sensor_msgs/msg/FluidPressure"},
   };
   for (const auto& [d, r] : kMap)
     if (t == d) return r;

@@ -10,10 +10,13 @@
 #include <type_traits>
 
 #include "core/time.h"
+#include "driftlab/barometer_t.hpp"
+#include "driftlab/gnss_t.hpp"
 #include "driftlab/image_t.hpp"
 #include "driftlab/imu_t.hpp"
 #include "driftlab/joint_state_t.hpp"
 #include "driftlab/laser_scan_t.hpp"
+#include "driftlab/magnetometer_t.hpp"
 #include "driftlab/odometry_t.hpp"
 #include "driftlab/point_cloud_t.hpp"
 #include "driftlab/pose_t.hpp"
@@ -435,6 +438,55 @@ std::vector<uint8_t> point_cloud2(Reader& r, Serialization s, int64_t, int64_t* 
   return encode(m);
 }
 
+/// sensor_msgs/NavSatFix: what a GNSS driver publishes. The status says whether there is a fix (a fix without an
+/// altitude, NaN, is a 2D fix); the ENU covariance becomes the horizontal and vertical standard deviations (eph the
+/// root mean square of the east and north ones). NavSatFix says nothing of velocity or satellites: the velocity and
+/// its accuracy are NaN (not measured), the satellite count 0 (not given).
+std::vector<uint8_t> nav_sat_fix(Reader& r, Serialization s, int64_t, int64_t* stamp, bool* has_seq) {
+  gnss_t m;
+  header(r, s, m.header, has_seq);
+  const auto status = r.get<int8_t>();
+  r.get<uint16_t>();  // service: which constellations
+  m.latitude_deg = r.get<double>();
+  m.longitude_deg = r.get<double>();
+  m.altitude_m = r.get<double>();
+  double covariance[9];
+  r.get(covariance, 9);
+  const auto covariance_type = r.get<uint8_t>();
+  // NavSatStatus: -2 unknown (newer ROS 2), -1 no fix, 0 fix, 1 SBAS-augmented, 2 GBAS-augmented.
+  m.fix_type = status < 0 ? 0 : std::isnan(m.altitude_m) ? 2 : 3;
+  m.satellites = 0;
+  // COVARIANCE_TYPE_UNKNOWN (0): no accuracy given, which gnss_t says with 0.
+  m.eph_m = covariance_type == 0 ? 0 : std::sqrt((covariance[0] + covariance[4]) / 2);
+  m.epv_m = covariance_type == 0 ? 0 : std::sqrt(covariance[8]);
+  m.velocity = {kNaN, kNaN, kNaN};
+  m.speed_accuracy_m_s = kNaN;
+  *stamp = m.header.utime;
+  return encode(m);
+}
+
+/// sensor_msgs/MagneticField: the same fields as magnetometer_t (tesla, row-major covariance).
+std::vector<uint8_t> magnetic_field(Reader& r, Serialization s, int64_t, int64_t* stamp, bool* has_seq) {
+  magnetometer_t m;
+  header(r, s, m.header, has_seq);
+  vector3(r, m.magnetic_field);
+  r.get(m.magnetic_field_covariance, 9);
+  *stamp = m.header.utime;
+  return encode(m);
+}
+
+/// sensor_msgs/FluidPressure (a barometer's static pressure, Pa; variance 0: not given). It carries no temperature:
+/// NaN (not measured).
+std::vector<uint8_t> fluid_pressure(Reader& r, Serialization s, int64_t, int64_t* stamp, bool* has_seq) {
+  barometer_t m;
+  header(r, s, m.header, has_seq);
+  m.pressure_pa = r.get<double>();
+  m.pressure_variance = r.get<double>();
+  m.temperature_c = kNaN;
+  *stamp = m.header.utime;
+  return encode(m);
+}
+
 struct Mapping {
   const char* ros;
   const char* driftlab;
@@ -447,6 +499,9 @@ constexpr Mapping kMappings[] = {
     {"sensor_msgs/Image", "driftlab.image_t", image},
     {"sensor_msgs/CompressedImage", "driftlab.image_t", compressed_image},
     {"sensor_msgs/JointState", "driftlab.joint_state_t", joint_state},
+    {"sensor_msgs/NavSatFix", "driftlab.gnss_t", nav_sat_fix},
+    {"sensor_msgs/MagneticField", "driftlab.magnetometer_t", magnetic_field},
+    {"sensor_msgs/FluidPressure", "driftlab.barometer_t", fluid_pressure},
     {"nav_msgs/Odometry", "driftlab.odometry_t", odometry},
     {"geometry_msgs/PoseStamped", "driftlab.pose_t", pose_stamped},
     {"geometry_msgs/PoseWithCovarianceStamped", "driftlab.pose_t", pose_with_covariance},
