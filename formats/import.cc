@@ -42,14 +42,17 @@ std::string head_of(const std::string& path, size_t n) {
   return s;
 }
 
-/// MRPT's serialization starts every object with 0x80 + the length of its class name, then the name ("CSensoryFrame").
+/// MRPT's serialization starts every object with 0x80 + the length of its class name, then the name: MRPT 1's
+/// "CSensoryFrame", MRPT 2's with its namespace, "mrpt::obs::CObservationOdometry" (what carmen2rawlog writes).
 bool looks_like_mrpt(std::string_view h) {
   if (h.size() < 2) return false;
   const auto first = static_cast<unsigned char>(h[0]);
   const size_t len = first & 0x7f;
-  if (!(first & 0x80) || len < 2 || len > 60 || h.size() < 1 + len || h[1] != 'C') return false;
-  return std::all_of(h.begin() + 1, h.begin() + 1 + static_cast<ptrdiff_t>(len),
-                     [](char c) { return std::isalnum(static_cast<unsigned char>(c)) || c == '_'; });
+  if (!(first & 0x80) || len < 2 || len > 100 || h.size() < 1 + len) return false;
+  const std::string_view name = h.substr(1, len);
+  if (name[0] != 'C' && !name.starts_with("mrpt::")) return false;
+  return std::all_of(name.begin(), name.end(),
+                     [](char c) { return std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == ':'; });
 }
 
 std::string describe(std::string_view h) {
