@@ -16,7 +16,7 @@ namespace driftlab::formats {
 namespace {
 
 constexpr std::string_view kMagic = "#ROSBAG V2.0\n";
-constexpr uint8_t kOpMessage = 0x02, kOpChunk = 0x05, kOpConnection = 0x07;
+constexpr uint8_t kOpMessage = 0x02, kOpBagHeader = 0x03, kOpChunk = 0x05, kOpConnection = 0x07;
 // A record header holds a few short fields (a connection's, its topic); more than this is not a header.
 constexpr uint32_t kMaxHeader = 1 << 20;
 
@@ -178,6 +178,26 @@ int64_t Ros1BagReader::read(const std::function<void(const BagMessage&)>& on_mes
     c.latching = fields.field("latching").value_or("0") == "1";
     connections_.emplace(c.id, std::move(c));
   };
+  // The connections the index section repeats after the chunks (a bag that was closed: the bag header's index_pos):
+  // read once, when a message names a connection no record before it defined, as happens after a chunk that could
+  // not be read (an unknown compression, damage) held that connection's record.
+  bool index_read = false;
+  auto from_index = [&] {
+    index_read = true;
+    std::string why;
+    bool cut = false;
+    auto head = parse_record(bytes, kMagic.size(), &why, &cut);
+    auto at = head && head->op == kOpBagHeader ? head->field("index_pos") : std::nullopt;
+    if (!at || at->size() != 8) return;
+    uint64_t p = 0;
+    std::memcpy(&p, at->data(), 8);
+    while (p > kMagic.size() && p < bytes.size()) {
+      auto r = parse_record(bytes, p, &why, &cut);
+      if (!r || cut) break;
+      if (r->op == kOpConnection) connection(*r, p);
+      p = r->end;
+    }
+  };
   auto message = [&](const Record& r, uint64_t where) {
     auto id = r.u32("conn");
     auto time = r.field("time");
@@ -186,6 +206,10 @@ int64_t Ros1BagReader::read(const std::function<void(const BagMessage&)>& on_mes
       return;
     }
     auto c = connections_.find(*id);
+    if (c == connections_.end() && !index_read) {
+      from_index();
+      c = connections_.find(*id);
+    }
     if (c == connections_.end()) {
       on_problem({where, "a message on connection " + std::to_string(*id) + ", which no record defines"});
       return;
@@ -226,7 +250,8 @@ int64_t Ros1BagReader::read(const std::function<void(const BagMessage&)>& on_mes
       } else if (compression == "lz4") {
         codec = Codec::kLz4Frame;
       } else {
-        on_problem({pos, "a chunk compressed with \"" + std::string(compression) + "\", which is not known"});
+        on_problem({pos, "a chunk compressed with \"" + std::string(compression) +
+                             "\", which is not known (rosbag's are none, bz2 and lz4); its messages are left out"});
         pos = rec->end;
         continue;
       }

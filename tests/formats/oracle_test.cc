@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <limits>
 #include <map>
@@ -28,6 +29,7 @@
 #include "driftlab/tf_t.hpp"
 #include "lcmtypes/stream_header.h"
 #include "lcmtypes/validate.h"
+#include "formats/compression.h"
 #include "formats/mcap.h"
 #include "tests/formats/oracle.h"
 #include "tests/test_util.h"
@@ -150,6 +152,104 @@ INSTANTIATE_TEST_SUITE_P(Import, SharedBags,
                          });
 
 
+/// A ROS 1 bag with every chunk stored uncompressed: each chunk decompressed and written again with
+/// compression=none, and the places that point at records (the bag header's index_pos, each chunk info's
+/// chunk_pos) moved to where the records now are; everything else byte for byte.
+std::vector<uint8_t> with_uncompressed_chunks(const std::vector<uint8_t>& in) {
+  auto le32 = [&](size_t p) {
+    uint32_t v;
+    std::memcpy(&v, in.data() + p, 4);
+    return v;
+  };
+  std::vector<uint8_t> out(in.begin(), in.begin() + 13);  // "#ROSBAG V2.0\n"
+  auto put32 = [&](uint32_t v) { out.insert(out.end(), reinterpret_cast<uint8_t*>(&v), reinterpret_cast<uint8_t*>(&v) + 4); };
+  std::map<uint64_t, uint64_t> moved;                  // a record's offset: in -> out
+  std::vector<std::pair<size_t, uint64_t>> pointers;  // where in out an 8-byte offset into in sits
+  for (size_t p = 13; p + 8 <= in.size();) {
+    const uint32_t header_len = le32(p);
+    const size_t data_at = p + 8 + header_len;
+    const uint32_t data_len = le32(p + 4 + header_len);
+    EXPECT_LE(data_at + data_len, in.size());
+    if (data_at + data_len > in.size()) break;
+    std::vector<std::pair<std::string, std::string>> fields;
+    for (size_t f = p + 4; f < p + 4 + header_len;) {
+      const uint32_t n = le32(f);
+      const std::string kv(reinterpret_cast<const char*>(in.data() + f + 4), n);
+      fields.emplace_back(kv.substr(0, kv.find('=')), kv.substr(kv.find('=') + 1));
+      f += 4 + n;
+    }
+    std::string op, compression;
+    for (const auto& [k, v] : fields) {
+      if (k == "op") op = v;
+      if (k == "compression") compression = v;
+    }
+    std::vector<uint8_t> data(in.begin() + static_cast<ptrdiff_t>(data_at),
+                              in.begin() + static_cast<ptrdiff_t>(data_at + data_len));
+    if (op == "\x05" && compression != "none") {
+      const formats::Codec codec = compression == "bz2" ? formats::Codec::kBz2 : formats::Codec::kLz4Frame;
+      std::vector<uint8_t> records;
+      EXPECT_EQ(formats::decompress(codec, data, 0, records), "");
+      data = std::move(records);
+      for (auto& [k, v] : fields) {
+        if (k == "compression") v = "none";
+      }
+    }
+    moved[p] = out.size();
+    const size_t header_at = out.size();
+    put32(0);
+    for (const auto& [k, v] : fields) {
+      put32(static_cast<uint32_t>(k.size() + 1 + v.size()));
+      out.insert(out.end(), k.begin(), k.end());
+      out.push_back('=');
+      if ((op == "\x03" && k == "index_pos") || (op == "\x06" && k == "chunk_pos")) {
+        uint64_t target;
+        std::memcpy(&target, v.data(), 8);
+        pointers.emplace_back(out.size(), target);
+      }
+      out.insert(out.end(), v.begin(), v.end());
+    }
+    const auto len = static_cast<uint32_t>(out.size() - header_at - 4);
+    std::memcpy(out.data() + header_at, &len, 4);
+    put32(static_cast<uint32_t>(data.size()));
+    out.insert(out.end(), data.begin(), data.end());
+    p = data_at + data_len;
+  }
+  for (const auto& [at, target] : pointers) {
+    EXPECT_TRUE(moved.count(target)) << "an offset that is no record's: " << target;
+    const uint64_t now = moved[target];
+    std::memcpy(out.data() + at, &now, 8);
+  }
+  return out;
+}
+
+class UncompressedChunks : public ::testing::TestWithParam<const char*> {};
+
+// ROS 1 bags with uncompressed chunks: a shared bag (bz2 or lz4 chunks) with its chunks stored uncompressed (the
+// index moved along) imports into the same log, byte for byte, as the bag itself, and Foxglove's reader, which
+// goes through the index, reads the same messages.
+TEST_P(UncompressedChunks, ReadAsTheCompressedBagAndAsFoxglovesReaderReadsThem) {
+  const std::string bag = test::shared_data(GetParam());
+  if (bag.empty()) return;
+  test::TempDir dir;
+  const auto plain = with_uncompressed_chunks(test::read_file(bag));
+  if (::testing::Test::HasFailure()) return;
+  test::write_file(dir.file("plain.bag"), plain);
+  const std::string text(plain.begin(), plain.end());
+  EXPECT_NE(text.find("compression=none"), std::string::npos);
+  EXPECT_EQ(text.find("compression=bz2"), std::string::npos);
+  EXPECT_EQ(text.find("compression=lz4"), std::string::npos);
+  auto r = test::run_capture(kDriftlab + " import '" + bag + "' -o '" + dir.file("a.lcm") + "'");
+  ASSERT_EQ(r.code, 0) << r.err;
+  r = test::run_capture(kDriftlab + " import '" + dir.file("plain.bag") + "' -o '" + dir.file("b.lcm") + "'");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(r.err, "");
+  EXPECT_EQ(test::read_file(dir.file("a.lcm")), test::read_file(dir.file("b.lcm")));
+  auto oracle = test::oracle_messages(dir.file("plain.bag"));
+  if (!oracle) return;
+  ASSERT_FALSE(oracle->empty());
+  expect_log_matches(dir.file("b.lcm"), *oracle);
+}
+
 const char* bag_name(const ::testing::TestParamInfo<const char*>& info) {
   static thread_local std::string n;
   n = info.param;
@@ -204,6 +304,9 @@ TEST_P(RoundTrip, ImportExportImportGivesTheSameLog) {
   ASSERT_EQ(r.code, 0) << r.err;  // metadata.yaml's counts agree with the file (or the import would say so)
   EXPECT_EQ(test::read_file(dir.file("c.lcm")), test::read_file(dir.file("d.lcm")));
 }
+
+INSTANTIATE_TEST_SUITE_P(Import, UncompressedChunks,
+                         ::testing::Values("bags/tf_example.bag", "carmen/aces.orig.bag"), bag_name);
 
 INSTANTIATE_TEST_SUITE_P(Export, RoundTrip,
                          ::testing::Values("bags/nav2_turtlebot.mcap", "bags/mcap_cdr_test_cdr_test_0.mcap",
