@@ -176,7 +176,7 @@ class Importer {
     const char* mapped = ros ? driftlab_type_for(m.type) : nullptr;
     TopicCount& t = topic(m.topic, m.type, mapped ? mapped : "driftlab.foreign_message_t");
     if (mapped) {
-      auto converted = convert_ros_message(m.type, ser, payload, m.arrival_us, fallback_seq, &error_);
+      auto converted = convert_ros_message(m.type, ser, payload, m.arrival_us, fallback_seq, &error_, &reuse_);
       if (!converted) {
         ++t.malformed;
         problem(file + ": " + std::string(m.topic) + " " + m.where.text() + ": " + error_);
@@ -186,6 +186,8 @@ class Importer {
         ++t.messages;
         ++st.count;
       }
+      // A large message's buffer is kept for the next one (a point cloud's took it; a small one's is let go).
+      if (converted->lcm.capacity() > reuse_.capacity()) reuse_ = std::move(converted->lcm);
       return;
     }
     if (ros && !st.definition_checked) {
@@ -251,6 +253,7 @@ class Importer {
   int64_t bad_topics_ = 0;
   Decompressor decompressor_;
   std::vector<uint8_t> unpacked_;
+  std::vector<uint8_t> reuse_;  // the last large converted message's memory, for the next (convert_ros_message)
 };
 
 Status import_ros1(const std::string& path, Importer& out) {

@@ -404,6 +404,21 @@ void write_every_type_log(const std::string& path) {
       pc.ntimes = 6;
       pc.time_offsets = {0, 0.01F, 0.02F, 0.03F, 0.04F, 0.05F};
       ASSERT_TRUE(w->write(t + 800, "POINTS", test::encode(pc)).ok());
+      // Without intensities and times (a count that does not match the points' carries none), and empty.
+      point_cloud_t plain = pc;
+      plain.nintensities = 2;
+      plain.intensities = {1, 2};
+      plain.ntimes = 0;
+      plain.time_offsets.clear();
+      plain.x[5] = 6;  // no NaN: dense
+      if (i == 2) {
+        plain.height = plain.width = plain.npoints = plain.nintensities = 0;
+        plain.x.clear();
+        plain.y.clear();
+        plain.z.clear();
+        plain.intensities.clear();
+      }
+      ASSERT_TRUE(w->write(t + 810, "POINTS_PLAIN", test::encode(plain)).ok());
       image_t im;
       im.header = hdr(i, t, "camera");
       im.width = 4;
@@ -563,7 +578,8 @@ TEST(Export, ThenImportGivesEveryStandardMessageBack) {
   const std::map<std::string, std::string> standard = {
       {"SCAN", "laser_scan_t"},    {"IMU", "imu_t"},          {"ODOM", "odometry_t"},
       {"GROUND_TRUTH", "pose_t"},  {"TF", "tf_t"},            {"CMD_VEL", "velocity_command_t"},
-      {"joint_states", "joint_state_t"}, {"POINTS", "point_cloud_t"}, {"camera/image", "image_t"},
+      {"joint_states", "joint_state_t"}, {"POINTS", "point_cloud_t"}, {"POINTS_PLAIN", "point_cloud_t"},
+      {"camera/image", "image_t"},
       {"camera/compressed", "image_t"},  {"GNSS", "gnss_t"},        {"MAG", "magnetometer_t"},
       {"BARO", "barometer_t"},     {"/pair", "foreign_message_t"}};
   const double nan = std::numeric_limits<double>::quiet_NaN();
@@ -584,6 +600,12 @@ TEST(Export, ThenImportGivesEveryStandardMessageBack) {
         g.speed_accuracy_m_s = nan;
         if (g.fix_type == 2) g.altitude_m = nan;
         expected = test::encode(g);
+      } else if (channel == "POINTS_PLAIN") {
+        point_cloud_t pc;  // intensities not for every point: not exported
+        ASSERT_TRUE(lcmtypes::decode(expected, pc));
+        pc.nintensities = 0;
+        pc.intensities.clear();
+        expected = test::encode(pc);
       } else if (type == "barometer_t") {
         barometer_t b;
         ASSERT_TRUE(lcmtypes::decode(expected, b));
