@@ -4,10 +4,12 @@
 #include <nlohmann/json.hpp>
 
 #include <cmath>
+#include <cstring>
 #include <map>
 #include <filesystem>
 #include <numbers>
 #include <sstream>
+#include <stdexcept>
 
 #include "driftlab/foreign_message_t.hpp"
 #include "driftlab/foreign_schema_t.hpp"
@@ -16,6 +18,7 @@
 #include "driftlab/pose_t.hpp"
 #include "driftlab/tf_t.hpp"
 #include "formats/import.h"
+#include "formats/ros1_bag.h"
 #include "lcmtypes/validate.h"
 #include "tests/test_util.h"
 
@@ -299,6 +302,91 @@ TEST(Import, UnknownChunkCompressionLeavesOutThatChunkOnly) {
     EXPECT_EQ(s.header.seq, want[i]);
     EXPECT_EQ(log.at("/scan")[i].utime, (10 + want[i]) * 1'000'000);
   }
+}
+
+/// Every call a ROS 1 bag reader makes, as text: messages (topic, record time, offset, bytes) and problems.
+std::string trace(formats::Ros1BagReader& r) {
+  std::string out;
+  r.read(
+      [&](const formats::BagMessage& m) {
+        out += "message " + m.connection->topic + " " + std::to_string(m.record_time_ns) + " " +
+               std::to_string(m.offset) + " " + std::string(m.data.begin(), m.data.end()) + "\n";
+      },
+      [&](const formats::BagProblem& p) { out += "problem " + std::to_string(p.offset) + " " + p.what + "\n"; });
+  return out;
+}
+
+/// The offsets of a bag's chunk records.
+std::vector<size_t> chunk_offsets(const std::vector<uint8_t>& b) {
+  std::vector<size_t> out;
+  auto le32 = [&](size_t p) {
+    uint32_t v;
+    std::memcpy(&v, b.data() + p, 4);
+    return v;
+  };
+  for (size_t p = 13; p + 8 <= b.size();) {
+    const uint32_t header_len = le32(p);
+    const std::string header(b.begin() + static_cast<ptrdiff_t>(p + 4),
+                             b.begin() + static_cast<ptrdiff_t>(p + 4 + header_len));
+    if (header.find(std::string("op=\x05", 4)) != std::string::npos) out.push_back(p);
+    p += 8 + header_len + le32(p + 4 + header_len);
+  }
+  return out;
+}
+
+// The reader decompresses the chunks ahead on threads of its own: what it delivers, and every problem, in order, is
+// the same as decompressing each chunk when it comes to it, on a whole bag (ACES: 17 bz2 chunks) and broken ones.
+TEST(Ros1Bag, PipelinedReadMakesTheSameCalls) {
+  for (const char* name : {"carmen/aces.orig.bag"}) {
+    SCOPED_TRACE(name);
+    const std::string bag = test::shared_data(name);
+    if (bag.empty()) return;
+    const auto whole = test::read_file(bag);
+    const auto chunks = chunk_offsets(whole);
+    ASSERT_GE(chunks.size(), 3u);
+    const size_t middle = chunks[chunks.size() / 2];
+    std::vector<std::vector<uint8_t>> variants = {whole};
+    auto damaged = whole;  // bytes flipped inside three chunks' compressed data
+    for (size_t k : {size_t{0}, chunks.size() / 2, chunks.size() - 1}) damaged[chunks[k] + 300] ^= 0x5a;
+    variants.push_back(damaged);
+    auto garbage = whole;  // garbage before the middle chunk
+    garbage.insert(garbage.begin() + static_cast<ptrdiff_t>(middle), 77, 0xAB);
+    variants.push_back(garbage);
+    auto length = whole;  // the middle chunk's data length runs past the end of the file
+    uint32_t header_len;
+    std::memcpy(&header_len, whole.data() + middle, 4);
+    std::fill_n(length.begin() + static_cast<ptrdiff_t>(middle + 4 + header_len), 4, 0x7f);
+    variants.push_back(length);
+    variants.emplace_back(whole.begin(), whole.begin() + static_cast<ptrdiff_t>(middle + 300));  // cut short
+    for (size_t v = 0; v < variants.size(); ++v) {
+      auto serial = formats::Ros1BagReader::from_memory(variants[v]);
+      auto pipelined = formats::Ros1BagReader::from_memory(variants[v]);
+      ASSERT_TRUE(serial.ok() && pipelined.ok());
+      serial->set_pipelined(false);
+      const std::string want = trace(*serial);
+      EXPECT_EQ(trace(*pipelined), want) << "variant " << v;
+      EXPECT_EQ(want.find("problem ") != std::string::npos, v > 0) << "variant " << v;
+    }
+  }
+}
+
+// A callback that throws stops the read (the decompressing threads are stopped and joined); the reader reads again.
+TEST(Ros1Bag, ThrowingCallbackStopsThePipelinedRead) {
+  const std::string bag = test::shared_data("carmen/aces.orig.bag");
+  if (bag.empty()) return;
+  auto r = formats::Ros1BagReader::open(bag);
+  ASSERT_TRUE(r.ok());
+  int seen = 0;
+  EXPECT_THROW(r->read(
+                   [&](const formats::BagMessage&) {
+                     if (++seen == 1000) throw std::runtime_error("enough");
+                   },
+                   [](const formats::BagProblem&) {}),
+               std::runtime_error);
+  EXPECT_EQ(seen, 1000);
+  int64_t again = 0;
+  EXPECT_GT(r->read([&](const formats::BagMessage&) { ++again; }, [](const formats::BagProblem& p) { ADD_FAILURE() << p.what; }), 20000);
+  EXPECT_GT(again, 20000);
 }
 
 TEST(Import, UnknownFormatsAreNamedInOneLine) {
