@@ -162,9 +162,9 @@ namespace {
 struct Unzip {
   std::span<const uint8_t> in;  // the chunk's records as stored
   Codec codec = Codec::kZstd;
-  size_t hint = 0;        // the uncompressed size, when it is believable (0: unknown)
-  uint64_t size = 0;      // the uncompressed size the chunk declares
-  uint32_t crc = 0;       // the CRC its records must have (0: none)
+  size_t hint = 0;    // the uncompressed size, when it is believable (0: unknown)
+  uint64_t size = 0;  // the uncompressed size the chunk declares
+  uint32_t crc = 0;   // the CRC its records must have (0: none)
   bool in_crc_wanted = false;
   // What it gives (written by the worker, read after `done` under the read's mutex).
   std::vector<uint8_t> out;  // the records (kept between uses: a reused buffer is not zero-filled again)
@@ -994,7 +994,7 @@ struct McapWriter::Impl {
   // The writing side.
   int fd = -1;
   uint64_t flushed = 0;
-  uint32_t crc = 0;    // of every byte of the file so far (the data section, until Data End)
+  uint32_t crc = 0;  // of every byte of the file so far (the data section, until Data End)
   Buf head;  // a chunk's fields and its message indexes on their way to the file
   std::vector<ChunkIndexEntry> chunk_indexes;
   std::vector<MetadataIndexEntry> metadata_indexes;
@@ -1030,9 +1030,9 @@ struct McapWriter::Impl {
   std::mutex mu;
   std::condition_variable cv;
   std::deque<Job> jobs;
-  size_t in_flight = 0;      // jobs taken by a thread and not done
-  uint64_t handed = 0;       // jobs handed on so far (the next one's number)
-  uint64_t next_write = 0;   // the number of the job whose turn it is to be written
+  size_t in_flight = 0;     // jobs taken by a thread and not done
+  uint64_t handed = 0;      // jobs handed on so far (the next one's number)
+  uint64_t next_write = 0;  // the number of the job whose turn it is to be written
   bool stop = false;
   std::string io_error;
   std::vector<Bytes> spare;  // chunk buffers back from the writing threads, for the next chunks
@@ -1051,7 +1051,8 @@ struct McapWriter::Impl {
 
   std::unique_ptr<Compressor> make_compressor() const {
     if (options.compression == McapCompression::kZstd) return std::make_unique<Compressor>(Codec::kZstd, options.level);
-    if (options.compression == McapCompression::kLz4) return std::make_unique<Compressor>(Codec::kLz4Frame, options.level);
+    if (options.compression == McapCompression::kLz4)
+      return std::make_unique<Compressor>(Codec::kLz4Frame, options.level);
     return nullptr;
   }
 
@@ -1305,8 +1306,8 @@ Status McapWriter::write(uint16_t channel_id, uint32_t sequence, uint64_t log_ti
                [&](uint8_t* to) { std::memcpy(to, data.data(), data.size()); });
 }
 
-Status McapWriter::write(uint16_t channel_id, uint32_t sequence, uint64_t log_time, uint64_t publish_time,
-                         size_t size, const std::function<void(uint8_t*)>& fill) {
+Status McapWriter::write(uint16_t channel_id, uint32_t sequence, uint64_t log_time, uint64_t publish_time, size_t size,
+                         const std::function<void(uint8_t*)>& fill) {
   Impl& s = *impl_;
   if (!s.error.empty()) return Error(s.error);
   if (channel_id >= s.channels.size()) std::abort();  // a broken invariant: channels come from add_channel

@@ -419,7 +419,8 @@ int64_t Ros1BagReader::read(const std::function<void(const BagMessage&)>& on_mes
       std::span<const uint8_t> records = rec->data;
       if (codec != Codec::kNone) {
         if (pipelined_) prefetch.look_ahead(rec->end);
-        error = pipelined_ ? prefetch.take(pos, codec, rec->data, size, chunk) : decompress(codec, rec->data, size, chunk);
+        error =
+            pipelined_ ? prefetch.take(pos, codec, rec->data, size, chunk) : decompress(codec, rec->data, size, chunk);
         records = chunk;
       }
       if (!error.empty() && !truncated) on_problem({pos, "chunk: " + error});

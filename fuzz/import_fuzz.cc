@@ -13,13 +13,22 @@
 
 namespace {
 
-constexpr const char* kTypes[] = {
-    "sensor_msgs/LaserScan",   "sensor_msgs/Imu",         "sensor_msgs/PointCloud2",
-    "sensor_msgs/Image",       "sensor_msgs/CompressedImage", "sensor_msgs/JointState",
-    "nav_msgs/Odometry",       "geometry_msgs/PoseStamped", "geometry_msgs/PoseWithCovarianceStamped",
-    "geometry_msgs/TransformStamped", "geometry_msgs/TwistStamped", "geometry_msgs/Twist",
-    "tf2_msgs/TFMessage",      "sensor_msgs/NavSatFix",   "sensor_msgs/MagneticField",
-    "sensor_msgs/FluidPressure"};
+constexpr const char* kTypes[] = {"sensor_msgs/LaserScan",
+                                  "sensor_msgs/Imu",
+                                  "sensor_msgs/PointCloud2",
+                                  "sensor_msgs/Image",
+                                  "sensor_msgs/CompressedImage",
+                                  "sensor_msgs/JointState",
+                                  "nav_msgs/Odometry",
+                                  "geometry_msgs/PoseStamped",
+                                  "geometry_msgs/PoseWithCovarianceStamped",
+                                  "geometry_msgs/TransformStamped",
+                                  "geometry_msgs/TwistStamped",
+                                  "geometry_msgs/Twist",
+                                  "tf2_msgs/TFMessage",
+                                  "sensor_msgs/NavSatFix",
+                                  "sensor_msgs/MagneticField",
+                                  "sensor_msgs/FluidPressure"};
 constexpr size_t kNumTypes = sizeof(kTypes) / sizeof(kTypes[0]);
 
 void check(std::span<const uint8_t> lcm) {

@@ -14,7 +14,7 @@ namespace driftlab::slam {
 struct RawlogCounts {
   std::map<std::string, int64_t> written;   ///< messages (import) or observations (export) by channel / class
   std::map<std::string, int64_t> skipped;   ///< what has no counterpart, by MRPT class or driftlab channel
-  int64_t observations = 0;  ///< import: observations read (converted or skipped)
+  int64_t observations = 0;                 ///< import: observations read (converted or skipped)
   /// import: when two or more observations were read and all carry one timestamp (MRPT 2.5's carmen2rawlog gives
   /// every observation the time it ran), their count; else 0. The log's times then say nothing.
   int64_t one_stamp = 0;

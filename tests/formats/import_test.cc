@@ -5,8 +5,8 @@
 
 #include <cmath>
 #include <cstring>
-#include <map>
 #include <filesystem>
+#include <map>
 #include <numbers>
 #include <sstream>
 #include <stdexcept>
@@ -285,9 +285,8 @@ TEST(Import, UnknownChunkCompressionLeavesOutThatChunkOnly) {
   for (uint32_t i = 3; i < 6; ++i) second += message(0, 10 + i, 0, scan_payload(i, 10 + i));
   for (uint32_t i = 6; i < 9; ++i) third += message(0, 10 + i, 0, scan_payload(i, 10 + i));
   // The first chunk's messages come before any connection record: only the index names their connection.
-  const std::string bag =
-      indexed_bag_of(chunk("none", first) + chunk("zip", second) + chunk("none", third),
-                     connection(0, "/scan", "sensor_msgs/LaserScan"));
+  const std::string bag = indexed_bag_of(chunk("none", first) + chunk("zip", second) + chunk("none", third),
+                                         connection(0, "/scan", "sensor_msgs/LaserScan"));
   const size_t zip_at = bag.find(chunk("zip", second));
   const CmdResult r = import(write_bag(dir, bag), dir.file("out.lcm"));
   EXPECT_EQ(r.code, 2);
@@ -385,7 +384,9 @@ TEST(Ros1Bag, ThrowingCallbackStopsThePipelinedRead) {
                std::runtime_error);
   EXPECT_EQ(seen, 1000);
   int64_t again = 0;
-  EXPECT_GT(r->read([&](const formats::BagMessage&) { ++again; }, [](const formats::BagProblem& p) { ADD_FAILURE() << p.what; }), 20000);
+  EXPECT_GT(r->read([&](const formats::BagMessage&) { ++again; },
+                    [](const formats::BagProblem& p) { ADD_FAILURE() << p.what; }),
+            20000);
   EXPECT_GT(again, 20000);
 }
 

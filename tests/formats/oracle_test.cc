@@ -25,12 +25,12 @@
 #include "driftlab/odometry_t.hpp"
 #include "driftlab/point_cloud_t.hpp"
 #include "driftlab/pose_t.hpp"
-#include "driftlab/velocity_command_t.hpp"
 #include "driftlab/tf_t.hpp"
-#include "lcmtypes/stream_header.h"
-#include "lcmtypes/validate.h"
+#include "driftlab/velocity_command_t.hpp"
 #include "formats/compression.h"
 #include "formats/mcap.h"
+#include "lcmtypes/stream_header.h"
+#include "lcmtypes/validate.h"
 #include "tests/formats/oracle.h"
 #include "tests/test_util.h"
 
@@ -151,7 +151,6 @@ INSTANTIATE_TEST_SUITE_P(Import, SharedBags,
                            return n;
                          });
 
-
 /// A ROS 1 bag with every chunk stored uncompressed: each chunk decompressed and written again with
 /// compression=none, and the places that point at records (the bag header's index_pos, each chunk info's
 /// chunk_pos) moved to where the records now are; everything else byte for byte.
@@ -162,8 +161,10 @@ std::vector<uint8_t> with_uncompressed_chunks(const std::vector<uint8_t>& in) {
     return v;
   };
   std::vector<uint8_t> out(in.begin(), in.begin() + 13);  // "#ROSBAG V2.0\n"
-  auto put32 = [&](uint32_t v) { out.insert(out.end(), reinterpret_cast<uint8_t*>(&v), reinterpret_cast<uint8_t*>(&v) + 4); };
-  std::map<uint64_t, uint64_t> moved;                  // a record's offset: in -> out
+  auto put32 = [&](uint32_t v) {
+    out.insert(out.end(), reinterpret_cast<uint8_t*>(&v), reinterpret_cast<uint8_t*>(&v) + 4);
+  };
+  std::map<uint64_t, uint64_t> moved;                 // a record's offset: in -> out
   std::vector<std::pair<size_t, uint64_t>> pointers;  // where in out an 8-byte offset into in sits
   for (size_t p = 13; p + 8 <= in.size();) {
     const uint32_t header_len = le32(p);
@@ -305,8 +306,8 @@ TEST_P(RoundTrip, ImportExportImportGivesTheSameLog) {
   EXPECT_EQ(test::read_file(dir.file("c.lcm")), test::read_file(dir.file("d.lcm")));
 }
 
-INSTANTIATE_TEST_SUITE_P(Import, UncompressedChunks,
-                         ::testing::Values("bags/tf_example.bag", "carmen/aces.orig.bag"), bag_name);
+INSTANTIATE_TEST_SUITE_P(Import, UncompressedChunks, ::testing::Values("bags/tf_example.bag", "carmen/aces.orig.bag"),
+                         bag_name);
 
 INSTANTIATE_TEST_SUITE_P(Export, RoundTrip,
                          ::testing::Values("bags/nav2_turtlebot.mcap", "bags/mcap_cdr_test_cdr_test_0.mcap",
@@ -430,8 +431,8 @@ void write_every_type_log(const std::string& path) {
       image_t jpeg = im;
       jpeg.encoding = "jpeg";
       // A JPEG's start-of-frame saying 4 x 2, so that an import finds the size again.
-      jpeg.data = {0xFF, 0xD8, 0xFF, 0xC0, 0x00, 0x11, 0x08, 0x00, 0x02, 0x00, 0x04, 0x03, 0x01,
-                   0x22, 0x00, 0x02, 0x11, 0x01, 0x03, 0x11, 0x01, 0xFF, 0xD9};
+      jpeg.data = {0xFF, 0xD8, 0xFF, 0xC0, 0x00, 0x11, 0x08, 0x00, 0x02, 0x00, 0x04, 0x03,
+                   0x01, 0x22, 0x00, 0x02, 0x11, 0x01, 0x03, 0x11, 0x01, 0xFF, 0xD9};
       jpeg.size = static_cast<int32_t>(jpeg.data.size());
       ASSERT_TRUE(w->write(t + 950, "camera/compressed", test::encode(jpeg)).ok());
       channel_stats_t st;
@@ -525,12 +526,10 @@ TEST(Export, EveryTypeReadsInFoxglovesReaders) {
                                 channel == "/pair" ? "int32 a\nfloat64 b\nstring c\n" : "");
     }
     const std::string type = got[topic][0].at("type").get<std::string>();
-    const std::map<std::string, std::string> expected_types = {{"SCAN", "sensor_msgs/msg/LaserScan"},
-                                                               {"camera/compressed", "sensor_msgs/msg/CompressedImage"},
-                                                               {"GNSS", "sensor_msgs/msg/NavSatFix"},
-                                                               {"MAG", "sensor_msgs/msg/MagneticField"},
-                                                               {"BARO", "sensor_msgs/msg/FluidPressure"},
-                                                               {"FAULTS", "driftlab_msgs/msg/Fault"}};
+    const std::map<std::string, std::string> expected_types = {
+        {"SCAN", "sensor_msgs/msg/LaserScan"},     {"camera/compressed", "sensor_msgs/msg/CompressedImage"},
+        {"GNSS", "sensor_msgs/msg/NavSatFix"},     {"MAG", "sensor_msgs/msg/MagneticField"},
+        {"BARO", "sensor_msgs/msg/FluidPressure"}, {"FAULTS", "driftlab_msgs/msg/Fault"}};
     if (expected_types.count(channel)) {
       EXPECT_EQ(type, expected_types.at(channel));
     }
@@ -568,20 +567,29 @@ TEST(Export, ThenImportGivesEveryStandardMessageBack) {
   test::TempDir dir;
   write_every_type_log(dir.file("all.lcm"));
   if (::testing::Test::HasFatalFailure()) return;
-  auto r = test::run_capture(kDriftlab + " export mcap '" + dir.file("all.lcm") + "' -o '" + dir.file("all.mcap") + "'");
+  auto r =
+      test::run_capture(kDriftlab + " export mcap '" + dir.file("all.lcm") + "' -o '" + dir.file("all.mcap") + "'");
   ASSERT_EQ(r.code, 0) << r.err;
   r = test::run_capture(kDriftlab + " import '" + dir.file("all.mcap") + "' -o '" + dir.file("back.lcm") + "'");
   ASSERT_EQ(r.code, 0) << r.err;
   std::map<std::string, std::vector<OwnedEvent>> before, after;
   for (auto& e : test::read_all(dir.file("all.lcm"))) before[e.channel].push_back(std::move(e));
   for (auto& e : test::read_all(dir.file("back.lcm"))) after[e.channel].push_back(std::move(e));
-  const std::map<std::string, std::string> standard = {
-      {"SCAN", "laser_scan_t"},    {"IMU", "imu_t"},          {"ODOM", "odometry_t"},
-      {"GROUND_TRUTH", "pose_t"},  {"TF", "tf_t"},            {"CMD_VEL", "velocity_command_t"},
-      {"joint_states", "joint_state_t"}, {"POINTS", "point_cloud_t"}, {"POINTS_PLAIN", "point_cloud_t"},
-      {"camera/image", "image_t"},
-      {"camera/compressed", "image_t"},  {"GNSS", "gnss_t"},        {"MAG", "magnetometer_t"},
-      {"BARO", "barometer_t"},     {"/pair", "foreign_message_t"}};
+  const std::map<std::string, std::string> standard = {{"SCAN", "laser_scan_t"},
+                                                       {"IMU", "imu_t"},
+                                                       {"ODOM", "odometry_t"},
+                                                       {"GROUND_TRUTH", "pose_t"},
+                                                       {"TF", "tf_t"},
+                                                       {"CMD_VEL", "velocity_command_t"},
+                                                       {"joint_states", "joint_state_t"},
+                                                       {"POINTS", "point_cloud_t"},
+                                                       {"POINTS_PLAIN", "point_cloud_t"},
+                                                       {"camera/image", "image_t"},
+                                                       {"camera/compressed", "image_t"},
+                                                       {"GNSS", "gnss_t"},
+                                                       {"MAG", "magnetometer_t"},
+                                                       {"BARO", "barometer_t"},
+                                                       {"/pair", "foreign_message_t"}};
   const double nan = std::numeric_limits<double>::quiet_NaN();
   for (const auto& [channel, type] : standard) {
     SCOPED_TRACE(channel);

@@ -38,7 +38,7 @@ const std::vector<int> kJpeg = {0xFF, 0xD8, 0xFF, 0xE0, 0x00, 0x10, 'J',  'F',  
                                 0x00, 0x01, 0x00, 0x01, 0x00, 0x00, 0xFF, 0xC0, 0x00, 0x11, 0x08, 0x00, 0xF0, 0x01,
                                 0x40, 0x03, 0x01, 0x22, 0x00, 0x02, 0x11, 0x01, 0x03, 0x11, 0x01, 0xFF, 0xD9};
 /// A PNG's signature and IHDR chunk: 7 x 5 pixels.
-const std::vector<int> kPng = {0x89, 'P', 'N', 'G', 0x0D, 0x0A, 0x1A, 0x0A, 0, 0, 0, 0x0D, 'I', 'H', 'D', 'R',
+const std::vector<int> kPng = {0x89, 'P', 'N', 'G', 0x0D, 0x0A, 0x1A, 0x0A, 0, 0, 0, 0x0D, 'I', 'H',  'D',  'R',
                                0,    0,   0,   7,   0,    0,    0,    5,    8, 2, 0, 0,    0,   0x12, 0x34, 0x56};
 
 struct Case {
@@ -67,8 +67,12 @@ class StandardMessages : public ::testing::TestWithParam<Case> {
       const int64_t t = (1'700'000'000 + i) * int64_t{1'000'000'000} + 123'456'789 + i + 2'000'777;
       const std::string full = type.substr(0, type.find('/')) + pkg + type.substr(type.find('/') + 1);
       // ROS 2: an MCAP sequence of its own per message (10 + i); ROS 1's MCAP: none (0), so the count applies.
-      out.push_back({{"topic", topic}, {"type", full}, {"encoding", ros2() ? "cdr" : "ros1"}, {"time_ns", t},
-                     {"sequence", ros2() ? 10 + i : 0}, {"msg", std::move(msg)}});
+      out.push_back({{"topic", topic},
+                     {"type", full},
+                     {"encoding", ros2() ? "cdr" : "ros1"},
+                     {"time_ns", t},
+                     {"sequence", ros2() ? 10 + i : 0},
+                     {"msg", std::move(msg)}});
     };
     for (int i = 0; i < 3; ++i) {
       const double d = i;
@@ -82,11 +86,20 @@ class StandardMessages : public ::testing::TestWithParam<Case> {
            {"linear_acceleration_covariance", {0.01, 0.001, 0, 0.001, 0.01, 0, 0, 0, 0.02}}});
       // mono8 rows of 3 pixels padded to a step of 4 (the padding byte 0xEE must not reach the log), and an rgb8
       // image without padding.
-      const json image =
-          i == 1 ? json{{"header", header(i, "camera")}, {"height", 1}, {"width", 2}, {"encoding", "rgb8"},
-                        {"is_bigendian", 0}, {"step", 6}, {"data", {1, 2, 3, 4, 5, 6}}}
-                 : json{{"header", header(i, "camera")}, {"height", 2}, {"width", 3}, {"encoding", "mono8"},
-                        {"is_bigendian", 0}, {"step", 4}, {"data", {10 + i, 20, 30, 0xEE, 40, 50, 60, 0xEE}}};
+      const json image = i == 1 ? json{{"header", header(i, "camera")},
+                                       {"height", 1},
+                                       {"width", 2},
+                                       {"encoding", "rgb8"},
+                                       {"is_bigendian", 0},
+                                       {"step", 6},
+                                       {"data", {1, 2, 3, 4, 5, 6}}}
+                                : json{{"header", header(i, "camera")},
+                                       {"height", 2},
+                                       {"width", 3},
+                                       {"encoding", "mono8"},
+                                       {"is_bigendian", 0},
+                                       {"step", 4},
+                                       {"data", {10 + i, 20, 30, 0xEE, 40, 50, 60, 0xEE}}};
       add("/camera/image_raw", "sensor_msgs/Image", i, image);
       add("/camera/image_raw/compressed", "sensor_msgs/CompressedImage", i,
           {{"header", header(i, "camera")}, {"format", i == 2 ? "png" : "jpeg"}, {"data", i == 2 ? kPng : kJpeg}});
@@ -110,28 +123,27 @@ class StandardMessages : public ::testing::TestWithParam<Case> {
       add("/cmd_vel", "geometry_msgs/Twist", i,
           {{"linear", {{"x", 0.3 * d}, {"y", 0.0}, {"z", 0.0}}}, {"angular", {{"x", 0.0}, {"y", 0.0}, {"z", -0.4}}}});
       // A 3D fix with known variances, a 2D fix (no altitude) with an approximated covariance, no fix.
-      const json fixes[3] = {
-          {{"header", header(i, "gps")},
-           {"status", {{"status", 0}, {"service", 1}}},
-           {"latitude", 48.1351253},
-           {"longitude", 11.5819806},
-           {"altitude", 519.25},
-           {"position_covariance", {2.25, 0, 0, 0, 4.0, 0, 0, 0, 9.0}},
-           {"position_covariance_type", 2}},
-          {{"header", header(i, "gps")},
-           {"status", {{"status", 1}, {"service", 3}}},
-           {"latitude", -33.8688197},
-           {"longitude", 151.2092955},
-           {"altitude", "NaN"},
-           {"position_covariance", {1.0, 0.5, 0, 0.5, 1.0, 0, 0, 0, 16.0}},
-           {"position_covariance_type", 1}},
-          {{"header", header(i, "gps")},
-           {"status", {{"status", -1}, {"service", 1}}},
-           {"latitude", 0.0},
-           {"longitude", 0.0},
-           {"altitude", 0.0},
-           {"position_covariance", {0, 0, 0, 0, 0, 0, 0, 0, 0}},
-           {"position_covariance_type", 0}}};
+      const json fixes[3] = {{{"header", header(i, "gps")},
+                              {"status", {{"status", 0}, {"service", 1}}},
+                              {"latitude", 48.1351253},
+                              {"longitude", 11.5819806},
+                              {"altitude", 519.25},
+                              {"position_covariance", {2.25, 0, 0, 0, 4.0, 0, 0, 0, 9.0}},
+                              {"position_covariance_type", 2}},
+                             {{"header", header(i, "gps")},
+                              {"status", {{"status", 1}, {"service", 3}}},
+                              {"latitude", -33.8688197},
+                              {"longitude", 151.2092955},
+                              {"altitude", "NaN"},
+                              {"position_covariance", {1.0, 0.5, 0, 0.5, 1.0, 0, 0, 0, 16.0}},
+                              {"position_covariance_type", 1}},
+                             {{"header", header(i, "gps")},
+                              {"status", {{"status", -1}, {"service", 1}}},
+                              {"latitude", 0.0},
+                              {"longitude", 0.0},
+                              {"altitude", 0.0},
+                              {"position_covariance", {0, 0, 0, 0, 0, 0, 0, 0, 0}},
+                              {"position_covariance_type", 0}}};
       add("/fix", "sensor_msgs/NavSatFix", i, fixes[i]);
       add("/imu/mag", "sensor_msgs/MagneticField", i,
           {{"header", header(i, "imu_link")},
@@ -157,9 +169,8 @@ TEST_P(StandardMessages, ImportHoldsTheValuesFoxglovesWritersWrote) {
   test::TempDir dir;
   const json msgs = messages();
   const std::string file = dir.file("written.mcap");
-  if (!test::oracle_write_mcap({{"profile", ros2() ? "ros2" : "ros1"}, {"compression", GetParam().compression},
-                                {"messages", msgs}},
-                               file)) {
+  if (!test::oracle_write_mcap(
+          {{"profile", ros2() ? "ros2" : "ros1"}, {"compression", GetParam().compression}, {"messages", msgs}}, file)) {
     return;
   }
   // The writers wrote what was asked: Foxglove's readers read the same values back.
@@ -171,8 +182,8 @@ TEST_P(StandardMessages, ImportHoldsTheValuesFoxglovesWritersWrote) {
   const auto r = test::run_capture(kDriftlab + " import '" + file + "' -o '" + dir.file("out.lcm") + "'");
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_EQ(r.err, "");
-  for (const char* line : {"NavSatFix", "driftlab.gnss_t", "driftlab.magnetometer_t",
-                           "driftlab.barometer_t", "driftlab.image_t", "driftlab.joint_state_t"}) {
+  for (const char* line : {"NavSatFix", "driftlab.gnss_t", "driftlab.magnetometer_t", "driftlab.barometer_t",
+                           "driftlab.image_t", "driftlab.joint_state_t"}) {
     EXPECT_NE(r.out.find(line), std::string::npos) << line << "\n" << r.out;
   }
   EXPECT_EQ(r.out.find("foreign_message_t"), std::string::npos) << r.out;  // every type mapped
@@ -244,7 +255,7 @@ TEST_P(StandardMessages, ImportHoldsTheValuesFoxglovesWritersWrote) {
   EXPECT_EQ(baro2.pressure_variance, 2.25);
   EXPECT_TRUE(std::isnan(baro0.temperature_c));  // FluidPressure carries none
   if (!ros2()) {
-    EXPECT_EQ(fix3.header.seq, 40);  // ROS 1's header.seq
+    EXPECT_EQ(fix3.header.seq, 40);                                               // ROS 1's header.seq
     EXPECT_EQ(decoded<velocity_command_t>(log.at("/cmd_vel")[2]).header.seq, 2);  // the count: Twist has none
   } else {
     EXPECT_EQ(fix3.header.seq, 10);  // MCAP's sequence
