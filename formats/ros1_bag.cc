@@ -148,8 +148,9 @@ bool codec_of(std::string_view compression, Codec* codec) {
   return true;
 }
 
-/// Decompresses the compressed chunks ahead of the reader on threads of its own (kWorkers: two chunks at once), so
-/// that a bz2 bag's decoding, nearly all of its reading, runs on both cores while the reader converts. The reader
+/// Decompresses the compressed chunks ahead of the reader on threads of its own (one per core, at least two and at
+/// most eight), so that a bz2 bag's decoding, nearly all of its reading, runs on every core while the reader
+/// converts. The reader
 /// asks for each chunk when it comes to it (take()) and gets what decompressing it then would have given; chunks it
 /// never asks for (skipped after damage) are dropped. Thread-safety: take() and look_ahead() from one thread.
 class ChunkPrefetch {
@@ -186,12 +187,12 @@ class ChunkPrefetch {
   }
 
   /// Queues the compressed chunks after the record at `from` (found by their record headers) for the workers, up
-  /// to kAhead waiting or being decompressed. Stops at the first record that does not parse.
+  /// to ahead() waiting or being decompressed. Stops at the first record that does not parse.
   void look_ahead(uint64_t from) {
     if (!start()) return;
     std::lock_guard lk(mu_);
     uint64_t p = std::max(from, next_);
-    while (jobs_.size() < kAhead && p < bytes_.size()) {
+    while (jobs_.size() < ahead() && p < bytes_.size()) {
       std::string why;
       bool cut = false;
       auto r = parse_record(bytes_, p, &why, &cut);
@@ -227,14 +228,17 @@ class ChunkPrefetch {
     std::string error;
     std::exception_ptr failure;
   };
-  static constexpr size_t kWorkers = 2;
-  static constexpr size_t kAhead = 4;  // chunks queued, being decompressed or waiting for the reader
+  static constexpr size_t kMinWorkers = 2, kMaxWorkers = 8;
+  // Chunks queued, being decompressed or waiting for the reader: two more than the workers (memory: that many
+  // chunks, rosbag's are 768 KiB by default).
+  size_t ahead() const { return threads_.size() + 2; }
 
   bool start() {
     if (started_) return !threads_.empty();
     started_ = true;
     try {
-      for (size_t k = 0; k < kWorkers; ++k) {
+      const size_t workers = std::clamp<size_t>(std::thread::hardware_concurrency(), kMinWorkers, kMaxWorkers);
+      for (size_t k = 0; k < workers; ++k) {
         threads_.emplace_back([this, k] {
           const std::string name = "bag-unzip" + std::to_string(k);  // its own line in top and perf
           pthread_setname_np(pthread_self(), name.c_str());
