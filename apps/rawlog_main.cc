@@ -48,6 +48,14 @@ void add_rawlog_commands(CLI::App& import, CLI::App& exp, int* exit_code) {
       return;
     }
     print_counts(*r, in->in, in->out);
+    if (r->one_stamp > 0) {
+      // Converted (a SLAM run still sees the scans in order), but its times mean nothing: said, and exit 2.
+      std::fprintf(stderr,
+                   "driftlab: %s: warning: all %s observations carry one timestamp (%s), as MRPT 2.5's "
+                   "carmen2rawlog writes them: the log's times, rates and latencies mean nothing\n",
+                   in->in.c_str(), thousands(r->one_stamp).c_str(), format_utime(r->one_stamp_us).c_str());
+      *exit_code = kExitBadInput;
+    }
   });
 
   auto out = std::make_shared<RawlogArgs>();

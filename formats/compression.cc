@@ -181,15 +181,16 @@ Compressor::Compressor(Codec codec, int level) : codec_(codec), level_(level) {
 Compressor::~Compressor() { ZSTD_freeCCtx(static_cast<ZSTD_CCtx*>(zstd_)); }
 
 std::string Compressor::run(std::span<const uint8_t> in, std::vector<uint8_t>& out) {
-  out.clear();
   if (codec_ == Codec::kZstd) {
-    out.resize(ZSTD_compressBound(in.size()));
+    // Grown, not cleared first: a reused buffer is not zero-filled again before every block (only what it grows by).
+    if (out.size() < ZSTD_compressBound(in.size())) out.resize(ZSTD_compressBound(in.size()));
     const size_t n =
         ZSTD_compressCCtx(static_cast<ZSTD_CCtx*>(zstd_), out.data(), out.size(), in.data(), in.size(), level_);
     if (ZSTD_isError(n)) return std::string("zstd: ") + ZSTD_getErrorName(n);
     out.resize(n);
     return {};
   }
+  out.clear();
   if (codec_ == Codec::kLz4Frame) {
     LZ4F_preferences_t prefs{};
     prefs.frameInfo.contentSize = in.size();

@@ -45,8 +45,8 @@ class Decompressor {
   void* zstd_ = nullptr;  // ZSTD_DCtx
 };
 
-/// Compresses in with codec (kZstd at `level`, or kLz4Frame) into out (cleared first). Keeps its context between
-/// calls. Not thread-safe; one per writer.
+/// Compresses in with codec (kZstd at `level`, or kLz4Frame) into out (its old bytes overwritten). Keeps its
+/// context between calls. Not thread-safe; one per writing thread.
 class Compressor {
  public:
   Compressor(Codec codec, int level);

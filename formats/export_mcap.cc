@@ -8,16 +8,20 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <limits>
 #include <map>
 #include <set>
 
 #include "core/log_reader.h"
+#include "driftlab/barometer_t.hpp"
 #include "driftlab/foreign_message_t.hpp"
 #include "driftlab/foreign_schema_t.hpp"
+#include "driftlab/gnss_t.hpp"
 #include "driftlab/image_t.hpp"
 #include "driftlab/imu_t.hpp"
 #include "driftlab/joint_state_t.hpp"
 #include "driftlab/laser_scan_t.hpp"
+#include "driftlab/magnetometer_t.hpp"
 #include "driftlab/odometry_t.hpp"
 #include "driftlab/point_cloud_t.hpp"
 #include "driftlab/pose_t.hpp"
@@ -285,6 +289,34 @@ void joint_state(Cdr& c, const joint_state_t& m) {
     }
   }
 }
+/// gnss_t as sensor_msgs/NavSatFix, what Foxglove's map shows: the fix type as the status (no fix below 2D, a
+/// ground-augmented fix for PX4's differential and RTK types from 4), a 2D fix without its altitude (NaN, as ROS
+/// says "none"), the accuracies as a diagonal covariance (east and north eph^2, up epv^2; unknown when both are 0).
+/// NavSatFix has no place for the velocity, its accuracy or the satellite count: they are not carried.
+void nav_sat_fix(Cdr& c, const gnss_t& m) {
+  c.header(m.header);
+  c.put<int8_t>(m.fix_type < 2 ? -1 : m.fix_type >= 4 ? 2 : 0);
+  c.put<uint16_t>(0);  // service: the log does not say which systems
+  c.put(m.latitude_deg);
+  c.put(m.longitude_deg);
+  c.put(m.fix_type == 2 && !std::isnan(m.altitude_m) ? std::numeric_limits<double>::quiet_NaN() : m.altitude_m);
+  const bool known = !(m.eph_m == 0 && m.epv_m == 0);
+  const double h = known ? m.eph_m * m.eph_m : 0, v = known ? m.epv_m * m.epv_m : 0;
+  const double covariance[9] = {h, 0, 0, 0, h, 0, 0, 0, v};
+  c.fixed(covariance, 9);
+  c.put<uint8_t>(known ? 2 : 0);  // COVARIANCE_TYPE_DIAGONAL_KNOWN, or UNKNOWN
+}
+void magnetic_field(Cdr& c, const magnetometer_t& m) {
+  c.header(m.header);
+  c.vec(m.magnetic_field);
+  c.fixed(m.magnetic_field_covariance, 9);
+}
+/// barometer_t as sensor_msgs/FluidPressure; its temperature has no place there and is not carried.
+void fluid_pressure(Cdr& c, const barometer_t& m) {
+  c.header(m.header);
+  c.put(m.pressure_pa);
+  c.put(m.pressure_variance);
+}
 bool compressed(const image_t& m) { return m.encoding == "jpeg" || m.encoding == "png"; }
 void image(Cdr& c, const image_t& m) {
   c.header(m.header);
@@ -299,42 +331,6 @@ void compressed_image(Cdr& c, const image_t& m) {
   c.header(m.header);
   c.str(m.encoding);
   c.sequence(m.data.data(), m.data.size());
-}
-void point_cloud(Cdr& c, const point_cloud_t& m) {
-  c.header(m.header);
-  c.put(static_cast<uint32_t>(m.height));
-  c.put(static_cast<uint32_t>(m.width));
-  const bool intensity = m.nintensities == m.npoints && m.npoints > 0;
-  const bool time = m.ntimes == m.npoints && m.npoints > 0;
-  std::vector<std::string> names = {"x", "y", "z"};
-  if (intensity) names.emplace_back("intensity");
-  if (time) names.emplace_back("time");  // seconds after header.stamp, float32: Velodyne's convention
-  c.put(static_cast<uint32_t>(names.size()));
-  for (size_t i = 0; i < names.size(); ++i) {
-    c.str(names[i]);
-    c.put(static_cast<uint32_t>(4 * i));  // offset
-    c.put<uint8_t>(7);                    // FLOAT32
-    c.put<uint32_t>(1);                   // count
-  }
-  const auto point_step = static_cast<uint32_t>(4 * names.size());
-  c.put<uint8_t>(0);  // is_bigendian
-  c.put(point_step);
-  c.put(static_cast<uint32_t>(point_step * static_cast<uint32_t>(m.width)));
-  const size_t n = static_cast<size_t>(m.npoints);
-  c.put(static_cast<uint32_t>(n * point_step));
-  std::vector<uint8_t>& b = c.bytes();
-  size_t at = b.size();
-  b.resize(at + n * point_step);
-  for (size_t i = 0; i < n; ++i) {
-    float p[5] = {m.x[i], m.y[i], m.z[i], 0, 0};
-    size_t k = 3;
-    if (intensity) p[k++] = m.intensities[i];
-    if (time) p[k++] = m.time_offsets[i];
-    std::memcpy(b.data() + at, p, point_step);
-    at += point_step;
-  }
-  const bool dense = std::none_of(m.x.begin(), m.x.end(), [](float v) { return std::isnan(v); });
-  c.put<uint8_t>(dense ? 1 : 0);
 }
 
 // --- driftlab's other types: the LCM bytes walked by their definition into CDR -----------------------------------
@@ -515,9 +511,17 @@ class Exporter {
     } else if (t == "driftlab.joint_state_t") {
       joint_state_t m;
       if (decode(m)) joint_state(cdr_, m);
+    } else if (t == "driftlab.gnss_t") {
+      gnss_t m;
+      if (decode(m)) nav_sat_fix(cdr_, m);
+    } else if (t == "driftlab.magnetometer_t") {
+      magnetometer_t m;
+      if (decode(m)) magnetic_field(cdr_, m);
+    } else if (t == "driftlab.barometer_t") {
+      barometer_t m;
+      if (decode(m)) fluid_pressure(cdr_, m);
     } else if (t == "driftlab.point_cloud_t") {
-      point_cloud_t m;
-      if (decode(m)) point_cloud(cdr_, m);
+      return point_cloud_direct(e, log_ns, type);
     } else if (t == "driftlab.image_t") {
       image_t m;
       if (decode(m)) {
@@ -566,9 +570,101 @@ class Exporter {
     return {};
   }
 
+  /// point_cloud_t as sensor_msgs/PointCloud2 (float32 x, y, z, then intensity and time when every point has
+  /// them; is_dense when no x is NaN) straight from the log's bytes into the chunk: one pass over the points turns
+  /// LCM's arrays of big-endian floats into CDR's interleaved little-endian points. Decoding the message first
+  /// (lcm-gen's byte swaps into five arrays), then encoding it and copying it into the chunk were two thirds of an
+  /// export's work on the calling thread.
+  Status point_cloud_direct(const Event& e, uint64_t log_ns, const char* driftlab_type) {
+    if (!lcmtypes::well_formed(e.data, point_cloud_t::getHash())) return malformed(e);
+    // The layout is checked: every length below is inside the message.
+    const uint8_t* d = e.data.data();
+    size_t p = 8;
+    auto be32 = [&] {
+      uint32_t v;
+      std::memcpy(&v, d + p, 4);
+      p += 4;
+      return __builtin_bswap32(v);
+    };
+    auto be64 = [&] {
+      uint64_t v;
+      std::memcpy(&v, d + p, 8);
+      p += 8;
+      return __builtin_bswap64(v);
+    };
+    header_t h;
+    h.seq = static_cast<int64_t>(be64());
+    h.utime = static_cast<int64_t>(be64());
+    const uint32_t frame_len = be32();  // with its NUL
+    h.frame_id.assign(reinterpret_cast<const char*>(d + p), frame_len - 1);
+    p += frame_len;
+    const uint32_t height = be32(), width = be32(), npoints = be32();
+    const uint8_t* x = d + p;
+    const uint8_t* y = x + 4 * size_t{npoints};
+    const uint8_t* z = y + 4 * size_t{npoints};
+    p += 12 * size_t{npoints};
+    const uint32_t nintensities = be32();
+    const uint8_t* in = d + p;
+    p += 4 * size_t{nintensities};
+    const uint32_t ntimes = be32();
+    const uint8_t* tt = d + p;
+    const bool intensity = nintensities == npoints && npoints > 0;
+    const bool time = ntimes == npoints && npoints > 0;
+    cdr_.reset();
+    cdr_.header(h);
+    cdr_.put(height);
+    cdr_.put(width);
+    const char* names[5] = {"x", "y", "z", nullptr, nullptr};
+    size_t fields = 3;
+    if (intensity) names[fields++] = "intensity";
+    if (time) names[fields++] = "time";
+    cdr_.put(static_cast<uint32_t>(fields));
+    for (size_t i = 0; i < fields; ++i) {
+      cdr_.str(names[i]);
+      cdr_.put(static_cast<uint32_t>(4 * i));  // offset
+      cdr_.put<uint8_t>(7);                    // FLOAT32
+      cdr_.put<uint32_t>(1);                   // count
+    }
+    const auto point_step = static_cast<uint32_t>(4 * fields);
+    cdr_.put<uint8_t>(0);  // is_bigendian
+    cdr_.put(point_step);
+    cdr_.put(point_step * width);
+    const size_t n = npoints;
+    cdr_.put(static_cast<uint32_t>(n * point_step));
+    const std::vector<uint8_t>& prefix = cdr_.bytes();
+    auto fill = [&](uint8_t* out) {
+      std::memcpy(out, prefix.data(), prefix.size());
+      uint8_t* o = out + prefix.size();
+      uint32_t nan = 0;  // a NaN x: not dense
+      auto put = [](uint8_t* to, const uint8_t* from) {
+        uint32_t v;
+        std::memcpy(&v, from, 4);
+        v = __builtin_bswap32(v);
+        std::memcpy(to, &v, 4);
+        return v;
+      };
+      for (size_t i = 0; i < n; ++i, o += point_step) {
+        const uint32_t vx = put(o, x + 4 * i);
+        nan |= static_cast<uint32_t>((vx & 0x7fffffffU) > 0x7f800000U);
+        put(o + 4, y + 4 * i);
+        put(o + 8, z + 4 * i);
+        size_t k = 12;
+        if (intensity) {
+          put(o + k, in + 4 * i);
+          k += 4;
+        }
+        if (time) put(o + k, tt + 4 * i);
+      }
+      *o = nan ? 0 : 1;  // is_dense
+    };
+    return write(e, "sensor_msgs/msg/PointCloud2", "cdr", "ros2msg", "", {}, log_ns, h.seq, driftlab_type,
+                 prefix.size() + n * point_step + 1, fill);
+  }
+
   Status write(const Event& e, const std::string& ros_type, const std::string& encoding,
                const std::string& schema_encoding, std::string schema, std::span<const uint8_t> payload,
-               uint64_t log_ns, int64_t seq, const char* driftlab_type) {
+               uint64_t log_ns, int64_t seq, const char* driftlab_type, size_t fill_size = 0,
+               const std::function<void(uint8_t*)>& fill = {}) {
     const std::string key = std::string(e.channel) + '\0' + ros_type + '\0' + encoding;
     auto it = channels_.find(key);
     if (it == channels_.end()) {
@@ -592,7 +688,11 @@ class Exporter {
     Channel& c = it->second;
     // The MCAP sequence: header.seq where the message has one, else the count on the channel.
     const auto sequence = static_cast<uint32_t>(seq >= 0 ? seq : c.count);
-    if (Status s = w_.write(c.id, sequence, log_ns, log_ns, payload); !s) return s;
+    if (Status s = fill ? w_.write(c.id, sequence, log_ns, log_ns, fill_size, fill)
+                        : w_.write(c.id, sequence, log_ns, log_ns, payload);
+        !s) {
+      return s;
+    }
     ++c.count;
     ++summary.topics[c.topic].messages;
     if (summary.messages++ == 0) summary.start_ns = static_cast<int64_t>(log_ns);
@@ -622,6 +722,9 @@ std::string ros2_type_for(std::string_view t) {
       {"driftlab.joint_state_t", "sensor_msgs/msg/JointState"},
       {"driftlab.point_cloud_t", "sensor_msgs/msg/PointCloud2"},
       {"driftlab.image_t", "sensor_msgs/msg/Image"},
+      {"driftlab.gnss_t", "sensor_msgs/msg/NavSatFix"},
+      {"driftlab.magnetometer_t", "sensor_msgs/msg/MagneticField"},
+      {"driftlab.barometer_t", "sensor_msgs/msg/FluidPressure"},
   };
   for (const auto& [d, r] : kMap)
     if (t == d) return r;

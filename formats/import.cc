@@ -42,14 +42,17 @@ std::string head_of(const std::string& path, size_t n) {
   return s;
 }
 
-/// MRPT's serialization starts every object with 0x80 + the length of its class name, then the name ("CSensoryFrame").
+/// MRPT's serialization starts every object with 0x80 + the length of its class name, then the name: MRPT 1's
+/// "CSensoryFrame", MRPT 2's with its namespace, "mrpt::obs::CObservationOdometry" (what carmen2rawlog writes).
 bool looks_like_mrpt(std::string_view h) {
   if (h.size() < 2) return false;
   const auto first = static_cast<unsigned char>(h[0]);
   const size_t len = first & 0x7f;
-  if (!(first & 0x80) || len < 2 || len > 60 || h.size() < 1 + len || h[1] != 'C') return false;
-  return std::all_of(h.begin() + 1, h.begin() + 1 + static_cast<ptrdiff_t>(len),
-                     [](char c) { return std::isalnum(static_cast<unsigned char>(c)) || c == '_'; });
+  if (!(first & 0x80) || len < 2 || len > 100 || h.size() < 1 + len) return false;
+  const std::string_view name = h.substr(1, len);
+  if (name[0] != 'C' && !name.starts_with("mrpt::")) return false;
+  return std::all_of(name.begin(), name.end(),
+                     [](char c) { return std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == ':'; });
 }
 
 std::string describe(std::string_view h) {
@@ -173,7 +176,7 @@ class Importer {
     const char* mapped = ros ? driftlab_type_for(m.type) : nullptr;
     TopicCount& t = topic(m.topic, m.type, mapped ? mapped : "driftlab.foreign_message_t");
     if (mapped) {
-      auto converted = convert_ros_message(m.type, ser, payload, m.arrival_us, fallback_seq, &error_);
+      auto converted = convert_ros_message(m.type, ser, payload, m.arrival_us, fallback_seq, &error_, &reuse_);
       if (!converted) {
         ++t.malformed;
         problem(file + ": " + std::string(m.topic) + " " + m.where.text() + ": " + error_);
@@ -183,6 +186,8 @@ class Importer {
         ++t.messages;
         ++st.count;
       }
+      // A large message's buffer is kept for the next one (a point cloud's took it; a small one's is let go).
+      if (converted->lcm.capacity() > reuse_.capacity()) reuse_ = std::move(converted->lcm);
       return;
     }
     if (ros && !st.definition_checked) {
@@ -248,6 +253,7 @@ class Importer {
   int64_t bad_topics_ = 0;
   Decompressor decompressor_;
   std::vector<uint8_t> unpacked_;
+  std::vector<uint8_t> reuse_;  // the last large converted message's memory, for the next (convert_ros_message)
 };
 
 Status import_ros1(const std::string& path, Importer& out) {

@@ -1,13 +1,13 @@
 // MCAP files (mcap.dev/spec, major version 0), read and written by driftlab's own code: no C++ MCAP library is
 // packaged for Debian. The reader goes front to back through the data section without the summary, so a file
 // cut short or never finished (no summary, no footer) reads like a whole one; chunks are uncompressed, zstd or lz4
-// and are checked against their CRC, on a thread of the reader's own a few chunks ahead of the callbacks; memory is
-// bounded by a few chunks. Corruption goes to the problem callback with
-// the file offset, and reading goes on at the next record that parses. The writer makes indexed files: chunks
+// and are checked against their CRC, on threads of the reader's own (two chunks decompressed at once) a few chunks
+// ahead of the callbacks; memory is bounded by a few chunks. Corruption goes to the problem callback with the file
+// offset, and reading goes on at the next record that parses. The writer makes indexed files: chunks
 // with message indexes, schemas and channels repeated in the summary, chunk indexes, statistics, metadata
 // indexes, summary offsets, and the data-section and summary CRCs; it compresses and writes each closed chunk on
-// a thread of its own while the next one fills (at most three chunks in memory).
-// Thread-safety: one reader or writer per thread (each runs a thread of its own inside, invisible to callers).
+// threads of its own (two chunks compressed at once) while the next one fills (at most four chunks in memory).
+// Thread-safety: one reader or writer per thread (each runs threads of its own inside, invisible to callers).
 #pragma once
 
 #include <cstdint>
@@ -83,13 +83,14 @@ class McapReader {
   /// Calls on_message for every message of the data section in file order (its channel and schema are known
   /// before it), on_metadata for every Metadata record, and on_problem for every unreadable part; returns the
   /// number of messages delivered. Message data stays valid until on_message returns. The callbacks run on the
-  /// calling thread, one at a time; pipelined (the default), chunks are read, decompressed and checked on a thread
-  /// of the reader's own meanwhile, at most three chunks ahead. What the callbacks see does not depend on it.
+  /// calling thread, one at a time; pipelined (the default), chunks are read, decompressed and checked on threads
+  /// of the reader's own meanwhile (two at once), at most four chunks ahead. What the callbacks see does not depend
+  /// on it.
   int64_t read(const std::function<void(const McapMessage&)>& on_message,
                const std::function<void(const McapProblem&)>& on_problem,
                const std::function<void(const McapMetadata&)>& on_metadata = {});
 
-  /// Whether read() decompresses and checks chunks on a second thread (default true); false: all on the caller's.
+  /// Whether read() decompresses and checks chunks on threads of its own (default true); false: all on the caller's.
   void set_pipelined(bool on);
 
   const std::string& profile() const { return profile_; }
@@ -141,6 +142,10 @@ class McapWriter {
   /// here or by close(), naming the file.
   Status write(uint16_t channel_id, uint32_t sequence, uint64_t log_time, uint64_t publish_time,
                std::span<const uint8_t> data);
+  /// As write(), the message's `size` bytes written in place by `fill` (given where they go; it must write all
+  /// of them): a large message built straight into the chunk, without a copy.
+  Status write(uint16_t channel_id, uint32_t sequence, uint64_t log_time, uint64_t publish_time, size_t size,
+               const std::function<void(uint8_t*)>& fill);
   /// Adds a Metadata record (written between chunks; indexed in the summary).
   Status add_metadata(std::string_view name, const std::vector<std::pair<std::string, std::string>>& entries);
   /// Closes the last chunk, writes the summary and footer, and (atomic) renames into place. Idempotent.

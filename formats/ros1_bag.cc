@@ -4,10 +4,19 @@
 // data, 0x04 index data and 0x06 chunk info (the index, not needed when reading front to back).
 #include "formats/ros1_bag.h"
 
+#include <pthread.h>
+
 #include <algorithm>
+#include <condition_variable>
 #include <cstring>
+#include <deque>
+#include <exception>
+#include <memory>
+#include <mutex>
 #include <optional>
 #include <string_view>
+#include <system_error>
+#include <thread>
 #include <vector>
 
 #include "formats/compression.h"
@@ -16,7 +25,7 @@ namespace driftlab::formats {
 namespace {
 
 constexpr std::string_view kMagic = "#ROSBAG V2.0\n";
-constexpr uint8_t kOpMessage = 0x02, kOpChunk = 0x05, kOpConnection = 0x07;
+constexpr uint8_t kOpMessage = 0x02, kOpBagHeader = 0x03, kOpChunk = 0x05, kOpConnection = 0x07;
 // A record header holds a few short fields (a connection's, its topic); more than this is not a header.
 constexpr uint32_t kMaxHeader = 1 << 20;
 
@@ -125,6 +134,164 @@ size_t resync(std::span<const uint8_t> bytes, size_t from) {
   }
 }
 
+/// The codec of a chunk's "compression" field; false for one rosbag does not write.
+bool codec_of(std::string_view compression, Codec* codec) {
+  if (compression == "none") {
+    *codec = Codec::kNone;
+  } else if (compression == "bz2") {
+    *codec = Codec::kBz2;
+  } else if (compression == "lz4") {
+    *codec = Codec::kLz4Frame;
+  } else {
+    return false;
+  }
+  return true;
+}
+
+/// Decompresses the compressed chunks ahead of the reader on threads of its own (one per core, at least two and at
+/// most eight), so that a bz2 bag's decoding, nearly all of its reading, runs on every core while the reader
+/// converts. The reader
+/// asks for each chunk when it comes to it (take()) and gets what decompressing it then would have given; chunks it
+/// never asks for (skipped after damage) are dropped. Thread-safety: take() and look_ahead() from one thread.
+class ChunkPrefetch {
+ public:
+  explicit ChunkPrefetch(std::span<const uint8_t> bytes) : bytes_(bytes) {}
+  ~ChunkPrefetch() {
+    {
+      std::lock_guard lk(mu_);
+      stop_ = true;
+    }
+    cv_.notify_all();
+    for (auto& t : threads_) t.join();
+  }
+  ChunkPrefetch(const ChunkPrefetch&) = delete;
+  ChunkPrefetch& operator=(const ChunkPrefetch&) = delete;
+
+  /// The compressed chunk record at pos, decompressed into out (as decompress() does): by a worker that has it (waited
+  /// for), else here.
+  std::string take(uint64_t pos, Codec codec, std::span<const uint8_t> data, size_t size, std::vector<uint8_t>& out) {
+    std::shared_ptr<Job> job;
+    {
+      std::unique_lock lk(mu_);
+      while (!jobs_.empty() && jobs_.front()->pos < pos) jobs_.pop_front();  // skipped: never asked for
+      if (!jobs_.empty() && jobs_.front()->pos == pos) {
+        job = jobs_.front();
+        jobs_.pop_front();
+        cv_.wait(lk, [&] { return job->state == Job::kDone; });
+      }
+    }
+    if (!job) return decompress(codec, data, size, out);
+    if (job->failure) std::rethrow_exception(job->failure);
+    out.swap(job->out);
+    return job->error;
+  }
+
+  /// Queues the compressed chunks after the record at `from` (found by their record headers) for the workers, up
+  /// to ahead() waiting or being decompressed. Stops at the first record that does not parse.
+  void look_ahead(uint64_t from) {
+    if (!start()) return;
+    std::lock_guard lk(mu_);
+    uint64_t p = std::max(from, next_);
+    while (jobs_.size() < ahead() && p < bytes_.size()) {
+      std::string why;
+      bool cut = false;
+      auto r = parse_record(bytes_, p, &why, &cut);
+      if (!r || cut) {
+        p = bytes_.size();  // damage or the end: the reader finds its way from here without help
+        break;
+      }
+      Codec codec;
+      if (r->op == kOpChunk && codec_of(r->field("compression").value_or(""), &codec) && codec != Codec::kNone) {
+        auto job = std::make_shared<Job>();
+        job->pos = p;
+        job->codec = codec;
+        job->in = r->data;
+        const size_t size = r->u32("size").value_or(0);
+        job->size = size <= r->data.size() * 1024 + (1 << 20) ? size : 0;  // a size it cannot expand to: no hint
+        jobs_.push_back(job);
+        todo_.push_back(std::move(job));
+        cv_.notify_all();
+      }
+      p = r->end;
+    }
+    next_ = p;
+  }
+
+ private:
+  struct Job {
+    enum State { kQueued, kRunning, kDone } state = kQueued;
+    uint64_t pos = 0;
+    Codec codec = Codec::kNone;
+    std::span<const uint8_t> in;
+    size_t size = 0;
+    std::vector<uint8_t> out;
+    std::string error;
+    std::exception_ptr failure;
+  };
+  static constexpr size_t kMinWorkers = 2, kMaxWorkers = 8;
+  // Chunks queued, being decompressed or waiting for the reader: two more than the workers (memory: that many
+  // chunks, rosbag's are 768 KiB by default).
+  size_t ahead() const { return threads_.size() + 2; }
+
+  bool start() {
+    if (started_) return !threads_.empty();
+    started_ = true;
+    try {
+      const size_t workers = std::clamp<size_t>(std::thread::hardware_concurrency(), kMinWorkers, kMaxWorkers);
+      for (size_t k = 0; k < workers; ++k) {
+        threads_.emplace_back([this, k] {
+          const std::string name = "bag-unzip" + std::to_string(k);  // its own line in top and perf
+          pthread_setname_np(pthread_self(), name.c_str());
+          run();
+        });
+      }
+    } catch (const std::system_error&) {  // no threads to be had: the reader decompresses each chunk itself
+      {
+        std::lock_guard lk(mu_);
+        stop_ = true;
+      }
+      cv_.notify_all();
+      for (auto& t : threads_) t.join();
+      threads_.clear();
+    }
+    return !threads_.empty();
+  }
+  void run() {
+    for (;;) {
+      std::shared_ptr<Job> job;
+      {
+        std::unique_lock lk(mu_);
+        cv_.wait(lk, [&] { return stop_ || !todo_.empty(); });
+        if (stop_) return;
+        job = std::move(todo_.front());
+        todo_.pop_front();
+        job->state = Job::kRunning;
+      }
+      try {
+        job->error = decompress(job->codec, job->in, job->size, job->out);
+      } catch (...) {
+        job->failure = std::current_exception();
+      }
+      {
+        std::lock_guard lk(mu_);
+        job->state = Job::kDone;
+      }
+      cv_.notify_all();
+    }
+  }
+
+  std::span<const uint8_t> bytes_;
+  std::vector<std::thread> threads_;
+  bool started_ = false;
+  // Under mu_: the jobs in file order (waiting for the reader), those not started yet, the flags, each job's state.
+  std::mutex mu_;
+  std::condition_variable cv_;
+  std::deque<std::shared_ptr<Job>> jobs_;
+  std::deque<std::shared_ptr<Job>> todo_;
+  uint64_t next_ = 0;  // where looking ahead goes on
+  bool stop_ = false;
+};
+
 }  // namespace
 
 bool Ros1BagReader::looks_like(std::span<const uint8_t> head) {
@@ -158,6 +325,7 @@ int64_t Ros1BagReader::read(const std::function<void(const BagMessage&)>& on_mes
   const auto bytes = bytes_;
   int64_t delivered = 0;
   std::vector<uint8_t> chunk;
+  ChunkPrefetch prefetch(bytes);
 
   auto connection = [&](const Record& r, uint64_t where) {
     auto id = r.u32("conn");
@@ -178,6 +346,26 @@ int64_t Ros1BagReader::read(const std::function<void(const BagMessage&)>& on_mes
     c.latching = fields.field("latching").value_or("0") == "1";
     connections_.emplace(c.id, std::move(c));
   };
+  // The connections the index section repeats after the chunks (a bag that was closed: the bag header's index_pos):
+  // read once, when a message names a connection no record before it defined, as happens after a chunk that could
+  // not be read (an unknown compression, damage) held that connection's record.
+  bool index_read = false;
+  auto from_index = [&] {
+    index_read = true;
+    std::string why;
+    bool cut = false;
+    auto head = parse_record(bytes, kMagic.size(), &why, &cut);
+    auto at = head && head->op == kOpBagHeader ? head->field("index_pos") : std::nullopt;
+    if (!at || at->size() != 8) return;
+    uint64_t p = 0;
+    std::memcpy(&p, at->data(), 8);
+    while (p > kMagic.size() && p < bytes.size()) {
+      auto r = parse_record(bytes, p, &why, &cut);
+      if (!r || cut) break;
+      if (r->op == kOpConnection) connection(*r, p);
+      p = r->end;
+    }
+  };
   auto message = [&](const Record& r, uint64_t where) {
     auto id = r.u32("conn");
     auto time = r.field("time");
@@ -186,6 +374,10 @@ int64_t Ros1BagReader::read(const std::function<void(const BagMessage&)>& on_mes
       return;
     }
     auto c = connections_.find(*id);
+    if (c == connections_.end() && !index_read) {
+      from_index();
+      c = connections_.find(*id);
+    }
     if (c == connections_.end()) {
       on_problem({where, "a message on connection " + std::to_string(*id) + ", which no record defines"});
       return;
@@ -219,28 +411,32 @@ int64_t Ros1BagReader::read(const std::function<void(const BagMessage&)>& on_mes
       const auto compression = rec->field("compression").value_or("");
       const auto size = rec->u32("size").value_or(0);
       Codec codec;
-      if (compression == "none") {
-        codec = Codec::kNone;
-      } else if (compression == "bz2") {
-        codec = Codec::kBz2;
-      } else if (compression == "lz4") {
-        codec = Codec::kLz4Frame;
-      } else {
-        on_problem({pos, "a chunk compressed with \"" + std::string(compression) + "\", which is not known"});
+      if (!codec_of(compression, &codec)) {
+        on_problem({pos, "a chunk compressed with \"" + std::string(compression) +
+                             "\", which is not known (rosbag's are none, bz2 and lz4); its messages are left out"});
         pos = rec->end;
         continue;
       }
-      std::string error = decompress(codec, rec->data, size, chunk);
+      // An uncompressed chunk's records are read where they are; a compressed one's as a worker decompressed it
+      // (the next ones are queued first, so they decompress while this one converts).
+      std::string error;
+      std::span<const uint8_t> records = rec->data;
+      if (codec != Codec::kNone) {
+        if (pipelined_) prefetch.look_ahead(rec->end);
+        error =
+            pipelined_ ? prefetch.take(pos, codec, rec->data, size, chunk) : decompress(codec, rec->data, size, chunk);
+        records = chunk;
+      }
       if (!error.empty() && !truncated) on_problem({pos, "chunk: " + error});
       // Records inside the chunk: every whole one is read, up to the first that does not parse.
       size_t in = 0;
-      while (in < chunk.size()) {
+      while (in < records.size()) {
         bool cut = false;
-        auto inner = parse_record(chunk, in, &why, &cut);
+        auto inner = parse_record(records, in, &why, &cut);
         if (!inner || cut) {
           if (error.empty() && !truncated) {
             on_problem({pos, "chunk: " + (inner ? std::string("a record cut off") : why) + " at byte " +
-                                 std::to_string(in) + " of " + std::to_string(chunk.size())});
+                                 std::to_string(in) + " of " + std::to_string(records.size())});
           }
           break;
         }

@@ -1,6 +1,7 @@
 // ROS 1 bags (format 2.0): connections and messages, read front to back without the index, so a bag that was
 // never closed (`.bag.active`, no index, as `rosbag reindex` would need) reads like a finished one. Chunks are
-// uncompressed, bz2 or lz4 (roslz4 writes LZ4 frames). Memory is bounded by one chunk, not by the file.
+// uncompressed, bz2 or lz4 (roslz4 writes LZ4 frames); compressed ones are decompressed a few ahead on threads of
+// the reader's own (two at once). Memory is bounded by a few chunks, not by the file.
 // Corruption goes to the problem callback with the file offset, and reading goes on at the next record that
 // parses. Thread-safety: one reader per thread.
 #pragma once
@@ -54,6 +55,10 @@ class Ros1BagReader {
   int64_t read(const std::function<void(const BagMessage&)>& on_message,
                const std::function<void(const BagProblem&)>& on_problem);
 
+  /// Whether read() decompresses the chunks ahead on threads of its own (default true); false: each on the
+  /// caller's thread when it comes to it. What the callbacks see does not depend on it.
+  void set_pipelined(bool on) { pipelined_ = on; }
+
   const std::map<uint32_t, RosConnection>& connections() const { return connections_; }
   uint64_t size() const { return bytes_.size(); }
 
@@ -63,6 +68,7 @@ class Ros1BagReader {
   MappedFile file_;  // unmapped for a bag in memory
   std::span<const uint8_t> bytes_;
   std::map<uint32_t, RosConnection> connections_;
+  bool pipelined_ = true;
 };
 
 }  // namespace driftlab::formats

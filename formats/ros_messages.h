@@ -31,8 +31,11 @@ struct Converted {
 /// its type ("12 bytes, shorter than sensor_msgs/LaserScan"); nullopt with an empty error means "no mapping".
 /// `unstamped_us` is used as header.utime for types without a header (geometry_msgs/Twist): the arrival time;
 /// `fallback_seq` as header.seq where the message carries none (ROS 2, tf2_msgs/TFMessage): the caller's count.
+/// `reuse`, when given, is a buffer the result may take the memory of (a large message's: a point cloud's), so a
+/// caller converting many gives back each result's `lcm` and the next is neither allocated nor zero-filled.
 std::optional<Converted> convert_ros_message(std::string_view ros_type, Serialization serialization,
                                              std::span<const uint8_t> payload, int64_t unstamped_us,
-                                             int64_t fallback_seq, std::string* error);
+                                             int64_t fallback_seq, std::string* error,
+                                             std::vector<uint8_t>* reuse = nullptr);
 
 }  // namespace driftlab::formats

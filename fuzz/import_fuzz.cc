@@ -13,12 +13,22 @@
 
 namespace {
 
-constexpr const char* kTypes[] = {
-    "sensor_msgs/LaserScan",   "sensor_msgs/Imu",         "sensor_msgs/PointCloud2",
-    "sensor_msgs/Image",       "sensor_msgs/CompressedImage", "sensor_msgs/JointState",
-    "nav_msgs/Odometry",       "geometry_msgs/PoseStamped", "geometry_msgs/PoseWithCovarianceStamped",
-    "geometry_msgs/TransformStamped", "geometry_msgs/TwistStamped", "geometry_msgs/Twist",
-    "tf2_msgs/TFMessage"};
+constexpr const char* kTypes[] = {"sensor_msgs/LaserScan",
+                                  "sensor_msgs/Imu",
+                                  "sensor_msgs/PointCloud2",
+                                  "sensor_msgs/Image",
+                                  "sensor_msgs/CompressedImage",
+                                  "sensor_msgs/JointState",
+                                  "nav_msgs/Odometry",
+                                  "geometry_msgs/PoseStamped",
+                                  "geometry_msgs/PoseWithCovarianceStamped",
+                                  "geometry_msgs/TransformStamped",
+                                  "geometry_msgs/TwistStamped",
+                                  "geometry_msgs/Twist",
+                                  "tf2_msgs/TFMessage",
+                                  "sensor_msgs/NavSatFix",
+                                  "sensor_msgs/MagneticField",
+                                  "sensor_msgs/FluidPressure"};
 constexpr size_t kNumTypes = sizeof(kTypes) / sizeof(kTypes[0]);
 
 void check(std::span<const uint8_t> lcm) {
@@ -36,16 +46,27 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     // A bag: the magic is given, so the fuzzer spends its time on the records.
     std::string bytes = "#ROSBAG V2.0\n";
     bytes.append(reinterpret_cast<const char*>(rest.data()), rest.size());
-    auto bag = Ros1BagReader::from_memory({reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size()});
-    if (!bag) std::abort();
-    std::string error;
-    bag->read(
-        [&](const BagMessage& m) {
-          if (auto c = convert_ros_message(m.connection->type, Serialization::kRos1, m.data, 0, 0, &error)) {
-            check(c->lcm);
-          }
-        },
-        [](const BagProblem&) {});
+    // Read twice: pipelined (chunks decompressed ahead on the reader's threads) and on this thread alone; the
+    // calls must be the same.
+    std::string trace[2];
+    for (const bool pipelined : {true, false}) {
+      auto bag = Ros1BagReader::from_memory({reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size()});
+      if (!bag) std::abort();
+      bag->set_pipelined(pipelined);
+      std::string& t = trace[pipelined ? 1 : 0];
+      std::string error;
+      bag->read(
+          [&](const BagMessage& m) {
+            t += "m " + std::to_string(m.offset) + " " + std::to_string(m.record_time_ns) + " " +
+                 std::to_string(m.data.size()) + "\n";
+            if (!pipelined) return;
+            if (auto c = convert_ros_message(m.connection->type, Serialization::kRos1, m.data, 0, 0, &error)) {
+              check(c->lcm);
+            }
+          },
+          [&](const BagProblem& p) { t += "p " + std::to_string(p.offset) + " " + p.what + "\n"; });
+    }
+    if (trace[0] != trace[1]) std::abort();
   } else if (selector < 96) {
     auto log = CarmenReader::from_text(std::string(reinterpret_cast<const char*>(rest.data()), rest.size()));
     log.read([](const CarmenMessage& m) { check(m.lcm); }, [](size_t, const std::string&) {});

@@ -44,10 +44,18 @@ class Importer {
  public:
   Importer(LogWriter& w, RawlogCounts& counts) : w_(w), counts_(counts) {}
 
+  /// Whether two observations read so far carry different timestamps.
+  bool stamps_differ() const { return stamps_differ_; }
+
   Status observation(const mrpt::obs::CObservation& o) {
     using namespace mrpt::obs;
     const int64_t t = to_utime(o.timestamp);
     last_utime_ = t;
+    if (counts_.observations++ == 0) {
+      counts_.one_stamp_us = t;
+    } else if (t != counts_.one_stamp_us) {
+      stamps_differ_ = true;
+    }
     if (const auto* scan = dynamic_cast<const CObservation2DRangeScan*>(&o)) {
       const std::string frame = o.sensorLabel.empty() ? "laser" : o.sensorLabel;
       const mrpt::poses::CPose3D& p = scan->sensorPose;
@@ -151,6 +159,7 @@ class Importer {
   std::map<std::string, mrpt::poses::CPose3D> sensors_;
   mrpt::poses::CPose2D odom_;
   int64_t last_utime_ = 0;
+  bool stamps_differ_ = false;
 };
 
 }  // namespace
@@ -201,6 +210,7 @@ Result<RawlogCounts> import_rawlog(const std::string& rawlog, const std::string&
     }
   }
   if (Status s = w->close(); !s) return Error{s.message()};
+  if (counts.observations >= 2 && !importer.stamps_differ()) counts.one_stamp = counts.observations;
   if (counts.written.empty()) {
     std::filesystem::remove(out_log);
     return Error{rawlog + ": no observations driftlab can convert (2D scans, odometry, IMU, robot poses)"};

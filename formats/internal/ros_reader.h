@@ -14,6 +14,7 @@
 #include <span>
 #include <string>
 #include <type_traits>
+#include <vector>
 
 #include "formats/ros_messages.h"
 
@@ -97,6 +98,8 @@ class Reader {
   }
   /// header.seq for messages that carry none.
   int64_t fallback_seq = 0;
+  /// A buffer a large converted message may take the memory of (convert_ros_message's `reuse`), or nullptr.
+  std::vector<uint8_t>* reuse = nullptr;
 
  private:
   template <typename T>

@@ -4,10 +4,12 @@
 #include <nlohmann/json.hpp>
 
 #include <cmath>
-#include <map>
+#include <cstring>
 #include <filesystem>
+#include <map>
 #include <numbers>
 #include <sstream>
+#include <stdexcept>
 
 #include "driftlab/foreign_message_t.hpp"
 #include "driftlab/foreign_schema_t.hpp"
@@ -17,6 +19,7 @@
 #include "driftlab/tf_t.hpp"
 #include "formats/carmen.h"
 #include "formats/import.h"
+#include "formats/ros1_bag.h"
 #include "lcmtypes/validate.h"
 #include "tests/test_util.h"
 
@@ -254,6 +257,140 @@ TEST(Import, TruncatedBagKeepsEveryWholeMessage) {
   EXPECT_LT(log.at("/scan").size(), 7374u * 6 / 10);
 }
 
+/// A chunk record holding records, stored as they are but labelled with `compression`.
+std::string chunk(const std::string& compression, const std::string& records) {
+  return record(field("op", "\x05") + field("compression", compression) +
+                    field("size", u32(static_cast<uint32_t>(records.size()))),
+                records);
+}
+/// A closed bag: header (index_pos pointing after the chunks), chunks, then the connections again, as rosbag writes
+/// them (the chunk infos are left out: a front-to-back reader does not need them).
+std::string indexed_bag_of(const std::string& chunks, const std::string& index) {
+  auto header = [](uint64_t index_pos) {
+    return record(field("op", "\x03") + field("index_pos", std::string(reinterpret_cast<const char*>(&index_pos), 8)) +
+                      field("conn_count", u32(1)) + field("chunk_count", u32(3)),
+                  std::string(4096, ' '));
+  };
+  const std::string magic = "#ROSBAG V2.0\n";
+  return magic + header(magic.size() + header(0).size() + chunks.size()) + chunks + index;
+}
+
+// A chunk of a compression rosbag does not know, between two good ones, holding the topic's connection record: one
+// line naming the file and the chunk's offset, exit 2, and the messages of the other chunks converted (the
+// connection found again where a closed bag repeats it, after the chunks).
+TEST(Import, UnknownChunkCompressionLeavesOutThatChunkOnly) {
+  test::TempDir dir;
+  std::string first, second, third;
+  for (uint32_t i = 0; i < 3; ++i) first += message(0, 10 + i, 0, scan_payload(i, 10 + i));
+  second = connection(0, "/scan", "sensor_msgs/LaserScan");
+  for (uint32_t i = 3; i < 6; ++i) second += message(0, 10 + i, 0, scan_payload(i, 10 + i));
+  for (uint32_t i = 6; i < 9; ++i) third += message(0, 10 + i, 0, scan_payload(i, 10 + i));
+  // The first chunk's messages come before any connection record: only the index names their connection.
+  const std::string bag = indexed_bag_of(chunk("none", first) + chunk("zip", second) + chunk("none", third),
+                                         connection(0, "/scan", "sensor_msgs/LaserScan"));
+  const size_t zip_at = bag.find(chunk("zip", second));
+  const CmdResult r = import(write_bag(dir, bag), dir.file("out.lcm"));
+  EXPECT_EQ(r.code, 2);
+  EXPECT_EQ(r.err, "driftlab: " + dir.file("in.bag") + ": at byte " + std::to_string(zip_at) +
+                       ": a chunk compressed with \"zip\", which is not known (rosbag's are none, bz2 and lz4); its "
+                       "messages are left out\n");
+  const auto log = by_channel(dir.file("out.lcm"));
+  ASSERT_EQ(log.at("/scan").size(), 6u);
+  const std::vector<int64_t> want = {0, 1, 2, 6, 7, 8};
+  for (size_t i = 0; i < want.size(); ++i) {
+    const auto s = decoded<laser_scan_t>(log.at("/scan")[i]);
+    EXPECT_EQ(s.header.seq, want[i]);
+    EXPECT_EQ(log.at("/scan")[i].utime, (10 + want[i]) * 1'000'000);
+  }
+}
+
+/// Every call a ROS 1 bag reader makes, as text: messages (topic, record time, offset, bytes) and problems.
+std::string trace(formats::Ros1BagReader& r) {
+  std::string out;
+  r.read(
+      [&](const formats::BagMessage& m) {
+        out += "message " + m.connection->topic + " " + std::to_string(m.record_time_ns) + " " +
+               std::to_string(m.offset) + " " + std::string(m.data.begin(), m.data.end()) + "\n";
+      },
+      [&](const formats::BagProblem& p) { out += "problem " + std::to_string(p.offset) + " " + p.what + "\n"; });
+  return out;
+}
+
+/// The offsets of a bag's chunk records.
+std::vector<size_t> chunk_offsets(const std::vector<uint8_t>& b) {
+  std::vector<size_t> out;
+  auto le32 = [&](size_t p) {
+    uint32_t v;
+    std::memcpy(&v, b.data() + p, 4);
+    return v;
+  };
+  for (size_t p = 13; p + 8 <= b.size();) {
+    const uint32_t header_len = le32(p);
+    const std::string header(b.begin() + static_cast<ptrdiff_t>(p + 4),
+                             b.begin() + static_cast<ptrdiff_t>(p + 4 + header_len));
+    if (header.find(std::string("op=\x05", 4)) != std::string::npos) out.push_back(p);
+    p += 8 + header_len + le32(p + 4 + header_len);
+  }
+  return out;
+}
+
+// The reader decompresses the chunks ahead on threads of its own: what it delivers, and every problem, in order, is
+// the same as decompressing each chunk when it comes to it, on a whole bag (ACES: 17 bz2 chunks) and broken ones.
+TEST(Ros1Bag, PipelinedReadMakesTheSameCalls) {
+  for (const char* name : {"carmen/aces.orig.bag"}) {
+    SCOPED_TRACE(name);
+    const std::string bag = test::shared_data(name);
+    if (bag.empty()) return;
+    const auto whole = test::read_file(bag);
+    const auto chunks = chunk_offsets(whole);
+    ASSERT_GE(chunks.size(), 3u);
+    const size_t middle = chunks[chunks.size() / 2];
+    std::vector<std::vector<uint8_t>> variants = {whole};
+    auto damaged = whole;  // bytes flipped inside three chunks' compressed data
+    for (size_t k : {size_t{0}, chunks.size() / 2, chunks.size() - 1}) damaged[chunks[k] + 300] ^= 0x5a;
+    variants.push_back(damaged);
+    auto garbage = whole;  // garbage before the middle chunk
+    garbage.insert(garbage.begin() + static_cast<ptrdiff_t>(middle), 77, 0xAB);
+    variants.push_back(garbage);
+    auto length = whole;  // the middle chunk's data length runs past the end of the file
+    uint32_t header_len;
+    std::memcpy(&header_len, whole.data() + middle, 4);
+    std::fill_n(length.begin() + static_cast<ptrdiff_t>(middle + 4 + header_len), 4, 0x7f);
+    variants.push_back(length);
+    variants.emplace_back(whole.begin(), whole.begin() + static_cast<ptrdiff_t>(middle + 300));  // cut short
+    for (size_t v = 0; v < variants.size(); ++v) {
+      auto serial = formats::Ros1BagReader::from_memory(variants[v]);
+      auto pipelined = formats::Ros1BagReader::from_memory(variants[v]);
+      ASSERT_TRUE(serial.ok() && pipelined.ok());
+      serial->set_pipelined(false);
+      const std::string want = trace(*serial);
+      EXPECT_EQ(trace(*pipelined), want) << "variant " << v;
+      EXPECT_EQ(want.find("problem ") != std::string::npos, v > 0) << "variant " << v;
+    }
+  }
+}
+
+// A callback that throws stops the read (the decompressing threads are stopped and joined); the reader reads again.
+TEST(Ros1Bag, ThrowingCallbackStopsThePipelinedRead) {
+  const std::string bag = test::shared_data("carmen/aces.orig.bag");
+  if (bag.empty()) return;
+  auto r = formats::Ros1BagReader::open(bag);
+  ASSERT_TRUE(r.ok());
+  int seen = 0;
+  EXPECT_THROW(r->read(
+                   [&](const formats::BagMessage&) {
+                     if (++seen == 1000) throw std::runtime_error("enough");
+                   },
+                   [](const formats::BagProblem&) {}),
+               std::runtime_error);
+  EXPECT_EQ(seen, 1000);
+  int64_t again = 0;
+  EXPECT_GT(r->read([&](const formats::BagMessage&) { ++again; },
+                    [](const formats::BagProblem& p) { ADD_FAILURE() << p.what; }),
+            20000);
+  EXPECT_GT(again, 20000);
+}
+
 TEST(Import, UnknownFormatsAreNamedInOneLine) {
   test::TempDir dir;
   test::write_file(dir.file("notes.txt"), {'h', 'e', 'l', 'l', 'o', '\n'});
@@ -342,6 +479,9 @@ TEST(Import, CarmenMessagesAndBrokenLines) {
       "FLASER 4 1 2 x 4 0 0 0 0 0 0 10.03 host 10.03\n"
       "ROBOTLASER1 0 -0.5 1.0 0.5 8.0 0.01 0 3 1.0 8.0 2.0 3 10 20 30 0.1 0.2 0.3 1 2 3 0.5 0.1 0 0 0 10.04 host "
       "10.05\n"
+      "PARAM robot_rearlaser_offset -0.2 nohost 0\n"
+      "PARAM robot_rear_laser_max 8.0 nohost 0\n"
+      "RLASER 3 1.5 8.0 2.5 4.0 5.0 3.1 4.0 5.0 3.1 10.06 host 10.07\n"
       "SYNC 1 host 11\n";
   test::write_file(dir.file("in.log"), {text.begin(), text.end()});
   const CmdResult r = import(dir.file("in.log"), dir.file("out.lcm"));
@@ -373,10 +513,35 @@ TEST(Import, CarmenMessagesAndBrokenLines) {
   EXPECT_EQ(laser_pose.position.x, 0.1);
   EXPECT_EQ(laser_pose.position.y, 0.2);
 
+  // The rear laser: 3 beams over 180 degrees (an odd count includes both ends), its own frame, its maximum (PARAM
+  // robot_rear_laser_max) meaning no return; the pose on the line on RLASER_POSE.
+  ASSERT_EQ(log.at("RLASER").size(), 1u);
+  const auto rear = decoded<laser_scan_t>(log.at("RLASER")[0]);
+  EXPECT_EQ(rear.header.frame_id, "rear_laser");
+  EXPECT_EQ(rear.header.utime, 10'060'000);
+  EXPECT_EQ(log.at("RLASER")[0].utime, 10'070'000);
+  ASSERT_EQ(rear.nranges, 3);
+  EXPECT_NEAR(rear.angle_min, -std::numbers::pi / 2, 1e-6);
+  EXPECT_NEAR(rear.angle_max, std::numbers::pi / 2, 1e-6);
+  EXPECT_NEAR(rear.angle_increment, std::numbers::pi / 2, 1e-6);
+  EXPECT_EQ(rear.ranges, (std::vector<float>{1.5F, 8.0F, 2.5F}));
+  EXPECT_GT(rear.ranges[1], rear.range_max);  // 8.0: no return
+  EXPECT_LE(rear.ranges[2], rear.range_max);
+  const auto rear_pose = decoded<pose_t>(log.at("RLASER_POSE")[0]);
+  EXPECT_EQ(rear_pose.child_frame_id, "rear_laser");
+  EXPECT_EQ(rear_pose.position.x, 4.0);
+  EXPECT_EQ(rear_pose.position.y, 5.0);
+  EXPECT_NEAR(2 * std::atan2(rear_pose.orientation.z, rear_pose.orientation.w), 3.1, 1e-12);
+  EXPECT_NE(r.out.find("RLASER"), std::string::npos) << r.out;
+
   const auto tf = decoded<tf_t>(log.at("TF_STATIC")[0]);
-  ASSERT_GE(tf.ntransforms, 1);
+  ASSERT_EQ(tf.ntransforms, 2);
   EXPECT_EQ(tf.transforms[0].child_frame_id, "laser");
   EXPECT_EQ(tf.transforms[0].translation.x, 0.25);
+  // The rear laser looks backwards from its offset.
+  EXPECT_EQ(tf.transforms[1].child_frame_id, "rear_laser");
+  EXPECT_EQ(tf.transforms[1].translation.x, -0.2);
+  EXPECT_NEAR(2 * std::atan2(tf.transforms[1].rotation.z, tf.transforms[1].rotation.w), std::numbers::pi, 1e-12);
 }
 
 // Reading counts larger than the numbers on their line are broken lines, named with the count: one beyond

@@ -9,11 +9,14 @@
 #include <map>
 #include <sstream>
 
+#include "driftlab/barometer_t.hpp"
 #include "driftlab/foreign_message_t.hpp"
+#include "driftlab/gnss_t.hpp"
 #include "driftlab/image_t.hpp"
 #include "driftlab/imu_t.hpp"
 #include "driftlab/joint_state_t.hpp"
 #include "driftlab/laser_scan_t.hpp"
+#include "driftlab/magnetometer_t.hpp"
 #include "driftlab/odometry_t.hpp"
 #include "driftlab/point_cloud_t.hpp"
 #include "driftlab/pose_t.hpp"
@@ -132,7 +135,10 @@ double cloud_value(const json& m, const std::vector<uint8_t>& data, const std::s
 
 }  // namespace
 
-std::optional<std::vector<json>> oracle_messages(const std::string& file) {
+namespace {
+
+/// Whether node and the oracle's npm modules are here; if not, skips the calling test (fails it under CI).
+bool have_oracle() {
   const bool ci = std::getenv("CI") != nullptr && std::string(std::getenv("CI")) == "true";
   const bool have = run("node --version >/dev/null 2>&1") == 0 &&
                     std::filesystem::exists(kOracleDir + "/node_modules/@mcap/core/package.json");
@@ -142,8 +148,31 @@ std::optional<std::vector<json>> oracle_messages(const std::string& file) {
     } else {
       [] { GTEST_SKIP() << "node or tests/oracle/node_modules missing (scripts/bootstrap installs them)"; }();
     }
-    return std::nullopt;
   }
+  return have;
+}
+
+}  // namespace
+
+bool oracle_write_mcap(const json& spec, const std::string& out) {
+  if (!have_oracle()) return false;
+  TempDir dir;
+  // Log times as strings: JavaScript's numbers hold 53 bits, a time in nanoseconds needs more.
+  json copy = spec;
+  for (auto& m : copy.at("messages")) m["time_ns"] = std::to_string(m.at("time_ns").get<int64_t>());
+  const std::string in = dir.file("spec.json"), err = dir.file("write.err");
+  const std::string text = copy.dump();
+  write_file(in, {text.begin(), text.end()});
+  if (run("node '" + kOracleDir + "/write_mcap.mjs' '" + in + "' '" + out + "' 2>'" + err + "'") != 0) {
+    const auto e = read_file(err);
+    ADD_FAILURE() << "the oracle cannot write " << out << ": " << std::string(e.begin(), e.end());
+    return false;
+  }
+  return true;
+}
+
+std::optional<std::vector<json>> oracle_messages(const std::string& file) {
+  if (!have_oracle()) return std::nullopt;
   TempDir dir;
   const std::string out = dir.file("dump.jsonl"), err = dir.file("dump.err");
   const int rc = run("node '" + kOracleDir + "/dump.mjs' '" + file + "' >'" + out + "' 2>'" + err + "'");
@@ -325,8 +354,12 @@ void expect_same_message(const json& ros, const OwnedEvent& e, int64_t seq, cons
       intensity |= f.at("name") == "intensity";
       time |= f.at("name") == "time";
     }
-    EXPECT_EQ(pc.nintensities, intensity ? pc.npoints : 0);
-    EXPECT_EQ(pc.ntimes, time ? pc.npoints : 0);
+    // Both ways: a field for every point (an import makes one array per field; an export writes a field for an
+    // array with a value for every point, and none for one that has not).
+    if (pc.npoints > 0) {
+      EXPECT_EQ(intensity, pc.nintensities == pc.npoints);
+      EXPECT_EQ(time, pc.ntimes == pc.npoints);
+    }
     size_t i = 0;
     for (size_t r = 0; r < static_cast<size_t>(pc.height); ++r) {
       for (size_t c = 0; c < static_cast<size_t>(pc.width); ++c, ++i) {
@@ -337,6 +370,37 @@ void expect_same_message(const json& ros, const OwnedEvent& e, int64_t seq, cons
         if (time) EXPECT_SAME(static_cast<float>(cloud_value(m, data, "time", r, c)), pc.time_offsets[i]);
       }
     }
+  } else if (type == "sensor_msgs/NavSatFix") {
+    // Both ways (docs/import.md, docs/export.md): the status says whether there is a fix, a 2D fix has no
+    // altitude, the covariance is the accuracies' (eph: the RMS of the east and north deviations).
+    const auto g = decoded<gnss_t>(e);
+    expect_header(m.at("header"), g.header, seq);
+    EXPECT_EQ(g.latitude_deg, num(m.at("latitude")));
+    EXPECT_EQ(g.longitude_deg, num(m.at("longitude")));
+    EXPECT_EQ(m.at("status").at("status").get<int>() < 0, g.fix_type < 2) << g.fix_type;
+    if (g.fix_type == 2) {
+      EXPECT_TRUE(std::isnan(num(m.at("altitude"))));
+    } else {
+      EXPECT_SAME(num(m.at("altitude")), g.altitude_m);
+    }
+    const json& c = m.at("position_covariance");
+    if (m.at("position_covariance_type").get<int>() == 0) {
+      EXPECT_EQ(g.eph_m, 0);
+      EXPECT_EQ(g.epv_m, 0);
+    } else {
+      EXPECT_SAME(std::sqrt((num(c[0]) + num(c[4])) / 2), g.eph_m);
+      EXPECT_SAME(std::sqrt(num(c[8])), g.epv_m);
+    }
+  } else if (type == "sensor_msgs/MagneticField") {
+    const auto mag = decoded<magnetometer_t>(e);
+    expect_header(m.at("header"), mag.header, seq);
+    expect_vec(m.at("magnetic_field"), mag.magnetic_field);
+    expect_array(m.at("magnetic_field_covariance"), mag.magnetic_field_covariance, 9);
+  } else if (type == "sensor_msgs/FluidPressure") {
+    const auto b = decoded<barometer_t>(e);
+    expect_header(m.at("header"), b.header, seq);
+    EXPECT_SAME(num(m.at("fluid_pressure")), b.pressure_pa);
+    EXPECT_SAME(num(m.at("variance")), b.pressure_variance);
   } else {
     ADD_FAILURE() << "the test has no check for " << type;
   }

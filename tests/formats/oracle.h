@@ -17,6 +17,12 @@ namespace driftlab::test {
 /// (CI=true), where that is a failure. Use as: `auto msgs = oracle_messages(f); if (!msgs) return;`
 std::optional<std::vector<nlohmann::json>> oracle_messages(const std::string& file);
 
+/// Writes the MCAP file out with the writers Foxglove runs (tests/oracle/write_mcap.mjs: @mcap/core,
+/// @foxglove/rosmsg2-serialization or @foxglove/rosmsg-serialization) from spec: {"profile": "ros2"|"ros1",
+/// "compression": "zstd"|"none", "messages": [dump lines: topic, type, time_ns, sequence, msg]}, numbers JSON cannot
+/// hold as "NaN", "Infinity", "-Infinity". False (the test skipped, or failed under CI) without node.
+bool oracle_write_mcap(const nlohmann::json& spec, const std::string& out);
+
 /// Compares a ROS message as the oracle decoded it (`ros` is one dump line: topic, type, time_ns, msg) with the
 /// driftlab event driftlab made of it: the event time, header.utime from header.stamp, header.seq (`seq`), and
 /// every field the mapping carries; foreign messages by walking their payload with their schema.

@@ -5,26 +5,32 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
+#include <limits>
 #include <map>
 
 #include "core/log_writer.h"
+#include "driftlab/barometer_t.hpp"
 #include "driftlab/channel_stats_t.hpp"
 #include "driftlab/fault_t.hpp"
 #include "driftlab/foreign_message_t.hpp"
 #include "driftlab/foreign_schema_t.hpp"
+#include "driftlab/gnss_t.hpp"
 #include "driftlab/image_t.hpp"
 #include "driftlab/imu_t.hpp"
 #include "driftlab/joint_state_t.hpp"
 #include "driftlab/laser_scan_t.hpp"
+#include "driftlab/magnetometer_t.hpp"
 #include "driftlab/odometry_t.hpp"
 #include "driftlab/point_cloud_t.hpp"
 #include "driftlab/pose_t.hpp"
-#include "driftlab/velocity_command_t.hpp"
 #include "driftlab/tf_t.hpp"
+#include "driftlab/velocity_command_t.hpp"
+#include "formats/compression.h"
+#include "formats/mcap.h"
 #include "lcmtypes/stream_header.h"
 #include "lcmtypes/validate.h"
-#include "formats/mcap.h"
 #include "tests/formats/oracle.h"
 #include "tests/test_util.h"
 
@@ -145,6 +151,105 @@ INSTANTIATE_TEST_SUITE_P(Import, SharedBags,
                            return n;
                          });
 
+/// A ROS 1 bag with every chunk stored uncompressed: each chunk decompressed and written again with
+/// compression=none, and the places that point at records (the bag header's index_pos, each chunk info's
+/// chunk_pos) moved to where the records now are; everything else byte for byte.
+std::vector<uint8_t> with_uncompressed_chunks(const std::vector<uint8_t>& in) {
+  auto le32 = [&](size_t p) {
+    uint32_t v;
+    std::memcpy(&v, in.data() + p, 4);
+    return v;
+  };
+  std::vector<uint8_t> out(in.begin(), in.begin() + 13);  // "#ROSBAG V2.0\n"
+  auto put32 = [&](uint32_t v) {
+    out.insert(out.end(), reinterpret_cast<uint8_t*>(&v), reinterpret_cast<uint8_t*>(&v) + 4);
+  };
+  std::map<uint64_t, uint64_t> moved;                 // a record's offset: in -> out
+  std::vector<std::pair<size_t, uint64_t>> pointers;  // where in out an 8-byte offset into in sits
+  for (size_t p = 13; p + 8 <= in.size();) {
+    const uint32_t header_len = le32(p);
+    const size_t data_at = p + 8 + header_len;
+    const uint32_t data_len = le32(p + 4 + header_len);
+    EXPECT_LE(data_at + data_len, in.size());
+    if (data_at + data_len > in.size()) break;
+    std::vector<std::pair<std::string, std::string>> fields;
+    for (size_t f = p + 4; f < p + 4 + header_len;) {
+      const uint32_t n = le32(f);
+      const std::string kv(reinterpret_cast<const char*>(in.data() + f + 4), n);
+      fields.emplace_back(kv.substr(0, kv.find('=')), kv.substr(kv.find('=') + 1));
+      f += 4 + n;
+    }
+    std::string op, compression;
+    for (const auto& [k, v] : fields) {
+      if (k == "op") op = v;
+      if (k == "compression") compression = v;
+    }
+    std::vector<uint8_t> data(in.begin() + static_cast<ptrdiff_t>(data_at),
+                              in.begin() + static_cast<ptrdiff_t>(data_at + data_len));
+    if (op == "\x05" && compression != "none") {
+      const formats::Codec codec = compression == "bz2" ? formats::Codec::kBz2 : formats::Codec::kLz4Frame;
+      std::vector<uint8_t> records;
+      EXPECT_EQ(formats::decompress(codec, data, 0, records), "");
+      data = std::move(records);
+      for (auto& [k, v] : fields) {
+        if (k == "compression") v = "none";
+      }
+    }
+    moved[p] = out.size();
+    const size_t header_at = out.size();
+    put32(0);
+    for (const auto& [k, v] : fields) {
+      put32(static_cast<uint32_t>(k.size() + 1 + v.size()));
+      out.insert(out.end(), k.begin(), k.end());
+      out.push_back('=');
+      if ((op == "\x03" && k == "index_pos") || (op == "\x06" && k == "chunk_pos")) {
+        uint64_t target;
+        std::memcpy(&target, v.data(), 8);
+        pointers.emplace_back(out.size(), target);
+      }
+      out.insert(out.end(), v.begin(), v.end());
+    }
+    const auto len = static_cast<uint32_t>(out.size() - header_at - 4);
+    std::memcpy(out.data() + header_at, &len, 4);
+    put32(static_cast<uint32_t>(data.size()));
+    out.insert(out.end(), data.begin(), data.end());
+    p = data_at + data_len;
+  }
+  for (const auto& [at, target] : pointers) {
+    EXPECT_TRUE(moved.count(target)) << "an offset that is no record's: " << target;
+    const uint64_t now = moved[target];
+    std::memcpy(out.data() + at, &now, 8);
+  }
+  return out;
+}
+
+class UncompressedChunks : public ::testing::TestWithParam<const char*> {};
+
+// ROS 1 bags with uncompressed chunks: a shared bag (bz2 or lz4 chunks) with its chunks stored uncompressed (the
+// index moved along) imports into the same log, byte for byte, as the bag itself, and Foxglove's reader, which
+// goes through the index, reads the same messages.
+TEST_P(UncompressedChunks, ReadAsTheCompressedBagAndAsFoxglovesReaderReadsThem) {
+  const std::string bag = test::shared_data(GetParam());
+  if (bag.empty()) return;
+  test::TempDir dir;
+  const auto plain = with_uncompressed_chunks(test::read_file(bag));
+  if (::testing::Test::HasFailure()) return;
+  test::write_file(dir.file("plain.bag"), plain);
+  const std::string text(plain.begin(), plain.end());
+  EXPECT_NE(text.find("compression=none"), std::string::npos);
+  EXPECT_EQ(text.find("compression=bz2"), std::string::npos);
+  EXPECT_EQ(text.find("compression=lz4"), std::string::npos);
+  auto r = test::run_capture(kDriftlab + " import '" + bag + "' -o '" + dir.file("a.lcm") + "'");
+  ASSERT_EQ(r.code, 0) << r.err;
+  r = test::run_capture(kDriftlab + " import '" + dir.file("plain.bag") + "' -o '" + dir.file("b.lcm") + "'");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(r.err, "");
+  EXPECT_EQ(test::read_file(dir.file("a.lcm")), test::read_file(dir.file("b.lcm")));
+  auto oracle = test::oracle_messages(dir.file("plain.bag"));
+  if (!oracle) return;
+  ASSERT_FALSE(oracle->empty());
+  expect_log_matches(dir.file("b.lcm"), *oracle);
+}
 
 const char* bag_name(const ::testing::TestParamInfo<const char*>& info) {
   static thread_local std::string n;
@@ -201,6 +306,9 @@ TEST_P(RoundTrip, ImportExportImportGivesTheSameLog) {
   EXPECT_EQ(test::read_file(dir.file("c.lcm")), test::read_file(dir.file("d.lcm")));
 }
 
+INSTANTIATE_TEST_SUITE_P(Import, UncompressedChunks, ::testing::Values("bags/tf_example.bag", "carmen/aces.orig.bag"),
+                         bag_name);
+
 INSTANTIATE_TEST_SUITE_P(Export, RoundTrip,
                          ::testing::Values("bags/nav2_turtlebot.mcap", "bags/mcap_cdr_test_cdr_test_0.mcap",
                                            "bags/mcap_talker_talker.mcap", "bags/sqlite3_cdr_test_cdr_test_0.db3",
@@ -210,10 +318,11 @@ INSTANTIATE_TEST_SUITE_P(Export, RoundTrip,
 // A log of every driftlab type (as the simulator and the analyzers write them, with channel names that are not
 // ROS names) exported and read by Foxglove's readers: each message equals the log's, field by field, through the
 // standard messages, driftlab_msgs and a foreign type; the diagnosis travels as metadata.
-TEST(Export, EveryTypeReadsInFoxglovesReaders) {
-  test::TempDir dir;
+/// A log of every driftlab type, as the simulator and the analyzers write them, on channels whose names are not all
+/// ROS names.
+void write_every_type_log(const std::string& path) {
   {
-    auto w = LogWriter::create(dir.file("all.lcm"));
+    auto w = LogWriter::create(path);
     ASSERT_TRUE(w.ok());
     auto hdr = [](int64_t seq, int64_t utime, const char* frame) {
       header_t h;
@@ -296,6 +405,21 @@ TEST(Export, EveryTypeReadsInFoxglovesReaders) {
       pc.ntimes = 6;
       pc.time_offsets = {0, 0.01F, 0.02F, 0.03F, 0.04F, 0.05F};
       ASSERT_TRUE(w->write(t + 800, "POINTS", test::encode(pc)).ok());
+      // Without intensities and times (a count that does not match the points' carries none), and empty.
+      point_cloud_t plain = pc;
+      plain.nintensities = 2;
+      plain.intensities = {1, 2};
+      plain.ntimes = 0;
+      plain.time_offsets.clear();
+      plain.x[5] = 6;  // no NaN: dense
+      if (i == 2) {
+        plain.height = plain.width = plain.npoints = plain.nintensities = 0;
+        plain.x.clear();
+        plain.y.clear();
+        plain.z.clear();
+        plain.intensities.clear();
+      }
+      ASSERT_TRUE(w->write(t + 810, "POINTS_PLAIN", test::encode(plain)).ok());
       image_t im;
       im.header = hdr(i, t, "camera");
       im.width = 4;
@@ -306,8 +430,10 @@ TEST(Export, EveryTypeReadsInFoxglovesReaders) {
       ASSERT_TRUE(w->write(t + 900, "camera/image", test::encode(im)).ok());
       image_t jpeg = im;
       jpeg.encoding = "jpeg";
-      jpeg.data = {0xFF, 0xD8, 0xFF, 0xD9};
-      jpeg.size = 4;
+      // A JPEG's start-of-frame saying 4 x 2, so that an import finds the size again.
+      jpeg.data = {0xFF, 0xD8, 0xFF, 0xC0, 0x00, 0x11, 0x08, 0x00, 0x02, 0x00, 0x04, 0x03,
+                   0x01, 0x22, 0x00, 0x02, 0x11, 0x01, 0x03, 0x11, 0x01, 0xFF, 0xD9};
+      jpeg.size = static_cast<int32_t>(jpeg.data.size());
       ASSERT_TRUE(w->write(t + 950, "camera/compressed", test::encode(jpeg)).ok());
       channel_stats_t st;
       st.channel = "SCAN";
@@ -315,6 +441,29 @@ TEST(Export, EveryTypeReadsInFoxglovesReaders) {
       st.bytes = 1000;
       st.last_utime = t;
       ASSERT_TRUE(w->write(t + 990, "recorder.stats", test::encode(st)).ok());
+      gnss_t fix;
+      fix.header = hdr(i, t, "gps");
+      fix.fix_type = i == 1 ? 2 : 3;  // a 2D fix between two 3D ones
+      fix.satellites = 11;
+      fix.latitude_deg = 47.3977419 + 1e-6 * i;
+      fix.longitude_deg = 8.5455938;
+      fix.altitude_m = 488.5 + i;
+      fix.eph_m = 0.75;
+      fix.epv_m = 1.25;
+      fix.velocity = {0.5, -0.25, 0.125};
+      fix.speed_accuracy_m_s = 0.1;
+      ASSERT_TRUE(w->write(t + 1000, "GNSS", test::encode(fix)).ok());
+      magnetometer_t mag;
+      mag.header = hdr(i, t, "imu");
+      mag.magnetic_field = {2.1e-5, -1.5e-6 * i, -4.3e-5};
+      mag.magnetic_field_covariance[0] = mag.magnetic_field_covariance[4] = mag.magnetic_field_covariance[8] = 1e-12;
+      ASSERT_TRUE(w->write(t + 1010, "MAG", test::encode(mag)).ok());
+      barometer_t baro;
+      baro.header = hdr(i, t, "baro_link");
+      baro.pressure_pa = 95461.5 - i;
+      baro.temperature_c = 21.5;
+      baro.pressure_variance = i == 0 ? 0 : 2.25;
+      ASSERT_TRUE(w->write(t + 1020, "BARO", test::encode(baro)).ok());
     }
     fault_t f;
     f.channel = "IMU";
@@ -341,6 +490,12 @@ TEST(Export, EveryTypeReadsInFoxglovesReaders) {
     ASSERT_TRUE(w->write(1'700'000'000'000'000, "/pair", test::encode(fm)).ok());
     ASSERT_TRUE(w->close().ok());
   }
+}
+
+TEST(Export, EveryTypeReadsInFoxglovesReaders) {
+  test::TempDir dir;
+  write_every_type_log(dir.file("all.lcm"));
+  if (::testing::Test::HasFatalFailure()) return;
   ASSERT_EQ(test::run(kDriftlab + " diagnose '" + dir.file("all.lcm") + "' --json '" + dir.file("d.json") +
                       "' >/dev/null 2>&1"),
             0);
@@ -371,9 +526,10 @@ TEST(Export, EveryTypeReadsInFoxglovesReaders) {
                                 channel == "/pair" ? "int32 a\nfloat64 b\nstring c\n" : "");
     }
     const std::string type = got[topic][0].at("type").get<std::string>();
-    const std::map<std::string, std::string> expected_types = {{"SCAN", "sensor_msgs/msg/LaserScan"},
-                                                               {"camera/compressed", "sensor_msgs/msg/CompressedImage"},
-                                                               {"FAULTS", "driftlab_msgs/msg/Fault"}};
+    const std::map<std::string, std::string> expected_types = {
+        {"SCAN", "sensor_msgs/msg/LaserScan"},     {"camera/compressed", "sensor_msgs/msg/CompressedImage"},
+        {"GNSS", "sensor_msgs/msg/NavSatFix"},     {"MAG", "sensor_msgs/msg/MagneticField"},
+        {"BARO", "sensor_msgs/msg/FluidPressure"}, {"FAULTS", "driftlab_msgs/msg/Fault"}};
     if (expected_types.count(channel)) {
       EXPECT_EQ(type, expected_types.at(channel));
     }
@@ -401,6 +557,77 @@ TEST(Export, EveryTypeReadsInFoxglovesReaders) {
   bool scan = false;
   for (const auto& [k, v] : metadata[0].entries) scan |= k == "SCAN" && !v.empty();
   EXPECT_TRUE(scan);
+}
+
+// The log of every driftlab type exported and imported again: each message of a type that goes out as a standard
+// ROS message comes back the same, byte for byte, but for what the ROS message has no place for (docs/export.md):
+// a GNSS fix's velocity, its accuracy and the satellite count, and a 2D fix's altitude; a barometer's temperature.
+// Messages carried as they came (a foreign type) come back as they were too.
+TEST(Export, ThenImportGivesEveryStandardMessageBack) {
+  test::TempDir dir;
+  write_every_type_log(dir.file("all.lcm"));
+  if (::testing::Test::HasFatalFailure()) return;
+  auto r =
+      test::run_capture(kDriftlab + " export mcap '" + dir.file("all.lcm") + "' -o '" + dir.file("all.mcap") + "'");
+  ASSERT_EQ(r.code, 0) << r.err;
+  r = test::run_capture(kDriftlab + " import '" + dir.file("all.mcap") + "' -o '" + dir.file("back.lcm") + "'");
+  ASSERT_EQ(r.code, 0) << r.err;
+  std::map<std::string, std::vector<OwnedEvent>> before, after;
+  for (auto& e : test::read_all(dir.file("all.lcm"))) before[e.channel].push_back(std::move(e));
+  for (auto& e : test::read_all(dir.file("back.lcm"))) after[e.channel].push_back(std::move(e));
+  const std::map<std::string, std::string> standard = {{"SCAN", "laser_scan_t"},
+                                                       {"IMU", "imu_t"},
+                                                       {"ODOM", "odometry_t"},
+                                                       {"GROUND_TRUTH", "pose_t"},
+                                                       {"TF", "tf_t"},
+                                                       {"CMD_VEL", "velocity_command_t"},
+                                                       {"joint_states", "joint_state_t"},
+                                                       {"POINTS", "point_cloud_t"},
+                                                       {"POINTS_PLAIN", "point_cloud_t"},
+                                                       {"camera/image", "image_t"},
+                                                       {"camera/compressed", "image_t"},
+                                                       {"GNSS", "gnss_t"},
+                                                       {"MAG", "magnetometer_t"},
+                                                       {"BARO", "barometer_t"},
+                                                       {"/pair", "foreign_message_t"}};
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  for (const auto& [channel, type] : standard) {
+    SCOPED_TRACE(channel);
+    ASSERT_TRUE(after.count(channel));
+    const auto& want = before.at(channel);
+    const auto& got = after.at(channel);
+    ASSERT_EQ(got.size(), want.size());
+    for (size_t i = 0; i < want.size(); ++i) {
+      EXPECT_EQ(got[i].utime, want[i].utime);
+      std::vector<uint8_t> expected = want[i].data;
+      if (type == "gnss_t") {
+        gnss_t g;
+        ASSERT_TRUE(lcmtypes::decode(expected, g));
+        g.satellites = 0;
+        g.velocity = {nan, nan, nan};
+        g.speed_accuracy_m_s = nan;
+        if (g.fix_type == 2) g.altitude_m = nan;
+        expected = test::encode(g);
+      } else if (channel == "POINTS_PLAIN") {
+        point_cloud_t pc;  // intensities not for every point: not exported
+        ASSERT_TRUE(lcmtypes::decode(expected, pc));
+        pc.nintensities = 0;
+        pc.intensities.clear();
+        expected = test::encode(pc);
+      } else if (type == "barometer_t") {
+        barometer_t b;
+        ASSERT_TRUE(lcmtypes::decode(expected, b));
+        b.temperature_c = nan;
+        expected = test::encode(b);
+      }
+      EXPECT_EQ(got[i].data, expected) << i;
+    }
+  }
+  // The channels of driftlab's own types (driftlab_msgs) come back as carried messages of those types.
+  ASSERT_TRUE(after.count("recorder.stats"));
+  foreign_message_t f;
+  ASSERT_TRUE(lcmtypes::decode(after.at("recorder.stats")[0].data, f));
+  EXPECT_EQ(f.type, "driftlab_msgs/msg/ChannelStats");
 }
 
 }  // namespace

@@ -2,7 +2,9 @@
 // SLAM on the imported log agrees with MRPT's icp-slam application on the rawlog; the map is written; round trips
 // keep the data; bad input names the file.
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -304,6 +306,55 @@ TEST(Rawlog, AnExportedSimulatorSessionRunsThroughIcpSlam) {
   }
   EXPECT_GT(steps, 1000);  // scans, odometry, IMU and poses each make a step in an observations-only rawlog
   EXPECT_GT(std::abs(last_x), 1.0);  // the robot drove along the corridor: icp-slam followed it
+}
+
+// MRPT 2.5's carmen2rawlog gives every observation the time it ran: such a rawlog is converted (in file order) and
+// reported, one line naming the file and the count, exit 2; `info --json` of the log counts the repeated stamps.
+// A rawlog with real stamps (SENA) is not.
+TEST(Rawlog, OneStampForEveryObservationIsReportedNotAccepted) {
+  test::TempDir dir;
+  std::string carmen = "# a CARMEN log: odometry and front laser, 10 Hz\n";
+  for (int i = 0; i < 8; ++i) {
+    const double t = 1000.0 + 0.1 * i, x = 0.05 * i;
+    carmen += "ODOM " + std::to_string(x) + " 0 0 0.5 0 0 " + std::to_string(t) + " host " + std::to_string(t) + "\n";
+    carmen += "FLASER 180";
+    for (int b = 0; b < 180; ++b) carmen += " " + std::to_string(2.0 + 0.01 * b);
+    carmen += " " + std::to_string(x) + " 0 0 " + std::to_string(x) + " 0 0 " + std::to_string(t + 0.05) + " host " +
+              std::to_string(t + 0.05) + "\n";
+  }
+  test::write_file(dir.file("run.log"), {carmen.begin(), carmen.end()});
+  ASSERT_EQ(test::run("carmen2rawlog -q -w -i '" + dir.file("run.log") + "' -o '" + dir.file("run.rawlog") +
+                      "' >/dev/null 2>&1"),
+            0);
+  auto counts = import_rawlog(dir.file("run.rawlog"), dir.file("api.lcm"));
+  ASSERT_TRUE(counts) << counts.error().message;
+  ASSERT_GE(counts->observations, 8);
+  EXPECT_EQ(counts->one_stamp, counts->observations);
+
+  const std::string driftlab = std::string(DRIFTLAB_BIN_DIR) + "/driftlab";
+  auto r = test::run_capture(driftlab + " import '" + dir.file("run.rawlog") + "' -o '" + dir.file("run.lcm") + "'");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_EQ(r.err.rfind("driftlab: " + dir.file("run.rawlog") + ": warning: all " +
+                            std::to_string(counts->observations) + " observations carry one timestamp (",
+                        0),
+            0u)
+      << r.err;
+  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+  const auto log = test::read_all(dir.file("run.lcm"));  // converted all the same
+  EXPECT_EQ(std::count_if(log.begin(), log.end(), [](const auto& e) { return e.channel == "SCAN"; }),
+            counts->written.at("SCAN"));
+  r = test::run_capture(driftlab + " info --json '" + dir.file("run.lcm") + "'");
+  ASSERT_EQ(r.code, 0) << r.err;
+  int64_t repeated = 0;
+  const auto info = nlohmann::json::parse(r.out);
+  for (const auto& c : info.at("channels")) {
+    if (c.at("name") == "SCAN") repeated = c.at("stamps_repeated").get<int64_t>();
+  }
+  EXPECT_EQ(repeated, counts->written.at("SCAN") - 1);
+
+  r = test::run_capture(driftlab + " import '" + kSena + "' -o '" + dir.file("sena.lcm") + "'");
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(r.err, "");
 }
 
 TEST(Rawlog, BadInputNamesTheFileAndLeavesNothingBehind) {
