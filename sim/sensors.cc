@@ -217,7 +217,7 @@ class Magnetometer final : public Periodic {
     driftlab::magnetometer_t m{};
     m.header.frame_id = link(ctx.robot);
     m.magnetic_field = {b.x() + s * n(rng_), b.y() + s * n(rng_), b.z() + s * n(rng_)};
-    for (int i = 0; i < 3; ++i) m.magnetic_field_covariance[4 * i] = s * s;
+    for (size_t i = 0; i < 3; ++i) m.magnetic_field_covariance[4 * i] = s * s;
     ctx.out.publish(stream_, m, ctx.now_utime, ctx.now_utime);
   }
 

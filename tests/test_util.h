@@ -1,6 +1,8 @@
 // Helpers shared by the tests: scratch folders, files, deterministic payloads and whole-log reads.
 #pragma once
 
+#include <gtest/gtest.h>
+
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -66,6 +68,14 @@ std::vector<uint8_t> encode(const T& m) {
   std::vector<uint8_t> b(static_cast<size_t>(m.getEncodedSize()));
   m.encode(b.data(), 0, static_cast<int>(b.size()));
   return b;
+}
+
+/// An event's payload decoded by its lcm-gen class (a payload that does not decode fails the test).
+template <typename T>
+T decode(const OwnedEvent& e) {
+  T m;
+  EXPECT_GE(m.decode(e.data.data(), 0, static_cast<int>(e.data.size())), 0) << e.channel;
+  return m;
 }
 
 /// Overwrites 4 bytes at `at` with v, big-endian (as LCM encodes an int32_t): to forge hostile lengths.

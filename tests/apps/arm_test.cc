@@ -23,6 +23,8 @@
 namespace driftlab {
 namespace {
 
+using test::decode;
+
 const std::string kDriftlab = std::string(DRIFTLAB_BIN_DIR) + "/driftlab";
 const std::string kScenarios = std::string(DRIFTLAB_SOURCE_DIR) + "/sim/scenarios/";
 constexpr double kPi = 3.14159265358979323846;
@@ -49,13 +51,6 @@ nlohmann::json eval_arm(const std::string& log, const std::string& options = "")
   const auto r = driftlab("eval --arm " + log + " " + options + " --json -");
   EXPECT_EQ(r.code, 0) << r.err;
   return nlohmann::json::parse(r.out.empty() ? "{}" : r.out)["arm"];
-}
-
-template <typename T>
-T decode(const test::OwnedEvent& e) {
-  T m;
-  EXPECT_GE(m.decode(e.data.data(), 0, static_cast<int>(e.data.size())), 0) << e.channel;
-  return m;
 }
 
 Eigen::Isometry3d pose_of(const driftlab::pose_t& p) {

@@ -23,6 +23,8 @@
 namespace driftlab::sim {
 namespace {
 
+using test::decode;
+
 const std::string kScenarios = std::string(DRIFTLAB_SOURCE_DIR) + "/sim/scenarios/";
 constexpr double kPi = 3.14159265358979323846;
 
@@ -48,13 +50,6 @@ std::vector<const test::OwnedEvent*> on(const std::vector<test::OwnedEvent>& eve
     if (e.channel == channel) out.push_back(&e);
   }
   return out;
-}
-
-template <typename T>
-T decode(const test::OwnedEvent& e) {
-  T m;
-  EXPECT_GE(m.decode(e.data.data(), 0, static_cast<int>(e.data.size())), 0) << e.channel;
-  return m;
 }
 
 Eigen::Isometry3d pose(const driftlab::pose_t& p) {

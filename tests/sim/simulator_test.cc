@@ -28,14 +28,9 @@
 namespace driftlab::sim {
 namespace {
 
-constexpr double kSeconds = 20;
+using test::decode;
 
-template <typename T>
-T decode(const test::OwnedEvent& e) {
-  T m;
-  EXPECT_GE(m.decode(e.data.data(), 0, static_cast<int>(e.data.size())), 0) << e.channel;
-  return m;
-}
+constexpr double kSeconds = 20;
 
 Scenario default_scenario(double seconds = kSeconds) {
   auto sc = load_scenario(default_scenario_path());
