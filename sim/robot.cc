@@ -340,6 +340,43 @@ Result<std::unique_ptr<Robot>> Robot::create(const std::string& xml, const std::
   impl->wheel_radius = 0.5 * (radius[0] + radius[1]);
   impl->wheel_separation = std::abs(axle_point[0].y() - axle_point[1].y());
   if (impl->wheel_separation <= 0) return Error{origin + ": the drive wheels sit at the same y: no separation"};
+  // The base's own contacts with the floor (its casters) on a suspension when they over-determine the support. A
+  // base on two drive wheels and one caster stands on three points, and statics decides what each carries. On two
+  // wheels and two casters (or a skid, a flat face) it stands on four or more: rigid contacts leave the load sharing
+  // to Bullet's iterative solver, which loads the contacts of the heavy base body and unloads the wheels, whose
+  // contacts reach the base only through their light bodies and hinges. The wheels then lose their grip and the base
+  // slides on its low-friction casters under the least reaction force (an arm's, a turn's) while the wheel odometry
+  // says it drives straight. Real bases spring their casters (or their wheels) for the same reason: here a caster
+  // contact is a spring, critically damped, that the robot's whole weight would compress by `caster_deflection`, so
+  // it carries only its spring's share and the drive wheels keep the rest.
+  if (drive.caster_deflection > 0) {
+    auto lowest_points = [](const Impl::Group& g, auto&& visit) {
+      const btTransform body = g.body->getWorldTransform();
+      for (int i = 0; i < g.shape->getNumChildShapes(); ++i) {
+        btVector3 lo, hi;
+        g.shape->getChildShape(i)->getAabb(body * g.shape->getChildTransform(i), lo, hi);
+        visit(g.shape->getChildShape(i)->getShapeType(), static_cast<double>(lo.z()));
+      }
+    };
+    double floor_z = INFINITY;
+    for (const int joint : {impl->left, impl->right}) {
+      lowest_points(impl->groups[impl->joints[joint].child_group],
+                    [&](int, double z) { floor_z = std::min(floor_z, z); });
+    }
+    int points = 2;  // the wheels'
+    lowest_points(impl->groups[0], [&](int type, double z) {
+      if (z < floor_z + drive.caster_deflection) points += type == SPHERE_SHAPE_PROXYTYPE ? 1 : 3;  // a ball, a face
+    });
+    if (points > 3) {
+      double mass = 0;
+      for (const auto& g : impl->groups) mass += 1.0 / static_cast<double>(g.body->getInvMass());
+      const double weight = mass * static_cast<double>(-world.getGravity().z());
+      const double stiffness = weight / drive.caster_deflection;  // [N/m]
+      const double damping = 2.0 * std::sqrt(stiffness * mass);   // [N*s/m], critical for the whole robot
+      impl->groups[0].body->setContactStiffnessAndDamping(static_cast<btScalar>(stiffness),
+                                                          static_cast<btScalar>(damping));
+    }
+  }
   return std::unique_ptr<Robot>(new Robot(std::move(impl)));
 }
 

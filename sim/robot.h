@@ -24,6 +24,10 @@ struct DriveOptions {
   double max_wheel_torque = 2.5;                  ///< motor torque limit per wheel [N*m]
   double wheel_friction = 1.0;                    ///< friction of the wheels (multiplied with the floor's)
   double body_friction = 0.0;                     ///< friction of every other body (casters slide)
+  /// How far the robot's whole weight would compress the base's own floor contacts (its casters) [m] when they and
+  /// the wheels stand on more than three points: springs of stiffness weight / deflection, critically damped, so the
+  /// drive wheels keep the load. A base on three points, or 0 here: rigid.
+  double caster_deflection = 0.01;
 };
 
 struct JointReading {

@@ -257,11 +257,15 @@ const config::Table<DriveOptions>& drive_table() {
       config::Table<D>()
           .text("left_wheel_joint", &D::left_joint, "continuous joint of the left drive wheel", config::Text::kNonEmpty)
           .text("right_wheel_joint", &D::right_joint, "... and of the right", config::Text::kNonEmpty)
-          .number("max_wheel_torque", &D::max_wheel_torque, config::above(0, 1e4), "N*m", "motor torque limit per wheel")
+          .number("max_wheel_torque", &D::max_wheel_torque, config::above(0, 1e4), "N*m",
+                  "motor torque limit per wheel")
           .number("wheel_friction", &D::wheel_friction, config::between(0, 10), "",
                   "friction of the wheels (multiplied with the floor's)")
           .number("body_friction", &D::body_friction, config::between(0, 10), "",
-                  "friction of every other body (casters slide)");
+                  "friction of every other body (casters slide)")
+          .number("caster_deflection", &D::caster_deflection, config::between(0, 1), "m",
+                  "the robot's weight compresses its casters this far when they and the wheels stand on 4+ points "
+                  "(springs: the wheels keep the load); 0: rigid");
   return t;
 }
 
