@@ -207,7 +207,8 @@ TEST(DroneStory, SetpointBurstsAreOffboardLossesTheVehicleHoldsThrough) {
   EXPECT_FALSE(end.armed) << "it still finished the mission and landed";
   const auto d = driftlab("diagnose " + log + " --json -");
   ASSERT_EQ(d.code, 0) << d.err;
-  for (const auto& c : nlohmann::json::parse(d.out)["channels"]) {
+  const auto diagnosis = nlohmann::json::parse(d.out);  // kept: a range over a temporary's member dangles
+  for (const auto& c : diagnosis["channels"]) {
     if (c["name"] == "SETPOINT") EXPECT_GT(c["drops"]["seq_gaps"].get<int64_t>(), 10) << c.dump();
   }
 }
