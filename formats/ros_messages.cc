@@ -366,7 +366,8 @@ std::vector<uint8_t> point_cloud2(Reader& r, Serialization s, int64_t, int64_t* 
   // (tests/formats/ros2_import_test.cc, PointCloudFastPathEncodesAsLcmGen).
   const bool native = big == (std::endian::native == std::endian::big);
   auto f32 = [](const Field* f) { return !f || f->type == 7; };
-  if (native && f32(fx) && f32(fy) && f32(fz) && f32(fi) && f32(ft) && !fns && !fabs) {
+  // (An empty cloud may lack x, y and z: it takes the general path, which reads no field.)
+  if (native && fx && fy && fz && f32(fx) && f32(fy) && f32(fz) && f32(fi) && f32(ft) && !fns && !fabs) {
     auto be32 = [](uint8_t* to, uint32_t v) {
       v = __builtin_bswap32(v);
       std::memcpy(to, &v, 4);
