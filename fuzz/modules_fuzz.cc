@@ -1,4 +1,5 @@
-// libFuzzer target: the processing modules (the estimator, the controller, the 2D and 3D SLAM) fed well-formed
+// libFuzzer target: the processing modules (the estimator, the controller, the 2D and 3D SLAM, and the drone's
+// estimator, flight stack and offboard script) fed well-formed
 // messages carrying hostile values (NaN, infinities, huge, tiny and denormal numbers, zero-length and odd-sized
 // arrays, stamps and log times at the ends of int64_t and running backwards) through the fake bus of the tests
 // (tests/fakes/fake_bus.h: the replay host itself on its virtual clock, timers included). No module may throw
@@ -21,14 +22,23 @@
 #include "core/bus.h"
 #include "core/log_format.h"
 #include "core/time.h"
+#include "driftlab/barometer_t.hpp"
+#include "driftlab/gnss_t.hpp"
 #include "driftlab/imu_t.hpp"
 #include "driftlab/laser_scan_t.hpp"
+#include "driftlab/magnetometer_t.hpp"
 #include "driftlab/odometry_t.hpp"
 #include "driftlab/point_cloud_t.hpp"
 #include "driftlab/pose_t.hpp"
 #include "driftlab/tf_t.hpp"
+#include "driftlab/trajectory_setpoint_t.hpp"
+#include "driftlab/vehicle_command_t.hpp"
+#include "driftlab/vehicle_status_t.hpp"
 #include "driftlab/velocity_command_t.hpp"
+#include "estimator/drone_estimator_module.h"
 #include "estimator/estimator_module.h"
+#include "flight/flight_module.h"
+#include "flight/offboard_module.h"
 #include "lcmtypes/schema.h"
 #include "lcmtypes/type_registry.h"
 #include "lcmtypes/validate.h"
@@ -128,7 +138,10 @@ std::unique_ptr<driftlab::Module> make_module(int which) {
       return std::make_unique<controller::ControllerModule>(c);
     }
     case 2: return std::make_unique<slam::Slam2d>(slam::Slam2dConfig{});
-    default: return std::make_unique<slam::Slam3d>(slam::Slam3dConfig{});
+    case 3: return std::make_unique<slam::Slam3d>(slam::Slam3dConfig{});
+    case 4: return std::make_unique<estimator::DroneEstimatorModule>(estimator::DroneEstimatorConfig{});
+    case 5: return std::make_unique<flight::FlightModule>(flight::FlightConfig{});
+    default: return std::make_unique<flight::OffboardModule>(flight::OffboardConfig{});
   }
 }
 
@@ -136,7 +149,7 @@ std::unique_ptr<driftlab::Module> make_module(int which) {
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   FuzzedDataProvider in(data, size);
-  const int which = in.ConsumeIntegralInRange<int>(0, 3);
+  const int which = in.ConsumeIntegralInRange<int>(0, 6);
   auto module = make_module(which);
   driftlab::test::FakeBus bus;  // the replay host itself, on its virtual clock
   bus.add(*module);
@@ -147,12 +160,14 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     if (!bus.deliver(channel, bytes, driftlab::Time::from_us(t)).ok()) std::abort();  // no output log to fail
   };
   // SLAM does real work per scan or cloud: fewer messages keep each input fast.
-  const int max_messages = which >= 2 ? 24 : 200;
+  const int max_messages = which == 2 || which == 3 ? 24 : 200;
+  // The drone's modules read the vehicle's estimate where the flight stack and the offboard script expect it.
+  const char* odometry_channel = which == 5 ? "VEHICLE_ODOM_REPLAY" : which == 6 ? "VEHICLE_ODOM" : "ODOM";
   int64_t clock = 1'000'000;
   for (int n = 0; n < max_messages && in.remaining_bytes() > 0; ++n) {
     const int64_t stamp = hostile_stamp(in, clock);
     const int64_t arrival = in.ConsumeBool() ? clock : stamp;
-    switch (in.ConsumeIntegralInRange<int>(0, 6)) {
+    switch (in.ConsumeIntegralInRange<int>(0, 12)) {
       case 0: {
         driftlab::imu_t m{};
         m.header = header(in, stamp, "imu");
@@ -175,7 +190,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
         put_vector(in, m.linear_velocity);
         put_vector(in, m.angular_velocity);
         fill(in, m.twist_covariance);
-        deliver("ODOM", arrival, encode(m));
+        deliver(odometry_channel, arrival, encode(m));
         break;
       }
       case 2: {
@@ -240,6 +255,68 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
           m.transforms.push_back(t);
         }
         deliver("TF_STATIC", arrival, encode(m));
+        break;
+      }
+      case 6: {
+        driftlab::gnss_t m{};
+        m.header = header(in, stamp, "gnss");
+        m.fix_type = in.ConsumeBool() ? 3 : in.ConsumeIntegral<int32_t>();
+        m.satellites = in.ConsumeIntegral<int32_t>();
+        m.latitude_deg = in.ConsumeBool() ? 47.4 + hostile_double(in) * 1e-5 : hostile_double(in);
+        m.longitude_deg = in.ConsumeBool() ? 8.5 + hostile_double(in) * 1e-5 : hostile_double(in);
+        m.altitude_m = hostile_double(in);
+        m.eph_m = hostile_double(in);
+        m.epv_m = hostile_double(in);
+        put_vector(in, m.velocity);
+        m.speed_accuracy_m_s = hostile_double(in);
+        deliver("GNSS", arrival, encode(m));
+        break;
+      }
+      case 7: {
+        driftlab::barometer_t m{};
+        m.header = header(in, stamp, "baro");
+        m.pressure_pa = in.ConsumeBool() ? 101325 + hostile_double(in) : hostile_double(in);
+        m.temperature_c = hostile_double(in);
+        m.pressure_variance = hostile_double(in);
+        deliver("BARO", arrival, encode(m));
+        break;
+      }
+      case 8: {
+        driftlab::magnetometer_t m{};
+        m.header = header(in, stamp, "mag");
+        put_vector(in, m.magnetic_field);
+        fill(in, m.magnetic_field_covariance);
+        deliver("MAG", arrival, encode(m));
+        break;
+      }
+      case 9: {
+        driftlab::trajectory_setpoint_t m{};
+        m.header = header(in, stamp, "map");
+        put_vector(in, m.position);
+        put_vector(in, m.velocity);
+        put_vector(in, m.acceleration);
+        m.yaw = hostile_double(in);
+        deliver("SETPOINT", arrival, encode(m));
+        break;
+      }
+      case 10: {
+        driftlab::vehicle_command_t m{};
+        m.header = header(in, stamp, "");
+        static const char* const kCommands[] = {"arm", "disarm", "offboard", "land", "hold", "", "takeoff"};
+        m.command = kCommands[in.ConsumeIntegralInRange<int>(0, 6)];
+        deliver("VEHICLE_CMD", arrival, encode(m));
+        break;
+      }
+      case 11: {
+        driftlab::vehicle_status_t m{};
+        m.header = header(in, stamp, "");
+        m.armed = in.ConsumeBool();
+        m.landed = in.ConsumeBool();
+        static const char* const kModes[] = {"hold", "offboard", "land", ""};
+        m.mode = kModes[in.ConsumeIntegralInRange<int>(0, 3)];
+        m.offboard_losses = in.ConsumeIntegral<int32_t>();
+        m.setpoint_age_s = hostile_double(in);
+        deliver("VEHICLE_STATUS", arrival, encode(m));
         break;
       }
       default: {
