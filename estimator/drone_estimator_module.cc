@@ -135,9 +135,10 @@ void DroneEstimatorModule::try_init(int64_t stamp) {
 void DroneEstimatorModule::add(Bus& bus, Input kind, int64_t stamp, const DroneMeasurement& m) {
   InputCounts& n = inputs_[kind];
   ++n.received;
-  const int64_t now = bus.now().us();
-  if (Duration::from_us(now - stamp).seconds() > c_.max_age_s) return void(++n.stale);
-  if (Duration::from_us(stamp - now).seconds() > c_.max_future_s) return void(++n.future);
+  // In doubles: a hostile stamp at either end of int64_t must not overflow the difference.
+  const double age = bus.now().seconds_since(Time::from_us(stamp));
+  if (age > c_.max_age_s) return void(++n.stale);
+  if (-age > c_.max_future_s) return void(++n.future);
   if (!ekf_.filter().initialized()) {
     ++n.before_init;
     switch (kind) {
