@@ -78,10 +78,10 @@ Result<ControllerConfig> parse_controller_config(const YAML::Node& node, const s
   return c;
 }
 
-CommandComparison compare_commands(const std::vector<CommandSample>& recomputed,
-                                   const std::vector<CommandSample>& logged, double max_delay_s) {
+std::optional<CommandComparison> compare_commands(const std::vector<CommandSample>& recomputed,
+                                                  const std::vector<CommandSample>& logged, double max_delay_s) {
   CommandComparison out;
-  if (recomputed.empty() || logged.empty()) return out;
+  if (recomputed.empty() || logged.empty()) return std::nullopt;
   auto rmse_at = [&](int64_t lag, CommandComparison* fill) {
     double se_l = 0, se_a = 0, max_l = 0, max_a = 0;
     int32_t n = 0;
@@ -107,7 +107,7 @@ CommandComparison compare_commands(const std::vector<CommandSample>& recomputed,
     }
     return n > 0 ? std::sqrt(se_a / n) : INFINITY;
   };
-  out.angular_rmse_at_delay = rmse_at(0, &out);
+  out.angular_rmse_at_delay = rmse_at(0, &out);  // INFINITY: nothing compared at this lag
   const auto steps = static_cast<int64_t>(std::floor(max_delay_s / 0.01));
   for (int64_t k = -steps; k <= steps; ++k) {
     const double e = rmse_at(k * 10000, nullptr);
@@ -116,6 +116,9 @@ CommandComparison compare_commands(const std::vector<CommandSample>& recomputed,
       out.delay_s = static_cast<double>(k) * 0.01;
     }
   }
+  // No lag compared a single command (the recomputed ones all before the first logged one, or farther from them
+  // than the search reaches): there is no comparison, and no number to give.
+  if (std::isinf(out.angular_rmse_at_delay)) return std::nullopt;
   return out;
 }
 
@@ -206,10 +209,12 @@ void ControllerModule::tick(Bus& bus) {
 }
 
 void ControllerModule::finish(Bus& bus) {
+  finished_ = true;
   if (c_.logged_channel.empty() || logged_.empty() || recomputed_.empty()) return;
   std::stable_sort(logged_.begin(), logged_.end(),
                    [](const CommandSample& a, const CommandSample& b) { return a.utime < b.utime; });
   comparison_ = compare_commands(recomputed_, logged_, c_.max_delay_s);
+  if (!comparison_) return;  // said in counters()
   driftlab::command_comparison_t r{};
   r.header.utime = bus.now().us();
   r.recomputed_channel = c_.command_channel;
@@ -241,6 +246,9 @@ ModuleCounters ControllerModule::counters() const {
   } else if (!c_.logged_channel.empty() && logged_.empty()) {
     c.warnings.push_back("controller: no driftlab.velocity_command_t on " + c_.logged_channel +
                          ": nothing to compare the commands with");
+  } else if (!c_.logged_channel.empty() && finished_ && !comparison_) {
+    c.warnings.push_back("controller: no recomputed command falls within " + config::format_number(c_.max_delay_s) +
+                         " s of a logged one on " + c_.logged_channel + ": the commands were not compared");
   }
   if (undecodable_ > 0) {
     c.warnings.push_back("controller: " + std::to_string(undecodable_) + " messages of the wrong type ignored");

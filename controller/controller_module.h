@@ -55,9 +55,9 @@ struct CommandComparison {
   double delay_s = 0, angular_rmse_at_delay = 0;
 };
 /// Compares recomputed commands with the logged ones, each logged command held until the next (a zero-order hold,
-/// as the base does), over lags 0..±max_delay_s in 10 ms steps.
-CommandComparison compare_commands(const std::vector<CommandSample>& recomputed,
-                                   const std::vector<CommandSample>& logged, double max_delay_s);
+/// as the base does), over lags 0..±max_delay_s in 10 ms steps; nullopt when no lag compares any command.
+std::optional<CommandComparison> compare_commands(const std::vector<CommandSample>& recomputed,
+                                                  const std::vector<CommandSample>& logged, double max_delay_s);
 
 class ControllerModule final : public Module {
  public:
@@ -78,6 +78,7 @@ class ControllerModule final : public Module {
   NonFiniteInputs non_finite_;
   std::vector<CommandSample> recomputed_, logged_;
   std::optional<CommandComparison> comparison_;
+  bool finished_ = false;
 };
 
 Result<std::unique_ptr<Module>> make_controller(const YAML::Node& config, const std::string& origin,

@@ -96,4 +96,10 @@ class Time {
   int64_t us_ = 0;
 };
 
+/// The seconds from `earlier` to `later`, both [us] on one clock (message stamps, a bus's times):
+/// Time::seconds_since on raw counts, defined for any two int64_t.
+constexpr double seconds_between(int64_t earlier, int64_t later) {
+  return Time::from_us(later).seconds_since(Time::from_us(earlier));
+}
+
 }  // namespace driftlab

@@ -101,7 +101,7 @@ void DroneEkf::propagate(const ImuSample& s, double dt) {
 
 void DroneEkf::predict(int64_t utime) {
   if (!initialized_ || utime <= t_) return;
-  propagate(last_, Duration::from_us(utime - t_).seconds());
+  propagate(last_, seconds_between(t_, utime));
   t_ = utime;
 }
 
@@ -149,7 +149,7 @@ bool DroneEkf::update(int64_t utime, const DroneMeasurement& m) {
   if (!initialized_ || !finite) return false;
   if (const auto* imu = std::get_if<ImuSample>(&m)) {
     if (utime > t_) {
-      propagate(*imu, Duration::from_us(utime - t_).seconds());
+      propagate(*imu, seconds_between(t_, utime));
       t_ = utime;
     }
     last_ = *imu;
@@ -170,7 +170,7 @@ bool DroneEkf::update(int64_t utime, const DroneMeasurement& m) {
     R.diagonal() << eph * eph, eph * eph, epv * epv, sv * sv, sv * sv, sv * sv;
     if (correct<6>(y, H, R, 1)) {
       last_fix_ = utime;
-    } else if (Duration::from_us(utime - last_fix_).seconds() > noise_.reset_s) {
+    } else if (seconds_between(last_fix_, utime) > noise_.reset_s) {
       // Every fix an outlier for reset_s: the estimate has left the GNSS behind; start from the fix again.
       p_ = g->position;
       v_ = g->velocity;
@@ -188,7 +188,7 @@ bool DroneEkf::update(int64_t utime, const DroneMeasurement& m) {
     const Eigen::Matrix<double, 1, 1> y(b->altitude - (origin_alt_ + p_.z() + baro_));
     if (correct<1>(y, H, Eigen::Matrix<double, 1, 1>(s * s), 2)) {
       last_baro_ = utime;
-    } else if (Duration::from_us(utime - last_baro_).seconds() > noise_.reset_s) {
+    } else if (seconds_between(last_baro_, utime) > noise_.reset_s) {
       baro_ = b->altitude - origin_alt_ - p_.z();  // the barometer's offset from the height, as at the start
       P_.row(kBaro).setZero();
       P_.col(kBaro).setZero();

@@ -79,6 +79,7 @@ Status DroneEstimatorModule::start(Bus& bus) {
   bus.subscribe(c_.imu_channel, [this, &bus](const BusMessage& m) {
     driftlab::imu_t s;
     if (!decode_message(m, s)) return void(++undecodable_);
+    if (!non_finite_.finite(m)) return;
     ImuSample x;
     x.gyro = Eigen::Vector3d(s.angular_velocity.x, s.angular_velocity.y, s.angular_velocity.z);
     x.accel = Eigen::Vector3d(s.linear_acceleration.x, s.linear_acceleration.y, s.linear_acceleration.z);
@@ -88,6 +89,13 @@ Status DroneEstimatorModule::start(Bus& bus) {
     driftlab::gnss_t g;
     if (!decode_message(m, g)) return void(++undecodable_);
     if (g.fix_type < 3) return void(++no_fix_);
+    if (!non_finite_.finite(m)) return;
+    // The first fix is the local frame's origin for the whole run: a fix off the globe must not become it.
+    if (!(std::abs(g.latitude_deg) <= 90) || !(std::abs(g.longitude_deg) <= 180)) {
+      return non_finite_.count(m.channel, "a fix off the globe (latitude " + config::format_number(g.latitude_deg) +
+                                              ", longitude " + config::format_number(g.longitude_deg) + ")");
+    }
+    if (!non_finite_.plausible(m.channel, "altitude_m", g.altitude_m)) return;
     if (!frame_) frame_.emplace(geo::LatLonAlt{g.latitude_deg, g.longitude_deg, g.altitude_m});
     const geo::Enu e = frame_->to_local({g.latitude_deg, g.longitude_deg, g.altitude_m});
     GnssFix f;
@@ -101,6 +109,7 @@ Status DroneEstimatorModule::start(Bus& bus) {
   bus.subscribe(c_.baro_channel, [this, &bus](const BusMessage& m) {
     driftlab::barometer_t b;
     if (!decode_message(m, b)) return void(++undecodable_);
+    if (!non_finite_.finite(m)) return;
     if (!(b.pressure_pa > 0)) return void(++undecodable_);
     BaroAltitude a{geo::altitude_of(b.pressure_pa), 0};
     // The pressure's noise as height: through the slope of the standard atmosphere at this pressure.
@@ -113,6 +122,7 @@ Status DroneEstimatorModule::start(Bus& bus) {
   bus.subscribe(c_.mag_channel, [this, &bus](const BusMessage& m) {
     driftlab::magnetometer_t s;
     if (!decode_message(m, s)) return void(++undecodable_);
+    if (!non_finite_.finite(m)) return;
     add(bus, kMag, s.header.utime,
         MagField{Eigen::Vector3d(s.magnetic_field.x, s.magnetic_field.y, s.magnetic_field.z)});
   });
@@ -122,7 +132,7 @@ Status DroneEstimatorModule::start(Bus& bus) {
 
 void DroneEstimatorModule::try_init(int64_t stamp) {
   const Alignment& a = align_;
-  if (a.imu == 0 || a.mag == 0 || Duration::from_us(a.last - a.first).seconds() < c_.align_s) return;
+  if (a.imu == 0 || a.mag == 0 || seconds_between(a.first, a.last) < c_.align_s) return;
   if (!last_fix_ || !last_baro_ || !frame_) return;
   ImuSample imu;
   imu.accel = a.accel / static_cast<double>(a.imu);
@@ -202,11 +212,11 @@ void DroneEstimatorModule::publish_status(Bus& bus) {
   s.header.utime = bus.now().us();
   s.header.frame_id = "";
   s.attitude_valid = f.initialized();
-  s.position_valid = f.initialized() && f.last_position_fix() > 0 && f.time() - f.last_position_fix() < 1000000;
+  s.position_valid = f.initialized() && seconds_between(f.last_position_fix(), f.time()) < 1.0;
   const DroneEkf::Cov& P = f.covariance();
   s.position_std_m = f.initialized() ? std::sqrt(std::max(P(0, 0), P(1, 1))) : 0;
   s.attitude_std_rad = f.initialized() ? std::sqrt(P.diagonal().segment<3>(DroneEkf::kTheta).maxCoeff()) : 0;
-  s.filter_lag_s = f.initialized() ? (bus.now() - Time::from_us(f.time())).seconds() : 0;
+  s.filter_lag_s = f.initialized() ? bus.now().seconds_since(Time::from_us(f.time())) : 0;
   s.ninputs = 4;
   for (int i = 0; i < 4; ++i) {
     s.input.push_back(kInputNames[i]);
@@ -241,12 +251,13 @@ ModuleCounters DroneEstimatorModule::counters() const {
   c.metrics.push_back({"gnss_resets", static_cast<double>(ekf_.filter().counts().resets[kGnss])});
   c.metrics.push_back({"baro_resets", static_cast<double>(ekf_.filter().counts().resets[kBaro])});
   const int64_t refused = ekf_.counters().refused;
-  c.dropped = rejected + undecodable_ + refused;
+  c.dropped = rejected + undecodable_ + refused + non_finite_.dropped();
   c.metrics.push_back({"refused_by_filter", static_cast<double>(refused)});
   if (refused > 0) {
     c.warnings.push_back("drone_estimator: " + std::to_string(refused) +
                          " measurements refused: NaN or infinite values");
   }
+  if (auto w = non_finite_.warning("drone_estimator")) c.warnings.push_back(*w);
   if (!ekf_.filter().initialized()) {
     c.warnings.push_back("drone_estimator: never initialised (needs imu, gnss with a 3D fix, baro and mag)");
   }

@@ -19,6 +19,7 @@
 #include "core/geo.h"
 #include "core/result.h"
 #include "estimator/drone_ekf.h"
+#include "lcmtypes/validate.h"
 
 namespace driftlab::config {
 template <class T>
@@ -83,6 +84,7 @@ class DroneEstimatorModule final : public Module {
   std::optional<BaroAltitude> last_baro_;
   std::array<InputCounts, 4> inputs_;
   int64_t odom_seq_ = 0, status_seq_ = 0, undecodable_ = 0, no_fix_ = 0;
+  NonFiniteInputs non_finite_;
 };
 
 }  // namespace driftlab::estimator

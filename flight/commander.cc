@@ -15,6 +15,11 @@ std::string seconds(double s) {
   return buf;
 }
 
+/// Drops the arrivals more than a second before now.
+void forget_older_than_a_second(std::deque<int64_t>& arrivals, int64_t now) {
+  while (!arrivals.empty() && seconds_between(arrivals.front(), now) > 1.0) arrivals.pop_front();
+}
+
 }  // namespace
 
 const config::Table<CommanderOptions>& commander_options_table() {
@@ -60,11 +65,11 @@ void Commander::set(Mode m, const std::string& why, int64_t now) {
 void Commander::on_setpoint(int64_t now) {
   last_setpoint_ = now;
   setpoints_.push_back(now);
-  while (!setpoints_.empty() && setpoints_.front() < now - 1000000) setpoints_.pop_front();
+  forget_older_than_a_second(setpoints_, now);
 }
 
 double Commander::setpoint_age(int64_t now) const {
-  return last_setpoint_ < 0 ? -1.0 : Duration::from_us(now - last_setpoint_).seconds();
+  return last_setpoint_ ? seconds_between(*last_setpoint_, now) : -1.0;
 }
 
 bool Commander::command(const std::string& c, int64_t now, bool estimate_ok) {
@@ -93,7 +98,7 @@ bool Commander::command(const std::string& c, int64_t now, bool estimate_ok) {
     return true;
   }
   if (c == "offboard") {
-    while (!setpoints_.empty() && setpoints_.front() < now - 1000000) setpoints_.pop_front();
+    forget_older_than_a_second(setpoints_, now);
     const double age = setpoint_age(now);
     if (age < 0 || age > o_.offboard_timeout_s || static_cast<double>(setpoints_.size()) < o_.offboard_min_rate) {
       return refuse("setpoints must stream first (" + std::to_string(setpoints_.size()) +
@@ -131,38 +136,38 @@ void Commander::update(int64_t now, double thrust_ratio, double vertical_speed, 
     }
   }
   if (failsafe_ && mode_ == Mode::kHold && o_.failsafe_land_after_s > 0 &&
-      Duration::from_us(now - mode_since_).seconds() > o_.failsafe_land_after_s) {
+      seconds_between(mode_since_, now) > o_.failsafe_land_after_s) {
     set(Mode::kLand, "failsafe: held " + seconds(o_.failsafe_land_after_s) + " without offboard: land", now);
   }
 
   // The land detector.
   if (!armed_) {
     landed_ = true;
-    low_since_ = -1;
+    low_since_.reset();
     return;
   }
   if (landed_) {
     if (thrust_ratio > 1.05 || vertical_speed > 0.3) {
       landed_ = false;
       flew_ = true;
-      low_since_ = -1;
+      low_since_.reset();
     }
   } else {
     const bool still = std::abs(vertical_speed) < 0.2 && horizontal_speed < 0.5;
     if (thrust_ratio < 0.7 && still) {
-      if (low_since_ < 0) low_since_ = now;
-      if (Duration::from_us(now - low_since_).seconds() >= o_.land_detect_s) {
+      if (!low_since_) low_since_ = now;
+      if (seconds_between(*low_since_, now) >= o_.land_detect_s) {
         landed_ = true;
         landed_since_ = now;
         ++events_;
       }
     } else {
-      low_since_ = -1;
+      low_since_.reset();
     }
   }
   // Auto-disarm once landed after a flight (or in land mode).
   if (landed_ && (flew_ || mode_ == Mode::kLand) && o_.disarm_after_landing_s > 0 &&
-      Duration::from_us(now - landed_since_).seconds() >= o_.disarm_after_landing_s) {
+      seconds_between(landed_since_, now) >= o_.disarm_after_landing_s) {
     armed_ = false;
     reason_ = "disarmed: landed";
     ++events_;

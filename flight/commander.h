@@ -9,11 +9,12 @@
 //   - the land detector: landed after `land_detect_s` of thrust below 70% of hover with the vehicle still; airborne
 //     once the controllers ask for more than hover thrust; landed after flying (or in land mode) for
 //     `disarm_after_landing_s` disarms (COM_DISARM_LAND).
-// Times are the flight stack's clock [us]. Thread-safety: plain values; one thread.
+// Times are the flight stack's clock [us], any int64_t (differences are taken in doubles). Thread-safety: plain values; one thread.
 #pragma once
 
 #include <cstdint>
 #include <deque>
+#include <optional>
 #include <string>
 
 namespace driftlab::config {
@@ -69,9 +70,10 @@ class Commander {
   bool armed_ = false, landed_ = true, flew_ = false;
   Mode mode_ = Mode::kHold;
   bool failsafe_ = false;
-  int64_t mode_since_ = 0, low_since_ = -1, landed_since_ = 0;
-  std::deque<int64_t> setpoints_;  ///< arrivals within the last second
-  int64_t last_setpoint_ = -1;
+  int64_t mode_since_ = 0, landed_since_ = 0;
+  std::optional<int64_t> low_since_;  ///< since when thrust has been low with the vehicle still
+  std::deque<int64_t> setpoints_;     ///< arrivals within the last second
+  std::optional<int64_t> last_setpoint_;
   std::string reason_;
   int losses_ = 0;
   int64_t events_ = 0;

@@ -17,6 +17,13 @@ namespace {
 
 constexpr double kGravity = 9.81;  // [m/s^2]
 
+/// Whether a vector's components are all plausible (lcmtypes/validate.h), counting the input when not.
+bool plausible(NonFiniteInputs& n, std::string_view channel, const char* field, const driftlab::vector3_t& v) {
+  const std::string f = field;
+  return n.plausible(channel, (f + ".x").c_str(), v.x) && n.plausible(channel, (f + ".y").c_str(), v.y) &&
+         n.plausible(channel, (f + ".z").c_str(), v.z);
+}
+
 }  // namespace
 
 const config::Table<FlightOptions>& flight_options_table() {
@@ -68,6 +75,16 @@ Status FlightModule::start(Bus& bus) {
   bus.subscribe(c_.estimate_channel, [this, &bus](const BusMessage& m) {
     driftlab::odometry_t o;
     if (!decode_message(m, o)) return void(++undecodable_);
+    // A NaN, a position past any plausible one or an orientation that is no rotation (its norm off 1 by more than
+    // 1%, eval's rule for poses) would fly the vehicle into NaN: the estimate is dropped, and counted.
+    if (!non_finite_.finite(m) || !plausible(non_finite_, m.channel, "position", o.position) ||
+        !plausible(non_finite_, m.channel, "linear_velocity", o.linear_velocity) ||
+        !plausible(non_finite_, m.channel, "angular_velocity", o.angular_velocity)) {
+      return;
+    }
+    if (!unit_norm(o.orientation.w, o.orientation.x, o.orientation.y, o.orientation.z)) {
+      return non_finite_.count(m.channel, "orientation is no rotation (its norm is not 1)");
+    }
     Estimate e;
     e.stamp = o.header.utime;
     e.arrival = bus.now().us();
@@ -82,6 +99,12 @@ Status FlightModule::start(Bus& bus) {
   bus.subscribe(c_.setpoint_channel, [this, &bus](const BusMessage& m) {
     driftlab::trajectory_setpoint_t s;
     if (!decode_message(m, s)) return void(++undecodable_);
+    if (!non_finite_.finite(m) || !plausible(non_finite_, m.channel, "position", s.position) ||
+        !plausible(non_finite_, m.channel, "velocity", s.velocity) ||
+        !plausible(non_finite_, m.channel, "acceleration", s.acceleration) ||
+        !non_finite_.plausible(m.channel, "yaw", s.yaw)) {
+      return;  // neither followed nor counted as a setpoint that keeps offboard alive
+    }
     setpoint_ = Setpoint{Eigen::Vector3d(s.position.x, s.position.y, s.position.z),
                          Eigen::Vector3d(s.velocity.x, s.velocity.y, s.velocity.z),
                          Eigen::Vector3d(s.acceleration.x, s.acceleration.y, s.acceleration.z), s.yaw};
@@ -97,6 +120,7 @@ Status FlightModule::start(Bus& bus) {
     bus.subscribe(c_.logged_motor_channel, [this](const BusMessage& m) {
       driftlab::motor_command_t c;
       if (!decode_message(m, c)) return void(++undecodable_);
+      if (!non_finite_.finite(m)) return;
       logged_.push_back({c.header.utime, c.armed ? c.control : std::vector<double>(c.control.size(), 0.0)});
     });
   }
@@ -106,14 +130,13 @@ Status FlightModule::start(Bus& bus) {
 }
 
 bool FlightModule::estimate_fresh(int64_t now) const {
-  return estimate_ && Duration::from_us(now - estimate_->arrival).seconds() <= c_.options.commander.estimate_timeout_s;
+  return estimate_ && seconds_between(estimate_->arrival, now) <= c_.options.commander.estimate_timeout_s;
 }
 
 void FlightModule::position_tick(Bus& bus) {
   const int64_t now = bus.now().us();
-  const double dt = last_position_tick_ > 0
-                        ? std::clamp(Duration::from_us(now - last_position_tick_).seconds(), 0.0, 0.1)
-                        : 1 / c_.options.position_rate;
+  const double dt =
+      last_position_tick_ ? std::clamp(seconds_between(*last_position_tick_, now), 0.0, 0.1) : 1 / c_.options.position_rate;
   last_position_tick_ = now;
   const bool fresh = estimate_fresh(now);
   const Eigen::Vector3d v = fresh ? estimate_->velocity : Eigen::Vector3d::Zero();
@@ -150,8 +173,7 @@ void FlightModule::position_tick(Bus& bus) {
 
 void FlightModule::on_estimate(Bus& bus) {
   const Estimate& e = *estimate_;
-  const double dt =
-      last_rate_stamp_ > 0 ? std::clamp(Duration::from_us(e.stamp - last_rate_stamp_).seconds(), 0.0, 0.05) : 0.0;
+  const double dt = last_rate_stamp_ ? std::clamp(seconds_between(*last_rate_stamp_, e.stamp), 0.0, 0.05) : 0.0;
   last_rate_stamp_ = e.stamp;
   if (!commander_.armed() || !thrust_) {
     publish_motors(bus, false, std::vector<double>(c_.options.vehicle.rotors.size(), 0.0));
@@ -213,7 +235,7 @@ void FlightModule::finish(Bus& bus) {
 
 ModuleCounters FlightModule::counters() const {
   ModuleCounters c;
-  c.dropped = undecodable_;
+  c.dropped = undecodable_ + non_finite_.dropped();
   c.metrics = {{"motor_commands", static_cast<double>(motor_commands_)},
                {"offboard_losses", static_cast<double>(commander_.offboard_losses())}};
   if (compared_ > 0) c.metrics.push_back({"motor_rmse", motor_rmse_});
@@ -227,6 +249,7 @@ ModuleCounters FlightModule::counters() const {
   }
   if (undecodable_ > 0)
     c.warnings.push_back("flight: " + std::to_string(undecodable_) + " messages of the wrong type ignored");
+  if (auto w = non_finite_.warning("flight")) c.warnings.push_back(*w);
   return c;
 }
 

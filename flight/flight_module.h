@@ -24,6 +24,7 @@
 #include "flight/commander.h"
 #include "flight/control.h"
 #include "flight/vehicle.h"
+#include "lcmtypes/validate.h"
 
 namespace driftlab::config {
 template <class T>
@@ -97,10 +98,12 @@ class FlightModule final : public Module {
   std::optional<ThrustSetpoint> thrust_;  ///< none: motors idle
   Eigen::Vector3d hold_ = Eigen::Vector3d::Zero();
   double hold_yaw_ = 0;
-  int64_t seen_events_ = -1, last_rate_stamp_ = 0, last_position_tick_ = 0;
+  int64_t seen_events_ = -1;
+  std::optional<int64_t> last_rate_stamp_, last_position_tick_;
   double thrust_ratio_ = 0;
   int saturated_[3] = {0, 0, 0};
   int64_t motor_seq_ = 0, status_seq_ = 0, undecodable_ = 0, motor_commands_ = 0;
+  NonFiniteInputs non_finite_;
   std::vector<Sample> recomputed_, logged_;
   double motor_rmse_ = 0;
   int64_t compared_ = 0;

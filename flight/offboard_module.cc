@@ -82,6 +82,16 @@ Status OffboardModule::start(Bus& bus) {
   bus.subscribe(c_.estimate_channel, [this](const BusMessage& m) {
     driftlab::odometry_t o;
     if (!decode_message(m, o)) return void(++undecodable_);
+    // The mission is laid out from the estimate: a NaN, a position past any plausible one or an orientation that
+    // is no rotation would put every setpoint there. Dropped, and counted.
+    if (!non_finite_.finite(m) || !non_finite_.plausible(m.channel, "position.x", o.position.x) ||
+        !non_finite_.plausible(m.channel, "position.y", o.position.y) ||
+        !non_finite_.plausible(m.channel, "position.z", o.position.z)) {
+      return;
+    }
+    if (!unit_norm(o.orientation.w, o.orientation.x, o.orientation.y, o.orientation.z)) {
+      return non_finite_.count(m.channel, "orientation is no rotation (its norm is not 1)");
+    }
     position_ = Eigen::Vector3d(o.position.x, o.position.y, o.position.z);
     yaw_ = yaw_of(o.orientation);
   });
@@ -110,8 +120,9 @@ void OffboardModule::send(Bus& bus, const std::string& command) {
 void OffboardModule::tick(Bus& bus) {
   const int64_t now = bus.now().us();
   const MissionOptions& o = c_.mission;
-  const int64_t retry = Duration::from_seconds_truncated(o.retry_s).us();
-  auto since = [&](int64_t t) { return Duration::from_us(now - t).seconds(); };
+  // In doubles: the bus's clock follows a log's times, which may start anywhere in int64_t.
+  auto since = [&](int64_t t) { return seconds_between(t, now); };
+  auto may_ask = [&] { return !last_request_ || since(*last_request_) >= o.retry_s; };
   if (phase_ == Phase::kWaiting) {
     if (!position_) return;
     phase_ = Phase::kWarmup;
@@ -126,7 +137,7 @@ void OffboardModule::tick(Bus& bus) {
   if (phase_ == Phase::kWarmup && since(phase_since_) >= o.warmup_s) {
     phase_ = Phase::kEngaging;
     phase_since_ = now;
-    last_request_ = now - retry;
+    last_request_.reset();  // ask at once
   }
   if (phase_ == Phase::kEngaging) {
     if (mode_ == "offboard" && armed_) {
@@ -139,7 +150,7 @@ void OffboardModule::tick(Bus& bus) {
         legs_.push_back({at, to, o.cruise_speed, o.dwell_s});
         at = to;
       }
-    } else if (now - last_request_ >= retry) {
+    } else if (may_ask()) {
       send(bus, mode_ != "offboard" ? "offboard" : "arm");
     }
   }
@@ -184,16 +195,16 @@ void OffboardModule::tick(Bus& bus) {
       }
       t -= leg.dwell_s;
     }
-    if (mode_ != "offboard" && mode_ != "land" && now - last_request_ >= retry) send(bus, "offboard");
+    if (mode_ != "offboard" && mode_ != "land" && may_ask()) send(bus, "offboard");
   }
   if (phase_ == Phase::kMission && finished && o.land) {
     phase_ = Phase::kLanding;
-    last_request_ = now - retry;
+    last_request_.reset();
   }
   if (phase_ == Phase::kLanding) {
     if (!armed_ && was_armed_) {
       phase_ = Phase::kDone;
-    } else if (mode_ != "land" && now - last_request_ >= retry) {
+    } else if (mode_ != "land" && may_ask()) {
       send(bus, "land");
     }
     return;
@@ -213,7 +224,7 @@ void OffboardModule::tick(Bus& bus) {
 
 ModuleCounters OffboardModule::counters() const {
   ModuleCounters c;
-  c.dropped = undecodable_;
+  c.dropped = undecodable_ + non_finite_.dropped();
   c.metrics = {{"setpoints", static_cast<double>(setpoints_)}, {"commands", static_cast<double>(commands_)}};
   if (!position_) {
     c.warnings.push_back("offboard: no driftlab.odometry_t on " + c_.estimate_channel + ": the mission never started");
@@ -221,6 +232,7 @@ ModuleCounters OffboardModule::counters() const {
   if (undecodable_ > 0) {
     c.warnings.push_back("offboard: " + std::to_string(undecodable_) + " messages of the wrong type ignored");
   }
+  if (auto w = non_finite_.warning("offboard")) c.warnings.push_back(*w);
   return c;
 }
 

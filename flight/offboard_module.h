@@ -20,6 +20,7 @@
 
 #include "core/bus.h"
 #include "core/result.h"
+#include "lcmtypes/validate.h"
 
 namespace driftlab::config {
 template <class T>
@@ -82,8 +83,10 @@ class OffboardModule final : public Module {
   bool armed_ = false, was_armed_ = false;
   std::string mode_;
   Eigen::Vector3d home_ = Eigen::Vector3d::Zero();
-  int64_t phase_since_ = 0, last_request_ = 0, mission_start_ = 0;
+  int64_t phase_since_ = 0, mission_start_ = 0;
+  std::optional<int64_t> last_request_;  ///< none: ask at once
   int64_t setpoint_seq_ = 0, command_seq_ = 0, setpoints_ = 0, commands_ = 0, undecodable_ = 0;
+  NonFiniteInputs non_finite_;
 };
 
 }  // namespace driftlab::flight

@@ -5,6 +5,7 @@
 // compiled once into plans. Thread-safety: safe from any thread.
 #pragma once
 
+#include <cmath>
 #include <cstdint>
 #include <optional>
 #include <span>
@@ -57,6 +58,12 @@ bool decode_message(const BusMessage& m, T& out) {
 inline constexpr double kMaxMagnitude = 1e9;
 /// Whether |v| <= kMaxMagnitude (false for NaN).
 inline bool plausible(double v) { return v >= -kMaxMagnitude && v <= kMaxMagnitude; }
+
+/// Whether a quaternion's norm is 1 within 1%, as a rotation's is (eval's rule for poses, analyzers/trajectory_io.h:
+/// any quaternion printed with three decimals or more passes); false for NaN and for squares that overflow.
+inline bool unit_norm(double w, double x, double y, double z) {
+  return std::abs(std::sqrt(w * w + x * x + y * y + z * z) - 1) <= 0.01;
+}
 
 /// The inputs a module drops because a number in them is NaN, infinite (lcmtypes::non_finite) or out of range (not
 /// plausible, or a value the module derives), counted with the first one named, for the module's statistics. Not

@@ -112,12 +112,28 @@ TEST(CompareCommands, FindsTheDelayBetweenTwoCommandSeries) {
     if (i % 5 == 0) recomputed.push_back({t, 0.4, w});
     logged.push_back({t + 60000, 0.4, w});
   }
-  const CommandComparison c = compare_commands(recomputed, logged, 0.5);
-  EXPECT_NEAR(c.delay_s, 0.06, 1e-9);
-  EXPECT_LT(c.angular_rmse_at_delay, 1e-12);
-  EXPECT_GT(c.angular_rmse, 0.01);  // at zero lag the series differ
-  EXPECT_NEAR(c.linear_rmse, 0, 1e-12);
-  EXPECT_EQ(c.matched, 78);         // recomputed commands from the first logged one on (60 ms in): 2 of 80 miss
+  const auto c = compare_commands(recomputed, logged, 0.5);
+  ASSERT_TRUE(c);
+  EXPECT_NEAR(c->delay_s, 0.06, 1e-9);
+  EXPECT_LT(c->angular_rmse_at_delay, 1e-12);
+  EXPECT_GT(c->angular_rmse, 0.01);  // at zero lag the series differ
+  EXPECT_NEAR(c->linear_rmse, 0, 1e-12);
+  EXPECT_EQ(c->matched, 78);         // recomputed commands from the first logged one on (60 ms in): 2 of 80 miss
+}
+
+TEST(CompareCommands, SeriesThatNeverOverlapAreNotCompared) {
+  // Every recomputed command comes before the first logged one, by more than the search reaches: no lag compares
+  // anything. modules_fuzz found the old answer, an RMSE at the best delay of inf, published on CMD_COMPARISON.
+  const int64_t t0 = 1763776800000000;
+  const std::vector<CommandSample> recomputed = {{t0, 0.4, 0.1}, {t0 + 50000, 0.4, 0.2}};
+  const std::vector<CommandSample> logged = {{t0 + 1500000, 0.4, 0.1}};
+  EXPECT_FALSE(compare_commands(recomputed, logged, 0.5));
+  EXPECT_FALSE(compare_commands(recomputed, {}, 0.5));
+  // Searched over 2 s they are compared: from 1.5 s on both recomputed commands meet the logged one held.
+  const auto late = compare_commands(recomputed, logged, 2);
+  ASSERT_TRUE(late);
+  EXPECT_NEAR(late->delay_s, 1.5, 1e-9);
+  EXPECT_TRUE(std::isfinite(late->angular_rmse_at_delay));
 }
 
 TEST(ControllerConfig, NamesTheFileLineAndKey) {

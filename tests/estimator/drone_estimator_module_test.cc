@@ -208,5 +208,33 @@ TEST(DroneEstimatorModule, AnImuOnAnotherClockIsRejectedAndTheReasonCounted) {
   }
 }
 
+// The first fix is the local frame's origin for the whole run. A fix off the globe (finite numbers, so the filter's
+// own NaN check let it by) became that origin before: every later fix was NaN in it, and the position was lost for
+// the whole flight. Now it is dropped and counted, and the next good fix is the origin.
+TEST(DroneEstimatorModule, AFixOffTheGlobeIsNotTheOrigin) {
+  DroneEstimatorModule est(config());
+  driftlab::test::FakeBus bus;
+  bus.add(est);
+  ASSERT_TRUE(bus.start());
+  driftlab::gnss_t bad{};
+  bad.header = header(kT0 - 100000);
+  bad.fix_type = 3;
+  bad.latitude_deg = 1e300;
+  bad.longitude_deg = 8.5;
+  bad.eph_m = bad.epv_m = 1;
+  ASSERT_TRUE(bus.deliver_message("GNSS", bad, Time::from_us(kT0 - 100000)));
+  bad.latitude_deg = 47.4;
+  bad.longitude_deg = -400;
+  ASSERT_TRUE(bus.deliver_message("GNSS", bad, Time::from_us(kT0 - 50000)));
+  Eigen::Vector3d origin;
+  ASSERT_TRUE(play(bus, 0, &origin));
+  ASSERT_TRUE(bus.finish());
+  EXPECT_LT(worst_error(bus, origin), 0.6);
+  const auto w = est.counters().warnings;
+  ASSERT_EQ(w.size(), 1u);
+  EXPECT_NE(w[0].find("2 inputs"), std::string::npos) << w[0];
+  EXPECT_NE(w[0].find("GNSS: a fix off the globe (latitude 1e+300, longitude 8.5)"), std::string::npos) << w[0];
+}
+
 }  // namespace
 }  // namespace driftlab::estimator

@@ -71,5 +71,30 @@ TEST(Commander, AStreamResumedInTimeKeepsOffboard) {
   EXPECT_EQ(c.offboard_losses(), 0);
 }
 
+// The flight stack's clock is a log's on replay, and a log's times may be anything: before zero (an offset clock)
+// or at int64_t's ends (a hostile peer). Before, a setpoint stamped before zero read as no setpoint at all (a
+// sentinel of -1), so offboard was refused, and the times' differences overflowed int64_t (UBSan).
+TEST(Commander, ClocksBeforeZeroAndAtTheEndsOfInt64) {
+  Commander c{CommanderOptions{}};
+  int64_t t = -3 * kS;
+  for (; t <= -2 * kS; t += 100000) c.on_setpoint(t);
+  EXPECT_TRUE(c.command("offboard", t, true)) << c.reason();
+  EXPECT_NEAR(c.setpoint_age(t), 0.1, 1e-9);
+  ASSERT_TRUE(c.command("arm", t, true));
+  c.update(t, 1.2, 0.5, 0);  // took off
+  // The next tick at the far end of int64_t: the stream is long gone.
+  c.update(INT64_MAX, 1.0, 0, 0);
+  EXPECT_EQ(c.offboard_losses(), 1);
+  EXPECT_EQ(c.mode(), Mode::kHold);
+  EXPECT_GT(c.setpoint_age(INT64_MAX), 9e12);
+
+  Commander d{CommanderOptions{}};
+  d.on_setpoint(INT64_MIN);
+  d.on_setpoint(INT64_MIN + 100000);
+  d.on_setpoint(INT64_MIN + 200000);
+  EXPECT_TRUE(d.command("offboard", INT64_MIN + 300000, true)) << d.reason();
+  EXPECT_FALSE(d.command("offboard", INT64_MAX, true));  // the stream is 2^64 us old
+}
+
 }  // namespace
 }  // namespace driftlab::flight

@@ -9,6 +9,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <functional>
 #include <string>
 #include <utility>
 
@@ -44,6 +45,10 @@ class World final : public Module {
       driftlab::trajectory_setpoint_t s;
       if (!decode_message(m, s)) return;
       if (bus.now().us() >= gap_from && bus.now().us() < gap_to) return;
+      if (hostile()) {  // relayed with a NaN in it
+        s.position.x = NAN;
+        return bus.publish_message("SETPOINT", s);
+      }
       setpoint = Eigen::Vector3d(s.position.x, s.position.y, s.position.z);
       bus.publish(std::string("SETPOINT"), m.data);
     });
@@ -62,13 +67,25 @@ class World final : public Module {
       o.linear_velocity = {vb.x(), vb.y(), vb.z()};
       o.angular_velocity = {body.w.x(), body.w.y(), body.w.z()};
       bus.publish_message("VEHICLE_ODOM", o);
+      if (hostile()) {  // a peer's estimates beside the true one: an orientation that is no rotation, a wild position
+        driftlab::odometry_t bad = o;
+        bad.orientation = {0, 0, 0, 0};
+        bus.publish_message("VEHICLE_ODOM", bad);
+        bad = o;
+        bad.position.x = 1e300;
+        bus.publish_message("VEHICLE_ODOM", bad);
+      }
     });
+    now = [&bus] { return bus.now().us(); };
     return {};
   }
+  bool hostile() const { return now() >= hostile_from && now() < hostile_to; }
 
   test::RigidBody body;
   Eigen::Vector3d setpoint = Eigen::Vector3d::Zero();
   int64_t gap_from = 0, gap_to = 0, ticks = 0, seq = 0, armed_commands = 0;
+  int64_t hostile_from = 0, hostile_to = 0;  ///< setpoints relayed with a NaN, hostile estimates published
+  std::function<int64_t()> now;
   double top = 0;
 };
 
@@ -183,6 +200,76 @@ TEST(FlightModule, ASetpointGapInFlightIsAnOffboardLossAndTheVehicleHolds) {
   bool warned = false;
   for (const auto& w : flight.counters().warnings) warned |= w.find("offboard lost 1 times") != std::string::npos;
   EXPECT_TRUE(warned);
+}
+
+// A peer on the bus sends, for 0.3 s of the hover (less than the offboard timeout), setpoints with a NaN in them and
+// estimates that are no pose (a zero quaternion, x = 1e300). The flight stack and the script drop them, count them
+// and fly on the good ones: every motor command stays finite and the vehicle holds its hover. Before, the NaN
+// setpoint went into the position controller and every motor command after it was NaN.
+TEST(FlightModule, HostileSetpointsAndEstimatesAreDroppedAndCounted) {
+  Stack stack;
+  auto& [world, flight, offboard, bus] = stack;
+  world.hostile_from = kT0 + 9000000;
+  world.hostile_to = kT0 + 9300000;
+  ASSERT_TRUE(bus.start());
+  double lowest_after = 10;
+  for (int64_t t = kT0; t < kT0 + 11000000; t += 20000) {
+    ASSERT_TRUE(bus.advance(Time::from_us(t)));
+    if (t > world.hostile_from) lowest_after = std::min(lowest_after, world.body.p.z());
+  }
+  for (const auto& e : bus.published("MOTOR_CMD")) {
+    const auto bad = lcmtypes::non_finite(e.data);
+    ASSERT_FALSE(bad) << "at " << e.utime << ": " << *bad;
+  }
+  EXPECT_GT(lowest_after, 1.8);
+  EXPECT_EQ(flight.commander().offboard_losses(), 0);
+  const std::vector<std::string> expected = {"hold", "offboard"};
+  EXPECT_EQ(modes(bus), expected);
+  // 6 setpoints at 20 Hz and 2 x 75 estimates at 250 Hz in 0.3 s, to the tick.
+  EXPECT_NEAR(static_cast<double>(flight.counters().dropped), 6 + 150, 2);
+  bool warned = false;
+  for (const auto& w : flight.counters().warnings) warned |= w.find("dropped (first: ") != std::string::npos;
+  EXPECT_TRUE(warned);
+  // The script lays out its mission from the estimate: both hostile estimates are dropped there too.
+  EXPECT_NEAR(static_cast<double>(offboard.counters().dropped), 150, 2);
+}
+
+TEST(OffboardModule, AnEstimateAtInfinityIsNotFlownTo) {
+  driftlab::test::FakeBus bus;
+  OffboardModule offboard(offboard_config());
+  bus.add(offboard);
+  ASSERT_TRUE(bus.start());
+  driftlab::odometry_t o{};
+  o.header.utime = kT0;
+  o.header.frame_id = "odom";
+  o.child_frame_id = "base_link";
+  o.orientation = {1, 0, 0, 0};
+  o.position = {INFINITY, 0, 0};
+  ASSERT_TRUE(bus.deliver_message("VEHICLE_ODOM", o, Time::from_us(kT0)));
+  o.position = {1e300, 0, 0};
+  ASSERT_TRUE(bus.deliver_message("VEHICLE_ODOM", o, Time::from_us(kT0 + 1000)));
+  o.position = {0, 0, 0};
+  o.orientation = {1e300, 1e300, 1e300, 1e300};  // finite, but no rotation
+  ASSERT_TRUE(bus.deliver_message("VEHICLE_ODOM", o, Time::from_us(kT0 + 2000)));
+  ASSERT_TRUE(bus.advance(Time::from_us(kT0 + 500000)));
+  EXPECT_EQ(offboard.phase(), OffboardModule::Phase::kWaiting);  // nothing usable yet
+  EXPECT_TRUE(bus.published("SETPOINT_OUT").empty());
+  o.position = {1, 2, 0};
+  o.orientation = {1, 0, 0, 0};
+  ASSERT_TRUE(bus.deliver_message("VEHICLE_ODOM", o, Time::from_us(kT0 + 600000)));
+  ASSERT_TRUE(bus.advance(Time::from_us(kT0 + 1000000)));
+  const auto setpoints = bus.published("SETPOINT_OUT");
+  ASSERT_FALSE(setpoints.empty());
+  for (const auto& e : setpoints) {
+    driftlab::trajectory_setpoint_t sp;
+    ASSERT_GT(sp.decode(e.data.data(), 0, static_cast<int>(e.data.size())), 0);
+    EXPECT_EQ(sp.position.x, 1);
+    EXPECT_EQ(sp.position.y, 2);
+  }
+  EXPECT_EQ(offboard.counters().dropped, 3);
+  ASSERT_FALSE(offboard.counters().warnings.empty());
+  EXPECT_NE(offboard.counters().warnings.back().find("VEHICLE_ODOM: position.x = inf"), std::string::npos)
+      << offboard.counters().warnings.back();
 }
 
 }  // namespace
