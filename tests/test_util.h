@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "core/log_event.h"
+#include "lcmtypes/validate.h"
 
 namespace driftlab::test {
 
@@ -70,11 +71,12 @@ std::vector<uint8_t> encode(const T& m) {
   return b;
 }
 
-/// An event's payload decoded by its lcm-gen class (a payload that does not decode fails the test).
+/// An event's payload decoded by its lcm-gen class after the layout check every reader makes (lcmtypes::decode): a
+/// payload that is not a well-formed message of T fails the test.
 template <typename T>
 T decode(const OwnedEvent& e) {
   T m;
-  EXPECT_GE(m.decode(e.data.data(), 0, static_cast<int>(e.data.size())), 0) << e.channel;
+  EXPECT_TRUE(lcmtypes::decode(e.data, m)) << e.channel;
   return m;
 }
 

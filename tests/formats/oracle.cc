@@ -34,13 +34,6 @@ using nlohmann::json;
 
 const std::string kOracleDir = std::string(DRIFTLAB_SOURCE_DIR) + "/tests/oracle";
 
-template <typename T>
-T decoded(const OwnedEvent& e) {
-  T m;
-  EXPECT_TRUE(lcmtypes::decode(e.data, m)) << e.channel;
-  return m;
-}
-
 /// A JSON number as the double it holds; null (how JSON writes NaN) as NaN.
 double num(const json& j) {
   if (j.is_null()) return std::nan("");
@@ -229,7 +222,7 @@ void expect_same_message(const json& ros, const OwnedEvent& e, int64_t seq, cons
     return;
   }
   if (!formats::driftlab_type_for(type) || (ros["encoding"] != "cdr" && ros["encoding"] != "ros1")) {
-    const auto f = decoded<foreign_message_t>(e);
+    const auto f = test::decode<foreign_message_t>(e);
     EXPECT_EQ(f.type, ros.at("type").get<std::string>());
     EXPECT_EQ(f.encoding, ros.at("encoding").get<std::string>());
     auto d = formats::RosDefinition::parse(f.type, schema,
@@ -242,7 +235,7 @@ void expect_same_message(const json& ros, const OwnedEvent& e, int64_t seq, cons
     return;
   }
   if (type == "sensor_msgs/LaserScan") {
-    const auto s = decoded<laser_scan_t>(e);
+    const auto s = test::decode<laser_scan_t>(e);
     expect_header(m.at("header"), s.header, seq);
     for (const char* k : {"angle_min", "angle_max", "angle_increment", "time_increment", "scan_time", "range_min",
                           "range_max"}) {
@@ -258,7 +251,7 @@ void expect_same_message(const json& ros, const OwnedEvent& e, int64_t seq, cons
     expect_array(m.at("ranges"), s.ranges);
     expect_array(m.at("intensities"), s.intensities);
   } else if (type == "sensor_msgs/Imu") {
-    const auto s = decoded<imu_t>(e);
+    const auto s = test::decode<imu_t>(e);
     expect_header(m.at("header"), s.header, seq);
     expect_quat(m.at("orientation"), s.orientation);
     expect_array(m.at("orientation_covariance"), s.orientation_covariance, 9);
@@ -267,7 +260,7 @@ void expect_same_message(const json& ros, const OwnedEvent& e, int64_t seq, cons
     expect_vec(m.at("linear_acceleration"), s.linear_acceleration);
     expect_array(m.at("linear_acceleration_covariance"), s.linear_acceleration_covariance, 9);
   } else if (type == "nav_msgs/Odometry") {
-    const auto o = decoded<odometry_t>(e);
+    const auto o = test::decode<odometry_t>(e);
     expect_header(m.at("header"), o.header, seq);
     EXPECT_EQ(o.child_frame_id, m.at("child_frame_id").get<std::string>());
     expect_vec(m.at("pose").at("pose").at("position"), o.position);
@@ -277,14 +270,14 @@ void expect_same_message(const json& ros, const OwnedEvent& e, int64_t seq, cons
     expect_vec(m.at("twist").at("twist").at("angular"), o.angular_velocity);
     expect_array(m.at("twist").at("covariance"), o.twist_covariance, 36);
   } else if (type == "geometry_msgs/PoseStamped" || type == "geometry_msgs/PoseWithCovarianceStamped") {
-    const auto p = decoded<pose_t>(e);
+    const auto p = test::decode<pose_t>(e);
     expect_header(m.at("header"), p.header, seq);
     const json& pose = type == "geometry_msgs/PoseStamped" ? m.at("pose") : m.at("pose").at("pose");
     expect_vec(pose.at("position"), p.position);
     expect_quat(pose.at("orientation"), p.orientation);
     if (type == "geometry_msgs/PoseWithCovarianceStamped") expect_array(m.at("pose").at("covariance"), p.covariance, 36);
   } else if (type == "tf2_msgs/TFMessage" || type == "tf/tfMessage") {
-    const auto tf = decoded<tf_t>(e);
+    const auto tf = test::decode<tf_t>(e);
     ASSERT_EQ(static_cast<size_t>(tf.ntransforms), m.at("transforms").size());
     int64_t newest = INT64_MIN;
     for (size_t i = 0; i < m.at("transforms").size(); ++i) {
@@ -295,12 +288,12 @@ void expect_same_message(const json& ros, const OwnedEvent& e, int64_t seq, cons
     EXPECT_EQ(tf.header.seq, seq);
     EXPECT_EQ(tf.header.utime, tf.ntransforms ? newest : e.utime);
   } else if (type == "geometry_msgs/TransformStamped") {
-    const auto tf = decoded<tf_t>(e);
+    const auto tf = test::decode<tf_t>(e);
     ASSERT_EQ(tf.ntransforms, 1);
     expect_transform(m, tf.transforms[0]);
     EXPECT_EQ(tf.transforms[0].header.seq, m.at("header").contains("seq") ? m["header"]["seq"].get<int64_t>() : seq);
   } else if (type == "geometry_msgs/TwistStamped" || type == "geometry_msgs/Twist") {
-    const auto v = decoded<velocity_command_t>(e);
+    const auto v = test::decode<velocity_command_t>(e);
     const json& twist = type == "geometry_msgs/Twist" ? m : m.at("twist");
     if (type == "geometry_msgs/TwistStamped") {
       expect_header(m.at("header"), v.header, seq);
@@ -311,7 +304,7 @@ void expect_same_message(const json& ros, const OwnedEvent& e, int64_t seq, cons
     expect_vec(twist.at("linear"), v.linear);
     expect_vec(twist.at("angular"), v.angular);
   } else if (type == "sensor_msgs/JointState") {
-    const auto j = decoded<joint_state_t>(e);
+    const auto j = test::decode<joint_state_t>(e);
     expect_header(m.at("header"), j.header, seq);
     ASSERT_EQ(static_cast<size_t>(j.njoints), m.at("name").size());
     for (size_t i = 0; i < m.at("name").size(); ++i) EXPECT_EQ(j.name[i], m["name"][i].get<std::string>());
@@ -323,7 +316,7 @@ void expect_same_message(const json& ros, const OwnedEvent& e, int64_t seq, cons
       }
     }
   } else if (type == "sensor_msgs/Image") {
-    const auto im = decoded<image_t>(e);
+    const auto im = test::decode<image_t>(e);
     expect_header(m.at("header"), im.header, seq);
     EXPECT_EQ(im.width, m.at("width").get<int32_t>());
     EXPECT_EQ(im.height, m.at("height").get<int32_t>());
@@ -339,12 +332,12 @@ void expect_same_message(const json& ros, const OwnedEvent& e, int64_t seq, cons
           << "row " << y;
     }
   } else if (type == "sensor_msgs/CompressedImage") {
-    const auto im = decoded<image_t>(e);
+    const auto im = test::decode<image_t>(e);
     expect_header(m.at("header"), im.header, seq);
     EXPECT_EQ(im.data, bytes_of(m.at("data")));
     EXPECT_EQ(im.encoding, m.at("format").get<std::string>());
   } else if (type == "sensor_msgs/PointCloud2") {
-    const auto pc = decoded<point_cloud_t>(e);
+    const auto pc = test::decode<point_cloud_t>(e);
     expect_header(m.at("header"), pc.header, seq);
     EXPECT_EQ(pc.height, m.at("height").get<int32_t>());
     EXPECT_EQ(pc.width, m.at("width").get<int32_t>());
@@ -373,7 +366,7 @@ void expect_same_message(const json& ros, const OwnedEvent& e, int64_t seq, cons
   } else if (type == "sensor_msgs/NavSatFix") {
     // Both ways (docs/import.md, docs/export.md): the status says whether there is a fix, a 2D fix has no
     // altitude, the covariance is the accuracies' (eph: the RMS of the east and north deviations).
-    const auto g = decoded<gnss_t>(e);
+    const auto g = test::decode<gnss_t>(e);
     expect_header(m.at("header"), g.header, seq);
     EXPECT_EQ(g.latitude_deg, num(m.at("latitude")));
     EXPECT_EQ(g.longitude_deg, num(m.at("longitude")));
@@ -392,12 +385,12 @@ void expect_same_message(const json& ros, const OwnedEvent& e, int64_t seq, cons
       EXPECT_SAME(std::sqrt(num(c[8])), g.epv_m);
     }
   } else if (type == "sensor_msgs/MagneticField") {
-    const auto mag = decoded<magnetometer_t>(e);
+    const auto mag = test::decode<magnetometer_t>(e);
     expect_header(m.at("header"), mag.header, seq);
     expect_vec(m.at("magnetic_field"), mag.magnetic_field);
     expect_array(m.at("magnetic_field_covariance"), mag.magnetic_field_covariance, 9);
   } else if (type == "sensor_msgs/FluidPressure") {
-    const auto b = decoded<barometer_t>(e);
+    const auto b = test::decode<barometer_t>(e);
     expect_header(m.at("header"), b.header, seq);
     EXPECT_SAME(num(m.at("fluid_pressure")), b.pressure_pa);
     EXPECT_SAME(num(m.at("variance")), b.pressure_variance);

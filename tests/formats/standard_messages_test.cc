@@ -26,13 +26,6 @@ using test::OwnedEvent;
 
 const std::string kDriftlab = std::string(DRIFTLAB_BIN_DIR) + "/driftlab";
 
-template <typename T>
-T decoded(const OwnedEvent& e) {
-  T m;
-  EXPECT_TRUE(lcmtypes::decode(e.data, m)) << e.channel;
-  return m;
-}
-
 /// A JPEG's first markers: APP0, then a baseline start-of-frame saying 320 x 240, then the end.
 const std::vector<int> kJpeg = {0xFF, 0xD8, 0xFF, 0xE0, 0x00, 0x10, 'J',  'F',  'I',  'F',  0x00, 0x01, 0x01, 0x00,
                                 0x00, 0x01, 0x00, 0x01, 0x00, 0x00, 0xFF, 0xC0, 0x00, 0x11, 0x08, 0x00, 0xF0, 0x01,
@@ -205,10 +198,10 @@ TEST_P(StandardMessages, ImportHoldsTheValuesFoxglovesWritersWrote) {
 
   // What the mappings decide, against the values written.
   const auto& images = log.at("/camera/image_raw");
-  EXPECT_EQ(decoded<image_t>(images[0]).data, (std::vector<uint8_t>{10, 20, 30, 40, 50, 60}));  // padding gone
-  EXPECT_EQ(decoded<image_t>(images[1]).data, (std::vector<uint8_t>{1, 2, 3, 4, 5, 6}));
+  EXPECT_EQ(test::decode<image_t>(images[0]).data, (std::vector<uint8_t>{10, 20, 30, 40, 50, 60}));  // padding gone
+  EXPECT_EQ(test::decode<image_t>(images[1]).data, (std::vector<uint8_t>{1, 2, 3, 4, 5, 6}));
   const auto& compressed = log.at("/camera/image_raw/compressed");
-  const auto jpeg = decoded<image_t>(compressed[0]), png = decoded<image_t>(compressed[2]);
+  const auto jpeg = test::decode<image_t>(compressed[0]), png = test::decode<image_t>(compressed[2]);
   EXPECT_EQ(jpeg.encoding, "jpeg");
   EXPECT_EQ(jpeg.width, 320);  // from the JPEG's start-of-frame
   EXPECT_EQ(jpeg.height, 240);
@@ -216,19 +209,19 @@ TEST_P(StandardMessages, ImportHoldsTheValuesFoxglovesWritersWrote) {
   EXPECT_EQ(png.encoding, "png");
   EXPECT_EQ(png.width, 7);  // from the PNG's IHDR
   EXPECT_EQ(png.height, 5);
-  const auto joints = decoded<joint_state_t>(log.at("/joint_states")[2]);
+  const auto joints = test::decode<joint_state_t>(log.at("/joint_states")[2]);
   ASSERT_EQ(joints.njoints, 3);
   EXPECT_EQ(joints.position[0], 1.0);
   EXPECT_EQ(joints.velocity[2], -1.0);
   for (double v : joints.effort) EXPECT_TRUE(std::isnan(v));  // not measured
   for (int i = 0; i < 3; ++i) {
     const auto& e = log.at("/cmd_vel")[static_cast<size_t>(i)];
-    const auto twist = decoded<velocity_command_t>(e);
+    const auto twist = test::decode<velocity_command_t>(e);
     EXPECT_EQ(twist.header.utime, e.utime);  // no stamp of its own: its arrival, so no latency
     EXPECT_EQ(e.utime, (1'700'000'000 + i) * int64_t{1'000'000} + 125'457);
   }
   const auto& fixes = log.at("/fix");
-  const auto fix3 = decoded<gnss_t>(fixes[0]), fix2 = decoded<gnss_t>(fixes[1]), none = decoded<gnss_t>(fixes[2]);
+  const auto fix3 = test::decode<gnss_t>(fixes[0]), fix2 = test::decode<gnss_t>(fixes[1]), none = test::decode<gnss_t>(fixes[2]);
   EXPECT_EQ(fix3.header.utime, 1'700'000'000'123'456);
   EXPECT_EQ(fixes[0].utime, 1'700'000'000'125'457);  // the arrival: both clocks kept
   EXPECT_EQ(fix3.fix_type, 3);
@@ -245,10 +238,10 @@ TEST_P(StandardMessages, ImportHoldsTheValuesFoxglovesWritersWrote) {
   EXPECT_EQ(none.fix_type, 0);
   EXPECT_EQ(none.eph_m, 0);  // covariance unknown
   EXPECT_EQ(none.epv_m, 0);
-  const auto mag = decoded<magnetometer_t>(log.at("/imu/mag")[1]);
+  const auto mag = test::decode<magnetometer_t>(log.at("/imu/mag")[1]);
   EXPECT_EQ(mag.magnetic_field.y, -4.5e-6);
   EXPECT_EQ(mag.magnetic_field_covariance[8], 4e-12);
-  const auto baro0 = decoded<barometer_t>(log.at("/pressure")[0]), baro2 = decoded<barometer_t>(log.at("/pressure")[2]);
+  const auto baro0 = test::decode<barometer_t>(log.at("/pressure")[0]), baro2 = test::decode<barometer_t>(log.at("/pressure")[2]);
   EXPECT_EQ(baro0.pressure_pa, 95461.5);
   EXPECT_EQ(baro0.pressure_variance, 0);
   EXPECT_EQ(baro2.pressure_pa, 95441.5);
@@ -256,7 +249,7 @@ TEST_P(StandardMessages, ImportHoldsTheValuesFoxglovesWritersWrote) {
   EXPECT_TRUE(std::isnan(baro0.temperature_c));  // FluidPressure carries none
   if (!ros2()) {
     EXPECT_EQ(fix3.header.seq, 40);                                               // ROS 1's header.seq
-    EXPECT_EQ(decoded<velocity_command_t>(log.at("/cmd_vel")[2]).header.seq, 2);  // the count: Twist has none
+    EXPECT_EQ(test::decode<velocity_command_t>(log.at("/cmd_vel")[2]).header.seq, 2);  // the count: Twist has none
   } else {
     EXPECT_EQ(fix3.header.seq, 10);  // MCAP's sequence
   }
