@@ -9,7 +9,8 @@
 //   - the land detector: landed after `land_detect_s` of thrust below 70% of hover with the vehicle still; airborne
 //     once the controllers ask for more than hover thrust; landed after flying (or in land mode) for
 //     `disarm_after_landing_s` disarms (COM_DISARM_LAND).
-// Times are the flight stack's clock [us], any int64_t (differences are taken in doubles). Thread-safety: plain values; one thread.
+// Times are the flight stack's clock [us], any int64_t (differences are taken in doubles). Thread-safety: plain values;
+// one thread.
 #pragma once
 
 #include <cstdint>

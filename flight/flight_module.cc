@@ -135,8 +135,8 @@ bool FlightModule::estimate_fresh(int64_t now) const {
 
 void FlightModule::position_tick(Bus& bus) {
   const int64_t now = bus.now().us();
-  const double dt =
-      last_position_tick_ ? std::clamp(seconds_between(*last_position_tick_, now), 0.0, 0.1) : 1 / c_.options.position_rate;
+  const double dt = last_position_tick_ ? std::clamp(seconds_between(*last_position_tick_, now), 0.0, 0.1)
+                                        : 1 / c_.options.position_rate;
   last_position_tick_ = now;
   const bool fresh = estimate_fresh(now);
   const Eigen::Vector3d v = fresh ? estimate_->velocity : Eigen::Vector3d::Zero();

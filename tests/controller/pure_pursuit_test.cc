@@ -118,7 +118,7 @@ TEST(CompareCommands, FindsTheDelayBetweenTwoCommandSeries) {
   EXPECT_LT(c->angular_rmse_at_delay, 1e-12);
   EXPECT_GT(c->angular_rmse, 0.01);  // at zero lag the series differ
   EXPECT_NEAR(c->linear_rmse, 0, 1e-12);
-  EXPECT_EQ(c->matched, 78);         // recomputed commands from the first logged one on (60 ms in): 2 of 80 miss
+  EXPECT_EQ(c->matched, 78);  // recomputed commands from the first logged one on (60 ms in): 2 of 80 miss
 }
 
 TEST(CompareCommands, SeriesThatNeverOverlapAreNotCompared) {

@@ -221,7 +221,8 @@ TEST_P(StandardMessages, ImportHoldsTheValuesFoxglovesWritersWrote) {
     EXPECT_EQ(e.utime, (1'700'000'000 + i) * int64_t{1'000'000} + 125'457);
   }
   const auto& fixes = log.at("/fix");
-  const auto fix3 = test::decode<gnss_t>(fixes[0]), fix2 = test::decode<gnss_t>(fixes[1]), none = test::decode<gnss_t>(fixes[2]);
+  const auto fix3 = test::decode<gnss_t>(fixes[0]), fix2 = test::decode<gnss_t>(fixes[1]),
+             none = test::decode<gnss_t>(fixes[2]);
   EXPECT_EQ(fix3.header.utime, 1'700'000'000'123'456);
   EXPECT_EQ(fixes[0].utime, 1'700'000'000'125'457);  // the arrival: both clocks kept
   EXPECT_EQ(fix3.fix_type, 3);
@@ -241,7 +242,8 @@ TEST_P(StandardMessages, ImportHoldsTheValuesFoxglovesWritersWrote) {
   const auto mag = test::decode<magnetometer_t>(log.at("/imu/mag")[1]);
   EXPECT_EQ(mag.magnetic_field.y, -4.5e-6);
   EXPECT_EQ(mag.magnetic_field_covariance[8], 4e-12);
-  const auto baro0 = test::decode<barometer_t>(log.at("/pressure")[0]), baro2 = test::decode<barometer_t>(log.at("/pressure")[2]);
+  const auto baro0 = test::decode<barometer_t>(log.at("/pressure")[0]),
+             baro2 = test::decode<barometer_t>(log.at("/pressure")[2]);
   EXPECT_EQ(baro0.pressure_pa, 95461.5);
   EXPECT_EQ(baro0.pressure_variance, 0);
   EXPECT_EQ(baro2.pressure_pa, 95441.5);
