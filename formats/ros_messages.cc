@@ -321,6 +321,12 @@ std::vector<uint8_t> point_cloud2(Reader& r, Serialization s, int64_t, int64_t* 
   r.get<uint8_t>();  // is_dense
   if (!r.ok()) return {};
   const uint64_t npoints = uint64_t{height} * width;
+  // point_cloud_t counts in int32_t: a larger height or width would come out negative.
+  if (height > INT32_MAX || width > INT32_MAX) {
+    r.fail("a point cloud of " + std::to_string(height) + " x " + std::to_string(width) +
+           " points: more rows or columns than point_cloud_t's int32 counts hold");
+    return {};
+  }
   if (npoints != 0 && (uint64_t{row_step} * height > data.size() || uint64_t{point_step} * width > row_step)) {
     r.fail("point data of " + std::to_string(data.size()) + " bytes for " + std::to_string(height) + " x " +
            std::to_string(width) + " points of " + std::to_string(point_step) + " bytes");
@@ -405,7 +411,7 @@ std::vector<uint8_t> point_cloud2(Reader& r, Serialization s, int64_t, int64_t* 
       const uint32_t ox = fx->offset, oy = fy->offset, oz = fz->offset;
       const uint32_t oi = kIntensity ? fi->offset : 0, ot = kTime ? ft->offset : 0;
       size_t k = 0;
-      for (uint32_t row = 0; row < height; ++row) {
+      for (uint32_t row = 0; row < height && n != 0; ++row) {  // an empty cloud's rows are not walked
         const uint8_t* p = data.data() + uint64_t{row} * row_step;
         for (uint32_t col = 0; col < width; ++col, ++k, p += point_step) {
           swapped(x + 4 * k, p + ox);
@@ -438,7 +444,8 @@ std::vector<uint8_t> point_cloud2(Reader& r, Serialization s, int64_t, int64_t* 
   if (ft || fns || fabs) m.time_offsets.resize(npoints);
   const double stamp_s = Time::from_us(m.header.utime).seconds();
   size_t i = 0;
-  for (uint32_t row = 0; row < height; ++row) {
+  // No row is walked when there are no points: an empty cloud may declare two billion empty rows.
+  for (uint32_t row = 0; row < height && npoints != 0; ++row) {
     for (uint32_t col = 0; col < width; ++col, ++i) {
       const uint8_t* p = data.data() + uint64_t{row} * row_step + uint64_t{col} * point_step;
       m.x[i] = static_cast<float>(value(*fx, p));

@@ -403,6 +403,39 @@ TEST(Ros2Import, PointCloudFastPathEncodesAsLcmGen) {
   }
 }
 
+// An empty cloud may declare any number of empty rows; found by import_fuzz: 170 bytes declaring 2^32 - 1 rows of
+// no columns took 5 s under ASan, walking the rows one by one, and came out with a negative height (point_cloud_t
+// counts in int32_t). Rows or columns past int32_t are refused with one line; an empty cloud of two billion rows
+// converts as such, with and without x, y and z fields (the fast path and the general one).
+TEST(Ros2Import, AnEmptyCloudOfBillionsOfRows) {
+  auto cloud = [](uint32_t height, uint32_t width, bool xyz) {
+    Cdr c(false);
+    c.put<int32_t>(12).put<uint32_t>(0).str("lidar").put(height).put(width);
+    const std::vector<std::string> names = xyz ? std::vector<std::string>{"x", "y", "z"} : std::vector<std::string>{};
+    c.put(static_cast<uint32_t>(names.size()));
+    for (size_t i = 0; i < names.size(); ++i) c.str(names[i]).put(static_cast<uint32_t>(4 * i)).put<uint8_t>(7).put<uint32_t>(1);
+    c.put<uint8_t>(0).put<uint32_t>(12).put<uint32_t>(0).put<uint32_t>(0).put<uint8_t>(1);
+    std::string error;
+    auto got = formats::convert_ros_message("sensor_msgs/msg/PointCloud2", formats::Serialization::kCdr, c.bytes(), 0,
+                                            0, &error);
+    return std::make_pair(std::move(got), error);
+  };
+  for (const bool xyz : {true, false}) {
+    SCOPED_TRACE(xyz ? "x, y and z" : "no fields");
+    const auto [too_many, why] = cloud(4294967295U, 0, xyz);
+    EXPECT_FALSE(too_many);
+    EXPECT_NE(why.find("a point cloud of 4294967295 x 0 points: more rows or columns than point_cloud_t's int32"),
+              std::string::npos)
+        << why;
+    const auto [empty, error] = cloud(2000000000U, 0, xyz);
+    ASSERT_TRUE(empty) << error;
+    const auto m = test::decode<point_cloud_t>({0, 0, "POINTS", empty->lcm, 0});
+    EXPECT_EQ(m.height, 2000000000);
+    EXPECT_EQ(m.width, 0);
+    EXPECT_EQ(m.npoints, 0);
+  }
+}
+
 // rosbag2's compression: a file compressed whole (compression_mode FILE) and every message compressed
 // (MESSAGE) give the same log as the uncompressed bag.
 TEST(Ros2Import, FileAndMessageCompression) {
