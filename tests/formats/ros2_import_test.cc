@@ -413,7 +413,8 @@ TEST(Ros2Import, AnEmptyCloudOfBillionsOfRows) {
     c.put<int32_t>(12).put<uint32_t>(0).str("lidar").put(height).put(width);
     const std::vector<std::string> names = xyz ? std::vector<std::string>{"x", "y", "z"} : std::vector<std::string>{};
     c.put(static_cast<uint32_t>(names.size()));
-    for (size_t i = 0; i < names.size(); ++i) c.str(names[i]).put(static_cast<uint32_t>(4 * i)).put<uint8_t>(7).put<uint32_t>(1);
+    for (size_t i = 0; i < names.size(); ++i)
+      c.str(names[i]).put(static_cast<uint32_t>(4 * i)).put<uint8_t>(7).put<uint32_t>(1);
     c.put<uint8_t>(0).put<uint32_t>(12).put<uint32_t>(0).put<uint32_t>(0).put<uint8_t>(1);
     std::string error;
     auto got = formats::convert_ros_message("sensor_msgs/msg/PointCloud2", formats::Serialization::kCdr, c.bytes(), 0,
