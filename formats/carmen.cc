@@ -71,17 +71,28 @@ quaternion_t yaw_quaternion(double yaw) {
 
 int64_t to_utime(double s) { return Time::from_seconds_rounded(s).us(); }
 
-bool is_laser(std::string_view name) {
-  return name == "FLASER" || name == "RLASER" || name.starts_with("RAWLASER") || name.starts_with("ROBOTLASER");
+/// The laser number K of RAWLASERK or ROBOTLASERK (digits only); empty for any other name.
+std::string_view laser_number(std::string_view name) {
+  for (const std::string_view word : {"RAWLASER", "ROBOTLASER"}) {
+    if (!name.starts_with(word) || name.size() == word.size()) continue;
+    const std::string_view k = name.substr(word.size());
+    return std::all_of(k.begin(), k.end(), [](char c) { return c >= '0' && c <= '9'; }) ? k : std::string_view();
+  }
+  return {};
 }
+
+/// FLASER, RLASER, RAWLASERK and ROBOTLASERK. A name with anything but digits after the word (the fuzzer's
+/// "RAWLASER" and four NULs) is no laser: its frame would have carried the NULs into a message that does not hold
+/// its type's layout.
+bool is_laser(std::string_view name) { return name == "FLASER" || name == "RLASER" || !laser_number(name).empty(); }
 
 /// The TF frame of a laser: the front one (FLASER, RAWLASER1, ROBOTLASER1) is "laser", the rear one
 /// (RLASER, RAWLASER2, ROBOTLASER2) "rear_laser", others "laserK".
 std::string laser_frame(std::string_view name) {
   if (name == "FLASER") return "laser";
   if (name == "RLASER") return "rear_laser";
-  const char k = name.back();
-  return k == '1' ? "laser" : k == '2' ? "rear_laser" : "laser" + std::string(1, k);
+  const std::string_view k = laser_number(name);
+  return k == "1" ? "laser" : k == "2" ? "rear_laser" : "laser" + std::string(k);
 }
 
 /// What a pass over the log learns before converting: the PARAM values and, for FLASER/RLASER (which do not
