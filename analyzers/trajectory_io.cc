@@ -124,7 +124,8 @@ std::string pose_problem(double stamp, const Eigen::Vector3d& p, const Eigen::Qu
   if (!std::isfinite(stamp) || !p.allFinite() || !q.coeffs().allFinite()) return "a number is not finite";
   const double norm = q.norm();
   if (norm < 1e-9) return "the quaternion is zero";
-  if (std::abs(norm - 1) > 0.01) return "the quaternion's norm is " + short_value(norm) + ", not 1: not a rotation";
+  if (!unit_norm(q.w(), q.x(), q.y(), q.z()))
+    return "the quaternion's norm is " + short_value(norm) + ", not 1: not a rotation";
   return "";
 }
 

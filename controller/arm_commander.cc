@@ -158,7 +158,7 @@ const Eigen::VectorXd& ArmCommander::joints_at(int64_t k) {
 driftlab::joint_trajectory_t ArmCommander::command(int64_t t, const std::optional<Eigen::VectorXd>& measured) {
   if (!start_) start_ = t;
   const double period = 1.0 / o_.rate;
-  const auto k = static_cast<int64_t>(std::llround(Duration::from_us(t - *start_).seconds() * o_.rate));
+  const auto k = static_cast<int64_t>(std::llround(seconds_between(*start_, t) * o_.rate));
   const int n = chain_.dof();
   Eigen::VectorXd correction = Eigen::VectorXd::Zero(n);
   if (measured && measured->size() == n) correction = o_.feedback_gain * (joints_at(k) - *measured);

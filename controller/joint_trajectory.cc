@@ -104,7 +104,9 @@ std::optional<driftlab::joint_trajectory_result_t> JointTrajectoryController::re
     if (p.time_from_start_us <= previous) return invalid("point times must increase");
     previous = p.time_from_start_us;
     Point pt;
-    pt.t = start + p.time_from_start_us;
+    // A stamp near the end of int64_t (a clock gone wrong) would wrap the point into the past.
+    if (__builtin_add_overflow(start, p.time_from_start_us, &pt.t))
+      return invalid("a point's time is past the clock's end");
     pt.q.resize(static_cast<Eigen::Index>(n));
     pt.v = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(n));
     pt.has_v = !p.velocities.empty();
@@ -122,7 +124,7 @@ std::optional<driftlab::joint_trajectory_result_t> JointTrajectoryController::re
   if (a.points.back().t < now) {
     ++counts_.stale;
     char why[160];
-    const double late = Duration::from_us(now - a.points.back().t).seconds();
+    const double late = seconds_between(a.points.back().t, now);
     std::snprintf(why, sizeof(why), "stale: the trajectory ended %.3f s before it arrived", late);
     return result(a, now, "stale", "", late, why);
   }
@@ -156,7 +158,7 @@ void JointTrajectoryController::sample(int64_t now) {
   const auto next = std::upper_bound(p.begin(), p.end(), now, [](int64_t t, const Point& x) { return t < x.t; });
   const Point& b = *next;
   const Point& a = *(next - 1);
-  const double h = Duration::from_us(b.t - a.t).seconds(), s = Duration::from_us(now - a.t).seconds();
+  const double h = seconds_between(a.t, b.t), s = seconds_between(a.t, now);
   if (a.has_v && b.has_v) {
     hermite(a.q, a.v, b.q, b.v, h, s, desired_q_, desired_v_);
   } else {
@@ -169,7 +171,7 @@ std::optional<driftlab::joint_trajectory_result_t> JointTrajectoryController::up
                                                                                      const Eigen::VectorXd& position,
                                                                                      Eigen::VectorXd& command) {
   std::optional<driftlab::joint_trajectory_result_t> out;
-  const double dt = initialised_ ? Duration::from_us(now - last_update_).seconds() : 0;
+  const double dt = initialised_ ? seconds_between(last_update_, now) : 0;
   if (!initialised_) {  // hold where the joints are
     desired_q_ = position;
     desired_v_.setZero();
@@ -200,7 +202,9 @@ std::optional<driftlab::joint_trajectory_result_t> JointTrajectoryController::up
       out = result(*active_, now, "succeeded", "", error[worst], "succeeded");
       ++counts_.succeeded;
       active_.reset();
-    } else if (now > end + Duration::from_seconds_rounded(o_.goal_time).us()) {
+    } else if (now > end &&
+               static_cast<uint64_t>(now) - static_cast<uint64_t>(end) >  // exact, where now - end may overflow
+                   static_cast<uint64_t>(Duration::from_seconds_rounded(o_.goal_time).us())) {
       std::snprintf(why, sizeof(why),
                     "aborted: joint %s is %.4f rad from its goal %.3f s after the end (tolerance %.4f)", joint.c_str(),
                     error[worst], o_.goal_time, o_.goal_tolerance);

@@ -17,11 +17,17 @@ namespace {
 
 constexpr double kGravity = 9.81;  // [m/s^2]
 
-/// Whether a vector's components are all plausible (lcmtypes/validate.h), counting the input when not.
-bool plausible(NonFiniteInputs& n, std::string_view channel, const char* field, const driftlab::vector3_t& v) {
-  const std::string f = field;
-  return n.plausible(channel, (f + ".x").c_str(), v.x) && n.plausible(channel, (f + ".y").c_str(), v.y) &&
-         n.plausible(channel, (f + ".z").c_str(), v.z);
+/// A vector field's components' names, as NonFiniteInputs reports them.
+struct Fields {
+  const char* x;
+  const char* y;
+  const char* z;
+};
+
+/// Whether a vector's components are all plausible (lcmtypes/validate.h), counting the input when not. The names
+/// are literals: estimates arrive at hundreds of Hz, and nothing is built per input.
+bool plausible(NonFiniteInputs& n, std::string_view channel, const Fields& f, const driftlab::vector3_t& v) {
+  return n.plausible(channel, f.x, v.x) && n.plausible(channel, f.y, v.y) && n.plausible(channel, f.z, v.z);
 }
 
 }  // namespace
@@ -77,9 +83,12 @@ Status FlightModule::start(Bus& bus) {
     if (!decode_message(m, o)) return void(++undecodable_);
     // A NaN, a position past any plausible one or an orientation that is no rotation (its norm off 1 by more than
     // 1%, eval's rule for poses) would fly the vehicle into NaN: the estimate is dropped, and counted.
-    if (!non_finite_.finite(m) || !plausible(non_finite_, m.channel, "position", o.position) ||
-        !plausible(non_finite_, m.channel, "linear_velocity", o.linear_velocity) ||
-        !plausible(non_finite_, m.channel, "angular_velocity", o.angular_velocity)) {
+    if (!non_finite_.finite(m) ||
+        !plausible(non_finite_, m.channel, {"position.x", "position.y", "position.z"}, o.position) ||
+        !plausible(non_finite_, m.channel, {"linear_velocity.x", "linear_velocity.y", "linear_velocity.z"},
+                   o.linear_velocity) ||
+        !plausible(non_finite_, m.channel, {"angular_velocity.x", "angular_velocity.y", "angular_velocity.z"},
+                   o.angular_velocity)) {
       return;
     }
     if (!unit_norm(o.orientation.w, o.orientation.x, o.orientation.y, o.orientation.z)) {
@@ -99,9 +108,10 @@ Status FlightModule::start(Bus& bus) {
   bus.subscribe(c_.setpoint_channel, [this, &bus](const BusMessage& m) {
     driftlab::trajectory_setpoint_t s;
     if (!decode_message(m, s)) return void(++undecodable_);
-    if (!non_finite_.finite(m) || !plausible(non_finite_, m.channel, "position", s.position) ||
-        !plausible(non_finite_, m.channel, "velocity", s.velocity) ||
-        !plausible(non_finite_, m.channel, "acceleration", s.acceleration) ||
+    if (!non_finite_.finite(m) ||
+        !plausible(non_finite_, m.channel, {"position.x", "position.y", "position.z"}, s.position) ||
+        !plausible(non_finite_, m.channel, {"velocity.x", "velocity.y", "velocity.z"}, s.velocity) ||
+        !plausible(non_finite_, m.channel, {"acceleration.x", "acceleration.y", "acceleration.z"}, s.acceleration) ||
         !non_finite_.plausible(m.channel, "yaw", s.yaw)) {
       return;  // neither followed nor counted as a setpoint that keeps offboard alive
     }

@@ -59,8 +59,9 @@ inline constexpr double kMaxMagnitude = 1e9;
 /// Whether |v| <= kMaxMagnitude (false for NaN).
 inline bool plausible(double v) { return v >= -kMaxMagnitude && v <= kMaxMagnitude; }
 
-/// Whether a quaternion's norm is 1 within 1%, as a rotation's is (eval's rule for poses, analyzers/trajectory_io.h:
-/// any quaternion printed with three decimals or more passes); false for NaN and for squares that overflow.
+/// Whether a quaternion's norm is 1 within 1%, as a rotation's is: any quaternion printed with three decimals or more
+/// passes. False for NaN and for squares that overflow. The one rule for poses: eval's readers
+/// (analyzers/trajectory_io.h) and the modules use it.
 inline bool unit_norm(double w, double x, double y, double z) {
   return std::abs(std::sqrt(w * w + x * x + y * y + z * z) - 1) <= 0.01;
 }

@@ -70,7 +70,9 @@ template <typename T>
 T last_on(const std::string& log, const std::string& channel) {
   T m{};
   for (const auto& e : test::read_all(log)) {
-    if (e.channel == channel) EXPECT_GE(m.decode(e.data.data(), 0, static_cast<int>(e.data.size())), 0);
+    if (e.channel == channel) {
+      EXPECT_GE(m.decode(e.data.data(), 0, static_cast<int>(e.data.size())), 0);
+    }
   }
   return m;
 }
@@ -209,7 +211,9 @@ TEST(DroneStory, SetpointBurstsAreOffboardLossesTheVehicleHoldsThrough) {
   ASSERT_EQ(d.code, 0) << d.err;
   const auto diagnosis = nlohmann::json::parse(d.out);  // kept: a range over a temporary's member dangles
   for (const auto& c : diagnosis["channels"]) {
-    if (c["name"] == "SETPOINT") EXPECT_GT(c["drops"]["seq_gaps"].get<int64_t>(), 10) << c.dump();
+    if (c["name"] == "SETPOINT") {
+      EXPECT_GT(c["drops"]["seq_gaps"].get<int64_t>(), 10) << c.dump();
+    }
   }
 }
 

@@ -123,6 +123,28 @@ TEST(JointTrajectory, RejectsStaleAndInvalidTrajectories) {
   EXPECT_FALSE(on_arrival.receive(trajectory(1'000'000, {{500'000, {0.1, 0.1}}}, false), 1'800'000).has_value());
 }
 
+// Stamps are a peer's clock (start: stamp), and a clock gone wrong reaches the ends of int64_t: a point past the
+// end is refused rather than wrapped into the past, and a trajectory from the far past is stale by the right amount
+// (int64_t subtraction overflowed here: UBSan aborted, and a release build reported it late by a negative time).
+TEST(JointTrajectory, StampsAtTheEndsOfTheClock) {
+  JointTrajectoryOptions o;
+  o.start = "stamp";
+  JointTrajectoryController c({"a", "b"}, limits(), o);
+  const int64_t now = 1'000'000'000;  // 1000 s
+  auto r = c.receive(trajectory(INT64_MAX - 10, {{500'000, {0.1, 0.1}}}, false), now);
+  ASSERT_TRUE(r.has_value());
+  EXPECT_EQ(r->status, "invalid");
+  EXPECT_EQ(r->message, "a point's time is past the clock's end");
+  r = c.receive(trajectory(INT64_MIN, {{0, {0.1, 0.1}}, {500'000, {0.2, 0.2}}}, false), now);
+  ASSERT_TRUE(r.has_value());
+  EXPECT_EQ(r->status, "stale");
+  // 2^63 us before zero, plus the 1000 s of now, minus the 0.5 s the trajectory lasts; within 0.01 s, since a double
+  // holds a stamp near 2^63 us only to 2048 us.
+  EXPECT_NEAR(r->error, 9223372036854.775808 + 1000 - 0.5, 0.01);
+  EXPECT_EQ(c.counts().invalid, 1);
+  EXPECT_EQ(c.counts().stale, 1);
+}
+
 TEST(JointTrajectory, AbortsNamingTheJointOffItsPath) {
   JointTrajectoryOptions o;
   o.path_tolerance = 0.1;
