@@ -134,7 +134,20 @@ void analyse_sequence(const Samples& s, ChannelTiming& c) {
 void analyse_period(const Samples& s, ChannelTiming& c, bool record_gaps) {
   const Array<int64_t>& times = s.has_header ? s.stamp : s.arrival;
   Array<int64_t> sorted(times);
-  if (!std::is_sorted(sorted.begin(), sorted.end())) std::sort(sorted.begin(), sorted.end());
+  // With stamps, each gap's messages' arrivals too: a consumer goes without from the one to the other.
+  Array<int64_t> arrival_at;
+  if (record_gaps && s.has_header) {
+    Array<size_t> order(times.size());
+    std::iota(order.begin(), order.end(), 0);
+    std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return times[a] < times[b]; });
+    arrival_at.resize(order.size());
+    for (size_t i = 0; i < order.size(); ++i) {
+      sorted[i] = times[order[i]];
+      arrival_at[i] = s.arrival[order[i]];
+    }
+  } else if (!std::is_sorted(sorted.begin(), sorted.end())) {
+    std::sort(sorted.begin(), sorted.end());
+  }
   Array<double> intervals;
   for (size_t i = 1; i < sorted.size(); ++i) {
     if (sorted[i] > sorted[i - 1]) intervals.push_back(Duration::from_us(sorted[i] - sorted[i - 1]).seconds());
@@ -171,7 +184,11 @@ void analyse_period(const Samples& s, ChannelTiming& c, bool record_gaps) {
   size_t near_median = 0;
   for (const double i : intervals) near_median += std::abs(i - median_interval) <= 0.25 * median_interval ? 1 : 0;
   c.regular_fraction = static_cast<double>(near_median) / static_cast<double>(intervals.size());
-  if (sorted.size() >= 10 && 3 * near_median < intervals.size()) {
+  // Without a sequence number a gap is told from time alone, and only a stream that keeps its period is believed:
+  // three quarters of its intervals within a quarter of it (a timer-driven publisher losing a quarter of its
+  // messages at random keeps that many; AMCL, publishing as the robot moves, keeps 57%).
+  const bool steady = s.seq_counted ? 4 * near_median >= 3 * intervals.size() : 3 * near_median >= intervals.size();
+  if (sorted.size() >= 10 && !steady) {
     c.irregular = true;
     c.expected_period_s = mean_interval;
     return;
@@ -184,17 +201,27 @@ void analyse_period(const Samples& s, ChannelTiming& c, bool record_gaps) {
       const auto missing = static_cast<int64_t>(std::llround(gap / c.expected_period_s)) - 1;
       if (missing <= 0) continue;
       c.missing_by_period += missing;
-      if (record_gaps) c.gaps.push_back({sorted[i - 1], sorted[i], missing});
+      if (!record_gaps) continue;
+      c.gaps.push_back({sorted[i - 1], sorted[i], missing});
+      if (!arrival_at.empty()) {
+        c.gaps.back().start_arrival = arrival_at[i - 1];
+        c.gaps.back().end_arrival = arrival_at[i];
+      }
     }
   }
 }
 
-void judge(ChannelTiming& c) {
-  auto add = [&](const char* level, const std::string& why) {
-    if (std::string(level) == "fault" || c.verdict == "ok") c.verdict = level;
-    c.reasons.push_back(why);
-  };
-  char buf[256];
+/// "41.3 s" from the log's start: where a hole begins.
+std::string hole_text(const Gap& g, int64_t log_start) {
+  char buf[96];
+  std::snprintf(buf, sizeof(buf), "%.2f s at %.1f s", Duration::from_us(g.end_arrival - g.start_arrival).seconds(),
+                Duration::from_us(g.start_arrival - log_start).seconds());
+  return buf;
+}
+
+void judge(ChannelTiming& c, const Samples& s, int64_t log_start, bool mapped) {
+  auto add = [&](const char* level, const std::string& why) { add_reason(c, std::string(level) == "fault", why); };
+  char buf[512];
   if (c.malformed > 0) {
     std::snprintf(buf, sizeof(buf), "%lld messages do not decode as %s (first: %s)",
                   static_cast<long long>(c.malformed), c.type.c_str(), c.malformed_example.c_str());
@@ -204,6 +231,22 @@ void judge(ChannelTiming& c) {
     std::snprintf(buf, sizeof(buf), "%lld messages missing in %zu gaps of seq", static_cast<long long>(c.seq_gaps),
                   c.gaps.size());
     add("fault", buf);
+  } else if (c.seq_counted && c.missing_by_period > 0) {
+    // No sequence number travelled (ROS 2): the holes in the stamps' steady period, each with its time, the
+    // longest first.
+    std::vector<Gap> holes = c.gaps;
+    std::stable_sort(holes.begin(), holes.end(), [](const Gap& a, const Gap& b) {
+      return a.end_arrival - a.start_arrival > b.end_arrival - b.start_arrival;
+    });
+    std::string list;
+    for (size_t i = 0; i < holes.size() && i < 3; ++i) list += (i ? ", " : "") + hole_text(holes[i], log_start);
+    if (holes.size() > 3) list += ", ...";
+    std::snprintf(buf, sizeof(buf),
+                  "about %lld messages missing in %zu hole%s of its %.1f ms period (the longest without a message: "
+                  "%s); no sequence number travelled, so they are told from the stamps",
+                  static_cast<long long>(c.missing_by_period), holes.size(), holes.size() == 1 ? "" : "s",
+                  c.expected_period_s * 1e3, list.c_str());
+    add("warn", buf);
   } else if (!c.has_header && c.missing_by_period > 0) {
     std::snprintf(buf, sizeof(buf), "about %lld messages missing from gaps longer than 1.5 periods",
                   static_cast<long long>(c.missing_by_period));
@@ -218,7 +261,7 @@ void judge(ChannelTiming& c) {
                   static_cast<long long>(c.out_of_order_stamp));
     add("fault", buf);
   }
-  if (c.zero_stamps > 0) {
+  if (c.zero_stamps > 0 && !s.is_static_tf) {  // tf2 takes static transforms as timeless
     std::snprintf(buf, sizeof(buf), "%lld messages are stamped 0: the source never set their stamps",
                   static_cast<long long>(c.zero_stamps));
     add("fault", buf);
@@ -235,33 +278,9 @@ void judge(ChannelTiming& c) {
                   static_cast<long long>(c.out_of_order_arrival));
     add("warn", buf);
   }
-  // Stamps on another time base than arrival, by more than a second: name the usual causes.
-  if (c.has_header && c.zero_stamps * 2 < c.count && std::abs(c.latency_s.p50) >= 1.0) {
-    const double behind = c.latency_s.p50;  // arrival - stamp [s]
-    constexpr double kWallClock = 1e9;      // 2001-09-09 in seconds since the epoch: stamps before are not dates
-    const double stamp_s = Time::from_us(c.median_stamp_utime).seconds();
-    std::string cause;
-    auto near = [&](double seconds) { return std::abs(std::abs(behind) - seconds) < 0.5; };
-    if (stamp_s < kWallClock && stamp_s + behind >= kWallClock) {
-      std::snprintf(buf, sizeof(buf),
-                    "stamps count from %.0f s while arrivals are wall-clock dates: the source "
-                    "stamps with simulation time or time since boot (use_sim_time?)",
-                    stamp_s);
-      cause = buf;
-    } else if (near(37) || near(18) || near(19)) {
-      const double s = std::round(std::abs(behind));
-      const char* which = s == 37 ? "TAI and UTC" : s == 18 ? "GPS time and UTC" : "TAI and GPS time";
-      std::snprintf(buf, sizeof(buf), "stamps are %.3f s %s arrival: the %.0f s between %s", std::abs(behind),
-                    behind > 0 ? "behind" : "ahead of", s, which);
-      cause = buf;
-    } else if (std::abs(behind) >= 1800 && std::abs(std::remainder(behind, 1800)) < 1) {
-      std::snprintf(buf, sizeof(buf), "stamps are %.1f h %s arrival: a time zone applied to one clock",
-                    std::abs(behind) / 3600, behind > 0 ? "behind" : "ahead of");
-      cause = buf;
-    }
-    if (!cause.empty()) add("fault", cause);
-  }
-  if (c.has_header && c.latency_s.p50 < -0.001) {
+  // On a clock of its own, a stream's latency is against its peers' fastest delivery: ahead of that is not a
+  // clock running ahead (which that clock's mapping absorbs).
+  if (c.latency_valid && !mapped && c.latency_s.p50 < -0.001) {
     std::snprintf(buf, sizeof(buf), "stamps are %.1f ms ahead of arrival: the source clock runs ahead",
                   -c.latency_s.p50 * 1e3);
     add("fault", buf);
@@ -280,12 +299,15 @@ void judge(ChannelTiming& c) {
                   c.burst_size, c.burst_interval_s * 1e3, 1 / c.expected_period_s);
     add("warn", buf);
   }
-  if (c.irregular) {
-    std::snprintf(buf, sizeof(buf),
-                  "no steady period (%.0f%% of the intervals within a quarter of the median), %.2f Hz on average: "
-                  "%s",
-                  100 * c.regular_fraction, 1 / c.expected_period_s,
-                  c.has_header ? "drops are told by seq only" : "drops cannot be told from the times");
+  // Without a sequence number and without a period, drops cannot be told: said once for all such streams
+  // (diagnose's text), not as a fault of each.
+  if (c.irregular && !c.seq_counted) {
+    std::snprintf(
+        buf, sizeof(buf),
+        "no steady period (%.0f%% of the intervals within a quarter of the median), %.2f Hz on average: "
+        "%s",
+        100 * c.regular_fraction, 1 / c.expected_period_s,
+        c.has_header && !c.seq_counted ? "drops are told by seq only" : "drops cannot be told from the times");
     add("warn", buf);
   }
   if (c.late_stamps > 0) {
@@ -295,7 +317,7 @@ void judge(ChannelTiming& c) {
                   static_cast<long long>(c.late_stamps), c.late_stamp_max_s, c.first_late_stamp_s);
     add("warn", buf);
   }
-  if (c.has_header && c.latency_s.p99 > 0.005 && c.latency_s.p99 > 5 * std::max(c.latency_s.p50, 0.0005)) {
+  if (c.latency_valid && c.latency_s.p99 > 0.005 && c.latency_s.p99 > 5 * std::max(c.latency_s.p50, 0.0005)) {
     std::snprintf(buf, sizeof(buf), "latency spikes: p99 %.1f ms against a median of %.1f ms", c.latency_s.p99 * 1e3,
                   c.latency_s.p50 * 1e3);
     add("warn", buf);
@@ -304,12 +326,19 @@ void judge(ChannelTiming& c) {
 
 }  // namespace
 
-ChannelTiming channel_timing(const std::string& name, Samples& s, int64_t log_start) {
+void add_reason(ChannelTiming& c, bool fault, const std::string& why) {
+  if (fault || c.verdict == "ok") c.verdict = fault ? "fault" : "warn";
+  c.reasons.push_back(why);
+}
+
+ChannelTiming channel_timing(const std::string& name, Samples& s, int64_t log_start,
+                             const std::function<int64_t(int64_t)>& to_arrival) {
   if (s.has_header && s.stamp.size() != s.arrival.size()) s.has_header = false;
   ChannelTiming c;
   c.name = name;
   c.type = s.type;
   c.has_header = s.has_header;
+  c.seq_counted = s.has_header && s.seq_counted;
   c.malformed = s.malformed;
   c.malformed_example = s.malformed_example;
   c.count = static_cast<int64_t>(s.arrival.size());
@@ -319,30 +348,44 @@ ChannelTiming channel_timing(const std::string& name, Samples& s, int64_t log_st
     if (s.arrival[i] < s.arrival[i - 1]) ++c.out_of_order_arrival;
   }
   if (s.has_header) {
-    analyse_sequence(s, c);
-    analyse_period(s, c, false);
-    int64_t newest = INT64_MIN;
-    Array<double> latency(s.stamp.size());
-    for (size_t i = 0; i < s.stamp.size(); ++i) {
-      if (s.stamp[i] < newest && s.seq[i] != s.seq[i - 1]) ++c.out_of_order_stamp;
-      if (i > 0 && s.stamp[i] == s.stamp[i - 1] && s.seq[i] != s.seq[i - 1]) ++c.repeated_stamps;
-      c.zero_stamps += s.stamp[i] == 0;
-      newest = std::max(newest, s.stamp[i]);
-      latency[i] = Duration::from_us(s.arrival[i] - s.stamp[i] - s.ready_after_us).seconds();
-    }
-    c.latency_s = distribution(std::move(latency));
-    // The median stamp by the one quantile definition (core/quantile.h, numpy's), to the nearest microsecond. In
-    // doubles the stamps are exact up to 2^53 us (285 years); hostile ones beyond are held inside int64_t.
+    // The median stamp on the source's own clock, by the one quantile definition (core/quantile.h, numpy's), to
+    // the nearest microsecond. In doubles the stamps are exact up to 2^53 us (285 years); hostile ones beyond are
+    // held inside int64_t.
     Array<int64_t> stamps(s.stamp);
     if (!stamps.empty()) {
       constexpr double kLast = 9223372036854774784.0;  // the largest double below 2^63
       const double median = std::clamp(quantile_in_place(stamps, 0.5), -kLast, kLast);
       c.median_stamp_utime = static_cast<int64_t>(std::llround(median));
     }
+    // The rest on the recorder's clock: the stamps mapped through their clock domain for a while (restored below).
+    Array<int64_t> own;
+    if (to_arrival) {
+      own = s.stamp;
+      for (auto& t : s.stamp) t = to_arrival(t);
+    }
+    if (!s.seq_counted) analyse_sequence(s, c);
+    analyse_period(s, c, s.seq_counted);
+    int64_t newest = INT64_MIN;
+    Array<double> latency;
+    latency.reserve(s.stamp.size());
+    for (size_t i = 0; i < s.stamp.size(); ++i) {
+      // A TF channel carries many transforms, often from several publishers: each is judged on its own (tf_check).
+      if (!s.is_tf && s.stamp[i] < newest && s.seq[i] != s.seq[i - 1]) ++c.out_of_order_stamp;
+      if (i > 0 && s.stamp[i] == s.stamp[i - 1] && s.seq[i] != s.seq[i - 1]) ++c.repeated_stamps;
+      c.zero_stamps += s.stamp[i] == 0;
+      newest = std::max(newest, s.stamp[i]);
+      // A stamp of 0 was never set, and a static transform's says nothing of time (tf2 takes it as timeless).
+      if (s.stamp[i] != 0 && !s.is_static_tf) {
+        latency.push_back(Duration::from_us(s.arrival[i] - s.stamp[i] - s.ready_after_us).seconds());
+      }
+    }
+    c.latency_valid = !latency.empty();
+    c.latency_s = distribution(std::move(latency));
     // The clock is fitted to when the data was complete (a scan's last beam), then the stamps restored.
     for (auto& t : s.stamp) t += s.ready_after_us;
     fit_clock(s, log_start, c);
     for (auto& t : s.stamp) t -= s.ready_after_us;
+    if (to_arrival) s.stamp = std::move(own);
   } else {
     analyse_period(s, c, true);
     // Without a header, a duplicate is the same bytes again well within one period (a steady stream of
@@ -354,7 +397,7 @@ ChannelTiming channel_timing(const std::string& name, Samples& s, int64_t log_st
       }
     }
   }
-  judge(c);
+  judge(c, s, log_start, static_cast<bool>(to_arrival));
   return c;
 }
 

@@ -9,6 +9,9 @@ ClockCorrections clock_corrections(const Diagnosis& d, std::vector<std::string>*
   char buf[320];
   for (const auto& c : d.channels) {
     if (!c.clock_valid) continue;
+    // On a clock of another epoch (simulation time) the clock was fitted to the stamps mapped onto the recorder's:
+    // no offset of the source's own to correct.
+    if (c.domain >= 0 && d.domains[static_cast<size_t>(c.domain)].mapped) continue;
     const bool ahead = clock_ahead(c.clock_offset_s);
     const bool drifts = clock_drifts(c.clock_drift_ppm);
     if (!ahead && !drifts) continue;

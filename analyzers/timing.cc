@@ -5,19 +5,23 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <map>
 
 #include "analyzers/internal/channel_samples.h"
 #include "analyzers/internal/channel_timing.h"
+#include "analyzers/internal/clock_domain.h"
 #include "analyzers/internal/command_loop.h"
 #include "analyzers/internal/stream_skew.h"
 #include "analyzers/internal/tf_check.h"
 #include "core/log_format.h"
 #include "core/log_reader.h"
+#include "driftlab/channel_source_t.hpp"
 #include "driftlab/joint_state_t.hpp"
 #include "driftlab/joint_trajectory_t.hpp"
 #include "driftlab/physics_step_t.hpp"
 #include "driftlab/tf_t.hpp"
+#include "lcmtypes/seq_origin.h"
 #include "lcmtypes/stream_header.h"
 #include "lcmtypes/type_registry.h"
 #include "lcmtypes/validate.h"
@@ -36,6 +40,8 @@ Result<Diagnosis> diagnose(const std::string& log, const DiagnoseOptions& option
   const int64_t trajectory_hash = driftlab::joint_trajectory_t::getHash();
   const int64_t joint_state_hash = driftlab::joint_state_t::getHash();
   const int64_t physics_hash = driftlab::physics_step_t::getHash();
+  const int64_t source_hash = driftlab::channel_source_t::getHash();
+  std::map<std::string, driftlab::channel_source_t, std::less<>> sources;  // what an import said of each channel
   std::map<std::string, PhysicsTiming> physics;
   internal::Samples* last = nullptr;
   std::string_view last_name;
@@ -70,6 +76,10 @@ Result<Diagnosis> diagnose(const std::string& log, const DiagnoseOptions& option
     if (fp == tf_hash) tf.add_tf(std::string(last_name), e.data, e.utime, internal::is_static_tf_channel(last_name));
     if (fp == trajectory_hash) loops.add_command(std::string(last_name), e.data, e.utime);
     if (fp == joint_state_hash) loops.add_state(std::string(last_name), e.data);
+    if (fp == source_hash) {
+      driftlab::channel_source_t m;
+      if (lcmtypes::decode(e.data, m)) sources[m.channel] = std::move(m);
+    }
     if (fp == physics_hash) {
       driftlab::physics_step_t m;
       if (lcmtypes::decode(e.data, m) && m.real_time_factor > 0 && std::isfinite(m.real_time_factor)) {
@@ -105,16 +115,39 @@ Result<Diagnosis> diagnose(const std::string& log, const DiagnoseOptions& option
   }
   d.log_problems = reader->problems();
 
+  auto ignored = [&](const std::string& name) {
+    return std::find(options.ignore_channels.begin(), options.ignore_channels.end(), name) !=
+           options.ignore_channels.end();
+  };
+  // Which clock each stream's stamps are on, and each foreign clock's mapping to the recorder's.
+  std::vector<internal::DomainStream> streams;
   for (auto& [name, s] : channels) {
-    if (std::find(options.ignore_channels.begin(), options.ignore_channels.end(), name) !=
-        options.ignore_channels.end()) {
-      continue;
+    s.is_tf = s.type == "driftlab.tf_t";
+    s.is_static_tf = s.is_tf && internal::is_static_tf_channel(name);
+    if (const auto it = sources.find(name); it != sources.end()) {
+      s.seq_counted = it->second.seq_origin == static_cast<int8_t>(lcmtypes::SeqOrigin::kCounted);
     }
-    ChannelTiming c = internal::channel_timing(name, s, d.start_utime);
-    if (s.has_header && s.type != "driftlab.tf_t") tf.add_data(name, s.frame, s.stamp, s.arrival);
+    if (!ignored(name) && s.has_header && !s.is_static_tf) streams.push_back({name, &s, s.is_tf});
+  }
+  const internal::ClockDomains domains = internal::ClockDomains::find(streams, d.start_utime, d.end_utime);
+  d.domains = domains.domains();
+  auto to_arrival = [&](const std::string& channel, int64_t stamp) { return domains.to_arrival(channel, stamp); };
+  for (auto& [name, s] : channels) {
+    if (ignored(name)) continue;
+    const int domain = domains.domain_of(name);
+    std::function<int64_t(int64_t)> mapping;
+    if (domain >= 0 && d.domains[static_cast<size_t>(domain)].mapped) {
+      mapping = [&, channel = name](int64_t stamp) { return domains.to_arrival(channel, stamp); };
+    }
+    ChannelTiming c = internal::channel_timing(name, s, d.start_utime, mapping);
+    c.domain = domain;
+    c.peer_delay_s = domains.peer_delay_s(name);
+    if (const auto it = sources.find(name); it != sources.end()) c.source_type = it->second.source_type;
+    if (s.has_header && !s.is_tf) tf.add_data(name, s.frame, s.stamp, s.arrival);
     d.channels.push_back(std::move(c));
   }
-  d.tf = tf.finish();
+  d.tf = tf.finish(to_arrival);
+  internal::judge_domains(d);
   // Skew between every two streams that observe the yaw rate: IMU gyro, wheel odometry, poses, scans.
   d.pairs = internal::stream_pairs(channels, d.start_utime, d.end_utime, options);
   d.command_loops = loops.finish(d.start_utime);

@@ -4,9 +4,10 @@
 // Never reads the injected-fault manifest. Thread-safety: pure function of the log.
 #pragma once
 
-#include <cstdint>
-#include <span>
 #include <array>
+#include <cstdint>
+#include <limits>
+#include <span>
 #include <string>
 #include <utility>
 #include <vector>
@@ -23,12 +24,23 @@ struct Gap {
   int64_t start_utime = 0;  ///< stamp of the last message before the gap [us]
   int64_t end_utime = 0;    ///< stamp of the first message after it [us]
   int64_t missing = 0;      ///< messages missing [count]
+  /// Their arrivals [us], for gaps in the period of a stream with stamps: how long a consumer went without; 0
+  /// otherwise
+  int64_t start_arrival = 0, end_arrival = 0;
 };
 
 struct ChannelTiming {
   std::string name;
   std::string type;                 ///< "driftlab.imu_t", or "" when unknown
+  std::string source_type;          ///< its type in the recording it was imported from ("nav_msgs/msg/Odometry"), or ""
   bool has_header = false;          ///< seq and stamps were read from driftlab.header_t
+  /// seq was counted by the import, not sent by the source (ROS 2 headers carry none): drops are told from the
+  /// stamps' period
+  bool seq_counted = false;
+  int domain = -1;  ///< its stamps' clock: an index into Diagnosis::domains (-1: no header, or unset)
+  /// How much later than the fastest of its clock's streams its messages arrive: the median over windows of its
+  /// fastest delivery against theirs [s]; NaN when its clock has no other stream
+  double peer_delay_s = std::numeric_limits<double>::quiet_NaN();
   int64_t count = 0;
   int64_t malformed = 0;            ///< messages that do not hold their type's layout (left out of the rest) [count]
   std::string malformed_example;    ///< why the first of them is malformed
@@ -49,7 +61,10 @@ struct ChannelTiming {
   int64_t repeated_stamps = 0;      ///< messages (of another seq) stamped exactly like the one before: frozen stamps [count]
   int64_t zero_stamps = 0;          ///< messages stamped 0: never set [count]
   int64_t median_stamp_utime = 0;   ///< the median stamp [us], to tell simulation time from wall-clock dates
-  Distribution latency_s;           ///< arrival - stamp [s]
+  /// arrival - stamp [s]; for a stream on a clock of its own (simulation time, time since boot), arrival - the
+  /// stamp mapped to the recorder's clock through its domain (clock_domains): the latency above its domain's fastest
+  Distribution latency_s;
+  bool latency_valid = false;       ///< latency measured: stamps set (not 0), and not static transforms
   bool clock_valid = false;         ///< enough data spread over time to fit the clock
   double clock_offset_s = 0;        ///< source clock ahead of the recorder's at the log's start [s] (fastest delivery taken as instantaneous)
   double clock_drift_ppm = 0;       ///< source clock running fast [ppm]
@@ -61,6 +76,27 @@ struct ChannelTiming {
   Distribution transport_s;         ///< latency above the fitted clock line [s]
   std::string verdict = "ok";       ///< ok, warn or fault
   std::vector<std::string> reasons; ///< why, in words
+};
+
+/// A clock that the stamps of some streams share (docs/diagnosis.md, "Clock domains"): the recorder's own (the
+/// log's event times), or one of its own, as simulation time under use_sim_time, a flight controller's time since
+/// boot, GPS time or TAI. The streams of a foreign clock are judged against its mapping to arrival, fitted to the
+/// fastest deliveries of its streams (of transforms only when nothing else is there, as they may be post-dated on
+/// purpose).
+struct ClockDomain {
+  /// "recorder", "simulation", "boot_or_simulation" (stamps from near zero at real-time rate), "gps" (GPS time
+  /// against UTC), "gps_epoch" (seconds since 1980-01-06), "tai", "time_zone", "other"
+  std::string kind;
+  std::string description;            ///< in words
+  std::vector<std::string> channels;  ///< its streams
+  double offset_s = 0;                ///< median arrival - stamp of its streams [s]
+  /// Its streams are judged through its mapping: another epoch (more than a day from the log's times: simulation
+  /// time, time since boot). Otherwise against arrival as stamped: the recorder's clock, or one set wrong by
+  /// seconds to hours (GPS time, TAI, a time zone), whose offset is a clock's that a replay can correct.
+  bool mapped = false;
+  bool rate_valid = false;  ///< a foreign clock seen over 10 s or more of arrivals
+  double rate = 1;          ///< its seconds per second of the recorder's clock (a simulation's real-time factor)
+  double rate_min = 1, rate_max = 1;  ///< the same over 10 s windows of arrivals
 };
 
 struct SkewWindow {
@@ -108,11 +144,26 @@ struct TfStampCheck {
   int64_t never = 0;  ///< messages no transform as new as their stamp ever reached [count]
 };
 
+/// One transform of the TF tree, parent -> child, as tf2's view_frames lists it: who broadcasts it, how often, how
+/// old it is when it arrives.
+struct TfEdge {
+  std::string parent, child;
+  std::string channel;  ///< the channel that carried it first
+  bool is_static = false;
+  int64_t count = 0;         ///< transforms received [count]
+  double rate_hz = 0;        ///< by their distinct stamps (0 when static)
+  int64_t out_of_order = 0;  ///< stamped older than one of the same transform already received [count]
+  /// arrival - stamp, the stamp on the recorder's clock (through its clock domain) [s]: below zero, post-dated
+  Distribution age_s;
+  int64_t ahead = 0;  ///< stamped more than 1 ms ahead of their arrival [count]
+};
+
 /// The TF tree seen in the log (channels of driftlab.tf_t; a channel whose name contains "static", in any case,
 /// holds static transforms) and what would go wrong when data is transformed with it.
 struct TfDiagnosis {
   std::vector<std::string> frames;    ///< every frame, sorted
   std::vector<std::string> roots;     ///< frames that are nobody's child
+  std::vector<TfEdge> edges;          ///< every transform, by child frame
   std::vector<TfStampCheck> stamps;   ///< per data channel and dynamic transform it is composed with
   std::vector<std::string> problems;  ///< in words
 };
@@ -154,6 +205,7 @@ struct Diagnosis {
   std::string log;
   int64_t start_utime = 0, end_utime = 0;
   std::vector<ChannelTiming> channels;
+  std::vector<ClockDomain> domains;  ///< the clocks the streams' stamps are on
   std::vector<StreamPair> pairs;
   TfDiagnosis tf;
   std::vector<CommandLoop> command_loops;
@@ -166,8 +218,9 @@ struct DiagnoseOptions {
   double window_s = 10.0;    ///< skew window [s] (longer on long logs: at most 64 windows)
   /// Bookkeeping, not streams: the recorder's and the replayer's statistics (one seq per module, so they would
   /// look duplicated) and the fault manifests.
-  std::vector<std::string> ignore_channels = {"DRIFTLAB_RECORDER_STATS", "FAULTS", "MODULE_STATS", "REPLAY_FAULTS",
-                                              "SIMULATION"};
+  std::vector<std::string> ignore_channels = {
+      "CHANNEL_SOURCES", "DRIFTLAB_RECORDER_STATS", "FAULTS",    "FOREIGN_SCHEMAS",
+      "MODULE_STATS",    "REPLAY_FAULTS",           "SIMULATION"};
 };
 
 Result<Diagnosis> diagnose(const std::string& log, const DiagnoseOptions& options = {});

@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <map>
 #include <memory>
+#include <set>
 
 #include "analyzers/timing.h"
 #include "apps/cli_checks.h"
@@ -36,27 +37,104 @@ std::string ms(double seconds) {
   return buf;
 }
 
+/// The TF tree as tf2's view_frames draws it, a line per frame under its parent: who broadcasts each transform,
+/// how often, and how old it is on arrival.
+std::vector<std::string> tf_tree_lines(const analyzers::TfDiagnosis& tf) {
+  std::map<std::string, std::vector<const analyzers::TfEdge*>> children;
+  for (const auto& e : tf.edges) children[e.parent].push_back(&e);
+  std::vector<std::string> out;
+  char buf[512];
+  // Depth first from each root; a frame is drawn once (a frame with two parents under the first).
+  std::set<std::string> drawn;
+  std::vector<std::pair<const analyzers::TfEdge*, std::string>> stack;  // (edge, indent)
+  for (const auto& root : tf.roots) {
+    out.push_back(root);
+    drawn.insert(root);
+    const auto& kids = children[root];
+    for (auto it = kids.rbegin(); it != kids.rend(); ++it) stack.emplace_back(*it, "");
+    while (!stack.empty()) {
+      auto [e, indent] = stack.back();
+      stack.pop_back();
+      if (!drawn.insert(e->child).second) continue;
+      if (e->is_static && children[e->child].empty()) {
+        // A frame's static leaves on one line (a robot's links): the tree stays readable.
+        std::string leaves = e->child;
+        while (!stack.empty() && stack.back().second == indent && stack.back().first->is_static &&
+               stack.back().first->channel == e->channel && children[stack.back().first->child].empty()) {
+          if (drawn.insert(stack.back().first->child).second) leaves += ", " + stack.back().first->child;
+          stack.pop_back();
+        }
+        std::snprintf(buf, sizeof(buf), "%s+- %s  (%s, static)", indent.c_str(), leaves.c_str(), e->channel.c_str());
+      } else if (e->is_static) {
+        std::snprintf(buf, sizeof(buf), "%s+- %s  (%s, static)", indent.c_str(), e->child.c_str(), e->channel.c_str());
+      } else {
+        std::snprintf(buf, sizeof(buf),
+                      "%s+- %s  (%s, %lld at %.1f Hz, %.1f ms old on arrival (p50), %lld "
+                      "reordered)",
+                      indent.c_str(), e->child.c_str(), e->channel.c_str(), static_cast<long long>(e->count),
+                      e->rate_hz, e->age_s.p50 * 1e3, static_cast<long long>(e->out_of_order));
+      }
+      out.push_back(buf);
+      const auto& next = children[e->child];
+      for (auto it = next.rbegin(); it != next.rend(); ++it) stack.emplace_back(*it, indent + "   ");
+    }
+  }
+  return out;
+}
+
 /// The report as lines of text: a row per channel, the pairs, then the problems in words.
 std::vector<std::string> report_lines(const Diagnosis& d, std::vector<std::string>* problems) {
   std::vector<std::string> lines;
-  char buf[512];
+  char buf[1024];
   size_t w = 7;
   for (const auto& c : d.channels) w = std::max(w, c.name.size());
-  std::snprintf(buf, sizeof(buf), "%-*s  %-7s %8s %8s %6s %5s %5s %9s %9s %9s %8s", static_cast<int>(w), "channel",
-                "verdict", "count", "rate Hz", "drops", "dups", "reord", "lat p50", "lat p99", "offset", "drift");
+  // Streams on clocks of their own (simulation time, time since boot): a column says which clock, and their
+  // latency is against the fastest stream on it (docs/diagnosis.md, "Clock domains").
+  const bool foreign = std::any_of(d.domains.begin(), d.domains.end(),
+                                   [](const analyzers::ClockDomain& x) { return x.kind != "recorder"; });
+  auto on_own_clock = [&](const analyzers::ChannelTiming& c) {
+    return c.domain >= 0 && d.domains[static_cast<size_t>(c.domain)].mapped;
+  };
+  std::snprintf(buf, sizeof(buf), "%-*s  %-7s %8s %8s %6s %5s %5s %9s %9s %9s %8s%s", static_cast<int>(w), "channel",
+                "verdict", "count", "rate Hz", "drops", "dups", "reord", "lat p50", "lat p99", "offset", "drift",
+                foreign ? "  clock" : "");
   lines.push_back(buf);
   for (const auto& c : d.channels) {
-    const int64_t drops = c.has_header ? c.seq_gaps : c.missing_by_period;
-    std::snprintf(buf, sizeof(buf), "%-*s  %-7s %8lld %8.2f %6lld %5lld %5lld %9s %9s %9s %8s", static_cast<int>(w),
-                  c.name.c_str(), c.verdict.c_str(), static_cast<long long>(c.count), c.rate_hz,
-                  static_cast<long long>(drops), static_cast<long long>(c.duplicates),
-                  static_cast<long long>(c.out_of_order_stamp),
-                  c.has_header ? (ms(c.latency_s.p50) + " ms").c_str() : "-",
-                  c.has_header ? (ms(c.latency_s.p99) + " ms").c_str() : "-",
-                  c.clock_valid ? (ms(c.clock_offset_s) + " ms").c_str() : "-",
-                  c.clock_valid ? (std::to_string(static_cast<int>(std::lround(c.clock_drift_ppm))) + " ppm").c_str() : "-");
+    const int64_t drops = c.has_header && !c.seq_counted ? c.seq_gaps : c.missing_by_period;
+    const bool offset = c.clock_valid && !on_own_clock(c);  // on a clock of its own, an offset is the domain's
+    std::string clock;
+    if (foreign) clock = "  " + (c.domain < 0 ? std::string("-") : "clock " + std::to_string(c.domain + 1));
+    std::snprintf(
+        buf, sizeof(buf), "%-*s  %-7s %8lld %8.2f %6lld %5lld %5lld %9s %9s %9s %8s%s", static_cast<int>(w),
+        c.name.c_str(), c.verdict.c_str(), static_cast<long long>(c.count), c.rate_hz, static_cast<long long>(drops),
+        static_cast<long long>(c.duplicates), static_cast<long long>(c.out_of_order_stamp),
+        c.latency_valid ? (ms(c.latency_s.p50) + " ms").c_str() : "-",
+        c.latency_valid ? (ms(c.latency_s.p99) + " ms").c_str() : "-",
+        offset ? (ms(c.clock_offset_s) + " ms").c_str() : "-",
+        c.clock_valid ? (std::to_string(static_cast<int>(std::lround(c.clock_drift_ppm))) + " ppm").c_str() : "-",
+        clock.c_str());
     lines.push_back(buf);
     for (const auto& r : c.reasons) problems->push_back(c.name + ": " + r);
+  }
+  // Streams without a sequence number or a steady period: their drops cannot be told, said once.
+  std::string untold;
+  for (const auto& c : d.channels) {
+    if (c.seq_counted && c.irregular) untold += (untold.empty() ? "" : ", ") + c.name;
+  }
+  if (!untold.empty()) {
+    lines.push_back("");
+    lines.push_back("drops cannot be told (no sequence number travelled, and no steady period): " + untold);
+  }
+  if (foreign) {
+    lines.push_back("");
+    lines.push_back("clocks (latency on a clock of another epoch is against the fastest stream on it):");
+    for (size_t i = 0; i < d.domains.size(); ++i) {
+      const analyzers::ClockDomain& x = d.domains[i];
+      std::string list;
+      for (const auto& ch : x.channels) list += (list.empty() ? "" : ", ") + ch;
+      std::snprintf(buf, sizeof(buf), "  clock %zu: %s: %s", i + 1, x.description.c_str(), list.c_str());
+      lines.push_back(buf);
+    }
   }
   // A skew is shown when the streams' motions match and the windows agree on it (docs/diagnosis.md,
   // "Calibration"); the others stay in --json with their curves.
@@ -91,6 +169,7 @@ std::vector<std::string> report_lines(const Diagnosis& d, std::vector<std::strin
     for (const auto& r : d.tf.roots) roots += (roots.empty() ? "" : ", ") + r;
     lines.push_back("");
     lines.push_back("TF: " + std::to_string(d.tf.frames.size()) + " frames, root " + roots);
+    for (const auto& l : tf_tree_lines(d.tf)) lines.push_back("  " + l);
     // Each dynamic transform against the data composed with it: the data in its child frame (odometry in 'odom'
     // with 'map' -> 'odom'), else the busiest channel.
     std::map<std::pair<std::string, std::string>, const analyzers::TfStampCheck*> head;
@@ -101,11 +180,13 @@ std::vector<std::string> report_lines(const Diagnosis& d, std::vector<std::strin
         h = &c;
     }
     for (const auto& [edge, c] : head) {
+      // Stamped behind the data beyond its period, or (post-dated) ahead of it.
       std::snprintf(buf, sizeof(buf),
-                    "  '%s' -> '%s' (%s, every %.0f ms) with %s: %.1f ms behind it beyond its period; on arrival, "
+                    "  '%s' -> '%s' (%s, every %.0f ms) with %s: %.1f ms %s beyond its period; on arrival, "
                     "%s's stamps are up to %.0f ms past the newest transform",
                     c->parent.c_str(), c->child.c_str(), c->tf_channel.c_str(), c->period_s * 1e3, c->channel.c_str(),
-                    c->offset_s * 1e3, c->channel.c_str(), c->lead_s.max * 1e3);
+                    std::abs(c->offset_s) * 1e3, c->offset_s < 0 ? "ahead of it" : "behind it", c->channel.c_str(),
+                    c->lead_s.max * 1e3);
       lines.push_back(buf);
     }
   }

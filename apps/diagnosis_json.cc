@@ -21,10 +21,17 @@ nlohmann::json to_json(const analyzers::Diagnosis& d) {
     nlohmann::json gaps = nlohmann::json::array();
     for (const auto& g : c.gaps) {
       gaps.push_back({{"start_utime", g.start_utime}, {"end_utime", g.end_utime}, {"missing", g.missing}});
+      if (g.end_arrival != 0) {
+        gaps.back()["start_arrival_utime"] = g.start_arrival;
+        gaps.back()["end_arrival_utime"] = g.end_arrival;
+      }
     }
     channels.push_back(
         {{"name", c.name},
          {"type", c.type.empty() ? nlohmann::json() : nlohmann::json(c.type)},
+         {"source_type", c.source_type.empty() ? nlohmann::json() : nlohmann::json(c.source_type)},
+         {"domain", c.domain < 0 ? nlohmann::json() : nlohmann::json(c.domain)},
+         {"peer_delay_s", std::isfinite(c.peer_delay_s) ? nlohmann::json(c.peer_delay_s) : nlohmann::json()},
          {"count", c.count},
          {"malformed", c.malformed},
          {"rate_hz", c.rate_hz},
@@ -33,7 +40,7 @@ nlohmann::json to_json(const analyzers::Diagnosis& d) {
           c.bursty ? nlohmann::json{{"size", c.burst_size}, {"interval_s", c.burst_interval_s}} : nlohmann::json()},
          {"irregular", c.irregular ? nlohmann::json{{"regular_fraction", c.regular_fraction}} : nlohmann::json()},
          {"drops",
-          {{"seq_gaps", c.has_header ? nlohmann::json(c.seq_gaps) : nlohmann::json()},
+          {{"seq_gaps", c.has_header && !c.seq_counted ? nlohmann::json(c.seq_gaps) : nlohmann::json()},
            {"missing_by_period", c.missing_by_period},
            {"gaps", gaps}}},
          {"duplicates", c.duplicates},
@@ -46,7 +53,7 @@ nlohmann::json to_json(const analyzers::Diagnosis& d) {
                                                     {"first_s", c.first_late_stamp_s},
                                                     {"max_s", c.late_stamp_max_s}}}}
                                  : nlohmann::json()},
-         {"latency_s", c.has_header ? distribution_json(c.latency_s) : nlohmann::json()},
+         {"latency_s", c.latency_valid ? distribution_json(c.latency_s) : nlohmann::json()},
          {"clock", c.clock_valid ? nlohmann::json{{"offset_s", c.clock_offset_s},
                                                   {"offset_ci_s", c.clock_offset_ci_s},
                                                   {"drift_ppm", c.clock_drift_ppm},
@@ -110,21 +117,57 @@ nlohmann::json to_json(const analyzers::Diagnosis& d) {
                        {"sim_step_s", p.sim_step_s},
                        {"wall_step_max_s", p.wall_step_max_s}});
   }
+  nlohmann::json domains = nlohmann::json::array();
+  for (const auto& x : d.domains) {
+    domains.push_back({{"kind", x.kind},
+                       {"description", x.description},
+                       {"channels", x.channels},
+                       {"offset_s", x.offset_s},
+                       {"mapped", x.mapped},
+                       {"rate", x.rate_valid ? nlohmann::json(x.rate) : nlohmann::json()},
+                       {"rate_min", x.rate_valid ? nlohmann::json(x.rate_min) : nlohmann::json()},
+                       {"rate_max", x.rate_valid ? nlohmann::json(x.rate_max) : nlohmann::json()}});
+  }
+  nlohmann::json tf_edges = nlohmann::json::array();
+  for (const auto& e : d.tf.edges) {
+    tf_edges.push_back({{"parent", e.parent},
+                        {"child", e.child},
+                        {"channel", e.channel},
+                        {"static", e.is_static},
+                        {"count", e.count},
+                        {"rate_hz", e.rate_hz},
+                        {"out_of_order", e.out_of_order},
+                        {"age_s", e.is_static ? nlohmann::json() : distribution_json(e.age_s)},
+                        {"ahead", e.ahead}});
+  }
   return {{"log", d.log},
           {"start_utime", d.start_utime},
           {"end_utime", d.end_utime},
           {"log_problems", d.log_problems},
+          {"clock_domains", domains},
           {"channels", channels},
           {"pairs", pairs},
-          {"tf", {{"frames", d.tf.frames}, {"roots", d.tf.roots}, {"stamps", tf_stamps}, {"problems", d.tf.problems}}},
+          {"tf",
+           {{"frames", d.tf.frames},
+            {"roots", d.tf.roots},
+            {"edges", tf_edges},
+            {"stamps", tf_stamps},
+            {"problems", d.tf.problems}}},
           {"command_loops", loops},
           {"physics", physics}};
 }
 
 nlohmann::json diagnosis_summary(const nlohmann::json& diagnosis) {
-  auto wrong_clock = [](const nlohmann::json& c) {
+  // A clock of another epoch (simulation time) has no offset of its own: its streams' clocks are against its peers.
+  auto on_mapped_clock = [&](const nlohmann::json& c) {
+    const auto& domain = c.value("domain", nlohmann::json());
+    const auto& domains = diagnosis.value("clock_domains", nlohmann::json::array());
+    return domain.is_number() && domain.get<size_t>() < domains.size() &&
+           domains[domain.get<size_t>()].value("mapped", false);
+  };
+  auto wrong_clock = [&](const nlohmann::json& c) {
     const auto& clock = c.at("clock");
-    return clock.is_object() && (analyzers::clock_ahead(clock.at("offset_s").get<double>()) ||
+    return clock.is_object() && ((!on_mapped_clock(c) && analyzers::clock_ahead(clock.at("offset_s").get<double>())) ||
                                  analyzers::clock_drifts(clock.at("drift_ppm").get<double>()));
   };
   auto rank = [&](const nlohmann::json& c) {
@@ -138,7 +181,9 @@ nlohmann::json diagnosis_summary(const nlohmann::json& diagnosis) {
     const std::string name = c.at("name");
     if (rank(c) > 0 && (worst == nullptr || rank(c) > rank(*worst))) worst = &c;
     const auto& clock = c.at("clock");
-    if (clock.is_object() && analyzers::clock_ahead(clock.at("offset_s").get<double>())) ahead[name] = clock.at("offset_s");
+    if (clock.is_object() && !on_mapped_clock(c) && analyzers::clock_ahead(clock.at("offset_s").get<double>())) {
+      ahead[name] = clock.at("offset_s");
+    }
     const auto& d = c.at("drops");
     const int64_t n = d.at("seq_gaps").is_number() ? d.at("seq_gaps").get<int64_t>() : d.at("missing_by_period").get<int64_t>();
     if (n > 0) drops[name] = n;

@@ -14,6 +14,7 @@
 
 #include "core/log_reader.h"
 #include "driftlab/barometer_t.hpp"
+#include "driftlab/channel_source_t.hpp"
 #include "driftlab/foreign_message_t.hpp"
 #include "driftlab/foreign_schema_t.hpp"
 #include "driftlab/gnss_t.hpp"
@@ -462,6 +463,11 @@ class Exporter {
       if (lcmtypes::decode(e.data, s)) foreign_[s.channel] = {s.type, s.encoding, s.definition};
       return {};
     }
+    if (e.channel == "CHANNEL_SOURCES") {  // an import's word on a channel: kept in its MCAP channel's metadata
+      channel_source_t s;
+      if (lcmtypes::decode(e.data, s)) sources_[s.channel] = std::move(s);
+      return {};
+    }
     if (e.data.size() < 8) return skip(e.channel);
     int64_t fp = 0;
     for (int i = 0; i < 8; ++i) fp = static_cast<int64_t>((static_cast<uint64_t>(fp) << 8) | e.data[i]);
@@ -680,7 +686,12 @@ class Exporter {
       const std::string topic = topic_for(channel);
       std::vector<std::pair<std::string, std::string>> metadata = {
           {"offered_qos_profiles", qos_profile(channel.ends_with("tf_static") || channel == "TF_STATIC")}};
-      if (topic != channel) metadata.emplace_back("driftlab_channel", channel);  // read back by driftlab import
+      // Read back by driftlab import.
+      if (topic != channel) metadata.emplace_back("driftlab_channel", channel);
+      if (const auto src = sources_.find(channel); src != sources_.end()) {
+        metadata.emplace_back("driftlab_source_type", src->second.source_type);
+        metadata.emplace_back("driftlab_seq_origin", std::to_string(src->second.seq_origin));
+      }
       const uint16_t id = w_.add_channel(sit->second, topic, encoding, metadata);
       summary.topics.push_back({channel, topic, driftlab_type, ros_type, encoding, 0});
       it = channels_.emplace(key, Channel{id, summary.topics.size() - 1}).first;
@@ -705,6 +716,7 @@ class Exporter {
   const std::function<void(const std::string&)>& on_problem_;
   Cdr cdr_;
   std::map<std::string, Foreign> foreign_;
+  std::map<std::string, channel_source_t> sources_;
   std::map<std::string, Channel> channels_;
   std::map<std::string, uint16_t> schemas_;
 };

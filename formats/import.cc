@@ -8,11 +8,13 @@
 #include <cstring>
 #include <map>
 #include <optional>
+#include <set>
 
 #include <filesystem>
 #include <memory>
 
 #include "core/log_writer.h"
+#include "driftlab/channel_source_t.hpp"
 #include "driftlab/foreign_message_t.hpp"
 #include "driftlab/foreign_schema_t.hpp"
 #include "formats/carmen.h"
@@ -23,6 +25,7 @@
 #include "formats/ros_definition.h"
 #include "formats/ros_messages.h"
 #include "lcmtypes/encode.h"
+#include "lcmtypes/seq_origin.h"
 
 namespace driftlab::formats {
 namespace {
@@ -30,6 +33,10 @@ namespace {
 using lcmtypes::encode;
 
 constexpr char kSchemaChannel[] = "FOREIGN_SCHEMAS";
+constexpr char kSourcesChannel[] = "CHANNEL_SOURCES";
+
+/// A string as an LCM message holds it: up to its first NUL (LCM encodes strings so).
+std::string lcm_text(std::string_view v) { return std::string(v.substr(0, v.find('\0'))); }
 
 /// Up to n bytes from the start of path (fewer for a short file; empty when it cannot be read).
 std::string head_of(const std::string& path, size_t n) {
@@ -101,6 +108,10 @@ struct Incoming {
   int64_t arrival_us = 0;
   bool has_sequence = false;  ///< MCAP: a sequence number travels with it
   uint32_t sequence = 0;
+  /// What an earlier import said of the channel (driftlab export keeps it in an MCAP channel's metadata): its type
+  /// in the first recording, and where its seq came from.
+  std::string_view source_type;
+  std::optional<lcmtypes::SeqOrigin> seq_origin;
   std::span<const uint8_t> payload;
   Where where;
 };
@@ -135,6 +146,17 @@ class Importer {
     if (!status_) return false;
     ++summary.messages;
     return true;
+  }
+  /// Says what the recording knew of a channel that its messages do not (channel_source_t), once, before the
+  /// channel's first message: from that message (an MCAP channel whose first sequence is 0 is taken as counted, as
+  /// rosbag2 writes 0 for every message; one whose sequence starts later at 0 and then counts is taken so too).
+  bool describe(int64_t utime, std::string_view channel, std::string_view source_type, lcmtypes::SeqOrigin origin) {
+    if (!sources_.emplace(channel).second) return status_.ok();
+    channel_source_t s;
+    s.channel = lcm_text(channel);
+    s.source_type = lcm_text(source_type);
+    s.seq_origin = static_cast<int8_t>(origin);
+    return write(utime, kSourcesChannel, encode(s));
   }
 
   /// Converts one ROS message: a mapped type onto its driftlab type, any other carried as foreign_message_t after
@@ -182,7 +204,13 @@ class Importer {
         problem(file + ": " + std::string(m.topic) + " " + m.where.text() + ": " + error_);
         return;
       }
-      if (write(m.arrival_us, m.topic, converted->lcm)) {
+      using lcmtypes::SeqOrigin;
+      const SeqOrigin origin = converted->has_seq ? SeqOrigin::kSource
+                               : st.sequences     ? SeqOrigin::kTransport
+                                                  : SeqOrigin::kCounted;
+      if (describe(m.arrival_us, m.topic, m.source_type.empty() ? m.type : m.source_type,
+                   m.seq_origin.value_or(origin)) &&
+          write(m.arrival_us, m.topic, converted->lcm)) {
         ++t.messages;
         ++st.count;
       }
@@ -212,8 +240,12 @@ class Importer {
         return;
       }
     }
-    // Strings of an LCM message end at their first NUL (LCM encodes them so).
-    auto text = [](std::string_view v) { return std::string(v.substr(0, v.find('\0'))); };
+    auto text = lcm_text;
+    if (!describe(
+            m.arrival_us, m.topic, m.source_type.empty() ? m.type : m.source_type,
+            m.seq_origin.value_or(st.sequences ? lcmtypes::SeqOrigin::kTransport : lcmtypes::SeqOrigin::kCounted))) {
+      return;
+    }
     if (!st.schema_written) {
       foreign_schema_t s;
       s.channel = std::string(m.topic);
@@ -248,6 +280,7 @@ class Importer {
   std::function<void(const std::string&)> on_problem_;
   std::map<std::string, size_t, std::less<>> topic_index_;
   std::map<std::string, State, std::less<>> state_;
+  std::set<std::string, std::less<>> sources_;  // the channels described
   Status status_;
   std::string error_;
   int64_t bad_topics_ = 0;
@@ -287,8 +320,14 @@ Status import_mcap(const std::string& path, Importer& out) {
         Incoming in;
         in.topic = c.topic;
         // A channel whose name is not a ROS name went out under one, with the original beside (driftlab export).
-        for (const auto& [k, v] : c.metadata)
+        // And what the import before the export said of it (channel_source_t).
+        for (const auto& [k, v] : c.metadata) {
           if (k == "driftlab_channel" && !v.empty()) in.topic = v;
+          if (k == "driftlab_source_type") in.source_type = v;
+          if (k == "driftlab_seq_origin" && v.size() == 1 && v[0] >= '0' && v[0] <= '2') {
+            in.seq_origin = static_cast<lcmtypes::SeqOrigin>(v[0] - '0');
+          }
+        }
         in.type = c.schema ? std::string_view(c.schema->name) : std::string_view();
         in.encoding = c.message_encoding;
         in.definition = c.schema ? std::string_view(c.schema->data) : std::string_view();
@@ -343,8 +382,10 @@ Status import_carmen(const std::string& path, Importer& out) {
       [&](const CarmenMessage& m) {
         const std::string_view source = m.channel.ends_with("_POSE") ? m.channel.substr(0, m.channel.size() - 5)
                                                                       : m.channel;
-        if (out.write(m.log_utime, m.channel, m.lcm)) {
-          ++out.topic(m.channel, m.channel == "TF_STATIC" ? "PARAM" : source, m.type).messages;
+        const std::string_view source_type = m.channel == "TF_STATIC" ? "PARAM" : source;
+        if (out.describe(m.log_utime, m.channel, source_type, lcmtypes::SeqOrigin::kCounted) &&
+            out.write(m.log_utime, m.channel, m.lcm)) {
+          ++out.topic(m.channel, source_type, m.type).messages;
         }
       },
       [&](size_t line, const std::string& what) { out.problem(path + ":" + std::to_string(line) + ": " + what); });

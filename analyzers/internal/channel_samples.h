@@ -24,6 +24,9 @@ using Array = HugeVector<T>;
 struct Samples {
   std::string type;
   bool has_header = false;
+  bool seq_counted = false;   // header.seq was counted by an import (channel_source_t::SEQ_COUNTED), not sent
+  bool is_tf = false;         // driftlab.tf_t: its transforms are judged one by one (tf_check.cc)
+  bool is_static_tf = false;  // static transforms (tf_check.h's is_static_tf_channel): timeless, stamped 0 or not
   Array<int64_t> arrival;  // log timestamp [us]
   Array<int64_t> stamp;    // header.utime [us] (empty without a header)
   Array<int64_t> seq;      // header.seq

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <string>
 
 #include "analyzers/internal/channel_samples.h"
@@ -13,6 +14,12 @@ namespace driftlab::analyzers::internal {
 
 /// The timing of one channel from its samples (whose stamps it borrows for a moment: they are restored), the
 /// clock fitted from log_start [us].
-ChannelTiming channel_timing(const std::string& name, Samples& s, int64_t log_start);
+/// to_arrival, when given, maps the channel's stamps onto the recorder's clock (its clock domain's mapping): its
+/// latency, period, gaps and clock are then judged on that clock, its median stamp on its own.
+ChannelTiming channel_timing(const std::string& name, Samples& s, int64_t log_start,
+                             const std::function<int64_t(int64_t)>& to_arrival = {});
+
+/// Adds a reason to a channel's verdict: a fault, or a warning (which leaves a fault a fault).
+void add_reason(ChannelTiming& c, bool fault, const std::string& why);
 
 }  // namespace driftlab::analyzers::internal

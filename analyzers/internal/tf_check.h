@@ -7,6 +7,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <map>
 #include <span>
 #include <string>
@@ -28,7 +29,8 @@ class TfCheck {
   /// The messages of a stream channel in frame `frame`: their stamps and arrivals [us], in arrival order.
   void add_data(const std::string& channel, const std::string& frame, std::span<const int64_t> stamps,
                 std::span<const int64_t> arrivals);
-  TfDiagnosis finish() const;
+  /// to_arrival(channel, stamp) maps a stamp of the channel's clock onto the recorder's (its clock domain's).
+  TfDiagnosis finish(const std::function<int64_t(const std::string&, int64_t)>& to_arrival) const;
 
  private:
   struct Edge {
@@ -38,7 +40,7 @@ class TfCheck {
     std::vector<int64_t> arrival;  // dynamic: in arrival order
     std::vector<int64_t> newest;   // newest stamp received by then
     std::vector<int64_t> stamps;   // each transform's stamp, in arrival order
-    int64_t future_stamps = 0;     // stamped ahead of their arrival
+    int64_t out_of_order = 0;      // stamped older than the newest already received
     bool static_changed = false;
     double static_values[7] = {};  // translation, rotation (w, x, y, z)
     bool have_static = false;

@@ -11,6 +11,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "driftlab/channel_source_t.hpp"
 #include "driftlab/foreign_message_t.hpp"
 #include "driftlab/foreign_schema_t.hpp"
 #include "driftlab/laser_scan_t.hpp"
@@ -20,6 +21,7 @@
 #include "formats/carmen.h"
 #include "formats/import.h"
 #include "formats/ros1_bag.h"
+#include "lcmtypes/seq_origin.h"
 #include "lcmtypes/validate.h"
 #include "tests/test_util.h"
 
@@ -101,8 +103,26 @@ TEST(Import, Ros1BagsAgreeWithAnIndependentReader) {
     std::string oracle_out;
     ASSERT_EQ(test::run(std::string(DRIFTLAB_PYTHON) + " " + kOracle + " '" + bag + "'", &oracle_out), 0);
     const auto oracle = nlohmann::json::parse(oracle_out);
-    const auto log = by_channel(dir.file("out.lcm"));
+    auto log = by_channel(dir.file("out.lcm"));
+    // Each topic's type and where its seq comes from, said once before its first message: a stamped message's
+    // header.seq is the publisher's; a TFMessage carries none (its transforms' own are not the message's).
+    std::map<std::string, channel_source_t> sources;
+    for (const auto& e : log["CHANNEL_SOURCES"]) {
+      const auto src = test::decode<channel_source_t>(e);
+      EXPECT_EQ(sources.count(src.channel), 0u) << src.channel;
+      sources[src.channel] = src;
+    }
+    log.erase("CHANNEL_SOURCES");
     EXPECT_EQ(log.size(), oracle.size());
+    EXPECT_EQ(sources.size(), oracle.size());
+    for (const auto& [topic, want] : oracle.items()) {
+      SCOPED_TRACE(topic);
+      ASSERT_TRUE(sources.count(topic));
+      EXPECT_EQ(sources.at(topic).source_type, want["type"].get<std::string>());
+      const bool tf = want["type"] == "tf/tfMessage" || want["type"] == "tf2_msgs/TFMessage";
+      EXPECT_EQ(sources.at(topic).seq_origin,
+                static_cast<int8_t>(tf ? lcmtypes::SeqOrigin::kCounted : lcmtypes::SeqOrigin::kSource));
+    }
     for (const auto& [topic, want] : oracle.items()) {
       SCOPED_TRACE(topic);
       ASSERT_TRUE(log.count(topic));

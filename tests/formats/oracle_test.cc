@@ -12,6 +12,7 @@
 
 #include "core/log_writer.h"
 #include "driftlab/barometer_t.hpp"
+#include "driftlab/channel_source_t.hpp"
 #include "driftlab/channel_stats_t.hpp"
 #include "driftlab/fault_t.hpp"
 #include "driftlab/foreign_message_t.hpp"
@@ -45,7 +46,7 @@ const std::string kDriftlab = std::string(DRIFTLAB_BIN_DIR) + "/driftlab";
 /// Compares a driftlab log with the oracle's reading of the file it came from, topic by topic.
 void expect_log_matches(const std::string& log, const std::vector<json>& oracle) {
   std::map<std::string, std::vector<OwnedEvent>> events;
-  std::map<std::string, std::string> schemas;
+  std::map<std::string, std::string> schemas, source_types;
   for (auto& e : test::read_all(log)) {
     if (e.channel == "FOREIGN_SCHEMAS") {
       foreign_schema_t s;
@@ -53,10 +54,27 @@ void expect_log_matches(const std::string& log, const std::vector<json>& oracle)
       schemas[s.channel] = s.definition;
       continue;
     }
+    if (e.channel == "CHANNEL_SOURCES") {
+      channel_source_t s;
+      ASSERT_TRUE(lcmtypes::decode(e.data, s));
+      source_types[s.channel] = s.source_type;
+      continue;
+    }
     events[e.channel].push_back(std::move(e));
   }
   std::map<std::string, std::vector<json>> want;
   for (const auto& m : oracle) want[m.at("topic").get<std::string>()].push_back(m);
+  // Every channel's type in the recording is said once (CHANNEL_SOURCES), as the oracle names it (a ROS 1 type
+  // exported to ROS 2 gains its "/msg/").
+  auto ros1_name = [](std::string t) {
+    if (const size_t at = t.find("/msg/"); at != std::string::npos) t.erase(at, 4);
+    return t;
+  };
+  for (const auto& [topic, msgs] : want) {
+    SCOPED_TRACE(topic);
+    ASSERT_TRUE(source_types.count(topic));
+    EXPECT_EQ(ros1_name(source_types.at(topic)), ros1_name(msgs.front().at("type").get<std::string>()));
+  }
   ASSERT_EQ(events.size(), want.size());
   for (auto& [topic, msgs] : want) {
     SCOPED_TRACE(topic);

@@ -55,6 +55,17 @@ const COMMON = {
   "sensor_msgs/MagneticField":
     "std_msgs/Header header\ngeometry_msgs/Vector3 magnetic_field\nfloat64[9] magnetic_field_covariance\n",
   "sensor_msgs/FluidPressure": "std_msgs/Header header\nfloat64 fluid_pressure\nfloat64 variance\n",
+  "sensor_msgs/LaserScan":
+    "std_msgs/Header header\nfloat32 angle_min\nfloat32 angle_max\nfloat32 angle_increment\n" +
+    "float32 time_increment\nfloat32 scan_time\nfloat32 range_min\nfloat32 range_max\nfloat32[] ranges\n" +
+    "float32[] intensities\n",
+  "geometry_msgs/PoseWithCovariance": "geometry_msgs/Pose pose\nfloat64[36] covariance\n",
+  "geometry_msgs/PoseWithCovarianceStamped": "std_msgs/Header header\ngeometry_msgs/PoseWithCovariance pose\n",
+  "geometry_msgs/TwistWithCovariance": "geometry_msgs/Twist twist\nfloat64[36] covariance\n",
+  "nav_msgs/Odometry":
+    "std_msgs/Header header\nstring child_frame_id\ngeometry_msgs/PoseWithCovariance pose\n" +
+    "geometry_msgs/TwistWithCovariance twist\n",
+  "tf2_msgs/TFMessage": "geometry_msgs/TransformStamped[] transforms\n",
 };
 const ROS2 = {
   ...COMMON,
