@@ -5,16 +5,22 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cstdio>
 #include <cstring>
+#include <limits>
 #include <map>
 #include <optional>
+#include <set>
 
 #include <filesystem>
 #include <memory>
 
 #include "core/log_writer.h"
+#include "driftlab/dropout_t.hpp"
 #include "driftlab/foreign_message_t.hpp"
 #include "driftlab/foreign_schema_t.hpp"
+#include "driftlab/log_text_t.hpp"
+#include "driftlab/parameter_t.hpp"
 #include "formats/carmen.h"
 #include "formats/compression.h"
 #include "formats/mcap.h"
@@ -22,6 +28,8 @@
 #include "formats/ros2_bag.h"
 #include "formats/ros_definition.h"
 #include "formats/ros_messages.h"
+#include "formats/ulog.h"
+#include "formats/ulog_messages.h"
 #include "lcmtypes/encode.h"
 
 namespace driftlab::formats {
@@ -352,6 +360,171 @@ Status import_carmen(const std::string& path, Importer& out) {
   return out.status();
 }
 
+/// A ULog value (an information field, a parameter) as a number (NaN when it is not one number) and as text: a
+/// string as it came (to its first NUL), a number in decimal, anything else in hex.
+void ulog_value(std::string_view type, std::span<const uint8_t> v, double* number, std::string* text) {
+  *number = std::numeric_limits<double>::quiet_NaN();
+  text->clear();
+  if (type.starts_with("char[")) {
+    const std::string_view s(reinterpret_cast<const char*>(v.data()), v.size());
+    *text = std::string(s.substr(0, s.find('\0')));
+    return;
+  }
+  const std::map<std::string, std::string, std::less<>> one{{"v", "v:" + std::string(type) + " x;"}};
+  if (auto l = resolve_ulog_format(one, "v");
+      l && l->fields.size() == 1 && l->fields[0].count == 0 && l->size == v.size()) {
+    *number = l->number(v, "x");
+    char buf[40];
+    const UlogType t = l->fields[0].type;
+    if (t == UlogType::kFloat) {
+      std::snprintf(buf, sizeof buf, "%.9g", *number);
+    } else if (t == UlogType::kDouble) {
+      std::snprintf(buf, sizeof buf, "%.17g", *number);
+    } else if (t == UlogType::kUint64) {
+      uint64_t u = 0;
+      for (size_t i = 8; i-- > 0;) u = (u << 8) | v[i];
+      std::snprintf(buf, sizeof buf, "%llu", static_cast<unsigned long long>(u));
+    } else if (t == UlogType::kInt64) {
+      uint64_t u = 0;
+      for (size_t i = 8; i-- > 0;) u = (u << 8) | v[i];
+      std::snprintf(buf, sizeof buf, "%lld", static_cast<long long>(static_cast<int64_t>(u)));
+    } else {
+      std::snprintf(buf, sizeof buf, "%.0f", *number);
+    }
+    *text = buf;
+    return;
+  }
+  static constexpr char kHex[] = "0123456789abcdef";
+  for (const uint8_t b : v) *text += std::string{kHex[b >> 4], kHex[b & 15]};
+}
+
+/// Channels of a ULog's records besides its topics.
+constexpr char kUlogLog[] = "ULOG_LOG";
+constexpr char kUlogParams[] = "ULOG_PARAMS";
+constexpr char kUlogInfo[] = "ULOG_INFO";
+constexpr char kUlogDropouts[] = "ULOG_DROPOUTS";
+
+Status import_ulog(const std::string& path, Importer& out) {
+  auto log = UlogReader::open(path);
+  if (!log) return log.error();
+  // First pass: which instances of each topic carry data. A topic logged in one instance, 0, is a channel of its
+  // name; one logged in several, or in another, a channel per instance, "name/multi_id" (as pyulog names them).
+  std::map<std::string, std::set<uint8_t>, std::less<>> instances;
+  {
+    UlogReader::Callbacks scan;
+    scan.data = [&](const UlogData& d) { instances[d.subscription->name].insert(d.subscription->multi_id); };
+    if (Status s = log->read(scan); !s) return Error(path + ": " + s.message());
+  }
+  auto channel_of = [&](const UlogSubscription& s) {
+    const auto it = instances.find(s.name);
+    const bool plain = it != instances.end() && it->second.size() == 1 && *it->second.begin() == 0 && s.multi_id == 0;
+    return plain ? s.name : s.name + "/" + std::to_string(s.multi_id);
+  };
+  struct Channel {
+    int64_t count = 0;
+    bool schema_written = false;
+  };
+  std::map<std::string, Channel, std::less<>> channels;
+  std::set<std::string> long_names;
+  auto clamp = [](uint64_t us) { return us > static_cast<uint64_t>(INT64_MAX) ? INT64_MAX : static_cast<int64_t>(us); };
+  auto where = [&](uint64_t offset) { return path + ": at byte " + std::to_string(offset); };
+
+  UlogReader::Callbacks cb;
+  cb.problem = [&](uint64_t offset, const std::string& what) { out.problem(where(offset) + ": " + what); };
+  cb.data = [&](const UlogData& d) {
+    const UlogSubscription& s = *d.subscription;
+    const std::string channel = channel_of(s);
+    if (channel.size() > 255) {
+      // A channel name an LCM log cannot hold (a hostile file's; PX4's topic names are short).
+      if (long_names.insert(channel).second) {
+        out.problem(where(d.offset) + ": topic " + channel.substr(0, 40) +
+                    "... has a name over 255 bytes, which an LCM log cannot hold; its messages are left out");
+      }
+      return;
+    }
+    Channel& c = channels[channel];
+    const int64_t t = clamp(d.timestamp);
+    if (!s.layout) {
+      // Reported once, with its subscription; counted here.
+      ++out.topic(channel, s.name, "driftlab.foreign_message_t").malformed;
+      return;
+    }
+    if (auto m = convert_ulog_message(*s.layout, d.payload, d.timestamp, c.count)) {
+      TopicCount& tc = out.topic(channel, s.name, m->type);
+      if (out.write(t, channel, m->lcm)) {
+        ++tc.messages;
+        ++c.count;
+      }
+      return;
+    }
+    TopicCount& tc = out.topic(channel, s.name, "driftlab.foreign_message_t");
+    if (!c.schema_written) {
+      foreign_schema_t fs;
+      fs.channel = channel;
+      fs.type = s.name;
+      fs.encoding = "ulog";
+      fs.definition = s.layout->definition;
+      if (!out.write(t, kSchemaChannel, encode(fs))) return;
+      c.schema_written = true;
+    }
+    foreign_message_t f;
+    f.type = s.name;
+    f.encoding = "ulog";
+    f.data.assign(d.payload.begin(), d.payload.end());
+    f.size = static_cast<int32_t>(f.data.size());
+    if (out.write(t, channel, encode(f))) {
+      ++tc.messages;
+      ++c.count;
+    }
+  };
+  cb.logged = [&](const UlogLogged& l) {
+    Channel& c = channels[kUlogLog];
+    log_text_t m;
+    m.header.seq = c.count;
+    m.header.utime = clamp(l.timestamp);
+    m.level = l.level >= '0' && l.level <= '9' ? l.level - '0' : l.level;
+    m.tag = l.tagged ? l.tag : -1;
+    m.text = std::string(l.text.substr(0, l.text.find('\0')));
+    if (out.write(m.header.utime, kUlogLog, encode(m))) {
+      ++out.topic(kUlogLog, "ULog logged string", "driftlab.log_text_t").messages;
+      ++c.count;
+    }
+  };
+  cb.value = [&](const UlogValue& v) {
+    const char* channel = v.kind == 'I' || v.kind == 'M' ? kUlogInfo : kUlogParams;
+    Channel& c = channels[channel];
+    parameter_t m;
+    m.header.seq = c.count;
+    m.header.utime = clamp(v.time);
+    m.name = std::string(v.key.substr(0, v.key.find('\0')));
+    m.type = std::string(v.type.substr(0, v.type.find('\0')));
+    ulog_value(v.type, v.value, &m.value, &m.text);
+    m.default_types = v.default_types;
+    if (out.write(m.header.utime, channel, encode(m))) {
+      ++out.topic(channel, v.kind == 'I' || v.kind == 'M' ? "ULog information" : "ULog parameter",
+                  "driftlab.parameter_t")
+            .messages;
+      ++c.count;
+    }
+  };
+  cb.dropout = [&](const UlogDropout& d) {
+    Channel& c = channels[kUlogDropouts];
+    dropout_t m;
+    m.header.seq = c.count;
+    m.header.utime = clamp(d.timestamp);
+    m.duration_us = int64_t{d.duration_ms} * 1000;
+    if (out.write(m.header.utime, kUlogDropouts, encode(m))) {
+      ++out.topic(kUlogDropouts, "ULog dropout", "driftlab.dropout_t").messages;
+      ++c.count;
+    }
+  };
+  if (Status s = log->read(cb); !s) return Error(path + ": " + s.message());
+  for (const auto& [type, n] : log->unknown_types()) {
+    out.summary.skipped.emplace_back(std::string("ULog record type '") + type + "'", n);
+  }
+  return out.status();
+}
+
 /// "b_10.mcap" after "b_2.mcap": runs of digits compare as numbers.
 bool natural_less(const std::string& a, const std::string& b) {
   size_t i = 0, j = 0;
@@ -436,6 +609,7 @@ Detected detect_head(std::string_view h, bool inner) {
     return {Format::kMcap, profile == "ros2" ? "ROS 2 bag (MCAP)" : profile == "ros1" ? "ROS 1 MCAP" : "MCAP file", {}};
   }
   if (SqliteBagReader::looks_like({u, h.size()})) return {Format::kRos2Sqlite, "ROS 2 bag (sqlite3)", {}};
+  if (UlogReader::looks_like({u, h.size()})) return {Format::kUlog, "PX4 ULog", {}};
   if (h.size() >= 4 && static_cast<unsigned char>(h[0]) == 0xED && static_cast<unsigned char>(h[1]) == 0xA2 &&
       static_cast<unsigned char>(h[2]) == 0xDA && static_cast<unsigned char>(h[3]) == 0xEA) {
     return {Format::kLcmLog, "LCM log", {}};
@@ -465,7 +639,7 @@ Detected detect_head(std::string_view h, bool inner) {
 }
 
 constexpr char kKnownFormats[] =
-    "ROS 1 bag, ROS 2 bag (MCAP, sqlite3, or its folder), MCAP file, CARMEN log, MRPT rawlog";
+    "ROS 1 bag, ROS 2 bag (MCAP, sqlite3, or its folder), MCAP file, CARMEN log, PX4 ULog, MRPT rawlog";
 
 /// Imports one file (not a folder) into out.
 Status import_file(const std::string& path, const std::string& out_path, Importer& out) {
@@ -476,6 +650,7 @@ Status import_file(const std::string& path, const std::string& out_path, Importe
     case Format::kMcap: return import_mcap(path, out);
     case Format::kRos2Sqlite: return import_sqlite(path, out);
     case Format::kCarmen: return import_carmen(path, out);
+    case Format::kUlog: return import_ulog(path, out);
     case Format::kZstd: {
       // Decompressed beside the output (a bag may not fit in memory, nor in a RAM-backed /tmp), then read.
       const std::string plain = out_path + ".unzstd";
