@@ -19,7 +19,11 @@
 namespace driftlab::formats {
 
 enum class Format {
-  kUnknown, kLcmLog, kRos1Bag, kCarmen, kMrptRawlog,
+  kUnknown,
+  kLcmLog,
+  kRos1Bag,
+  kCarmen,
+  kMrptRawlog,
   kMcap,        ///< an MCAP file (a ROS 2 bag's storage, or any MCAP of ROS 1 or ROS 2 messages)
   kRos2Sqlite,  ///< rosbag2's sqlite3 storage (.db3)
   kRos2Folder,  ///< a rosbag2 folder: metadata.yaml and its storage files

@@ -372,7 +372,7 @@ class Pass {
         if (strict && !formats.count(text_of(name))) return bad("an undefined format");
         return {};
       }
-      case 'R': return m.size() == 2 ? std::string() : bad("not 2 bytes");
+      case 'R':
       case 'O': return m.size() == 2 ? std::string() : bad("not 2 bytes");
       case 'S':
         return m.size() == 8 && std::memcmp(m.data(), kSyncMagic, 8) == 0 ? std::string() : bad("not the sync magic");
@@ -601,13 +601,13 @@ std::span<const uint8_t> UlogReader::bytes() const {
   return in_memory_ ? std::span<const uint8_t>(memory_) : file_.bytes();
 }
 
-Status UlogReader::read(const Callbacks& cb) {
+Status UlogReader::read(const Callbacks& callbacks) {
   const std::span<const uint8_t> b = bytes();
   version_ = b[7];
   start_us_ = le64(&b[8]);
   last_us_ = start_us_;
   unknown_types_.clear();
-  Pass pass(b, cb, start_us_, &last_us_, &unknown_types_);
+  Pass pass(b, callbacks, start_us_, &last_us_, &unknown_types_);
   // The flag bits, when present, are the first record: incompatible flags this reader does not know make the rest
   // unreadable; the appended data's offsets say where further sections start.
   std::vector<uint64_t> starts{kHeaderSize};
@@ -633,11 +633,12 @@ Status UlogReader::read(const Callbacks& cb) {
     }
     if (incompat[0] & 1) {
       for (int i = 0; i < 3; ++i) {
-        const uint64_t off = le64(f + 16 + 8 * i);
+        const uint64_t off = le64(f + 16 + 8 * static_cast<ptrdiff_t>(i));
         if (off == 0) continue;
         if (off <= starts.back() || off > b.size()) {
-          pass.problem(kHeaderSize + 3 + 16 + 8 * i, "appended data at offset " + std::to_string(off) +
-                                                         ", outside the file or before the data; left out");
+          pass.problem(
+              kHeaderSize + 3 + 16 + 8 * static_cast<uint64_t>(i),
+              "appended data at offset " + std::to_string(off) + ", outside the file or before the data; left out");
           continue;
         }
         starts.push_back(off);
