@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cstdint>
 #include <cstdio>
 #include <cstring>
 #include <limits>
@@ -412,7 +413,13 @@ Status import_ulog(const std::string& path, Importer& out) {
   std::map<std::string, std::set<uint8_t>, std::less<>> instances;
   {
     UlogReader::Callbacks scan;
-    scan.data = [&](const UlogData& d) { instances[d.subscription->name].insert(d.subscription->multi_id); };
+    std::vector<bool> counted(65536, false);  // by msg_id: its current subscription's instance is in instances
+    scan.subscription = [&](const UlogSubscription& s) { counted[s.msg_id] = false; };
+    scan.data = [&](const UlogData& d) {
+      if (counted[d.subscription->msg_id]) return;
+      counted[d.subscription->msg_id] = true;
+      instances[d.subscription->name].insert(d.subscription->multi_id);
+    };
     if (Status s = log->read(scan); !s) return Error(path + ": " + s.message());
   }
   auto channel_of = [&](const UlogSubscription& s) {
@@ -421,64 +428,85 @@ Status import_ulog(const std::string& path, Importer& out) {
     return plain ? s.name : s.name + "/" + std::to_string(s.multi_id);
   };
   struct Channel {
+    std::string name;
     int64_t count = 0;
     bool schema_written = false;
+    size_t topic = SIZE_MAX;  // its entry in out.summary.topics, once it has one
   };
   std::map<std::string, Channel, std::less<>> channels;
+  std::map<std::string, Channel, std::less<>> records;  // ULOG_LOG, ULOG_PARAMS, ...: counted apart from the topics
+  // The channel of each msg_id's current subscription (found once per subscription, not per message); null for a
+  // name an LCM log cannot hold.
+  std::vector<Channel*> by_id(65536, nullptr);
   std::set<std::string> long_names;
   auto clamp = [](uint64_t us) { return us > static_cast<uint64_t>(INT64_MAX) ? INT64_MAX : static_cast<int64_t>(us); };
   auto where = [&](uint64_t offset) { return path + ": at byte " + std::to_string(offset); };
+  auto topic = [&](Channel& c, const UlogSubscription& s, const char* type) -> TopicCount& {
+    if (c.topic == SIZE_MAX)
+      c.topic = static_cast<size_t>(&out.topic(c.name, s.name, type) - out.summary.topics.data());
+    return out.summary.topics[c.topic];
+  };
+  foreign_message_t f;  // kept from one message to the next (its payload's memory)
+  f.encoding = "ulog";
 
   UlogReader::Callbacks cb;
   cb.problem = [&](uint64_t offset, const std::string& what) { out.problem(where(offset) + ": " + what); };
+  cb.subscription = [&](const UlogSubscription& s) {
+    const std::string name = channel_of(s);
+    if (name.size() > 255) {
+      by_id[s.msg_id] = nullptr;
+      return;
+    }
+    Channel& c = channels[name];
+    c.name = name;
+    by_id[s.msg_id] = &c;
+  };
   cb.data = [&](const UlogData& d) {
     const UlogSubscription& s = *d.subscription;
-    const std::string channel = channel_of(s);
-    if (channel.size() > 255) {
+    Channel* cp = by_id[s.msg_id];
+    if (!cp) {
       // A channel name an LCM log cannot hold (a hostile file's; PX4's topic names are short).
-      if (long_names.insert(channel).second) {
-        out.problem(where(d.offset) + ": topic " + channel.substr(0, 40) +
+      if (long_names.insert(s.name).second) {
+        out.problem(where(d.offset) + ": topic " + s.name.substr(0, 40) +
                     "... has a name over 255 bytes, which an LCM log cannot hold; its messages are left out");
       }
       return;
     }
-    Channel& c = channels[channel];
+    Channel& c = *cp;
     const int64_t t = clamp(d.timestamp);
     if (!s.layout) {
       // Reported once, with its subscription; counted here.
-      ++out.topic(channel, s.name, "driftlab.foreign_message_t").malformed;
+      ++topic(c, s, "driftlab.foreign_message_t").malformed;
       return;
     }
     if (auto m = convert_ulog_message(*s.layout, d.payload, d.timestamp, c.count)) {
-      TopicCount& tc = out.topic(channel, s.name, m->type);
-      if (out.write(t, channel, m->lcm)) {
+      TopicCount& tc = topic(c, s, m->type);
+      if (out.write(t, c.name, m->lcm)) {
         ++tc.messages;
         ++c.count;
       }
       return;
     }
-    TopicCount& tc = out.topic(channel, s.name, "driftlab.foreign_message_t");
+    TopicCount& tc = topic(c, s, "driftlab.foreign_message_t");
     if (!c.schema_written) {
       foreign_schema_t fs;
-      fs.channel = channel;
+      fs.channel = c.name;
       fs.type = s.name;
       fs.encoding = "ulog";
       fs.definition = s.layout->definition;
       if (!out.write(t, kSchemaChannel, encode(fs))) return;
       c.schema_written = true;
     }
-    foreign_message_t f;
     f.type = s.name;
-    f.encoding = "ulog";
     f.data.assign(d.payload.begin(), d.payload.end());
     f.size = static_cast<int32_t>(f.data.size());
-    if (out.write(t, channel, encode(f))) {
+    if (out.write(t, c.name, encode(f))) {
       ++tc.messages;
       ++c.count;
     }
   };
   cb.logged = [&](const UlogLogged& l) {
-    Channel& c = channels[kUlogLog];
+    Channel& c = records[kUlogLog];
     log_text_t m;
     m.header.seq = c.count;
     m.header.utime = clamp(l.timestamp);
@@ -492,7 +520,7 @@ Status import_ulog(const std::string& path, Importer& out) {
   };
   cb.value = [&](const UlogValue& v) {
     const char* channel = v.kind == 'I' || v.kind == 'M' ? kUlogInfo : kUlogParams;
-    Channel& c = channels[channel];
+    Channel& c = records[channel];
     parameter_t m;
     m.header.seq = c.count;
     m.header.utime = clamp(v.time);
@@ -508,7 +536,7 @@ Status import_ulog(const std::string& path, Importer& out) {
     }
   };
   cb.dropout = [&](const UlogDropout& d) {
-    Channel& c = channels[kUlogDropouts];
+    Channel& c = records[kUlogDropouts];
     dropout_t m;
     m.header.seq = c.count;
     m.header.utime = clamp(d.timestamp);

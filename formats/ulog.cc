@@ -527,6 +527,10 @@ std::string header_problem(std::span<const uint8_t> b) {
 }  // namespace
 
 const UlogLayout::Field* UlogLayout::find(std::string_view field) const {
+  if (!index.empty()) {
+    const auto it = index.find(std::string(field));
+    return it == index.end() ? nullptr : &fields[it->second];
+  }
   for (const auto& f : fields)
     if (f.name == field) return &f;
   return nullptr;
@@ -573,6 +577,7 @@ Result<UlogLayout> resolve_ulog_format(const std::map<std::string, std::string, 
   std::string why;
   if (!r.layout(name, &l, 0, &why)) return Error(why);
   l.definition = std::move(r.definition_);
+  for (size_t i = 0; i < l.fields.size(); ++i) l.index.emplace(l.fields[i].name, static_cast<uint32_t>(i));
   return l;
 }
 

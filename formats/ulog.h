@@ -17,6 +17,7 @@
 #include <span>
 #include <string>
 #include <string_view>
+#include <unordered_map>
 #include <vector>
 
 #include "core/mapped_file.h"
@@ -56,7 +57,8 @@ struct UlogLayout {
   /// The format's definition and those of the types it nests, each as the file states it ("name:type field;..."),
   /// one a line, its own first.
   std::string definition;
-  int64_t timestamp_offset = -1;  ///< the offset of its uint64_t `timestamp`, -1 when it has none
+  int64_t timestamp_offset = -1;                    ///< the offset of its uint64_t `timestamp`, -1 when it has none
+  std::unordered_map<std::string, uint32_t> index;  ///< field name -> its place in fields (for find)
 
   const Field* find(std::string_view field) const;
   /// The value of a numeric field (element i of an array) as a double; NaN when the field is missing, is not a
