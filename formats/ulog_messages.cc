@@ -7,6 +7,7 @@
 #include "driftlab/gnss_t.hpp"
 #include "driftlab/imu_t.hpp"
 #include "driftlab/odometry_t.hpp"
+#include "driftlab/pose_t.hpp"
 #include "lcmtypes/encode.h"
 
 namespace driftlab::formats {
@@ -133,12 +134,32 @@ std::optional<UlogConverted> local_position(const UlogLayout& l, std::span<const
   return UlogConverted{"driftlab.odometry_t", lcmtypes::encode(m)};
 }
 
+std::optional<UlogConverted> attitude(const UlogLayout& l, std::span<const uint8_t> p, uint64_t timestamp,
+                                      int64_t seq) {
+  if (!has(l, "q", 4)) return std::nullopt;
+  pose_t m;
+  m.header.seq = seq;
+  m.header.utime = sample_time(l, p, timestamp);
+  m.header.frame_id = "local_ned";
+  m.child_frame_id = "body_frd";
+  // The attitude alone: the position is not in the message (vehicle_local_position has it).
+  m.position.x = m.position.y = m.position.z = kNaN;
+  // PX4's q (w, x, y, z) rotates the body's forward-right-down axes into north-east-down: the body's orientation.
+  m.orientation.w = l.number(p, "q", 0);
+  m.orientation.x = l.number(p, "q", 1);
+  m.orientation.y = l.number(p, "q", 2);
+  m.orientation.z = l.number(p, "q", 3);
+  for (double& c : m.covariance) c = 0;
+  return UlogConverted{"driftlab.pose_t", lcmtypes::encode(m)};
+}
+
 }  // namespace
 
 const char* driftlab_type_for_ulog(std::string_view name) {
   if (name == "sensor_combined") return "driftlab.imu_t";
   if (name == "sensor_gps" || name == "vehicle_gps_position") return "driftlab.gnss_t";
   if (name == "vehicle_local_position") return "driftlab.odometry_t";
+  if (name == "vehicle_attitude") return "driftlab.pose_t";
   return nullptr;
 }
 
@@ -149,6 +170,7 @@ std::optional<UlogConverted> convert_ulog_message(const UlogLayout& layout, std:
     return gnss(layout, payload, timestamp, seq);
   }
   if (layout.name == "vehicle_local_position") return local_position(layout, payload, timestamp, seq);
+  if (layout.name == "vehicle_attitude") return attitude(layout, payload, timestamp, seq);
   return std::nullopt;
 }
 

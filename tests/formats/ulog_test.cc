@@ -22,6 +22,7 @@
 #include "driftlab/log_text_t.hpp"
 #include "driftlab/odometry_t.hpp"
 #include "driftlab/parameter_t.hpp"
+#include "driftlab/pose_t.hpp"
 #include "formats/import.h"
 #include "formats/ulog.h"
 #include "tests/test_util.h"
@@ -283,6 +284,20 @@ TEST(Ulog, MessagesKeepTheirFormatAndTime) {
         ++seen[e.channel];
         continue;
       }
+      if (e.channel == "vehicle_attitude") {
+        const auto m = test::decode<pose_t>(e);
+        if (has_sample_time) {
+          EXPECT_LE(m.header.utime, e.utime);
+        } else {
+          EXPECT_EQ(m.header.utime, e.utime);
+        }
+        // PX4 publishes a unit quaternion (in float32: to about 1e-6); the position is not in the message.
+        const auto& q = m.orientation;
+        EXPECT_NEAR(std::sqrt(q.w * q.w + q.x * q.x + q.y * q.y + q.z * q.z), 1.0, 1e-5);
+        EXPECT_TRUE(std::isnan(m.position.x));
+        ++seen[e.channel];
+        continue;
+      }
       if (kRecordChannels.count(e.channel)) continue;
       const auto f = test::decode<foreign_message_t>(e);
       ASSERT_TRUE(schemas.count(e.channel)) << "its schema before its first message: " << e.channel;
@@ -314,6 +329,7 @@ TEST(Ulog, MessagesKeepTheirFormatAndTime) {
         << schemas["position_setpoint_triplet"].definition;
     EXPECT_GT(seen["vehicle_gps_position"], 0);
     EXPECT_GT(seen["vehicle_local_position"], 0);
+    EXPECT_GT(seen["vehicle_attitude"], 0);
   }
 }
 
