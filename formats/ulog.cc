@@ -23,6 +23,9 @@ constexpr uint32_t kMaxMessage = 65535;  // a record's size is a uint16_t
 /// nested types (the bound keeps a hostile nesting of empty arrays from taking forever).
 constexpr size_t kMaxFields = 1 << 17;
 constexpr int kMaxDepth = 32;
+/// The bytes of a resolved format's flattened field names: PX4's largest take a few KB; the bound keeps a hostile
+/// format (a long name in a nested type, in an array of 65535) from taking gigabytes.
+constexpr size_t kMaxNameBytes = 1 << 20;
 
 uint16_t le16(const uint8_t* p) { return static_cast<uint16_t>(p[0] | (p[1] << 8)); }
 uint32_t le32(const uint8_t* p) {
@@ -135,9 +138,10 @@ class Resolver {
 
   /// Lays out type `name` (fields relative to its start) into out; its definition lines are appended to
   /// definition_ (each type once).
-  bool layout(const std::string& name, UlogLayout* out, int depth, std::string* why) {
+  bool layout(const std::string& name, UlogLayout* out, size_t* out_name_bytes, int depth, std::string* why) {
     if (auto it = done_.find(name); it != done_.end()) {
-      *out = it->second;
+      *out = it->second.layout;
+      *out_name_bytes = it->second.name_bytes;
       return true;
     }
     if (depth > kMaxDepth) {
@@ -161,6 +165,7 @@ class Resolver {
     l.name = name;
     uint64_t offset = 0;
     uint64_t written = 0;
+    size_t name_bytes = 0;
     while (!body.empty()) {
       const size_t semi = body.find(';');
       std::string_view decl = body.substr(0, semi);
@@ -177,23 +182,27 @@ class Resolver {
       if (primitive(d.type, &p, &psize)) {
         if (!d.name.starts_with("_padding")) {
           l.fields.push_back({d.name, p, static_cast<uint32_t>(offset), d.array ? d.count : 0});
+          name_bytes += d.name.size();
           if (d.name == "timestamp" && p == UlogType::kUint64 && !d.array)
             l.timestamp_offset = static_cast<int64_t>(offset);
         }
         offset += n * psize;
       } else {
         UlogLayout inner;
-        if (!layout(d.type, &inner, depth + 1, why)) return false;
+        size_t inner_name_bytes = 0;
+        if (!layout(d.type, &inner, &inner_name_bytes, depth + 1, why)) return false;
         for (uint64_t i = 0; i < n && !inner.fields.empty(); ++i) {
           const std::string prefix = d.name + (d.array ? "[" + std::to_string(i) + "]." : ".");
-          if (l.fields.size() + inner.fields.size() > kMaxFields) {
-            *why = "type " + name + " has more fields than a ULog message can hold";
+          if (l.fields.size() + inner.fields.size() > kMaxFields ||
+              name_bytes + inner.fields.size() * prefix.size() + inner_name_bytes > kMaxNameBytes) {
+            *why = "type " + name + " flattens into more fields, or longer names, than a ULog message can use";
             return false;
           }
           for (const auto& fi : inner.fields) {
             l.fields.push_back(
                 {prefix + fi.name, fi.type, static_cast<uint32_t>(offset + i * inner.size + fi.offset), fi.count});
           }
+          name_bytes += inner.fields.size() * prefix.size() + inner_name_bytes;
           // Bounded even for empty nested types: n <= 65535 and each step costs little.
           if ((offset + (i + 1) * inner.size) > kMaxMessage) break;
         }
@@ -208,8 +217,9 @@ class Resolver {
     l.size = static_cast<uint32_t>(offset);
     l.size_written = static_cast<uint32_t>(written);
     stack_.pop_back();
-    done_.emplace(name, l);
+    done_.emplace(name, Laid{l, name_bytes});
     *out = std::move(l);
+    *out_name_bytes = name_bytes;
     return true;
   }
   std::string definition_;
@@ -218,7 +228,11 @@ class Resolver {
   const std::map<std::string, std::string, std::less<>>& formats_;
   std::vector<std::string> stack_;
   std::set<std::string> defined_;
-  std::map<std::string, UlogLayout> done_;
+  struct Laid {
+    UlogLayout layout;
+    size_t name_bytes;
+  };
+  std::map<std::string, Laid> done_;
 };
 
 const char* type_name(uint8_t t) {
@@ -575,7 +589,8 @@ Result<UlogLayout> resolve_ulog_format(const std::map<std::string, std::string, 
   Resolver r(formats);
   UlogLayout l;
   std::string why;
-  if (!r.layout(name, &l, 0, &why)) return Error(why);
+  size_t name_bytes = 0;
+  if (!r.layout(name, &l, &name_bytes, 0, &why)) return Error(why);
   l.definition = std::move(r.definition_);
   for (size_t i = 0; i < l.fields.size(); ++i) l.index.emplace(l.fields[i].name, static_cast<uint32_t>(i));
   return l;

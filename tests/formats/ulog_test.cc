@@ -659,6 +659,13 @@ TEST(Ulog, HugeArraySizesAreRefused) {
     ASSERT_FALSE(l);
     EXPECT_NE(l.error().message.find("larger than a ULog message can hold"), std::string::npos) << l.error().message;
   }
+  // A field with a 60,000-byte name, in an array of 65535: 65535 bytes, a size a message can have, but 3.9 GB of
+  // flattened names; refused before they are made.
+  const std::map<std::string, std::string, std::less<>> long_names = {
+      {"a", "a:b[65535] x;"}, {"b", "b:uint8_t " + std::string(60000, 'n') + ";"}};
+  auto named = resolve_ulog_format(long_names, "a");
+  ASSERT_FALSE(named);
+  EXPECT_NE(named.error().message.find("longer names"), std::string::npos) << named.error().message;
   // Empty types nested in the largest arrays: sizes 0, resolved in bounded time (each type is laid out once).
   const std::map<std::string, std::string, std::less<>> empty = {
       {"a", "a:uint64_t timestamp;b[65535] x;"}, {"b", "b:c[65535] y;"}, {"c", "c:"}};
