@@ -23,6 +23,8 @@ constexpr uint32_t kMaxMessage = 65535;  // a record's size is a uint16_t
 /// nested types (the bound keeps a hostile nesting of empty arrays from taking forever).
 constexpr size_t kMaxFields = 1 << 17;
 constexpr int kMaxDepth = 32;
+/// The longest format or topic name [bytes]: PX4's are under 64; a longer one is damage.
+constexpr size_t kMaxName = 255;
 /// The bytes of a resolved format's flattened field names: PX4's largest take a few KB; the bound keeps a hostile
 /// format (a long name in a nested type, in an array of 65535) from taking gigabytes.
 constexpr size_t kMaxNameBytes = 1 << 20;
@@ -334,9 +336,9 @@ class Pass {
       const uint16_t size = le16(&b_[q]);
       const uint8_t type = b_[q + 2];
       if (!type_name(type) || q + 3 + size > end) continue;
-      if (!check(type, b_.subspan(q + 3, size), q, true).empty()) continue;
       const uint64_t next = q + 3 + size;
       if (next != end && !(end - next < 3 || type_name(b_[next + 2]))) continue;
+      if (!check(type, b_.subspan(q + 3, size), q, true).empty()) continue;
       problem(pos, why + "; " + std::to_string(q - pos) + " bytes skipped, reading again at byte " + std::to_string(q));
       return q;
     }
@@ -364,8 +366,10 @@ class Pass {
     switch (type) {
       case 'B': return pos == kHeaderSize && !strict ? std::string() : "a flag bits record after the first";
       case 'F': {
-        const size_t colon = text_of(m).find(':');
-        if (colon == std::string_view::npos || !is_name(text_of(m.first(colon))) || !printable(m)) {
+        // The name only (its fields are checked when a subscription resolves the format): every check here costs
+        // at most a few hundred bytes, so finding the next record after damage stays linear in the file.
+        const size_t colon = text_of(m.first(std::min<size_t>(m.size(), kMaxName + 1))).find(':');
+        if (colon == std::string_view::npos || !is_name(text_of(m.first(colon)))) {
           return bad("not \"name:type field;...\"");
         }
         return {};
@@ -382,7 +386,7 @@ class Pass {
       case 'A': {
         if (m.size() < 4) return bad("too short");
         const auto name = m.subspan(3);
-        if (!is_name(text_of(name))) return bad("no topic name");
+        if (name.size() > kMaxName || !is_name(text_of(name))) return bad("no topic name (a name of 1 to 255 bytes)");
         if (strict && !formats.count(text_of(name))) return bad("an undefined format");
         return {};
       }
