@@ -291,6 +291,15 @@ class Pass {
         pos = resync(pos, end, why);
         continue;
       }
+      if (!type_name(type)) {
+        // A type this reader does not know is skipped whole only when a known record follows it (or the end):
+        // damage to a known record's type byte is reported, not skipped silently.
+        const uint64_t next = pos + 3 + size;
+        if (next != end && end - next >= 3 && !type_name(b_[next + 2])) {
+          pos = resync(pos, end, "not a record (type " + type_text(type) + ", " + std::to_string(size) + " bytes)");
+          continue;
+        }
+      }
       handle(type, msg, pos);
       pos += 3 + size;
     }

@@ -128,6 +128,7 @@ struct Read {
   std::vector<std::pair<uint64_t, std::vector<uint8_t>>> data;  // offset, payload
   mutable std::map<std::string, int64_t> per_topic;
   int64_t logged = 0, dropouts = 0;
+  std::map<char, int64_t> unknown;  // records of unknown types skipped
   Status status;
 };
 
@@ -147,6 +148,7 @@ Read read(std::vector<uint8_t> bytes) {
   cb.dropout = [&](const UlogDropout&) { ++out.dropouts; };
   cb.problem = [&](uint64_t offset, const std::string& what) { out.problems.emplace_back(offset, what); };
   out.status = r->read(cb);
+  out.unknown = r->unknown_types();
   return out;
 }
 
@@ -479,6 +481,16 @@ TEST(Ulog, CorruptedByteInTheMiddleResyncsAndKeepsTheRest) {
       ASSERT_EQ(r.data[j++], all.data[i]) << i;
     }
   }
+  // Its type byte made a letter no record uses: what a newer writer's record looks like, which the specification
+  // has readers skip whole; its framing holds (a known record follows), so it is skipped and counted, not reported.
+  {
+    std::vector<uint8_t> bad = whole;
+    bad[at + 2] = 'x';
+    const Read r = read(bad);
+    EXPECT_TRUE(r.problems.empty());
+    EXPECT_EQ(r.data.size(), all.data.size() - 1);
+    EXPECT_EQ(r.unknown, (std::map<char, int64_t>{{'x', 1}}));
+  }
   // Its size made huge: the record claims bytes far past its own; reading goes on at the next one all the same.
   std::vector<uint8_t> bad = whole;
   bad[at] = 0xff;
@@ -504,6 +516,25 @@ TEST(Ulog, GarbageBetweenRecordsIsSkippedOnce) {
   EXPECT_EQ(r.data.size(), 2u);
   ASSERT_EQ(r.problems.size(), 1u);
   EXPECT_EQ(r.problems[0].first, garbage_at);
+}
+
+// A record of a type no writer uses that is not followed by a record is damage: reported, not skipped silently.
+TEST(Ulog, UnknownTypeBeforeGarbageIsReported) {
+  Ulog u;
+  u.flags(0);
+  u.format("t:uint64_t timestamp;float x;");
+  u.subscribe(0, 1, "t");
+  u.data(1, 2000, 1);
+  const size_t unknown_at = u.b.size();
+  u.record('x', {1, 2, 3});
+  for (int i = 0; i < 20; ++i) u.b.push_back(static_cast<uint8_t>(0x90 + i));
+  u.data(1, 2100, 2);
+  const Read r = read(u.b);
+  ASSERT_TRUE(r.status);
+  EXPECT_EQ(r.data.size(), 2u);
+  ASSERT_EQ(r.problems.size(), 1u);
+  EXPECT_EQ(r.problems[0].first, unknown_at);
+  EXPECT_TRUE(r.unknown.empty());
 }
 
 // An incompatible flag this reader does not know: the log cannot be read, and nothing is written.
