@@ -217,10 +217,11 @@ struct DiagnoseOptions {
   double max_lag_s = 0.3;    ///< skew search range [s]
   double window_s = 10.0;    ///< skew window [s] (longer on long logs: at most 64 windows)
   /// Bookkeeping, not streams: the recorder's and the replayer's statistics (one seq per module, so they would
-  /// look duplicated) and the fault manifests.
+  /// look duplicated) and the fault manifests; an import's records: what it says of channels and schemas, a PX4
+  /// flight log's text, parameters, information fields and its logger's dropouts (records at a time, not streams).
   std::vector<std::string> ignore_channels = {
-      "CHANNEL_SOURCES", "DRIFTLAB_RECORDER_STATS", "FAULTS",    "FOREIGN_SCHEMAS",
-      "MODULE_STATS",    "REPLAY_FAULTS",           "SIMULATION"};
+      "CHANNEL_SOURCES", "DRIFTLAB_RECORDER_STATS", "FAULTS",    "FOREIGN_SCHEMAS", "MODULE_STATS", "REPLAY_FAULTS",
+      "SIMULATION",      "ULOG_DROPOUTS",           "ULOG_INFO", "ULOG_LOG",        "ULOG_PARAMS"};
 };
 
 Result<Diagnosis> diagnose(const std::string& log, const DiagnoseOptions& options = {});

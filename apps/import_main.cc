@@ -44,10 +44,11 @@ void add_import_file_command(CLI::App& import, int* exit_code) {
   import.footer(
       "The format is recognised from the content: ROS 1 bags (format 2.0; uncompressed, bz2 or lz4 chunks; indexed\n"
       "or not), ROS 2 bags (a folder with metadata.yaml, or one .db3 or .mcap file; zstd-compressed files or\n"
-      "messages), MCAP files (chunks uncompressed, zstd or lz4), CARMEN logs (.log/.clf, plain or gzip) and MRPT\n"
-      "rawlogs. The files of a split recording are one recording: give its folder or all of its files. Header\n"
-      "stamps become header.utime, the recording's receive times the event times. Topics keep their names as\n"
-      "channels. See docs/import.md.");
+      "messages), MCAP files (chunks uncompressed, zstd or lz4), CARMEN logs (.log/.clf, plain or gzip), PX4\n"
+      "flight logs (ULog, .ulg) and MRPT rawlogs. The files of a split recording are one recording: give its folder\n"
+      "or all of its files. Header stamps become header.utime, the recording's receive times the event times (a\n"
+      "ULog message: timestamp_sample, or timestamp, and its timestamp). Topics keep their names as channels (a\n"
+      "ULog topic logged in several instances: name/instance). See docs/import.md.");
   import.add_option("file", args->in, "Log to convert (a bag folder, or the files of one recording)");
   import.add_option("-o,--out", args->out, "Log to write");
   import.callback([&import, args, exit_code] {

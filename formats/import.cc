@@ -5,7 +5,10 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cstdint>
+#include <cstdio>
 #include <cstring>
+#include <limits>
 #include <map>
 #include <optional>
 #include <set>
@@ -15,8 +18,11 @@
 
 #include "core/log_writer.h"
 #include "driftlab/channel_source_t.hpp"
+#include "driftlab/dropout_t.hpp"
 #include "driftlab/foreign_message_t.hpp"
 #include "driftlab/foreign_schema_t.hpp"
+#include "driftlab/log_text_t.hpp"
+#include "driftlab/parameter_t.hpp"
 #include "formats/carmen.h"
 #include "formats/compression.h"
 #include "formats/mcap.h"
@@ -24,6 +30,8 @@
 #include "formats/ros2_bag.h"
 #include "formats/ros_definition.h"
 #include "formats/ros_messages.h"
+#include "formats/ulog.h"
+#include "formats/ulog_messages.h"
 #include "lcmtypes/encode.h"
 #include "lcmtypes/seq_origin.h"
 
@@ -393,6 +401,200 @@ Status import_carmen(const std::string& path, Importer& out) {
   return out.status();
 }
 
+/// A ULog value (an information field, a parameter) as a number (NaN when it is not one number) and as text: a
+/// string as it came (to its first NUL), a number in decimal, anything else in hex.
+void ulog_value(std::string_view type, std::span<const uint8_t> v, double* number, std::string* text) {
+  *number = std::numeric_limits<double>::quiet_NaN();
+  text->clear();
+  if (type.starts_with("char[")) {
+    const std::string_view s(reinterpret_cast<const char*>(v.data()), v.size());
+    *text = std::string(s.substr(0, s.find('\0')));
+    return;
+  }
+  const std::map<std::string, std::string, std::less<>> one{{"v", "v:" + std::string(type) + " x;"}};
+  if (auto l = resolve_ulog_format(one, "v");
+      l && l->fields.size() == 1 && l->fields[0].count == 0 && l->size == v.size()) {
+    *number = l->number(v, "x");
+    char buf[40];
+    const UlogType t = l->fields[0].type;
+    if (t == UlogType::kFloat) {
+      std::snprintf(buf, sizeof buf, "%.9g", *number);
+    } else if (t == UlogType::kDouble) {
+      std::snprintf(buf, sizeof buf, "%.17g", *number);
+    } else if (t == UlogType::kUint64) {
+      uint64_t u = 0;
+      for (size_t i = 8; i-- > 0;) u = (u << 8) | v[i];
+      std::snprintf(buf, sizeof buf, "%llu", static_cast<unsigned long long>(u));
+    } else if (t == UlogType::kInt64) {
+      uint64_t u = 0;
+      for (size_t i = 8; i-- > 0;) u = (u << 8) | v[i];
+      std::snprintf(buf, sizeof buf, "%lld", static_cast<long long>(static_cast<int64_t>(u)));
+    } else {
+      std::snprintf(buf, sizeof buf, "%.0f", *number);
+    }
+    *text = buf;
+    return;
+  }
+  static constexpr char kHex[] = "0123456789abcdef";
+  for (const uint8_t b : v) *text += std::string{kHex[b >> 4], kHex[b & 15]};
+}
+
+/// Channels of a ULog's records besides its topics.
+constexpr char kUlogLog[] = "ULOG_LOG";
+constexpr char kUlogParams[] = "ULOG_PARAMS";
+constexpr char kUlogInfo[] = "ULOG_INFO";
+constexpr char kUlogDropouts[] = "ULOG_DROPOUTS";
+
+Status import_ulog(const std::string& path, Importer& out) {
+  auto log = UlogReader::open(path);
+  if (!log) return log.error();
+  // First pass: which instances of each topic carry data. A topic logged in one instance, 0, is a channel of its
+  // name; one logged in several, or in another, a channel per instance, "name/multi_id" (as pyulog names them).
+  std::map<std::string, std::set<uint8_t>, std::less<>> instances;
+  {
+    UlogReader::Callbacks scan;
+    std::vector<bool> counted(65536, false);  // by msg_id: its current subscription's instance is in instances
+    scan.subscription = [&](const UlogSubscription& s) { counted[s.msg_id] = false; };
+    scan.data = [&](const UlogData& d) {
+      if (counted[d.subscription->msg_id]) return;
+      counted[d.subscription->msg_id] = true;
+      instances[d.subscription->name].insert(d.subscription->multi_id);
+    };
+    if (Status s = log->read(scan); !s) return Error(path + ": " + s.message());
+  }
+  auto channel_of = [&](const UlogSubscription& s) {
+    const auto it = instances.find(s.name);
+    const bool plain = it != instances.end() && it->second.size() == 1 && *it->second.begin() == 0 && s.multi_id == 0;
+    return plain ? s.name : s.name + "/" + std::to_string(s.multi_id);
+  };
+  struct Channel {
+    std::string name;
+    int64_t count = 0;
+    bool schema_written = false;
+    size_t topic = SIZE_MAX;  // its entry in out.summary.topics, once it has one
+  };
+  std::map<std::string, Channel, std::less<>> channels;
+  std::map<std::string, Channel, std::less<>> records;  // ULOG_LOG, ULOG_PARAMS, ...: counted apart from the topics
+  // The channel of each msg_id's current subscription (found once per subscription, not per message); null for a
+  // name an LCM log cannot hold.
+  std::vector<Channel*> by_id(65536, nullptr);
+  std::set<std::string> long_names;
+  auto clamp = [](uint64_t us) { return us > static_cast<uint64_t>(INT64_MAX) ? INT64_MAX : static_cast<int64_t>(us); };
+  auto where = [&](uint64_t offset) { return path + ": at byte " + std::to_string(offset); };
+  auto topic = [&](Channel& c, const UlogSubscription& s, const char* type) -> TopicCount& {
+    if (c.topic == SIZE_MAX)
+      c.topic = static_cast<size_t>(&out.topic(c.name, s.name, type) - out.summary.topics.data());
+    return out.summary.topics[c.topic];
+  };
+  foreign_message_t f;  // kept from one message to the next (its payload's memory)
+  f.encoding = "ulog";
+
+  UlogReader::Callbacks cb;
+  cb.problem = [&](uint64_t offset, const std::string& what) { out.problem(where(offset) + ": " + what); };
+  cb.subscription = [&](const UlogSubscription& s) {
+    const std::string name = channel_of(s);
+    if (name.size() > 255) {
+      by_id[s.msg_id] = nullptr;
+      return;
+    }
+    Channel& c = channels[name];
+    c.name = name;
+    by_id[s.msg_id] = &c;
+  };
+  cb.data = [&](const UlogData& d) {
+    const UlogSubscription& s = *d.subscription;
+    Channel* cp = by_id[s.msg_id];
+    if (!cp) {
+      // A channel name an LCM log cannot hold (a hostile file's; PX4's topic names are short).
+      if (long_names.insert(s.name).second) {
+        out.problem(where(d.offset) + ": topic " + s.name.substr(0, 40) +
+                    "... has a name over 255 bytes, which an LCM log cannot hold; its messages are left out");
+      }
+      return;
+    }
+    Channel& c = *cp;
+    const int64_t t = clamp(d.timestamp);
+    if (!s.layout) {
+      // Reported once, with its subscription; counted here.
+      ++topic(c, s, "driftlab.foreign_message_t").malformed;
+      return;
+    }
+    // ULog has no sequence number: seq is the count on the channel (CHANNEL_SOURCES says so).
+    if (!out.describe(t, c.name, s.name, lcmtypes::SeqOrigin::kCounted)) return;
+    if (auto m = convert_ulog_message(*s.layout, d.payload, d.timestamp, c.count)) {
+      TopicCount& tc = topic(c, s, m->type);
+      if (out.write(t, c.name, m->lcm)) {
+        ++tc.messages;
+        ++c.count;
+      }
+      return;
+    }
+    TopicCount& tc = topic(c, s, "driftlab.foreign_message_t");
+    if (!c.schema_written) {
+      foreign_schema_t fs;
+      fs.channel = c.name;
+      fs.type = s.name;
+      fs.encoding = "ulog";
+      fs.definition = s.layout->definition;
+      if (!out.write(t, kSchemaChannel, encode(fs))) return;
+      c.schema_written = true;
+    }
+    f.type = s.name;
+    f.data.assign(d.payload.begin(), d.payload.end());
+    f.size = static_cast<int32_t>(f.data.size());
+    if (out.write(t, c.name, encode(f))) {
+      ++tc.messages;
+      ++c.count;
+    }
+  };
+  cb.logged = [&](const UlogLogged& l) {
+    Channel& c = records[kUlogLog];
+    log_text_t m;
+    m.header.seq = c.count;
+    m.header.utime = clamp(l.timestamp);
+    m.level = l.level >= '0' && l.level <= '9' ? l.level - '0' : l.level;
+    m.tag = l.tagged ? l.tag : -1;
+    m.text = std::string(l.text.substr(0, l.text.find('\0')));
+    if (out.write(m.header.utime, kUlogLog, encode(m))) {
+      ++out.topic(kUlogLog, "ULog logged string", "driftlab.log_text_t").messages;
+      ++c.count;
+    }
+  };
+  cb.value = [&](const UlogValue& v) {
+    const char* channel = v.kind == 'I' || v.kind == 'M' ? kUlogInfo : kUlogParams;
+    Channel& c = records[channel];
+    parameter_t m;
+    m.header.seq = c.count;
+    m.header.utime = clamp(v.time);
+    m.name = std::string(v.key.substr(0, v.key.find('\0')));
+    m.type = std::string(v.type.substr(0, v.type.find('\0')));
+    ulog_value(v.type, v.value, &m.value, &m.text);
+    m.default_types = v.default_types;
+    if (out.write(m.header.utime, channel, encode(m))) {
+      ++out.topic(channel, v.kind == 'I' || v.kind == 'M' ? "ULog information" : "ULog parameter",
+                  "driftlab.parameter_t")
+            .messages;
+      ++c.count;
+    }
+  };
+  cb.dropout = [&](const UlogDropout& d) {
+    Channel& c = records[kUlogDropouts];
+    dropout_t m;
+    m.header.seq = c.count;
+    m.header.utime = clamp(d.timestamp);
+    m.duration_us = int64_t{d.duration_ms} * 1000;
+    if (out.write(m.header.utime, kUlogDropouts, encode(m))) {
+      ++out.topic(kUlogDropouts, "ULog dropout", "driftlab.dropout_t").messages;
+      ++c.count;
+    }
+  };
+  if (Status s = log->read(cb); !s) return Error(path + ": " + s.message());
+  for (const auto& [type, n] : log->unknown_types()) {
+    out.summary.skipped.emplace_back(std::string("ULog record type '") + type + "'", n);
+  }
+  return out.status();
+}
+
 /// "b_10.mcap" after "b_2.mcap": runs of digits compare as numbers.
 bool natural_less(const std::string& a, const std::string& b) {
   size_t i = 0, j = 0;
@@ -477,6 +679,7 @@ Detected detect_head(std::string_view h, bool inner) {
     return {Format::kMcap, profile == "ros2" ? "ROS 2 bag (MCAP)" : profile == "ros1" ? "ROS 1 MCAP" : "MCAP file", {}};
   }
   if (SqliteBagReader::looks_like({u, h.size()})) return {Format::kRos2Sqlite, "ROS 2 bag (sqlite3)", {}};
+  if (UlogReader::looks_like({u, h.size()})) return {Format::kUlog, "PX4 ULog", {}};
   if (h.size() >= 4 && static_cast<unsigned char>(h[0]) == 0xED && static_cast<unsigned char>(h[1]) == 0xA2 &&
       static_cast<unsigned char>(h[2]) == 0xDA && static_cast<unsigned char>(h[3]) == 0xEA) {
     return {Format::kLcmLog, "LCM log", {}};
@@ -506,7 +709,7 @@ Detected detect_head(std::string_view h, bool inner) {
 }
 
 constexpr char kKnownFormats[] =
-    "ROS 1 bag, ROS 2 bag (MCAP, sqlite3, or its folder), MCAP file, CARMEN log, MRPT rawlog";
+    "ROS 1 bag, ROS 2 bag (MCAP, sqlite3, or its folder), MCAP file, CARMEN log, PX4 ULog, MRPT rawlog";
 
 /// Imports one file (not a folder) into out.
 Status import_file(const std::string& path, const std::string& out_path, Importer& out) {
@@ -517,6 +720,7 @@ Status import_file(const std::string& path, const std::string& out_path, Importe
     case Format::kMcap: return import_mcap(path, out);
     case Format::kRos2Sqlite: return import_sqlite(path, out);
     case Format::kCarmen: return import_carmen(path, out);
+    case Format::kUlog: return import_ulog(path, out);
     case Format::kZstd: {
       // Decompressed beside the output (a bag may not fit in memory, nor in a RAM-backed /tmp), then read.
       const std::string plain = out_path + ".unzstd";

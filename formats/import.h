@@ -1,7 +1,8 @@
 // Other people's logs into driftlab logs: the format is recognised from the content (never the extension) and
 // every message becomes a log event, stamped the way driftlab's time model wants: the message's own stamp
-// (header.stamp, ipc_timestamp) in header.utime, its arrival at the recorder (ROS 1 record time, rosbag2's
-// recv_timestamp, MCAP's log_time, CARMEN's logger_timestamp) as the event time. Topics keep their names as
+// (header.stamp, ipc_timestamp, a ULog message's timestamp_sample) in header.utime, its arrival at the recorder
+// (ROS 1 record time, rosbag2's recv_timestamp, MCAP's log_time, CARMEN's logger_timestamp, a ULog message's
+// timestamp) as the event time. Topics keep their names as
 // channels ("/scan"); messages of types without a mapping are carried as driftlab.foreign_message_t with their
 // definition on FOREIGN_SCHEMAS. A recording split into several files is one recording: give its folder (ROS 2)
 // or all of its files.
@@ -18,11 +19,16 @@
 namespace driftlab::formats {
 
 enum class Format {
-  kUnknown, kLcmLog, kRos1Bag, kCarmen, kMrptRawlog,
+  kUnknown,
+  kLcmLog,
+  kRos1Bag,
+  kCarmen,
+  kMrptRawlog,
   kMcap,        ///< an MCAP file (a ROS 2 bag's storage, or any MCAP of ROS 1 or ROS 2 messages)
   kRos2Sqlite,  ///< rosbag2's sqlite3 storage (.db3)
   kRos2Folder,  ///< a rosbag2 folder: metadata.yaml and its storage files
   kZstd,        ///< a file compressed whole with zstd (rosbag2's file compression): decompressed, then read
+  kUlog,        ///< a PX4 flight log (ULog, .ulg)
 };
 
 /// What the file holds, from its first bytes; `description` says what an unknown file looks like in words

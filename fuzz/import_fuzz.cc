@@ -1,14 +1,19 @@
-// Fuzzes the importers' readers: the ROS 1 bag container (records, chunks, compression), CARMEN lines, and the
-// ROS message decoders in both serializations. Whatever they deliver must be a well-formed driftlab message.
-// Input: a selector byte, then the bytes for the reader it selects.
+// Fuzzes the importers' readers: the ROS 1 bag container (records, chunks, compression), CARMEN lines, the ROS
+// message decoders in both serializations, and PX4's ULog (records, formats, the PX4 topics' mappings). Whatever
+// they deliver must be a well-formed driftlab message.
+// Input: a selector byte, then the bytes for the reader it selects: 0..63 a bag after its magic, 64..95 CARMEN
+// text, 96..191 a ROS message (its type and serialization from the selector), 192..255 a ULog file (from its magic).
 #include <cstdint>
 #include <cstdlib>
 #include <span>
 #include <string>
+#include <vector>
 
 #include "formats/carmen.h"
 #include "formats/ros1_bag.h"
 #include "formats/ros_messages.h"
+#include "formats/ulog.h"
+#include "formats/ulog_messages.h"
 #include "lcmtypes/validate.h"
 
 namespace {
@@ -70,6 +75,25 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   } else if (selector < 96) {
     auto log = CarmenReader::from_text(std::string(reinterpret_cast<const char*>(rest.data()), rest.size()));
     log.read([](const CarmenMessage& m) { check(m.lcm); }, [](size_t, const std::string&) {});
+  } else if (selector >= 192) {
+    auto log = UlogReader::from_memory(std::vector<uint8_t>(rest.begin(), rest.end()));
+    if (!log) return 0;
+    UlogReader::Callbacks cb;
+    int64_t seq = 0;
+    cb.data = [&](const UlogData& d) {
+      const UlogLayout* l = d.subscription->layout.get();
+      if (!l) return;
+      if (d.payload.size() < l->size_written || d.payload.size() > l->size) std::abort();  // checked by the reader
+      if (auto c = convert_ulog_message(*l, d.payload, d.timestamp, seq++)) check(c->lcm);
+    };
+    // Read twice: the same file gives the same calls (the importer's first pass names the channels).
+    std::string trace[2];
+    for (std::string& t : trace) {
+      cb.problem = [&](uint64_t offset, const std::string& what) { t += std::to_string(offset) + " " + what + "\n"; };
+      cb.logged = [&](const UlogLogged& m) { t += "l " + std::to_string(m.offset) + "\n"; };
+      (void)log->read(cb);
+    }
+    if (trace[0] != trace[1]) std::abort();
   } else {
     const char* type = kTypes[selector % kNumTypes];
     const auto s = (selector & 1) ? Serialization::kCdr : Serialization::kRos1;

@@ -409,10 +409,11 @@ TEST(Import, UnknownFormatsAreNamedInOneLine) {
   test::write_file(dir.file("notes.txt"), {'h', 'e', 'l', 'l', 'o', '\n'});
   CmdResult r = import(dir.file("notes.txt"), dir.file("out.lcm"));
   EXPECT_EQ(r.code, 2);
-  EXPECT_EQ(r.err, "driftlab: " + dir.file("notes.txt") +
-                       ": not a format driftlab imports (ROS 1 bag, ROS 2 bag (MCAP, sqlite3, or its folder), MCAP file, "
-                       "CARMEN log, MRPT rawlog): text starting "
-                       "\"hello\"\n");
+  EXPECT_EQ(r.err,
+            "driftlab: " + dir.file("notes.txt") +
+                ": not a format driftlab imports (ROS 1 bag, ROS 2 bag (MCAP, sqlite3, or its folder), MCAP file, "
+                "CARMEN log, PX4 ULog, MRPT rawlog): text starting "
+                "\"hello\"\n");
   test::write_file(dir.file("empty"), {});
   r = import(dir.file("empty"), dir.file("out.lcm"));
   EXPECT_EQ(r.code, 2);

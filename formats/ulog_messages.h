@@ -1,0 +1,32 @@
+// PX4 topics (ULog data messages) onto driftlab's messages where driftlab has the same quantity: sensor_combined
+// -> imu_t, sensor_gps / vehicle_gps_position -> gnss_t, vehicle_local_position -> odometry_t, vehicle_attitude ->
+// pose_t (its orientation). Fields are found by name
+// in the message's own format, so PX4 versions that moved or added fields convert alike; a format without the fields a
+// mapping needs is carried as foreign_message_t instead. header.utime is the message's `timestamp_sample` when it has
+// one (when the sensor sampled), else its `timestamp`. Thread-safety: plain functions.
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <span>
+#include <string_view>
+#include <vector>
+
+#include "formats/ulog.h"
+
+namespace driftlab::formats {
+
+struct UlogConverted {
+  const char* type = "";  ///< "driftlab.imu_t"
+  std::vector<uint8_t> lcm;
+};
+
+/// The driftlab type topic `name` maps onto, or nullptr when it has none.
+const char* driftlab_type_for_ulog(std::string_view name);
+
+/// Converts one data message of a mapped topic (payload: its bytes after the msg_id); nullopt when the topic has
+/// no mapping or its format lacks a field the mapping needs. seq: the count of messages on its channel before it.
+std::optional<UlogConverted> convert_ulog_message(const UlogLayout& layout, std::span<const uint8_t> payload,
+                                                  uint64_t timestamp, int64_t seq);
+
+}  // namespace driftlab::formats

@@ -1,0 +1,756 @@
+// PX4 flight logs (formats/ulog.h, and their import in formats/import.h): the shared real logs against what PX4's
+// own reader, pyulog, finds in them (../shared/data/ulog/expected.json), and hostile files written here: cut short,
+// damaged in the middle, an unknown incompatible flag, formats that do not resolve (an unknown nested type, a type
+// containing itself, arrays too large for a ULog message).
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <array>
+#include <cmath>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <set>
+
+#include "driftlab/channel_source_t.hpp"
+#include "driftlab/dropout_t.hpp"
+#include "driftlab/foreign_message_t.hpp"
+#include "driftlab/foreign_schema_t.hpp"
+#include "driftlab/gnss_t.hpp"
+#include "driftlab/imu_t.hpp"
+#include "driftlab/log_text_t.hpp"
+#include "driftlab/odometry_t.hpp"
+#include "driftlab/parameter_t.hpp"
+#include "driftlab/pose_t.hpp"
+#include "formats/import.h"
+#include "formats/ulog.h"
+#include "lcmtypes/seq_origin.h"
+#include "tests/test_util.h"
+
+namespace driftlab::formats {
+namespace {
+
+using test::OwnedEvent;
+
+const std::set<std::string> kRecordChannels = {"ULOG_LOG",      "ULOG_PARAMS",     "ULOG_INFO",
+                                               "ULOG_DROPOUTS", "FOREIGN_SCHEMAS", "CHANNEL_SOURCES"};
+
+// ---- a ULog written here, record by record ----
+
+void put(std::vector<uint8_t>& b, uint64_t v, int bytes) {
+  for (int i = 0; i < bytes; ++i) b.push_back(static_cast<uint8_t>(v >> (8 * i)));
+}
+std::vector<uint8_t> f32(float v) {
+  uint32_t u;
+  std::memcpy(&u, &v, 4);
+  std::vector<uint8_t> b;
+  put(b, u, 4);
+  return b;
+}
+
+struct Ulog {
+  std::vector<uint8_t> b;
+  explicit Ulog(uint64_t start_us = 1000) {
+    for (const int c : {0x55, 0x4c, 0x6f, 0x67, 0x01, 0x12, 0x35})
+      b.push_back(static_cast<uint8_t>(c));  // "ULog", 01 12 35
+    b.push_back(1);
+    put(b, start_us, 8);
+  }
+  void record(char type, const std::vector<uint8_t>& body) {
+    put(b, body.size(), 2);
+    b.push_back(static_cast<uint8_t>(type));
+    b.insert(b.end(), body.begin(), body.end());
+  }
+  void flags(uint8_t incompat0, uint64_t appended = 0, uint8_t incompat_other = 0) {
+    std::vector<uint8_t> r(16, 0);
+    r[8] = incompat0;
+    r[9] = incompat_other;
+    put(r, appended, 8);
+    put(r, 0, 16);
+    record('B', r);
+  }
+  void format(const std::string& text) { record('F', {text.begin(), text.end()}); }
+  void info(const std::string& key, const std::vector<uint8_t>& value) {
+    std::vector<uint8_t> r{static_cast<uint8_t>(key.size())};
+    r.insert(r.end(), key.begin(), key.end());
+    r.insert(r.end(), value.begin(), value.end());
+    record('I', r);
+  }
+  void subscribe(uint8_t multi, uint16_t id, const std::string& name) {
+    std::vector<uint8_t> r{multi};
+    put(r, id, 2);
+    r.insert(r.end(), name.begin(), name.end());
+    record('A', r);
+  }
+  /// A data message of format "t:uint64_t timestamp;float x;".
+  size_t data(uint16_t id, uint64_t t, float x) {
+    std::vector<uint8_t> r;
+    put(r, id, 2);
+    put(r, t, 8);
+    const auto v = f32(x);
+    r.insert(r.end(), v.begin(), v.end());
+    const size_t at = b.size();
+    record('D', r);
+    return at;
+  }
+  void logged(char level, uint64_t t, const std::string& text) {
+    std::vector<uint8_t> r{static_cast<uint8_t>(level)};
+    put(r, t, 8);
+    r.insert(r.end(), text.begin(), text.end());
+    record('L', r);
+  }
+  void dropout(uint16_t ms) {
+    std::vector<uint8_t> r;
+    put(r, ms, 2);
+    record('O', r);
+  }
+};
+
+/// A small flight: two topics (one in two instances), a logged string and a dropout.
+Ulog small_flight() {
+  Ulog u;
+  u.flags(0);
+  u.format("t:uint64_t timestamp;float x;");
+  u.info("char[3] sys_name", {'P', 'X', '4'});
+  u.subscribe(0, 1, "t");
+  u.subscribe(1, 2, "t");
+  for (int i = 0; i < 10; ++i) {
+    u.data(1, 2000 + 100 * i, static_cast<float>(i));
+    u.data(2, 2050 + 100 * i, static_cast<float>(-i));
+  }
+  u.logged('6', 2500, "takeoff");
+  u.dropout(20);
+  return u;
+}
+
+struct Read {
+  std::vector<std::pair<uint64_t, std::string>> problems;
+  std::vector<std::pair<uint64_t, std::vector<uint8_t>>> data;  // offset, payload
+  mutable std::map<std::string, int64_t> per_topic;
+  int64_t logged = 0, dropouts = 0;
+  std::map<char, int64_t> unknown;  // records of unknown types skipped
+  Status status;
+};
+
+Read read(std::vector<uint8_t> bytes) {
+  Read out;
+  auto r = UlogReader::from_memory(std::move(bytes));
+  if (!r) {
+    out.status = r.error();
+    return out;
+  }
+  UlogReader::Callbacks cb;
+  cb.data = [&](const UlogData& d) {
+    out.data.emplace_back(d.offset, std::vector<uint8_t>(d.payload.begin(), d.payload.end()));
+    ++out.per_topic[d.subscription->name + "/" + std::to_string(d.subscription->multi_id)];
+  };
+  cb.logged = [&](const UlogLogged&) { ++out.logged; };
+  cb.dropout = [&](const UlogDropout&) { ++out.dropouts; };
+  cb.problem = [&](uint64_t offset, const std::string& what) { out.problems.emplace_back(offset, what); };
+  out.status = r->read(cb);
+  out.unknown = r->unknown_types();
+  return out;
+}
+
+std::vector<uint8_t> file_bytes(const std::string& path) { return test::read_file(path); }
+
+// ---- the shared real logs ----
+
+nlohmann::json expected() {
+  const std::string path = test::shared_data("ulog/expected.json");
+  if (path.empty()) return {};
+  std::ifstream f(path);
+  return nlohmann::json::parse(f);
+}
+
+// Every topic's count, the total, the first (the header's start) and last timestamp, the dropouts and the count of
+// logged strings equal what pyulog finds in each shared file; the import reports no problem on these whole files.
+TEST(Ulog, ImportOfTheSharedLogsAgreesWithPyulog) {
+  const nlohmann::json want_all = expected();
+  if (want_all.empty()) return;
+  ASSERT_EQ(want_all.size(), 3u);
+  for (const auto& [file, want] : want_all.items()) {
+    SCOPED_TRACE(file);
+    const std::string path = test::shared_data("ulog/" + file);
+    ASSERT_FALSE(path.empty());
+    EXPECT_EQ(detect_format(path).format, Format::kUlog);
+    EXPECT_EQ(detect_format(path).name, "PX4 ULog");
+    test::TempDir dir;
+    std::vector<std::string> problems;
+    auto summary = import_log(path, dir.file("out.lcm"), [&](const std::string& p) { problems.push_back(p); });
+    ASSERT_TRUE(summary) << summary.error().message;
+    EXPECT_EQ(problems, std::vector<std::string>{});
+    EXPECT_EQ(summary->format, "PX4 ULog");
+
+    std::map<std::string, int64_t> counts;
+    int64_t total = 0, last = 0, logged = 0;
+    size_t sources = 0;
+    std::vector<std::pair<int64_t, int64_t>> dropouts;
+    std::map<std::string, std::string> info;
+    for (const OwnedEvent& e : test::read_all(dir.file("out.lcm"))) {
+      if (e.channel == "ULOG_DROPOUTS") {
+        const auto d = test::decode<dropout_t>(e);
+        dropouts.emplace_back(d.header.utime, d.duration_us);
+        EXPECT_EQ(e.utime, d.header.utime);
+      } else if (e.channel == "ULOG_LOG") {
+        // expected.json counts pyulog's logged_messages: the untagged strings ('L'); the tagged ones ('C') are
+        // its logged_messages_tagged (three in the SITL log, all kept here too).
+        if (test::decode<log_text_t>(e).tag < 0) ++logged;
+      } else if (e.channel == "ULOG_INFO") {
+        const auto p = test::decode<parameter_t>(e);
+        info[p.name] = p.text;
+      } else if (e.channel == "CHANNEL_SOURCES") {
+        // Each topic said once: its ULog name, and a seq the import counted (ULog has no sequence numbers).
+        const auto src = test::decode<channel_source_t>(e);
+        EXPECT_EQ(src.channel.substr(0, src.channel.find('/')), src.source_type);
+        EXPECT_EQ(src.seq_origin, static_cast<int8_t>(lcmtypes::SeqOrigin::kCounted));
+        ++sources;
+      } else if (!kRecordChannels.count(e.channel)) {
+        ++counts[e.channel];
+        ++total;
+        last = std::max(last, e.utime);
+      }
+    }
+    std::map<std::string, int64_t> want_counts;
+    for (const auto& [topic, n] : want["topics"].items()) want_counts[topic] = n.get<int64_t>();
+    EXPECT_EQ(counts, want_counts);
+    EXPECT_EQ(sources, want_counts.size());
+    EXPECT_EQ(total, want["messages"].get<int64_t>());
+    EXPECT_EQ(last, want["last_us"].get<int64_t>());
+    EXPECT_EQ(logged, want["logged_strings"].get<int64_t>());
+    std::vector<std::pair<int64_t, int64_t>> want_dropouts;
+    for (const auto& d : want["dropouts"]) {
+      want_dropouts.emplace_back(d["timestamp_us"].get<int64_t>(), d["duration_ms"].get<int64_t>() * 1000);
+    }
+    EXPECT_EQ(dropouts, want_dropouts);
+    for (const auto& [key, value] : want["info"].items()) {
+      EXPECT_EQ(info[key], value.is_string() ? value.get<std::string>() : value.dump()) << key;
+    }
+
+    auto r = UlogReader::open(path);
+    ASSERT_TRUE(r);
+    ASSERT_TRUE(r->read({}));
+    EXPECT_EQ(static_cast<int64_t>(r->start_us()), want["start_us"].get<int64_t>());
+    EXPECT_EQ(static_cast<int64_t>(r->last_us()), want["last_us"].get<int64_t>());
+  }
+}
+
+// A carried topic keeps its payload and its format (with the formats it nests) on FOREIGN_SCHEMAS; sensor_combined
+// becomes imu_t stamped with its timestamp, seq counting its messages; every event's time is its message's
+// timestamp field.
+TEST(Ulog, MessagesKeepTheirFormatAndTime) {
+  for (const char* name : {"sample_log_small.ulg", "sample_logging_tagged_and_default_params.ulg"}) {
+    SCOPED_TRACE(name);
+    const std::string path = test::shared_data(std::string("ulog/") + name);
+    if (path.empty()) return;
+    // The SITL log's vehicle_local_position has timestamp_sample (PX4 1.13); the CubeOrange's (1.11) has not.
+    const bool has_sample_time = std::string(name) != "sample_log_small.ulg";
+    test::TempDir dir;
+    auto summary = import_log(path, dir.file("out.lcm"), [](const std::string& p) { ADD_FAILURE() << p; });
+    ASSERT_TRUE(summary);
+    std::map<std::string, foreign_schema_t> schemas;
+    std::map<std::string, int64_t> seen;
+    int64_t imus = 0;
+    for (const OwnedEvent& e : test::read_all(dir.file("out.lcm"))) {
+      if (e.channel == "FOREIGN_SCHEMAS") {
+        const auto s = test::decode<foreign_schema_t>(e);
+        EXPECT_EQ(s.encoding, "ulog");
+        EXPECT_TRUE(s.definition.starts_with(s.type + ":")) << s.definition;
+        EXPECT_FALSE(schemas.count(s.channel)) << "one schema per channel: " << s.channel;
+        schemas[s.channel] = s;
+        continue;
+      }
+      if (e.channel == "sensor_combined") {
+        const auto m = test::decode<imu_t>(e);
+        EXPECT_EQ(m.header.seq, imus++);
+        EXPECT_EQ(m.header.utime, e.utime);  // sensor_combined has no timestamp_sample
+        // A vehicle at rest or flying: gravity's 9.8 m/s^2 is there within what a flight's manoeuvres add.
+        const double g = std::hypot(m.linear_acceleration.x, m.linear_acceleration.y, m.linear_acceleration.z);
+        EXPECT_GT(g, 2.0);
+        EXPECT_LT(g, 40.0);
+        continue;
+      }
+      if (e.channel == "vehicle_gps_position" || e.channel == "sensor_gps") {
+        const auto m = test::decode<gnss_t>(e);
+        EXPECT_EQ(m.header.utime, e.utime);  // no timestamp_sample in either version
+        EXPECT_TRUE(m.fix_type == 0 || m.fix_type == 2 || m.fix_type == 3);
+        if (m.fix_type == 3) {
+          EXPECT_LE(std::abs(m.latitude_deg), 90.0);
+          EXPECT_LE(std::abs(m.longitude_deg), 180.0);
+          EXPECT_GT(m.satellites, 3);  // a 3D fix needs four
+        }
+        ++seen[e.channel];
+        continue;
+      }
+      if (e.channel == "vehicle_local_position") {
+        const auto m = test::decode<odometry_t>(e);
+        if (has_sample_time) {
+          EXPECT_LE(m.header.utime, e.utime);  // sampled, then published
+        } else {
+          EXPECT_EQ(m.header.utime, e.utime);
+        }
+        EXPECT_EQ(m.header.seq, seen[e.channel]);
+        EXPECT_NEAR(std::hypot(m.orientation.w, m.orientation.z), 1.0, 1e-9);
+        ++seen[e.channel];
+        continue;
+      }
+      if (e.channel == "vehicle_attitude") {
+        const auto m = test::decode<pose_t>(e);
+        if (has_sample_time) {
+          EXPECT_LE(m.header.utime, e.utime);
+        } else {
+          EXPECT_EQ(m.header.utime, e.utime);
+        }
+        // PX4 publishes a unit quaternion (in float32: to about 1e-6); the position is not in the message.
+        const auto& q = m.orientation;
+        EXPECT_NEAR(std::sqrt(q.w * q.w + q.x * q.x + q.y * q.y + q.z * q.z), 1.0, 1e-5);
+        EXPECT_TRUE(std::isnan(m.position.x));
+        ++seen[e.channel];
+        continue;
+      }
+      if (kRecordChannels.count(e.channel)) continue;
+      const auto f = test::decode<foreign_message_t>(e);
+      ASSERT_TRUE(schemas.count(e.channel)) << "its schema before its first message: " << e.channel;
+      EXPECT_EQ(f.encoding, "ulog");
+      // The event time is the message's timestamp: its first field in every PX4 topic.
+      ASSERT_GE(f.data.size(), 8u);
+      uint64_t t = 0;
+      for (int i = 7; i >= 0; --i) t = (t << 8) | f.data[static_cast<size_t>(i)];
+      EXPECT_EQ(static_cast<int64_t>(t), e.utime) << e.channel;
+      ++seen[e.channel];
+    }
+    EXPECT_GT(imus, 0);
+    // The definition carried holds every format the type nests (one a line, its own first): it resolves alone.
+    for (const auto& [channel, schema] : schemas) {
+      std::map<std::string, std::string, std::less<>> formats;
+      const std::string& text = schema.definition;
+      size_t at = 0;
+      while (at < text.size()) {
+        const size_t nl = text.find('\n', at);
+        const std::string line = text.substr(at, nl == std::string::npos ? std::string::npos : nl - at);
+        formats[line.substr(0, line.find(':'))] = line;
+        at = nl == std::string::npos ? text.size() : nl + 1;
+      }
+      EXPECT_TRUE(resolve_ulog_format(formats, schema.type)) << channel << ": the definition carried resolves alone";
+    }
+    // position_setpoint_triplet nests position_setpoint (three of them): its definition has both.
+    ASSERT_TRUE(schemas.count("position_setpoint_triplet"));
+    EXPECT_NE(schemas["position_setpoint_triplet"].definition.find("\nposition_setpoint:"), std::string::npos)
+        << schemas["position_setpoint_triplet"].definition;
+    EXPECT_GT(seen["vehicle_gps_position"], 0);
+    EXPECT_GT(seen["vehicle_local_position"], 0);
+    EXPECT_GT(seen["vehicle_attitude"], 0);
+  }
+}
+
+/// The import of path as channel -> {count, smallest and largest event time}, and the logged strings (untagged,
+/// tagged) and dropout durations [ms].
+struct Imported {
+  std::map<std::string, std::array<int64_t, 3>> topics;
+  int64_t logs = 0, tagged_logs = 0;
+  std::vector<int64_t> dropouts_ms;
+};
+Imported imported(const std::string& path) {
+  Imported out;
+  test::TempDir dir;
+  auto s = import_log(path, dir.file("out.lcm"), [](const std::string& p) { ADD_FAILURE() << p; });
+  EXPECT_TRUE(s);
+  if (!s) return out;
+  for (const OwnedEvent& e : test::read_all(dir.file("out.lcm"))) {
+    if (e.channel == "ULOG_LOG") {
+      ++(test::decode<log_text_t>(e).tag < 0 ? out.logs : out.tagged_logs);
+    } else if (e.channel == "ULOG_DROPOUTS") {
+      out.dropouts_ms.push_back(test::decode<dropout_t>(e).duration_us / 1000);
+    } else if (!kRecordChannels.count(e.channel)) {
+      auto [it, fresh] = out.topics.try_emplace(e.channel, std::array<int64_t, 3>{0, e.utime, e.utime});
+      auto& t = it->second;
+      ++t[0];
+      t[1] = std::min(t[1], e.utime);
+      t[2] = std::max(t[2], e.utime);
+    }
+  }
+  return out;
+}
+
+// Foxglove's own ULog reader (@foxglove/ulog, pinned in tests/oracle; tests/oracle/dump_ulog.mjs) finds in each
+// shared log the same topic instances, each with the same count and the same smallest and largest timestamp, the
+// same logged strings (tagged and not) and the same dropouts as driftlab's import. Skipped without node and the
+// oracle's modules, a failure under CI.
+TEST(Ulog, ImportAgreesWithFoxglovesReader) {
+  const std::string oracle = std::string(DRIFTLAB_SOURCE_DIR) + "/tests/oracle";
+  if (test::run("node --version >/dev/null 2>&1") != 0 ||
+      !std::filesystem::exists(oracle + "/node_modules/@foxglove/ulog/package.json")) {
+    const char* ci = std::getenv("CI");
+    if (ci && std::string(ci) == "true") {
+      ADD_FAILURE() << "node or @foxglove/ulog missing under CI (scripts/bootstrap installs them)";
+    } else {
+      GTEST_SKIP() << "node or tests/oracle/node_modules/@foxglove/ulog missing (scripts/bootstrap installs them)";
+    }
+    return;
+  }
+  for (const char* name :
+       {"sample_log_small.ulg", "sample_appended_multiple.ulg", "sample_logging_tagged_and_default_params.ulg"}) {
+    SCOPED_TRACE(name);
+    const std::string path = test::shared_data(std::string("ulog/") + name);
+    if (path.empty()) return;
+    std::string text;
+    ASSERT_EQ(test::run("node '" + oracle + "/dump_ulog.mjs' '" + path + "'", &text), 0);
+    const auto fox = nlohmann::json::parse(text);
+    const Imported got = imported(path);
+    std::map<std::string, std::array<int64_t, 3>> want;
+    for (const auto& [channel, t] : fox["topics"].items()) {
+      want[channel] = {t["count"].get<int64_t>(), t["first_us"].get<int64_t>(), t["last_us"].get<int64_t>()};
+    }
+    EXPECT_EQ(got.topics, want);
+    EXPECT_EQ(got.logs, fox["logs"].get<int64_t>());
+    EXPECT_EQ(got.tagged_logs, fox["tagged_logs"].get<int64_t>());
+    EXPECT_EQ(got.dropouts_ms, fox["dropouts_ms"].get<std::vector<int64_t>>());
+  }
+}
+
+// ---- hostile files ----
+
+// A file cut anywhere keeps every message that ends before the cut and reports the cut once, with its offset.
+TEST(Ulog, TruncatedFileKeepsEveryMessageBeforeTheCut) {
+  const std::string path = test::shared_data("ulog/sample_log_small.ulg");
+  if (path.empty()) return;
+  const std::vector<uint8_t> whole = file_bytes(path);
+  const Read all = read(whole);
+  ASSERT_TRUE(all.status);
+  ASSERT_TRUE(all.problems.empty());
+  // Cuts inside the definitions, inside a record's header, inside a record's data, and on a record's boundary.
+  for (const size_t cut : {size_t{2000}, whole.size() / 3, whole.size() / 2 + 1, whole.size() - 5,
+                           static_cast<size_t>(all.data[all.data.size() / 2].first)}) {
+    SCOPED_TRACE(cut);
+    std::vector<uint8_t> part(whole.begin(), whole.begin() + static_cast<ptrdiff_t>(cut));
+    const Read r = read(part);
+    ASSERT_TRUE(r.status);
+    size_t kept = 0;
+    for (const auto& [offset, payload] : all.data) {
+      if (offset + 3 + 2 + payload.size() <= cut) ++kept;
+    }
+    ASSERT_EQ(r.data.size(), kept);
+    for (size_t i = 0; i < kept; ++i) ASSERT_EQ(r.data[i], all.data[i]);
+    const bool on_boundary = cut == all.data[all.data.size() / 2].first;
+    if (on_boundary) {
+      EXPECT_TRUE(r.problems.empty());
+    } else {
+      ASSERT_EQ(r.problems.size(), 1u);
+      EXPECT_NE(r.problems[0].second.find("cut short"), std::string::npos) << r.problems[0].second;
+      EXPECT_LT(r.problems[0].first, cut);
+    }
+  }
+}
+
+// Through the importer, the problem line names the file and the byte offset.
+TEST(Ulog, TruncatedFileProblemNamesFileAndOffset) {
+  Ulog u = small_flight();
+  const size_t full = u.b.size();
+  u.b.resize(full - 4);  // into the dropout record (3 + 2 bytes)
+  test::TempDir dir;
+  test::write_file(dir.file("cut.ulg"), u.b);
+  std::vector<std::string> problems;
+  auto s = import_log(dir.file("cut.ulg"), dir.file("out.lcm"), [&](const std::string& p) { problems.push_back(p); });
+  ASSERT_TRUE(s) << s.error().message;
+  ASSERT_EQ(problems.size(), 1u);
+  EXPECT_EQ(problems[0].rfind(dir.file("cut.ulg") + ": at byte " + std::to_string(full - 5) + ": ", 0), 0u)
+      << problems[0];
+  EXPECT_EQ(s->problems, 1);
+  std::map<std::string, int64_t> counts;
+  for (const auto& e : test::read_all(dir.file("out.lcm"))) ++counts[e.channel];
+  EXPECT_EQ(counts["t/0"], 10);
+  EXPECT_EQ(counts["t/1"], 10);
+  EXPECT_EQ(counts["ULOG_LOG"], 1);
+  EXPECT_EQ(counts["ULOG_DROPOUTS"], 0);
+}
+
+// A damaged record header in the middle of a real log: reported once at its offset; reading goes on at the next
+// record, and every other message is kept as it was.
+TEST(Ulog, CorruptedByteInTheMiddleResyncsAndKeepsTheRest) {
+  const std::string path = test::shared_data("ulog/sample_log_small.ulg");
+  if (path.empty()) return;
+  const std::vector<uint8_t> whole = file_bytes(path);
+  const Read all = read(whole);
+  ASSERT_TRUE(all.status);
+  const size_t victim = all.data.size() / 2;
+  const uint64_t at = all.data[victim].first;
+  for (const uint8_t type : {uint8_t{0}, uint8_t{0xff}}) {
+    SCOPED_TRACE(type);
+    std::vector<uint8_t> bad = whole;
+    bad[at + 2] = type;  // the record's type byte
+    const Read r = read(bad);
+    ASSERT_TRUE(r.status);
+    ASSERT_EQ(r.problems.size(), 1u);
+    EXPECT_EQ(r.problems[0].first, at);
+    EXPECT_NE(r.problems[0].second.find("reading again at byte"), std::string::npos) << r.problems[0].second;
+    ASSERT_EQ(r.data.size(), all.data.size() - 1);
+    for (size_t i = 0, j = 0; i < all.data.size(); ++i) {
+      if (i == victim) continue;
+      ASSERT_EQ(r.data[j++], all.data[i]) << i;
+    }
+  }
+  // Its type byte made a letter no record uses: what a newer writer's record looks like, which the specification
+  // has readers skip whole; its framing holds (a known record follows), so it is skipped and counted, not reported.
+  {
+    std::vector<uint8_t> bad = whole;
+    bad[at + 2] = 'x';
+    const Read r = read(bad);
+    EXPECT_TRUE(r.problems.empty());
+    EXPECT_EQ(r.data.size(), all.data.size() - 1);
+    EXPECT_EQ(r.unknown, (std::map<char, int64_t>{{'x', 1}}));
+  }
+  // Its size made huge: the record claims bytes far past its own; reading goes on at the next one all the same.
+  std::vector<uint8_t> bad = whole;
+  bad[at] = 0xff;
+  bad[at + 1] = 0xff;
+  const Read r = read(bad);
+  ASSERT_EQ(r.problems.size(), 1u);
+  EXPECT_EQ(r.problems[0].first, at);
+  EXPECT_EQ(r.data.size(), all.data.size() - 1);
+}
+
+// Garbage between two records of a written log: the messages on both sides are kept.
+TEST(Ulog, GarbageBetweenRecordsIsSkippedOnce) {
+  Ulog u;
+  u.flags(0);
+  u.format("t:uint64_t timestamp;float x;");
+  u.subscribe(0, 1, "t");
+  u.data(1, 2000, 1);
+  const size_t garbage_at = u.b.size();
+  for (int i = 0; i < 50; ++i) u.b.push_back(static_cast<uint8_t>(0x90 + i));
+  u.data(1, 2100, 2);
+  const Read r = read(u.b);
+  ASSERT_TRUE(r.status);
+  EXPECT_EQ(r.data.size(), 2u);
+  ASSERT_EQ(r.problems.size(), 1u);
+  EXPECT_EQ(r.problems[0].first, garbage_at);
+}
+
+// A record of a type no writer uses that is not followed by a record is damage: reported, not skipped silently.
+TEST(Ulog, UnknownTypeBeforeGarbageIsReported) {
+  Ulog u;
+  u.flags(0);
+  u.format("t:uint64_t timestamp;float x;");
+  u.subscribe(0, 1, "t");
+  u.data(1, 2000, 1);
+  const size_t unknown_at = u.b.size();
+  u.record('x', {1, 2, 3});
+  for (int i = 0; i < 20; ++i) u.b.push_back(static_cast<uint8_t>(0x90 + i));
+  u.data(1, 2100, 2);
+  const Read r = read(u.b);
+  ASSERT_TRUE(r.status);
+  EXPECT_EQ(r.data.size(), 2u);
+  ASSERT_EQ(r.problems.size(), 1u);
+  EXPECT_EQ(r.problems[0].first, unknown_at);
+  EXPECT_TRUE(r.unknown.empty());
+}
+
+// An incompatible flag this reader does not know: the log cannot be read, and nothing is written.
+TEST(Ulog, UnknownIncompatFlagIsAnError) {
+  for (const auto& [incompat0, other] : {std::pair<uint8_t, uint8_t>{0x02, 0}, {0x01, 0x10}}) {
+    Ulog u;
+    u.flags(incompat0, 0, other);
+    u.format("t:uint64_t timestamp;float x;");
+    u.subscribe(0, 1, "t");
+    u.data(1, 2000, 1);
+    const Read r = read(u.b);
+    ASSERT_FALSE(r.status);
+    EXPECT_NE(r.status.message().find("incompatible flag bit " + std::to_string(incompat0 == 2 ? 1 : 12)),
+              std::string::npos)
+        << r.status.message();
+    EXPECT_TRUE(r.data.empty());
+    test::TempDir dir;
+    test::write_file(dir.file("f.ulg"), u.b);
+    auto s = import_log(dir.file("f.ulg"), dir.file("out.lcm"), [](const std::string&) {});
+    ASSERT_FALSE(s);
+    EXPECT_EQ(s.error().message.rfind(dir.file("f.ulg") + ": at byte ", 0), 0u) << s.error().message;
+    EXPECT_FALSE(std::filesystem::exists(dir.file("out.lcm")));
+  }
+}
+
+// Appended data (incompatible flag bit 0): the section after the offset is read too.
+TEST(Ulog, AppendedDataIsRead) {
+  Ulog u;
+  const size_t flags_at = u.b.size();
+  u.flags(0x01, 0);
+  u.format("t:uint64_t timestamp;float x;");
+  u.subscribe(0, 1, "t");
+  u.data(1, 2000, 1);
+  const size_t appended = u.b.size();
+  u.data(1, 2100, 2);
+  u.data(1, 2200, 3);
+  for (int i = 0; i < 8; ++i) u.b[flags_at + 3 + 16 + i] = static_cast<uint8_t>(appended >> (8 * i));
+  const Read r = read(u.b);
+  ASSERT_TRUE(r.status);
+  EXPECT_TRUE(r.problems.empty());
+  EXPECT_EQ(r.data.size(), 3u);
+}
+
+// Nested types, arrays of them and padding: the layout is flattened with the offsets C would give, and the
+// trailing padding PX4 does not write may be missing from a message.
+TEST(Ulog, NestedTypesArraysAndPadding) {
+  const std::map<std::string, std::string, std::less<>> formats = {
+      {"inner", "inner:float a;uint8_t[3] _padding0;"},
+      {"outer", "outer:uint64_t timestamp;inner[2] v;char[4] name;uint8_t[4] _padding0;"}};
+  auto l = resolve_ulog_format(formats, "outer");
+  ASSERT_TRUE(l) << l.error().message;
+  EXPECT_EQ(l->size, 8u + 2 * 7 + 4 + 4);
+  EXPECT_EQ(l->size_written, 8u + 2 * 7 + 4);
+  EXPECT_EQ(l->timestamp_offset, 0);
+  ASSERT_EQ(l->fields.size(), 4u);
+  EXPECT_EQ(l->fields[1].name, "v[0].a");
+  EXPECT_EQ(l->fields[1].offset, 8u);
+  EXPECT_EQ(l->fields[2].name, "v[1].a");
+  EXPECT_EQ(l->fields[2].offset, 15u);
+  EXPECT_EQ(l->fields[3].name, "name");
+  EXPECT_EQ(l->fields[3].count, 4u);
+  EXPECT_EQ(l->definition,
+            "outer:uint64_t timestamp;inner[2] v;char[4] name;uint8_t[4] _padding0;\n"
+            "inner:float a;uint8_t[3] _padding0;");
+  std::vector<uint8_t> msg(l->size_written, 0);
+  const auto v = f32(2.5f);
+  std::copy(v.begin(), v.end(), msg.begin() + 15);
+  EXPECT_EQ(l->number(msg, "v[1].a"), 2.5);
+  EXPECT_TRUE(std::isnan(l->number(msg, "missing")));
+  EXPECT_TRUE(std::isnan(l->number(msg, "name")));
+}
+
+// A definition naming a nested type the file never defines: the subscription is reported once with its offset,
+// its messages are left out (counted), and the other topics are read.
+TEST(Ulog, UnknownNestedTypeLeavesOnlyItsTopicOut) {
+  Ulog u;
+  u.flags(0);
+  u.format("t:uint64_t timestamp;float x;");
+  u.format("broken:uint64_t timestamp;missing_t[2] m;");
+  u.subscribe(0, 1, "t");
+  const size_t sub_at = u.b.size();
+  u.subscribe(0, 2, "broken");
+  for (int i = 0; i < 3; ++i) {
+    u.data(1, 2000 + i, 1);
+    std::vector<uint8_t> r;
+    put(r, 2, 2);
+    put(r, 2000 + i, 8);
+    put(r, 0, 4);
+    u.record('D', r);
+  }
+  const Read r = read(u.b);
+  ASSERT_TRUE(r.status);
+  ASSERT_EQ(r.problems.size(), 1u);
+  EXPECT_EQ(r.problems[0].first, sub_at);
+  EXPECT_NE(r.problems[0].second.find("type missing_t is not defined"), std::string::npos) << r.problems[0].second;
+  EXPECT_EQ(r.per_topic["t/0"], 3);
+
+  test::TempDir dir;
+  test::write_file(dir.file("f.ulg"), u.b);
+  std::vector<std::string> problems;
+  auto s = import_log(dir.file("f.ulg"), dir.file("out.lcm"), [&](const std::string& p) { problems.push_back(p); });
+  ASSERT_TRUE(s);
+  ASSERT_EQ(problems.size(), 1u);
+  for (const auto& t : s->topics) {
+    if (t.channel == "broken") {
+      EXPECT_EQ(t.malformed, 3);
+    }
+    if (t.channel == "t") {
+      EXPECT_EQ(t.messages, 3);
+    }
+  }
+  std::map<std::string, int64_t> counts;
+  for (const auto& e : test::read_all(dir.file("out.lcm"))) ++counts[e.channel];
+  EXPECT_EQ(counts["t"], 3);
+  EXPECT_EQ(counts.count("broken"), 0u);
+}
+
+// A type that contains itself, directly or through another: refused, never walked forever.
+TEST(Ulog, RecursiveDefinitionIsRefused) {
+  const std::map<std::string, std::string, std::less<>> direct = {{"a", "a:uint64_t timestamp;a inner;"}};
+  auto l = resolve_ulog_format(direct, "a");
+  ASSERT_FALSE(l);
+  EXPECT_NE(l.error().message.find("contains itself"), std::string::npos) << l.error().message;
+  const std::map<std::string, std::string, std::less<>> mutual = {{"a", "a:uint64_t timestamp;b[3] x;"},
+                                                                  {"b", "b:float y;a z;"}};
+  l = resolve_ulog_format(mutual, "a");
+  ASSERT_FALSE(l);
+  EXPECT_NE(l.error().message.find("contains itself"), std::string::npos) << l.error().message;
+
+  // In a file: reported with the subscription, and the file's other messages read.
+  Ulog u;
+  u.flags(0);
+  u.format("t:uint64_t timestamp;float x;");
+  u.format("a:uint64_t timestamp;a inner;");
+  u.subscribe(0, 1, "t");
+  u.subscribe(0, 2, "a");
+  u.data(1, 2000, 1);
+  const Read r = read(u.b);
+  ASSERT_TRUE(r.status);
+  ASSERT_EQ(r.problems.size(), 1u);
+  EXPECT_EQ(r.data.size(), 1u);
+}
+
+// Array sizes no ULog message can hold (its size is a uint16_t): refused from the definition, without allocating
+// or walking them; a nesting of empty types in large arrays is bounded too.
+TEST(Ulog, HugeArraySizesAreRefused) {
+  for (const char* text :
+       {"a:uint64_t timestamp;float[4294967295] x;", "a:uint64_t timestamp;float[99999999999999999999] x;",
+        "a:uint64_t timestamp;float[16000] x;float[16000] y;", "a:uint64_t timestamp;b[65535] x;"}) {
+    SCOPED_TRACE(text);
+    const std::map<std::string, std::string, std::less<>> formats = {{"a", text}, {"b", "b:double[4] v;"}};
+    auto l = resolve_ulog_format(formats, "a");
+    ASSERT_FALSE(l);
+    EXPECT_NE(l.error().message.find("larger than a ULog message can hold"), std::string::npos) << l.error().message;
+  }
+  // A field with a 60,000-byte name, in an array of 65535: 65535 bytes, a size a message can have, but 3.9 GB of
+  // flattened names; refused before they are made.
+  const std::map<std::string, std::string, std::less<>> long_names = {
+      {"a", "a:b[65535] x;"}, {"b", "b:uint8_t " + std::string(60000, 'n') + ";"}};
+  auto named = resolve_ulog_format(long_names, "a");
+  ASSERT_FALSE(named);
+  EXPECT_NE(named.error().message.find("longer names"), std::string::npos) << named.error().message;
+  // Empty types nested in the largest arrays: sizes 0, resolved in bounded time (each type is laid out once).
+  const std::map<std::string, std::string, std::less<>> empty = {
+      {"a", "a:uint64_t timestamp;b[65535] x;"}, {"b", "b:c[65535] y;"}, {"c", "c:"}};
+  auto l = resolve_ulog_format(empty, "a");
+  ASSERT_TRUE(l) << l.error().message;
+  EXPECT_EQ(l->size, 8u);
+}
+
+// Logged strings, information fields and dropouts as records on their own channels.
+TEST(Ulog, RecordsOnTheirOwnChannels) {
+  Ulog u = small_flight();
+  test::TempDir dir;
+  test::write_file(dir.file("f.ulg"), u.b);
+  auto s = import_log(dir.file("f.ulg"), dir.file("out.lcm"), [](const std::string& p) { ADD_FAILURE() << p; });
+  ASSERT_TRUE(s);
+  int logs = 0, drops = 0, infos = 0;
+  for (const auto& e : test::read_all(dir.file("out.lcm"))) {
+    if (e.channel == "ULOG_LOG") {
+      const auto m = test::decode<log_text_t>(e);
+      EXPECT_EQ(m.level, 6);
+      EXPECT_EQ(m.tag, -1);
+      EXPECT_EQ(m.text, "takeoff");
+      EXPECT_EQ(m.header.utime, 2500);
+      EXPECT_EQ(e.utime, 2500);
+      ++logs;
+    } else if (e.channel == "ULOG_DROPOUTS") {
+      const auto m = test::decode<dropout_t>(e);
+      EXPECT_EQ(m.duration_us, 20000);
+      EXPECT_EQ(m.header.utime, 2950);  // the latest timestamp read before it
+      ++drops;
+    } else if (e.channel == "ULOG_INFO") {
+      const auto m = test::decode<parameter_t>(e);
+      EXPECT_EQ(m.name, "sys_name");
+      EXPECT_EQ(m.type, "char[3]");
+      EXPECT_EQ(m.text, "PX4");
+      EXPECT_TRUE(std::isnan(m.value));
+      EXPECT_EQ(m.header.utime, 1000);  // the header's start: it was in the definitions
+      ++infos;
+    }
+  }
+  EXPECT_EQ(logs, 1);
+  EXPECT_EQ(drops, 1);
+  EXPECT_EQ(infos, 1);
+}
+
+}  // namespace
+}  // namespace driftlab::formats
