@@ -40,7 +40,8 @@ const std::set<std::string> kRecordChannels = {"ULOG_LOG",      "ULOG_PARAMS",  
 // ---- a ULog written here, record by record ----
 
 void put(std::vector<uint8_t>& b, uint64_t v, int bytes) {
-  for (int i = 0; i < bytes; ++i) b.push_back(static_cast<uint8_t>(v >> (8 * i)));
+  // Little-endian, zero past the value's 8 bytes (a wider field's padding).
+  for (int i = 0; i < bytes; ++i) b.push_back(i < 8 ? static_cast<uint8_t>(v >> (8 * i)) : uint8_t{0});
 }
 std::vector<uint8_t> f32(float v) {
   uint32_t u;
