@@ -220,17 +220,19 @@ std::string hole_text(const Gap& g, int64_t log_start) {
 }
 
 void judge(ChannelTiming& c, const Samples& s, int64_t log_start, bool mapped) {
-  auto add = [&](const char* level, const std::string& why) { add_reason(c, std::string(level) == "fault", why); };
+  auto add = [&](const char* level, const std::string& why, Cause cause) {
+    add_reason(c, std::string(level) == "fault", why, cause);
+  };
   char buf[512];
   if (c.malformed > 0) {
     std::snprintf(buf, sizeof(buf), "%lld messages do not decode as %s (first: %s)",
                   static_cast<long long>(c.malformed), c.type.c_str(), c.malformed_example.c_str());
-    add("fault", buf);
+    add("fault", buf, Cause::kData);
   }
   if (c.seq_gaps > 0) {
     std::snprintf(buf, sizeof(buf), "%lld messages missing in %zu gaps of seq", static_cast<long long>(c.seq_gaps),
                   c.gaps.size());
-    add("fault", buf);
+    add("fault", buf, Cause::kLoss);
   } else if (c.seq_counted && c.missing_by_period > 0) {
     // No sequence number travelled (ROS 2): the holes in the stamps' steady period, each with its time, the
     // longest first.
@@ -246,58 +248,58 @@ void judge(ChannelTiming& c, const Samples& s, int64_t log_start, bool mapped) {
                   "%s); no sequence number travelled, so they are told from the stamps",
                   static_cast<long long>(c.missing_by_period), holes.size(), holes.size() == 1 ? "" : "s",
                   c.expected_period_s * 1e3, list.c_str());
-    add("warn", buf);
+    add("warn", buf, Cause::kLoss);
   } else if (!c.has_header && c.missing_by_period > 0) {
     std::snprintf(buf, sizeof(buf), "about %lld messages missing from gaps longer than 1.5 periods",
                   static_cast<long long>(c.missing_by_period));
-    add("warn", buf);
+    add("warn", buf, Cause::kLoss);
   }
   if (c.duplicates > 0) {
     std::snprintf(buf, sizeof(buf), "%lld duplicated messages", static_cast<long long>(c.duplicates));
-    add("fault", buf);
+    add("fault", buf, Cause::kSymptom);
   }
   if (c.out_of_order_stamp > 0) {
     std::snprintf(buf, sizeof(buf), "%lld messages arrived after a newer one (reordered)",
                   static_cast<long long>(c.out_of_order_stamp));
-    add("fault", buf);
+    add("fault", buf, Cause::kSymptom);
   }
   if (c.zero_stamps > 0 && !s.is_static_tf) {  // tf2 takes static transforms as timeless
     std::snprintf(buf, sizeof(buf), "%lld messages are stamped 0: the source never set their stamps",
                   static_cast<long long>(c.zero_stamps));
-    add("fault", buf);
+    add("fault", buf, Cause::kClock);
   }
   // Frozen stamps: most messages carry the stamp of the one before (a stamp set once, or every observation given
   // one time, as MRPT 2.5's carmen2rawlog does). A few repeats are a fast source's clock resolution.
   if (c.count >= 10 && c.repeated_stamps * 2 > c.count) {
     std::snprintf(buf, sizeof(buf), "%lld of %lld messages repeat the stamp of the one before: the stamps are frozen",
                   static_cast<long long>(c.repeated_stamps), static_cast<long long>(c.count));
-    add("fault", buf);
+    add("fault", buf, Cause::kClock);
   }
   if (c.out_of_order_arrival > 0) {
     std::snprintf(buf, sizeof(buf), "log times step back %lld times: events were written out of time order",
                   static_cast<long long>(c.out_of_order_arrival));
-    add("warn", buf);
+    add("warn", buf, Cause::kSymptom);
   }
   // On a clock of its own, a stream's latency is against its peers' fastest delivery: ahead of that is not a
   // clock running ahead (which that clock's mapping absorbs).
   if (c.latency_valid && !mapped && c.latency_s.p50 < -0.001) {
     std::snprintf(buf, sizeof(buf), "stamps are %.1f ms ahead of arrival: the source clock runs ahead",
                   -c.latency_s.p50 * 1e3);
-    add("fault", buf);
+    add("fault", buf, Cause::kClock);
   }
   // A drift is reported when its confidence interval leaves out zero: jitter alone can tilt a line a little.
   if (c.clock_valid && std::abs(c.clock_drift_ppm) >= 25 &&
       (c.clock_drift_ci_ppm[0] > 0 || c.clock_drift_ci_ppm[1] < 0)) {
     std::snprintf(buf, sizeof(buf), "source clock drifts %.0f ppm (95%%: %.0f to %.0f; %.1f ms per minute)",
                   c.clock_drift_ppm, c.clock_drift_ci_ppm[0], c.clock_drift_ci_ppm[1], c.clock_drift_ppm * 60e-3);
-    add(std::abs(c.clock_drift_ppm) >= 100 ? "fault" : "warn", buf);
+    add(std::abs(c.clock_drift_ppm) >= 100 ? "fault" : "warn", buf, Cause::kClock);
   }
   if (c.bursty) {
     std::snprintf(buf, sizeof(buf),
                   "messages come in bursts of about %.0f, %.1f ms apart, %.2f Hz on average: "
                   "drops are told by seq only",
                   c.burst_size, c.burst_interval_s * 1e3, 1 / c.expected_period_s);
-    add("warn", buf);
+    add("warn", buf, Cause::kSymptom);
   }
   // Without a sequence number and without a period, drops cannot be told: said once for all such streams
   // (diagnose's text), not as a fault of each.
@@ -308,27 +310,75 @@ void judge(ChannelTiming& c, const Samples& s, int64_t log_start, bool mapped) {
         "%s",
         100 * c.regular_fraction, 1 / c.expected_period_s,
         c.has_header && !c.seq_counted ? "drops are told by seq only" : "drops cannot be told from the times");
-    add("warn", buf);
+    add("warn", buf, Cause::kSymptom);
   }
   if (c.late_stamps > 0) {
     std::snprintf(buf, sizeof(buf),
                   "%lld stamps late by up to %.3f s against the channel's usual latency (the "
                   "first %.1f s into the log): stamped after the fact or by another clock; left out of the clock fit",
                   static_cast<long long>(c.late_stamps), c.late_stamp_max_s, c.first_late_stamp_s);
-    add("warn", buf);
+    add("warn", buf, Cause::kSymptom);
   }
   if (c.latency_valid && c.latency_s.p99 > 0.005 && c.latency_s.p99 > 5 * std::max(c.latency_s.p50, 0.0005)) {
     std::snprintf(buf, sizeof(buf), "latency spikes: p99 %.1f ms against a median of %.1f ms", c.latency_s.p99 * 1e3,
                   c.latency_s.p50 * 1e3);
-    add("warn", buf);
+    add("warn", buf, Cause::kSymptom);
   }
 }
 
 }  // namespace
 
-void add_reason(ChannelTiming& c, bool fault, const std::string& why) {
+}  // namespace driftlab::analyzers::internal
+
+namespace driftlab::analyzers {
+
+const char* cause_name(Cause c) {
+  switch (c) {
+    case Cause::kClock: return "clock";
+    case Cause::kLate: return "late";
+    case Cause::kLoss: return "loss";
+    case Cause::kData: return "data";
+    case Cause::kSymptom: return "symptom";
+  }
+  return "symptom";
+}
+
+Cause cause_from_name(std::string_view name) {
+  for (const Cause c : {Cause::kClock, Cause::kLate, Cause::kLoss, Cause::kData}) {
+    if (name == cause_name(c)) return c;
+  }
+  return Cause::kSymptom;
+}
+
+int problem_rank(std::string_view verdict, Cause first_cause, size_t reasons) {
+  const int level = verdict == "fault" ? 2 : verdict == "warn" ? 1 : 0;
+  if (level == 0) return 0;
+  const int cause = static_cast<int>(Cause::kSymptom) - static_cast<int>(first_cause);  // 4: a clock, 0: a symptom
+  return level * 100000 + cause * 10000 + static_cast<int>(std::min<size_t>(reasons, 9999));
+}
+
+}  // namespace driftlab::analyzers
+
+namespace driftlab::analyzers::internal {
+
+void add_reason(ChannelTiming& c, bool fault, const std::string& why, Cause cause) {
   if (fault || c.verdict == "ok") c.verdict = fault ? "fault" : "warn";
   c.reasons.push_back(why);
+  c.causes.push_back(cause);
+}
+
+void order_reasons(ChannelTiming& c) {
+  std::vector<size_t> order(c.reasons.size());
+  for (size_t i = 0; i < order.size(); ++i) order[i] = i;
+  std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return c.causes[a] < c.causes[b]; });
+  std::vector<std::string> reasons;
+  std::vector<Cause> causes;
+  for (size_t i : order) {
+    reasons.push_back(std::move(c.reasons[i]));
+    causes.push_back(c.causes[i]);
+  }
+  c.reasons = std::move(reasons);
+  c.causes = std::move(causes);
 }
 
 ChannelTiming channel_timing(const std::string& name, Samples& s, int64_t log_start,

@@ -365,9 +365,9 @@ void judge_domains(Diagnosis& d) {
                     members[static_cast<size_t>(main_domain)],
                     members[static_cast<size_t>(main_domain)] == 1 ? "" : "s", own.description.c_str(),
                     main.description.c_str(), std::abs(off), hint.c_str());
-      add_reason(c, true, buf);
+      add_reason(c, true, buf, Cause::kClock);
     } else if (is_set_wrong(own)) {
-      add_reason(c, true, "stamped on " + own.description);
+      add_reason(c, true, "stamped on " + own.description, Cause::kClock);
     }
     // Latency on a clock of another epoch is against its peers: a stream arriving 10 ms (a 100 Hz period, more
     // than a scheduler's delay) after the fastest of them is late.
@@ -377,7 +377,7 @@ void judge_domains(Diagnosis& d) {
                     "arrives %.1f ms after the fastest streams on its clock (%s), by its fastest deliveries against "
                     "theirs: late, or stamped early",
                     c.peer_delay_s * 1e3, own.kind == "simulation" ? "simulation time" : own.description.c_str());
-      add_reason(c, false, buf);
+      add_reason(c, false, buf, Cause::kLate);
     }
   }
   // Transforms received older than one before them, per transform (the channel's messages interleave several
@@ -391,7 +391,7 @@ void judge_domains(Diagnosis& d) {
                     "%lld transforms '%s' -> '%s' arrived after a newer one of the same transform "
                     "(reordered)",
                     static_cast<long long>(e.out_of_order), e.parent.c_str(), e.child.c_str());
-      add_reason(c, true, buf);
+      add_reason(c, true, buf, Cause::kSymptom);
     }
   }
 }

@@ -2,10 +2,12 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <numeric>
 
 #include "analyzers/internal/channel_samples.h"
+#include "analyzers/internal/channel_timing.h"
 #include "core/time.h"
 
 namespace driftlab::analyzers::internal {
@@ -174,6 +176,39 @@ std::vector<CommandLoop> CommandLoopCheck::finish(int64_t start_utime) const {
     out.push_back(std::move(loop));
   }
   return out;
+}
+
+void judge_loop(const CommandLoop& l, std::vector<ChannelTiming>& channels) {
+  const auto c = std::find_if(channels.begin(), channels.end(),
+                              [&](const ChannelTiming& x) { return x.name == l.command_channel; });
+  if (c == channels.end()) return;
+  char buf[512];
+  // The tolerance: the time between commands (a streaming commander corrects against states the next commands have
+  // already moved on from: the loop lags and overshoots), and at most 50 ms (a plan sent once, as MoveIt does, is
+  // followed within a controller's few periods; the simulator's clean arm follows its commands 0.2 ms late).
+  constexpr double kMaxLoopDelay_s = 0.050;
+  const double tolerance = l.command_period_s > 0 ? std::min(l.command_period_s, kMaxLoopDelay_s) : kMaxLoopDelay_s;
+  if (l.delay_valid && l.delay_s > tolerance) {
+    const bool streaming = l.command_period_s > 0 && l.delay_s > l.command_period_s;
+    std::snprintf(
+        buf, sizeof(buf),
+        "the joints (%s) follow its commands %.0f ms late, more than %s: %s (a slow transport, or a "
+        "controller starting plans late)",
+        l.state_channel.c_str(), l.delay_s * 1e3,
+        streaming ? ("the " + std::to_string(std::lround(l.command_period_s * 1e3)) + " ms between commands").c_str()
+                  : "the 50 ms a controller takes",
+        streaming ? "the loop corrects against old states, so it lags and overshoots"
+                  : "the arm is where it was told to be that much later");
+    add_reason(*c, true, buf, Cause::kLate);
+  }
+  if (l.stale > 0) {
+    std::snprintf(buf, sizeof(buf),
+                  "%lld of %lld commands arrived after their plan was over (the first at %.1f s, the worst %.0f ms "
+                  "over): stamped on a clock behind, or held up",
+                  static_cast<long long>(l.stale), static_cast<long long>(l.commands), l.first_stale_s,
+                  l.stale_max_s * 1e3);
+    add_reason(*c, true, buf, Cause::kClock);
+  }
 }
 
 }  // namespace driftlab::analyzers::internal

@@ -14,6 +14,7 @@
 #include "analyzers/internal/command_loop.h"
 #include "analyzers/internal/stream_skew.h"
 #include "analyzers/internal/tf_check.h"
+#include "analyzers/internal/timesync_check.h"
 #include "core/log_format.h"
 #include "core/log_reader.h"
 #include "driftlab/channel_source_t.hpp"
@@ -21,6 +22,7 @@
 #include "driftlab/joint_trajectory_t.hpp"
 #include "driftlab/physics_step_t.hpp"
 #include "driftlab/tf_t.hpp"
+#include "driftlab/timesync_status_t.hpp"
 #include "lcmtypes/seq_origin.h"
 #include "lcmtypes/stream_header.h"
 #include "lcmtypes/type_registry.h"
@@ -36,6 +38,8 @@ Result<Diagnosis> diagnose(const std::string& log, const DiagnoseOptions& option
   std::map<std::string, internal::Samples, std::less<>> channels;
   internal::TfCheck tf;
   internal::CommandLoopCheck loops;
+  internal::TimesyncCheck timesync;
+  const int64_t timesync_hash = driftlab::timesync_status_t::getHash();
   const int64_t tf_hash = driftlab::tf_t::getHash();
   const int64_t trajectory_hash = driftlab::joint_trajectory_t::getHash();
   const int64_t joint_state_hash = driftlab::joint_state_t::getHash();
@@ -76,6 +80,7 @@ Result<Diagnosis> diagnose(const std::string& log, const DiagnoseOptions& option
     if (fp == tf_hash) tf.add_tf(std::string(last_name), e.data, e.utime, internal::is_static_tf_channel(last_name));
     if (fp == trajectory_hash) loops.add_command(std::string(last_name), e.data, e.utime);
     if (fp == joint_state_hash) loops.add_state(std::string(last_name), e.data);
+    if (fp == timesync_hash) timesync.add(std::string(last_name), e.data);
     if (fp == source_hash) {
       driftlab::channel_source_t m;
       if (lcmtypes::decode(e.data, m)) sources[m.channel] = std::move(m);
@@ -151,6 +156,9 @@ Result<Diagnosis> diagnose(const std::string& log, const DiagnoseOptions& option
   // Skew between every two streams that observe the yaw rate: IMU gyro, wheel odometry, poses, scans.
   d.pairs = internal::stream_pairs(channels, d.start_utime, d.end_utime, options);
   d.command_loops = loops.finish(d.start_utime);
+  for (const CommandLoop& l : d.command_loops) internal::judge_loop(l, d.channels);
+  d.timesync = timesync.finish(d.start_utime, d.channels);
+  for (auto& c : d.channels) internal::order_reasons(c);
   for (auto& [name, p] : physics) d.physics.push_back(std::move(p));
   return d;
 }

@@ -9,6 +9,7 @@
 #include <limits>
 #include <span>
 #include <string>
+#include <string_view>
 #include <utility>
 #include <vector>
 
@@ -28,6 +29,19 @@ struct Gap {
   /// otherwise
   int64_t start_arrival = 0, end_arrival = 0;
 };
+
+/// What a reason says is wrong, cause before symptom: a clock on the wrong time base or running ahead explains the
+/// reordering and rejections it leads to; a late stream or loop explains the stale data; loss explains holes; data
+/// that does not decode; and the symptoms (reordering, bursts, spikes) last. A channel's reasons are listed in this
+/// order, and the worst stream is the one whose first reason ranks highest (docs/diagnosis.md, "The headline").
+enum class Cause : int8_t { kClock, kLate, kLoss, kData, kSymptom };
+/// "clock", "late", "loss", "data", "symptom": the JSON's words.
+const char* cause_name(Cause c);
+/// The Cause a word names (a symptom for any other word).
+Cause cause_from_name(std::string_view name);
+/// How bad a stream's findings are, to name the worst stream first: faults before warnings, then the deeper first
+/// cause, then the more reasons; 0 for a stream that is ok.
+int problem_rank(std::string_view verdict, Cause first_cause, size_t reasons);
 
 struct ChannelTiming {
   std::string name;
@@ -75,7 +89,8 @@ struct ChannelTiming {
   double late_stamp_max_s = 0;      ///< how much later than the median latency the latest of them is [s]
   Distribution transport_s;         ///< latency above the fitted clock line [s]
   std::string verdict = "ok";       ///< ok, warn or fault
-  std::vector<std::string> reasons; ///< why, in words
+  std::vector<std::string> reasons;  ///< why, in words, cause before symptom
+  std::vector<Cause> causes;         ///< what each reason says is wrong (parallel to reasons)
 };
 
 /// A clock that the stamps of some streams share (docs/diagnosis.md, "Clock domains"): the recorder's own (the
@@ -201,6 +216,22 @@ struct PhysicsTiming {
   double wall_step_max_s = 0;  ///< the longest an update took on the wall clock [s]
 };
 
+/// A time synchronisation between two computers (driftlab.timesync_status_t: MAVROS's companion <-> flight
+/// controller): how long its exchanges took, where its offset estimate went, and how often it started over.
+struct TimesyncTiming {
+  std::string channel;
+  int64_t messages = 0;
+  Distribution round_trip_s;  ///< the exchanges' round trips [s]
+  double offset_first_s = 0;  ///< the estimated offset (remote - local) at the first message [s]
+  double offset_last_s = 0;   ///< and at the last [s]
+  double offset_min_s = 0, offset_max_s = 0;
+  /// Steps of the estimated offset over kResyncStep_s from one message to the next: the filter started over (a
+  /// remote clock that jumped or a link that stalled); the first ones' times from the log's start [s]
+  int64_t resyncs = 0;
+  std::vector<double> resync_at_s;
+  Distribution residual_s;  ///< |observed - estimated offset|: how much each exchange disagrees with the estimate [s]
+};
+
 struct Diagnosis {
   std::string log;
   int64_t start_utime = 0, end_utime = 0;
@@ -210,6 +241,7 @@ struct Diagnosis {
   TfDiagnosis tf;
   std::vector<CommandLoop> command_loops;
   std::vector<PhysicsTiming> physics;  ///< per channel of driftlab.physics_step_t
+  std::vector<TimesyncTiming> timesync;  ///< per channel of driftlab.timesync_status_t
   uint64_t log_problems = 0;  ///< corruption met while reading
 };
 

@@ -114,7 +114,18 @@ std::vector<std::string> report_lines(const Diagnosis& d, std::vector<std::strin
         c.clock_valid ? (std::to_string(static_cast<int>(std::lround(c.clock_drift_ppm))) + " ppm").c_str() : "-",
         clock.c_str());
     lines.push_back(buf);
-    for (const auto& r : c.reasons) problems->push_back(c.name + ": " + r);
+  }
+  // The problems worst stream first (docs/diagnosis.md, "The headline"), each stream's cause before its symptoms.
+  std::vector<const analyzers::ChannelTiming*> worst_first;
+  for (const auto& c : d.channels) worst_first.push_back(&c);
+  auto rank = [](const analyzers::ChannelTiming* c) {
+    return analyzers::problem_rank(c->verdict, c->causes.empty() ? analyzers::Cause::kSymptom : c->causes[0],
+                                   c->reasons.size());
+  };
+  std::stable_sort(worst_first.begin(), worst_first.end(),
+                   [&](const auto* a, const auto* b) { return rank(a) > rank(b); });
+  for (const auto* c : worst_first) {
+    for (const auto& r : c->reasons) problems->push_back(c->name + ": " + r);
   }
   // Streams without a sequence number or a steady period: their drops cannot be told, said once.
   std::string untold;
@@ -203,6 +214,19 @@ std::vector<std::string> report_lines(const Diagnosis& d, std::vector<std::strin
                   p->real_time_factor_mean * 100);
     problems->insert(problems->begin(), buf);
   }
+  if (!d.timesync.empty()) {
+    lines.push_back("");
+    lines.push_back("time sync (the offset between two computers' clocks, as the link estimated it):");
+    for (const auto& t : d.timesync) {
+      std::snprintf(buf, sizeof(buf),
+                    "  %s: %lld estimates, round trip %.1f ms (p50; p99 %.1f ms), offset %+.3f s to %+.3f s, %lld "
+                    "restart%s",
+                    t.channel.c_str(), static_cast<long long>(t.messages), t.round_trip_s.p50 * 1e3,
+                    t.round_trip_s.p99 * 1e3, t.offset_min_s, t.offset_max_s, static_cast<long long>(t.resyncs),
+                    t.resyncs == 1 ? "" : "s");
+      lines.push_back(buf);
+    }
+  }
   bool loops_header = false;
   for (const auto& l : d.command_loops) {
     if (l.state_channel.empty() && l.stale == 0) continue;
@@ -224,23 +248,6 @@ std::vector<std::string> report_lines(const Diagnosis& d, std::vector<std::strin
                     l.confidence);
     }
     lines.push_back(buf);
-    // A loop whose commands take effect more than a command period late corrects against states the next
-    // commands have already moved on from: it lags and overshoots.
-    if (l.delay_valid && l.command_period_s > 0 && l.delay_s > l.command_period_s) {
-      std::snprintf(buf, sizeof(buf),
-                    "%s: the joints follow the commands %.0f ms late, more than the %.0f ms between "
-                    "commands (a slow transport or a controller starting plans late)",
-                    l.command_channel.c_str(), l.delay_s * 1e3, l.command_period_s * 1e3);
-      problems->push_back(buf);
-    }
-    if (l.stale > 0) {
-      std::snprintf(buf, sizeof(buf),
-                    "%s: %lld of %lld commands arrived after their plan was over (the first at %.1f s, "
-                    "the worst %.0f ms over): stamped on a clock behind, or held up",
-                    l.command_channel.c_str(), static_cast<long long>(l.stale), static_cast<long long>(l.commands),
-                    l.first_stale_s, l.stale_max_s * 1e3);
-      problems->push_back(buf);
-    }
   }
   return lines;
 }

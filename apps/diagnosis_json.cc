@@ -26,6 +26,8 @@ nlohmann::json to_json(const analyzers::Diagnosis& d) {
         gaps.back()["end_arrival_utime"] = g.end_arrival;
       }
     }
+    nlohmann::json causes = nlohmann::json::array();
+    for (const auto cause : c.causes) causes.push_back(analyzers::cause_name(cause));
     channels.push_back(
         {{"name", c.name},
          {"type", c.type.empty() ? nlohmann::json() : nlohmann::json(c.type)},
@@ -61,7 +63,8 @@ nlohmann::json to_json(const analyzers::Diagnosis& d) {
                                  : nlohmann::json()},
          {"transport_s", c.clock_valid ? distribution_json(c.transport_s) : nlohmann::json()},
          {"verdict", c.verdict},
-         {"reasons", c.reasons}});
+         {"reasons", c.reasons},
+         {"causes", causes}});
   }
   nlohmann::json pairs = nlohmann::json::array();
   for (const auto& p : d.pairs) {
@@ -117,6 +120,19 @@ nlohmann::json to_json(const analyzers::Diagnosis& d) {
                        {"sim_step_s", p.sim_step_s},
                        {"wall_step_max_s", p.wall_step_max_s}});
   }
+  nlohmann::json timesync = nlohmann::json::array();
+  for (const auto& t : d.timesync) {
+    timesync.push_back({{"channel", t.channel},
+                        {"messages", t.messages},
+                        {"round_trip_s", distribution_json(t.round_trip_s)},
+                        {"offset_first_s", t.offset_first_s},
+                        {"offset_last_s", t.offset_last_s},
+                        {"offset_min_s", t.offset_min_s},
+                        {"offset_max_s", t.offset_max_s},
+                        {"resyncs", t.resyncs},
+                        {"resync_at_s", t.resync_at_s},
+                        {"residual_s", distribution_json(t.residual_s)}});
+  }
   nlohmann::json domains = nlohmann::json::array();
   for (const auto& x : d.domains) {
     domains.push_back({{"kind", x.kind},
@@ -154,7 +170,8 @@ nlohmann::json to_json(const analyzers::Diagnosis& d) {
             {"stamps", tf_stamps},
             {"problems", d.tf.problems}}},
           {"command_loops", loops},
-          {"physics", physics}};
+          {"physics", physics},
+          {"timesync", timesync}};
 }
 
 nlohmann::json diagnosis_summary(const nlohmann::json& diagnosis) {
@@ -165,15 +182,12 @@ nlohmann::json diagnosis_summary(const nlohmann::json& diagnosis) {
     return domain.is_number() && domain.get<size_t>() < domains.size() &&
            domains[domain.get<size_t>()].value("mapped", false);
   };
-  auto wrong_clock = [&](const nlohmann::json& c) {
-    const auto& clock = c.at("clock");
-    return clock.is_object() && ((!on_mapped_clock(c) && analyzers::clock_ahead(clock.at("offset_s").get<double>())) ||
-                                 analyzers::clock_drifts(clock.at("drift_ppm").get<double>()));
-  };
   auto rank = [&](const nlohmann::json& c) {
-    const std::string v = c.at("verdict");
-    const int level = v == "fault" ? 2 : v == "warn" ? 1 : 0;
-    return level == 0 ? 0 : level * 100000 + (wrong_clock(c) ? 10000 : 0) + static_cast<int>(c.at("reasons").size());
+    const auto& causes = c.value("causes", nlohmann::json::array());
+    return analyzers::problem_rank(
+        c.at("verdict").get<std::string>(),
+        causes.empty() ? analyzers::Cause::kSymptom : analyzers::cause_from_name(causes[0].get<std::string>()),
+        c.at("reasons").size());
   };
   const nlohmann::json* worst = nullptr;
   nlohmann::json ahead = nlohmann::json::object(), drops = nlohmann::json::object();
@@ -188,12 +202,14 @@ nlohmann::json diagnosis_summary(const nlohmann::json& diagnosis) {
     const int64_t n = d.at("seq_gaps").is_number() ? d.at("seq_gaps").get<int64_t>() : d.at("missing_by_period").get<int64_t>();
     if (n > 0) drops[name] = n;
   }
-  return {{"worst_stream", worst == nullptr ? nlohmann::json()
-                                            : nlohmann::json{{"name", worst->at("name")},
-                                                             {"verdict", worst->at("verdict")},
-                                                             {"reasons", worst->at("reasons")}}},
-          {"clocks_ahead_s", ahead},
-          {"drops", drops}};
+  return {
+      {"worst_stream", worst == nullptr ? nlohmann::json()
+                                        : nlohmann::json{{"name", worst->at("name")},
+                                                         {"verdict", worst->at("verdict")},
+                                                         {"reasons", worst->at("reasons")},
+                                                         {"causes", worst->value("causes", nlohmann::json::array())}}},
+      {"clocks_ahead_s", ahead},
+      {"drops", drops}};
 }
 
 }  // namespace driftlab::apps

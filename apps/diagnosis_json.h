@@ -11,8 +11,9 @@ namespace driftlab::apps {
 nlohmann::json to_json(const analyzers::Diagnosis& d);
 
 /// The headline of a diagnosis (as to_json gives it), shared by the report page and the demo's summary:
-/// `worst_stream` ({name, verdict, reasons}, or null when nothing was flagged: faults before warnings, among them
-/// a wrong clock first since it touches every message, then the most reasons), `clocks_ahead_s` (channel -> offset,
+/// `worst_stream` ({name, verdict, reasons, causes}, or null when nothing was flagged: faults before warnings, among
+/// them the deepest first cause: a clock, then a late stream or loop, loss, undecodable data, a symptom; then the
+/// most reasons), `clocks_ahead_s` (channel -> offset,
 /// clocks ahead by 1 ms or more; one behind cannot be told from latency in one log) and `drops` (channel -> count).
 /// Throws nlohmann::json::exception when the JSON is not a diagnosis.
 nlohmann::json diagnosis_summary(const nlohmann::json& diagnosis);

@@ -29,6 +29,9 @@ void print_summary(const formats::ImportSummary& s, std::string from, const std:
                 t.driftlab_type.c_str(), thousands(t.messages).c_str());
     if (t.malformed) std::printf("  (%s malformed, left out)", thousands(t.malformed).c_str());
     if (t.driftlab_type == "driftlab.foreign_message_t") std::printf("  (no mapping: carried as recorded)");
+    if (t.driftlab_type == "driftlab.stamped_foreign_message_t") {
+      std::printf("  (no mapping: carried as recorded, its header read)");
+    }
     std::printf("\n");
   }
   for (const auto& [name, n] : s.skipped) {

@@ -2,9 +2,10 @@
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <cstdio>
 #include <iostream>
-#include <algorithm>
+#include <map>
 #include <memory>
 #include <optional>
 
@@ -16,7 +17,9 @@
 #include "core/log_index.h"
 #include "core/log_reader.h"
 #include "core/time.h"
+#include "driftlab/channel_source_t.hpp"
 #include "driftlab/recorder_stats_t.hpp"
+#include "lcmtypes/seq_origin.h"
 #include "lcmtypes/type_registry.h"
 #include "lcmtypes/validate.h"
 
@@ -41,12 +44,38 @@ std::string type_of(const ChannelSummary& c) {
   return c.mixed_fingerprints ? type + " (mixed)" : type;
 }
 
-nlohmann::json to_json(const std::string& path, const LogSummary& s) {
+/// Each channel's type in the recording it was imported from (channel -> "sensor_msgs/msg/Imu"), from what the
+/// import wrote on CHANNEL_SOURCES; empty for a log driftlab recorded.
+using SourceTypes = std::map<std::string, std::string, std::less<>>;
+
+SourceTypes source_types(const std::string& path, const LogSummary& s) {
+  SourceTypes out;
+  const auto it = std::find_if(s.channels.begin(), s.channels.end(),
+                               [&](const auto& c) { return c.name == lcmtypes::kChannelSources; });
+  if (it == s.channels.end()) return out;
+  auto reader = LogReader::open(path, {.channels = std::string(lcmtypes::kChannelSources)});
+  if (!reader || !reader->seek(it->first_utime).ok()) return out;
+  Event e;
+  for (int64_t n = 0; n < it->count && reader->next(e); ++n) {
+    driftlab::channel_source_t m;
+    if (lcmtypes::decode(e.data, m)) out[m.channel] = m.source_type;
+  }
+  return out;
+}
+
+std::string source_type_of(const SourceTypes& sources, const std::string& channel) {
+  const auto it = sources.find(channel);
+  return it == sources.end() ? std::string() : it->second;
+}
+
+nlohmann::json to_json(const std::string& path, const LogSummary& s, const SourceTypes& sources) {
   nlohmann::json channels = nlohmann::json::array();
   for (const auto& c : s.channels) {
     const char* type = lcmtypes::type_name(c.fingerprint);
+    const std::string source = source_type_of(sources, c.name);
     channels.push_back({{"name", c.name},
                         {"type", type != nullptr && !c.mixed_fingerprints ? nlohmann::json(type) : nlohmann::json()},
+                        {"source_type", source.empty() ? nlohmann::json() : nlohmann::json(source)},
                         {"count", c.count},
                         {"bytes", c.bytes},
                         {"rate_hz", rate_hz(c)},
@@ -71,23 +100,30 @@ nlohmann::json to_json(const std::string& path, const LogSummary& s) {
           {"problems_total", s.problems_total}};
 }
 
-void print_table(const std::string& path, const LogSummary& s, int max_problems) {
+void print_table(const std::string& path, const LogSummary& s, const SourceTypes& sources, int max_problems) {
   std::printf("%s: %s, %s events, %.3f s\n", path.c_str(), human_bytes(static_cast<double>(s.file_bytes)).c_str(),
               thousands(s.events).c_str(), (Time::from_us(s.end_utime) - Time::from_us(s.start_utime)).seconds());
   if (s.events > 0) std::printf("from %s to %s\n", format_utime(s.start_utime).c_str(), format_utime(s.end_utime).c_str());
-  size_t name_w = 7, type_w = 4;
+  // An imported log's channels also say their type in the recording (the ROS or PX4 type).
+  size_t name_w = 7, type_w = 4, source_w = sources.empty() ? 0 : 11;
   for (const auto& c : s.channels) {
     name_w = std::max(name_w, c.name.size());
     type_w = std::max(type_w, type_of(c).size());
+    if (!sources.empty()) source_w = std::max(source_w, source_type_of(sources, c.name).size());
   }
+  auto source_column = [&](const std::string& text) {
+    return source_w == 0 ? std::string() : "  " + text + std::string(source_w - std::min(source_w, text.size()), ' ');
+  };
   if (!s.channels.empty()) {
-    std::printf("\n%-*s  %-*s  %10s  %10s  %9s  %9s  %9s\n", static_cast<int>(name_w), "channel",
-                static_cast<int>(type_w), "type", "count", "bytes", "rate Hz", "first s", "last s");
+    std::printf("\n%-*s  %-*s%s  %10s  %10s  %9s  %9s  %9s\n", static_cast<int>(name_w), "channel",
+                static_cast<int>(type_w), "type", source_column("source type").c_str(), "count", "bytes", "rate Hz",
+                "first s", "last s");
   }
   for (const auto& c : s.channels) {
-    std::printf("%-*s  %-*s  %10s  %10s  %9.2f  %9.3f  %9.3f\n", static_cast<int>(name_w), c.name.c_str(),
-                static_cast<int>(type_w), type_of(c).c_str(), thousands(c.count).c_str(),
-                human_bytes(static_cast<double>(c.bytes)).c_str(), rate_hz(c),
+    const std::string source = source_type_of(sources, c.name);
+    std::printf("%-*s  %-*s%s  %10s  %10s  %9.2f  %9.3f  %9.3f\n", static_cast<int>(name_w), c.name.c_str(),
+                static_cast<int>(type_w), type_of(c).c_str(), source_column(source.empty() ? "-" : source).c_str(),
+                thousands(c.count).c_str(), human_bytes(static_cast<double>(c.bytes)).c_str(), rate_hz(c),
                 (Time::from_us(c.first_utime) - Time::from_us(s.start_utime)).seconds(),
                 (Time::from_us(c.last_utime) - Time::from_us(s.start_utime)).seconds());
   }
@@ -160,12 +196,13 @@ int run_info(const InfoOptions& o) {
     return fail(not_an_event_log(o.log, s.file_bytes));
   }
   const auto recorded = recorder_stats(o.log, s);
+  const SourceTypes sources = source_types(o.log, s);
   if (o.json) {
-    auto j = to_json(o.log, s);
+    auto j = to_json(o.log, s, sources);
     if (recorded) j["recorder"] = recorder_json(*recorded);
     std::cout << j.dump(2) << "\n";
   } else {
-    print_table(o.log, s, o.max_problems);
+    print_table(o.log, s, sources, o.max_problems);
     if (recorded) {
       const auto& r = *recorded;
       std::printf("\nrecorded by driftlab record: %s messages received from %d sender%s; lost %s (sequence gaps), "

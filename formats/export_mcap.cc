@@ -26,10 +26,12 @@
 #include "driftlab/odometry_t.hpp"
 #include "driftlab/point_cloud_t.hpp"
 #include "driftlab/pose_t.hpp"
+#include "driftlab/stamped_foreign_message_t.hpp"
 #include "driftlab/tf_t.hpp"
 #include "driftlab/velocity_command_t.hpp"
 #include "formats/ros2_bag.h"
 #include "lcmtypes/schema.h"
+#include "lcmtypes/seq_origin.h"
 #include "lcmtypes/stream_header.h"
 #include "lcmtypes/type_registry.h"
 #include "lcmtypes/validate.h"
@@ -463,7 +465,7 @@ class Exporter {
       if (lcmtypes::decode(e.data, s)) foreign_[s.channel] = {s.type, s.encoding, s.definition};
       return {};
     }
-    if (e.channel == "CHANNEL_SOURCES") {  // an import's word on a channel: kept in its MCAP channel's metadata
+    if (e.channel == lcmtypes::kChannelSources) {  // an import's word on a channel: kept in its MCAP channel's metadata
       channel_source_t s;
       if (lcmtypes::decode(e.data, s)) sources_[s.channel] = std::move(s);
       return {};
@@ -485,16 +487,22 @@ class Exporter {
       if (ok) seq = m.header.seq;
       return ok;
     };
+    // Carried as recorded: written back as they came, with their schema.
+    auto carried = [&](const auto& f) {
+      auto it = foreign_.find(std::string(e.channel));
+      const std::string definition = it != foreign_.end() ? it->second.definition : "";
+      const std::string schema_kind = f.encoding == "cdr" ? "ros2msg" : f.encoding == "ros1" ? "ros1msg" : "";
+      return write(e, f.type, f.encoding, schema_kind, definition, {f.data.data(), f.data.size()}, log_ns, -1, type);
+    };
     if (t == "driftlab.foreign_message_t") {
       foreign_message_t f;
-      if (!(ok = lcmtypes::decode(e.data, f))) return malformed(e);
-      payload = {f.data.data(), f.data.size()};
-      ros_type = f.type;
-      encoding = f.encoding;
-      auto it = foreign_.find(std::string(e.channel));
-      schema = it != foreign_.end() ? it->second.definition : "";
-      schema_encoding = encoding == "cdr" ? "ros2msg" : encoding == "ros1" ? "ros1msg" : "";
-      return write(e, ros_type, encoding, schema_encoding, schema, payload, log_ns, -1, type);
+      if (!lcmtypes::decode(e.data, f)) return malformed(e);
+      return carried(f);
+    }
+    if (t == "driftlab.stamped_foreign_message_t") {
+      stamped_foreign_message_t f;
+      if (!lcmtypes::decode(e.data, f)) return malformed(e);
+      return carried(f);
     }
     if (t == "driftlab.laser_scan_t") {
       laser_scan_t m;

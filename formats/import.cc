@@ -23,6 +23,7 @@
 #include "driftlab/foreign_schema_t.hpp"
 #include "driftlab/log_text_t.hpp"
 #include "driftlab/parameter_t.hpp"
+#include "driftlab/stamped_foreign_message_t.hpp"
 #include "formats/carmen.h"
 #include "formats/compression.h"
 #include "formats/mcap.h"
@@ -41,7 +42,6 @@ namespace {
 using lcmtypes::encode;
 
 constexpr char kSchemaChannel[] = "FOREIGN_SCHEMAS";
-constexpr char kSourcesChannel[] = "CHANNEL_SOURCES";
 
 /// A string as an LCM message holds it: up to its first NUL (LCM encodes strings so).
 std::string lcm_text(std::string_view v) { return std::string(v.substr(0, v.find('\0'))); }
@@ -164,7 +164,7 @@ class Importer {
     s.channel = lcm_text(channel);
     s.source_type = lcm_text(source_type);
     s.seq_origin = static_cast<int8_t>(origin);
-    return write(utime, kSourcesChannel, encode(s));
+    return write(utime, lcmtypes::kChannelSources, encode(s));
   }
 
   /// Converts one ROS message: a mapped type onto its driftlab type, any other carried as foreign_message_t after
@@ -204,8 +204,8 @@ class Importer {
     const Serialization ser = m.encoding == "ros1" ? Serialization::kRos1 : Serialization::kCdr;
     const bool ros = m.encoding == "ros1" || m.encoding == "cdr";
     const char* mapped = ros ? driftlab_type_for(m.type) : nullptr;
-    TopicCount& t = topic(m.topic, m.type, mapped ? mapped : "driftlab.foreign_message_t");
     if (mapped) {
+      TopicCount& t = topic(m.topic, m.type, mapped);
       auto converted = convert_ros_message(m.type, ser, payload, m.arrival_us, fallback_seq, &error_, &reuse_);
       if (!converted) {
         ++t.malformed;
@@ -233,6 +233,11 @@ class Importer {
         auto d = RosDefinition::parse(m.type, m.definition, ser);
         if (d) {
           st.definition = std::make_unique<RosDefinition>(std::move(*d));
+          // A type that starts with a std_msgs/Header is carried with its header read out (any stamped message).
+          const auto& types = st.definition->types();
+          const auto& fields = types[0].fields;
+          st.stamped = !fields.empty() && fields[0].complex >= 0 && fields[0].array == RosField::Array::kNone &&
+                       types[static_cast<size_t>(fields[0].complex)].name == "std_msgs/Header";
         } else {
           problem(file + ": " + std::string(m.topic) + " " + m.where.text() + ": the schema of " +
                   std::string(m.type) + " does not parse (" + d.error().message +
@@ -240,6 +245,8 @@ class Importer {
         }
       }
     }
+    TopicCount& t =
+        topic(m.topic, m.type, st.stamped ? "driftlab.stamped_foreign_message_t" : "driftlab.foreign_message_t");
     if (st.definition) {
       if (std::string why = st.definition->check(payload); !why.empty()) {
         ++t.malformed;
@@ -248,27 +255,43 @@ class Importer {
         return;
       }
     }
-    auto text = lcm_text;
-    if (!describe(
-            m.arrival_us, m.topic, m.source_type.empty() ? m.type : m.source_type,
-            m.seq_origin.value_or(st.sequences ? lcmtypes::SeqOrigin::kTransport : lcmtypes::SeqOrigin::kCounted))) {
+    header_t header;
+    bool has_seq = false;
+    // A checked message holds its header; read_leading_header cannot fail on one.
+    if (st.stamped) read_leading_header(ser, payload, fallback_seq, &header, &has_seq);
+    using lcmtypes::SeqOrigin;
+    const SeqOrigin origin = has_seq ? SeqOrigin::kSource : st.sequences ? SeqOrigin::kTransport : SeqOrigin::kCounted;
+    if (!describe(m.arrival_us, m.topic, m.source_type.empty() ? m.type : m.source_type,
+                  m.seq_origin.value_or(origin))) {
       return;
     }
     if (!st.schema_written) {
       foreign_schema_t s;
       s.channel = std::string(m.topic);
-      s.type = text(m.type);
-      s.encoding = text(m.encoding);
-      s.definition = text(m.definition);
+      s.type = lcm_text(m.type);
+      s.encoding = lcm_text(m.encoding);
+      s.definition = lcm_text(m.definition);
       if (!write(m.arrival_us, kSchemaChannel, encode(s))) return;
       st.schema_written = true;
     }
-    foreign_message_t f;
-    f.type = text(m.type);
-    f.encoding = text(m.encoding);
-    f.data.assign(payload.begin(), payload.end());
-    f.size = static_cast<int32_t>(f.data.size());
-    if (write(m.arrival_us, m.topic, encode(f))) {
+    bool written = false;
+    if (st.stamped) {
+      stamped_foreign_message_t f;
+      f.header = std::move(header);
+      f.type = lcm_text(m.type);
+      f.encoding = lcm_text(m.encoding);
+      f.data.assign(payload.begin(), payload.end());
+      f.size = static_cast<int32_t>(f.data.size());
+      written = write(m.arrival_us, m.topic, encode(f));
+    } else {
+      foreign_message_t f;
+      f.type = lcm_text(m.type);
+      f.encoding = lcm_text(m.encoding);
+      f.data.assign(payload.begin(), payload.end());
+      f.size = static_cast<int32_t>(f.data.size());
+      written = write(m.arrival_us, m.topic, encode(f));
+    }
+    if (written) {
       ++t.messages;
       ++st.count;
     }
@@ -281,6 +304,7 @@ class Importer {
     uint32_t last_sequence = 0;
     int64_t sequence_high = 0;
     bool definition_checked = false;
+    bool stamped = false;  // its definition starts with a std_msgs/Header: carried as stamped_foreign_message_t
     bool schema_written = false;
     std::unique_ptr<RosDefinition> definition;
   };

@@ -4,9 +4,9 @@
 // (ROS 1 record time, rosbag2's recv_timestamp, MCAP's log_time, CARMEN's logger_timestamp, a ULog message's
 // timestamp) as the event time. Topics keep their names as
 // channels ("/scan"); messages of types without a mapping are carried as driftlab.foreign_message_t with their
-// definition on FOREIGN_SCHEMAS. A recording split into several files is one recording: give its folder (ROS 2)
-// or all of its files.
-// Thread-safety: plain functions.
+// definition on FOREIGN_SCHEMAS (as driftlab.stamped_foreign_message_t, their header read out, when the definition
+// starts with a std_msgs/Header, so that every stamped message gets the timing analysis). A recording split into
+// several files is one recording: give its folder (ROS 2) or all of its files. Thread-safety: plain functions.
 #pragma once
 
 #include <cstdint>
@@ -46,7 +46,8 @@ bool is_importable(Format f);
 struct TopicCount {
   std::string channel;
   std::string source_type;    ///< the type in the source file ("sensor_msgs/LaserScan", "FLASER")
-  std::string driftlab_type;  ///< "driftlab.laser_scan_t", or "driftlab.foreign_message_t" when not mapped
+  std::string driftlab_type;  ///< "driftlab.laser_scan_t", or "driftlab.foreign_message_t" (or
+                              ///< stamped_foreign_message_t) when not mapped
   int64_t messages = 0;       ///< written
   int64_t malformed = 0;      ///< not written: the payload does not hold a message of its type
 };

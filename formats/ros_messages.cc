@@ -15,12 +15,14 @@
 #include "driftlab/image_t.hpp"
 #include "driftlab/imu_t.hpp"
 #include "driftlab/joint_state_t.hpp"
+#include "driftlab/joint_trajectory_t.hpp"
 #include "driftlab/laser_scan_t.hpp"
 #include "driftlab/magnetometer_t.hpp"
 #include "driftlab/odometry_t.hpp"
 #include "driftlab/point_cloud_t.hpp"
 #include "driftlab/pose_t.hpp"
 #include "driftlab/tf_t.hpp"
+#include "driftlab/timesync_status_t.hpp"
 #include "driftlab/velocity_command_t.hpp"
 #include "formats/internal/ros_reader.h"
 #include "lcmtypes/encode.h"
@@ -215,6 +217,93 @@ std::vector<uint8_t> joint_state(Reader& r, Serialization s, int64_t, int64_t* s
   values(m.velocity, "velocity");
   values(m.effort, "effort");
   m.njoints = static_cast<int32_t>(n);
+  *stamp = m.header.utime;
+  return encode(m);
+}
+
+/// trajectory_msgs/JointTrajectory after its header: the joints, then each point's positions and velocities
+/// (accelerations and efforts read past: driftlab's points hold neither) and its time from the start (a duration:
+/// ROS 1 int32 nsec, ROS 2 uint32 nanosec; both read as the sign-agnostic sum).
+void trajectory_body(Reader& r, joint_trajectory_t& m) {
+  const uint32_t n = r.count(4);
+  m.joint_names.resize(n);
+  for (auto& name : m.joint_names) name = lcm_string(r);
+  m.njoints = static_cast<int32_t>(n);
+  const uint32_t points = r.count(4 * 4 + 8);  // four empty sequences and a duration
+  m.points.resize(points);
+  for (uint32_t i = 0; i < points && r.ok(); ++i) {
+    joint_trajectory_point_t& p = m.points[i];
+    auto values = [&](std::vector<double>* out, const char* what, bool may_be_empty) {
+      const uint32_t k = r.count(8);
+      if (!(k == n || (may_be_empty && k == 0))) {
+        r.fail("point " + std::to_string(i) + " has " + std::to_string(k) + " " + what + " for " + std::to_string(n) +
+               " joints");
+      }
+      for (uint32_t j = 0; j < k && r.ok(); ++j) {
+        const double v = r.get<double>();
+        if (out != nullptr) out->push_back(v);
+      }
+    };
+    values(&p.positions, "positions", false);
+    values(&p.velocities, "velocities", true);
+    values(nullptr, "accelerations", true);
+    values(nullptr, "efforts", true);
+    const int64_t sec = r.get<int32_t>();
+    const int64_t nsec = r.get<uint32_t>();
+    p.time_from_start_us = sec * 1'000'000 + nsec / 1000;
+    p.npositions = static_cast<int32_t>(p.positions.size());
+    p.nvelocities = static_cast<int32_t>(p.velocities.size());
+  }
+  m.npoints = static_cast<int32_t>(m.points.size());
+}
+
+/// trajectory_msgs/JointTrajectory. A zero stamp tells a controller to start the trajectory when it arrives
+/// (ROS's joint trajectory controllers): header.utime is then its arrival, as driftlab's joint_trajectory_t says.
+std::vector<uint8_t> joint_trajectory(Reader& r, Serialization s, int64_t unstamped, int64_t* stamp, bool* has_seq) {
+  joint_trajectory_t m;
+  header(r, s, m.header, has_seq);
+  if (m.header.utime == 0) m.header.utime = unstamped;
+  trajectory_body(r, m);
+  *stamp = m.header.utime;
+  return encode(m);
+}
+
+/// control_msgs/FollowJointTrajectoryActionGoal (ROS 1 actionlib: how MoveIt hands a plan to a controller): the
+/// goal's trajectory, stamped as sent (the action header's stamp) where the trajectory's own is zero; its
+/// tolerances read past.
+std::vector<uint8_t> follow_joint_trajectory_goal(Reader& r, Serialization s, int64_t unstamped, int64_t* stamp,
+                                                  bool* has_seq) {
+  joint_trajectory_t m;
+  header(r, s, m.header, has_seq);
+  const header_t action = m.header;
+  r.time_us();  // goal_id.stamp
+  r.str();      // goal_id.id
+  bool inner_seq = false;
+  header(r, s, m.header, &inner_seq);
+  if (m.header.utime == 0) m.header.utime = action.utime != 0 ? action.utime : unstamped;
+  m.header.seq = action.seq;
+  trajectory_body(r, m);
+  for (int list = 0; list < 2 && r.ok(); ++list) {  // path_tolerance, goal_tolerance: JointTolerance[]
+    const uint32_t k = r.count(4 + 3 * 8);
+    for (uint32_t i = 0; i < k && r.ok(); ++i) {
+      r.str();
+      for (int v = 0; v < 3; ++v) r.get<double>();
+    }
+  }
+  r.get<int32_t>();  // goal_time_tolerance
+  r.get<int32_t>();
+  *stamp = m.header.utime;
+  return encode(m);
+}
+
+/// mavros_msgs/TimesyncStatus: MAVROS's estimate of the flight controller's clock against the companion's.
+std::vector<uint8_t> timesync_status(Reader& r, Serialization s, int64_t, int64_t* stamp, bool* has_seq) {
+  timesync_status_t m;
+  header(r, s, m.header, has_seq);
+  m.remote_utime = static_cast<int64_t>(r.get<uint64_t>() / 1000);
+  m.observed_offset_s = static_cast<double>(r.get<int64_t>()) * 1e-9;
+  m.estimated_offset_s = static_cast<double>(r.get<int64_t>()) * 1e-9;
+  m.round_trip_s = static_cast<double>(r.get<float>()) * 1e-3;
   *stamp = m.header.utime;
   return encode(m);
 }
@@ -524,6 +613,8 @@ constexpr Mapping kMappings[] = {
     {"sensor_msgs/Image", "driftlab.image_t", image},
     {"sensor_msgs/CompressedImage", "driftlab.image_t", compressed_image},
     {"sensor_msgs/JointState", "driftlab.joint_state_t", joint_state},
+    {"trajectory_msgs/JointTrajectory", "driftlab.joint_trajectory_t", joint_trajectory},
+    {"control_msgs/FollowJointTrajectoryActionGoal", "driftlab.joint_trajectory_t", follow_joint_trajectory_goal},
     {"sensor_msgs/NavSatFix", "driftlab.gnss_t", nav_sat_fix},
     {"sensor_msgs/MagneticField", "driftlab.magnetometer_t", magnetic_field},
     {"sensor_msgs/FluidPressure", "driftlab.barometer_t", fluid_pressure},
@@ -534,6 +625,7 @@ constexpr Mapping kMappings[] = {
     {"geometry_msgs/TwistStamped", "driftlab.velocity_command_t", twist_stamped},
     {"geometry_msgs/Twist", "driftlab.velocity_command_t", twist},
     {"tf2_msgs/TFMessage", "driftlab.tf_t", tf_message},
+    {"mavros_msgs/TimesyncStatus", "driftlab.timesync_status_t", timesync_status},
     {"tf/tfMessage", "driftlab.tf_t", tf_message},  // ROS 1's older /tf type, same layout
 };
 
@@ -555,6 +647,15 @@ std::string ros1_type_name(std::string_view type) {
 const char* driftlab_type_for(std::string_view ros_type) {
   const Mapping* m = find_mapping(ros_type);
   return m ? m->driftlab : nullptr;
+}
+
+bool read_leading_header(Serialization serialization, std::span<const uint8_t> payload, int64_t fallback_seq,
+                         header_t* out, bool* has_seq) {
+  Reader r(payload, serialization);
+  r.fallback_seq = fallback_seq;
+  *has_seq = false;
+  header(r, serialization, *out, has_seq);
+  return r.ok();
 }
 
 std::optional<Converted> convert_ros_message(std::string_view ros_type, Serialization serialization,

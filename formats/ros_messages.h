@@ -11,6 +11,8 @@
 #include <string_view>
 #include <vector>
 
+#include "driftlab/header_t.hpp"
+
 namespace driftlab::formats {
 
 enum class Serialization { kRos1, kCdr };
@@ -26,6 +28,11 @@ struct Converted {
   int64_t stamp_us = 0;      ///< its header.utime (0 for a type without a stamp)
   bool has_seq = false;      ///< header.seq is the source's (ROS 1 header.seq), not fallback_seq
 };
+
+/// The std_msgs/Header a message of another type starts with, as header_t (ROS 1's seq, else `fallback_seq`), or
+/// false when the payload is too short for one. `has_seq` says whether the seq was the source's.
+bool read_leading_header(Serialization serialization, std::span<const uint8_t> payload, int64_t fallback_seq,
+                         header_t* out, bool* has_seq);
 
 /// Converts one ROS message of a mapped type. `error` says why not when the payload does not hold a message of
 /// its type ("12 bytes, shorter than sensor_msgs/LaserScan"); nullopt with an empty error means "no mapping".

@@ -19,7 +19,11 @@ namespace driftlab::analyzers::internal {
 ChannelTiming channel_timing(const std::string& name, Samples& s, int64_t log_start,
                              const std::function<int64_t(int64_t)>& to_arrival = {});
 
-/// Adds a reason to a channel's verdict: a fault, or a warning (which leaves a fault a fault).
-void add_reason(ChannelTiming& c, bool fault, const std::string& why);
+/// Adds a reason to a channel's verdict: a fault, or a warning (which leaves a fault a fault), and what it says is
+/// wrong.
+void add_reason(ChannelTiming& c, bool fault, const std::string& why, Cause cause);
+
+/// Orders a channel's reasons cause before symptom (a stable sort by Cause), once all are added.
+void order_reasons(ChannelTiming& c);
 
 }  // namespace driftlab::analyzers::internal

@@ -29,4 +29,9 @@ class CommandLoopCheck {
   std::map<std::string, JointStates> states_;
 };
 
+/// A loop's findings as reasons of its command stream: joints that follow the commands later than the interval
+/// between commands (the loop corrects against states the next commands have moved on from: it lags and
+/// overshoots), and commands whose plan was over when they arrived.
+void judge_loop(const CommandLoop& loop, std::vector<ChannelTiming>& channels);
+
 }  // namespace driftlab::analyzers::internal

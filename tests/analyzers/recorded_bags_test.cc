@@ -315,5 +315,232 @@ TEST(DiagnoseNav2Bag, OneSimulationClockTheOdometryHoleAndAmclsPostDatedTransfor
   EXPECT_TRUE(amcl) << nlohmann::json(d.tf.problems).dump();
 }
 
+/// The worst stream as the headline names it (diagnose's problems, the report's summary): the highest problem_rank.
+const ChannelTiming* worst_stream(const Diagnosis& d) {
+  const ChannelTiming* worst = nullptr;
+  auto rank = [](const ChannelTiming& c) {
+    return analyzers::problem_rank(c.verdict, c.causes.empty() ? analyzers::Cause::kSymptom : c.causes[0],
+                                   c.reasons.size());
+  };
+  for (const auto& c : d.channels) {
+    if (rank(c) > 0 && (worst == nullptr || rank(c) > rank(*worst))) worst = &c;
+  }
+  return worst;
+}
+
+/// A MoveIt-style arm on ros2_control, recorded on the wall clock: MoveIt hands the controller a plan of 2 s every
+/// 2 s (points every 100 ms, positions and velocities), and the joints, published by the joint state broadcaster at
+/// 100 Hz, follow the plan `delay_ms` later. ROS 2 writes the trajectory on its topic, ROS 1 sends it as
+/// FollowJointTrajectory action goals (how MoveIt's ROS 1 controller manager hands it over); the trajectory
+/// stamped 0, as MoveIt leaves it, so the controller starts it when it arrives. Some joint states arrive in a
+/// burst, out of order (a symptom on another stream the headline must not put first).
+nlohmann::json arm_bag(bool ros2, double delay_ms, double duration_s) {
+  const std::vector<std::string> joints = {"shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint"};
+  auto q = [](size_t j, double t) { return 0.6 * std::sin(2 * M_PI * (0.3 + 0.1 * j) * t + j); };
+  auto qd = [](size_t j, double t) {
+    return 0.6 * 2 * M_PI * (0.3 + 0.1 * j) * std::cos(2 * M_PI * (0.3 + 0.1 * j) * t + j);
+  };
+  const int64_t wall0 = 1'780'000'000'000'000;
+  auto time_msg = [&](int64_t us) {
+    return ros2 ? nlohmann::json{{"sec", us / 1'000'000}, {"nanosec", (us % 1'000'000) * 1000}}
+                : nlohmann::json{{"sec", us / 1'000'000}, {"nsec", (us % 1'000'000) * 1000}};
+  };
+  auto hdr = [&](int64_t us, int64_t seq) {
+    nlohmann::json h = {{"stamp", time_msg(us)}, {"frame_id", ""}};
+    if (!ros2) h["seq"] = seq;
+    return h;
+  };
+  std::vector<nlohmann::json> msgs;
+  auto add = [&](const std::string& topic, const std::string& type, int64_t arrival_us, nlohmann::json msg) {
+    msgs.push_back({{"topic", topic}, {"type", type}, {"time_ns", arrival_us * 1000}, {"sequence", 0}, {"msg", msg}});
+  };
+  uint64_t n = 0;
+  int64_t plans = 0;
+  const std::string joint_state_type = ros2 ? "sensor_msgs/msg/JointState" : "sensor_msgs/JointState";
+  for (double start = 0.5; start + 2 <= duration_s; start += 2) {
+    nlohmann::json points = nlohmann::json::array();
+    for (int k = 0; k <= 20; ++k) {
+      const double t = start + 0.1 * k;
+      std::vector<double> pos, vel;
+      for (size_t j = 0; j < joints.size(); ++j) pos.push_back(q(j, t)), vel.push_back(qd(j, t));
+      points.push_back({{"positions", pos},
+                        {"velocities", vel},
+                        {"accelerations", std::vector<double>()},
+                        {"effort", std::vector<double>()},
+                        {"time_from_start", time_msg(int64_t{100'000} * k)}});
+    }
+    const int64_t sent = wall0 + std::llround(start * 1e6);
+    const nlohmann::json trajectory = {{"header", hdr(0, plans)}, {"joint_names", joints}, {"points", points}};
+    if (ros2) {
+      add("/arm_controller/joint_trajectory", "trajectory_msgs/msg/JointTrajectory", sent, trajectory);
+    } else {
+      add("/arm_controller/follow_joint_trajectory/goal", "control_msgs/FollowJointTrajectoryActionGoal", sent,
+          {{"header", hdr(sent, plans)},
+           {"goal_id", {{"stamp", time_msg(sent)}, {"id", "goal-" + std::to_string(plans)}}},
+           {"goal",
+            {{"trajectory", trajectory},
+             {"path_tolerance", nlohmann::json::array()},
+             {"goal_tolerance",
+              nlohmann::json::array(
+                  {{{"name", joints[0]}, {"position", 0.01}, {"velocity", 0.0}, {"acceleration", 0.0}}})},
+             {"goal_time_tolerance", time_msg(500'000)}}}});
+    }
+    ++plans;
+  }
+  int64_t seq = 0;
+  for (int64_t ms = 0; ms < std::llround(duration_s * 1000); ms += 10) {
+    const double t = static_cast<double>(ms) * 1e-3;
+    std::vector<double> pos, vel, effort;
+    for (size_t j = 0; j < joints.size(); ++j) {
+      pos.push_back(q(j, t - delay_ms * 1e-3));
+      vel.push_back(qd(j, t - delay_ms * 1e-3));
+      effort.push_back(0.0);
+    }
+    const int64_t stamp = wall0 + ms * 1000;
+    // Around 20 s a burst: ten states held up 30 ms and delivered after newer ones.
+    const double held = (ms >= 20'000 && ms < 20'100) ? 30 : 0;
+    add("/joint_states", joint_state_type, stamp + std::llround((0.5 + held + jitter_ms(++n)) * 1e3),
+        {{"header", hdr(stamp, seq++)}, {"name", joints}, {"position", pos}, {"velocity", vel}, {"effort", effort}});
+  }
+  std::stable_sort(msgs.begin(), msgs.end(), [](const nlohmann::json& a, const nlohmann::json& b) {
+    return a["time_ns"].get<int64_t>() < b["time_ns"].get<int64_t>();
+  });
+  return {{"profile", ros2 ? "ros2" : "ros1"}, {"compression", "zstd"}, {"messages", msgs}};
+}
+
+// The arm on a real recording (issue 26): MoveIt's plans imported as joint trajectories, the loop delay measured
+// from the motion within 5 ms of the injected 120 ms (the calibration's yardstick, docs/diagnosis.md), a fault of the
+// command stream, and the headline's worst stream: the cause (a late loop) before another stream's symptom
+// (reordered joint states). Written as ROS 2 topics and as ROS 1 action goals.
+TEST(DiagnoseArmBag, TheLoopDelayIsTheCommandStreamsFaultAndTheHeadline) {
+  for (const bool ros2 : {true, false}) {
+    SCOPED_TRACE(ros2 ? "ROS 2" : "ROS 1");
+    constexpr double kDelayMs = 120;
+    test::TempDir dir;
+    Diagnosis d;
+    if (!diagnose_bag(arm_bag(ros2, kDelayMs, 40), dir, &d)) return;
+    const std::string command =
+        ros2 ? "/arm_controller/joint_trajectory" : "/arm_controller/follow_joint_trajectory/goal";
+    ASSERT_EQ(d.command_loops.size(), 1u);
+    const auto& loop = d.command_loops[0];
+    EXPECT_EQ(loop.command_channel, command);
+    EXPECT_EQ(loop.state_channel, "/joint_states");
+    ASSERT_TRUE(loop.delay_valid) << loop.confidence;
+    EXPECT_NEAR(loop.delay_s * 1e3, kDelayMs, 5.0);
+    const auto& cmd = channel(d, command);
+    EXPECT_EQ(cmd.type, "driftlab.joint_trajectory_t");
+    EXPECT_EQ(cmd.verdict, "fault") << reasons(cmd);
+    ASSERT_FALSE(cmd.reasons.empty());
+    EXPECT_NE(cmd.reasons[0].find("follow its commands"), std::string::npos) << reasons(cmd);
+    EXPECT_EQ(channel(d, "/joint_states").verdict, "fault") << reasons(channel(d, "/joint_states"));  // reordered
+    const ChannelTiming* worst = worst_stream(d);
+    ASSERT_NE(worst, nullptr);
+    EXPECT_EQ(worst->name, command) << reasons(*worst);
+  }
+  // The same arm without a delay: no loop problem (the simulator's clean arm follows 0.2 ms late).
+  test::TempDir dir;
+  Diagnosis d;
+  if (!diagnose_bag(arm_bag(true, 0, 40), dir, &d)) return;
+  ASSERT_EQ(d.command_loops.size(), 1u);
+  EXPECT_NEAR(d.command_loops[0].delay_s * 1e3, 0, 5.0);
+  EXPECT_FALSE(has_reason(channel(d, "/arm_controller/joint_trajectory"), "follow its commands"));
+}
+
+/// A MAVROS-style bag on the wall clock: the flight controller's IMU at 100 Hz and local position at 30 Hz (1 and
+/// 2 ms of transport), its state (mavros_msgs/State, a type driftlab has no mapping for) at 5 Hz stamped
+/// `state_late_ms` before it arrives, and the time sync's status at 10 Hz: round trips of 15 ms, its offset
+/// estimate 2.5 ms, restarted once at 30 s (stepping to 40 ms).
+nlohmann::json mavros_bag(double state_late_ms) {
+  const int64_t wall0 = 1'780'000'000'000'000;
+  std::vector<nlohmann::json> msgs;
+  auto add = [&](const std::string& topic, const std::string& type, int64_t arrival_us, nlohmann::json msg) {
+    msgs.push_back({{"topic", topic}, {"type", type}, {"time_ns", arrival_us * 1000}, {"sequence", 0}, {"msg", msg}});
+  };
+  uint64_t n = 0;
+  for (int64_t ms = 10; ms < 60'000; ms += 10) {
+    const int64_t stamp = wall0 + ms * 1000;
+    auto arrive = [&](double extra_ms) { return stamp + std::llround((extra_ms + jitter_ms(++n)) * 1e3); };
+    add("/mavros/imu/data", "sensor_msgs/msg/Imu", arrive(1),
+        {{"header", header(stamp, "base_link")},
+         {"orientation", quat()},
+         {"orientation_covariance", std::vector<double>(9, 0.0)},
+         {"angular_velocity", vec3(0, 0, 0.2 * std::sin(ms * 1e-3))},
+         {"angular_velocity_covariance", std::vector<double>(9, 0.0)},
+         {"linear_acceleration", vec3(0, 0, 9.81)},
+         {"linear_acceleration_covariance", std::vector<double>(9, 0.0)}});
+    if (ms % 30 == 0) {
+      add("/mavros/local_position/pose", "geometry_msgs/msg/PoseStamped", arrive(2),
+          {{"header", header(stamp, "map")}, {"pose", {{"position", vec3(ms * 1e-3)}, {"orientation", quat()}}}});
+    }
+    if (ms % 200 == 0) {
+      add("/mavros/state", "mavros_msgs/msg/State", arrive(state_late_ms),
+          {{"header", header(stamp, "")},
+           {"connected", true},
+           {"armed", ms > 5000},
+           {"guided", true},
+           {"manual_input", false},
+           {"mode", "OFFBOARD"},
+           {"system_status", 4}});
+    }
+    if (ms % 100 == 0) {
+      const double offset_ms = ms < 30'000 ? 2.5 : 40.0;
+      add("/mavros/timesync_status", "mavros_msgs/msg/TimesyncStatus", arrive(0.3),
+          {{"header", header(stamp, "")},
+           {"remote_timestamp_ns", std::to_string((stamp + std::llround(offset_ms * 1e3)) * 1000) + "n"},
+           {"observed_offset_ns", std::to_string(std::llround((offset_ms + 0.1 * std::sin(ms)) * 1e6)) + "n"},
+           {"estimated_offset_ns", std::to_string(std::llround(offset_ms * 1e6)) + "n"},
+           {"round_trip_time_ms", 15.0}});
+    }
+  }
+  std::stable_sort(msgs.begin(), msgs.end(), [](const nlohmann::json& a, const nlohmann::json& b) {
+    return a["time_ns"].get<int64_t>() < b["time_ns"].get<int64_t>();
+  });
+  return {{"profile", "ros2"}, {"compression", "zstd"}, {"messages", msgs}};
+}
+
+// Any stamped message (issue 26): mavros_msgs/State has no mapping, and its std_msgs/Header gets it the whole
+// timing analysis (its 110 ms latency within 3 ms: 1 ms of jitter on a 1 ms transport); `info` names its ROS type.
+// The time sync (mavros_msgs/TimesyncStatus): its round trip, offset and restart, the restart its fault.
+TEST(DiagnoseMavrosBag, AStampedMessageOfAnyTypeAndTheTimeSync) {
+  constexpr double kStateLateMs = 110;
+  test::TempDir dir;
+  Diagnosis d;
+  if (!diagnose_bag(mavros_bag(kStateLateMs), dir, &d)) return;
+  const auto& state = channel(d, "/mavros/state");
+  EXPECT_EQ(state.type, "driftlab.stamped_foreign_message_t");
+  EXPECT_EQ(state.source_type, "mavros_msgs/msg/State");
+  ASSERT_TRUE(state.has_header);
+  ASSERT_TRUE(state.latency_valid);
+  EXPECT_NEAR(state.latency_s.p50 * 1e3, kStateLateMs, 3.0);
+  EXPECT_TRUE(state.seq_counted);
+  EXPECT_EQ(state.missing_by_period, 0);
+
+  ASSERT_EQ(d.timesync.size(), 1u);
+  const auto& sync = d.timesync[0];
+  EXPECT_EQ(sync.channel, "/mavros/timesync_status");
+  EXPECT_NEAR(sync.round_trip_s.p50, 0.015, 1e-6);
+  EXPECT_NEAR(sync.offset_first_s, 0.0025, 1e-9);
+  EXPECT_NEAR(sync.offset_last_s, 0.040, 1e-9);
+  EXPECT_EQ(sync.resyncs, 1);
+  ASSERT_EQ(sync.resync_at_s.size(), 1u);
+  EXPECT_NEAR(sync.resync_at_s[0], 30.0, 0.02);
+  const auto& ts = channel(d, "/mavros/timesync_status");
+  EXPECT_EQ(ts.verdict, "fault") << reasons(ts);
+  EXPECT_TRUE(has_reason(ts, "started over 1 times")) << reasons(ts);
+  EXPECT_TRUE(has_reason(ts, "round trips take 15.0 ms")) << reasons(ts);
+  EXPECT_EQ(channel(d, "/mavros/imu/data").verdict, "ok") << reasons(channel(d, "/mavros/imu/data"));
+
+  // info: the ROS type beside driftlab's.
+  const auto info = test::run_capture(std::string(DRIFTLAB_BIN_DIR) + "/driftlab info " + dir.file("run.lcm"));
+  ASSERT_EQ(info.code, 0) << info.err;
+  EXPECT_NE(info.out.find("source type"), std::string::npos) << info.out;
+  std::string state_line;
+  for (size_t at = info.out.find("/mavros/state"); at != std::string::npos && state_line.empty();) {
+    state_line = info.out.substr(at, info.out.find('\n', at) - at);
+  }
+  EXPECT_NE(state_line.find("driftlab.stamped_foreign_message_t  mavros_msgs/msg/State"), std::string::npos)
+      << info.out;
+}
+
 }  // namespace
 }  // namespace driftlab

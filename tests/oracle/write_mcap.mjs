@@ -5,7 +5,7 @@
 // SPEC: {"profile": "ros2" (CDR, ros2msg schemas) or "ros1" (ROS 1 serialization, ros1msg schemas),
 //        "compression": "zstd" or "none",
 //        "messages": [{"topic", "type" ("sensor_msgs/msg/Imu" or "sensor_msgs/Imu"), "time_ns", "sequence", "msg"}]}
-// A number that JSON cannot hold is written as a string: "NaN", "Infinity", "-Infinity". The definitions are this
+// A number that JSON cannot hold is written as a string: "NaN", "Infinity", "-Infinity", a 64-bit integer "12n". The definitions are this
 // file's own (below): the fields of the standard messages as ROS 1 and ROS 2 define them.
 import { openSync, readFileSync, writeSync, closeSync } from "node:fs";
 
@@ -66,13 +66,36 @@ const COMMON = {
     "std_msgs/Header header\nstring child_frame_id\ngeometry_msgs/PoseWithCovariance pose\n" +
     "geometry_msgs/TwistWithCovariance twist\n",
   "tf2_msgs/TFMessage": "geometry_msgs/TransformStamped[] transforms\n",
+  "trajectory_msgs/JointTrajectory":
+    "std_msgs/Header header\nstring[] joint_names\ntrajectory_msgs/JointTrajectoryPoint[] points\n",
+  "mavros_msgs/State":
+    "std_msgs/Header header\nbool connected\nbool armed\nbool guided\nbool manual_input\nstring mode\n" +
+    "uint8 system_status\n",
+  "mavros_msgs/TimesyncStatus":
+    "std_msgs/Header header\nuint64 remote_timestamp_ns\nint64 observed_offset_ns\nint64 estimated_offset_ns\n" +
+    "float32 round_trip_time_ms\n",
 };
+const POINT = "float64[] positions\nfloat64[] velocities\nfloat64[] accelerations\nfloat64[] effort\n";
 const ROS2 = {
   ...COMMON,
   "std_msgs/Header": "builtin_interfaces/Time stamp\nstring frame_id\n",
   "builtin_interfaces/Time": "int32 sec\nuint32 nanosec\n",
+  "builtin_interfaces/Duration": "int32 sec\nuint32 nanosec\n",
+  "trajectory_msgs/JointTrajectoryPoint": POINT + "builtin_interfaces/Duration time_from_start\n",
 };
-const ROS1 = { ...COMMON, "std_msgs/Header": "uint32 seq\ntime stamp\nstring frame_id\n" };
+const ROS1 = {
+  ...COMMON,
+  "std_msgs/Header": "uint32 seq\ntime stamp\nstring frame_id\n",
+  "trajectory_msgs/JointTrajectoryPoint": POINT + "duration time_from_start\n",
+  // MoveIt's hand-over to a ROS 1 controller: an actionlib goal.
+  "control_msgs/FollowJointTrajectoryActionGoal":
+    "std_msgs/Header header\nactionlib_msgs/GoalID goal_id\ncontrol_msgs/FollowJointTrajectoryGoal goal\n",
+  "actionlib_msgs/GoalID": "time stamp\nstring id\n",
+  "control_msgs/FollowJointTrajectoryGoal":
+    "trajectory_msgs/JointTrajectory trajectory\ncontrol_msgs/JointTolerance[] path_tolerance\n" +
+    "control_msgs/JointTolerance[] goal_tolerance\nduration goal_time_tolerance\n",
+  "control_msgs/JointTolerance": "string name\nfloat64 position\nfloat64 velocity\nfloat64 acceleration\n",
+};
 
 /// The full definition of a type: its text, then each type it uses after a line of '=' and "MSG: pkg/Type".
 function fullDefinition(defs, name, ros2) {
@@ -93,8 +116,10 @@ function fullDefinition(defs, name, ros2) {
   return out;
 }
 
-/// JSON values as the writers take them: "NaN" and the infinities as numbers, byte arrays as Uint8Array.
+/// JSON values as the writers take them: "NaN" and the infinities as numbers, byte arrays as Uint8Array, 64-bit
+/// integers (written as strings ending in "n": "-1500000000n") as BigInt.
 function revive(value, key) {
+  if (typeof value === "string" && /^-?[0-9]+n$/.test(value)) return BigInt(value.slice(0, -1));
   if (value === "NaN") return NaN;
   if (value === "Infinity") return Infinity;
   if (value === "-Infinity") return -Infinity;
