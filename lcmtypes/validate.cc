@@ -37,8 +37,47 @@ struct Op {
 struct Plan {
   std::vector<Op> ops;
   int slots = 0;
+  /// The same layout for checking alone, faster to walk: single nested structs inlined, and runs of fixed-size
+  /// fields that no length refers to merged into one (an IMU message: 12 steps, not 40). Its errors name a run,
+  /// not a field, so a message it refuses is walked again by `ops` for the reason. Null when it would need more
+  /// than kMaxSlots slots.
+  std::unique_ptr<Plan> flat;
 };
 constexpr int kMaxSlots = 32;  ///< integer fields per struct; ours have far fewer
+
+/// Appends plan's ops to out as Plan::flat has them, plan's slots numbered from `base` in out (out.slots counts
+/// them). False when they exceed kMaxSlots.
+bool flatten_into(const Plan& plan, int base, Plan& out) {
+  for (const Op& op : plan.ops) {
+    Op o = op;
+    if (o.slot >= 0) o.slot += base;
+    for (auto& d : o.dims) {
+      if (d.slot >= 0) d.slot += base;
+    }
+    if (o.kind == Op::kStruct && o.dims.empty()) {
+      const int nested_base = out.slots;
+      out.slots += o.nested->slots;
+      if (out.slots > kMaxSlots || !flatten_into(*o.nested, nested_base, out)) return false;
+      continue;
+    }
+    if (o.kind == Op::kStruct && o.nested->flat != nullptr) o.nested = o.nested->flat.get();
+    const bool constant = std::all_of(o.dims.begin(), o.dims.end(), [](const Op::Dim& d) { return d.slot < 0; });
+    if (o.kind == Op::kFixed && o.slot < 0 && constant) {
+      size_t bytes = o.size;
+      for (const auto& d : o.dims) bytes *= static_cast<size_t>(d.constant);
+      if (bytes == 0) continue;
+      if (!out.ops.empty() && out.ops.back().kind == Op::kFixed && out.ops.back().slot < 0 &&
+          out.ops.back().dims.empty()) {
+        out.ops.back().size += bytes;
+        continue;
+      }
+      o.size = bytes;
+      o.dims.clear();
+    }
+    out.ops.push_back(std::move(o));
+  }
+  return true;
+}
 
 size_t fixed_size(const std::string& type) {
   if (type == "double" || type == "int64_t") return 8;
@@ -106,6 +145,9 @@ class Plans {
       }
       plan->ops.push_back(std::move(op));
     }
+    auto flat = std::make_unique<Plan>();
+    flat->slots = plan->slots;
+    if (flatten_into(*plan, 0, *flat)) plan->flat = std::move(flat);
     const Plan* p = plan.get();
     by_name_[def->name] = std::move(plan);
     return p;
@@ -179,9 +221,8 @@ bool walk(const Plan& plan, std::span<const uint8_t> data, size_t& pos, std::str
         }
         if (op.slot >= 0) slots[static_cast<size_t>(op.slot)] = read_int(data.data() + pos, op.size, op.is_signed);
         // Variable-length arrays of numbers are samples (ranges, points), where NaN and inf say "no return".
-        const bool fixed_size =
-            std::all_of(op.dims.begin(), op.dims.end(), [](const Op::Dim& d) { return d.slot < 0; });
-        if (non_finite != nullptr && non_finite->empty() && op.is_float && fixed_size) {
+        if (non_finite != nullptr && non_finite->empty() && op.is_float &&
+            std::all_of(op.dims.begin(), op.dims.end(), [](const Op::Dim& d) { return d.slot < 0; })) {
           double v = 0;
           if (const int64_t k = first_non_finite(data.data() + pos, count, op.size, &v); k >= 0) {
             *non_finite = op.name + (op.dims.empty() ? "" : "[" + std::to_string(k) + "]") + " = " + number_text(v);
@@ -226,6 +267,11 @@ bool walk(const Plan& plan, std::span<const uint8_t> data, size_t& pos, std::str
 std::optional<std::string> check(std::span<const uint8_t> data, const Plan& plan, std::string* non_finite = nullptr) {
   std::string why;
   size_t pos = 8;
+  if (non_finite == nullptr && plan.flat != nullptr && walk(*plan.flat, data, pos, &why, 0) && pos == data.size()) {
+    return std::nullopt;  // well formed; a refusal is walked again field by field for its reason
+  }
+  pos = 8;
+  why.clear();
   if (!walk(plan, data, pos, &why, 0, non_finite)) return why;
   if (pos != data.size()) {
     return std::to_string(data.size() - pos) + " bytes after the end of its type";
