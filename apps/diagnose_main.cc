@@ -9,6 +9,7 @@
 #include <memory>
 #include <set>
 
+#include "analyzers/flight_log.h"
 #include "analyzers/timing.h"
 #include "apps/cli_checks.h"
 #include "apps/cli_util.h"
@@ -276,10 +277,21 @@ int run_diagnose(const DiagnoseOptions& o) {
   if (!result) return fail(result.error().message);
   const Diagnosis& d = *result;
   std::vector<std::string> problems;
-  const auto lines = report_lines(d, &problems);
+  auto lines = report_lines(d, &problems);
+  // A PX4 flight log: the flight controller's own account of its timing and its estimator, its problems first (a
+  // logger dropout explains the gaps every channel shows at it).
+  auto flight = analyzers::diagnose_flight_log(o.log);
+  if (!flight) return fail(flight.error().message);
+  if (flight->present) {
+    lines.emplace_back();
+    for (auto& l : flight_log_lines(*flight)) lines.push_back(std::move(l));
+    problems.insert(problems.begin(), flight->problems.begin(), flight->problems.end());
+  }
   if (!o.html.empty() && !write_output(o.html, html_page(d, lines, problems))) return kExitFailure;
   if (!o.json.empty()) {
-    if (!write_output(o.json, to_json(d).dump(2) + "\n")) return kExitFailure;
+    nlohmann::json j = to_json(d);
+    if (flight->present) j["flight_log"] = flight_log_json(*flight);
+    if (!write_output(o.json, j.dump(2) + "\n")) return kExitFailure;
     if (o.json == "-") return kExitOk;
   }
   for (const auto& l : lines) std::printf("%s\n", l.c_str());
