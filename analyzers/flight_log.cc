@@ -456,12 +456,8 @@ Result<FlightLogDiagnosis> diagnose_flight_log(const std::string& log, const Fli
           own_at = since(a);
         }
       }
-      if (gap_events++ < kMaxEventsPerKind) {
-        out.timeline.push_back({"sensor_gap",
-                                t.channel + (logger  ? " (at a logger dropout)"
-                                             : stall ? " (every sensor at once)"
-                                                     : ""),
-                                since(a), since(b)});
+      if (!stall && gap_events++ < kMaxEventsPerKind) {  // a stall goes on the timeline once, below
+        out.timeline.push_back({"sensor_gap", t.channel + (logger ? " (at a logger dropout)" : ""), since(a), since(b)});
       }
     }
     const ImuIntervals& iv = g.iv;
@@ -499,6 +495,9 @@ Result<FlightLogDiagnosis> diagnose_flight_log(const std::string& log, const Fli
     }
     double longest = 0, at = 0;
     for (const auto& [a, b] : merged) {
+      if (gap_events++ < kMaxEventsPerKind) {
+        out.timeline.push_back({"sensor_gap", "every sensor at once (a stall)", since(a), since(b)});
+      }
       if (static_cast<double>(b - a) * 1e-6 > longest) {
         longest = static_cast<double>(b - a) * 1e-6;
         at = since(a);

@@ -23,6 +23,7 @@
 #include "apps/cli_util.h"
 #include "apps/commands.h"
 #include "apps/diagnosis_json.h"
+#include "analyzers/flight_log.h"
 #include "apps/log_input.h"
 #include "apps/report.h"
 #include "core/text_file.h"
@@ -143,6 +144,13 @@ Result<std::string> make_report(const ReportOptions& o) {
     auto d = diagnose(first.log);
     if (!d) return d.error();
     diagnosis = to_json(*d);
+  }
+  // A PX4 flight log: its flight-log diagnosis (dropouts, sensor gaps, the estimator's rejections) for the timeline,
+  // unless the diagnosis given already holds it.
+  if (!diagnosis.contains("flight_log")) {
+    auto f = analyzers::diagnose_flight_log(first.log);
+    if (!f) return f.error();
+    if (f->present) diagnosis["flight_log"] = flight_log_json(*f);
   }
   nlohmann::json evals = nlohmann::json::array();
   for (const auto& path : o.evals) {
