@@ -475,11 +475,11 @@ Result<FlightLogDiagnosis> diagnose_flight_log(const std::string& log, const Fli
                        "the period there"));
     }
     if (own > 0) {
-      out.problems.push_back(fmt("%s stopped publishing %lld time%s for %.1f periods or more, with no logger dropout "
-                                 "and the other sensors going on (the longest %.0f ms at %.1f s, against a %.1f ms "
-                                 "period): the sensor or its driver",
+      out.problems.push_back(fmt("%s stopped publishing %lld time%s for %.1f periods or more, with no logger dropout%s "
+                                 "(the longest %.0f ms at %.1f s, against a %.1f ms period): the sensor or its driver",
                                  t.channel.c_str(), static_cast<long long>(own), own == 1 ? "" : "s", th.gap_periods,
-                                 own_longest * 1e3, own_at, iv.nominal_s * 1e3));
+                                 n_judged > 1 ? " and the other sensors going on" : "", own_longest * 1e3, own_at,
+                                 iv.nominal_s * 1e3));
     }
     if (imu) out.imu.push_back(iv);
   }

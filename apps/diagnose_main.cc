@@ -311,7 +311,9 @@ int run_diagnose(const DiagnoseOptions& o) {
 void add_diagnose_command(CLI::App& app, int* exit_code) {
   auto o = std::make_shared<DiagnoseOptions>();
   CLI::App* cmd = app.add_subcommand(
-      "diagnose", "Find skew, clock offset and drift, latency, drops, duplicates and reordering in a log.");
+      "diagnose",
+      "Find skew, clock offset and drift, latency, drops, duplicates and reordering in a log; in a PX4 flight log, "
+      "the logger's dropouts, the IMU's timing and the estimator's health too.");
   cmd->add_option("log", o->inputs, kLogInputHelp)->required();
   cmd->add_option("--json", o->json, "Also write the diagnosis as JSON to this file ('-': print only the JSON)");
   cmd->add_option("--html", o->html, "Also write the report as an HTML page");

@@ -287,7 +287,8 @@ void add_report_command(CLI::App& app, int* exit_code) {
       "channels are shown as estimates. Plots: trajectories in the plane (estimates aligned in position and yaw);\n"
       "error over time with drops, gaps and latency spikes on the same axis; latency histograms; inter-arrival times;\n"
       "skew correlation curves; SLAM maps; an arm's commanded and measured joint motion with the delay diagnose\n"
-      "measures between them. Without --diagnosis the first log is diagnosed. Needs python3 with\n"
+      "measures between them; a PX4 flight log's timeline (the logger's dropouts, sensor gaps, the estimator's\n"
+      "rejections and timeouts on one axis). Without --diagnosis the first log is diagnosed. Needs python3 with\n"
       "matplotlib. DIR gets index.html, a PNG per plot and report.json (the data plotted).");
   cmd->add_option("logs", o->logs, "Logs: the recording first, then replays of it")->required()->check(CLI::ExistingFile);
   cmd->add_option("-o,--out", o->out, "Folder to write the report into")->required();
