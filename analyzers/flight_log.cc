@@ -92,15 +92,23 @@ struct Watch {
   uint32_t index = 0;
   int bit = -1;
   std::string name;
-  std::string kind;  // "test_ratio", "rejected", "timeout"
+  std::string kind;                               // "test_ratio", "rejected", "timeout"
   std::vector<std::pair<int64_t, float>> values;  // (timestamp [us], ratio or 0/1)
 };
 
 /// The meaning of estimator_status' innovation_check_flags bits (PX4 1.11 and earlier: estimator_status.msg).
-constexpr const char* kInnovationCheckBits[] = {"velocity",       "horizontal position", "vertical position",
-                                                "magnetometer x", "magnetometer y",      "magnetometer z",
-                                                "yaw",            "airspeed",            "synthetic sideslip",
-                                                "height above ground", "optical flow x", "optical flow y"};
+constexpr const char* kInnovationCheckBits[] = {"velocity",
+                                                "horizontal position",
+                                                "vertical position",
+                                                "magnetometer x",
+                                                "magnetometer y",
+                                                "magnetometer z",
+                                                "yaw",
+                                                "airspeed",
+                                                "synthetic sideslip",
+                                                "height above ground",
+                                                "optical flow x",
+                                                "optical flow y"};
 /// estimator_status' timeout_flags (velocity, position, height).
 constexpr const char* kTimeoutBits[] = {"velocity", "position", "height"};
 
@@ -141,10 +149,11 @@ void make_watches(Topic& t) {
         t.watches.push_back({&f, 0, -1, f.name, "test_ratio", {}});
       }
     }
-    if (const auto* f = l.find("innovation_check_flags"); f && f->count == 0 && f->type != UlogType::kFloat &&
-                                                          f->type != UlogType::kDouble) {
+    if (const auto* f = l.find("innovation_check_flags");
+        f && f->count == 0 && f->type != UlogType::kFloat && f->type != UlogType::kDouble) {
       for (int b = 0; b < static_cast<int>(std::size(kInnovationCheckBits)); ++b) {
-        t.watches.push_back({f, 0, b, std::string("innovation_check_flags: ") + kInnovationCheckBits[b], "rejected", {}});
+        t.watches.push_back(
+            {f, 0, b, std::string("innovation_check_flags: ") + kInnovationCheckBits[b], "rejected", {}});
       }
     }
     if (const auto* f = l.find("timeout_flags");
@@ -237,8 +246,8 @@ Result<FlightLogDiagnosis> diagnose_flight_log(const std::string& log, const Fli
   const int64_t dropout_hash = driftlab::dropout_t::getHash();
   std::map<std::string, Topic, std::less<>> topics;
   std::map<std::string, std::shared_ptr<const UlogLayout>, std::less<>> schemas;  // by channel
-  std::map<std::string, std::string, std::less<>> source_types;                  // CHANNEL_SOURCES
-  std::vector<std::pair<int64_t, int64_t>> dropouts;                             // (utime, duration) [us]
+  std::map<std::string, std::string, std::less<>> source_types;                   // CHANNEL_SOURCES
+  std::vector<std::pair<int64_t, int64_t>> dropouts;                              // (utime, duration) [us]
   bool first = true;
   Event e;
   foreign_message_t f;
@@ -330,8 +339,7 @@ Result<FlightLogDiagnosis> diagnose_flight_log(const std::string& log, const Fli
   }
   // Whether a logger dropout lies within [a, b] (us): a gap there is the logger's loss, not the sensor's.
   auto at_dropout = [&](int64_t a, int64_t b) {
-    return std::any_of(dropouts.begin(), dropouts.end(),
-                       [&](const auto& d) { return d.first >= a && d.first <= b; });
+    return std::any_of(dropouts.begin(), dropouts.end(), [&](const auto& d) { return d.first >= a && d.first <= b; });
   };
 
   size_t gap_events = 0, rejection_events = 0, timeout_events = 0;
@@ -374,16 +382,21 @@ Result<FlightLogDiagnosis> diagnose_flight_log(const std::string& log, const Fli
   out.horizon_s = std::isfinite(horizon_s) ? horizon_s : 0;
   for (const auto& s : out.sample_delays) {
     if (!s.sensor) continue;
-    const bool imu = is_imu_topic(s.topic) || s.topic == "vehicle_angular_velocity" || s.topic == "vehicle_acceleration";
-    const double limit = imu ? th.imu_delay_p99_s : std::isfinite(horizon_s) && horizon_s > 0 ? horizon_s : th.sample_delay_p99_s;
+    const bool imu =
+        is_imu_topic(s.topic) || s.topic == "vehicle_angular_velocity" || s.topic == "vehicle_acceleration";
+    const double limit = imu                                         ? th.imu_delay_p99_s
+                         : std::isfinite(horizon_s) && horizon_s > 0 ? horizon_s
+                                                                     : th.sample_delay_p99_s;
     if (!(s.p99_s > limit)) continue;
     out.problems.push_back(fmt(
         "%s publishes its samples late: %.1f ms after sampling (p99; p50 %.1f ms, max %.1f ms), over the %.0f ms %s: "
         "its driver or work queue runs behind%s",
         s.channel.c_str(), s.p99_s * 1e3, s.p50_s * 1e3, s.max_s * 1e3, limit * 1e3,
-        imu ? "an IMU sample may take (five 250 Hz cycles)"
-            : std::isfinite(horizon_s) && horizon_s > 0 ? "of the estimator's fusion horizon" : "EKF2's default fusion horizon allows",
-        imu ? ", and everything fed by the IMU lags by as much" : ", and the estimator drops what comes after it has fused past"));
+        imu                                         ? "an IMU sample may take (five 250 Hz cycles)"
+        : std::isfinite(horizon_s) && horizon_s > 0 ? "of the estimator's fusion horizon"
+                                                    : "EKF2's default fusion horizon allows",
+        imu ? ", and everything fed by the IMU lags by as much"
+            : ", and the estimator drops what comes after it has fused past"));
   }
 
   // ---- sensor intervals: the IMU's regularity, every sensor's gaps ----
@@ -406,10 +419,14 @@ Result<FlightLogDiagnosis> diagnose_flight_log(const std::string& log, const Fli
     for (size_t i = 1; i < t.times.size(); ++i) {
       const double d = static_cast<double>(t.times[i]) - static_cast<double>(t.times[i - 1]);
       const double r = d / nominal;
-      if (r < 0.25) ++n0;
-      else if (r >= 0.75 && r <= 1.25) ++n1;
-      else if (r >= 1.75 && r <= 2.25) ++n2;
-      else ++other;
+      if (r < 0.25)
+        ++n0;
+      else if (r >= 0.75 && r <= 1.25)
+        ++n1;
+      else if (r >= 1.75 && r <= 2.25)
+        ++n2;
+      else
+        ++other;
       if (d * 1e-6 > iv.longest_s) {
         iv.longest_s = d * 1e-6;
         iv.longest_at_s = since(t.times[i - 1]);
@@ -457,29 +474,30 @@ Result<FlightLogDiagnosis> diagnose_flight_log(const std::string& log, const Fli
         }
       }
       if (!stall && gap_events++ < kMaxEventsPerKind) {  // a stall goes on the timeline once, below
-        out.timeline.push_back({"sensor_gap", t.channel + (logger ? " (at a logger dropout)" : ""), since(a), since(b)});
+        out.timeline.push_back(
+            {"sensor_gap", t.channel + (logger ? " (at a logger dropout)" : ""), since(a), since(b)});
       }
     }
     const ImuIntervals& iv = g.iv;
     const bool imu = is_imu_topic(t.topic);
     if (imu && judged(g) && iv.share_2x + iv.share_0 >= th.imu_skip_share) {
       const bool catches_up = iv.share_0 >= th.imu_skip_share / 2;
-      out.problems.push_back(fmt(
-          "%s's scheduler skips cycles: %.0f%% of its intervals are two periods (%.1f ms) and %.0f%% about none, "
-          "instead of one (%.1f ms; %.0f%% are): %s",
-          t.channel.c_str(), iv.share_2x * 100, 2 * iv.nominal_s * 1e3, iv.share_0 * 100, iv.nominal_s * 1e3,
-          iv.share_1x * 100,
-          catches_up ? "a loop that runs late and catches up by publishing two samples at once; the estimator "
-                       "integrates them as one step"
-                     : "a loop that runs late and drops the sample it missed; the estimator integrates over twice "
-                       "the period there"));
+      out.problems.push_back(
+          fmt("%s's scheduler skips cycles: %.0f%% of its intervals are two periods (%.1f ms) and %.0f%% about none, "
+              "instead of one (%.1f ms; %.0f%% are): %s",
+              t.channel.c_str(), iv.share_2x * 100, 2 * iv.nominal_s * 1e3, iv.share_0 * 100, iv.nominal_s * 1e3,
+              iv.share_1x * 100,
+              catches_up ? "a loop that runs late and catches up by publishing two samples at once; the estimator "
+                           "integrates them as one step"
+                         : "a loop that runs late and drops the sample it missed; the estimator integrates over twice "
+                           "the period there"));
     }
     if (own > 0) {
-      out.problems.push_back(fmt("%s stopped publishing %lld time%s for %.1f periods or more, with no logger dropout%s "
-                                 "(the longest %.0f ms at %.1f s, against a %.1f ms period): the sensor or its driver",
-                                 t.channel.c_str(), static_cast<long long>(own), own == 1 ? "" : "s", th.gap_periods,
-                                 n_judged > 1 ? " and the other sensors going on" : "", own_longest * 1e3, own_at,
-                                 iv.nominal_s * 1e3));
+      out.problems.push_back(
+          fmt("%s stopped publishing %lld time%s for %.1f periods or more, with no logger dropout%s "
+              "(the longest %.0f ms at %.1f s, against a %.1f ms period): the sensor or its driver",
+              t.channel.c_str(), static_cast<long long>(own), own == 1 ? "" : "s", th.gap_periods,
+              n_judged > 1 ? " and the other sensors going on" : "", own_longest * 1e3, own_at, iv.nominal_s * 1e3));
     }
     if (imu) out.imu.push_back(iv);
   }
@@ -503,11 +521,11 @@ Result<FlightLogDiagnosis> diagnose_flight_log(const std::string& log, const Fli
         at = since(a);
       }
     }
-    out.problems.push_back(fmt("the log holds nothing from most sensors %lld time%s (the longest %.0f ms, at %.1f s) "
-                               "with no dropout recorded: the logger, or the whole flight controller, stalled; no "
-                               "single sensor is at fault",
-                               static_cast<long long>(merged.size()), merged.size() == 1 ? "" : "s", longest * 1e3,
-                               at));
+    out.problems.push_back(
+        fmt("the log holds nothing from most sensors %lld time%s (the longest %.0f ms, at %.1f s) "
+            "with no dropout recorded: the logger, or the whole flight controller, stalled; no "
+            "single sensor is at fault",
+            static_cast<long long>(merged.size()), merged.size() == 1 ? "" : "s", longest * 1e3, at));
   }
 
   for (auto& [name, t] : topics) {
@@ -533,8 +551,8 @@ Result<FlightLogDiagnosis> diagnose_flight_log(const std::string& log, const Fli
         open = false;
         size_t& count = w.kind == "timeout" ? timeout_events : rejection_events;
         if (count++ < kMaxEventsPerKind) {
-          out.timeline.push_back({w.kind == "timeout" ? "timeout" : "rejection", t.channel + " " + w.name,
-                                  span_start, span_end});
+          out.timeline.push_back(
+              {w.kind == "timeout" ? "timeout" : "rejection", t.channel + " " + w.name, span_start, span_end});
         }
       };
       for (size_t i = 0; i < w.values.size(); ++i) {
@@ -560,31 +578,34 @@ Result<FlightLogDiagnosis> diagnose_flight_log(const std::string& log, const Fli
       close();
       if (s.over == 0 && s.kind != "test_ratio") continue;
       if (s.kind == "timeout" && s.over >= th.timeouts) {
-        out.problems.push_back(fmt("the estimator timed out on %s (%s, %s): set in %lld of %lld samples, first at "
-                                   "%.1f s: it stopped receiving that measurement and flew on its prediction",
-                                   w.name.c_str(), t.channel.c_str(), t.topic.c_str(), static_cast<long long>(s.over),
-                                   static_cast<long long>(s.samples), s.first_s));
+        out.problems.push_back(
+            fmt("the estimator timed out on %s (%s, %s): set in %lld of %lld samples, first at "
+                "%.1f s: it stopped receiving that measurement and flew on its prediction",
+                w.name.c_str(), t.channel.c_str(), t.topic.c_str(), static_cast<long long>(s.over),
+                static_cast<long long>(s.samples), s.first_s));
       } else if (s.kind != "timeout" && s.over > 0 && s.time_over_s >= th.rejected_s) {
-        out.problems.push_back(fmt(
-            "the estimator rejected %s (%s%s) for %.1f s in all (%lld of %lld samples, first at %.1f s%s): that "
-            "measurement disagreed with the prediction (a sensor glitch, a bad calibration, or its timestamps "
-            "late against the IMU's)",
-            w.name.c_str(), t.channel.c_str(), s.kind == "test_ratio" ? ", test ratio over 1" : ", flag set",
-            s.time_over_s, static_cast<long long>(s.over), static_cast<long long>(s.samples), s.first_s,
-            s.kind == "test_ratio" ? fmt(", max %.2f", s.max).c_str() : ""));
+        out.problems.push_back(
+            fmt("the estimator rejected %s (%s%s) for %.1f s in all (%lld of %lld samples, first at %.1f s%s): that "
+                "measurement disagreed with the prediction (a sensor glitch, a bad calibration, or its timestamps "
+                "late against the IMU's)",
+                w.name.c_str(), t.channel.c_str(), s.kind == "test_ratio" ? ", test ratio over 1" : ", flag set",
+                s.time_over_s, static_cast<long long>(s.over), static_cast<long long>(s.samples), s.first_s,
+                s.kind == "test_ratio" ? fmt(", max %.2f", s.max).c_str() : ""));
       }
       out.estimator.push_back(std::move(s));
     }
     for (const auto& c : t.counters) {
       out.imu_loss.push_back({t.channel, c.field, c.growth});
       if (c.field == "time_slip" && c.growth >= th.time_slip_s) {
-        out.problems.push_back(fmt("the estimator dropped IMU data: its inertial prediction fell %.0f ms behind the "
-                                   "IMU (%s time_slip): its loop overran the IMU's rate",
-                                   c.growth * 1e3, t.channel.c_str()));
+        out.problems.push_back(
+            fmt("the estimator dropped IMU data: its inertial prediction fell %.0f ms behind the "
+                "IMU (%s time_slip): its loop overran the IMU's rate",
+                c.growth * 1e3, t.channel.c_str()));
       } else if (c.field != "time_slip" && c.growth >= 1) {
-        out.problems.push_back(fmt("the IMU driver reported %.0f errors (%s %s): samples it lost or rejected before "
-                                   "the estimator",
-                                   c.growth, t.channel.c_str(), c.field.c_str()));
+        out.problems.push_back(
+            fmt("the IMU driver reported %.0f errors (%s %s): samples it lost or rejected before "
+                "the estimator",
+                c.growth, t.channel.c_str(), c.field.c_str()));
       }
     }
     // ---- timesync with a companion computer ----
@@ -618,16 +639,17 @@ Result<FlightLogDiagnosis> diagnose_flight_log(const std::string& log, const Fli
         ts.rtt_slow_share = static_cast<double>(slow) / static_cast<double>(rtt.size());
       }
       if (!rtt.empty() && ts.rtt_slow_share >= th.timesync_slow_share) {
-        out.problems.push_back(fmt("the companion computer's link is slow: %.0f%% of %s's round trips over %.0f ms "
-                                   "(p99 %.1f ms), which PX4's timesync discards; its clock offset is held stale",
-                                   ts.rtt_slow_share * 100, t.channel.c_str(), th.timesync_rtt_s * 1e3,
-                                   ts.rtt_p99_s * 1e3));
+        out.problems.push_back(
+            fmt("the companion computer's link is slow: %.0f%% of %s's round trips over %.0f ms "
+                "(p99 %.1f ms), which PX4's timesync discards; its clock offset is held stale",
+                ts.rtt_slow_share * 100, t.channel.c_str(), th.timesync_rtt_s * 1e3, ts.rtt_p99_s * 1e3));
       }
       if (ts.resyncs >= 1) {
-        out.problems.push_back(fmt("the companion computer's clock offset was reset %lld time%s (%s: steps over "
-                                   "%.0f ms): stamps it sent across a reset jump by the step",
-                                   static_cast<long long>(ts.resyncs), ts.resyncs == 1 ? "" : "s", t.channel.c_str(),
-                                   th.timesync_step_s * 1e3));
+        out.problems.push_back(
+            fmt("the companion computer's clock offset was reset %lld time%s (%s: steps over "
+                "%.0f ms): stamps it sent across a reset jump by the step",
+                static_cast<long long>(ts.resyncs), ts.resyncs == 1 ? "" : "s", t.channel.c_str(),
+                th.timesync_step_s * 1e3));
       }
       out.timesync.push_back(std::move(ts));
     }

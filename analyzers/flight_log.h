@@ -108,14 +108,14 @@ struct TimesyncStats {
   int64_t count = 0;
   double offset_p50_s = 0, offset_min_s = 0, offset_max_s = 0;  ///< estimated offset [s]
   double rtt_p50_s = 0, rtt_p99_s = 0, rtt_max_s = 0;           ///< round-trip time [s]
-  double rtt_slow_share = 0;                                   ///< round trips over timesync_rtt_s [fraction]
+  double rtt_slow_share = 0;                                    ///< round trips over timesync_rtt_s [fraction]
   int64_t resyncs = 0;
 };
 
 /// One thing on the flight's timeline.
 struct FlightEvent {
-  std::string kind;  ///< "dropout", "rejection", "timeout", "sensor_gap"
-  std::string what;  ///< the channel and field, or "logger"
+  std::string kind;               ///< "dropout", "rejection", "timeout", "sensor_gap"
+  std::string what;               ///< the channel and field, or "logger"
   double start_s = 0, end_s = 0;  ///< from the log's start [s]
 };
 
@@ -134,7 +134,7 @@ struct FlightLogDiagnosis {
   std::vector<EstimatorCheck> estimator;  ///< only series with a sample over / set, and every test ratio's max
   std::vector<ImuLoss> imu_loss;
   std::vector<TimesyncStats> timesync;
-  std::vector<FlightEvent> timeline;   ///< by start time, at most 500 of each kind
+  std::vector<FlightEvent> timeline;  ///< by start time, at most 500 of each kind
   std::vector<std::string> problems;  ///< cause first, in words
 };
 

@@ -13,9 +13,9 @@
 #include "analyzers/timing.h"
 #include "apps/cli_checks.h"
 #include "apps/cli_util.h"
-#include "apps/log_input.h"
 #include "apps/commands.h"
 #include "apps/diagnosis_json.h"
+#include "apps/log_input.h"
 #include "core/same_file.h"
 
 namespace driftlab::apps {

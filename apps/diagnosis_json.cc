@@ -259,8 +259,8 @@ nlohmann::json flight_log_json(const analyzers::FlightLogDiagnosis& f) {
     timeline.push_back({{"kind", e.kind}, {"what", e.what}, {"start_s", e.start_s}, {"end_s", e.end_s}});
   }
   return {{"start_utime", f.start_utime},
-          {"fusion_horizon", f.horizon_s > 0 ? nlohmann::json{{"s", f.horizon_s}, {"channel", f.horizon_channel}}
-                                             : nlohmann::json()},
+          {"fusion_horizon",
+           f.horizon_s > 0 ? nlohmann::json{{"s", f.horizon_s}, {"channel", f.horizon_channel}} : nlohmann::json()},
           {"dropouts",
            {{"count", f.dropout_count}, {"total_s", f.dropout_total_s}, {"max_s", f.dropout_max_s}, {"at", dropouts}}},
           {"sample_delays", delays},
@@ -346,7 +346,9 @@ std::vector<std::string> flight_log_lines(const analyzers::FlightLogDiagnosis& f
       if (s.kind == "test_ratio") std::snprintf(max, sizeof max, "; max %.2f", s.max);
       std::snprintf(buf, sizeof buf, "    %s %s: %s in %lld of %lld samples (%.1f s, first at %.1f s)%s",
                     s.channel.c_str(), s.field.c_str(),
-                    s.kind == "test_ratio" ? "over 1" : s.kind == "timeout" ? "timed out" : "rejected",
+                    s.kind == "test_ratio" ? "over 1"
+                    : s.kind == "timeout"  ? "timed out"
+                                           : "rejected",
                     static_cast<long long>(s.over), static_cast<long long>(s.samples), s.time_over_s, s.first_s, max);
       lines.push_back(buf);
     }

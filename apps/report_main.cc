@@ -17,13 +17,13 @@
 #include <fstream>
 #include <memory>
 
+#include "analyzers/flight_log.h"
 #include "analyzers/log_series.h"
 #include "analyzers/timing.h"
 #include "analyzers/trajectory.h"
 #include "apps/cli_util.h"
 #include "apps/commands.h"
 #include "apps/diagnosis_json.h"
-#include "analyzers/flight_log.h"
 #include "apps/log_input.h"
 #include "apps/report.h"
 #include "core/text_file.h"

@@ -135,7 +135,8 @@ TEST(FlightLog, CubeOrangeFlightIsHealthyButForItsDropoutAndTheLoggersStartingSt
   EXPECT_TRUE(has_problem(d, "nothing from most sensors")) << all_problems(d);
   EXPECT_FALSE(has_problem(d, "stopped publishing")) << all_problems(d);
   // The timeline: the dropout and the stall.
-  EXPECT_TRUE(std::any_of(d.timeline.begin(), d.timeline.end(), [](const FlightEvent& e) { return e.kind == "dropout"; }));
+  EXPECT_TRUE(
+      std::any_of(d.timeline.begin(), d.timeline.end(), [](const FlightEvent& e) { return e.kind == "dropout"; }));
 }
 
 TEST(FlightLog, SitlFlightShowsTheSkippingSchedulerAndThreeEstimators) {
@@ -205,11 +206,13 @@ std::vector<uint8_t> flight(const Faults& f) {
   u.format("sensor_baro:uint64_t timestamp;uint64_t timestamp_sample;float x;");
   u.format("sensor_mag:uint64_t timestamp;uint64_t timestamp_sample;float x;");
   u.format("estimator_innovation_test_ratios:uint64_t timestamp;float[2] gps_hpos;float baro_vpos;");
-  u.format("estimator_status:uint64_t timestamp;float vel_test_ratio;float time_slip;uint16_t innovation_check_flags;"
-           "uint8_t timeout_flags;");
+  u.format(
+      "estimator_status:uint64_t timestamp;float vel_test_ratio;float time_slip;uint16_t innovation_check_flags;"
+      "uint8_t timeout_flags;");
   u.format("estimator_event_flags:uint64_t timestamp;bool gps_fusion_timout;bool reset_vel_to_gps;");
-  u.format("timesync_status:uint64_t timestamp;uint64_t remote_timestamp;int64_t observed_offset;int64_t "
-           "estimated_offset;uint32_t round_trip_time;");
+  u.format(
+      "timesync_status:uint64_t timestamp;uint64_t remote_timestamp;int64_t observed_offset;int64_t "
+      "estimated_offset;uint32_t round_trip_time;");
   u.subscribe(0, 1, "sensor_gyro");
   u.subscribe(1, 2, "sensor_gyro");
   u.subscribe(0, 3, "sensor_accel");
@@ -254,7 +257,7 @@ std::vector<uint8_t> flight(const Faults& f) {
   for (int k = 1; k <= 39; ++k) {  // the estimator at 10 Hz
     const uint64_t t = 100000 * static_cast<uint64_t>(k);
     const bool rejecting = f.rejections && in(t, 1.5, 3.0);  // 15 samples: 1.5 s over 1
-    const bool brief = in(t, 0.5, 0.8);                        // 3 samples: 0.3 s over 1, under the 1 s threshold
+    const bool brief = in(t, 0.5, 0.8);                      // 3 samples: 0.3 s over 1, under the 1 s threshold
     std::vector<uint8_t> r;
     put(r, t, 8);
     for (float v : {0.3f, brief ? 1.2f : 0.4f, rejecting ? 1.5f : 0.2f}) {
@@ -514,7 +517,8 @@ TEST(FlightLog, DamagedRecordsInTheLogAreSkipped) {
       m.size = static_cast<int32_t>(m.data.size());
       ASSERT_TRUE(w->write(t, channel, test::encode(m)));
     };
-    schema("a", "estimator_innovation_test_ratios", "estimator_innovation_test_ratios:uint64_t timestamp;float[2] gps_hpos;");
+    schema("a", "estimator_innovation_test_ratios",
+           "estimator_innovation_test_ratios:uint64_t timestamp;float[2] gps_hpos;");
     schema("b", "sensor_gyro", "::::\n:\nsensor_gyro:uint64_t timestamp;nested_t n;");  // an unknown nested type
     schema("c", "timesync_status", "");
     schema("d", "sensor_accel", "sensor_accel:uint64_t timestamp;uint64_t timestamp_sample;float[1000000] x;");
