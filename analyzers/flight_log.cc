@@ -204,7 +204,7 @@ void read_message(Topic& t, std::span<const uint8_t> p, int64_t event_utime) {
   if (!t.watches_made) make_watches(t);
   for (Watch& w : t.watches) {
     const double v = watched(l, w, p);
-    if (std::isfinite(v)) w.values.emplace_back(now, static_cast<float>(std::min(v, 3.4e38)));
+    if (std::isfinite(v)) w.values.emplace_back(now, static_cast<float>(std::clamp(v, -3.4e38, 3.4e38)));
   }
   for (Topic::Counter& c : t.counters) {
     const double v = l.number(p, c.field);
@@ -223,7 +223,7 @@ void read_message(Topic& t, std::span<const uint8_t> p, int64_t event_utime) {
 double median_interval_us(const std::vector<int64_t>& times) {
   std::vector<double> d;
   for (size_t i = 1; i < times.size(); ++i) {
-    if (times[i] > times[i - 1]) d.push_back(static_cast<double>(times[i] - times[i - 1]));
+    if (times[i] > times[i - 1]) d.push_back(static_cast<double>(times[i]) - static_cast<double>(times[i - 1]));
   }
   return d.empty() ? 0.0 : quantile_in_place(d, 0.5);
 }
@@ -306,12 +306,14 @@ Result<FlightLogDiagnosis> diagnose_flight_log(const std::string& log, const Fli
     if (t.topic.empty() || t.layout) continue;
     const auto stamp = lcmtypes::header_stamp(e.data, e.utime);
     if (!stamp) continue;
-    t.delays.push_back(e.utime - *stamp);
+    const double d = static_cast<double>(e.utime) - static_cast<double>(*stamp);
+    if (std::abs(d) < 9e15) t.delays.push_back(static_cast<int64_t>(d));  // a hostile stamp cannot overflow it
     if (is_imu_topic(t.topic) || is_sensor_topic(t.topic)) t.times.push_back(*stamp);
   }
   if (!out.present) return FlightLogDiagnosis{};
   const int64_t start = out.start_utime;
-  auto since = [&](int64_t us) { return static_cast<double>(us - start) * 1e-6; };
+  // In doubles: hostile times may lie anywhere in int64_t.
+  auto since = [&](int64_t us) { return (static_cast<double>(us) - static_cast<double>(start)) * 1e-6; };
 
   // ---- the logger's dropouts ----
   for (const auto& [t, d] : dropouts) {
@@ -468,8 +470,8 @@ Result<FlightLogDiagnosis> diagnose_flight_log(const std::string& log, const Fli
       if (stall) stalls.emplace_back(a, b);
       if (!logger && !stall && judged(g)) {
         ++own;
-        if (static_cast<double>(b - a) * 1e-6 > own_longest) {
-          own_longest = static_cast<double>(b - a) * 1e-6;
+        if ((static_cast<double>(b) - static_cast<double>(a)) * 1e-6 > own_longest) {
+          own_longest = (static_cast<double>(b) - static_cast<double>(a)) * 1e-6;
           own_at = since(a);
         }
       }
@@ -516,8 +518,8 @@ Result<FlightLogDiagnosis> diagnose_flight_log(const std::string& log, const Fli
       if (gap_events++ < kMaxEventsPerKind) {
         out.timeline.push_back({"sensor_gap", "every sensor at once (a stall)", since(a), since(b)});
       }
-      if (static_cast<double>(b - a) * 1e-6 > longest) {
-        longest = static_cast<double>(b - a) * 1e-6;
+      if ((static_cast<double>(b) - static_cast<double>(a)) * 1e-6 > longest) {
+        longest = (static_cast<double>(b) - static_cast<double>(a)) * 1e-6;
         at = since(a);
       }
     }

@@ -18,6 +18,7 @@
 #include "driftlab/dropout_t.hpp"
 #include "driftlab/foreign_message_t.hpp"
 #include "driftlab/foreign_schema_t.hpp"
+#include "driftlab/imu_t.hpp"
 #include "formats/import.h"
 #include "tests/formats/ulog_writer.h"
 #include "tests/test_util.h"
@@ -540,6 +541,12 @@ TEST(FlightLog, DamagedRecordsInTheLogAreSkipped) {
       o.header.frame_id = "";
       o.duration_us = -5;
       ASSERT_TRUE(w->write(t, "ULOG_DROPOUTS", test::encode(o)));
+      // sensor_combined as imported (imu_t) with stamps at int64_t's ends: no difference of them may overflow.
+      imu_t m{};
+      m.header.seq = k;
+      m.header.utime = k % 2 ? INT64_MIN : INT64_MAX;
+      m.header.frame_id = "body_frd";
+      ASSERT_TRUE(w->write(k % 2 ? INT64_MAX : t, "sensor_combined", test::encode(m)));
     }
     ASSERT_TRUE(w->close());
   }
