@@ -530,7 +530,8 @@ Result<FlightLogDiagnosis> diagnose_flight_log(const std::string& log, const Fli
             static_cast<long long>(merged.size()), merged.size() == 1 ? "" : "s", longest * 1e3, at));
   }
 
-  for (auto& [name, t] : topics) {
+  for (auto& entry : topics) {
+    Topic& t = entry.second;  // not a structured binding: the lambdas below capture it
     if (t.topic.empty()) continue;
     // ---- the estimator ----
     for (Watch& w : t.watches) {

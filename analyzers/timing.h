@@ -75,7 +75,7 @@ struct ChannelTiming {
   double late_stamp_max_s = 0;      ///< how much later than the median latency the latest of them is [s]
   Distribution transport_s;         ///< latency above the fitted clock line [s]
   std::string verdict = "ok";       ///< ok, warn or fault
-  std::vector<std::string> reasons; ///< why, in words
+  std::vector<std::string> reasons;  ///< why, in words
 };
 
 /// A clock that the stamps of some streams share (docs/diagnosis.md, "Clock domains"): the recorder's own (the

@@ -524,7 +524,7 @@ TEST(FlightLog, DamagedRecordsInTheLogAreSkipped) {
     schema("c", "timesync_status", "");
     schema("d", "sensor_accel", "sensor_accel:uint64_t timestamp;uint64_t timestamp_sample;float[1000000] x;");
     for (int k = 1; k <= 20; ++k) {
-      const int64_t t = 100000 * k;
+      const int64_t t = int64_t{100000} * k;
       std::vector<uint8_t> cut;
       put(cut, static_cast<uint64_t>(t), 8);
       cut.push_back(0x40);  // a float cut after its first byte
