@@ -20,6 +20,7 @@ try:
     import numpy
 
     matplotlib.use("Agg")
+    import matplotlib.patches
     import matplotlib.pyplot as plt
 except ImportError:
     sys.exit(3)  # driftlab report says so, or tries another python3
@@ -227,6 +228,50 @@ def plot_skew(page, data):
               "the skew. A sharp single peak is trustworthy; a flat or double-peaked curve is not.")
 
 
+FLIGHT_KINDS = [("dropout", "logger dropouts", "#d62728"), ("sensor_gap", "sensor gaps", "#ff7f0e"),
+                ("rejection", "estimator rejections", "#9467bd"), ("timeout", "estimator timeouts", "#8c564b")]
+
+
+def plot_flight_timeline(page, data):
+    """A PX4 flight log's timeline: the logger's dropouts, the sensors' gaps and the estimator's rejections and
+    timeouts on one time axis, a row per channel (per field for the estimator)."""
+    flight = (data.get("diagnosis") or {}).get("flight_log")
+    if not flight:
+        return
+    duration = max([l["duration_s"] for l in data.get("logs", [])] + [1.0])
+    rows = []  # (label, color, [(start, width)])
+    for kind, name, color in FLIGHT_KINDS:
+        by_what = {}
+        for e in flight.get("timeline", []):
+            if e["kind"] == kind:
+                by_what.setdefault(e["what"] if kind != "dropout" else name, []).append(e)
+        for what in sorted(by_what, key=lambda w: -len(by_what[w]))[:10]:
+            spans = [(e["start_s"], max(e["end_s"] - e["start_s"], duration * 0.002)) for e in by_what[what]]
+            rows.append((what if kind != "dropout" else name, color, spans))
+    fig, ax = plt.subplots(figsize=(11, 1.2 + 0.32 * max(len(rows), 1)))
+    for i, (label, color, spans) in enumerate(rows):
+        ax.broken_barh(spans, (i - 0.35, 0.7), facecolors=color)
+    ax.set_yticks(range(len(rows)))
+    ax.set_yticklabels([r[0] for r in rows], fontsize=8)
+    ax.set_ylim(-0.8, max(len(rows), 1) - 0.2)
+    ax.invert_yaxis()
+    ax.set_xlim(0, max([duration] + [start + width for _, _, spans in rows for start, width in spans]) * 1.01)
+    ax.set_xlabel("time from the log's start [s]")
+    handles = [matplotlib.patches.Patch(color=c, label=n) for k, n, c in FLIGHT_KINDS]
+    ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.35 if rows else -0.5), ncol=4,
+              fontsize=8)
+    d = flight.get("dropouts") or {}
+    n = d.get("count", 0)
+    title = (f"Flight timeline: {n} logger dropout{'' if n == 1 else 's'} ({ms(d.get('total_s', 0)):.0f} ms)"
+             if rows else "Flight timeline: no dropouts, sensor gaps or estimator rejections")
+    ax.set_title(title)
+    page.save(fig, "flight_timeline.png", "Flight timeline",
+              "The flight controller's own log on one time axis: the logger's dropouts (data missing from every "
+              "topic), gaps in each sensor's samples (of 2.5 periods or more; labelled when at a dropout or shared "
+              "by every sensor, i.e. the logger's or the whole system's, not the sensor's), and the spans where the "
+              "estimator rejected a measurement (innovation test ratio over 1, or a rejection flag) or timed out.")
+
+
 def fastest_window(t, commanded, width):
     """The [start, end] of `width` seconds where the commanded joints move the most (summed |change|)."""
     if len(t) < 2 or t[-1] - t[0] <= width:
@@ -426,6 +471,8 @@ def channel_table(d):
 
 def problems_list(d):
     items = []
+    for p in (d.get("flight_log") or {}).get("problems", []):
+        items.append(f"<li class='warn'><b>flight log</b>: {esc(p)}</li>")
     for c in d.get("channels", []):
         for r in c["reasons"]:
             items.append(f"<li class='{esc(c['verdict'])}'><b>{esc(c['name'])}</b>: {esc(r)}</li>")
@@ -526,6 +573,7 @@ def main(argv):
     plot_latency(page, data)
     plot_interarrival(page, data)
     plot_skew(page, data)
+    plot_flight_timeline(page, data)
     plot_arms(page, data)
     plot_estimators(page, data)
     plot_maps(page, data, out_dir)

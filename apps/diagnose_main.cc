@@ -9,12 +9,13 @@
 #include <memory>
 #include <set>
 
+#include "analyzers/flight_log.h"
 #include "analyzers/timing.h"
 #include "apps/cli_checks.h"
 #include "apps/cli_util.h"
-#include "apps/log_input.h"
 #include "apps/commands.h"
 #include "apps/diagnosis_json.h"
+#include "apps/log_input.h"
 #include "core/same_file.h"
 
 namespace driftlab::apps {
@@ -283,10 +284,21 @@ int run_diagnose(const DiagnoseOptions& o) {
   if (!result) return fail(result.error().message);
   const Diagnosis& d = *result;
   std::vector<std::string> problems;
-  const auto lines = report_lines(d, &problems);
+  auto lines = report_lines(d, &problems);
+  // A PX4 flight log: the flight controller's own account of its timing and its estimator, its problems first (a
+  // logger dropout explains the gaps every channel shows at it).
+  auto flight = analyzers::diagnose_flight_log(o.log);
+  if (!flight) return fail(flight.error().message);
+  if (flight->present) {
+    lines.emplace_back();
+    for (auto& l : flight_log_lines(*flight)) lines.push_back(std::move(l));
+    problems.insert(problems.begin(), flight->problems.begin(), flight->problems.end());
+  }
   if (!o.html.empty() && !write_output(o.html, html_page(d, lines, problems))) return kExitFailure;
   if (!o.json.empty()) {
-    if (!write_output(o.json, to_json(d).dump(2) + "\n")) return kExitFailure;
+    nlohmann::json j = to_json(d);
+    if (flight->present) j["flight_log"] = flight_log_json(*flight);
+    if (!write_output(o.json, j.dump(2) + "\n")) return kExitFailure;
     if (o.json == "-") return kExitOk;
   }
   for (const auto& l : lines) std::printf("%s\n", l.c_str());
@@ -306,7 +318,9 @@ int run_diagnose(const DiagnoseOptions& o) {
 void add_diagnose_command(CLI::App& app, int* exit_code) {
   auto o = std::make_shared<DiagnoseOptions>();
   CLI::App* cmd = app.add_subcommand(
-      "diagnose", "Find skew, clock offset and drift, latency, drops, duplicates and reordering in a log.");
+      "diagnose",
+      "Find skew, clock offset and drift, latency, drops, duplicates and reordering in a log; in a PX4 flight log, "
+      "the logger's dropouts, the IMU's timing and the estimator's health too.");
   cmd->add_option("log", o->inputs, kLogInputHelp)->required();
   cmd->add_option("--json", o->json, "Also write the diagnosis as JSON to this file ('-': print only the JSON)");
   cmd->add_option("--html", o->html, "Also write the report as an HTML page");

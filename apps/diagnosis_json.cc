@@ -3,7 +3,11 @@
 
 #include "analyzers/clock_corrections.h"
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <string>
+#include <vector>
 
 namespace driftlab::apps {
 
@@ -210,6 +214,193 @@ nlohmann::json diagnosis_summary(const nlohmann::json& diagnosis) {
                                                          {"causes", worst->value("causes", nlohmann::json::array())}}},
       {"clocks_ahead_s", ahead},
       {"drops", drops}};
+}
+
+}  // namespace driftlab::apps
+
+namespace driftlab::apps {
+
+nlohmann::json flight_log_json(const analyzers::FlightLogDiagnosis& f) {
+  nlohmann::json dropouts = nlohmann::json::array();
+  for (const auto& d : f.dropouts) dropouts.push_back({{"at_s", d.at_s}, {"duration_s", d.duration_s}});
+  nlohmann::json delays = nlohmann::json::array();
+  for (const auto& s : f.sample_delays) {
+    delays.push_back({{"channel", s.channel},
+                      {"topic", s.topic},
+                      {"sensor", s.sensor},
+                      {"count", s.count},
+                      {"p50_s", s.p50_s},
+                      {"p99_s", s.p99_s},
+                      {"max_s", s.max_s},
+                      {"negative", s.negative}});
+  }
+  nlohmann::json imu = nlohmann::json::array();
+  for (const auto& i : f.imu) {
+    imu.push_back({{"channel", i.channel},
+                   {"topic", i.topic},
+                   {"intervals", i.intervals},
+                   {"nominal_s", i.nominal_s},
+                   {"share_1x", i.share_1x},
+                   {"share_2x", i.share_2x},
+                   {"share_0", i.share_0},
+                   {"share_other", i.share_other},
+                   {"longest_s", i.longest_s},
+                   {"longest_at_s", i.longest_at_s},
+                   {"gaps", i.gaps}});
+  }
+  nlohmann::json estimator = nlohmann::json::array();
+  for (const auto& s : f.estimator) {
+    estimator.push_back({{"channel", s.channel},
+                         {"field", s.field},
+                         {"kind", s.kind},
+                         {"samples", s.samples},
+                         {"over", s.over},
+                         {"max", s.max},
+                         {"time_over_s", s.time_over_s},
+                         {"first_s", s.first_s < 0 ? nlohmann::json() : nlohmann::json(s.first_s)}});
+  }
+  nlohmann::json loss = nlohmann::json::array();
+  for (const auto& l : f.imu_loss) loss.push_back({{"channel", l.channel}, {"field", l.field}, {"growth", l.growth}});
+  nlohmann::json timesync = nlohmann::json::array();
+  for (const auto& t : f.timesync) {
+    timesync.push_back({{"channel", t.channel},
+                        {"count", t.count},
+                        {"offset_s", {{"p50", t.offset_p50_s}, {"min", t.offset_min_s}, {"max", t.offset_max_s}}},
+                        {"rtt_s", {{"p50", t.rtt_p50_s}, {"p99", t.rtt_p99_s}, {"max", t.rtt_max_s}}},
+                        {"rtt_slow_share", t.rtt_slow_share},
+                        {"resyncs", t.resyncs}});
+  }
+  nlohmann::json timeline = nlohmann::json::array();
+  for (const auto& e : f.timeline) {
+    timeline.push_back({{"kind", e.kind}, {"what", e.what}, {"start_s", e.start_s}, {"end_s", e.end_s}});
+  }
+  return {{"start_utime", f.start_utime},
+          {"fusion_horizon",
+           f.horizon_s > 0 ? nlohmann::json{{"s", f.horizon_s}, {"channel", f.horizon_channel}} : nlohmann::json()},
+          {"dropouts",
+           {{"count", f.dropout_count}, {"total_s", f.dropout_total_s}, {"max_s", f.dropout_max_s}, {"at", dropouts}}},
+          {"sample_delays", delays},
+          {"imu_intervals", imu},
+          {"estimator", estimator},
+          {"imu_loss", loss},
+          {"timesync", timesync},
+          {"timeline", timeline},
+          {"problems", f.problems}};
+}
+
+std::vector<std::string> flight_log_lines(const analyzers::FlightLogDiagnosis& f) {
+  std::vector<std::string> lines;
+  if (!f.present) return lines;
+  char buf[512];
+  lines.push_back("flight log (PX4 ULog; times from the log's start):");
+  if (f.dropout_count == 0) {
+    lines.push_back("  logger dropouts: none");
+  } else {
+    std::string where;
+    for (size_t i = 0; i < f.dropouts.size() && i < 8; ++i) {
+      std::snprintf(buf, sizeof buf, "%s%.0f ms at %.1f s", i ? ", " : "", f.dropouts[i].duration_s * 1e3,
+                    f.dropouts[i].at_s);
+      where += buf;
+    }
+    if (f.dropouts.size() > 8) where += ", ...";
+    std::snprintf(buf, sizeof buf, "  logger dropouts: %lld, %.0f ms in all, the longest %.0f ms (%s)",
+                  static_cast<long long>(f.dropout_count), f.dropout_total_s * 1e3, f.dropout_max_s * 1e3,
+                  where.c_str());
+    lines.push_back(buf);
+  }
+  size_t w = 7;
+  for (const auto& s : f.sample_delays) w = std::max(w, s.channel.size());
+  for (const auto& s : f.imu) w = std::max(w, s.channel.size());
+  const int iw = static_cast<int>(w);
+  const auto sensors = std::count_if(f.sample_delays.begin(), f.sample_delays.end(),
+                                     [](const analyzers::SampleDelay& s) { return s.sensor; });
+  if (sensors > 0) {
+    lines.push_back("  sensors, sample to publication (timestamp - timestamp_sample; other topics in --json):");
+    std::snprintf(buf, sizeof buf, "    %-*s %8s %9s %9s %9s", iw, "channel", "count", "p50 ms", "p99 ms", "max ms");
+    lines.push_back(buf);
+    for (const auto& s : f.sample_delays) {
+      if (!s.sensor) continue;
+      std::snprintf(buf, sizeof buf, "    %-*s %8lld %9.2f %9.2f %9.2f", iw, s.channel.c_str(),
+                    static_cast<long long>(s.count), s.p50_s * 1e3, s.p99_s * 1e3, s.max_s * 1e3);
+      lines.push_back(buf);
+    }
+  }
+  if (f.horizon_s > 0) {
+    std::snprintf(buf, sizeof buf, "  estimator fusion horizon: %.0f ms behind its newest IMU sample (%s)",
+                  f.horizon_s * 1e3, f.horizon_channel.c_str());
+    lines.push_back(buf);
+  }
+  if (!f.imu.empty()) {
+    lines.push_back("  IMU intervals (against the median period; a scheduler that skips shows ~2x and ~0):");
+    std::snprintf(buf, sizeof buf, "    %-*s %8s %9s %6s %6s %6s %6s %11s", iw, "channel", "count", "period", "~1x",
+                  "~2x", "~0", "other", "longest");
+    lines.push_back(buf);
+    for (const auto& s : f.imu) {
+      std::snprintf(buf, sizeof buf, "    %-*s %8lld %6.1f ms %5.1f%% %5.1f%% %5.1f%% %5.1f%% %8.1f ms", iw,
+                    s.channel.c_str(), static_cast<long long>(s.intervals), s.nominal_s * 1e3, s.share_1x * 100,
+                    s.share_2x * 100, s.share_0 * 100, s.share_other * 100, s.longest_s * 1e3);
+      lines.push_back(buf);
+    }
+  }
+  int ratios = 0;
+  const analyzers::EstimatorCheck* highest = nullptr;
+  for (const auto& s : f.estimator) {
+    if (s.kind != "test_ratio") continue;
+    ++ratios;
+    if (!highest || s.max > highest->max) highest = &s;
+  }
+  if (!f.estimator.empty()) {
+    lines.push_back("  estimator (innovation test ratios over 1: the measurement rejected):");
+    if (highest) {
+      std::snprintf(buf, sizeof buf, "    %d test ratios; the highest %.2f (%s %s)", ratios, highest->max,
+                    highest->channel.c_str(), highest->field.c_str());
+      lines.push_back(buf);
+    }
+    for (const auto& s : f.estimator) {
+      if (s.over == 0) continue;
+      char max[32] = "";
+      if (s.kind == "test_ratio") std::snprintf(max, sizeof max, "; max %.2f", s.max);
+      std::snprintf(buf, sizeof buf, "    %s %s: %s in %lld of %lld samples (%.1f s, first at %.1f s)%s",
+                    s.channel.c_str(), s.field.c_str(),
+                    s.kind == "test_ratio" ? "over 1"
+                    : s.kind == "timeout"  ? "timed out"
+                                           : "rejected",
+                    static_cast<long long>(s.over), static_cast<long long>(s.samples), s.time_over_s, s.first_s, max);
+      lines.push_back(buf);
+    }
+  }
+  std::string slip, errors;
+  double error_total = 0;
+  for (const auto& l : f.imu_loss) {
+    if (l.field == "time_slip") {
+      std::snprintf(buf, sizeof buf, "%s%.0f ms (%s)", slip.empty() ? "" : ", ", l.growth * 1e3, l.channel.c_str());
+      slip += buf;
+    } else {
+      error_total += l.growth;
+      if (l.growth > 0) {
+        std::snprintf(buf, sizeof buf, "%s%.0f (%s %s)", errors.empty() ? "" : ", ", l.growth, l.channel.c_str(),
+                      l.field.c_str());
+        errors += buf;
+      }
+    }
+  }
+  if (!slip.empty()) lines.push_back("  IMU data the estimator dropped (time_slip over the log): " + slip);
+  const bool counted = std::any_of(f.imu_loss.begin(), f.imu_loss.end(),
+                                   [](const analyzers::ImuLoss& l) { return l.field != "time_slip"; });
+  if (counted) {
+    lines.push_back("  IMU driver errors (vehicle_imu_status error counts over the log): " +
+                    (error_total > 0 ? errors : std::string("none")));
+  }
+  for (const auto& t : f.timesync) {
+    std::snprintf(buf, sizeof buf,
+                  "  timesync (%s, %lld samples): offset %.3f ms (%.3f to %.3f), round trip %.2f ms p50, %.2f ms "
+                  "p99, %.2f ms max, %lld resyncs",
+                  t.channel.c_str(), static_cast<long long>(t.count), t.offset_p50_s * 1e3, t.offset_min_s * 1e3,
+                  t.offset_max_s * 1e3, t.rtt_p50_s * 1e3, t.rtt_p99_s * 1e3, t.rtt_max_s * 1e3,
+                  static_cast<long long>(t.resyncs));
+    lines.push_back(buf);
+  }
+  return lines;
 }
 
 }  // namespace driftlab::apps

@@ -3,6 +3,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "analyzers/flight_log.h"
 #include "analyzers/timing.h"
 
 namespace driftlab::apps {
@@ -16,6 +17,13 @@ nlohmann::json to_json(const analyzers::Diagnosis& d);
 /// most reasons), `clocks_ahead_s` (channel -> offset,
 /// clocks ahead by 1 ms or more; one behind cannot be told from latency in one log) and `drops` (channel -> count).
 /// Throws nlohmann::json::exception when the JSON is not a diagnosis.
+/// The flight-log diagnosis (analyzers/flight_log.h) as `diagnose --json` prints it under "flight_log": times in
+/// seconds from the log's start.
+nlohmann::json flight_log_json(const analyzers::FlightLogDiagnosis& f);
+
+/// The flight-log section of `driftlab diagnose`'s text, a line each (empty when the log has no ULog data).
+std::vector<std::string> flight_log_lines(const analyzers::FlightLogDiagnosis& f);
+
 nlohmann::json diagnosis_summary(const nlohmann::json& diagnosis);
 
 }  // namespace driftlab::apps

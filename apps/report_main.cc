@@ -17,6 +17,7 @@
 #include <fstream>
 #include <memory>
 
+#include "analyzers/flight_log.h"
 #include "analyzers/log_series.h"
 #include "analyzers/timing.h"
 #include "analyzers/trajectory.h"
@@ -143,6 +144,13 @@ Result<std::string> make_report(const ReportOptions& o) {
     auto d = diagnose(first.log);
     if (!d) return d.error();
     diagnosis = to_json(*d);
+  }
+  // A PX4 flight log: its flight-log diagnosis (dropouts, sensor gaps, the estimator's rejections) for the timeline,
+  // unless the diagnosis given already holds it.
+  if (!diagnosis.contains("flight_log")) {
+    auto f = analyzers::diagnose_flight_log(first.log);
+    if (!f) return f.error();
+    if (f->present) diagnosis["flight_log"] = flight_log_json(*f);
   }
   nlohmann::json evals = nlohmann::json::array();
   for (const auto& path : o.evals) {
@@ -279,7 +287,8 @@ void add_report_command(CLI::App& app, int* exit_code) {
       "channels are shown as estimates. Plots: trajectories in the plane (estimates aligned in position and yaw);\n"
       "error over time with drops, gaps and latency spikes on the same axis; latency histograms; inter-arrival times;\n"
       "skew correlation curves; SLAM maps; an arm's commanded and measured joint motion with the delay diagnose\n"
-      "measures between them. Without --diagnosis the first log is diagnosed. Needs python3 with\n"
+      "measures between them; a PX4 flight log's timeline (the logger's dropouts, sensor gaps, the estimator's\n"
+      "rejections and timeouts on one axis). Without --diagnosis the first log is diagnosed. Needs python3 with\n"
       "matplotlib. DIR gets index.html, a PNG per plot and report.json (the data plotted).");
   cmd->add_option("logs", o->logs, "Logs: the recording first, then replays of it")->required()->check(CLI::ExistingFile);
   cmd->add_option("-o,--out", o->out, "Folder to write the report into")->required();
