@@ -127,6 +127,7 @@ Result<Diagnosis> diagnose(const std::string& log, const DiagnoseOptions& option
   // Which clock each stream's stamps are on, and each foreign clock's mapping to the recorder's.
   std::vector<internal::DomainStream> streams;
   for (auto& [name, s] : channels) {
+    d.flight_log = d.flight_log || name.starts_with("ULOG_");
     s.is_tf = s.type == "driftlab.tf_t";
     s.is_static_tf = s.is_tf && internal::is_static_tf_channel(name);
     if (const auto it = sources.find(name); it != sources.end()) {

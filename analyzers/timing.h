@@ -243,6 +243,9 @@ struct Diagnosis {
   std::vector<PhysicsTiming> physics;  ///< per channel of driftlab.physics_step_t
   std::vector<TimesyncTiming> timesync;  ///< per channel of driftlab.timesync_status_t
   uint64_t log_problems = 0;  ///< corruption met while reading
+  /// The log carries a PX4 flight log's records (ULOG_* channels, written by `driftlab import` of a .ulg): its
+  /// flight-log diagnosis (analyzers/flight_log.h) has something to say
+  bool flight_log = false;
 };
 
 struct DiagnoseOptions {

@@ -287,7 +287,8 @@ int run_diagnose(const DiagnoseOptions& o) {
   auto lines = report_lines(d, &problems);
   // A PX4 flight log: the flight controller's own account of its timing and its estimator, its problems first (a
   // logger dropout explains the gaps every channel shows at it).
-  auto flight = analyzers::diagnose_flight_log(o.log);
+  Result<analyzers::FlightLogDiagnosis> flight = analyzers::FlightLogDiagnosis{};
+  if (d.flight_log) flight = analyzers::diagnose_flight_log(o.log);  // a second pass, for flight logs only
   if (!flight) return fail(flight.error().message);
   if (flight->present) {
     lines.emplace_back();
