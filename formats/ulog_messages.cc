@@ -4,8 +4,10 @@
 #include <cstring>
 #include <limits>
 
+#include "driftlab/barometer_t.hpp"
 #include "driftlab/gnss_t.hpp"
 #include "driftlab/imu_t.hpp"
+#include "driftlab/magnetometer_t.hpp"
 #include "driftlab/odometry_t.hpp"
 #include "driftlab/pose_t.hpp"
 #include "lcmtypes/encode.h"
@@ -37,14 +39,13 @@ bool has(const UlogLayout& l, std::string_view name, uint32_t count = 0) {
   return f && f->count == count && f->type != UlogType::kChar;
 }
 
-std::optional<UlogConverted> imu(const UlogLayout& l, std::span<const uint8_t> p, uint64_t timestamp, int64_t seq) {
-  if (!has(l, "gyro_rad", 3) || !has(l, "accelerometer_m_s2", 3)) return std::nullopt;
+/// An imu_t of a PX4 IMU topic: no orientation (PX4's IMU topics carry none), stamped when sampled, in PX4's body
+/// frame (forward, right, down); the caller sets its rates and accelerations.
+imu_t bare_imu(const UlogLayout& l, std::span<const uint8_t> p, uint64_t timestamp, int64_t seq) {
   imu_t m;
   m.header.seq = seq;
-  // sensor_combined's timestamp is its gyro sample's time (the accelerometer's is timestamp +
-  // accelerometer_timestamp_relative); it has no timestamp_sample.
   m.header.utime = sample_time(l, p, timestamp);
-  m.header.frame_id = "body_frd";  // PX4's body frame: forward, right, down
+  m.header.frame_id = "body_frd";
   m.orientation.w = 1;
   m.orientation.x = m.orientation.y = m.orientation.z = 0;
   for (int i = 0; i < 9; ++i) {
@@ -53,6 +54,14 @@ std::optional<UlogConverted> imu(const UlogLayout& l, std::span<const uint8_t> p
     m.linear_acceleration_covariance[i] = 0;
   }
   m.orientation_covariance[0] = -1;  // not provided
+  return m;
+}
+
+std::optional<UlogConverted> imu(const UlogLayout& l, std::span<const uint8_t> p, uint64_t timestamp, int64_t seq) {
+  if (!has(l, "gyro_rad", 3) || !has(l, "accelerometer_m_s2", 3)) return std::nullopt;
+  // sensor_combined's timestamp is its gyro sample's time (the accelerometer's is timestamp +
+  // accelerometer_timestamp_relative); it has no timestamp_sample.
+  imu_t m = bare_imu(l, p, timestamp, seq);
   m.angular_velocity.x = l.number(p, "gyro_rad", 0);
   m.angular_velocity.y = l.number(p, "gyro_rad", 1);
   m.angular_velocity.z = l.number(p, "gyro_rad", 2);
@@ -60,6 +69,66 @@ std::optional<UlogConverted> imu(const UlogLayout& l, std::span<const uint8_t> p
   m.linear_acceleration.y = l.number(p, "accelerometer_m_s2", 1);
   m.linear_acceleration.z = l.number(p, "accelerometer_m_s2", 2);
   return UlogConverted{"driftlab.imu_t", lcmtypes::encode(m)};
+}
+
+/// vehicle_imu (PX4 1.11 and later): one IMU's integrated rotation and velocity change over its interval; the mean
+/// rate and specific force over the interval are the changes over their dt (NaN, not measured, for a dt of 0).
+std::optional<UlogConverted> vehicle_imu(const UlogLayout& l, std::span<const uint8_t> p, uint64_t timestamp,
+                                         int64_t seq) {
+  if (!has(l, "delta_angle", 3) || !has(l, "delta_velocity", 3) || !has(l, "delta_angle_dt") ||
+      !has(l, "delta_velocity_dt")) {
+    return std::nullopt;
+  }
+  imu_t m = bare_imu(l, p, timestamp, seq);
+  const double angle_dt = l.number(p, "delta_angle_dt") * 1e-6, velocity_dt = l.number(p, "delta_velocity_dt") * 1e-6;
+  auto rate = [](double delta, double dt) { return dt > 0 ? delta / dt : kNaN; };
+  m.angular_velocity.x = rate(l.number(p, "delta_angle", 0), angle_dt);
+  m.angular_velocity.y = rate(l.number(p, "delta_angle", 1), angle_dt);
+  m.angular_velocity.z = rate(l.number(p, "delta_angle", 2), angle_dt);
+  m.linear_acceleration.x = rate(l.number(p, "delta_velocity", 0), velocity_dt);
+  m.linear_acceleration.y = rate(l.number(p, "delta_velocity", 1), velocity_dt);
+  m.linear_acceleration.z = rate(l.number(p, "delta_velocity", 2), velocity_dt);
+  return UlogConverted{"driftlab.imu_t", lcmtypes::encode(m)};
+}
+
+/// sensor_baro: static pressure and temperature. PX4 1.12 and earlier log millibar, later Pascal: a pressure under
+/// 2000 is millibar (2000 Pa is the air 27 km up; 2000 mbar no air a vehicle meets).
+std::optional<UlogConverted> barometer(const UlogLayout& l, std::span<const uint8_t> p, uint64_t timestamp,
+                                       int64_t seq) {
+  if (!has(l, "pressure")) return std::nullopt;
+  barometer_t m;
+  m.header.seq = seq;
+  m.header.utime = sample_time(l, p, timestamp);
+  m.header.frame_id = "baro";
+  const double pressure = l.number(p, "pressure");
+  m.pressure_pa = std::abs(pressure) < 2000 ? pressure * 100 : pressure;
+  m.temperature_c = has(l, "temperature") ? l.number(p, "temperature") : kNaN;
+  m.pressure_variance = 0;  // not given
+  return UlogConverted{"driftlab.barometer_t", lcmtypes::encode(m)};
+}
+
+/// sensor_mag (the sensor's frame: x, y, z) and vehicle_magnetometer (the body frame: magnetometer_ga), in gauss:
+/// tesla are 1e-4 of them.
+std::optional<UlogConverted> magnetometer(const UlogLayout& l, std::span<const uint8_t> p, uint64_t timestamp,
+                                          int64_t seq) {
+  magnetometer_t m;
+  if (has(l, "magnetometer_ga", 3)) {
+    m.header.frame_id = "body_frd";
+    m.magnetic_field.x = l.number(p, "magnetometer_ga", 0) * 1e-4;
+    m.magnetic_field.y = l.number(p, "magnetometer_ga", 1) * 1e-4;
+    m.magnetic_field.z = l.number(p, "magnetometer_ga", 2) * 1e-4;
+  } else if (has(l, "x") && has(l, "y") && has(l, "z")) {
+    m.header.frame_id = "mag";
+    m.magnetic_field.x = l.number(p, "x") * 1e-4;
+    m.magnetic_field.y = l.number(p, "y") * 1e-4;
+    m.magnetic_field.z = l.number(p, "z") * 1e-4;
+  } else {
+    return std::nullopt;
+  }
+  m.header.seq = seq;
+  m.header.utime = sample_time(l, p, timestamp);
+  for (double& c : m.magnetic_field_covariance) c = 0;  // not given
+  return UlogConverted{"driftlab.magnetometer_t", lcmtypes::encode(m)};
 }
 
 std::optional<UlogConverted> gnss(const UlogLayout& l, std::span<const uint8_t> p, uint64_t timestamp, int64_t seq) {
@@ -156,7 +225,9 @@ std::optional<UlogConverted> attitude(const UlogLayout& l, std::span<const uint8
 }  // namespace
 
 const char* driftlab_type_for_ulog(std::string_view name) {
-  if (name == "sensor_combined") return "driftlab.imu_t";
+  if (name == "sensor_combined" || name == "vehicle_imu") return "driftlab.imu_t";
+  if (name == "sensor_baro") return "driftlab.barometer_t";
+  if (name == "sensor_mag" || name == "vehicle_magnetometer") return "driftlab.magnetometer_t";
   if (name == "sensor_gps" || name == "vehicle_gps_position") return "driftlab.gnss_t";
   if (name == "vehicle_local_position") return "driftlab.odometry_t";
   if (name == "vehicle_attitude") return "driftlab.pose_t";
@@ -166,6 +237,11 @@ const char* driftlab_type_for_ulog(std::string_view name) {
 std::optional<UlogConverted> convert_ulog_message(const UlogLayout& layout, std::span<const uint8_t> payload,
                                                   uint64_t timestamp, int64_t seq) {
   if (layout.name == "sensor_combined") return imu(layout, payload, timestamp, seq);
+  if (layout.name == "vehicle_imu") return vehicle_imu(layout, payload, timestamp, seq);
+  if (layout.name == "sensor_baro") return barometer(layout, payload, timestamp, seq);
+  if (layout.name == "sensor_mag" || layout.name == "vehicle_magnetometer") {
+    return magnetometer(layout, payload, timestamp, seq);
+  }
   if (layout.name == "sensor_gps" || layout.name == "vehicle_gps_position") {
     return gnss(layout, payload, timestamp, seq);
   }

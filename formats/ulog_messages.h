@@ -1,6 +1,7 @@
 // PX4 topics (ULog data messages) onto driftlab's messages where driftlab has the same quantity: sensor_combined
-// -> imu_t, sensor_gps / vehicle_gps_position -> gnss_t, vehicle_local_position -> odometry_t, vehicle_attitude ->
-// pose_t (its orientation). Fields are found by name
+// and vehicle_imu -> imu_t, sensor_gps / vehicle_gps_position -> gnss_t, vehicle_local_position -> odometry_t,
+// vehicle_attitude -> pose_t (its orientation), sensor_baro -> barometer_t, sensor_mag and vehicle_magnetometer ->
+// magnetometer_t. Fields are found by name
 // in the message's own format, so PX4 versions that moved or added fields convert alike; a format without the fields a
 // mapping needs is carried as foreign_message_t instead. header.utime is the message's `timestamp_sample` when it has
 // one (when the sensor sampled), else its `timestamp`. Thread-safety: plain functions.

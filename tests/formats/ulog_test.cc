@@ -14,6 +14,7 @@
 #include <map>
 #include <set>
 
+#include "driftlab/barometer_t.hpp"
 #include "driftlab/channel_source_t.hpp"
 #include "driftlab/dropout_t.hpp"
 #include "driftlab/foreign_message_t.hpp"
@@ -21,6 +22,7 @@
 #include "driftlab/gnss_t.hpp"
 #include "driftlab/imu_t.hpp"
 #include "driftlab/log_text_t.hpp"
+#include "driftlab/magnetometer_t.hpp"
 #include "driftlab/odometry_t.hpp"
 #include "driftlab/parameter_t.hpp"
 #include "driftlab/pose_t.hpp"
@@ -244,6 +246,41 @@ TEST(Ulog, MessagesKeepTheirFormatAndTime) {
         ++seen[e.channel];
         continue;
       }
+      // vehicle_imu, sensor_baro, sensor_mag, vehicle_magnetometer: one channel per instance ("vehicle_imu/1").
+      const std::string topic = e.channel.substr(0, e.channel.find('/'));
+      if (topic == "vehicle_imu") {
+        const auto m = test::decode<imu_t>(e);
+        EXPECT_LE(m.header.utime, e.utime);  // sampled, then published
+        // The changes over their intervals: gravity's 9.8 m/s^2 within what manoeuvres add, rates a vehicle turns at.
+        const double g = std::hypot(m.linear_acceleration.x, m.linear_acceleration.y, m.linear_acceleration.z);
+        EXPECT_GT(g, 2.0);
+        EXPECT_LT(g, 40.0);
+        EXPECT_LT(std::hypot(m.angular_velocity.x, m.angular_velocity.y, m.angular_velocity.z), 20.0);
+        ++seen[topic];
+        continue;
+      }
+      if (topic == "sensor_baro") {
+        const auto m = test::decode<barometer_t>(e);
+        EXPECT_LE(m.header.utime, e.utime);
+        // Both flights are near the ground (the 1.11 log's millibar and the later log's Pascal alike): the air's
+        // pressure below 5 km and above a deep depression's; the sensor's temperature a circuit board's.
+        EXPECT_GT(m.pressure_pa, 50000.0);
+        EXPECT_LT(m.pressure_pa, 110000.0);
+        EXPECT_GT(m.temperature_c, -40.0);
+        EXPECT_LT(m.temperature_c, 100.0);
+        ++seen[topic];
+        continue;
+      }
+      if (topic == "sensor_mag" || topic == "vehicle_magnetometer") {
+        const auto m = test::decode<magnetometer_t>(e);
+        EXPECT_LE(m.header.utime, e.utime);
+        // The Earth's field is 25-65 uT; an uncalibrated sensor near motors reads within a few times that.
+        const double b = std::hypot(m.magnetic_field.x, m.magnetic_field.y, m.magnetic_field.z);
+        EXPECT_GT(b, 5e-6) << e.channel;
+        EXPECT_LT(b, 300e-6) << e.channel;
+        ++seen[topic];
+        continue;
+      }
       if (kRecordChannels.count(e.channel)) continue;
       const auto f = test::decode<foreign_message_t>(e);
       ASSERT_TRUE(schemas.count(e.channel)) << "its schema before its first message: " << e.channel;
@@ -276,6 +313,7 @@ TEST(Ulog, MessagesKeepTheirFormatAndTime) {
     EXPECT_GT(seen["vehicle_gps_position"], 0);
     EXPECT_GT(seen["vehicle_local_position"], 0);
     EXPECT_GT(seen["vehicle_attitude"], 0);
+    for (const char* topic : {"vehicle_imu", "sensor_baro", "sensor_mag"}) EXPECT_GT(seen[topic], 0) << topic;
   }
 }
 
