@@ -494,7 +494,9 @@ Status import_ulog(const std::string& path, Importer& out) {
   struct Channel {
     std::string name;
     int64_t count = 0;
+    bool described = false;  // its channel_source_t written
     bool schema_written = false;
+    bool mapped = false;      // its topic has a driftlab type (driftlab_type_for_ulog), told once per subscription
     size_t topic = SIZE_MAX;  // its entry in out.summary.topics, once it has one
   };
   std::map<std::string, Channel, std::less<>> channels;
@@ -512,6 +514,7 @@ Status import_ulog(const std::string& path, Importer& out) {
   };
   foreign_message_t f;  // kept from one message to the next (its payload's memory)
   f.encoding = "ulog";
+  std::vector<uint8_t> encoded;  // f encoded, its memory kept likewise
 
   UlogReader::Callbacks cb;
   cb.problem = [&](uint64_t offset, const std::string& what) { out.problem(where(offset) + ": " + what); };
@@ -523,6 +526,7 @@ Status import_ulog(const std::string& path, Importer& out) {
     }
     Channel& c = channels[name];
     c.name = name;
+    c.mapped = driftlab_type_for_ulog(s.name) != nullptr;
     by_id[s.msg_id] = &c;
   };
   cb.data = [&](const UlogData& d) {
@@ -544,8 +548,9 @@ Status import_ulog(const std::string& path, Importer& out) {
       return;
     }
     // ULog has no sequence number: seq is the count on the channel (CHANNEL_SOURCES says so).
-    if (!out.describe(t, c.name, s.name, lcmtypes::SeqOrigin::kCounted)) return;
-    if (auto m = convert_ulog_message(*s.layout, d.payload, d.timestamp, c.count)) {
+    if (!c.described && !out.describe(t, c.name, s.name, lcmtypes::SeqOrigin::kCounted)) return;
+    c.described = true;
+    if (auto m = c.mapped ? convert_ulog_message(*s.layout, d.payload, d.timestamp, c.count) : std::nullopt) {
       TopicCount& tc = topic(c, s, m->type);
       if (out.write(t, c.name, m->lcm)) {
         ++tc.messages;
@@ -566,7 +571,8 @@ Status import_ulog(const std::string& path, Importer& out) {
     f.type = s.name;
     f.data.assign(d.payload.begin(), d.payload.end());
     f.size = static_cast<int32_t>(f.data.size());
-    if (out.write(t, c.name, encode(f))) {
+    lcmtypes::encode_into(f, &encoded);
+    if (out.write(t, c.name, encoded)) {
       ++tc.messages;
       ++c.count;
     }

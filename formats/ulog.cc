@@ -330,9 +330,9 @@ class Pass {
     if (type == 'S') return size == 8;
     if (type == 'D') {
       if (pos + 5 > end) return true;
-      const auto it = subscriptions_.find(le16(&b_[pos + 3]));
-      if (it == subscriptions_.end()) return false;
-      const auto& l = it->second->layout;
+      const UlogSubscription* sub = subscriptions_[le16(&b_[pos + 3])].get();
+      if (sub == nullptr) return false;
+      const auto& l = sub->layout;
       return !l || (size >= 2u + l->size_written && size <= 2u + l->size);
     }
     return true;
@@ -413,11 +413,11 @@ class Pass {
       case 'D': {
         if (m.size() < 2) return bad("too short");
         const uint16_t id = le16(m.data());
-        const auto it = subscriptions_.find(id);
-        if (it == subscriptions_.end()) return bad("msg_id " + std::to_string(id) + ", which no subscription names");
-        const auto& l = it->second->layout;
+        const UlogSubscription* sub = subscriptions_[id].get();
+        if (sub == nullptr) return bad("msg_id " + std::to_string(id) + ", which no subscription names");
+        const auto& l = sub->layout;
         if (l && (m.size() - 2 < l->size_written || m.size() - 2 > l->size)) {
-          return bad(std::to_string(m.size() - 2) + " bytes of " + it->second->name + ", whose messages are " +
+          return bad(std::to_string(m.size() - 2) + " bytes of " + sub->name + ", whose messages are " +
                      std::to_string(l->size_written) +
                      (l->size != l->size_written ? " to " + std::to_string(l->size) : "") + " bytes");
         }
@@ -489,10 +489,10 @@ class Pass {
         subscriptions_[s->msg_id] = std::move(s);
         return;
       }
-      case 'R': subscriptions_.erase(le16(m.data())); return;
+      case 'R': subscriptions_[le16(m.data())].reset(); return;
       case 'D': {
         in_data = true;
-        const UlogSubscription& s = *subscriptions_.at(le16(m.data()));
+        const UlogSubscription& s = *subscriptions_[le16(m.data())];  // check() found it
         UlogData d;
         d.subscription = &s;
         d.payload = m.subspan(2);
@@ -541,7 +541,8 @@ class Pass {
   uint64_t start_us_;
   uint64_t* last_us_;
   std::map<char, int64_t>* unknown_;
-  std::map<uint16_t, std::unique_ptr<UlogSubscription>> subscriptions_;
+  // By msg_id (a vector of every id, not a map: looked up twice for each data message).
+  std::vector<std::unique_ptr<UlogSubscription>> subscriptions_ = std::vector<std::unique_ptr<UlogSubscription>>(65536);
   std::map<std::string, std::pair<std::shared_ptr<const UlogLayout>, std::string>, std::less<>> layouts_;
 };
 
