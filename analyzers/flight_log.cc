@@ -51,17 +51,6 @@ bool is_sensor_topic(std::string_view t) {
   return false;
 }
 
-/// A uint64_t field (PX4's times), nullopt when the format has none or the payload ends before it.
-std::optional<uint64_t> u64(const UlogLayout& l, std::span<const uint8_t> p, std::string_view name) {
-  const UlogLayout::Field* f = l.find(name);
-  if (!f || f->type != UlogType::kUint64 || f->count != 0 || f->offset + 8ull > p.size()) return std::nullopt;
-  uint64_t v = 0;
-  for (int i = 7; i >= 0; --i) v = (v << 8) | p[f->offset + static_cast<size_t>(i)];
-  return v;
-}
-
-int64_t clamp_us(uint64_t us) { return us > static_cast<uint64_t>(INT64_MAX) ? INT64_MAX : static_cast<int64_t>(us); }
-
 /// The format a schema on FOREIGN_SCHEMAS describes (its definition: "name:type field;..." a line, its own first),
 /// resolved as the import resolved it; null when it does not resolve.
 std::shared_ptr<const UlogLayout> layout_of(const std::string& definition) {
@@ -193,14 +182,14 @@ double watched(const UlogLayout& l, const Watch& w, std::span<const uint8_t> p) 
 
 void read_message(Topic& t, std::span<const uint8_t> p, int64_t event_utime) {
   const UlogLayout& l = *t.layout;
-  const auto ts = u64(l, p, "timestamp");
-  const auto sample = u64(l, p, "timestamp_sample");
-  const int64_t now = ts ? clamp_us(*ts) : event_utime;
+  const auto ts = l.u64(p, "timestamp");
+  const auto sample = l.u64(p, "timestamp_sample");
+  const int64_t now = ts ? formats::ulog_utime(*ts) : event_utime;
   if (ts && sample) {
     const double d = static_cast<double>(*ts) - static_cast<double>(*sample);
     if (std::abs(d) < 9e15) t.delays.push_back(static_cast<int64_t>(d));
   }
-  if (is_imu_topic(t.topic) || is_sensor_topic(t.topic)) t.times.push_back(sample ? clamp_us(*sample) : now);
+  if (is_imu_topic(t.topic) || is_sensor_topic(t.topic)) t.times.push_back(sample ? formats::ulog_utime(*sample) : now);
   if (!t.watches_made) make_watches(t);
   for (Watch& w : t.watches) {
     const double v = watched(l, w, p);

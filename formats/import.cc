@@ -505,7 +505,6 @@ Status import_ulog(const std::string& path, Importer& out) {
   // name an LCM log cannot hold.
   std::vector<Channel*> by_id(65536, nullptr);
   std::set<std::string> long_names;
-  auto clamp = [](uint64_t us) { return us > static_cast<uint64_t>(INT64_MAX) ? INT64_MAX : static_cast<int64_t>(us); };
   auto where = [&](uint64_t offset) { return path + ": at byte " + std::to_string(offset); };
   auto topic = [&](Channel& c, const UlogSubscription& s, const char* type) -> TopicCount& {
     if (c.topic == SIZE_MAX)
@@ -541,7 +540,7 @@ Status import_ulog(const std::string& path, Importer& out) {
       return;
     }
     Channel& c = *cp;
-    const int64_t t = clamp(d.timestamp);
+    const int64_t t = ulog_utime(d.timestamp);
     if (!s.layout) {
       // Reported once, with its subscription; counted here.
       ++topic(c, s, "driftlab.foreign_message_t").malformed;
@@ -581,7 +580,7 @@ Status import_ulog(const std::string& path, Importer& out) {
     Channel& c = records[kUlogLog];
     log_text_t m;
     m.header.seq = c.count;
-    m.header.utime = clamp(l.timestamp);
+    m.header.utime = ulog_utime(l.timestamp);
     m.level = l.level >= '0' && l.level <= '9' ? l.level - '0' : l.level;
     m.tag = l.tagged ? l.tag : -1;
     m.text = std::string(l.text.substr(0, l.text.find('\0')));
@@ -595,7 +594,7 @@ Status import_ulog(const std::string& path, Importer& out) {
     Channel& c = records[channel];
     parameter_t m;
     m.header.seq = c.count;
-    m.header.utime = clamp(v.time);
+    m.header.utime = ulog_utime(v.time);
     m.name = std::string(v.key.substr(0, v.key.find('\0')));
     m.type = std::string(v.type.substr(0, v.type.find('\0')));
     ulog_value(v.type, v.value, &m.value, &m.text);
@@ -611,7 +610,7 @@ Status import_ulog(const std::string& path, Importer& out) {
     Channel& c = records[kUlogDropouts];
     dropout_t m;
     m.header.seq = c.count;
-    m.header.utime = clamp(d.timestamp);
+    m.header.utime = ulog_utime(d.timestamp);
     m.duration_us = int64_t{d.duration_ms} * 1000;
     if (out.write(m.header.utime, kUlogDropouts, encode(m))) {
       ++out.topic(kUlogDropouts, "ULog dropout", "driftlab.dropout_t").messages;

@@ -564,6 +564,12 @@ const UlogLayout::Field* UlogLayout::find(std::string_view field) const {
   return nullptr;
 }
 
+std::optional<uint64_t> UlogLayout::u64(std::span<const uint8_t> data, std::string_view field) const {
+  const Field* f = find(field);
+  if (!f || f->type != UlogType::kUint64 || f->count != 0 || f->offset + 8ull > data.size()) return std::nullopt;
+  return le64(data.data() + f->offset);
+}
+
 double UlogLayout::number(std::span<const uint8_t> data, std::string_view field, uint32_t i) const {
   const Field* f = find(field);
   const double nan = std::numeric_limits<double>::quiet_NaN();

@@ -14,6 +14,7 @@
 #include <functional>
 #include <map>
 #include <memory>
+#include <optional>
 #include <span>
 #include <string>
 #include <string_view>
@@ -64,7 +65,14 @@ struct UlogLayout {
   /// The value of a numeric field (element i of an array) as a double; NaN when the field is missing, is not a
   /// number, or lies outside data.
   double number(std::span<const uint8_t> data, std::string_view field, uint32_t i = 0) const;
+  /// A uint64_t field's exact value (PX4's times), nullopt when the format has none or data ends before it.
+  std::optional<uint64_t> u64(std::span<const uint8_t> data, std::string_view field) const;
 };
+
+/// A ULog time [us] as driftlab's int64_t microseconds: a hostile value past int64_t's end is held at its end.
+inline int64_t ulog_utime(uint64_t us) {
+  return us > static_cast<uint64_t>(INT64_MAX) ? INT64_MAX : static_cast<int64_t>(us);
+}
 
 /// A subscription (ULog's 'A' record): the topic instance a data message's msg_id stands for.
 struct UlogSubscription {

@@ -17,21 +17,9 @@ namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
-/// A uint64_t field's value (PX4's times), nullopt when the format has none or the payload ends before it.
-std::optional<uint64_t> u64(const UlogLayout& l, std::span<const uint8_t> p, std::string_view name) {
-  const UlogLayout::Field* f = l.find(name);
-  if (!f || f->type != UlogType::kUint64 || f->count != 0 || f->offset + 8ull > p.size()) return std::nullopt;
-  uint64_t v = 0;
-  for (int i = 7; i >= 0; --i) v = (v << 8) | p[f->offset + static_cast<size_t>(i)];
-  return v;
-}
-
-/// Boot-clock microseconds as driftlab's int64_t (a hostile value past int64_t's end is held at its end).
-int64_t utime(uint64_t us) { return us > static_cast<uint64_t>(INT64_MAX) ? INT64_MAX : static_cast<int64_t>(us); }
-
 /// header.utime: when the sensor sampled (timestamp_sample) where the message says, else its timestamp.
 int64_t sample_time(const UlogLayout& l, std::span<const uint8_t> p, uint64_t timestamp) {
-  return utime(u64(l, p, "timestamp_sample").value_or(timestamp));
+  return ulog_utime(l.u64(p, "timestamp_sample").value_or(timestamp));
 }
 
 bool has(const UlogLayout& l, std::string_view name, uint32_t count = 0) {
