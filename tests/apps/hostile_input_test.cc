@@ -1,8 +1,8 @@
 // Every command on hostile logs: messages with valid framing whose payloads lie (negative and impossible lengths,
 // cut short), and inputs that are not files. Nothing may crash, hang, or leave a partial file behind; the bad
 // messages are counted and named, and every good one is still used.
-#include <gtest/gtest.h>
 #include <fcntl.h>
+#include <gtest/gtest.h>
 #include <sys/stat.h>
 #include <sys/sysmacros.h>
 #include <unistd.h>
@@ -324,8 +324,7 @@ TEST(OutputOverInput, AnOutputThatIsNotARegularFileIsRefusedAndKept) {
              "export mcap " + kSample + " -o " + node, "export rawlog " + kSample + " -o " + node}) {
       const auto r = driftlab(cmd);
       EXPECT_EQ(r.code, 2) << cmd << "\n" << r.err;
-      EXPECT_NE(r.err.find(node + ": is " + kind + ", not a regular file"), std::string::npos) << cmd << "\n"
-                                                                                              << r.err;
+      EXPECT_NE(r.err.find(node + ": is " + kind + ", not a regular file"), std::string::npos) << cmd << "\n" << r.err;
       EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << cmd << "\n" << r.err;
       struct stat st {};
       ASSERT_EQ(::lstat(node.c_str(), &st), 0) << cmd;
@@ -422,9 +421,9 @@ TEST(ConversionCache, TwoProcessesConvertingOneRecordingEachWriteTheirOwnPartial
     fs::remove(cache);
     fs::remove(cache + ".key");
     const std::string cmd = "timeout 60 " + kDriftlab + " info " + mcap;
-    const auto r = test::run_capture("(" + cmd + " > " + dir.file("a.out") + " 2>&1; echo $? > " + dir.file("a.rc") +
-                                     ") & (" + cmd + " > " + dir.file("b.out") + " 2>&1; echo $? > " +
-                                     dir.file("b.rc") + ") & wait");
+    const auto r =
+        test::run_capture("(" + cmd + " > " + dir.file("a.out") + " 2>&1; echo $? > " + dir.file("a.rc") + ") & (" +
+                          cmd + " > " + dir.file("b.out") + " 2>&1; echo $? > " + dir.file("b.rc") + ") & wait");
     ASSERT_EQ(r.code, 0);
     for (const char* who : {"a", "b"}) {
       const auto rc = test::read_file(dir.file(std::string(who) + ".rc"));

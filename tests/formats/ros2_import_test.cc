@@ -195,7 +195,8 @@ TEST(Ros2Import, MissingMetadataKeysAreNamedInOneLine) {
   const std::string twmc = top + "topics_with_message_count[0]";
   for (const auto& [yaml, key] : std::vector<std::pair<std::string, std::string>>{
            {without(ns), top + "starting_time: missing"},
-           {without(ns, "  starting_time:\n    nanoseconds: 0\n"), top + "starting_time.nanoseconds_since_epoch: missing"},
+           {without(ns, "  starting_time:\n    nanoseconds: 0\n"),
+            top + "starting_time.nanoseconds_since_epoch: missing"},
            {without(ns, "  starting_time: 5\n"), top + "starting_time: not a map"},
            {without(ns, "  starting_time:\n    nanoseconds_since_epoch: [1, 2]\n"),
             top + "starting_time.nanoseconds_since_epoch: not an integer"},
@@ -214,8 +215,8 @@ TEST(Ros2Import, MissingMetadataKeysAreNamedInOneLine) {
     EXPECT_EQ(r.code, 2) << key << "\n" << r.err;
     EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << key << "\n" << r.err;
     EXPECT_EQ(r.err.rfind("driftlab: " + bag + "/metadata.yaml:", 0), 0u) << r.err;
-    EXPECT_NE(r.err.find(key + "; reading the bag files in the folder in name order"), std::string::npos)
-        << key << "\n" << r.err;
+    EXPECT_NE(r.err.find(key + "; reading the bag files in the folder in name order"), std::string::npos) << key << "\n"
+                                                                                                          << r.err;
     ASSERT_TRUE(fs::exists(dir.file("out.lcm"))) << key << "\n" << r.err;
     EXPECT_EQ(by_channel(dir.file("out.lcm")).at("/scan").size(), 4u) << key;  // nothing intact lost
     // Every command reading the bag through its conversion says the same, and none aborts.
