@@ -36,7 +36,7 @@ bool is_dir(const std::string& p) {
 /// back, unlike the modification time) it tells an edited recording from the one converted.
 std::string content_digest(int fd, int64_t size) {
   uint64_t h = 1469598103934665603ull;
-  std::vector<unsigned char> buf(64 * 1024);
+  std::vector<unsigned char> buf(size_t{64} * 1024);
   auto hash_at = [&](int64_t at, size_t n) {
     if (at < 0 || at >= size) return;
     n = static_cast<size_t>(std::min<int64_t>(static_cast<int64_t>(n), size - at));

@@ -347,7 +347,7 @@ std::pair<std::string, std::string> mcap_recording(const test::TempDir& dir) {
 
 /// A small LCM log that is not the recording's conversion: one event on EVIL.
 std::string other_log(const test::TempDir& dir) {
-  const std::string path = dir.file("other.lcm");
+  std::string path = dir.file("other.lcm");
   auto w = LogWriter::create(path);
   EXPECT_TRUE(w.ok());
   EXPECT_TRUE(w->write(1000, "EVIL", std::string_view("not the recording")).ok());
