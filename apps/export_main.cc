@@ -204,6 +204,10 @@ void add_export_commands(CLI::App& exp, int* exit_code) {
       ->check(in_range(config::between(0, 1e9)));
   c->add_flag("--bytes", csv->bytes, "Also write byte arrays (image data) as columns of numbers");
   c->callback([csv, exit_code] {
+    if (Status s = refuse_same_file(csv->out, csv->inputs, "-o", OutputKind::kFolder); !s) {
+      *exit_code = fail(s.message());
+      return;
+    }
     auto log = event_log_for(csv->inputs);
     if (!log) {
       *exit_code = fail(log.error().message);

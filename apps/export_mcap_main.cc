@@ -54,7 +54,8 @@ Result<formats::McapMetadata> diagnosis_metadata(const std::string& path) {
 }
 
 int run_mcap(const McapArgs& a) {
-  if (Status s = refuse_same_file(a.out, a.inputs); !s) return fail(s.message());
+  if (Status s = refuse_same_file(a.out, a.inputs, "-o", a.folder ? OutputKind::kFolder : OutputKind::kFile); !s)
+    return fail(s.message());
   auto log = event_log_for(a.inputs);
   if (!log) return fail(log.error().message);
   formats::McapExportOptions o;

@@ -1,13 +1,17 @@
 #include "apps/log_input.h"
 
+#include <fcntl.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <cerrno>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+#include <vector>
 
 #include "apps/cli_util.h"
 #include "core/log_reader.h"
@@ -27,6 +31,45 @@ bool is_dir(const std::string& p) {
   return fs::is_directory(p, ec);
 }
 
+/// A digest of a file's content where edits show, without reading all of it: its first and last 64 KiB and 32
+/// blocks of 4 KiB spread evenly between (FNV-1a, 64 bits). With the size and the change time (which no one can set
+/// back, unlike the modification time) it tells an edited recording from the one converted.
+std::string content_digest(int fd, int64_t size) {
+  uint64_t h = 1469598103934665603ull;
+  std::vector<unsigned char> buf(size_t{64} * 1024);
+  auto hash_at = [&](int64_t at, size_t n) {
+    if (at < 0 || at >= size) return;
+    n = static_cast<size_t>(std::min<int64_t>(static_cast<int64_t>(n), size - at));
+    const ssize_t got = ::pread(fd, buf.data(), n, at);
+    for (ssize_t i = 0; i < got; ++i) h = (h ^ buf[static_cast<size_t>(i)]) * 1099511628211ull;
+    h = (h ^ static_cast<uint64_t>(got)) * 1099511628211ull;
+  };
+  hash_at(0, buf.size());
+  for (int i = 1; i <= 32; ++i) hash_at(size / 33 * i, 4096);
+  hash_at(std::max<int64_t>(0, size - static_cast<int64_t>(buf.size())), buf.size());
+  char tag[20];
+  std::snprintf(tag, sizeof(tag), "%016llx", static_cast<unsigned long long>(h));
+  return tag;
+}
+
+/// One file's identity: size, modification and change times, device and inode, owner, content digest; empty when
+/// it cannot be opened. With no_follow a symbolic link is not opened (an error), nor anything but a regular file.
+std::string file_identity(const std::string& path, bool no_follow) {
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK | (no_follow ? O_NOFOLLOW : 0));
+  if (fd < 0) return {};
+  struct stat st {};
+  std::string out;
+  if (::fstat(fd, &st) == 0 && S_ISREG(st.st_mode)) {
+    std::ostringstream o;
+    o << st.st_size << " " << st.st_mtim.tv_sec << "." << st.st_mtim.tv_nsec << " " << st.st_ctim.tv_sec << "."
+      << st.st_ctim.tv_nsec << " " << st.st_dev << ":" << st.st_ino << " " << st.st_uid << " "
+      << content_digest(fd, st.st_size);
+    out = o.str();
+  }
+  ::close(fd);
+  return out;
+}
+
 /// What identifies the recording's files: if any of them changed, the conversion is stale.
 std::string identity(const std::vector<std::string>& inputs) {
   std::vector<std::string> files = formats::recording_files(inputs);
@@ -34,17 +77,47 @@ std::string identity(const std::vector<std::string>& inputs) {
   std::ostringstream o;
   o << "driftlab import cache " << kCacheVersion << "\n";
   for (const auto& f : files) {
-    struct stat st {};
     std::error_code ec;
     const std::string abs = fs::absolute(f, ec).string();
-    if (::stat(f.c_str(), &st) != 0) {
+    const std::string id = file_identity(f, false);
+    if (id.empty()) {
       o << "missing " << abs << "\n";
       continue;
     }
-    o << "file " << st.st_size << " " << st.st_mtim.tv_sec << "." << st.st_mtim.tv_nsec << " " << st.st_ino << " "
-      << abs << "\n";
+    o << "file " << id << " " << abs << "\n";
   }
   return o.str();
+}
+
+/// Why the cache file (or its key) at path cannot be trusted: a symbolic link, not a regular file, someone
+/// else's; empty when it can.
+std::string untrusted(const std::string& path) {
+  struct stat st {};
+  if (::lstat(path.c_str(), &st) != 0) return "missing";
+  if (S_ISLNK(st.st_mode)) return "a symbolic link";
+  if (!S_ISREG(st.st_mode)) return "not a regular file";
+  if (st.st_uid != ::geteuid()) return "owned by another user";
+  return {};
+}
+
+/// Writes text to path through a partial file of its own (created exclusively) renamed into place.
+Status write_key(const std::string& path, const std::string& text) {
+  static int counter = 0;
+  std::string partial;
+  int fd = -1;
+  for (int attempt = 0; attempt < 1000 && fd < 0; ++attempt) {
+    partial = path + ".partial." + std::to_string(::getpid()) + "." + std::to_string(counter++);
+    fd = ::open(partial.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0644);
+    if (fd < 0 && errno != EEXIST) break;
+  }
+  if (fd < 0) return Error(path + ": cannot write");
+  bool ok = ::write(fd, text.data(), text.size()) == static_cast<ssize_t>(text.size());
+  ok = ::close(fd) == 0 && ok;
+  if (!ok || std::rename(partial.c_str(), path.c_str()) != 0) {
+    std::remove(partial.c_str());
+    return Error(path + ": cannot write");
+  }
+  return {};
 }
 
 std::string read_text(const std::string& path) {
@@ -119,9 +192,20 @@ Result<std::string> log_for(const std::vector<std::string>& inputs) {
   }
   const std::string key_path = cache + ".key";
   const std::string named = inputs[0] + (inputs.size() > 1 ? " (and " + std::to_string(inputs.size() - 1) + " more)" : "");
-  const std::string old = read_text(key_path);
-  std::error_code ec;
-  if (old.starts_with(key) && fs::is_regular_file(cache, ec)) {
+  // The key says what recording the conversion was made from and what the conversion itself was when written: a
+  // key or a conversion that is a symbolic link, someone else's, or not the file the key recorded (an output
+  // written over it, a copy of another log) is not believed, and the recording is converted again.
+  const std::string key_doubt = untrusted(key_path);
+  const std::string old = key_doubt.empty() ? read_text(key_path) : std::string();
+  const std::string cache_doubt = untrusted(cache);
+  std::string recorded_cache;
+  if (const size_t at = old.find("\ncache ", key.size() > 0 ? key.size() - 1 : 0); at != std::string::npos) {
+    const size_t end = old.find('\n', at + 1);
+    recorded_cache = old.substr(at + 7, end == std::string::npos ? std::string::npos : end - at - 7);
+  }
+  const bool same_recording = old.starts_with(key);
+  if (same_recording && cache_doubt.empty() && !recorded_cache.empty() &&
+      file_identity(cache, true) == recorded_cache) {
     int64_t problems = 0;
     if (const size_t at = old.find("problems ", key.size()); at != std::string::npos) {
       problems = std::strtoll(old.c_str() + at + 9, nullptr, 10);
@@ -130,6 +214,10 @@ Result<std::string> log_for(const std::vector<std::string>& inputs) {
                  problems ? (" (" + thousands(problems) + " problems when converted; `driftlab import` lists them)").c_str()
                           : "");
     return cache;
+  }
+  if (same_recording) {
+    std::fprintf(stderr, "driftlab: %s: its conversion %s is %s; converting it again\n", named.c_str(), cache.c_str(),
+                 !cache_doubt.empty() ? cache_doubt.c_str() : "not the file made then (replaced or changed since)");
   }
   std::fprintf(stderr, "driftlab: %s: converting it to %s (kept for later runs)\n", named.c_str(), cache.c_str());
   int printed = 0;
@@ -144,15 +232,12 @@ Result<std::string> log_for(const std::vector<std::string>& inputs) {
   }
   std::fprintf(stderr, "driftlab: %s (%s): %s messages converted\n", named.c_str(), summary->format.c_str(),
                thousands(summary->messages).c_str());
-  // The key last, written beside and renamed: a conversion cut short is never taken for a whole one.
-  {
-    std::ofstream k(key_path + ".partial", std::ios::binary | std::ios::trunc);
-    k << key << "problems " << problems << "\n";
-    if (!k.flush()) return Error(key_path + ": cannot write");
-  }
-  if (std::rename((key_path + ".partial").c_str(), key_path.c_str()) != 0) {
-    std::remove((key_path + ".partial").c_str());
-    return Error(key_path + ": cannot rename into place");
+  // The key last, written beside and renamed: a conversion cut short is never taken for a whole one. It records the
+  // conversion as written, so that anything put in its place later is noticed.
+  const std::string made = file_identity(cache, true);
+  if (made.empty()) return Error(cache + ": cannot read the conversion just written");
+  if (Status s = write_key(key_path, key + "cache " + made + "\nproblems " + std::to_string(problems) + "\n"); !s) {
+    return Error(s.message());
   }
   return cache;
 }

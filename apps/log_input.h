@@ -1,10 +1,13 @@
 // Other tools' recordings wherever a command takes a log: `driftlab diagnose run.mcap`, `driftlab eval --gt
 // bag/:/ground_truth ...`. A ROS 1 or ROS 2 bag, a bag folder, an MCAP file or a CARMEN log (or the files of one
 // split recording) is converted once (formats/import.h) into a cache beside it, as the log index is cached, and
-// the conversion is reused while the files stay as they were (size, modification time, inode); each use says so
-// on stderr. An LCM log, or anything that is not recognised as another format, is passed through unchanged.
+// the conversion is reused while the files stay as they were (size, modification and change times, inode, and a
+// digest of their head, tail and blocks between); each use says so on stderr. The key beside the conversion
+// (CACHE.key) also records the conversion as written: a conversion or key that is a symbolic link, someone else's
+// file, or not the file recorded (an output written over it) is made again. An LCM log, or anything that is not
+// recognised as another format, is passed through unchanged.
 // Thread-safety: plain functions; two processes converting the same file at once each write their own partial
-// file and the last rename wins (both hold the same log).
+// file (a name of its own, created exclusively) and the last rename wins (both hold the same log).
 #pragma once
 
 #include <string>

@@ -11,6 +11,7 @@
 #include "apps/cli_checks.h"
 #include "apps/cli_util.h"
 #include "apps/commands.h"
+#include "core/same_file.h"
 #include "core/wall_clock.h"
 #include "recorder/recorder.h"
 
@@ -36,6 +37,8 @@ int run_record(recorder::RecordOptions o) {
   if (Status s = recorder::check_options(o); !s) return fail(s.message());
   const SystemWallClock clock;
   if (o.out.empty()) o.out = default_out(clock);
+  // The log is written beside its path and renamed into place: a FIFO or device there would be replaced.
+  if (Status s = refuse_same_file(o.out, {}); !s) return fail(s.message());
   const bool tty = isatty(STDERR_FILENO) == 1;
   if (tty) o.on_status = [](const std::string& line) { std::fprintf(stderr, "\r\033[K%s", line.c_str()); };
   recorder::Recorder rec(o, clock);

@@ -26,6 +26,7 @@
 #include "apps/diagnosis_json.h"
 #include "apps/log_input.h"
 #include "apps/report.h"
+#include "core/same_file.h"
 #include "core/text_file.h"
 #include "core/time.h"
 
@@ -299,6 +300,13 @@ void add_report_command(CLI::App& app, int* exit_code) {
   cmd->add_option("--gt", o->gt_channel, "Ground-truth channel")->capture_default_str();
   cmd->add_option("--title", o->title, "Page title (default: from the first log)");
   cmd->callback([o, exit_code] {
+    std::vector<std::string> inputs = o->logs;
+    inputs.push_back(o->diagnosis);
+    inputs.insert(inputs.end(), o->evals.begin(), o->evals.end());
+    if (Status s = refuse_same_file(o->out, inputs, "-o", OutputKind::kFolder); !s) {
+      *exit_code = fail(s.message());
+      return;
+    }
     auto page = make_report(*o);
     if (!page) {
       *exit_code = fail(page.error().message, exit_code_for(page.error(), o->out));

@@ -4,7 +4,9 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cctype>
+#include <cerrno>
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
@@ -798,6 +800,19 @@ std::vector<std::string> recording_files(const std::vector<std::string>& inputs)
   return files;
 }
 
+namespace {
+/// A partial output removed unless it was renamed into place (path cleared).
+struct PartialFile {
+  std::string path;
+  PartialFile() = default;
+  PartialFile(const PartialFile&) = delete;
+  PartialFile& operator=(const PartialFile&) = delete;
+  ~PartialFile() {
+    if (!path.empty()) std::remove(path.c_str());
+  }
+};
+}  // namespace
+
 Result<ImportSummary> import_log(const std::string& in, const std::string& out_path,
                                  const std::function<void(const std::string&)>& on_problem) {
   return import_log(std::vector<std::string>{in}, out_path, on_problem);
@@ -839,7 +854,23 @@ Result<ImportSummary> import_log(const std::vector<std::string>& inputs, const s
   }
   if (files.size() > 1) format += ", " + std::to_string(files.size()) + " files";
 
-  auto writer = LogWriter::create(out_path, {.atomic = true});
+  // Written under a name of its own beside the output, created exclusively, and renamed into place when whole: two
+  // processes converting one recording into one cache at once each write their own file (they shared
+  // OUT.partial, and one renamed the other's half-written log into place).
+  PartialFile partial;
+  for (int attempt = 0; attempt < 1000 && partial.path.empty(); ++attempt) {
+    static std::atomic<unsigned> counter{0};
+    const std::string name = out_path + ".partial." + std::to_string(::getpid()) + "." + std::to_string(counter++);
+    const int fd = ::open(name.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0644);
+    if (fd >= 0) {
+      ::close(fd);
+      partial.path = name;
+    } else if (errno != EEXIST) {
+      return Error(name + ": cannot create log: " + std::strerror(errno));
+    }
+  }
+  if (partial.path.empty()) return Error(out_path + ".partial: cannot create a partial file of its own");
+  auto writer = LogWriter::create(partial.path);
   if (!writer) return writer.error();
   Importer out(std::move(*writer), on_problem);
   out.summary.format = format;
@@ -849,7 +880,7 @@ Result<ImportSummary> import_log(const std::vector<std::string>& inputs, const s
       out.problem(f + ": listed in metadata.yaml, missing");
       continue;
     }
-    Status s = import_file(f, out_path, out);
+    Status s = import_file(f, partial.path, out);  // its temporary files named after the partial file: its own too
     if (!s && out.status()) {
       // A file that cannot be read at all: fatal alone, a problem among several (the others still convert).
       if (files.size() == 1) {
@@ -876,6 +907,10 @@ Result<ImportSummary> import_log(const std::vector<std::string>& inputs, const s
     }
   }
   if (Status c = out.writer().close(); !c) return Error(c.message());
+  if (std::rename(partial.path.c_str(), out_path.c_str()) != 0) {
+    return Error(out_path + ": cannot rename " + partial.path + " into place: " + std::strerror(errno));
+  }
+  partial.path.clear();  // in place: nothing to remove
   return out.summary;
 }
 

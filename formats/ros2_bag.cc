@@ -305,6 +305,63 @@ T scalar(const YAML::Node& n, const T& fallback) {
   }
 }
 
+/// metadata.yaml's keys, read without a YAML exception ever escaping: subscripting a missing key, a scalar or a
+/// list throws in yaml-cpp, so every step is checked and a missing or mistyped key is an error naming the file,
+/// the line and the dotted key.
+class MetadataReader {
+ public:
+  explicit MetadataReader(std::string path) : path_(std::move(path)) {}
+
+  /// The child `key` of map `n` (named `where`), or an invalid node and an error when it is missing.
+  YAML::Node child(const YAML::Node& n, const std::string& where, const std::string& key, bool required) {
+    if (!n || !n.IsMap()) {
+      if (required) fail(n, where, "not a map");
+      return YAML::Node(YAML::NodeType::Undefined);
+    }
+    YAML::Node c;
+    try {
+      c = n[key];
+    } catch (const YAML::Exception&) {
+      c = YAML::Node(YAML::NodeType::Undefined);
+    }
+    if ((!c || c.IsNull()) && required) fail(n, join(where, key), "missing");
+    return c;
+  }
+
+  template <typename T>
+  T value(const YAML::Node& n, const std::string& where, const std::string& key, bool required, const T& fallback,
+          const char* what) {
+    const YAML::Node c = child(n, where, key, required);
+    if (!c || c.IsNull()) return fallback;
+    if (!c.IsScalar()) {
+      fail(c, join(where, key), std::string("not ") + what);
+      return fallback;
+    }
+    try {
+      return c.as<T>();
+    } catch (const YAML::Exception&) {
+      fail(c, join(where, key), std::string("not ") + what);
+      return fallback;
+    }
+  }
+
+  Status status() const { return error_.empty() ? Status{} : Status{Error(error_)}; }
+
+ private:
+  static std::string join(const std::string& where, const std::string& key) {
+    return where.empty() ? key : where + "." + key;
+  }
+  void fail(const YAML::Node& at, const std::string& key, const std::string& why) {
+    if (!error_.empty()) return;  // the first one
+    std::string line;
+    if (at.IsDefined() && at.Mark().line >= 0) line = ":" + std::to_string(at.Mark().line + 1);
+    error_ = path_ + line + ": " + key + ": " + why;
+  }
+
+  std::string path_;
+  std::string error_;
+};
+
 }  // namespace
 
 Result<Ros2BagMetadata> read_ros2_metadata(const std::string& folder) {
@@ -317,38 +374,55 @@ Result<Ros2BagMetadata> read_ros2_metadata(const std::string& folder) {
   } catch (const YAML::Exception& e) {
     return Error(path + ": line " + std::to_string(e.mark.line + 1) + ": " + e.msg);
   }
-  const YAML::Node info = root["rosbag2_bagfile_information"];
+  MetadataReader r(path);
+  const std::string top = "rosbag2_bagfile_information";
+  const YAML::Node info = r.child(root, "", top, false);
   if (!info || !info.IsMap()) return Error(path + ": no rosbag2_bagfile_information map");
   Ros2BagMetadata m;
-  m.version = scalar<int>(info["version"], 0);
-  m.storage_identifier = scalar<std::string>(info["storage_identifier"], "");
-  m.compression_format = scalar<std::string>(info["compression_format"], "");
-  m.compression_mode = scalar<std::string>(info["compression_mode"], "");
-  m.message_count = scalar<int64_t>(info["message_count"], 0);
-  m.starting_time_ns = scalar<int64_t>(info["starting_time"]["nanoseconds_since_epoch"], 0);
-  m.duration_ns = scalar<int64_t>(info["duration"]["nanoseconds"], 0);
-  if (const auto files = info["relative_file_paths"]; files && files.IsSequence()) {
+  // The keys every rosbag2 version writes and the import reads are required; the ones later versions added (or
+  // that only describe) default when absent, but are refused when present with the wrong type.
+  m.version = r.value<int>(info, top, "version", false, 0, "an integer");
+  m.storage_identifier = r.value<std::string>(info, top, "storage_identifier", false, "", "a string");
+  m.compression_format = r.value<std::string>(info, top, "compression_format", false, "", "a string");
+  m.compression_mode = r.value<std::string>(info, top, "compression_mode", false, "", "a string");
+  m.message_count = r.value<int64_t>(info, top, "message_count", true, 0, "an integer");
+  m.starting_time_ns = r.value<int64_t>(r.child(info, top, "starting_time", true), top + ".starting_time",
+                                        "nanoseconds_since_epoch", true, 0, "an integer");
+  m.duration_ns =
+      r.value<int64_t>(r.child(info, top, "duration", true), top + ".duration", "nanoseconds", true, 0, "an integer");
+  if (const auto files = r.child(info, top, "relative_file_paths", true); files && files.IsSequence()) {
     for (const auto& f : files) {
       const auto p = scalar<std::string>(f, "");
       if (p.empty()) return Error(path + ": relative_file_paths: an entry that is not a file name");
       m.relative_file_paths.push_back(p);
     }
+  } else if (Status s = r.status(); !s) {
+    return Error(s.message());
   } else {
-    return Error(path + ": relative_file_paths: missing");
+    return Error(path + ": " + top + ".relative_file_paths: not a list");
   }
-  if (const auto topics = info["topics_with_message_count"]; topics && topics.IsSequence()) {
+  const std::string twmc = top + ".topics_with_message_count";
+  if (const auto topics = r.child(info, top, "topics_with_message_count", true); topics && topics.IsSequence()) {
+    size_t i = 0;
     for (const auto& t : topics) {
-      const auto md = t["topic_metadata"];
+      const std::string where = twmc + "[" + std::to_string(i++) + "]";
+      const auto md = r.child(t, where, "topic_metadata", true);
+      const std::string mdw = where + ".topic_metadata";
       Ros2TopicInfo ti;
-      ti.name = scalar<std::string>(md["name"], "");
-      ti.type = scalar<std::string>(md["type"], "");
-      ti.serialization_format = scalar<std::string>(md["serialization_format"], "");
-      ti.offered_qos_profiles = scalar<std::string>(md["offered_qos_profiles"], "");
-      ti.type_description_hash = scalar<std::string>(md["type_description_hash"], "");
-      ti.message_count = scalar<int64_t>(t["message_count"], 0);
+      ti.name = r.value<std::string>(md, mdw, "name", true, "", "a string");
+      ti.type = r.value<std::string>(md, mdw, "type", true, "", "a string");
+      ti.serialization_format = r.value<std::string>(md, mdw, "serialization_format", false, "", "a string");
+      // A string up to Iron, a list of maps from Jazzy on: only a string is kept.
+      ti.offered_qos_profiles = scalar<std::string>(r.child(md, mdw, "offered_qos_profiles", false), "");
+      ti.type_description_hash = r.value<std::string>(md, mdw, "type_description_hash", false, "", "a string");
+      ti.message_count = r.value<int64_t>(t, where, "message_count", true, 0, "an integer");
+      if (!r.status()) break;
       m.topics.push_back(std::move(ti));
     }
+  } else if (topics && r.status()) {
+    return Error(path + ": " + twmc + ": not a list");
   }
+  if (Status s = r.status(); !s) return Error(s.message());
   return m;
 }
 

@@ -1,13 +1,16 @@
 // Every command on hostile logs: messages with valid framing whose payloads lie (negative and impossible lengths,
 // cut short), and inputs that are not files. Nothing may crash, hang, or leave a partial file behind; the bad
 // messages are counted and named, and every good one is still used.
+#include <fcntl.h>
 #include <gtest/gtest.h>
 #include <sys/stat.h>
+#include <sys/sysmacros.h>
 #include <unistd.h>
 
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <map>
 #include <nlohmann/json.hpp>
 
 #include "core/log_reader.h"
@@ -256,6 +259,183 @@ TEST(OutputOverInput, IsRefusedBeforeAnythingIsWritten) {
     EXPECT_EQ(test::read_file(log), before) << cmd;
   }
   expect_no_partial_files(dir.path());
+}
+
+/// Every file under dir (folders left out) with its bytes.
+std::map<std::string, std::vector<uint8_t>> files_in(const std::string& dir) {
+  std::map<std::string, std::vector<uint8_t>> m;
+  for (const auto& f : fs::recursive_directory_iterator(dir)) {
+    if (f.is_regular_file()) m[f.path().string()] = test::read_file(f.path().string());
+  }
+  return m;
+}
+
+TEST(OutputOverInput, AFileInsideAnInputBagFolderIsRefused) {
+  // The check compared -o with the bag folder only, so `import BAG -o BAG/x_0.mcap` replaced the bag's own storage
+  // file (and diagnose --json, export tum and eval --json into the folder did the same). Now an output that is, or
+  // lies inside, an input folder is refused before anything is read, by its path with links resolved.
+  test::TempDir dir;
+  const std::string bag = dir.file("bag");
+  ASSERT_EQ(driftlab("export rosbag2 " + kSample + " -o " + bag).code, 0);
+  std::string storage;
+  for (const auto& f : fs::directory_iterator(bag)) {
+    if (f.path().extension() == ".mcap") storage = f.path().string();
+  }
+  ASSERT_FALSE(storage.empty());
+  const std::string metadata = bag + "/metadata.yaml";
+  fs::create_symlink(storage, dir.file("link.mcap"));  // outside the folder by name, inside it by where it leads
+  const auto before = files_in(bag);
+  for (const std::string& cmd : std::vector<std::string>{
+           "import " + bag + " -o " + storage, "import " + bag + " -o " + bag + "/new.lcm",
+           "import " + bag + "/ -o " + metadata, "import " + bag + " -o " + dir.file("link.mcap"),
+           "diagnose --json " + metadata + " " + bag, "diagnose --html " + storage + " " + bag,
+           "export tum " + bag + ":GROUND_TRUTH -o " + storage, "export csv " + bag + " -o " + bag + "/csv",
+           "export mcap " + bag + " -o " + storage,
+           "eval --gt " + bag + ":GROUND_TRUTH --est " + kSample + ":GROUND_TRUTH --json " + metadata,
+           "replay " + bag + " -o " + storage}) {
+    const auto r = driftlab(cmd);
+    EXPECT_EQ(r.code, 2) << cmd << "\n" << r.err;
+    EXPECT_NE(r.err.find("is inside the input folder " + bag), std::string::npos) << cmd << "\n" << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << cmd << "\n" << r.err;
+    EXPECT_EQ(files_in(bag), before) << cmd;  // nothing written into the bag, nothing of it replaced
+  }
+  EXPECT_TRUE(fs::is_symlink(dir.file("link.mcap")));
+  // Beside the folder is fine.
+  EXPECT_EQ(driftlab("import " + bag + " -o " + dir.file("beside.lcm")).code, 0);
+  expect_no_partial_files(dir.path());
+}
+
+TEST(OutputOverInput, AnOutputThatIsNotARegularFileIsRefusedAndKept) {
+  // Outputs are written beside their path and renamed into place, so -o naming a FIFO or a character device
+  // replaced the node with a regular file (as root, `-o /dev/null` replaced /dev/null itself). Refused, one line,
+  // exit 2, the node left as it was. (/dev/null itself is not used here: a copy of it is made when the test can.)
+  test::TempDir dir;
+  const std::string fifo = dir.file("fifo"), null = dir.file("null");
+  ASSERT_EQ(mkfifo(fifo.c_str(), 0600), 0);
+  std::vector<std::pair<std::string, std::string>> nodes = {{fifo, "a FIFO"}};
+  if (::mknod(null.c_str(), S_IFCHR | 0666, makedev(1, 3)) == 0) nodes.emplace_back(null, "a character device");
+  fs::create_directories(dir.file("folder"));
+  nodes.emplace_back(dir.file("folder"), "a folder");
+  for (const auto& [node, kind] : nodes) {
+    for (const std::string& cmd : std::vector<std::string>{
+             "replay " + kSample + " -o " + node, "diagnose --json " + node + " " + kSample,
+             "export tum " + kSample + ":GROUND_TRUTH -o " + node, "recover " + kSample + " -o " + node,
+             "eval --gt " + kSample + ":GROUND_TRUTH --est " + kSample + ":GROUND_TRUTH --json " + node,
+             "export mcap " + kSample + " -o " + node, "export rawlog " + kSample + " -o " + node}) {
+      const auto r = driftlab(cmd);
+      EXPECT_EQ(r.code, 2) << cmd << "\n" << r.err;
+      EXPECT_NE(r.err.find(node + ": is " + kind + ", not a regular file"), std::string::npos) << cmd << "\n" << r.err;
+      EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << cmd << "\n" << r.err;
+      struct stat st {};
+      ASSERT_EQ(::lstat(node.c_str(), &st), 0) << cmd;
+      EXPECT_FALSE(S_ISREG(st.st_mode)) << cmd << ": " << node << " was replaced";
+    }
+  }
+  // A folder output (export csv, export rosbag2, report) refuses a FIFO the same way.
+  const auto r = driftlab("export csv " + kSample + " -o " + fifo);
+  EXPECT_EQ(r.code, 2) << r.err;
+  EXPECT_NE(r.err.find(fifo + ": is a FIFO, not a folder"), std::string::npos) << r.err;
+  expect_no_partial_files(dir.path());
+}
+
+/// A recording another tool made (an MCAP file of the sample) and the path of its cached conversion.
+std::pair<std::string, std::string> mcap_recording(const test::TempDir& dir) {
+  const std::string mcap = dir.file("rec.mcap");
+  EXPECT_EQ(driftlab("export mcap " + kSample + " -o " + mcap).code, 0);
+  return {mcap, mcap + ".dlimport.lcm"};
+}
+
+/// A small LCM log that is not the recording's conversion: one event on EVIL.
+std::string other_log(const test::TempDir& dir) {
+  std::string path = dir.file("other.lcm");
+  auto w = LogWriter::create(path);
+  EXPECT_TRUE(w.ok());
+  EXPECT_TRUE(w->write(1000, "EVIL", std::string_view("not the recording")).ok());
+  EXPECT_TRUE(w->close().ok());
+  return path;
+}
+
+TEST(ConversionCache, ARecordingEditedInPlaceWithItsTimesRestoredIsConvertedAgain) {
+  test::TempDir dir;
+  const auto [mcap, cache] = mcap_recording(dir);
+  auto r = driftlab("info " + mcap);
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.err.find("converting it to " + cache), std::string::npos) << r.err;
+  r = driftlab("info " + mcap);
+  EXPECT_NE(r.err.find("reading its conversion " + cache), std::string::npos) << r.err;
+  // One byte changed in the middle, size kept, modification time put back as it was.
+  struct stat st {};
+  ASSERT_EQ(::stat(mcap.c_str(), &st), 0);
+  auto bytes = test::read_file(mcap);
+  bytes[bytes.size() / 2] ^= 0x5a;
+  test::write_file(mcap, bytes);
+  const struct timespec times[2] = {st.st_atim, st.st_mtim};
+  ASSERT_EQ(::utimensat(AT_FDCWD, mcap.c_str(), times, 0), 0);
+  r = driftlab("info " + mcap);
+  EXPECT_NE(r.err.find("converting it to " + cache), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find("reading its conversion"), std::string::npos) << r.err;
+}
+
+TEST(ConversionCache, ALinkOrAnOutputInPlaceOfTheConversionIsNotBelieved) {
+  test::TempDir dir;
+  const auto [mcap, cache] = mcap_recording(dir);
+  const std::string other = other_log(dir);
+  auto r = driftlab("info " + mcap);
+  ASSERT_EQ(r.code, 0) << r.err;
+  const std::string healthy = r.out;
+  ASSERT_EQ(healthy.find("EVIL"), std::string::npos);
+  // The conversion replaced by a symbolic link to another log.
+  fs::remove(cache);
+  fs::create_symlink(other, cache);
+  r = driftlab("info " + mcap);
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.err.find(cache + " is a symbolic link; converting it again"), std::string::npos) << r.err;
+  EXPECT_EQ(r.out, healthy);
+  EXPECT_FALSE(fs::is_symlink(cache));
+  EXPECT_EQ(test::read_all(other).size(), 1u);  // the link's target left alone
+  // An output written over the conversion (any command's -o): remade, not read.
+  r = driftlab("recover " + other + " -o " + cache);
+  ASSERT_EQ(r.code, 0) << r.err;
+  r = driftlab("info " + mcap);
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.err.find(cache + " is not the file made then"), std::string::npos) << r.err;
+  EXPECT_EQ(r.out, healthy);
+  r = driftlab("info " + mcap);  // and the remade one is believed again
+  EXPECT_NE(r.err.find("reading its conversion " + cache), std::string::npos) << r.err;
+  // A key (CACHE.key) that is a link is not read either.
+  fs::remove(cache + ".key");
+  fs::create_symlink(other, cache + ".key");
+  r = driftlab("info " + mcap);
+  EXPECT_NE(r.err.find("converting it to " + cache), std::string::npos) << r.err;
+  EXPECT_EQ(r.out, healthy);
+}
+
+TEST(ConversionCache, TwoProcessesConvertingOneRecordingEachWriteTheirOwnPartialFile) {
+  // They shared CACHE.partial: one renamed the other's half-written file into place (garbage, exit 0) and the
+  // other failed. Each now writes a partial file of its own, created exclusively; the last whole one wins.
+  test::TempDir dir;
+  const auto [mcap, cache] = mcap_recording(dir);
+  const auto healthy = driftlab("info " + mcap);
+  ASSERT_EQ(healthy.code, 0) << healthy.err;
+  for (int round = 0; round < 3; ++round) {
+    fs::remove(cache);
+    fs::remove(cache + ".key");
+    const std::string cmd = "timeout 60 " + kDriftlab + " info " + mcap;
+    const auto r =
+        test::run_capture("(" + cmd + " > " + dir.file("a.out") + " 2>&1; echo $? > " + dir.file("a.rc") + ") & (" +
+                          cmd + " > " + dir.file("b.out") + " 2>&1; echo $? > " + dir.file("b.rc") + ") & wait");
+    ASSERT_EQ(r.code, 0);
+    for (const char* who : {"a", "b"}) {
+      const auto rc = test::read_file(dir.file(std::string(who) + ".rc"));
+      EXPECT_EQ(std::string(rc.begin(), rc.end()), "0\n") << who;
+    }
+    expect_no_partial_files(dir.path());
+    // The conversion in place is whole (should the key name the file the other process replaced, it is made once
+    // more: never read wrong).
+    const auto after = driftlab("info " + mcap);
+    EXPECT_EQ(after.code, 0) << after.err;
+    EXPECT_EQ(after.out, healthy.out);
+  }
 }
 
 /// Every command that reads a log, with OUT as the output of those that write one.

@@ -169,6 +169,66 @@ TEST(Ros2Import, MissingMetadataIsNamedAndTheFilesRead) {
   EXPECT_EQ(by_channel(dir.file("out.lcm")).at("/scan").size(), 6u);
 }
 
+// A metadata.yaml missing a key the import reads, or holding it as the wrong kind of node (yaml-cpp throws on
+// subscripting those, which aborted the program), is one line naming the file, the line and the dotted key; exit 2,
+// and the bag's files are still read in name order.
+TEST(Ros2Import, MissingMetadataKeysAreNamedInOneLine) {
+  test::TempDir dir;
+  const std::string bag = dir.file("bag");
+  fs::create_directories(bag);
+  write_scans(bag + "/b_0.mcap", 0, 4);
+  formats::Ros2TopicInfo topic{"/scan", "sensor_msgs/msg/LaserScan", "cdr", "", "", 4};
+  const std::string good = formats::ros2_metadata_yaml("mcap", {topic}, {{"b_0.mcap", 0, 0, 4}});
+  auto without = [&](const std::string& cut, const std::string& put = "") {
+    std::string y = good;
+    const size_t at = y.find(cut);
+    EXPECT_NE(at, std::string::npos) << cut;
+    return at == std::string::npos ? y : y.replace(at, cut.size(), put);
+  };
+  auto entry = [&](const std::string& put) {  // the topic's whole entry replaced
+    const size_t from = good.find("    - topic_metadata:"), to = good.find("  compression_format:");
+    return good.substr(0, from) + put + good.substr(to);
+  };
+  const std::string ns = "  starting_time:\n    nanoseconds_since_epoch: 0\n";
+  const std::string md = "    - topic_metadata:\n        name: \"/scan\"\n        type: sensor_msgs/msg/LaserScan\n";
+  const std::string top = "rosbag2_bagfile_information.";
+  const std::string twmc = top + "topics_with_message_count[0]";
+  for (const auto& [yaml, key] : std::vector<std::pair<std::string, std::string>>{
+           {without(ns), top + "starting_time: missing"},
+           {without(ns, "  starting_time:\n    nanoseconds: 0\n"),
+            top + "starting_time.nanoseconds_since_epoch: missing"},
+           {without(ns, "  starting_time: 5\n"), top + "starting_time: not a map"},
+           {without(ns, "  starting_time:\n    nanoseconds_since_epoch: [1, 2]\n"),
+            top + "starting_time.nanoseconds_since_epoch: not an integer"},
+           {without("  duration:\n    nanoseconds: 0\n"), top + "duration: missing"},
+           {without("  message_count: 4\n"), top + "message_count: missing"},
+           {entry("    - message_count: 4\n"), twmc + ".topic_metadata: missing"},
+           {entry("    - topic_metadata: 7\n      message_count: 4\n"), twmc + ".topic_metadata: not a map"},
+           {without(md, "    - topic_metadata:\n        type: sensor_msgs/msg/LaserScan\n"),
+            twmc + ".topic_metadata.name: missing"},
+           {good.substr(0, good.find("  topics_with_message_count:")) + good.substr(good.find("  compression_format:")),
+            top + "topics_with_message_count: missing"},
+       }) {
+    write_text(bag + "/metadata.yaml", yaml);
+    fs::remove(dir.file("out.lcm"));
+    const CmdResult r = driftlab("import '" + bag + "' -o '" + dir.file("out.lcm") + "'");
+    EXPECT_EQ(r.code, 2) << key << "\n" << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << key << "\n" << r.err;
+    EXPECT_EQ(r.err.rfind("driftlab: " + bag + "/metadata.yaml:", 0), 0u) << r.err;
+    EXPECT_NE(r.err.find(key + "; reading the bag files in the folder in name order"), std::string::npos) << key << "\n"
+                                                                                                          << r.err;
+    ASSERT_TRUE(fs::exists(dir.file("out.lcm"))) << key << "\n" << r.err;
+    EXPECT_EQ(by_channel(dir.file("out.lcm")).at("/scan").size(), 4u) << key;  // nothing intact lost
+    // Every command reading the bag through its conversion says the same, and none aborts.
+    const CmdResult info = driftlab("info '" + bag + "'");
+    EXPECT_NE(info.err.find(key), std::string::npos) << key << "\n" << info.err;
+    EXPECT_EQ(info.err.find("terminate"), std::string::npos) << info.err;
+  }
+  // The keys rosbag2 added later (or that only describe) may be absent.
+  write_text(bag + "/metadata.yaml", without("  compression_format: \"\"\n  compression_mode: \"\"\n"));
+  EXPECT_EQ(driftlab("import '" + bag + "' -o '" + dir.file("out.lcm") + "'").code, 0);
+}
+
 // The same scans in big-endian CDR (encapsulation 00 00) give the same driftlab messages.
 TEST(Ros2Import, BigEndianCdr) {
   test::TempDir dir;
