@@ -2,7 +2,9 @@
 // spreadsheets. (export rawlog lives with import rawlog in rawlog_main.cc.)
 #include <CLI/CLI.hpp>
 
+#include <cerrno>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <map>
 #include <memory>
@@ -43,16 +45,66 @@ std::string csv_quote(const std::string& s) {
   return q + "\"";
 }
 
-/// One channel's CSV, written as OUT/CHANNEL.csv.partial and renamed when the log has been read. The columns
-/// are those of its first message; a later message with more elements (a longer scan) gets only those columns,
-/// one with fewer leaves the rest empty.
+/// One channel's CSV, written as OUT/CHANNEL.csv.partial and renamed when the log has been read. Its columns are
+/// the union of its messages' fields, in the order they first appear: a later message with more elements (a
+/// second transform, a longer scan) adds columns, and the rows before it are given empty cells for them when the
+/// file is finished (rewritten once, only then).
 struct CsvFile {
   FILE* f = nullptr;
   std::string path;
   std::map<std::string, size_t> column;  // name -> index
+  std::vector<std::string> names;        // by index
+  size_t header_columns = 0;             // columns in the header written first
   std::vector<std::string> row;
   int64_t rows = 0;
 };
+
+void write_header(FILE* f, const std::vector<std::string>& names) {
+  std::fprintf(f, "log_time_s");
+  for (const auto& n : names) std::fprintf(f, ",%s", csv_quote(n).c_str());
+  std::fprintf(f, "\n");
+}
+
+/// Rewrites a finished file whose columns grew after its header: the whole header, and every row padded with
+/// empty cells to its width (a row's cells are never more than the columns known when it was written).
+Status widen(const CsvFile& f) {
+  const std::string from = f.path + ".partial", to = f.path + ".partial2";
+  FILE* in = std::fopen(from.c_str(), "r");
+  if (in == nullptr) return Error{from + ": cannot read back: " + std::strerror(errno)};
+  FILE* out = std::fopen(to.c_str(), "w");
+  if (out == nullptr) {
+    std::fclose(in);
+    return Error{to + ": cannot create: " + std::strerror(errno)};
+  }
+  write_header(out, f.names);
+  const size_t width = f.names.size() + 1;
+  bool header = true, quoted = false;
+  size_t cells = 1;
+  for (int c; (c = std::fgetc(in)) != EOF;) {
+    if (c == '"') quoted = !quoted;  // "" inside a quoted cell toggles twice
+    if (!quoted && c == ',') ++cells;
+    if (!quoted && c == '\n') {
+      if (!header) {
+        for (; cells < width; ++cells) std::fputc(',', out);
+        std::fputc('\n', out);
+      }
+      header = false;
+      cells = 1;
+      continue;
+    }
+    if (!header) std::fputc(c, out);
+  }
+  const bool read_ok = !std::ferror(in);
+  std::fclose(in);
+  if (std::fclose(out) != 0 || !read_ok) {
+    std::remove(to.c_str());
+    return Error{to + ": write failed (disk full?)"};
+  }
+  std::error_code ec;
+  fs::rename(to, from, ec);
+  if (ec) return Error{from + ": cannot replace: " + ec.message()};
+  return {};
+}
 
 int run_csv(const CsvArgs& a) {
   ReadOptions ro;
@@ -101,19 +153,20 @@ int run_csv(const CsvArgs& a) {
         close_all(false);
         return fail(f.path + ".partial: cannot create", kExitFailure);
       }
-      std::fprintf(f.f, "log_time_s");
       for (const auto& [c, v] : values) {
-        f.column.emplace(c, f.column.size());
-        std::fprintf(f.f, ",%s", csv_quote(c).c_str());
+        if (f.column.emplace(c, f.names.size()).second) f.names.push_back(c);
       }
-      std::fprintf(f.f, "\n");
-      f.row.resize(f.column.size());
+      f.header_columns = f.names.size();
+      write_header(f.f, f.names);
       it = files.emplace(std::string(e.channel), std::move(f)).first;
     }
     CsvFile& f = it->second;
     for (auto& cell : f.row) cell.clear();
     for (const auto& [c, v] : values) {
-      if (auto k = f.column.find(c); k != f.column.end()) f.row[k->second] = csv_quote(v);
+      auto [k, added] = f.column.emplace(c, f.names.size());
+      if (added) f.names.push_back(c);
+      if (f.row.size() < f.names.size()) f.row.resize(f.names.size());
+      f.row[k->second] = csv_quote(v);
     }
     std::fprintf(f.f, "%.6f", Time::from_us(e.utime).seconds());
     for (const auto& cell : f.row) {
@@ -133,6 +186,12 @@ int run_csv(const CsvArgs& a) {
     if (!ok) {
       close_all(false);
       return fail(f.path + ".partial: write failed (disk full?)", kExitFailure);
+    }
+    if (f.names.size() > f.header_columns) {
+      if (Status st = widen(f); !st) {
+        close_all(false);
+        return fail(st.message(), kExitFailure);
+      }
     }
     fs::rename(f.path + ".partial", f.path, ec);
     if (ec) return fail(f.path + ": cannot rename into place: " + ec.message(), kExitFailure);
@@ -194,8 +253,9 @@ void add_export_commands(CLI::App& exp, int* exit_code) {
   c->footer(
       "OUT/CHANNEL.csv per channel of a driftlab type (characters other than letters, digits, '_' and '-'\n"
       "percent-encoded: /odom -> %2Fodom.csv): log_time_s (arrival), then every field flattened by its\n"
-      "definition in lcmtypes/ (header.seq, header.utime, orientation.w, ranges[0], ...). Columns come from each\n"
-      "channel's first message. Files are written as .partial and renamed when complete.");
+      "definition in lcmtypes/ (header.seq, header.utime, orientation.w, ranges[0], ...), in the order of their\n"
+      "first appearance in any of the channel's messages (a second transform, a longer scan add columns; a\n"
+      "message without them leaves them empty). Files are written as .partial and renamed when complete.");
   c->add_option("log", csv->inputs, kLogInputHelp)->required();
   c->add_option("-o,--out", csv->out, "Folder to write the CSV files into")->required();
   c->add_option("-c,--channels", csv->channels, "Only channels fully matching this regex (ECMAScript)");

@@ -11,6 +11,7 @@
 #include "core/log_writer.h"
 #include "driftlab/imu_t.hpp"
 #include "driftlab/laser_scan_t.hpp"
+#include "driftlab/tf_t.hpp"
 #include "tests/test_util.h"
 
 namespace driftlab {
@@ -21,16 +22,41 @@ const std::string kSample = std::string(DRIFTLAB_TEST_DATA) + "/sample.lcm";
 
 test::CmdResult driftlab(const std::string& args) { return test::run_capture(kDriftlab + " " + args); }
 
+/// An RFC 4180 reader: quoted cells may hold commas, doubled quotes and line breaks.
 std::vector<std::vector<std::string>> read_csv(const std::string& path) {
   std::ifstream in(path);
   std::vector<std::vector<std::string>> rows;
-  std::string line;
-  while (std::getline(in, line)) {
-    std::vector<std::string> cells;
-    std::stringstream ss(line);
-    std::string cell;
-    while (std::getline(ss, cell, ',')) cells.push_back(cell);
-    if (!line.empty() && line.back() == ',') cells.emplace_back();
+  std::vector<std::string> cells;
+  std::string cell;
+  bool quoted = false, any = false;
+  for (char c; in.get(c);) {
+    any = true;
+    if (quoted) {
+      if (c == '"' && in.peek() == '"') {
+        cell += '"';
+        in.get();
+      } else if (c == '"') {
+        quoted = false;
+      } else {
+        cell += c;
+      }
+    } else if (c == '"') {
+      quoted = true;
+    } else if (c == ',') {
+      cells.push_back(std::move(cell));
+      cell.clear();
+    } else if (c == '\n') {
+      cells.push_back(std::move(cell));
+      cell.clear();
+      rows.push_back(std::move(cells));
+      cells.clear();
+      any = false;
+    } else {
+      cell += c;
+    }
+  }
+  if (any) {
+    cells.push_back(std::move(cell));
     rows.push_back(std::move(cells));
   }
   return rows;
@@ -124,6 +150,53 @@ TEST(ExportCsv, ChannelFilterAndLongArraysLeftOut) {
   const auto scan = read_csv(dir.file("SCAN.csv"));
   for (const auto& c : scan[0]) EXPECT_EQ(c.rfind("ranges[", 0), std::string::npos) << c;
   column(scan[0], "nranges");
+}
+
+TEST(ExportCsv, EveryElementOfEveryMessageIsWrittenInColumnsOfTheirUnion) {
+  // /tf carries one transform in a message from one publisher and two in another's (a robot's odom->base_link, and
+  // its wheels): the second transform is written in full wherever it occurs, even when the first message had only
+  // one, and the rows before it get empty cells. Frame names holding a comma and a quote survive the rewrite.
+  test::TempDir dir;
+  const std::string log = dir.file("tf.lcm");
+  auto transform = [](const std::string& child, double x) {
+    driftlab::transform_t t{};
+    t.header.frame_id = "odom";
+    t.child_frame_id = child;
+    t.translation.x = x;
+    t.rotation.w = 1;
+    return t;
+  };
+  {
+    auto w = LogWriter::create(log);
+    ASSERT_TRUE(w.ok());
+    for (int i = 0; i < 4; ++i) {
+      driftlab::tf_t m{};
+      m.header.seq = i;
+      m.transforms.push_back(transform("base,link", i));
+      if (i % 2 == 1) m.transforms.push_back(transform("wheel \"left\"", 10 + i));
+      m.ntransforms = static_cast<int32_t>(m.transforms.size());
+      ASSERT_TRUE(w->write(1000 + i, "/tf", test::encode(m)).ok());
+    }
+    ASSERT_TRUE(w->close().ok());
+  }
+  const auto r = driftlab("export csv " + log + " -o " + dir.file("csv"));
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto rows = read_csv(dir.file("csv/%2Ftf.csv"));
+  ASSERT_EQ(rows.size(), 1u + 4);
+  const auto& h = rows[0];
+  for (const auto& row : rows) EXPECT_EQ(row.size(), h.size());
+  const size_t x0 = column(h, "transforms[0].translation.x"), child1 = column(h, "transforms[1].child_frame_id"),
+               x1 = column(h, "transforms[1].translation.x");
+  EXPECT_LT(x0, child1);  // the first message's columns first
+  for (int i = 0; i < 4; ++i) {
+    const auto& row = rows[static_cast<size_t>(i) + 1];
+    EXPECT_EQ(row[column(h, "transforms[0].child_frame_id")], "base,link");
+    EXPECT_EQ(std::stod(row[x0]), i);
+    EXPECT_EQ(row[column(h, "ntransforms")], i % 2 == 1 ? "2" : "1");
+    EXPECT_EQ(row[child1], i % 2 == 1 ? "wheel \"left\"" : "");
+    EXPECT_EQ(row[x1], i % 2 == 1 ? std::to_string(10 + i) : "");
+  }
+  EXPECT_FALSE(std::filesystem::exists(dir.file("csv/%2Ftf.csv.partial2")));
 }
 
 TEST(ExportCsv, ChannelsThatDifferOnlyInPunctuationGetFilesOfTheirOwn) {
