@@ -62,10 +62,13 @@ def test_eval_errors_are_the_cli_messages(test_data, cli):
 
 def test_import_writes_the_log_the_cli_writes(nav2_bag, cli, tmp_path):
     summary = driftlab.import_(nav2_bag, out=tmp_path / "py.lcm")
-    code, _, err = cli("import", nav2_bag, "-o", str(tmp_path / "cli.lcm"))
+    code, out, err = cli("import", nav2_bag, "-o", str(tmp_path / "cli.lcm"))
     assert code == 0, err
     assert (tmp_path / "py.lcm").read_bytes() == (tmp_path / "cli.lcm").read_bytes()
-    assert summary["messages"] == sum(t["messages"] for t in summary["topics"])
+    # "BAG (MCAP) -> OUT: 8,201 messages", then a line per topic
+    assert out.splitlines()[0].endswith(": {:,} messages".format(summary["messages"]))
+    assert "(" + summary["format"] + ")" in out.splitlines()[0]
+    assert summary["problems"] == []
     odom = [t for t in summary["topics"] if t["channel"] == "/odom"][0]
     assert odom["driftlab_type"] == "driftlab.odometry_t"
     assert driftlab.open(tmp_path / "py.lcm").info()["/odom"]["count"] == odom["messages"]

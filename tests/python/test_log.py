@@ -30,7 +30,7 @@ def test_read_gives_one_array_per_field_with_stamps_and_arrivals(test_data):
     assert gt["stamp"] is gt["header.utime"] or np.array_equal(gt["stamp"], gt["header.utime"])
     assert gt["arrival"][0] == log.info()["GROUND_TRUTH"]["first_arrival"]
     assert np.all(np.diff(gt["arrival"]) > 0)
-    assert gt["header.seq"].dtype == np.int32 and list(gt["header.seq"][:3]) == [0, 1, 2]
+    assert gt["header.seq"].dtype == np.int64 and list(gt["header.seq"][:3]) == [0, 1, 2]
     assert isinstance(gt["header.frame_id"][0], str)
     floats = [k for k, v in gt.items() if isinstance(v, np.ndarray) and v.dtype == np.float64]
     assert floats, gt.keys()
