@@ -8,7 +8,8 @@
    Gazebo's simulation time) are judged against the fastest deliveries on that clock (peer_delay_s).
 2. driftlab.open(...).read(channel) gives each stream's stamps and arrivals as NumPy arrays [us]; the plot shows
    every message's delay: its arrival minus its stamp, less the fastest deliveries of all the streams on the clock
-   around it (the simulation runs slower than real time, so arrival minus stamp alone drifts).
+   around it (the simulation runs slower than real time, so arrival minus stamp alone drifts). Streams stamped ahead
+   of their peers (post-dated, as /tf's map -> odom from AMCL) are named and left out of the plot.
 """
 import sys
 
@@ -35,30 +36,39 @@ def main(bag, png):
     why = [r for r in late["reasons"] if "after the fastest" in r or "late" in r]
     print("\nthe late stream: %s%s" % (late["name"], (": " + why[0]) if why else ""))
 
-    # Every message's delay, from the stamps and arrivals themselves.
+    # Every message's delay, from the stamps and arrivals themselves. A stream stamped ahead of its peers (here /tf,
+    # whose map -> odom AMCL post-dates by its transform_tolerance) is left out: its stamps are not its delay.
+    ahead = [c["name"] for c in timed if (c["peer_delay_s"] or 0) < 0]
+    if ahead:
+        print("stamped ahead of their peers (post-dated), not plotted:", ", ".join(ahead))
     log = driftlab.open(bag)
     start = d["start_utime"]
     series = {}
     for c in timed:
+        if c["name"] in ahead:
+            continue
         data = log.read(c["name"])
         stamp, arrival = data["stamp"], data["arrival"]
         if stamp is None:
             continue
         keep = stamp > 0
         series[c["name"]] = ((arrival[keep] - start) * 1e-6, (arrival[keep] - stamp[keep]) * 1e-3)  # [s], [ms]
-    # The fastest deliveries on the clock: the smallest arrival-minus-stamp of any stream in each 5 s, as a line.
+    # The fastest deliveries on the clock: the smallest arrival-minus-stamp of any stream in each 5 s, and a line
+    # through them (the simulation's clock runs at a steady rate against the recorder's).
     t_all = np.concatenate([t for t, _ in series.values()])
     raw_all = np.concatenate([r for _, r in series.values()])
-    edges = np.arange(0, t_all.max() + 5, 5.0)
-    bins = np.digitize(t_all, edges)
-    centres, floor = [], []
+    bins = (t_all // 5.0).astype(int)
+    fastest_t, fastest = [], []
     for b in np.unique(bins):
-        centres.append(t_all[bins == b].mean())
-        floor.append(raw_all[bins == b].min())
+        k = np.flatnonzero(bins == b)[np.argmin(raw_all[bins == b])]
+        fastest_t.append(t_all[k])
+        fastest.append(raw_all[k])
+    line = np.polyfit(fastest_t, fastest, 1)
+    floor = np.min(np.array(fastest) - np.polyval(line, fastest_t))
 
     fig, (ax, bars) = plt.subplots(2, 1, figsize=(9, 7), gridspec_kw={"height_ratios": [2, 1]})
     for name, (t, raw) in series.items():
-        delay = raw - np.interp(t, centres, floor)
+        delay = raw - np.polyval(line, t) - floor
         ax.plot(t, delay, ".", markersize=2, label="%s (median %.1f ms)" % (name, np.median(delay)))
     ax.set_yscale("symlog", linthresh=10)
     ax.set_xlabel("time since the bag's start [s]")
