@@ -123,6 +123,7 @@ class Log {
 
   std::vector<std::string> channels() const {
     std::vector<std::string> names;
+    names.reserve(index_->summary().channels.size());
     for (const auto& c : index_->summary().channels) names.push_back(c.name);
     return names;
   }
@@ -204,6 +205,7 @@ std::string run_command(const std::vector<std::string>& args) {
   std::vector<std::string> argv = {"driftlab"};
   argv.insert(argv.end(), args.begin(), args.end());
   std::vector<char*> c;
+  c.reserve(argv.size());
   for (auto& a : argv) c.push_back(a.data());
   apps::OutputCapture capture;
   try {
