@@ -17,7 +17,18 @@
 
 namespace driftlab::apps {
 
+namespace {
+thread_local OutputCapture* capture = nullptr;
+}  // namespace
+
+OutputCapture::OutputCapture() { capture = this; }
+OutputCapture::~OutputCapture() { capture = nullptr; }
+
 int fail(std::string_view message, int code) {
+  if (capture != nullptr) {
+    if (capture->error.empty()) capture->error = message;
+    return code;
+  }
   std::fprintf(stderr, "driftlab: %.*s\n", static_cast<int>(message.size()), message.data());
   return code;
 }
@@ -37,6 +48,10 @@ Status write_atomically(const std::string& path, std::string_view bytes) {
 }
 
 bool write_output(const std::string& path, const std::string& text) {
+  if (path == "-" && capture != nullptr) {
+    capture->text += text;
+    return true;
+  }
   if (path == "-") {
     std::fwrite(text.data(), 1, text.size(), stdout);
     return true;

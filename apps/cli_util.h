@@ -23,6 +23,18 @@ inline constexpr int kExitBadInput = 2;
 /// Prints "driftlab: message" as one line on stderr and returns code.
 int fail(std::string_view message, int code = kExitBadInput);
 
+/// A command run in-process (the Python module, python/): while one lives on a thread, fail() on that thread keeps
+/// the first message in `error` instead of printing it, and write_output("-") appends to `text` instead of writing
+/// to standard output. Not nested.
+struct OutputCapture {
+  std::string error;  ///< the first message given to fail(), without "driftlab: "
+  std::string text;   ///< what write_output("-") was given
+  OutputCapture();
+  ~OutputCapture();
+  OutputCapture(const OutputCapture&) = delete;
+  OutputCapture& operator=(const OutputCapture&) = delete;
+};
+
 /// Writes bytes to path+".partial" and renames it to path when whole; on failure removes the partial file, leaves
 /// path as it was and returns an error naming path.
 Status write_atomically(const std::string& path, std::string_view bytes);

@@ -294,26 +294,22 @@ int run_diagnose(const DiagnoseOptions& o) {
   for (const auto& [out, option] : {std::pair{o.json, "--json"}, {o.html, "--html"}}) {
     if (Status s = refuse_same_file(out, {o.log}, option); !s) return fail(s.message());
   }
-  auto result = analyzers::diagnose(o.log, o.analysis);
-  if (!result) return fail(result.error().message);
-  const Diagnosis& d = *result;
+  auto run = run_diagnosis(o.log, o.analysis);
+  if (!run) return fail(run.error().message);
+  const Diagnosis& d = run->diagnosis;
   std::vector<std::string> problems;
   auto lines = report_lines(d, &problems);
   // A PX4 flight log: the flight controller's own account of its timing and its estimator, its problems first (a
   // logger dropout explains the gaps every channel shows at it).
-  Result<analyzers::FlightLogDiagnosis> flight = analyzers::FlightLogDiagnosis{};
-  if (d.flight_log) flight = analyzers::diagnose_flight_log(o.log);  // a second pass, for flight logs only
-  if (!flight) return fail(flight.error().message);
-  if (flight->present) {
+  const analyzers::FlightLogDiagnosis& flight = run->flight;
+  if (flight.present) {
     lines.emplace_back();
-    for (auto& l : flight_log_lines(*flight)) lines.push_back(std::move(l));
-    problems.insert(problems.begin(), flight->problems.begin(), flight->problems.end());
+    for (auto& l : flight_log_lines(flight)) lines.push_back(std::move(l));
+    problems.insert(problems.begin(), flight.problems.begin(), flight.problems.end());
   }
   if (!o.html.empty() && !write_output(o.html, html_page(d, lines, problems))) return kExitFailure;
   if (!o.json.empty()) {
-    nlohmann::json j = to_json(d);
-    if (flight->present) j["flight_log"] = flight_log_json(*flight);
-    if (!write_output(o.json, j.dump(2) + "\n")) return kExitFailure;
+    if (!write_output(o.json, diagnose_json(*run).dump(2) + "\n")) return kExitFailure;
     if (o.json == "-") return fails(d, problems, o.fail_on) ? kExitProblemsFound : kExitOk;
   }
   for (const auto& l : lines) std::printf("%s\n", l.c_str());
@@ -346,10 +342,10 @@ void add_diagnose_command(CLI::App& app, int* exit_code) {
       ->check(CLI::IsMember({"warn", "fault"}));
   cmd->add_option("--max-lag", o->analysis.max_lag_s, "Skew search range [s]")
       ->capture_default_str()
-      ->check(in_range(config::above(0, 10), "s"));
+      ->check(in_range(kMaxLagRange, "s"));
   cmd->add_option("--window", o->analysis.window_s, "Skew window [s]")
       ->capture_default_str()
-      ->check(in_range(config::above(0, 86400), "s"));
+      ->check(in_range(kWindowRange, "s"));
   cmd->callback([o, exit_code] {
     for (const auto& [out, option] : {std::pair{o->json, "--json"}, {o->html, "--html"}}) {
       if (Status s = refuse_same_file(out, o->inputs, option); !s) {  // the recording given, not only its conversion

@@ -403,4 +403,22 @@ std::vector<std::string> flight_log_lines(const analyzers::FlightLogDiagnosis& f
   return lines;
 }
 
+Result<DiagnoseRun> run_diagnosis(const std::string& log, const analyzers::DiagnoseOptions& options) {
+  auto d = analyzers::diagnose(log, options);
+  if (!d) return d.error();
+  DiagnoseRun run{std::move(*d), {}};
+  if (run.diagnosis.flight_log) {  // a second pass, for flight logs only
+    auto flight = analyzers::diagnose_flight_log(log);
+    if (!flight) return flight.error();
+    run.flight = std::move(*flight);
+  }
+  return run;
+}
+
+nlohmann::json diagnose_json(const DiagnoseRun& run) {
+  nlohmann::json j = to_json(run.diagnosis);
+  if (run.flight.present) j["flight_log"] = flight_log_json(run.flight);
+  return j;
+}
+
 }  // namespace driftlab::apps

@@ -5,8 +5,25 @@
 
 #include "analyzers/flight_log.h"
 #include "analyzers/timing.h"
+#include "core/config.h"
+#include "core/result.h"
 
 namespace driftlab::apps {
+
+/// The ranges of diagnose's --max-lag and --window [s].
+inline constexpr config::Range kMaxLagRange = config::above(0, 10);
+inline constexpr config::Range kWindowRange = config::above(0, 86400);
+
+/// `driftlab diagnose` on an LCM log: the timing diagnosis and, for a PX4 flight log, the flight controller's own
+/// account (`flight.present`). The command and the Python module (python/) both run it.
+struct DiagnoseRun {
+  analyzers::Diagnosis diagnosis;
+  analyzers::FlightLogDiagnosis flight;
+};
+/// Errors: one line naming the log.
+Result<DiagnoseRun> run_diagnosis(const std::string& log, const analyzers::DiagnoseOptions& options);
+/// What `driftlab diagnose --json` prints for a run.
+nlohmann::json diagnose_json(const DiagnoseRun& run);
 
 /// What `driftlab diagnose --json` prints: times in seconds unless the key says utime [us].
 nlohmann::json to_json(const analyzers::Diagnosis& d);

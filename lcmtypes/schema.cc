@@ -88,6 +88,7 @@ struct Walker {
   size_t pos = 0;
   const FieldVisitor& visit;
   const FlattenOptions& options;
+  const RawFieldVisitor* raw = nullptr;  ///< walk(): primitives as bytes, columns without indices
 
   bool take(size_t n, const uint8_t*& p) {
     if (data.size() - pos < n) return false;
@@ -111,10 +112,25 @@ struct Walker {
   }
 
   /// One primitive; `value` receives its integer value (for array lengths). emit = false skips the visit.
-  bool primitive(const std::string& type, const std::string& column, int64_t* value, bool emit) {
+  bool primitive(const FieldDef& f, const std::string& column, int64_t* value, bool emit) {
+    const std::string& type = f.type;
     const uint8_t* p = nullptr;
     char buf[40];
     std::string text;
+    if (raw != nullptr && (value == nullptr || type == "string" || type == "double" || type == "float")) {
+      // walk(): the bytes (integers that may be lengths are read below)
+      const size_t size = fixed_size(type);
+      if (size == 0) {  // a string: its length with the NUL, then its bytes
+        if (!take(4, p)) return false;
+        const auto n = static_cast<uint32_t>(be(p, 4));
+        if (n == 0 || !take(n, p)) return false;
+        if (emit) (*raw)(column, f, {p, n - 1});
+        return true;
+      }
+      if (!take(size, p)) return false;
+      if (emit) (*raw)(column, f, {p, size});
+      return true;
+    }
     if (type == "double") {
       if (!take(8, p)) return false;
       const uint64_t bits = be(p, 8);
@@ -136,11 +152,15 @@ struct Walker {
     } else {
       const size_t size = fixed_size(type);
       if (!take(size, p)) return false;
-      const uint64_t raw = be(p, size);
+      const uint64_t word = be(p, size);
       const int shift = static_cast<int>(64 - 8 * size);
       // Sign-extended, but for byte: LCM's byte is unsigned (uint8_t in C++).
-      const int64_t v = type == "byte" ? static_cast<int64_t>(raw) : static_cast<int64_t>(raw << shift) >> shift;
+      const int64_t v = type == "byte" ? static_cast<int64_t>(word) : static_cast<int64_t>(word << shift) >> shift;
       if (value != nullptr) *value = v;
+      if (raw != nullptr) {
+        if (emit) (*raw)(column, f, {p, size});
+        return true;
+      }
       text = std::to_string(type == "boolean" ? (v != 0) : v);
     }
     if (emit) visit(column, text);
@@ -149,14 +169,16 @@ struct Walker {
 
   bool element(const FieldDef& f, const std::string& column, int64_t* value, bool emit) {
     if (const StructDef* nested = find_struct(f.type)) return fields(*nested, column + ".", emit);
-    return primitive(f.type, column, value, emit);
+    return primitive(f, column, value, emit);
   }
 
   /// Elements of dimensions dims[d..] of f, prefixed by column.
   bool array(const FieldDef& f, size_t d, const std::vector<int64_t>& sizes, const std::string& column, bool emit) {
     if (d == sizes.size()) return element(f, column, nullptr, emit);
     for (int64_t k = 0; k < sizes[d]; ++k) {
-      if (!array(f, d + 1, sizes, emit ? column + "[" + std::to_string(k) + "]" : column, emit)) return false;
+      if (!array(f, d + 1, sizes, emit && raw == nullptr ? column + "[" + std::to_string(k) + "]" : column, emit)) {
+        return false;
+      }
     }
     return true;
   }
@@ -179,12 +201,15 @@ struct Walker {
         sizes.push_back(n);
         total *= n;
       }
-      const bool keep = emit && static_cast<size_t>(total) <= options.max_array && (f.type != "byte" || options.bytes);
-      if (const size_t size = fixed_size(f.type); !keep && size > 0) {  // skipped in one step
+      const bool keep =
+          emit &&
+          (raw != nullptr || (static_cast<size_t>(total) <= options.max_array && (f.type != "byte" || options.bytes)));
+      if (const size_t size = fixed_size(f.type); (!keep || raw != nullptr) && size > 0) {  // in one step
         const uint8_t* p = nullptr;
         if (static_cast<uint64_t>(total) > (data.size() - pos) / size || !take(static_cast<size_t>(total) * size, p)) {
           return false;
         }
+        if (keep) (*raw)(column, f, {p, static_cast<size_t>(total) * size});
         continue;
       }
       if (!array(f, 0, sizes, column, keep)) return false;
@@ -212,6 +237,14 @@ bool flatten(const StructDef& def, std::span<const uint8_t> data, const FieldVis
              const FlattenOptions& options) {
   if (data.size() < 8) return false;
   Walker w{data, 8, visit, options};
+  return w.fields(def, "", true);
+}
+
+bool walk(const StructDef& def, std::span<const uint8_t> data, const RawFieldVisitor& visit) {
+  if (data.size() < 8) return false;
+  static const FieldVisitor no_text;
+  static const FlattenOptions options;
+  Walker w{data, 8, no_text, options, &visit};
   return w.fields(def, "", true);
 }
 

@@ -43,4 +43,15 @@ struct FlattenOptions {
 bool flatten(const StructDef& def, std::span<const uint8_t> data, const FieldVisitor& visit,
              const FlattenOptions& options = {});
 
+/// One primitive of a message as its bytes, for readers that keep numbers as numbers (the Python module): its
+/// column without indices ("header.utime", "ranges", "poses.position.x"), its field, and its big-endian bytes: an
+/// array of fixed-size primitives (any length, bytes too) in one call, each element of other arrays (strings,
+/// structs' fields) in a call of its own, a string without its NUL.
+using RawFieldVisitor =
+    std::function<void(const std::string& column, const FieldDef& field, std::span<const uint8_t> bytes)>;
+
+/// Walks an encoded message (fingerprint first) of type `def` as flatten() does, calling visit with the bytes of
+/// every primitive. False when the data is shorter than the message claims.
+bool walk(const StructDef& def, std::span<const uint8_t> data, const RawFieldVisitor& visit);
+
 }  // namespace driftlab::lcmtypes

@@ -117,6 +117,36 @@ TEST(Schema, BytesOnlyWhenAskedAndNestedArraysOfStructs) {
   EXPECT_EQ(by_name["senders[1].lost"], "5");
 }
 
+// walk() (the Python module's reads): columns without indices, a numeric array in one call, the same bytes the
+// text walk formats, and lengths still followed.
+TEST(Schema, WalkGivesEachArrayOfNumbersInOneCallAsItsBytes) {
+  driftlab::laser_scan_t scan{};
+  scan.header.seq = 7;
+  scan.header.frame_id = "laser";
+  scan.nranges = 3;
+  scan.ranges = {1.5f, NAN, 2.25f};
+  scan.nintensities = 0;
+  std::vector<std::pair<std::string, size_t>> calls;
+  std::vector<uint8_t> ranges;
+  const bool ok = lcmtypes::walk(*find_struct("laser_scan_t"), encode(scan),
+                                 [&](const std::string& column, const FieldDef& f, std::span<const uint8_t> bytes) {
+                                   calls.emplace_back(column, bytes.size());
+                                   if (column == "ranges") {
+                                     EXPECT_EQ(f.type, "float");
+                                     ranges.assign(bytes.begin(), bytes.end());
+                                   }
+                                 });
+  EXPECT_TRUE(ok);
+  ASSERT_EQ(calls.size(), 3u + 7 + 1 + 1 + 1 + 1);  // header, 7 floats, nranges, ranges, nintensities, intensities
+  EXPECT_EQ(calls[0], std::make_pair(std::string("header.seq"), size_t{8}));
+  EXPECT_EQ(calls[2], std::make_pair(std::string("header.frame_id"), size_t{5}));  // without its NUL
+  EXPECT_EQ(calls[11], std::make_pair(std::string("ranges"), size_t{12}));
+  EXPECT_EQ(calls[13], std::make_pair(std::string("intensities"), size_t{0}));  // empty, still named
+  ASSERT_EQ(ranges.size(), 12u);
+  EXPECT_EQ(ranges[0], 0x3f);  // 1.5f big-endian: 3f c0 00 00
+  EXPECT_EQ(ranges[1], 0xc0);
+}
+
 TEST(Schema, TruncatedDataStopsWithoutReadingPastTheEnd) {
   driftlab::laser_scan_t scan{};
   scan.nranges = 100;

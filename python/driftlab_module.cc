@@ -1,0 +1,274 @@
+// _driftlab: the C++ side of `import driftlab` (python/driftlab/__init__.py is the package users see). Logs are
+// opened as every command opens them (apps/log_input.h: another tool's recording through its cached conversion),
+// channels read with the schema walker (lcmtypes/schema.h) straight into buffers NumPy takes over, and diagnose,
+// eval and import run in-process: diagnose and import through the library functions the commands call, eval
+// through the command itself (its CLI11 options, built from keyword arguments by the package) with its output and
+// its one-line error captured (apps/cli_util.h OutputCapture). The GIL is released while C++ works.
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include <CLI/CLI.hpp>
+
+#include <cstring>
+#include <memory>
+#include <stdexcept>
+#include <tuple>
+
+#include "apps/cli_util.h"
+#include "apps/commands.h"
+#include "apps/diagnosis_json.h"
+#include "apps/log_input.h"
+#include "core/log_index.h"
+#include "core/same_file.h"
+#include "formats/import.h"
+#include "lcmtypes/type_registry.h"
+#include "python/read_channel.h"
+
+namespace py = pybind11;
+
+namespace driftlab::python {
+namespace {
+
+/// Raised as driftlab.Error, with the CLI's one-line message.
+struct DriftlabError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+template <typename T>
+T value_or_raise(Result<T> r) {
+  if (!r) throw DriftlabError(r.error().message);
+  return std::move(*r);
+}
+
+/// A vector handed to NumPy without a copy: the array owns it through a capsule.
+template <typename T>
+py::array adopt(std::vector<T>&& v, const py::dtype& dtype, std::vector<py::ssize_t> shape) {
+  auto* owned = new std::vector<T>(std::move(v));
+  py::capsule free_when_done(owned, [](void* p) { delete static_cast<std::vector<T>*>(p); });
+  return py::array(dtype, std::move(shape), {}, owned->data(), free_when_done);
+}
+
+py::dtype dtype_of(const Column& c) {
+  return py::dtype(std::string(1, c.kind == 'b' ? '?' : c.kind) + (c.kind == 'b' ? "" : std::to_string(c.item_bytes)));
+}
+
+/// An object array of n cells, each None.
+py::array object_array(size_t n) {
+  return py::module_::import("numpy").attr("empty")(n, py::arg("dtype") = "object").cast<py::array>();
+}
+
+/// Puts value into cell m of an object array (object_array()).
+void set_cell(py::array& a, size_t m, py::object value) {
+  auto** cells = static_cast<PyObject**>(a.mutable_data());
+  Py_XDECREF(cells[m]);
+  cells[m] = value.release().ptr();
+}
+
+/// A column as NumPy: 1-D for a scalar field, (messages, dims...) when every message holds as many elements, else
+/// an object array of 1-D arrays (or of lists of strings).
+py::object column_array(Column&& c, size_t messages) {
+  bool same = true;
+  const int64_t first = c.counts.empty() ? 0 : c.counts[0];
+  for (int64_t n : c.counts) same = same && n == first;
+  std::vector<py::ssize_t> shape = {static_cast<py::ssize_t>(messages)};
+  if (same && !(first == 1 && c.dims.empty())) {
+    int64_t product = 1;
+    for (size_t d : c.dims) product *= static_cast<int64_t>(d);
+    if (!c.dims.empty() && product == first) {
+      for (size_t d : c.dims) shape.push_back(static_cast<py::ssize_t>(d));
+    } else {
+      shape.push_back(first);
+    }
+  }
+  if (c.kind == 'O') {
+    py::array out = object_array(messages);
+    size_t at = 0;
+    for (size_t m = 0; m < messages; ++m) {
+      if (same && first == 1) {
+        set_cell(out, m, py::str(c.strings[at++]));
+        continue;
+      }
+      py::list l;
+      for (int64_t k = 0; k < c.counts[m]; ++k) l.append(py::str(c.strings[at++]));
+      set_cell(out, m, std::move(l));
+    }
+    return out;
+  }
+  const py::dtype dtype = dtype_of(c);
+  if (same) return adopt(std::move(c.data), dtype, shape);
+  py::array out = object_array(messages);
+  size_t at = 0;
+  for (size_t m = 0; m < messages; ++m) {
+    const size_t bytes = static_cast<size_t>(c.counts[m]) * c.item_bytes;
+    py::array a(dtype, std::vector<py::ssize_t>{static_cast<py::ssize_t>(c.counts[m])});
+    if (bytes > 0) std::memcpy(a.mutable_data(), c.data.data() + at, bytes);
+    at += bytes;
+    set_cell(out, m, std::move(a));
+  }
+  return out;
+}
+
+/// An opened log: the LCM log read (the conversion of another tool's recording) and its index.
+class Log {
+ public:
+  explicit Log(std::vector<std::string> inputs) : inputs_(std::move(inputs)) {
+    py::gil_scoped_release release;
+    lcm_path_ = value_or_raise(apps::event_log_for(inputs_));
+    index_ = std::make_shared<LogIndex>(value_or_raise(LogIndex::load_or_build(lcm_path_)));
+  }
+
+  std::string path() const { return inputs_[0]; }
+  const std::string& lcm_path() const { return lcm_path_; }
+
+  std::vector<std::string> channels() const {
+    std::vector<std::string> names;
+    names.reserve(index_->summary().channels.size());
+    for (const auto& c : index_->summary().channels) names.push_back(c.name);
+    return names;
+  }
+
+  const ChannelSummary& summary(const std::string& channel) const {
+    for (const auto& c : index_->summary().channels) {
+      if (c.name == channel) return c;
+    }
+    throw py::key_error(path() + ": no channel '" + channel + "'");
+  }
+
+  py::dict info() const {
+    py::dict out;
+    for (const auto& c : index_->summary().channels) {
+      const char* type = lcmtypes::type_name(c.fingerprint);
+      py::dict d;
+      d["type"] = type != nullptr ? py::object(py::str(type)) : py::object(py::none());
+      d["count"] = c.count;
+      d["bytes"] = c.bytes;
+      d["first_arrival"] = c.first_utime;
+      d["last_arrival"] = c.last_utime;
+      out[py::str(c.name)] = d;
+    }
+    return out;
+  }
+
+  py::dict read(const std::string& channel) const {
+    const ChannelSummary& s = summary(channel);
+    Result<Channel> r = Error{""};
+    {
+      py::gil_scoped_release release;
+      r = read_channel(lcm_path_, channel, s.count);
+    }
+    Channel ch = value_or_raise(std::move(r));
+    const size_t n = ch.arrival.size();
+    py::dict out;
+    py::object stamp;
+    for (Column& c : ch.columns) {
+      std::string name = c.name;
+      py::object a = column_array(std::move(c), n);
+      if (name == "header.utime") stamp = a;
+      out[py::str(name)] = a;
+    }
+    out["stamp"] = stamp ? stamp : py::object(py::none());
+    out["arrival"] = adopt(std::move(ch.arrival), py::dtype::of<int64_t>(), {static_cast<py::ssize_t>(n)});
+    return out;
+  }
+
+ private:
+  std::vector<std::string> inputs_;
+  std::string lcm_path_;
+  std::shared_ptr<LogIndex> index_;
+};
+
+/// `driftlab diagnose --json -`'s JSON text for inputs.
+std::string diagnose_json(const std::vector<std::string>& inputs, double max_lag_s, double window_s) {
+  for (const auto& [option, value, range] :
+       {std::tuple{"--max-lag", max_lag_s, apps::kMaxLagRange}, {"--window", window_s, apps::kWindowRange}}) {
+    if (std::string why = range.violation(value, "s"); !why.empty()) {
+      throw DriftlabError(std::string(option) + ": " + why + ", got " + apps::short_number(value));
+    }
+  }
+  py::gil_scoped_release release;
+  const std::string log = value_or_raise(apps::event_log_for(inputs));
+  analyzers::DiagnoseOptions options;
+  options.max_lag_s = max_lag_s;
+  options.window_s = window_s;
+  return apps::diagnose_json(value_or_raise(apps::run_diagnosis(log, options))).dump(2) + "\n";
+}
+
+/// A command of `driftlab` run in-process with these arguments (after "driftlab"), `--json -` among them: what it
+/// printed as JSON. Its error, or a usage error, as DriftlabError with the command's message.
+std::string run_command(const std::vector<std::string>& args) {
+  py::gil_scoped_release release;
+  CLI::App app{"driftlab", "driftlab"};
+  app.require_subcommand(1);
+  int exit_code = apps::kExitOk;
+  apps::add_eval_command(app, &exit_code);
+  std::vector<std::string> argv = {"driftlab"};
+  argv.insert(argv.end(), args.begin(), args.end());
+  std::vector<char*> c;
+  c.reserve(argv.size());
+  for (auto& a : argv) c.push_back(a.data());
+  apps::OutputCapture capture;
+  try {
+    app.parse(static_cast<int>(c.size()), c.data());
+  } catch (const CLI::ParseError& e) {
+    throw DriftlabError(std::string(e.what()));
+  }
+  if (exit_code != apps::kExitOk) {
+    throw DriftlabError(capture.error.empty() ? "failed with exit code " + std::to_string(exit_code) : capture.error);
+  }
+  return capture.text;
+}
+
+py::dict import_log(const std::vector<std::string>& inputs, const std::string& out) {
+  formats::ImportSummary s;
+  std::vector<std::string> problems;
+  {
+    py::gil_scoped_release release;
+    if (Status st = refuse_same_file(out, inputs); !st) throw DriftlabError(st.message());
+    if (inputs.size() == 1 && formats::detect_format(inputs[0]).format == formats::Format::kMrptRawlog) {
+      throw DriftlabError(inputs[0] + ": an MRPT rawlog: convert it with 'driftlab import rawlog'");
+    }
+    s = value_or_raise(formats::import_log(inputs, out, [&](const std::string& line) { problems.push_back(line); }));
+  }
+  py::dict d;
+  d["format"] = s.format;
+  d["messages"] = s.messages;
+  py::list topics;
+  for (const auto& t : s.topics) {
+    py::dict x;
+    x["channel"] = t.channel;
+    x["source_type"] = t.source_type;
+    x["driftlab_type"] = t.driftlab_type;
+    x["messages"] = t.messages;
+    x["malformed"] = t.malformed;
+    topics.append(x);
+  }
+  d["topics"] = topics;
+  py::dict skipped;
+  for (const auto& [name, n] : s.skipped) skipped[py::str(name)] = n;
+  d["skipped"] = skipped;
+  d["problems"] = problems;
+  d["out"] = out;
+  return d;
+}
+
+}  // namespace
+}  // namespace driftlab::python
+
+PYBIND11_MODULE(_driftlab, m) {
+  using namespace driftlab::python;
+  m.doc() = "driftlab's C++ core (use the driftlab package)";
+  // driftlab.Error: both a RuntimeError and a ValueError (bad input is most of what it reports).
+  py::register_exception<DriftlabError>(
+      m, "Error", py::make_tuple(py::handle(PyExc_RuntimeError), py::handle(PyExc_ValueError)).release());
+  py::class_<Log>(m, "Log")
+      .def(py::init<std::vector<std::string>>(), py::arg("inputs"))
+      .def_property_readonly("path", &Log::path)
+      .def_property_readonly("lcm_path", &Log::lcm_path)
+      .def_property_readonly("channels", &Log::channels)
+      .def("info", &Log::info)
+      .def("read", &Log::read, py::arg("channel"));
+  m.def("diagnose_json", &diagnose_json, py::arg("inputs"), py::arg("max_lag_s"), py::arg("window_s"));
+  m.def("run_command", &run_command, py::arg("args"));
+  m.def("import_log", &import_log, py::arg("inputs"), py::arg("out"));
+}
