@@ -52,7 +52,8 @@ const char* tool_description(const char* word, const char* sub = nullptr);
 
 /// The tool command argv asks for, or nullptr.
 const ToolCommand* find_tool(int argc, char** argv);
-/// Runs the tool's program with argv: from the folder of the running program, else from PATH. Returns only when
+/// Runs the tool's program with argv: from the folder of the running program or the install tree's lib/driftlab
+/// (core/install_layout.h), else from PATH. Returns only when
 /// it cannot be started (one line on stderr, exit code 1).
 int exec_tool(const ToolCommand& tool, char** argv);
 
