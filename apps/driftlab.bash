@@ -6,7 +6,7 @@
 # configs, output folders).
 
 # _driftlab_help PROGRAM WORDS...: the help of `PROGRAM WORDS... --help` reduced to lines "sub NAME",
-# "opt NAME" and "choice OPTION a b c", cached in _driftlab_cache.
+# "opt NAME" and "choice OPTION a b c", in _driftlab_reply; cached in _driftlab_cache.
 _driftlab_help() {
   local key="$*"
   if [[ -z "${_driftlab_cache[$key]+set}" ]]; then
@@ -23,15 +23,17 @@ _driftlab_help() {
         }
       }')
   fi
-  printf '%s\n' "${_driftlab_cache[$key]}"
+  _driftlab_reply=${_driftlab_cache[$key]}
 }
 
 _driftlab() {
+  COMPREPLY=()
   local cur=${COMP_WORDS[COMP_CWORD]} prev=${COMP_WORDS[COMP_CWORD - 1]}
   local program=${COMP_WORDS[0]}
   program=${program/#\~/$HOME}
   command -v "$program" >/dev/null 2>&1 || return 0
   declare -gA _driftlab_cache 2>/dev/null || return 0
+  local _driftlab_reply
 
   # The command path so far: the words that name a subcommand of the one before.
   local -a path=("$program")
@@ -39,10 +41,11 @@ _driftlab() {
   for ((i = 1; i < COMP_CWORD; i++)); do
     word=${COMP_WORDS[i]}
     [[ $word == -* ]] && continue
-    if _driftlab_help "${path[@]}" | grep -qxF "sub $word"; then path+=("$word"); fi
+    _driftlab_help "${path[@]}"
+    if [[ $'\n'$_driftlab_reply$'\n' == *$'\n'"sub $word"$'\n'* ]]; then path+=("$word"); fi
   done
-  local help
-  help=$(_driftlab_help "${path[@]}")
+  _driftlab_help "${path[@]}"
+  local help=$_driftlab_reply
 
   local choices
   choices=$(awk -v o="$prev" '$1 == "choice" && $2 == o { $1 = ""; $2 = ""; print }' <<<"$help")
@@ -59,7 +62,7 @@ _driftlab() {
   if [[ -n $subs ]]; then mapfile -t COMPREPLY < <(compgen -W "$subs" -- "$cur"); fi
   # Logs, scenarios and folders: file names too, unless a subcommand must come first (driftlab's own verbs).
   if ((${#path[@]} > 1)) || [[ -z $subs ]]; then
-    compopt -o filenames 2>/dev/null
+    compopt -o filenames 2>/dev/null || true  # outside a completion (a test) there is nothing to set
     mapfile -t -O "${#COMPREPLY[@]}" COMPREPLY < <(compgen -f -- "$cur")
   fi
   return 0
