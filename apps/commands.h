@@ -3,8 +3,8 @@
 //
 // `driftlab` itself holds the commands that need no simulator, SLAM or vision library (info, diagnose, recover,
 // eval, export tum/csv, record, report, demo), so they start in milliseconds. The others live in programs of their own
-// beside it (driftlab-sim, driftlab-replay, driftlab-rawlog) and `driftlab` runs them, as git runs git-* programs:
-// `driftlab replay ...` is `driftlab-replay replay ...`. kTools lists them; docs/architecture.md says why.
+// (driftlab-sim, driftlab-replay, driftlab-rawlog; installed, in PREFIX/lib/driftlab) and `driftlab` runs them, as git
+// runs git-* programs: `driftlab replay ...` is `driftlab-replay replay ...`. kTools lists them; architecture.md: why.
 #pragma once
 
 #include <span>
