@@ -31,7 +31,8 @@
 namespace driftlab::analyzers {
 
 Result<Diagnosis> diagnose(const std::string& log, const DiagnoseOptions& options) {
-  auto reader = LogReader::open(log);
+  ReadOptions read{.channels = options.channels, .also = options.ignore_channels, .on_problem = {}};
+  auto reader = LogReader::open(log, read);
   if (!reader) return reader.error();
   Diagnosis d;
   d.log = log;

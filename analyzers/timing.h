@@ -257,6 +257,9 @@ struct DiagnoseOptions {
   std::vector<std::string> ignore_channels = {
       "CHANNEL_SOURCES", "DRIFTLAB_RECORDER_STATS", "FAULTS",    "FOREIGN_SCHEMAS", "MODULE_STATS", "REPLAY_FAULTS",
       "SIMULATION",      "ULOG_DROPOUTS",           "ULOG_INFO", "ULOG_LOG",        "ULOG_PARAMS"};
+  /// Only the channels fully matching this ECMAScript regex (as lcm-logger's -c), and the bookkeeping channels
+  /// above, which say how to read them; empty: every channel.
+  std::string channels;
 };
 
 Result<Diagnosis> diagnose(const std::string& log, const DiagnoseOptions& options = {});

@@ -29,8 +29,22 @@ struct DiagnoseOptions {
   std::string log;
   std::string json;
   std::string html;
+  std::string fail_on;  ///< "", "warn" or "fault"
   analyzers::DiagnoseOptions analysis;
 };
+
+/// Exit code of `diagnose --fail-on`: a stream's verdict at that level or worse (for "warn", also a problem of the
+/// log as a whole: a TF chain, a flight log's dropouts) makes the command fail, for CI.
+inline constexpr int kExitProblemsFound = 3;
+
+bool fails(const Diagnosis& d, const std::vector<std::string>& problems, const std::string& level) {
+  if (level.empty()) return false;
+  const bool any_fault = std::any_of(d.channels.begin(), d.channels.end(),
+                                     [](const analyzers::ChannelTiming& c) { return c.verdict == "fault"; });
+  const bool any_warn = std::any_of(d.channels.begin(), d.channels.end(),
+                                    [](const analyzers::ChannelTiming& c) { return c.verdict != "ok"; });
+  return level == "fault" ? any_fault : any_warn || !problems.empty();
+}
 
 std::string ms(double seconds) {
   char buf[32];
@@ -300,7 +314,7 @@ int run_diagnose(const DiagnoseOptions& o) {
     nlohmann::json j = to_json(d);
     if (flight->present) j["flight_log"] = flight_log_json(*flight);
     if (!write_output(o.json, j.dump(2) + "\n")) return kExitFailure;
-    if (o.json == "-") return kExitOk;
+    if (o.json == "-") return fails(d, problems, o.fail_on) ? kExitProblemsFound : kExitOk;
   }
   for (const auto& l : lines) std::printf("%s\n", l.c_str());
   std::printf("\n");
@@ -311,7 +325,7 @@ int run_diagnose(const DiagnoseOptions& o) {
     for (size_t i = 0; i < problems.size() && i < 10; ++i) std::printf("  %s\n", problems[i].c_str());
     if (problems.size() > 10) std::printf("  ... %zu more (--json lists them all)\n", problems.size() - 10);
   }
-  return kExitOk;
+  return fails(d, problems, o.fail_on) ? kExitProblemsFound : kExitOk;
 }
 
 }  // namespace
@@ -325,6 +339,11 @@ void add_diagnose_command(CLI::App& app, int* exit_code) {
   cmd->add_option("log", o->inputs, kLogInputHelp)->required();
   cmd->add_option("--json", o->json, "Also write the diagnosis as JSON to this file ('-': print only the JSON)");
   cmd->add_option("--html", o->html, "Also write the report as an HTML page");
+  cmd->add_option("-c,--channels", o->analysis.channels,
+                  "Only channels fully matching this regex (ECMAScript), as export csv's -c");
+  cmd->add_option("--fail-on", o->fail_on,
+                  "Exit with 3 when a stream is at this verdict or worse (warn: also any problem listed), for CI")
+      ->check(CLI::IsMember({"warn", "fault"}));
   cmd->add_option("--max-lag", o->analysis.max_lag_s, "Skew search range [s]")
       ->capture_default_str()
       ->check(in_range(config::above(0, 10), "s"));

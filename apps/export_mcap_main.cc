@@ -19,7 +19,7 @@ namespace {
 
 struct McapArgs {
   std::vector<std::string> inputs;
-  std::string out, compression = "zstd", diagnosis;
+  std::string out, compression = "zstd", diagnosis, channels;
   int level = 1;
   double chunk_mb = 4;
   bool folder = false;  // export rosbag2
@@ -64,6 +64,7 @@ int run_mcap(const McapArgs& a) {
                                            : formats::McapCompression::kNone;
   o.level = a.compression == "lz4" && a.level == 1 ? 0 : a.level;
   o.chunk_bytes = static_cast<size_t>(a.chunk_mb * (1 << 20));
+  o.channels = a.channels;
   if (!a.diagnosis.empty()) {
     auto m = diagnosis_metadata(a.diagnosis);
     if (!m) return fail(m.error().message);
@@ -112,6 +113,7 @@ void add_export_mcap_commands(CLI::App& exp, int* exit_code) {
         "names that are not ROS names get one (the original is kept in the channel's metadata). See docs/export.md.");
     c->add_option("log", a->inputs, kLogInputHelp)->required();
     c->add_option("-o,--out", a->out, folder ? "Bag folder to write (new or empty)" : "MCAP file to write")->required();
+    c->add_option("-c,--channels", a->channels, "Only channels fully matching this regex (ECMAScript)");
     c->add_option("--compression", a->compression, "Chunk compression")
         ->capture_default_str()
         ->check(CLI::IsMember({"zstd", "lz4", "none"}));

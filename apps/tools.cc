@@ -125,7 +125,109 @@ void harden(CLI::App& app) {
   for (CLI::App* sub : app.get_subcommands([](CLI::App*) { return true; })) harden(*sub);
 }
 
+/// The command the words of argv reached: `driftlab export mcap` for "driftlab export mcap x.lcm --jsno".
+CLI::App* deepest_command(CLI::App& app) {
+  CLI::App* at = &app;
+  for (;;) {
+    auto parsed = at->get_subcommands();
+    if (parsed.empty()) return at;
+    at = parsed.back();
+  }
+}
+
+std::string command_path(const CLI::App& cmd) {
+  std::string path = cmd.get_name();
+  for (const CLI::App* p = cmd.get_parent(); p != nullptr; p = p->get_parent()) path = p->get_name() + " " + path;
+  return path;
+}
+
+/// The names a word could have meant at cmd: its subcommands' names, or its options' long and short names.
+std::vector<std::string> names_at(CLI::App& cmd, bool options) {
+  std::vector<std::string> names;
+  if (options) {
+    for (const CLI::Option* opt : cmd.get_options()) {
+      for (const auto& n : opt->get_lnames()) names.push_back("--" + n);
+      for (const auto& n : opt->get_snames()) names.push_back("-" + n);
+    }
+  } else {
+    for (const CLI::App* sub : cmd.get_subcommands([](CLI::App*) { return true; })) names.push_back(sub->get_name());
+  }
+  return names;
+}
+
+/// The words of argv that cmd did not take (unknown options and surplus arguments), or, when it wants a
+/// subcommand and got none, the word after its own name (*command set).
+std::vector<std::string> unknown_words(CLI::App& cmd, int argc, char** argv, bool* command) {
+  *command = cmd.get_require_subcommand_min() > 0 && cmd.get_subcommands().empty();
+  if (!*command) return cmd.remaining();
+  // argv[0] is the program; the first word after the command's own name (or the program's) is the one meant.
+  int i = 1;
+  if (cmd.get_parent() != nullptr) {
+    while (i < argc && cmd.get_name() != argv[i]) ++i;
+    ++i;
+  }
+  for (; i < argc; ++i) {
+    if (argv[i][0] != '-') return {argv[i]};
+  }
+  return {};
+}
+
 }  // namespace
+
+std::string closest_name(std::string_view word, const std::vector<std::string>& names) {
+  // A few edits (one in three characters, at least two) away, or a unique name it begins.
+  std::string best;
+  size_t best_distance = std::max<size_t>(2, word.size() / 3) + 1;
+  std::vector<std::string> prefixed;
+  for (const auto& n : names) {
+    if (n.size() > word.size() && n.compare(0, word.size(), word) == 0 && word.size() >= 3) prefixed.push_back(n);
+    const size_t d = edit_distance(word, n);
+    if (d < best_distance) {
+      best_distance = d;
+      best = n;
+    }
+  }
+  if (best.empty() && prefixed.size() == 1) return prefixed.front();
+  return best;
+}
+
+size_t edit_distance(std::string_view a, std::string_view b) {
+  // Damerau-Levenshtein (optimal string alignment): a swap of two neighbours ("daignose") is one edit.
+  std::vector<std::vector<size_t>> d(a.size() + 1, std::vector<size_t>(b.size() + 1));
+  for (size_t i = 0; i <= a.size(); ++i) d[i][0] = i;
+  for (size_t j = 0; j <= b.size(); ++j) d[0][j] = j;
+  for (size_t i = 1; i <= a.size(); ++i) {
+    for (size_t j = 1; j <= b.size(); ++j) {
+      const size_t cost = a[i - 1] == b[j - 1] ? 0 : 1;
+      d[i][j] = std::min({d[i - 1][j] + 1, d[i][j - 1] + 1, d[i - 1][j - 1] + cost});
+      if (i > 1 && j > 1 && a[i - 1] == b[j - 2] && a[i - 2] == b[j - 1])
+        d[i][j] = std::min(d[i][j], d[i - 2][j - 2] + 1);
+    }
+  }
+  return d[a.size()][b.size()];
+}
+
+std::string usage_error_line(CLI::App& app, const std::string& what, int argc, char** argv) {
+  CLI::App* cmd = deepest_command(app);
+  const std::string path = command_path(*cmd);
+  bool command = false;
+  const auto words = unknown_words(*cmd, argc, argv, &command);
+  // CLI11's "A subcommand is required" and "The following argument was not expected: --jsno" said plainly.
+  std::string line = what;
+  if (command && !words.empty()) {
+    line = "'" + words.front() + "' is not a command of '" + path + "'";
+  } else if (!words.empty() && words.front()[0] == '-') {
+    const std::string unknown = "unknown option '" + words.front() + "'";
+    line = what.find("not expected") != std::string::npos ? unknown : what + "; " + unknown;
+  }
+  if (!words.empty()) {
+    const bool option = words.front()[0] == '-';
+    const std::string& word = words.front();
+    const std::string guess = closest_name(option ? word.substr(0, word.find('=')) : word, names_at(*cmd, option));
+    if (!guess.empty()) line += ": did you mean '" + guess + "'?";
+  }
+  return line + " (see '" + path + " --help')";
+}
 
 int parse_and_run(CLI::App& app, int argc, char** argv, const int& exit_code) {
   // A file-size limit (ulimit -f) then shows as a write error (EFBIG), like a full disk, so every command cleans
@@ -143,8 +245,9 @@ int parse_and_run(CLI::App& app, int argc, char** argv, const int& exit_code) {
   } catch (const CLI::Success& e) {  // --help-config
     return app.exit(e);
   } catch (const CLI::ParseError& e) {
-    // One line naming the problem, then where to look; exit 2 like other usage errors.
-    return fail(std::string(e.what()) + " (see 'driftlab --help')");
+    // One line naming the problem, a guess at what was meant, and the --help of the command it was given to; exit
+    // 2 like other usage errors.
+    return fail(usage_error_line(app, e.what(), argc, argv));
   }
   return exit_code;
 }

@@ -1,5 +1,6 @@
 #include "core/log_reader.h"
 
+#include <algorithm>
 #include <optional>
 #include <regex>
 #include <unordered_map>
@@ -25,7 +26,8 @@ struct LogReader::Impl {
     if (channel == last_channel) return last_accepted;
     auto it = decisions.find(channel);
     if (it == decisions.end()) {
-      const bool ok = std::regex_match(channel.begin(), channel.end(), *filter);
+      const bool ok = std::regex_match(channel.begin(), channel.end(), *filter) ||
+                      std::find(options.also.begin(), options.also.end(), channel) != options.also.end();
       it = decisions.emplace(std::string(channel), ok).first;
     }
     last_channel = it->first;

@@ -8,6 +8,7 @@
 #include <memory>
 #include <span>
 #include <string>
+#include <vector>
 
 #include "core/log_event.h"
 #include "core/result.h"
@@ -17,6 +18,9 @@ namespace driftlab {
 struct ReadOptions {
   /// Only channels fully matching this ECMAScript regex (as lcm-logger's -c); empty: every channel.
   std::string channels;
+  /// Channels read whatever `channels` says: the bookkeeping that tells how to read the others (an import's
+  /// CHANNEL_SOURCES and FOREIGN_SCHEMAS).
+  std::vector<std::string> also;
   /// Called for every problem met while streaming (may be empty).
   ProblemCallback on_problem;
 };

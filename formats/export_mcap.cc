@@ -780,9 +780,10 @@ Result<McapExportSummary> export_mcap(const std::string& log, const std::string&
     on_problem(line);
   };
   auto reader = LogReader::open(
-      log, {.channels = "", .on_problem = [&](const Problem& p) {
-              note(log + ": at byte " + std::to_string(p.offset) + ": " + p.detail);
-            }});
+      log,
+      {.channels = options.channels,
+       .also = {"FOREIGN_SCHEMAS", std::string(lcmtypes::kChannelSources)},  // how to write the others
+       .on_problem = [&](const Problem& p) { note(log + ": at byte " + std::to_string(p.offset) + ": " + p.detail); }});
   if (!reader) return reader.error();
   auto writer = McapWriter::create(out, {.profile = "ros2",
                                          .library = "driftlab",

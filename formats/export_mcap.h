@@ -22,6 +22,8 @@ struct McapExportOptions {
   McapCompression compression = McapCompression::kZstd;
   int level = 1;                  ///< zstd level: 1 is fast (rosbag2 records with its default, 1 too)
   size_t chunk_bytes = 4 << 20;   ///< uncompressed bytes per chunk
+  /// Only channels fully matching this ECMAScript regex (as export csv's); empty: every channel.
+  std::string channels;
   /// Extra Metadata records (name, key/value pairs), e.g. a diagnosis's findings.
   std::vector<McapMetadata> metadata;
 };
