@@ -3,8 +3,8 @@
 //
 // `driftlab` itself holds the commands that need no simulator, SLAM or vision library (info, diagnose, recover,
 // eval, export tum/csv, record, report, demo), so they start in milliseconds. The others live in programs of their own
-// beside it (driftlab-sim, driftlab-replay, driftlab-rawlog) and `driftlab` runs them, as git runs git-* programs:
-// `driftlab replay ...` is `driftlab-replay replay ...`. kTools lists them; docs/architecture.md says why.
+// (driftlab-sim, driftlab-replay, driftlab-rawlog; installed, in PREFIX/lib/driftlab) and `driftlab` runs them, as git
+// runs git-* programs: `driftlab replay ...` is `driftlab-replay replay ...`. kTools lists them; architecture.md: why.
 #pragma once
 
 #include <span>
@@ -55,7 +55,8 @@ const char* tool_description(const char* word, const char* sub = nullptr);
 
 /// The tool command argv asks for, or nullptr.
 const ToolCommand* find_tool(int argc, char** argv);
-/// Runs the tool's program with argv: from the folder of the running program, else from PATH. Returns only when
+/// Runs the tool's program with argv: from the folder of the running program or the install tree's lib/driftlab
+/// (core/install_layout.h), else from PATH. Returns only when
 /// it cannot be started (one line on stderr, exit code 1).
 int exec_tool(const ToolCommand& tool, char** argv);
 

@@ -21,6 +21,7 @@
 #include "apps/commands.h"
 #include "apps/diagnosis_json.h"
 #include "apps/report.h"
+#include "core/install_layout.h"
 #include "core/log_reader.h"
 #include "core/process.h"
 #include "core/wall_clock.h"
@@ -82,9 +83,8 @@ struct Stage {
 
 /// The path of this program, to run its subcommands.
 std::string self_path() {
-  std::error_code ec;
-  const auto p = fs::read_symlink("/proc/self/exe", ec);
-  return ec ? "driftlab" : p.string();
+  const auto p = self_executable();
+  return p.empty() ? "driftlab" : p.string();
 }
 
 std::string join_args(const std::vector<std::string>& args) {
@@ -214,7 +214,7 @@ ImuRejections imu_rejections(const std::string& log) {
 /// board, the three flights scored (setpoint tracking, the estimate's ATE) and drawn.
 int run_drone_demo(const DemoArgs& a, const fs::path& dir, const std::string& exe) {
   auto file = [&](const char* name) { return (dir / name).string(); };
-  const std::string scenarios = std::string(DRIFTLAB_SOURCE_DIR) + "/sim/scenarios";
+  const std::string scenarios = data_path("scenarios").string();
   const std::string faulty_scenario = a.scenario.empty() ? scenarios + "/drone_timebase.yaml" : a.scenario;
   const std::string clean = file("clean.lcm"), sim = file("sim.lcm"), restamped = file("restamped.lcm");
   std::vector<std::string> seed;

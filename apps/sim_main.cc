@@ -135,10 +135,11 @@ void add_sim_command(CLI::App& app, int* exit_code) {
   auto a = std::make_shared<SimArgs>();
   CLI::App* cmd = app.add_subcommand("sim", tool_description("sim"));
   cmd->footer(
-      "Without SCENARIO, runs the default indoor scenario (sim/scenarios/indoor.yaml). The same scenario and seed\n"
-      "give a byte-identical log. The log is written as OUT.partial and renamed when complete; Ctrl-C stops the\n"
-      "run and closes a valid log of what was simulated. The injected faults go to the FAULTS channel and to\n"
-      "OUT.faults.json. Scenario format: docs/simulator.md; faults: docs/faults.md.");
+      "Without SCENARIO, runs the default indoor scenario (sim/scenarios/indoor.yaml; installed,\n"
+      "PREFIX/share/driftlab/scenarios/indoor.yaml). The same scenario and seed give a byte-identical log. The log\n"
+      "is written as OUT.partial and renamed when complete; Ctrl-C stops the run and closes a valid log of what was\n"
+      "simulated. The injected faults go to the FAULTS channel and to OUT.faults.json. Scenario format:\n"
+      "docs/simulator.md; faults: docs/faults.md.");
   cmd->add_option("scenario", a->scenario, "Scenario file (YAML)");
   cmd->add_option("-o,--out", a->out, "Log to write")->capture_default_str();
   cmd->add_option("--duration", a->duration, "Simulated seconds (default: the scenario's)")

@@ -26,6 +26,7 @@
 #include "batch/plan.h"
 #include "batch/runner.h"
 #include "batch/store.h"
+#include "core/install_layout.h"
 #include "core/log_writer.h"
 #include "core/process.h"
 #include "core/text_file.h"
@@ -66,9 +67,8 @@ std::atomic<bool> g_stop{false};
 void on_stop(int) { g_stop = true; }
 
 std::string self_path() {
-  std::error_code ec;
-  const auto p = fs::read_symlink("/proc/self/exe", ec);
-  return ec ? "driftlab" : p.string();
+  const auto p = self_executable();
+  return p.empty() ? "driftlab" : p.string();
 }
 
 RunnerOptions runner_options() {

@@ -11,12 +11,12 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
-#include <filesystem>
 #include <string>
 
 #include "apps/cli_checks.h"
 #include "apps/cli_util.h"
 #include "apps/commands.h"
+#include "core/install_layout.h"
 
 namespace driftlab::apps {
 namespace {
@@ -55,20 +55,16 @@ const ToolCommand* find_tool(int argc, char** argv) {
 }
 
 int exec_tool(const ToolCommand& tool, char** argv) {
-  std::error_code ec;
-  const auto self = std::filesystem::read_symlink("/proc/self/exe", ec);
-  if (!ec) {
-    const std::string beside = (self.parent_path() / tool.program).string();
-    if (::access(beside.c_str(), X_OK) == 0) {
-      argv[0] = const_cast<char*>(beside.c_str());
-      ::execv(beside.c_str(), argv);
-      return fail(beside + ": cannot run: " + std::strerror(errno), kExitFailure);
-    }
+  const std::string found = sibling_program(tool.program).string();
+  if (!found.empty()) {
+    argv[0] = const_cast<char*>(found.c_str());
+    ::execv(found.c_str(), argv);
+    return fail(found + ": cannot run: " + std::strerror(errno), kExitFailure);
   }
   argv[0] = const_cast<char*>(tool.program);
   ::execvp(tool.program, argv);
   return fail(std::string(tool.program) + " (which runs 'driftlab " + tool.word +
-                  "') is neither beside driftlab nor on PATH: " + std::strerror(errno),
+                  "') is neither beside driftlab, nor in its lib/driftlab, nor on PATH: " + std::strerror(errno),
               kExitFailure);
 }
 

@@ -13,6 +13,7 @@
 #include <sstream>
 
 #include "core/faults.h"
+#include "core/install_layout.h"
 #include "core/text_file.h"
 
 namespace driftlab::batch {
@@ -457,7 +458,7 @@ Result<Spec> load_spec(const std::string& path) {
   if (auto st = check_stage_order(s, path + ": pipeline " + stage_list(s)); !st) return Error{st.message()};
   if (!s.has(Stage::kSim) && s.duration > 0) return Error{path + ": duration: only a simulation has one"};
 
-  if (s.has(Stage::kSim) && s.scenario.empty()) s.scenario = std::string(DRIFTLAB_SOURCE_DIR) + "/sim/scenarios/indoor.yaml";
+  if (s.has(Stage::kSim) && s.scenario.empty()) s.scenario = data_path("scenarios/indoor.yaml").string();
   const std::set<std::string> channels = s.has(Stage::kSim) ? scenario_channels(s.scenario) : std::set<std::string>{};
   if (vary && !vary.IsNull()) {
     if (!vary.IsMap()) return Error{where(path, vary, "vary") + ": a map of PARAMETER: [values] or {from, to, step}"};

@@ -11,6 +11,7 @@
 #include <sstream>
 
 #include "core/config.h"
+#include "core/install_layout.h"
 #include "core/text_file.h"
 #include "core/time.h"
 
@@ -426,6 +427,6 @@ Result<Scenario> load_scenario(const std::string& path) {
   return parse_scenario(*text, path, std::filesystem::path(path).parent_path().string());
 }
 
-std::string default_scenario_path() { return std::string(DRIFTLAB_SOURCE_DIR) + "/sim/scenarios/indoor.yaml"; }
+std::string default_scenario_path() { return data_path("scenarios/indoor.yaml").string(); }
 
 }  // namespace driftlab::sim

@@ -192,7 +192,7 @@ std::string scenario_reference();
 Result<Scenario> parse_scenario(const std::string& yaml_text, const std::string& origin, const std::string& base_dir);
 Result<Scenario> load_scenario(const std::string& path);
 
-/// The scenario used when none is given (sim/scenarios/indoor.yaml in the source or install tree).
+/// The scenario used when none is given: scenarios/indoor.yaml in the data folder (core/install_layout.h).
 std::string default_scenario_path();
 
 const char* sensor_type_name(SensorType type);
