@@ -90,21 +90,6 @@ std::pair<std::string, std::string> name_clock(double behind_s, double median_st
 
 }  // namespace
 
-double ClockDomains::Mapping::at(double stamp) const {
-  if (knots.empty()) return 0;
-  if (knots.size() == 1) return knots.front().second;
-  // Linear between knots, and beyond the ends along the first or last two (a knot is a window's fastest delivery,
-  // usually at one end of its window: a real-time factor's slope goes on past it).
-  auto it = std::lower_bound(knots.begin(), knots.end(), stamp,
-                             [](const std::pair<double, double>& k, double s) { return k.first < s; });
-  if (it == knots.begin()) ++it;
-  if (it == knots.end()) --it;
-  const auto& [s1, l1] = *it;
-  const auto& [s0, l0] = *(it - 1);
-  if (s1 <= s0) return l1;
-  return l0 + (l1 - l0) * (stamp - s0) / (s1 - s0);
-}
-
 ClockDomains ClockDomains::find(const std::vector<DomainStream>& in, int64_t log_start, int64_t log_end) {
   ClockDomains out;
   const double span = std::max(1.0, static_cast<double>(log_end) - static_cast<double>(log_start));
@@ -260,7 +245,7 @@ ClockDomains ClockDomains::find(const std::vector<DomainStream>& in, int64_t log
       }
       knots = std::move(kept);
     }
-    mapping.knots = knots;
+    for (const auto& [stamp, lat] : knots) mapping.knots.push_back({stamp, lat});
     // The clock's rate: stamps against arrivals along the reference, over the log and over 10 s windows.
     if (!recorder && knots.size() >= 2) {
       auto arrival = [](const std::pair<double, double>& k) { return k.first + k.second; };
@@ -305,6 +290,9 @@ ClockDomains ClockDomains::find(const std::vector<DomainStream>& in, int64_t log
           members.size() >= 2 ? median_of(std::move(delays)) * 1e-6 : std::numeric_limits<double>::quiet_NaN();
       out.peer_delay_s_[members[k]->in->name] = delay;
       out.channel_domain_[members[k]->in->name] = static_cast<int>(out.domains_.size());
+    }
+    if (!mapping.identity) {
+      for (const auto& [stamp, lat] : mapping.knots) dom.mapping.push_back({stamp * 1e-6, lat * 1e-6});
     }
     out.domains_.push_back(std::move(dom));
     out.mappings_.push_back(std::move(mapping));
@@ -397,3 +385,20 @@ void judge_domains(Diagnosis& d) {
 }
 
 }  // namespace driftlab::analyzers::internal
+
+namespace driftlab::analyzers {
+
+double mapped_offset_s(const std::vector<std::array<double, 2>>& knots, double stamp) {
+  if (knots.empty()) return 0;
+  if (knots.size() == 1) return knots.front()[1];
+  auto it = std::lower_bound(knots.begin(), knots.end(), stamp,
+                             [](const std::array<double, 2>& k, double s) { return k[0] < s; });
+  if (it == knots.begin()) ++it;
+  if (it == knots.end()) --it;
+  const auto& [s1, l1] = *it;
+  const auto& [s0, l0] = *(it - 1);
+  if (s1 <= s0) return l1;
+  return l0 + (l1 - l0) * (stamp - s0) / (s1 - s0);
+}
+
+}  // namespace driftlab::analyzers

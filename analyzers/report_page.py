@@ -86,6 +86,10 @@ def plot_trajectories(page, data):
     ax.set_title("Trajectories in the plane")
     ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=1)
     aligned = " Estimates are aligned to the reference in position and yaw." if ref else ""
+    onto = sorted({e["aligned_to"] for e in estimates if e.get("aligned_to")})
+    if onto:
+        aligned = (f" Without a reference, the others are aligned onto {onto[0]} (the longest) in position and "
+                   "yaw, as evo_traj --ref does: poses in different frames are never overlaid as they are.")
     page.save(fig, "trajectories.png", "Trajectories",
               "Every pose channel, seen from above; the dot marks the reference's start." + aligned)
 
@@ -178,11 +182,15 @@ def plot_latency(page, data):
         ax.set_yscale("log")
         what = "constant" if hi - lo < 0.01 else "median"
         ax.set_title(f"{s['channel']}  ({what} {p50:.1f} ms)", fontsize=9.5)
-        ax.set_xlabel("arrival - stamp [ms]")
+        ax.ticklabel_format(axis="x", useOffset=False)
+        ax.set_xlabel("arrival - stamp on its clock's mapping [ms]" if s.get("mapped_clock")
+                      else "arrival - stamp [ms]")
     save_grid(page, fig, "Latency per stream", "latency.png", "Latency histograms",
               "Arrival time minus header stamp per message (a scan's from its last beam, as the diagnosis "
               "measures it; log scale counts): a clock offset moves the whole "
-              "histogram, transport jitter widens it. Dashed: median; orange: the spike threshold.")
+              "histogram, transport jitter widens it. A stream stamped on a clock of another epoch (simulation "
+              "time) is drawn as the diagnosis judges it: its stamps through that clock's mapping to arrival, "
+              "against the fastest stream on it. Dashed: median; orange: the spike threshold.")
 
 
 def plot_interarrival(page, data):
@@ -541,7 +549,7 @@ def write_page(page, data, out_dir):
                        f"<figcaption>{esc(caption)}</figcaption></figure></section>")
     unmatched = ""
     if data.get("unmatched"):
-        unmatched = ("<p class='warn'>No time overlap with the reference: "
+        unmatched = ("<p class='warn'>Left out of the trajectories: "
                      + esc(", ".join(data["unmatched"])) + "</p>")
     text = f"""<!doctype html>
 <html lang="en"><head><meta charset="utf-8"><meta name="viewport" content="width=device-width, initial-scale=1">

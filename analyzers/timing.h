@@ -112,7 +112,15 @@ struct ClockDomain {
   bool rate_valid = false;  ///< a foreign clock seen over 10 s or more of arrivals
   double rate = 1;          ///< its seconds per second of the recorder's clock (a simulation's real-time factor)
   double rate_min = 1, rate_max = 1;  ///< the same over 10 s windows of arrivals
+  /// A mapped clock's mapping to arrival: knots (stamp [s], arrival - stamp [s]), by stamp, read with
+  /// mapped_offset_s; empty for the recorder's clock and clocks judged as stamped.
+  std::vector<std::array<double, 2>> mapping;
 };
+
+/// arrival - stamp on a domain's mapping at a stamp [s]: linear between its knots, and beyond the ends along the
+/// first or last two (a knot is a window's fastest delivery, usually at one end of its window: a real-time
+/// factor's slope goes on past it); 0 without knots.
+double mapped_offset_s(const std::vector<std::array<double, 2>>& knots, double stamp_s);
 
 struct SkewWindow {
   double start_s = 0, end_s = 0;   ///< relative to the start of the log [s]

@@ -35,7 +35,7 @@ namespace fs = std::filesystem;
 
 struct DemoArgs {
   std::string scenario;
-  std::string out = "logs/demo";
+  std::string out;  ///< default: logs/demo, or logs/demo-drone with --drone (one story's files never over the other's)
   double duration = 120;
   int64_t seed = -1;
   std::string estimate = "EKF_ODOM";
@@ -418,7 +418,8 @@ void add_demo_command(CLI::App& app, int* exit_code) {
       "report/index.html). Ends with five lines: the worst stream, the clock offsets found, the drops, the ATE\n"
       "before and after correction, and where the report is; --json prints one JSON object instead.");
   cmd->add_option("scenario", a->scenario, "Scenario file (default: the default indoor scenario)");
-  cmd->add_option("-o,--out", a->out, "Folder for the logs, JSON and report")->capture_default_str();
+  cmd->add_option("-o,--out", a->out,
+                  "Folder for the logs, JSON and report (default: logs/demo; with --drone, logs/demo-drone)");
   cmd->add_option("--duration", a->duration, "Simulated seconds")
       ->capture_default_str()
       ->check(in_range(kSimDuration, "s"));
@@ -432,7 +433,10 @@ void add_demo_command(CLI::App& app, int* exit_code) {
                 "The drone's story instead: the clean drone and drone_timebase (SCENARIO: another faulty drone "
                 "scenario) simulated, diagnosed, flown again in closed loop with corrected clocks, scored");
   cmd->add_flag("--json", a->json, "Print one JSON object (report path, ate_before, ate_after in metres, ...)");
-  cmd->callback([a, exit_code] { *exit_code = run_demo(*a); });
+  cmd->callback([a, exit_code] {
+    if (a->out.empty()) a->out = a->drone ? "logs/demo-drone" : "logs/demo";
+    *exit_code = run_demo(*a);
+  });
 }
 
 }  // namespace driftlab::apps

@@ -146,7 +146,8 @@ nlohmann::json to_json(const analyzers::Diagnosis& d) {
                        {"mapped", x.mapped},
                        {"rate", x.rate_valid ? nlohmann::json(x.rate) : nlohmann::json()},
                        {"rate_min", x.rate_valid ? nlohmann::json(x.rate_min) : nlohmann::json()},
-                       {"rate_max", x.rate_valid ? nlohmann::json(x.rate_max) : nlohmann::json()}});
+                       {"rate_max", x.rate_valid ? nlohmann::json(x.rate_max) : nlohmann::json()},
+                       {"mapping", x.mapping}});
   }
   nlohmann::json tf_edges = nlohmann::json::array();
   for (const auto& e : d.tf.edges) {

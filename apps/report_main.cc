@@ -10,9 +10,10 @@
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
-#include <cstdlib>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <memory>
@@ -64,16 +65,38 @@ Result<nlohmann::json> read_json(const std::string& path, const char* option) {
 
 /// A stream's plot data: arrivals, latency, its latency spikes (above the diagnosed median by more than 10 ms and
 /// three times the p99's distance from it) and its drop gaps, from the diagnosis of its channel.
-nlohmann::json stream_json(const StreamSeries& s, const nlohmann::json& diagnosed, double origin_s) {
-  nlohmann::json j = {{"channel", s.channel}, {"type", s.type}, {"has_header", s.has_header},
-                      {"arrival", rounded(s.arrival)}, {"latency", rounded(s.latency)},
-                      {"verdict", diagnosed.at("verdict")}, {"expected_period_s", diagnosed.at("expected_period_s")}};
+/// The latency is the diagnosis' own: through the mapping of the stream's clock when it is of another epoch
+/// (simulation time: against the fastest stream on it, never arrival minus a stamp of another clock), and none
+/// where the diagnosis has none (static transforms, stamps never set).
+nlohmann::json stream_json(const StreamSeries& s, const nlohmann::json& diagnosed, const nlohmann::json& domains,
+                           double origin_s) {
+  std::vector<double> latency;
+  const auto& diagnosed_latency = diagnosed.at("latency_s");
+  if (diagnosed_latency.is_object()) latency = s.latency;
+  const auto& domain = diagnosed.value("domain", nlohmann::json());
+  const bool mapped = domain.is_number_integer() && domain.get<int64_t>() >= 0 &&
+                      domain.get<size_t>() < domains.size() && domains[domain.get<size_t>()].value("mapped", false);
+  if (mapped) {
+    const auto knots = domains[domain.get<size_t>()].value("mapping", std::vector<std::array<double, 2>>{});
+    for (size_t i = 0; i < latency.size(); ++i) {
+      const double stamp = origin_s + s.arrival[i] - latency[i];
+      latency[i] -= analyzers::mapped_offset_s(knots, stamp);
+    }
+  }
+  nlohmann::json j = {{"channel", s.channel},
+                      {"type", s.type},
+                      {"has_header", s.has_header},
+                      {"arrival", rounded(s.arrival)},
+                      {"latency", rounded(latency)},
+                      {"mapped_clock", mapped},
+                      {"verdict", diagnosed.at("verdict")},
+                      {"expected_period_s", diagnosed.at("expected_period_s")}};
   nlohmann::json spikes = nlohmann::json::array();
-  if (const auto& latency = diagnosed.at("latency_s"); !s.latency.empty() && latency.is_object()) {
-    const double p50 = latency.at("p50"), p99 = latency.at("p99");
+  if (!latency.empty()) {
+    const double p50 = diagnosed_latency.at("p50"), p99 = diagnosed_latency.at("p99");
     const double threshold = p50 + std::max(0.010, 3 * (p99 - p50));
-    for (size_t i = 0; i < s.latency.size(); ++i) {
-      if (s.latency[i] > threshold) spikes.push_back({r6(s.arrival[i]), r6(s.latency[i])});
+    for (size_t i = 0; i < latency.size(); ++i) {
+      if (latency[i] > threshold) spikes.push_back({r6(s.arrival[i]), r6(latency[i])});
     }
     j["spike_threshold"] = r6(threshold);
   }
@@ -122,7 +145,9 @@ nlohmann::json path_json(const std::string& label, const Trajectory& t, double o
 Result<std::string> make_report(const ReportOptions& o) {
   if (o.logs.empty()) return Error{"report: no log given"};
   std::vector<LogSeries> logs;
+  std::vector<std::string> names;  // as given: a bag's own name, not its conversion's
   for (const auto& given : o.logs) {
+    names.push_back(given);
     auto path = event_log_for(given);  // another tool's recording: its cached conversion
     if (!path) return path.error();
     auto s = read_log_series(*path);
@@ -184,7 +209,8 @@ Result<std::string> make_report(const ReportOptions& o) {
     for (const auto& c : diagnosis.at("channels")) diagnosed[c.at("name").get<std::string>()] = c;
     for (const auto& s : first.streams) {
       if (!diagnosed.count(s.channel)) continue;  // what the diagnosis leaves out (fault manifests, statistics)
-      data["streams"].push_back(stream_json(s, diagnosed[s.channel], origin_s));
+      data["streams"].push_back(
+          stream_json(s, diagnosed[s.channel], diagnosis.value("clock_domains", nlohmann::json::array()), origin_s));
     }
     data["summary"] = diagnosis_summary(diagnosis);
   } catch (const nlohmann::json::exception& e) {
@@ -194,26 +220,53 @@ Result<std::string> make_report(const ReportOptions& o) {
   // Trajectories: the reference from the first log that has it; estimates: every pose channel of the first log
   // and those of later logs that the first does not have (the replays' outputs).
   const Trajectory* gt = nullptr;
-  for (const auto& l : logs) {
-    if (auto it = l.poses.find(o.gt_channel); it != l.poses.end() && it->second.size() > 0) {
+  for (size_t k = 0; k < logs.size(); ++k) {
+    if (auto it = logs[k].poses.find(o.gt_channel); it != logs[k].poses.end() && it->second.size() > 0) {
       gt = &it->second;
-      data["reference"] = path_json(label_of(l.log, o.gt_channel), *gt, origin_s);
+      data["reference"] = path_json(label_of(names[k], o.gt_channel), *gt, origin_s);
       break;
     }
   }
   data["estimates"] = nlohmann::json::array();
   data["unmatched"] = nlohmann::json::array();
+  // Without a reference, poses in different frames (AMCL's in 'map', odometry in 'odom') are drawn aligned in
+  // position and yaw onto the longest of them, as evo_traj --ref does, never overlaid as they are; one that cannot
+  // be aligned is left out and named.
+  const Trajectory* frame = nullptr;
+  std::string frame_label;
+  if (gt == nullptr) {
+    for (const auto& [channel, t] : first.poses) {
+      if (frame == nullptr || t.size() > frame->size()) {
+        frame = &t;
+        frame_label = channel;
+      }
+    }
+  }
   for (size_t k = 0; k < logs.size(); ++k) {
     for (const auto& [channel, t] : logs[k].poses) {
       if (channel == o.gt_channel || t.size() < 2) continue;
       if (k > 0 && first.poses.count(channel)) continue;
-      const std::string label = label_of(logs[k].log, channel);
-      if (gt == nullptr) {
+      const std::string label = label_of(names[k], channel);
+      if (gt == nullptr && (frame == &t || frame == nullptr)) {
         data["estimates"].push_back(path_json(label, t, origin_s));
+      } else if (gt == nullptr) {
+        Matched m = match_interpolated(*frame, t, 0.1, 0);
+        const Alignment a = m.ref.size() >= 2 ? align(m, AlignmentType::kPosYaw)
+                                              : Alignment{.problem =
+                                                              "no poses "
+                                                              "at its times"};
+        if (!a.problem.empty()) {
+          data["unmatched"].push_back(label + " (not aligned with " + label_of(names[0], frame_label) + ": " +
+                                      a.problem + ")");
+          continue;
+        }
+        auto drawn = path_json(label + " (aligned to " + frame_label + ")", apply(a, t), origin_s);
+        drawn["aligned_to"] = frame_label;
+        data["estimates"].push_back(std::move(drawn));
       } else if (auto e = estimate_json(label, *gt, t, origin_s)) {
         data["estimates"].push_back(std::move(*e));
       } else {
-        data["unmatched"].push_back(label);
+        data["unmatched"].push_back(label + " (no time overlap with the reference)");
       }
     }
   }

@@ -179,7 +179,8 @@ class Log {
 };
 
 /// `driftlab diagnose --json -`'s JSON text for inputs.
-std::string diagnose_json(const std::vector<std::string>& inputs, double max_lag_s, double window_s) {
+std::string diagnose_json(const std::vector<std::string>& inputs, double max_lag_s, double window_s,
+                          const std::string& channels) {
   for (const auto& [option, value, range] :
        {std::tuple{"--max-lag", max_lag_s, apps::kMaxLagRange}, {"--window", window_s, apps::kWindowRange}}) {
     if (std::string why = range.violation(value, "s"); !why.empty()) {
@@ -191,6 +192,7 @@ std::string diagnose_json(const std::vector<std::string>& inputs, double max_lag
   analyzers::DiagnoseOptions options;
   options.max_lag_s = max_lag_s;
   options.window_s = window_s;
+  options.channels = channels;
   return apps::diagnose_json(value_or_raise(apps::run_diagnosis(log, options))).dump(2) + "\n";
 }
 
@@ -268,7 +270,8 @@ PYBIND11_MODULE(_driftlab, m) {
       .def_property_readonly("channels", &Log::channels)
       .def("info", &Log::info)
       .def("read", &Log::read, py::arg("channel"));
-  m.def("diagnose_json", &diagnose_json, py::arg("inputs"), py::arg("max_lag_s"), py::arg("window_s"));
+  m.def("diagnose_json", &diagnose_json, py::arg("inputs"), py::arg("max_lag_s"), py::arg("window_s"),
+        py::arg("channels"));
   m.def("run_command", &run_command, py::arg("args"));
   m.def("import_log", &import_log, py::arg("inputs"), py::arg("out"));
 }

@@ -6,6 +6,7 @@
 // Internal to analyzers (used by timing.cc). Thread-safety: plain values.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <map>
 #include <string>
@@ -44,8 +45,8 @@ class ClockDomains {
  private:
   struct Mapping {
     bool identity = true;
-    std::vector<std::pair<double, double>> knots;  ///< (stamp [us], arrival - stamp [us]), by stamp
-    double at(double stamp) const;                 ///< arrival - stamp at a stamp, linear between knots
+    std::vector<std::array<double, 2>> knots;  ///< (stamp [us], arrival - stamp [us]), by stamp
+    double at(double stamp) const { return mapped_offset_s(knots, stamp); }  ///< the same units as the knots
   };
   std::vector<ClockDomain> domains_;
   std::vector<Mapping> mappings_;

@@ -88,11 +88,11 @@ def open(path):  # noqa: A001 (driftlab.open, as the issue names it)
     return Log(path)
 
 
-def diagnose(path, max_lag=0.3, window=10.0):
+def diagnose(path, max_lag=0.3, window=10.0, channels=""):
     """`driftlab diagnose PATH --json -` in-process: the diagnosis as the dict the command prints (times in
     seconds unless a key says utime [us]). max_lag: the skew search range [s] (--max-lag); window: the skew window
-    [s] (--window)."""
-    return _json.loads(_diagnose_json(_inputs(path), float(max_lag), float(window)))
+    [s] (--window); channels: only the channels fully matching this regex (-c)."""
+    return _json.loads(_diagnose_json(_inputs(path), float(max_lag), float(window), str(channels)))
 
 
 def _option_args(kwargs):

@@ -162,17 +162,21 @@ TEST(DroneStory, TheReportShowsTheEstimatorsRejections) {
 }
 
 // `driftlab demo --drone` runs the story in one go and says it in its summary: the IMU's clock, the estimator's
-// rejections as logged and flown again, and the flight error of the three flights.
+// rejections as logged and flown again, and the flight error of the three flights. Without -o it writes to a
+// folder of its own, logs/demo-drone, never over the indoor demo's logs/demo.
 TEST(DroneStory, DemoDroneTellsTheStory) {
-  const std::string out = dir().file("demo");
-  const auto r = driftlab("demo --drone -o " + out + " --json");
+  const std::string cwd = dir().file("demo-cwd");
+  std::filesystem::create_directories(cwd + "/logs/demo");
+  const auto r = test::run_capture("cd " + cwd + " && " + kDriftlab + " demo --drone --json");
   ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_TRUE(std::filesystem::is_empty(cwd + "/logs/demo"));
+  EXPECT_TRUE(std::filesystem::exists(cwd + "/logs/demo-drone/sim.lcm"));
   const auto j = nlohmann::json::parse(r.out);
   EXPECT_NEAR(j["clock_offsets_s"]["IMU"].get<double>(), 0.110, 0.001);
   EXPECT_GT(j["imu_rejected"]["logged"].get<double>(), 0.5 * j["imu_received"]["logged"].get<double>());
   EXPECT_LT(j["imu_rejected"]["restamped"].get<double>(), 0.01 * j["imu_received"]["restamped"].get<double>());
   EXPECT_LT(j["tracking_m"]["restamped"].get<double>(), j["tracking_m"]["logged"].get<double>());
-  EXPECT_TRUE(std::filesystem::exists(j["report"].get<std::string>()));
+  EXPECT_TRUE(std::filesystem::exists(std::filesystem::path(cwd) / j["report"].get<std::string>()));
 }
 
 // The report's second failure: physics updates that take 4.5 ms of wall clock for 1 ms of simulated time. The

@@ -3,8 +3,10 @@
 // Chromium with every plot drawn.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <regex>
 
@@ -124,12 +126,56 @@ TEST(ReportCli, DiagnosesTheLogItselfWhenGivenNoJson) {
   ASSERT_EQ(r.code, 0) << r.err;
   const auto data = read_json(dir.file("report.json"));
   EXPECT_EQ(data["diagnosis"]["channels"].size(), 7u);
-  EXPECT_EQ(data["reference"]["label"], "sample.lcm:GROUND_TRUTH");
+  EXPECT_EQ(data["reference"]["label"], "sample.lcm:GROUND_TRUTH");  // as given
   ASSERT_EQ(data["estimates"].size(), 1u);  // ODOM
   EXPECT_EQ(data["estimates"][0]["label"], "sample.lcm:ODOM");
   const int plots = rendered_attribute(dir.file("index.html"), "data-plots");
   EXPECT_GE(plots, 4);
   EXPECT_EQ(rendered_attribute(dir.file("index.html"), "data-plots-drawn"), plots);
+}
+
+// A Gazebo bag recorded with use_sim_time (stamps count from 978 s, the bag's times are dates): the report draws
+// each stream's latency as diagnose judges it, through its clock's mapping to arrival, never as the 56 years
+// between two clocks; /tf_static (timeless to tf2) has none; AMCL's poses in 'map' and odometry in 'odom' are drawn
+// aligned, never overlaid as they are; labels name the bag, not its cached conversion.
+TEST(ReportCli, ASimTimeBagIsDrawnOnItsOwnClock) {
+  const std::string bag = test::shared_data("bags/nav2_turtlebot.mcap");
+  test::TempDir dir;
+  const auto r = driftlab("report " + bag + " -o " + dir.path());
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto data = read_json(dir.file("report.json"));
+  std::map<std::string, nlohmann::json> diagnosed;
+  for (const auto& c : data["diagnosis"]["channels"]) diagnosed[c["name"]] = c;
+  int drawn = 0;
+  for (const auto& s : data["streams"]) {
+    const std::string name = s["channel"];
+    if (name == "/tf_static") {
+      EXPECT_TRUE(s["latency"].empty());
+      continue;
+    }
+    ASSERT_FALSE(s["latency"].empty()) << name;
+    EXPECT_TRUE(s["mapped_clock"].get<bool>()) << name;
+    std::vector<double> lat = s["latency"];
+    std::sort(lat.begin(), lat.end());
+    // The median of what is drawn is the diagnosis' (0.5 ms: the report maps each stamp from its arrival and
+    // latency rounded to the microsecond; the diagnosis from the stamp itself). AMCL's worst is 5 s late and /tf
+    // carries transforms post-dated by a second (AMCL's transform_tolerance): nothing beyond 10 s either way.
+    EXPECT_NEAR(lat[lat.size() / 2], diagnosed[name]["latency_s"]["p50"].get<double>(), 5e-4) << name;
+    EXPECT_LT(lat.back(), 10.0) << name;
+    EXPECT_GT(lat.front(), -10.0) << name;
+    ++drawn;
+  }
+  EXPECT_EQ(drawn, 3);  // /amcl_pose, /odom, /tf
+  ASSERT_EQ(data["estimates"].size(), 2u);
+  EXPECT_TRUE(data["unmatched"].empty());
+  for (const auto& e : data["estimates"]) {
+    const std::string label = e["label"];
+    EXPECT_EQ(label.rfind("nav2_turtlebot.mcap:", 0), 0u) << label;
+    if (label.find("/amcl_pose") != std::string::npos) {
+      EXPECT_EQ(e["aligned_to"], "/odom");
+      EXPECT_EQ(label, "nav2_turtlebot.mcap:/amcl_pose (aligned to /odom)");
+    }
+  }
 }
 
 TEST(ReportCli, BadInputIsOneLineNamingTheFile) {

@@ -19,6 +19,12 @@ def test_diagnose_options_are_the_cli_options(test_data, cli):
     code, out, err = cli("diagnose", path, "--max-lag", "0.1", "--window", "0.5", "--json", "-")
     assert code == 0, err
     assert driftlab.diagnose(path, max_lag=0.1, window=0.5) == json.loads(out)
+    code, out, err = cli("diagnose", path, "-c", "IMU|SCAN", "--json", "-")
+    assert code == 0, err
+    assert driftlab.diagnose(path, channels="IMU|SCAN") == json.loads(out)
+    assert [c["name"] for c in json.loads(out)["channels"]] == ["IMU", "SCAN"]
+    with pytest.raises(driftlab.Error, match="invalid channel regex"):
+        driftlab.diagnose(path, channels="(")
     code, _, err = cli("diagnose", path, "--max-lag", "20")
     assert code == 2
     with pytest.raises(driftlab.Error, match="--max-lag"):
