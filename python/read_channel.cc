@@ -28,38 +28,39 @@ std::pair<char, size_t> kind_of(const std::string& type) {
   return {'O', 0};  // string
 }
 
-/// Appends n big-endian elements of `size` bytes to out in native order.
+/// Appends n big-endian elements of `size` bytes to out in native order: copied (no zero-filling first, as resize
+/// would), then swapped in place.
 void append_swapped(std::vector<uint8_t>& out, std::span<const uint8_t> bytes, size_t size) {
   const size_t at = out.size();
-  out.resize(at + bytes.size());
-  uint8_t* dst = out.data() + at;
-  const uint8_t* src = bytes.data();
+  out.insert(out.end(), bytes.begin(), bytes.end());
+  uint8_t* p = out.data() + at;
+  const size_t n = bytes.size();
   switch (size) {
     case 8:
-      for (size_t k = 0; k < bytes.size(); k += 8) {
+      for (size_t k = 0; k < n; k += 8) {
         uint64_t v;
-        std::memcpy(&v, src + k, 8);
+        std::memcpy(&v, p + k, 8);
         v = __builtin_bswap64(v);
-        std::memcpy(dst + k, &v, 8);
+        std::memcpy(p + k, &v, 8);
       }
       break;
     case 4:
-      for (size_t k = 0; k < bytes.size(); k += 4) {
+      for (size_t k = 0; k < n; k += 4) {
         uint32_t v;
-        std::memcpy(&v, src + k, 4);
+        std::memcpy(&v, p + k, 4);
         v = __builtin_bswap32(v);
-        std::memcpy(dst + k, &v, 4);
+        std::memcpy(p + k, &v, 4);
       }
       break;
     case 2:
-      for (size_t k = 0; k < bytes.size(); k += 2) {
+      for (size_t k = 0; k < n; k += 2) {
         uint16_t v;
-        std::memcpy(&v, src + k, 2);
+        std::memcpy(&v, p + k, 2);
         v = __builtin_bswap16(v);
-        std::memcpy(dst + k, &v, 2);
+        std::memcpy(p + k, &v, 2);
       }
       break;
-    default: std::memcpy(dst, src, bytes.size());
+    default: break;
   }
 }
 
