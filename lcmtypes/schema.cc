@@ -1,11 +1,11 @@
 #include "lcmtypes/schema.h"
 
 #include <cctype>
+#include <charconv>
 #include <cstdio>
 #include <cstdlib>
-#include <charconv>
 #include <cstring>
-#include <map>
+#include <utility>
 
 namespace driftlab::lcmtypes {
 
@@ -168,7 +168,10 @@ struct Walker {
   }
 
   bool element(const FieldDef& f, const std::string& column, int64_t* value, bool emit) {
-    if (const StructDef* nested = find_struct(f.type)) return fields(*nested, column + ".", emit);
+    // A primitive first: find_struct scans every struct's name, too slow for every number of every message.
+    if (fixed_size(f.type) == 0 && f.type != "string") {
+      if (const StructDef* nested = find_struct(f.type)) return fields(*nested, column + ".", emit);
+    }
     return primitive(f, column, value, emit);
   }
 
@@ -184,19 +187,26 @@ struct Walker {
   }
 
   bool fields(const StructDef& s, const std::string& prefix, bool emit) {
-    std::map<std::string, int64_t> ints;  // integer fields so far, for variable array lengths
+    // Integer fields so far, for variable array lengths: a few per struct, so a scan, and no map built per message.
+    std::vector<std::pair<const std::string*, int64_t>> ints;
+    const auto length = [&ints](const std::string& name) {
+      for (auto it = ints.rbegin(); it != ints.rend(); ++it) {
+        if (*it->first == name) return it->second;
+      }
+      return int64_t{0};
+    };
     for (const FieldDef& f : s.fields) {
       const std::string column = prefix + f.name;
       if (f.dims.empty()) {
         int64_t v = 0;
         if (!element(f, column, &v, emit)) return false;
-        ints[f.name] = v;
+        if (f.type != "double" && f.type != "float" && fixed_size(f.type) > 0) ints.emplace_back(&f.name, v);
         continue;
       }
       std::vector<int64_t> sizes;
       int64_t total = 1;
       for (const auto& dim : f.dims) {
-        const int64_t n = std::isdigit(static_cast<unsigned char>(dim[0])) ? std::atoll(dim.c_str()) : ints[dim];
+        const int64_t n = std::isdigit(static_cast<unsigned char>(dim[0])) ? std::atoll(dim.c_str()) : length(dim);
         if (n < 0) return false;
         sizes.push_back(n);
         total *= n;

@@ -12,8 +12,11 @@
 
 #include <cstring>
 #include <memory>
+#include <optional>
 #include <stdexcept>
 #include <tuple>
+#include <utility>
+#include <vector>
 
 #include "apps/cli_util.h"
 #include "apps/commands.h"
@@ -157,7 +160,33 @@ class Log {
       py::gil_scoped_release release;
       r = read_channel(lcm_path_, channel, s.count);
     }
-    Channel ch = value_or_raise(std::move(r));
+    return to_dict(value_or_raise(std::move(r)));
+  }
+
+  /// Channels read in one pass over the log: {channel: read(channel)}. Without names, every channel of a driftlab
+  /// type.
+  py::dict read_many(const std::optional<std::vector<std::string>>& names) const {
+    std::vector<std::pair<std::string, int64_t>> wanted;
+    if (names) {
+      for (const auto& n : *names) wanted.emplace_back(n, summary(n).count);
+    } else {
+      for (const auto& c : index_->summary().channels) {
+        if (lcmtypes::type_name(c.fingerprint) != nullptr) wanted.emplace_back(c.name, c.count);
+      }
+    }
+    Result<std::vector<Channel>> r = Error{""};
+    {
+      py::gil_scoped_release release;
+      r = read_channels(lcm_path_, wanted);
+    }
+    std::vector<Channel> channels = value_or_raise(std::move(r));
+    py::dict out;
+    for (size_t k = 0; k < channels.size(); ++k) out[py::str(wanted[k].first)] = to_dict(std::move(channels[k]));
+    return out;
+  }
+
+ private:
+  static py::dict to_dict(Channel ch) {
     const size_t n = ch.arrival.size();
     py::dict out;
     py::object stamp;
@@ -269,7 +298,8 @@ PYBIND11_MODULE(_driftlab, m) {
       .def_property_readonly("lcm_path", &Log::lcm_path)
       .def_property_readonly("channels", &Log::channels)
       .def("info", &Log::info)
-      .def("read", &Log::read, py::arg("channel"));
+      .def("read", &Log::read, py::arg("channel"))
+      .def("read_many", &Log::read_many, py::arg("channels") = py::none());
   m.def("diagnose_json", &diagnose_json, py::arg("inputs"), py::arg("max_lag_s"), py::arg("window_s"),
         py::arg("channels"));
   m.def("run_command", &run_command, py::arg("args"));

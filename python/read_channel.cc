@@ -28,61 +28,108 @@ std::pair<char, size_t> kind_of(const std::string& type) {
   return {'O', 0};  // string
 }
 
-/// Appends n big-endian elements of `size` bytes to out in native order.
+/// Appends n big-endian elements of `size` bytes to out in native order: copied (no zero-filling first, as resize
+/// would), then swapped in place.
 void append_swapped(std::vector<uint8_t>& out, std::span<const uint8_t> bytes, size_t size) {
   const size_t at = out.size();
-  out.resize(at + bytes.size());
-  uint8_t* dst = out.data() + at;
-  const uint8_t* src = bytes.data();
+  out.insert(out.end(), bytes.begin(), bytes.end());
+  uint8_t* p = out.data() + at;
+  const size_t n = bytes.size();
   switch (size) {
     case 8:
-      for (size_t k = 0; k < bytes.size(); k += 8) {
+      for (size_t k = 0; k < n; k += 8) {
         uint64_t v;
-        std::memcpy(&v, src + k, 8);
+        std::memcpy(&v, p + k, 8);
         v = __builtin_bswap64(v);
-        std::memcpy(dst + k, &v, 8);
+        std::memcpy(p + k, &v, 8);
       }
       break;
     case 4:
-      for (size_t k = 0; k < bytes.size(); k += 4) {
+      for (size_t k = 0; k < n; k += 4) {
         uint32_t v;
-        std::memcpy(&v, src + k, 4);
+        std::memcpy(&v, p + k, 4);
         v = __builtin_bswap32(v);
-        std::memcpy(dst + k, &v, 4);
+        std::memcpy(p + k, &v, 4);
       }
       break;
     case 2:
-      for (size_t k = 0; k < bytes.size(); k += 2) {
+      for (size_t k = 0; k < n; k += 2) {
         uint16_t v;
-        std::memcpy(&v, src + k, 2);
+        std::memcpy(&v, p + k, 2);
         v = __builtin_bswap16(v);
-        std::memcpy(dst + k, &v, 2);
+        std::memcpy(p + k, &v, 2);
       }
       break;
-    default: std::memcpy(dst, src, bytes.size());
+    default: break;
   }
 }
 
-}  // namespace
+/// One channel's decoding state: its columns so far, filled message by message.
+class ChannelReader {
+ public:
+  ChannelReader(std::string path, std::string channel, int64_t expected)
+      : path_(std::move(path)),
+        channel_(std::move(channel)),
+        reserve_(static_cast<size_t>(std::max<int64_t>(expected, 0))) {
+    out_.arrival.reserve(reserve_);
+  }
 
-Result<Channel> read_channel(const std::string& path, const std::string& channel, int64_t expected) {
-  auto reader = LogReader::open(path);
-  if (!reader) return reader.error();
-  Channel out;
-  const lcmtypes::StructDef* def = nullptr;
-  int64_t fingerprint = 0;
-  std::unordered_map<std::string, size_t> index;  // column name -> columns[]
-  std::vector<int64_t> counts;                    // elements of each column in the message being read
-  std::vector<size_t> sizes_before;               // data and strings sizes before it, to undo a cut-short message
-  const auto reserve = static_cast<size_t>(std::max<int64_t>(expected, 0));
-  out.arrival.reserve(reserve);
-  size_t cursor = 0;  // the column the next primitive most likely belongs to (fields come in the same order)
-  const lcmtypes::RawFieldVisitor visit = [&](const std::string& column, const lcmtypes::FieldDef& field,
-                                              std::span<const uint8_t> bytes) {
-    size_t k = cursor < out.columns.size() && out.columns[cursor].name == column ? cursor : SIZE_MAX;
+  /// Decodes one message of the channel. Errors: the channel's first message is of no driftlab type.
+  Result<bool> add(const Event& e) {
+    const int64_t fp = logfmt::fingerprint(e.data);
+    if (def_ == nullptr) {
+      const char* name = e.data.size() >= 8 ? lcmtypes::type_name(fp) : nullptr;
+      def_ = name != nullptr ? lcmtypes::find_struct(name) : nullptr;
+      if (def_ == nullptr) {
+        return Error{path_ + ": channel '" + channel_ + "' holds messages of no driftlab type (fingerprint " +
+                     std::to_string(fp) + ")"};
+      }
+      out_.type = name;
+      fingerprint_ = fp;
+    }
+    if (fp != fingerprint_) {
+      ++out_.skipped;
+      return true;
+    }
+    for (size_t k = 0; k < out_.columns.size(); ++k) {
+      counts_[k] = 0;
+      sizes_before_[k] = out_.columns[k].kind == 'O' ? out_.columns[k].strings.size() : out_.columns[k].data.size();
+    }
+    const size_t known = out_.columns.size();
+    cursor_ = 0;
+    const lcmtypes::RawFieldVisitor visit = [this](const std::string& column, const lcmtypes::FieldDef& field,
+                                                   std::span<const uint8_t> bytes) {
+      this->visit(column, field, bytes);
+    };
+    if (!lcmtypes::walk(*def_, e.data, visit)) {  // cut short: the message is left out whole
+      for (size_t k = 0; k < known; ++k) {
+        Column& c = out_.columns[k];
+        if (c.kind == 'O') {
+          c.strings.resize(sizes_before_[k]);
+        } else {
+          c.data.resize(sizes_before_[k]);
+        }
+      }
+      for (size_t k = known; k < out_.columns.size(); ++k) {  // columns this message brought: none before
+        out_.columns[k].data.clear();
+        out_.columns[k].strings.clear();
+      }
+      ++out_.skipped;
+      return true;
+    }
+    out_.arrival.push_back(e.utime);
+    for (size_t k = 0; k < out_.columns.size(); ++k) out_.columns[k].counts.push_back(counts_[k]);
+    return true;
+  }
+
+  Channel take() { return std::move(out_); }
+
+ private:
+  void visit(const std::string& column, const lcmtypes::FieldDef& field, std::span<const uint8_t> bytes) {
+    size_t k = cursor_ < out_.columns.size() && out_.columns[cursor_].name == column ? cursor_ : SIZE_MAX;
     if (k == SIZE_MAX) {
-      auto it = index.find(column);
-      if (it == index.end()) {  // a column first met now: none in the messages before
+      auto it = index_.find(column);
+      if (it == index_.end()) {  // a column first met now: none in the messages before
         Column c;
         c.name = column;
         std::tie(c.kind, c.item_bytes) = kind_of(field.type);
@@ -93,71 +140,66 @@ Result<Channel> read_channel(const std::string& path, const std::string& channel
         if (fixed) {
           for (const auto& d : field.dims) c.dims.push_back(static_cast<size_t>(std::atoll(d.c_str())));
         }
-        c.counts.assign(out.arrival.size(), 0);
+        c.counts.assign(out_.arrival.size(), 0);
         size_t per_message = c.item_bytes;
         for (size_t d : c.dims) per_message *= d;
-        if (c.kind != 'O') c.data.reserve(reserve * per_message);
-        it = index.emplace(column, out.columns.size()).first;
-        out.columns.push_back(std::move(c));
-        counts.push_back(0);
-        sizes_before.push_back(0);
+        if (c.kind != 'O') c.data.reserve(reserve_ * per_message);
+        it = index_.emplace(column, out_.columns.size()).first;
+        out_.columns.push_back(std::move(c));
+        counts_.push_back(0);
+        sizes_before_.push_back(0);
       }
       k = it->second;
     }
-    cursor = k + 1;
-    Column& c = out.columns[k];
+    cursor_ = k + 1;
+    Column& c = out_.columns[k];
     if (c.kind == 'O') {
       c.strings.emplace_back(reinterpret_cast<const char*>(bytes.data()), bytes.size());
-      ++counts[k];
+      ++counts_[k];
     } else {
       append_swapped(c.data, bytes, c.item_bytes);
-      counts[k] += static_cast<int64_t>(bytes.size() / c.item_bytes);
+      counts_[k] += static_cast<int64_t>(bytes.size() / c.item_bytes);
     }
-  };
+  }
+
+  std::string path_;
+  std::string channel_;
+  size_t reserve_;
+  Channel out_;
+  const lcmtypes::StructDef* def_ = nullptr;
+  int64_t fingerprint_ = 0;
+  std::unordered_map<std::string, size_t> index_;  // column name -> columns[]
+  std::vector<int64_t> counts_;                    // elements of each column in the message being read
+  std::vector<size_t> sizes_before_;               // data and strings sizes before it, to undo a cut-short message
+  size_t cursor_ = 0;  // the column the next primitive most likely belongs to (fields come in the same order)
+};
+
+}  // namespace
+
+Result<std::vector<Channel>> read_channels(const std::string& path,
+                                           const std::vector<std::pair<std::string, int64_t>>& channels) {
+  auto reader = LogReader::open(path);
+  if (!reader) return reader.error();
+  std::vector<ChannelReader> readers;
+  readers.reserve(channels.size());
+  for (const auto& [name, expected] : channels) readers.emplace_back(path, name, expected);
   Event e;
   while (reader->next(e)) {
-    if (e.channel != channel) continue;
-    const int64_t fp = logfmt::fingerprint(e.data);
-    if (def == nullptr) {
-      const char* name = e.data.size() >= 8 ? lcmtypes::type_name(fp) : nullptr;
-      def = name != nullptr ? lcmtypes::find_struct(name) : nullptr;
-      if (def == nullptr) {
-        return Error{path + ": channel '" + channel + "' holds messages of no driftlab type (fingerprint " +
-                     std::to_string(fp) + ")"};
-      }
-      out.type = name;
-      fingerprint = fp;
-    }
-    if (fp != fingerprint) {
-      ++out.skipped;
-      continue;
-    }
-    for (size_t k = 0; k < out.columns.size(); ++k) {
-      counts[k] = 0;
-      sizes_before[k] = out.columns[k].kind == 'O' ? out.columns[k].strings.size() : out.columns[k].data.size();
-    }
-    const size_t known = out.columns.size();
-    cursor = 0;
-    if (!lcmtypes::walk(*def, e.data, visit)) {  // cut short: the message is left out whole
-      for (size_t k = 0; k < known; ++k) {
-        Column& c = out.columns[k];
-        if (c.kind == 'O') {
-          c.strings.resize(sizes_before[k]);
-        } else {
-          c.data.resize(sizes_before[k]);
-        }
-      }
-      for (size_t k = known; k < out.columns.size(); ++k) {  // columns this message brought: none before
-        out.columns[k].data.clear();
-        out.columns[k].strings.clear();
-      }
-      ++out.skipped;
-      continue;
-    }
-    out.arrival.push_back(e.utime);
-    for (size_t k = 0; k < out.columns.size(); ++k) out.columns[k].counts.push_back(counts[k]);
+    size_t k = 0;  // a log holds a few dozen channels at most: a scan is as quick as a hash
+    while (k < channels.size() && channels[k].first != e.channel) ++k;
+    if (k == channels.size()) continue;
+    if (auto r = readers[k].add(e); !r) return r.error();
   }
+  std::vector<Channel> out;
+  out.reserve(readers.size());
+  for (auto& r : readers) out.push_back(r.take());
   return out;
+}
+
+Result<Channel> read_channel(const std::string& path, const std::string& channel, int64_t expected) {
+  auto r = read_channels(path, {{channel, expected}});
+  if (!r) return r.error();
+  return std::move(r->front());
 }
 
 }  // namespace driftlab::python

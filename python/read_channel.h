@@ -5,6 +5,7 @@
 
 #include <cstdint>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "core/result.h"
@@ -32,5 +33,10 @@ struct Channel {
 /// Reads every message of `channel` in the LCM log at `path`. `expected` (the index's count) sizes the columns.
 /// Errors: the log cannot be read; a channel whose messages are of no driftlab type.
 Result<Channel> read_channel(const std::string& path, const std::string& channel, int64_t expected);
+
+/// Reads every message of each of `channels` (name, the index's count) in one pass over the log, in that order.
+/// Errors: the log cannot be read; a channel whose messages are of no driftlab type.
+Result<std::vector<Channel>> read_channels(const std::string& path,
+                                           const std::vector<std::pair<std::string, int64_t>>& channels);
 
 }  // namespace driftlab::python

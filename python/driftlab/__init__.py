@@ -62,7 +62,7 @@ class Log:
         return self._log.info()
 
     def read(self, channel):
-        """Every message of channel as a dict of NumPy arrays, one entry per message along the first axis:
+        """Every message of channel (a list of channels: read_all(channel)) as a dict of NumPy arrays, one entry per message along the first axis:
 
         - one array per field, nested fields by dotted names ("pose.position.x"); a fixed-size array field as a 2-D
           array (messages x elements; more dimensions for a matrix), and a variable-length one too when every
@@ -75,7 +75,15 @@ class Log:
         the channel's first, or cut short, are left out. Raises KeyError for an unknown channel, driftlab.Error
         for a channel of no driftlab type.
         """
+        if isinstance(channel, (list, tuple)):
+            return self._log.read_many(list(channel))
         return self._log.read(channel)
+
+    def read_all(self, channels=None):
+        """Several channels in one pass over the log: {channel: read(channel)}, for the given channel names, or by
+        default for every channel of a driftlab type (the others are left out). Quicker than a read per channel,
+        which passes over the whole log each time. Raises as read()."""
+        return self._log.read_many(None if channels is None else list(channels))
 
     def __repr__(self):
         return "driftlab.Log(%r: %d channels)" % (self.path, len(self.channels))

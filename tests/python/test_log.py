@@ -99,3 +99,33 @@ def test_a_bad_file_raises_the_cli_message(test_data, cli):
     with pytest.raises(driftlab.Error) as e:
         driftlab.open(missing)
     assert str(e.value) == err.strip().removeprefix("driftlab: ") and missing in str(e.value)
+
+
+def _same(a, b):
+    """Two Log.read dicts hold the same arrays (object arrays element by element)."""
+    assert a.keys() == b.keys()
+    for k in a:
+        x, y = a[k], b[k]
+        if x is None or y is None:
+            assert x is y, k
+            continue
+        assert x.dtype == y.dtype and x.shape == y.shape, k
+        if x.dtype == object:
+            for u, v in zip(x, y):
+                assert (np.array_equal(u, v) if isinstance(u, np.ndarray) else u == v), k
+        else:
+            assert np.array_equal(x, y, equal_nan=x.dtype.kind == "f"), k
+
+
+@pytest.mark.parametrize("which", ["sample", "nav2"])
+def test_one_pass_read_of_every_channel_equals_reads_one_by_one(which, test_data, nav2_bag):
+    log = driftlab.open(os.path.join(test_data, "sample.lcm") if which == "sample" else nav2_bag)
+    known = [c for c, i in log.info().items() if i["type"] is not None]
+    everything = log.read_all()
+    assert sorted(everything) == sorted(known) and known
+    for c in known:
+        _same(everything[c], log.read(c))
+    two = log.read(known[:2])
+    assert list(two) == known[:2]
+    for c in known[:2]:
+        _same(two[c], everything[c])
