@@ -191,10 +191,11 @@ Result<std::string> make_report(const ReportOptions& o) {
   }
 
   nlohmann::json data;
-  data["title"] = o.title.empty() ? "driftlab report: " + fs::path(first.log).filename().string() : o.title;
+  data["title"] = o.title.empty() ? "driftlab report: " + fs::path(names[0]).filename().string() : o.title;
   data["logs"] = nlohmann::json::array();
-  for (const auto& l : logs) {
-    data["logs"].push_back({{"path", l.log},
+  for (size_t k = 0; k < logs.size(); ++k) {
+    const LogSeries& l = logs[k];
+    data["logs"].push_back({{"path", names[k]},  // as given; the conversion read is l.log
                             {"start_utime", l.start_utime},
                             {"duration_s", (Time::from_us(l.end_utime) - Time::from_us(l.start_utime)).seconds()},
                             {"problems", l.problems}});

@@ -28,6 +28,17 @@ std::pair<char, size_t> kind_of(const std::string& type) {
   return {'O', 0};  // string
 }
 
+/// Reverses the bytes of each U-sized element of p[0, n) in place (n a multiple of sizeof(U)).
+template <typename U, typename Swap>
+void swap_each(uint8_t* p, size_t n, Swap swap) {
+  for (size_t k = 0; k < n; k += sizeof(U)) {
+    U v;
+    std::memcpy(&v, p + k, sizeof(U));
+    v = swap(v);
+    std::memcpy(p + k, &v, sizeof(U));
+  }
+}
+
 /// Appends n big-endian elements of `size` bytes to out in native order: copied (no zero-filling first, as resize
 /// would), then swapped in place.
 void append_swapped(std::vector<uint8_t>& out, std::span<const uint8_t> bytes, size_t size) {
@@ -36,30 +47,9 @@ void append_swapped(std::vector<uint8_t>& out, std::span<const uint8_t> bytes, s
   uint8_t* p = out.data() + at;
   const size_t n = bytes.size();
   switch (size) {
-    case 8:
-      for (size_t k = 0; k < n; k += 8) {
-        uint64_t v;
-        std::memcpy(&v, p + k, 8);
-        v = __builtin_bswap64(v);
-        std::memcpy(p + k, &v, 8);
-      }
-      break;
-    case 4:
-      for (size_t k = 0; k < n; k += 4) {
-        uint32_t v;
-        std::memcpy(&v, p + k, 4);
-        v = __builtin_bswap32(v);
-        std::memcpy(p + k, &v, 4);
-      }
-      break;
-    case 2:
-      for (size_t k = 0; k < n; k += 2) {
-        uint16_t v;
-        std::memcpy(&v, p + k, 2);
-        v = __builtin_bswap16(v);
-        std::memcpy(p + k, &v, 2);
-      }
-      break;
+    case 8: swap_each<uint64_t>(p, n, [](uint64_t v) { return __builtin_bswap64(v); }); break;
+    case 4: swap_each<uint32_t>(p, n, [](uint32_t v) { return __builtin_bswap32(v); }); break;
+    case 2: swap_each<uint16_t>(p, n, [](uint16_t v) { return __builtin_bswap16(v); }); break;
     default: break;
   }
 }

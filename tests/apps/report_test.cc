@@ -166,6 +166,9 @@ TEST(ReportCli, ASimTimeBagIsDrawnOnItsOwnClock) {
     ++drawn;
   }
   EXPECT_EQ(drawn, 3);  // /amcl_pose, /odom, /tf
+  // The page names the bag, not its cached conversion.
+  EXPECT_EQ(data["title"], "driftlab report: nav2_turtlebot.mcap");
+  EXPECT_EQ(data["logs"][0]["path"], bag);
   ASSERT_EQ(data["estimates"].size(), 2u);
   EXPECT_TRUE(data["unmatched"].empty());
   for (const auto& e : data["estimates"]) {
