@@ -223,6 +223,9 @@ int run_tum(TumArgs a) {
   if (!log) return fail(log.error().message);
   auto t = analyzers::load_log_channel(*log, a.channel);
   if (!t) return fail(t.error().message);
+  // In stamp order, as evo and every TUM reader expect (a log holds poses in arrival order: a late or reordered
+  // message arrives after a newer one); said when it changed anything.
+  const analyzers::StampOrder order = analyzers::sort_by_stamp(*t);
   const std::string partial = a.out + ".partial";
   if (auto s = analyzers::write_tum(partial, *t); !s) {
     std::error_code ec;
@@ -232,8 +235,14 @@ int run_tum(TumArgs a) {
   std::error_code ec;
   fs::rename(partial, a.out, ec);
   if (ec) return fail(a.out + ": cannot rename into place: " + ec.message(), kExitFailure);
-  std::printf("%s:%s -> %s: %s poses\n", a.log.c_str(), a.channel.c_str(), a.out.c_str(),
+  std::printf("%s:%s -> %s: %s poses", a.log.c_str(), a.channel.c_str(), a.out.c_str(),
               thousands(static_cast<int64_t>(t->size())).c_str());
+  if (order.out_of_order > 0) {
+    std::printf(" (sorted by stamp: %s arrived after a newer one, the first stamped %s)",
+                thousands(static_cast<int64_t>(order.out_of_order)).c_str(),
+                format_utime(Time::from_seconds_rounded(order.first_out_of_order).us()).c_str());
+  }
+  std::printf("\n");
   return kExitOk;
 }
 
@@ -242,7 +251,9 @@ int run_tum(TumArgs a) {
 void add_export_commands(CLI::App& exp, int* exit_code) {
   auto tum = std::make_shared<TumArgs>();
   CLI::App* t = exp.add_subcommand("tum", "A pose or odometry channel to a TUM trajectory file (for evo).");
-  t->footer("One line per pose: \"t x y z qx qy qz qw\", t the header stamp in seconds; evo_ape and evo_traj read it.");
+  t->footer(
+      "One line per pose: \"t x y z qx qy qz qw\", t the header stamp in seconds, in stamp order (poses that\n"
+      "arrived out of order are sorted, and counted); evo_ape and evo_traj read it.");
   t->add_option("log", tum->log, "Log to read, as LOG:CHANNEL (or LOG with -c); LOG may be a bag (see export csv)")->required();
   t->add_option("-c,--channel", tum->channel, "Channel (driftlab.pose_t or driftlab.odometry_t)");
   t->add_option("-o,--out", tum->out, "TUM file to write")->required();

@@ -11,6 +11,7 @@
 #include "core/log_writer.h"
 #include "driftlab/imu_t.hpp"
 #include "driftlab/laser_scan_t.hpp"
+#include "driftlab/pose_t.hpp"
 #include "driftlab/tf_t.hpp"
 #include "tests/test_util.h"
 
@@ -86,6 +87,37 @@ TEST(ExportTum, WritesTheChannelsPosesAsEvoReadsThem) {
     EXPECT_NEAR(tum->orientations[i].angularDistance(log->orientations[i]), 0, 1e-12);
   }
   EXPECT_FALSE(std::filesystem::exists(dir.file("gt.tum.partial")));
+}
+
+TEST(ExportTum, PosesThatArrivedOutOfOrderAreSortedByStampAndCounted) {
+  // A log holds poses as they arrived: a late one lands after a newer one. The TUM file is in stamp order (evo
+  // matches by stamp and expects it), and the summary says how many were moved.
+  test::TempDir dir;
+  const std::string log = dir.file("late.lcm");
+  {
+    auto w = LogWriter::create(log);
+    ASSERT_TRUE(w.ok());
+    for (const int stamp_ms : {0, 100, 300, 200, 400, 600, 500}) {
+      driftlab::pose_t m{};
+      m.header.utime = 1'000'000 + stamp_ms * 1000;
+      m.position.x = stamp_ms;
+      m.orientation.w = 1;
+      ASSERT_TRUE(w->write(2'000'000 + static_cast<int64_t>(w->events()) * 1000, "POSE", test::encode(m)).ok());
+    }
+    ASSERT_TRUE(w->close().ok());
+  }
+  const auto r = driftlab("export tum " + log + ":POSE -o " + dir.file("p.tum"));
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("7 poses (sorted by stamp: 2 arrived after a newer one, the first stamped 1.200000 s)"),
+            std::string::npos)
+      << r.out;
+  auto tum = analyzers::load_tum(dir.file("p.tum"));
+  ASSERT_TRUE(tum.ok());
+  ASSERT_EQ(tum->size(), 7u);
+  for (size_t i = 0; i < tum->size(); ++i) {
+    EXPECT_NEAR(tum->stamps[i], 1.0 + 0.1 * static_cast<double>(i), 1e-9);
+    EXPECT_EQ(tum->positions[i].x(), 100.0 * static_cast<double>(i));
+  }
 }
 
 TEST(ExportTum, AnUnknownChannelIsOneLineNamingItAndWritesNothing) {
