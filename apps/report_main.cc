@@ -159,7 +159,6 @@ Result<std::string> make_report(const ReportOptions& o) {
   const double origin_s = Time::from_us(first.start_utime).seconds();
 
   nlohmann::json diagnosis;
-  bool flight_log = true;  // a diagnosis given may be of a flight log
   if (!o.diagnosis.empty()) {
     auto d = read_json(o.diagnosis, "--diagnosis");
     if (!d) return d.error();
@@ -167,18 +166,17 @@ Result<std::string> make_report(const ReportOptions& o) {
     if (!diagnosis.is_object() || !diagnosis.contains("channels")) {
       return Error{"--diagnosis " + o.diagnosis + ": not the JSON of driftlab diagnose --json (no \"channels\")"};
     }
+    // A PX4 flight log: its flight-log diagnosis (dropouts, sensor gaps, the estimator's rejections) for the
+    // timeline, unless the diagnosis given already holds it.
+    if (!diagnosis.contains("flight_log")) {
+      auto f = analyzers::diagnose_flight_log(first.log);
+      if (!f) return f.error();
+      if (f->present) diagnosis["flight_log"] = flight_log_json(*f);
+    }
   } else {
-    auto d = diagnose(first.log);
-    if (!d) return d.error();
-    diagnosis = to_json(*d);
-    flight_log = d->flight_log;
-  }
-  // A PX4 flight log: its flight-log diagnosis (dropouts, sensor gaps, the estimator's rejections) for the timeline,
-  // unless the diagnosis given already holds it.
-  if (flight_log && !diagnosis.contains("flight_log")) {
-    auto f = analyzers::diagnose_flight_log(first.log);
-    if (!f) return f.error();
-    if (f->present) diagnosis["flight_log"] = flight_log_json(*f);
+    auto run = run_diagnosis(first.log, {});  // as diagnose --json: with a flight log's own diagnosis
+    if (!run) return run.error();
+    diagnosis = diagnose_json(*run);
   }
   nlohmann::json evals = nlohmann::json::array();
   for (const auto& path : o.evals) {
