@@ -363,16 +363,12 @@ class Session {
           failure = writer_->write(r.utime, channel, {chunk->bytes.data() + r.data_offset, r.data_size});
           if (!failure.ok()) break;
           ++summary_.written;
+          // Checked after every message, not every chunk: a writer that fell behind pops chunks of many
+          // megabytes, and a part must still end near its size.
+          if (failure = maybe_split(); !failure.ok()) break;
         }
         queue_.recycle(std::move(chunk));
         if (!failure.ok()) break;
-        if ((o_.split_mb > 0 && static_cast<double>(writer_->bytes()) >= o_.split_mb * 1e6) ||
-            (o_.split_s > 0 && part_start_.seconds() >= o_.split_s)) {
-          if (failure = write_stats(); !failure.ok()) break;
-          summary_.bytes_written += static_cast<int64_t>(writer_->bytes());
-          if (failure = writer_->close(); !failure.ok()) break;
-          if (failure = open_part(); !failure.ok()) break;
-        }
       }
       if (since_sync.seconds() >= o_.flush_interval_s) {
         if (failure = writer_->sync(); !failure.ok()) break;
@@ -394,6 +390,17 @@ class Session {
     if (failure.ok()) failure = closed;
     fill_summary();
     return failure;
+  }
+
+  /// Closes this part and opens the next when it has reached its size or its duration.
+  Status maybe_split() {
+    if (!(o_.split_mb > 0 && static_cast<double>(writer_->bytes()) >= o_.split_mb * 1e6) &&
+        !(o_.split_s > 0 && part_start_.seconds() >= o_.split_s))
+      return {};
+    if (Status s = write_stats(); !s.ok()) return s;
+    summary_.bytes_written += static_cast<int64_t>(writer_->bytes());
+    if (Status s = writer_->close(); !s.ok()) return s;
+    return open_part();
   }
 
   std::string status_line() const {
