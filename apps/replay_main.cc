@@ -325,11 +325,10 @@ int run_replay(ReplayArgs a) {
     if (Status s = refuse_absent_channels("--inject", a.inject, named, a.logs); !s) return fail(s.message());
   }
 
-  // The slam module's `auto` backend asks what the replay delivers (after the filter and --remap).
-  const modules::HasData has_data = [&o](const std::string& channel, const std::string& type) {
-    return replay::delivers(o, channel, type);
-  };
-  auto modules = modules::load_modules(a.modules, a.config, has_data, notes);
+  // The slam module's `auto` backend and its unset input channels look at what the replay delivers (after the filter
+  // and --remap); only when a module is asked for, as reading the logs' indexes may take a pass over them.
+  const InputChannels inputs = a.modules.empty() ? InputChannels{} : replay::delivered_channels(o);
+  auto modules = modules::load_modules(a.modules, a.config, inputs, notes);
   if (!modules) return fail(modules.error().message);
   replay::Replayer replayer(o);
   for (auto& m : *modules) replayer.add_module(std::move(m));
@@ -402,8 +401,7 @@ struct RunArgs {
 
 int run_live(const RunArgs& a) {
   std::vector<std::string> notes;
-  auto modules =
-      modules::load_modules(a.modules, a.config, [](const std::string&, const std::string&) { return false; }, notes);
+  auto modules = modules::load_modules(a.modules, a.config, {}, notes);
   if (!modules) return fail(modules.error().message);
   if (modules->empty()) return fail("--modules: name at least one module (" + modules::known_modules() + ")");
   const SystemWallClock clock;

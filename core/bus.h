@@ -63,6 +63,17 @@ struct ModuleCounters {
   std::vector<std::pair<std::string, double>> metrics;  ///< what else the module measured, by name with its unit
 };
 
+/// A channel a replay will deliver to its modules, known before the run: its name as delivered (after filters and
+/// remaps), the driftlab type of its first message ("driftlab.laser_scan_t"; "" when not a driftlab type) and its
+/// message count. Modules whose inputs are not set look here for channels of the types they take.
+struct InputChannel {
+  std::string name;
+  std::string type;
+  int64_t count = 0;
+};
+/// What a run delivers; empty live, where nothing is known in advance.
+using InputChannels = std::vector<InputChannel>;
+
 /// A processing module. The replayer (or a live runner) calls start() once with its bus, delivers messages to the
 /// handlers the module subscribed, and calls finish() after the last message (to publish maps, final estimates).
 class Module {

@@ -63,14 +63,9 @@ Result<std::unique_ptr<Module>> make_controller(const YAML::Node& config, const 
 
 Result<std::unique_ptr<Module>> make_module(const std::string& name, const YAML::Node& config,
                                             const std::string& origin, const std::string& config_dir,
-                                            const HasData& has_data, std::vector<std::string>& notes) {
+                                            const InputChannels& inputs, std::vector<std::string>& notes) {
   if (name == "estimator") return estimator::make_estimator(config, origin);
-  if (name == "slam") {
-    std::string backend;
-    auto m = slam::make_slam(config, origin, has_data, &backend);
-    if (m) notes.push_back("slam: " + backend + " backend");
-    return m;
-  }
+  if (name == "slam") return slam::make_slam(config, origin, inputs, &notes);
   if (name == "controller") return make_controller(config, origin, config_dir, notes);
   if (name == "drone_estimator") return estimator::make_drone_estimator(config, origin);
   if (name == "flight") return flight::make_flight(config, origin);
@@ -97,7 +92,8 @@ std::string known_modules() {
 }
 
 Result<std::vector<std::unique_ptr<Module>>> load_modules(const std::string& list, const std::string& config_path,
-                                                          const HasData& has_data, std::vector<std::string>& notes) {
+                                                          const InputChannels& inputs,
+                                                          std::vector<std::string>& notes) {
   YAML::Node config;
   std::string config_dir = ".";
   if (!config_path.empty()) {
@@ -126,7 +122,7 @@ Result<std::vector<std::unique_ptr<Module>>> load_modules(const std::string& lis
     if (name.empty()) continue;
     const YAML::Node node = config.IsMap() ? config[name] : YAML::Node();
     try {
-      auto m = make_module(name, node, config_path.empty() ? "--config" : config_path, config_dir, has_data, notes);
+      auto m = make_module(name, node, config_path.empty() ? "--config" : config_path, config_dir, inputs, notes);
       if (!m) return m.error();
       modules.push_back(std::move(*m));
     } catch (const YAML::Exception& e) {

@@ -20,14 +20,12 @@ std::string known_modules();
 /// markdown (from the modules' config tables, core/config.h).
 std::string config_reference();
 
-/// Whether the input holds messages of the named type ("driftlab.laser_scan_t") on a channel, as delivered to the
-/// modules; the slam module's `auto` backend asks. Live, nothing is known in advance: answer false.
-using HasData = std::function<bool(const std::string& channel, const std::string& type)>;
-
 /// The modules named in `list` (comma-separated) with their settings from the YAML file at `config_path` (empty:
 /// every module with its defaults). `notes` receives what was chosen for the user ("slam: 2d backend"). Errors
-/// (an unknown module, a bad file, a bad key or value) are one line naming the file, line and key.
+/// (an unknown module, a bad file, a bad key or value) are one line naming the file, line and key. `inputs` is
+/// what the run delivers (empty live): the slam module's `auto` backend and its input channels, when not set, are
+/// found there.
 Result<std::vector<std::unique_ptr<Module>>> load_modules(const std::string& list, const std::string& config_path,
-                                                          const HasData& has_data, std::vector<std::string>& notes);
+                                                          const InputChannels& inputs, std::vector<std::string>& notes);
 
 }  // namespace driftlab::modules

@@ -5,6 +5,8 @@
 #include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <map>
+#include <optional>
 #include <queue>
 #include <regex>
 #include <sstream>
@@ -12,6 +14,7 @@
 
 #include "core/config.h"
 #include "core/log_format.h"
+#include "core/log_index.h"
 #include "core/log_reader.h"
 #include "core/time.h"
 #include "driftlab/fault_manifest_t.hpp"
@@ -187,37 +190,40 @@ std::vector<uint8_t> encode_manifest(const ReplayOptions& o, int64_t utime, cons
 
 }  // namespace
 
-bool delivers(const ReplayOptions& o, const std::string& channel, const std::string& type) {
-  // The input channels delivered as `channel`: those remapped to it, and itself unless remapped away. The first
-  // rule naming an input applies, as in run().
+InputChannels delivered_channels(const ReplayOptions& o) {
+  // The first rule naming an input applies, as in run().
   auto delivered_as = [&o](const std::string& input) {
     for (const auto& [from, to] : o.remap) {
       if (input == from) return to;
     }
     return input;
   };
-  std::vector<std::string> sources;
-  if (delivered_as(channel) == channel) sources.push_back(channel);
-  for (const auto& [from, to] : o.remap) {
-    if (to == channel && delivered_as(from) == channel) sources.push_back(from);
+  std::optional<std::regex> filter;
+  try {
+    if (!o.channels.empty()) filter.emplace(o.channels);
+  } catch (const std::regex_error&) {
+    return {};  // open() reports the bad regex
   }
-  static const std::regex special(R"([.^$|()\[\]{}*+?\\])");
-  for (const auto& source : sources) {
-    try {
-      if (!o.channels.empty() && !std::regex_match(source, std::regex(o.channels))) continue;  // filtered out
-    } catch (const std::regex_error&) {
-      return false;  // open() reports the bad regex
-    }
-    for (const auto& log : o.logs) {
-      auto r = LogReader::open(log, {.channels = std::regex_replace(source, special, R"(\$&)")});
-      Event e;
-      if (r && r->next(e)) {
-        const char* name = lcmtypes::type_name(logfmt::fingerprint(e.data));
-        if (name != nullptr && type == name) return true;
+  std::map<std::string, InputChannel> by_name;
+  for (const auto& log : o.logs) {
+    auto index = LogIndex::load_or_build(log);
+    if (!index) continue;  // open() reports it
+    for (const auto& c : index->summary().channels) {
+      if (filter && !std::regex_match(c.name, *filter)) continue;
+      InputChannel& in = by_name[delivered_as(c.name)];
+      if (in.count == 0) {
+        const char* type = lcmtypes::type_name(c.fingerprint);
+        in.type = type != nullptr ? type : "";
       }
+      in.count += c.count;
     }
   }
-  return false;
+  InputChannels out;
+  for (auto& [name, in] : by_name) {
+    in.name = name;
+    out.push_back(std::move(in));
+  }
+  return out;
 }
 
 Replayer::Replayer(ReplayOptions options)

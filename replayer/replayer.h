@@ -82,10 +82,9 @@ struct ReplayReport {
 /// A message leaving the replayer (an input as delivered, or a module's output), for re-publication.
 using Sink = std::function<void(const BusMessage&)>;
 
-/// Whether the replay the options describe delivers messages of `type` ("driftlab.laser_scan_t") on `channel` (a
-/// delivered name: after --remap), among the channels the filter lets through. The first message of each log on
-/// the source channel tells. Unreadable logs deliver nothing (open() reports them).
-bool delivers(const ReplayOptions& options, const std::string& channel, const std::string& type);
+/// The channels the replay the options describe delivers to its modules (after the channel filter and --remap), with
+/// the type of each one's first message and its count, sorted by name; from the logs' indexes.
+InputChannels delivered_channels(const ReplayOptions& options);
 
 class Replayer {
  public:

@@ -124,7 +124,8 @@ const config::Table<Slam2dConfig>& slam2d_config_table() {
   static const auto t =
       config::Table<C>()
           .text("scan_channel", &C::scan_channel, "driftlab.laser_scan_t in", config::Text::kNonEmpty)
-          .text("odom_channel", &C::odom_channel, "driftlab.odometry_t: the prior; \"\" for none")
+          .text("odom_channel", &C::odom_channel,
+                "driftlab.odometry_t or any pose stream (driftlab.pose_t): the prior; \"\" for none")
           .text("tf_static_channel", &C::tf_static_channel, "where base_link -> scan frame is read")
           .text("pose_channel", &C::pose_channel, "driftlab.pose_t out, one per scan")
           .text("map_channel", &C::map_channel, "driftlab.image_t (PNG) of the occupancy map out, at the end")
@@ -217,6 +218,13 @@ struct Slam2d::Impl {
   std::multimap<int64_t, mrpt::obs::CObservation2DRangeScan::Ptr> waiting;
   int64_t newest_odometry = std::numeric_limits<int64_t>::min(), newest_scan = std::numeric_limits<int64_t>::min();
   int64_t waited_out = 0;  ///< scans matched before their odometry arrived (the wait ran out)
+  /// How far back in stamps a scan has arrived after a newer one, at most odom_wait_s [us]. When the odometry is
+  /// a pose stream riding on the scans (a CARMEN log's laser lines, written in the logger's order with the
+  /// odometry on each), scans wait this long (in scan stamps) for the scans before them, so that they are matched
+  /// in stamp order: Intel's step back up to 0.9 s. Odometry on a stream of its own lags the scans, and waiting
+  /// for it already puts them in order.
+  int64_t reorder = 0;
+  bool pose_stream = false;  ///< the odometry came as driftlab.pose_t
 
   /// Matches one scan (method graph) and publishes its pose.
   void process(Bus& bus, int64_t stamp, const mrpt::obs::CObservation2DRangeScan::Ptr& obs) {
@@ -246,7 +254,10 @@ struct Slam2d::Impl {
     while (!waiting.empty()) {
       const auto it = waiting.begin();
       const bool covered = it->first <= newest_odometry || c.odom_channel.empty();
-      if (!covered && !all && newest_scan - it->first < wait) break;
+      // newest_scan is the largest stamp waiting or gone, so this is >= 0; unsigned, as hostile stamps may be far apart
+      const uint64_t behind = static_cast<uint64_t>(newest_scan) - static_cast<uint64_t>(it->first);
+      const bool in_order = !pose_stream || behind >= static_cast<uint64_t>(reorder);
+      if (!all && ((!covered && behind < static_cast<uint64_t>(wait)) || !in_order)) break;
       if (!covered) ++waited_out;
       process(bus, it->first, it->second);
       waiting.erase(it);
@@ -323,7 +334,7 @@ Status Slam2d::start(Bus& bus) {
   }
   if (!c.odom_channel.empty()) {
     bus.subscribe(c.odom_channel, [this, &bus](const BusMessage& m) {
-      const auto o = internal::planar_odometry(m, impl_->non_finite, &impl_->undecodable);
+      const auto o = internal::planar_odometry(m, impl_->non_finite, &impl_->undecodable, &impl_->pose_stream);
       if (!o) return;
       ++impl_->odometry;
       impl_->odom.add(o->first, o->second);
@@ -365,6 +376,11 @@ Status Slam2d::start(Bus& bus) {
 
     if (d.graph) {
       d.waiting.emplace(scan.header.utime, obs);
+      if (scan.header.utime < d.newest_scan) {
+        const uint64_t back = static_cast<uint64_t>(d.newest_scan) - static_cast<uint64_t>(scan.header.utime);
+        const auto wait = static_cast<uint64_t>(Duration::from_seconds_truncated(d.c.odom_wait_s).us());
+        d.reorder = std::max(d.reorder, static_cast<int64_t>(std::min(back, wait)));
+      }
       d.newest_scan = std::max(d.newest_scan, scan.header.utime);
       d.drain(bus);
       return;
@@ -530,7 +546,8 @@ ModuleCounters Slam2d::counters() const {
   if (d.scans == 0) {
     c.warnings.push_back("slam: no driftlab.laser_scan_t on " + d.c.scan_channel + ": no map built");
   } else if (!d.c.odom_channel.empty() && d.odometry == 0) {
-    c.warnings.push_back("slam: no driftlab.odometry_t on " + d.c.odom_channel + ": scans matched without a prior");
+    c.warnings.push_back("slam: no odometry (driftlab.odometry_t or pose_t) on " + d.c.odom_channel +
+                         ": scans matched without a prior");
   }
   c.metrics = {{"scans", static_cast<double>(d.scans)},
                {"scans_before_odometry", static_cast<double>(d.before_odometry)},

@@ -61,7 +61,8 @@ const config::Table<Slam3dConfig>& slam3d_config_table() {
   static const auto t =
       config::Table<C>()
           .text("cloud_channel", &C::cloud_channel, "driftlab.point_cloud_t in", config::Text::kNonEmpty)
-          .text("odom_channel", &C::odom_channel, "driftlab.odometry_t: the guess and the deskewing; \"\" for none")
+          .text("odom_channel", &C::odom_channel,
+                "driftlab.odometry_t or pose_t: the guess and the deskewing; \"\" for none")
           .text("tf_static_channel", &C::tf_static_channel, "where base_link -> cloud frame is read; \"\" for none")
           .text("pose_channel", &C::pose_channel, "driftlab.pose_t out, one per cloud")
           .text("base_frame", &C::base_frame, "the robot's base frame")
@@ -345,7 +346,8 @@ ModuleCounters Slam3d::counters() const {
                            " returns within [min_range, max_range]: no poses, no map");
     }
     if (!d.c.odom_channel.empty() && d.odometry == 0) {
-      c.warnings.push_back("slam3d: no driftlab.odometry_t on " + d.c.odom_channel + ": registered without a prior");
+      c.warnings.push_back("slam3d: no odometry (driftlab.odometry_t or pose_t) on " + d.c.odom_channel +
+                           ": registered without a prior");
     }
   }
   c.metrics = {{"clouds", static_cast<double>(d.clouds)},

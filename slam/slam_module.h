@@ -26,13 +26,14 @@ struct SlamConfig {
 /// Its keys, with units, ranges and defaults (core/config.h); `2d` and `3d` are slam2d's and slam3d's tables.
 const config::Table<SlamConfig>& slam_config_table();
 
-/// Whether the input holds a message of the named type ("driftlab.laser_scan_t") on a channel.
-using HasData = std::function<bool(const std::string& channel, const std::string& type)>;
-
-/// The SLAM module its config asks for; `auto` takes 2D when the logs have laser scans on the 2D scan channel,
-/// else 3D when they have point clouds on the 3D cloud channel, else 2D (which then warns that it saw no scans).
-/// `chosen` receives "2d" or "3d". Errors name the file, line and key.
-Result<std::unique_ptr<Module>> make_slam(const YAML::Node& config, const std::string& origin, const HasData& has_data,
-                                          std::string* chosen = nullptr);
+/// The SLAM module its config asks for. `auto` takes 2D when the input has laser scans, else 3D when it has point
+/// clouds, else 2D (which then warns that it saw no scans). An input channel not set in the config and absent from
+/// `inputs` (what the run delivers) is found there by type: the scans (or clouds) on the channel of that type with
+/// the most messages, the odometry on a driftlab.odometry_t channel or else on the scan channel's pose stream
+/// (SCAN_POSE: a CARMEN laser line's odometry), the sensor's mounting on a driftlab.tf_t channel named *tf_static.
+/// `notes` receives what was chosen ("slam: 2d backend", "slam: scans from /scan ..."). Errors name the file, line
+/// and key.
+Result<std::unique_ptr<Module>> make_slam(const YAML::Node& config, const std::string& origin,
+                                          const InputChannels& inputs, std::vector<std::string>* notes = nullptr);
 
 }  // namespace driftlab::slam

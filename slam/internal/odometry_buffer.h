@@ -9,6 +9,7 @@
 #include <utility>
 
 #include "driftlab/odometry_t.hpp"
+#include "driftlab/pose_t.hpp"
 #include "lcmtypes/planar.h"
 #include "lcmtypes/validate.h"
 
@@ -48,14 +49,22 @@ class OdometryBuffer {
   std::deque<Sample> q_;
 };
 
-/// The stamp [us] and planar pose of an odometry message on the bus, or nullopt when it is malformed (counted in
-/// *malformed) or a number of it is not finite or beyond lcmtypes::kMaxMagnitude (counted by `in`, naming it).
+/// The stamp [us] and planar pose of an odometry message on the bus (driftlab.odometry_t, or any pose stream as
+/// driftlab.pose_t: a CARMEN laser line's odometry, a robot's pose topic), or nullopt when it is malformed (counted
+/// in *malformed) or a number of it is not finite or beyond lcmtypes::kMaxMagnitude (counted by `in`, naming it).
+/// *pose_stream, when given, is set when the message is a driftlab.pose_t.
 inline std::optional<std::pair<int64_t, Pose2>> planar_odometry(const BusMessage& m, NonFiniteInputs& in,
-                                                                int64_t* malformed) {
+                                                                int64_t* malformed, bool* pose_stream = nullptr) {
   driftlab::odometry_t o;
-  if (!decode_message(m, o)) {
-    ++*malformed;
-    return std::nullopt;
+  if (driftlab::pose_t p; !decode_message(m, o)) {
+    if (!decode_message(m, p)) {
+      ++*malformed;
+      return std::nullopt;
+    }
+    if (pose_stream != nullptr) *pose_stream = true;
+    o.header = p.header;
+    o.position = p.position;
+    o.orientation = p.orientation;
   }
   if (!in.finite(m)) return std::nullopt;
   const double yaw = yaw_of(o.orientation);  // NaN for a quaternion of huge numbers

@@ -223,13 +223,22 @@ TEST_F(ReplayCli, SlamPicksTheBackendTheDataCallsFor) {
   EXPECT_NE(three.out.find("slam: 3d backend"), std::string::npos) << three.out;
   EXPECT_NE(three.out.find("clouds 30"), std::string::npos) << three.out;
   EXPECT_TRUE(std::filesystem::exists(file("p3-map.pcd")));
-  // The backend is chosen from what the modules receive after --remap: clouds delivered on the 2D scan channel's
-  // name do not make a 2D session, and scans remapped away from it leave only the clouds. (Before, the check
-  // looked the remapped names up in the raw logs and chose 2D.)
-  const auto remapped = driftlab("replay " + file("p.lcm") + " --remap SCAN=OLD_SCAN --modules slam -o " +
-                                 file("p4.lcm"));
-  ASSERT_EQ(remapped.code, 0) << remapped.err;
-  EXPECT_NE(remapped.out.find("slam: 3d backend"), std::string::npos) << remapped.out;
+  // The backend and the inputs are chosen from what the modules receive after --remap: clouds delivered on the 2D
+  // scan channel's name make a 3D session that takes them there, and scans remapped away from it are found by
+  // their type. (Before, the check looked the remapped names up in the raw logs and chose 2D.)
+  const auto clouds = driftlab("replay " + file("p.lcm") + " -c 'POINTS|ODOM|TF_STATIC' --remap POINTS=SCAN " +
+                               "--modules slam -o " + file("p4.lcm"));
+  ASSERT_EQ(clouds.code, 0) << clouds.err;
+  EXPECT_NE(clouds.out.find("slam: 3d backend"), std::string::npos) << clouds.out;
+  EXPECT_NE(clouds.out.find("slam: clouds from SCAN (driftlab.point_cloud_t; none on POINTS)"), std::string::npos)
+      << clouds.out;
+  EXPECT_NE(clouds.out.find("clouds 30"), std::string::npos) << clouds.out;
+  const auto renamed =
+      driftlab("replay " + file("p.lcm") + " --remap SCAN=OLD_SCAN --modules slam -o " + file("p5.lcm"));
+  ASSERT_EQ(renamed.code, 0) << renamed.err;
+  EXPECT_NE(renamed.out.find("slam: 2d backend"), std::string::npos) << renamed.out;
+  EXPECT_NE(renamed.out.find("slam: scans from OLD_SCAN (driftlab.laser_scan_t; none on SCAN)"), std::string::npos)
+      << renamed.out;
 }
 
 TEST_F(ReplayCli, MrptRawlogsComeInAndGoOut) {
