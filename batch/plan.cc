@@ -472,6 +472,20 @@ Result<Spec> load_spec(const std::string& path) {
       if (auto st = check_parameter(path, kv.first, *p, s, channels); !st) return Error{st.message()};
       s.vary.push_back(std::move(*p));
     }
+    // Each grid may hold 10,000 values, and their product is the sweep: two such grids were 10^8 points, all
+    // expanded in memory before anything ran.
+    uint64_t points = std::max<uint64_t>(1, s.logs.size());
+    std::string product = s.logs.empty() ? "" : std::to_string(s.logs.size()) + " logs";
+    for (const auto& p : s.vary) {
+      points = std::min<uint64_t>(points * p.values.size(), uint64_t{1} << 40);  // each factor is 10,000 at most
+      product += (product.empty() ? "" : " x ") + std::to_string(p.values.size());
+    }
+    if (points > kMaxPoints) {
+      return Error{where(path, vary, "vary") + ": " + product + " = " +
+                   (points >= (uint64_t{1} << 40) ? std::string("over 10^12") : std::to_string(points)) +
+                   " points, more than the " + std::to_string(kMaxPoints) +
+                   " a sweep may have: vary fewer values, or split it into several sweeps"};
+    }
   }
   // A faults field varied without `faults:` in the spec starts from the scenario's own faults (sweeps of a
   // scenario), so the other streams keep theirs.

@@ -102,6 +102,9 @@ std::vector<std::string> expand_pattern(const std::string& pattern);
 /// the logs and the name, and the point's values), so a point keeps its id when the grid around it grows.
 std::vector<Point> expand(const Spec& spec);
 
+/// The most points a sweep spec may expand to (the product of its grids and lists, and its logs).
+constexpr uint64_t kMaxPoints = 100'000;
+
 /// The module settings file (YAML, one map per module) of a point: the spec's settings with the point's varied
 /// module keys set. Empty when there is nothing to set.
 std::string module_config_yaml(const Spec& spec, const Point& point);

@@ -12,8 +12,11 @@
 // laser's longest possible reading means "no return".
 #include "formats/carmen.h"
 
+#include <zlib.h>
 #include <algorithm>
+
 #include <charconv>
+#include <climits>
 #include <cmath>
 #include <map>
 #include <numbers>
@@ -34,6 +37,9 @@ namespace {
 using lcmtypes::encode;
 
 using Tokens = std::vector<std::string_view>;
+
+constexpr size_t kHeadBytes = 64 << 10;     // what open() looks at
+constexpr size_t kMaxLineBytes = 16 << 20;  // a gzip log's longest line (CARMEN's are a few KB)
 
 void split(std::string_view line, Tokens& out) {
   out.clear();
@@ -147,31 +153,123 @@ Result<CarmenReader> CarmenReader::open(const std::string& path) {
   if (!file) return file.error();
   auto bytes = file->bytes();
   CarmenReader r;
+  std::string head;
   if (bytes.size() >= 2 && bytes[0] == 0x1f && bytes[1] == 0x8b) {
+    // Only the head is inflated here; the log is inflated as it is read (a 10 MB .clf.gz can hold 10 GB).
     std::vector<uint8_t> out;
-    const std::string error = decompress(Codec::kGzip, bytes, bytes.size() * 4, out);
-    if (!error.empty()) return Error(path + ": " + error + " after " + std::to_string(out.size()) + " bytes");
-    r.text_.assign(out.begin(), out.end());
+    const std::string error = decompress(Codec::kGzip, bytes, 0, out, kHeadBytes);
+    if (out.empty() && !error.empty()) return Error(path + ": " + error + " after 0 bytes");
+    head.assign(out.begin(), out.end());
+    r.gzip_ = true;
   } else {
-    r.text_.assign(bytes.begin(), bytes.end());
+    head.assign(bytes.begin(), bytes.begin() + static_cast<ptrdiff_t>(std::min<size_t>(bytes.size(), kHeadBytes)));
   }
-  if (!looks_like(r.text_)) return Error(path + ": not a CARMEN log (its first lines are not CARMEN messages)");
+  if (!looks_like(head)) return Error(path + ": not a CARMEN log (its first lines are not CARMEN messages)");
+  r.file_ = std::move(*file);
   return r;
+}
+
+std::string CarmenReader::each_line(const std::function<void(size_t, std::string_view)>& fn, size_t* stopped_at) const {
+  size_t line = 0;
+  *stopped_at = 0;
+  if (!gzip_) {
+    const std::string_view text =
+        file_.bytes().empty()
+            ? std::string_view(text_)
+            : std::string_view(reinterpret_cast<const char*>(file_.bytes().data()), file_.bytes().size());
+    size_t pos = 0;
+    while (pos < text.size()) {
+      size_t eol = text.find('\n', pos);
+      if (eol == std::string_view::npos) eol = text.size();
+      fn(++line, text.substr(pos, eol - pos));
+      pos = eol + 1;
+    }
+    return {};
+  }
+  const auto in = file_.bytes();
+  z_stream s{};
+  if (inflateInit2(&s, 15 + 32) != Z_OK) return "gzip: cannot start the decoder";
+  const uint64_t budget = DecodeBudget(in.size()).total();
+  std::vector<char> buf(size_t{1} << 20);
+  std::string pending;  // a line begun in an earlier buffer
+  size_t pos = 0;
+  uint64_t total = 0;
+  std::string error;
+  for (;;) {
+    const size_t feed = std::min<size_t>(in.size() - pos, UINT_MAX);
+    s.next_in = const_cast<Bytef*>(in.data() + pos);
+    s.avail_in = static_cast<uInt>(feed);
+    s.next_out = reinterpret_cast<Bytef*>(buf.data());
+    s.avail_out = static_cast<uInt>(buf.size());
+    const int rc = inflate(&s, Z_NO_FLUSH);
+    const size_t got = buf.size() - s.avail_out;
+    pos += feed - s.avail_in;
+    total += got;
+    const std::string_view chunk(buf.data(), got);
+    for (size_t p = 0;;) {
+      const size_t eol = chunk.find('\n', p);
+      if (eol == std::string_view::npos) {
+        pending.append(chunk.substr(p));
+        break;
+      }
+      if (pending.empty()) {
+        fn(++line, chunk.substr(p, eol - p));
+      } else {
+        pending.append(chunk.substr(p, eol - p));
+        fn(++line, pending);
+        pending.clear();
+      }
+      p = eol + 1;
+    }
+    if (pending.size() > kMaxLineBytes) {
+      error = "a line longer than " + std::to_string(kMaxLineBytes) + " bytes (at byte " + std::to_string(pos) +
+              " of the gzip file): the rest of the log is not read (a decompression bomb or not a CARMEN log)";
+      pending.clear();
+      break;
+    }
+    if (total > budget) {
+      error = "inflates to more than " + std::to_string(budget) + " bytes (" +
+              std::to_string(DecodeBudget::kTotalRatio) + " times its size and " +
+              std::to_string(DecodeBudget::kFreeTotalBytes) + "; at byte " + std::to_string(pos) +
+              " of the gzip file): the rest is not read (a decompression bomb)";
+      pending.clear();
+      break;
+    }
+    if (rc == Z_STREAM_END) {
+      // Concatenated gzip members (what `cat a.gz b.gz` makes) go on.
+      if (pos < in.size() && inflateReset(&s) == Z_OK) continue;
+      break;
+    }
+    if (rc != Z_OK && rc != Z_BUF_ERROR) {
+      error = std::string("gzip: ") + (s.msg ? s.msg : "corrupt data") + " at byte " + std::to_string(pos) +
+              "; the rest is lost";
+      break;
+    }
+    if (pos == in.size() && s.avail_out != 0) {
+      error = "gzip: the file ends early (at byte " + std::to_string(pos) + ")";
+      break;
+    }
+  }
+  inflateEnd(&s);
+  if (!pending.empty()) fn(++line, pending);
+  *stopped_at = line + 1;
+  return error;
 }
 
 int64_t CarmenReader::read(const std::function<void(const CarmenMessage&)>& on_message,
                            const std::function<void(size_t, const std::string&)>& on_problem) {
-  const std::string_view text = text_;
+  // Twice over the lines (the preamble, then the messages); a gzip log's damage is said on the second pass.
+  int pass = 0;
   auto for_lines = [&](auto&& fn) {
     Tokens t;
-    size_t pos = 0;
-    for (size_t line = 1; pos < text.size(); ++line) {
-      size_t eol = text.find('\n', pos);
-      if (eol == std::string_view::npos) eol = text.size();
-      split(text.substr(pos, eol - pos), t);
-      pos = eol + 1;
-      if (!t.empty()) fn(line, t);
-    }
+    size_t stopped_at = 0;
+    const std::string error = each_line(
+        [&](size_t line, std::string_view text) {
+          split(text, t);
+          if (!t.empty()) fn(line, t);
+        },
+        &stopped_at);
+    if (++pass == 2 && !error.empty()) on_problem(stopped_at, error);
   };
 
   Preamble pre;

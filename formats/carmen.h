@@ -12,6 +12,7 @@
 #include <string_view>
 #include <vector>
 
+#include "core/mapped_file.h"
 #include "core/result.h"
 
 namespace driftlab::formats {
@@ -26,7 +27,9 @@ struct CarmenMessage {
 
 class CarmenReader {
  public:
-  /// Reads path whole (a log is text of tens of MB at most), gunzipping it when it is gzip.
+  /// Maps path; a gzip log (.clf.gz) is inflated as it is read, a line at a time, never whole: its lines may be
+  /// 16 MiB each at most, and it may inflate to DecodeBudget's bound (1 GiB and 256 times its size); past either,
+  /// reading stops with one problem naming the line.
   static Result<CarmenReader> open(const std::string& path);
   /// A log's text in memory: for fuzzing and tests. No check that it looks like CARMEN.
   static CarmenReader from_text(std::string text) {
@@ -48,7 +51,11 @@ class CarmenReader {
 
  private:
   CarmenReader() = default;
-  std::string text_;
+  /// Calls fn(line number, line) for each line; returns "" or why reading stopped, with the line it stopped at.
+  std::string each_line(const std::function<void(size_t, std::string_view)>& fn, size_t* stopped_at) const;
+  std::string text_;  // from_text's
+  MappedFile file_;   // open()'s
+  bool gzip_ = false;
   std::vector<std::pair<std::string, int64_t>> skipped_;
 };
 

@@ -2,6 +2,7 @@
 
 #include <bzlib.h>
 #include <lz4frame.h>
+#include <sys/stat.h>
 #include <zlib.h>
 #include <zstd.h>
 
@@ -17,13 +18,20 @@ namespace {
 
 constexpr size_t kStep = 1 << 20;
 
-/// Grows out so that at least kStep bytes are free after `used`; returns the free room.
-size_t room(std::vector<uint8_t>& out, size_t used) {
-  if (out.size() < used + kStep) out.resize(used + kStep);
-  return out.size() - used;
+/// Grows out so that up to kStep bytes are free after `used`, never past `cap` (the limit and one byte more, to see
+/// that a block goes past its limit); returns the free room (> 0 while used < cap).
+size_t room(std::vector<uint8_t>& out, size_t used, size_t cap) {
+  const size_t want = used + std::min(kStep, cap - used);
+  if (out.size() < want) out.resize(want);
+  return std::min(out.size(), cap) - used;
 }
 
-std::string bz2(std::span<const uint8_t> in, std::vector<uint8_t>& out) {
+std::string over(size_t limit, bool declared) {
+  return "decodes to more than the " + std::to_string(limit) + " bytes " +
+         (declared ? std::string("it declares") : "a block without a declared size may") + " (stopped there)";
+}
+
+std::string bz2(std::span<const uint8_t> in, std::vector<uint8_t>& out, size_t limit, bool declared) {
   bz_stream s{};
   if (BZ2_bzDecompressInit(&s, 0, 0) != BZ_OK) return "bz2: cannot start the decoder";
   s.next_in = const_cast<char*>(reinterpret_cast<const char*>(in.data()));
@@ -33,12 +41,17 @@ std::string bz2(std::span<const uint8_t> in, std::vector<uint8_t>& out) {
   for (;;) {
     const unsigned feed = static_cast<unsigned>(std::min<size_t>(left, UINT_MAX));
     s.avail_in = feed;
-    const size_t free = std::min<size_t>(room(out, used), UINT_MAX);
+    const size_t free = std::min<size_t>(room(out, used, limit + 1), UINT_MAX);
     s.next_out = reinterpret_cast<char*>(out.data() + used);
     s.avail_out = static_cast<unsigned>(free);
     const int rc = BZ2_bzDecompress(&s);
     used += free - s.avail_out;
     left -= feed - s.avail_in;
+    if (used > limit) {
+      error = "bz2: " + over(limit, declared);
+      used = limit;
+      break;
+    }
     if (rc == BZ_STREAM_END) break;
     if (rc != BZ_OK) {
       error = rc == BZ_DATA_ERROR ? "bz2: data integrity error" : "bz2: not bz2 data";
@@ -54,18 +67,23 @@ std::string bz2(std::span<const uint8_t> in, std::vector<uint8_t>& out) {
   return error;
 }
 
-std::string lz4(std::span<const uint8_t> in, std::vector<uint8_t>& out) {
+std::string lz4(std::span<const uint8_t> in, std::vector<uint8_t>& out, size_t limit, bool declared) {
   LZ4F_dctx* ctx = nullptr;
   if (LZ4F_isError(LZ4F_createDecompressionContext(&ctx, LZ4F_VERSION))) return "lz4: cannot start the decoder";
   size_t pos = 0;
   size_t used = 0;
   std::string error;
   for (;;) {
-    size_t free = room(out, used);
+    size_t free = room(out, used, limit + 1);
     size_t src = in.size() - pos;
     const size_t hint = LZ4F_decompress(ctx, out.data() + used, &free, in.data() + pos, &src, nullptr);
     used += free;
     pos += src;
+    if (used > limit) {
+      error = "lz4: " + over(limit, declared);
+      used = limit;
+      break;
+    }
     if (LZ4F_isError(hint)) {
       error = std::string("lz4: ") + LZ4F_getErrorName(hint);
       break;
@@ -81,7 +99,7 @@ std::string lz4(std::span<const uint8_t> in, std::vector<uint8_t>& out) {
   return error;
 }
 
-std::string gzip(std::span<const uint8_t> in, std::vector<uint8_t>& out) {
+std::string gzip(std::span<const uint8_t> in, std::vector<uint8_t>& out, size_t limit, bool declared) {
   z_stream s{};
   if (inflateInit2(&s, 15 + 32) != Z_OK) return "gzip: cannot start the decoder";  // +32: gzip or zlib header
   size_t pos = 0;
@@ -91,12 +109,17 @@ std::string gzip(std::span<const uint8_t> in, std::vector<uint8_t>& out) {
     const size_t feed = std::min<size_t>(in.size() - pos, UINT_MAX);
     s.next_in = const_cast<Bytef*>(in.data() + pos);
     s.avail_in = static_cast<uInt>(feed);
-    const size_t free = std::min<size_t>(room(out, used), UINT_MAX);
+    const size_t free = std::min<size_t>(room(out, used, limit + 1), UINT_MAX);
     s.next_out = out.data() + used;
     s.avail_out = static_cast<uInt>(free);
     const int rc = inflate(&s, Z_NO_FLUSH);
     used += free - s.avail_out;
     pos += feed - s.avail_in;
+    if (used > limit) {
+      error = "gzip: " + over(limit, declared);
+      used = limit;
+      break;
+    }
     if (rc == Z_STREAM_END) {
       // Concatenated gzip members (what `cat a.gz b.gz` makes) go on.
       if (pos < in.size() && inflateReset(&s) == Z_OK) continue;
@@ -118,13 +141,14 @@ std::string gzip(std::span<const uint8_t> in, std::vector<uint8_t>& out) {
 
 /// zstd: in one call when the frame says its size and is whole (the fast path), else streamed so that a frame cut
 /// short or damaged still gives what was decoded before the damage.
-std::string zstd(ZSTD_DCtx* ctx, std::span<const uint8_t> in, size_t expected_size, std::vector<uint8_t>& out) {
+std::string zstd(ZSTD_DCtx* ctx, std::span<const uint8_t> in, size_t expected_size, std::vector<uint8_t>& out,
+                 size_t limit, bool declared_limit) {
   const unsigned long long declared = ZSTD_getFrameContentSize(in.data(), in.size());
   size_t whole = expected_size;
   if (declared != ZSTD_CONTENTSIZE_UNKNOWN && declared != ZSTD_CONTENTSIZE_ERROR) whole = declared;
   // The frame's header is the file's word too: 1.7 GB declared in a 20-byte frame was allocated and zero-filled
   // before the frame failed to decode (the ros2 fuzzer).
-  if (whole > 0 && plausible_size(in.size(), whole)) {
+  if (whole > 0 && whole <= limit && plausible_size(in.size(), whole)) {
     out.resize(whole);
     const size_t n = ZSTD_decompressDCtx(ctx, out.data(), out.size(), in.data(), in.size());
     if (!ZSTD_isError(n)) {
@@ -137,10 +161,15 @@ std::string zstd(ZSTD_DCtx* ctx, std::span<const uint8_t> in, size_t expected_si
   size_t used = 0;
   std::string error;
   for (;;) {
-    const size_t free = room(out, used);
+    const size_t free = room(out, used, limit + 1);
     ZSTD_outBuffer dst{out.data() + used, free, 0};
     const size_t rc = ZSTD_decompressStream(ctx, &dst, &src);
     used += dst.pos;
+    if (used > limit) {
+      error = "zstd: " + over(limit, declared_limit);
+      used = limit;
+      break;
+    }
     if (ZSTD_isError(rc)) {
       error = std::string("zstd: ") + ZSTD_getErrorName(rc);
       break;
@@ -164,15 +193,45 @@ bool plausible_size(size_t compressed, uint64_t size) {
   return size <= uint64_t{compressed} * 1024 + (uint64_t{1} << 20);
 }
 
+std::string block_size_problem(size_t compressed, uint64_t declared) {
+  if (declared > kMaxBlockBytes) {
+    return "declares " + std::to_string(declared) + " bytes uncompressed, more than the " +
+           std::to_string(kMaxBlockBytes) +
+           " a block may hold: not decompressed (a decompression bomb or a damaged "
+           "header)";
+  }
+  if (declared > kFreeBlockBytes && declared > uint64_t{compressed} * kMaxRatio) {
+    return "declares " + std::to_string(declared) + " bytes uncompressed from " + std::to_string(compressed) +
+           " compressed, more than " + std::to_string(kMaxRatio) +
+           " times as many: not decompressed (a "
+           "decompression bomb or a damaged header)";
+  }
+  return {};
+}
+
+DecodeBudget::DecodeBudget(uint64_t file_bytes)
+    : total_(kFreeTotalBytes + std::min<uint64_t>(file_bytes, UINT64_MAX / 1024 / kTotalRatio) * kTotalRatio) {}
+
+std::string DecodeBudget::take(uint64_t declared) {
+  if (declared > total_ - used_) {
+    return "its blocks would decompress to more than " + std::to_string(total_) + " bytes in all (" +
+           std::to_string(kTotalRatio) + " times the file's size and " + std::to_string(kFreeTotalBytes) +
+           "): the rest is not decompressed (a decompression bomb)";
+  }
+  used_ += declared;
+  return {};
+}
+
 Decompressor::Decompressor() : zstd_(ZSTD_createDCtx()) {}
 Decompressor::~Decompressor() { ZSTD_freeDCtx(static_cast<ZSTD_DCtx*>(zstd_)); }
 
-std::string Decompressor::run(Codec codec, std::span<const uint8_t> in, size_t expected_size,
-                              std::vector<uint8_t>& out) {
-  if (codec != Codec::kZstd) return decompress(codec, in, expected_size, out);
+std::string Decompressor::run(Codec codec, std::span<const uint8_t> in, size_t expected_size, std::vector<uint8_t>& out,
+                              size_t limit) {
+  if (codec != Codec::kZstd) return decompress(codec, in, expected_size, out, limit);
   // Not cleared first: zstd() sizes out to what it decodes, and a reused buffer is then not zero-filled again
   // before every block (a memory pass over every chunk of an MCAP file).
-  return zstd(static_cast<ZSTD_DCtx*>(zstd_), in, expected_size, out);
+  const bool declared = expected_size > 0;
+  return zstd(static_cast<ZSTD_DCtx*>(zstd_), in, expected_size, out, declared ? expected_size : limit, declared);
 }
 
 Compressor::Compressor(Codec codec, int level) : codec_(codec), level_(level) {
@@ -205,7 +264,7 @@ std::string Compressor::run(std::span<const uint8_t> in, std::vector<uint8_t>& o
   return {};
 }
 
-Status decompress_file(Codec codec, const std::string& in, const std::string& out) {
+Status decompress_file(Codec codec, const std::string& in, const std::string& out, uint64_t max_out) {
   if (codec != Codec::kZstd) return Error(in + ": only zstd files are decompressed whole");
   std::unique_ptr<FILE, int (*)(FILE*)> src(std::fopen(in.c_str(), "rb"), &std::fclose);
   if (!src) return Error(in + ": cannot open: " + std::strerror(errno));
@@ -217,6 +276,12 @@ Status decompress_file(Codec codec, const std::string& in, const std::string& ou
   std::string error;
   size_t last_rc = 0;
   uint64_t read_total = 0;
+  // A bound on what is written out: a few KB of zstd frames of zeros would fill the disk.
+  struct stat st {};
+  const uint64_t in_bytes = ::fstat(fileno(src.get()), &st) == 0 ? static_cast<uint64_t>(st.st_size) : 0;
+  const uint64_t bound = max_out != 0 ? max_out : DecodeBudget(in_bytes).total();
+  uint64_t written = 0;
+  bool bomb = false;
   for (;;) {
     const size_t got = std::fread(ibuf.data(), 1, ibuf.size(), src.get());
     if (got == 0) break;
@@ -226,6 +291,14 @@ Status decompress_file(Codec codec, const std::string& in, const std::string& ou
       last_rc = ZSTD_decompressStream(ctx.get(), &output, &input);
       if (ZSTD_isError(last_rc)) {
         error = "at byte " + std::to_string(read_total + input.pos) + ": zstd: " + ZSTD_getErrorName(last_rc);
+      }
+      written += output.pos;
+      if (written > bound) {
+        error = "decompresses to more than " + std::to_string(bound) + " bytes, the bound for a file of " +
+                std::to_string(in_bytes) + " (stopped at byte " + std::to_string(read_total + input.pos) +
+                "; nothing written): a decompression bomb";
+        bomb = true;
+        break;
       }
       if (output.pos && std::fwrite(obuf.data(), 1, output.pos, dst.get()) != output.pos) {
         error = "cannot write " + partial + ": " + std::strerror(errno);
@@ -239,7 +312,7 @@ Status decompress_file(Codec codec, const std::string& in, const std::string& ou
   const bool closed = std::fclose(dst.release()) == 0;
   if (error.empty() && !closed) error = "cannot write " + partial;
   // What was decoded before damage is kept: the reader of the decompressed file reports the cut itself.
-  if (!closed || std::rename(partial.c_str(), out.c_str()) != 0) {
+  if (!closed || bomb || std::rename(partial.c_str(), out.c_str()) != 0) {
     std::remove(partial.c_str());
     return Error(in + ": " + (error.empty() ? "cannot rename into place" : error));
   }
@@ -247,18 +320,22 @@ Status decompress_file(Codec codec, const std::string& in, const std::string& ou
   return {};
 }
 
-std::string decompress(Codec codec, std::span<const uint8_t> in, size_t expected_size, std::vector<uint8_t>& out) {
+std::string decompress(Codec codec, std::span<const uint8_t> in, size_t expected_size, std::vector<uint8_t>& out,
+                       size_t limit) {
   out.clear();
+  // A block stops at the size it declares: a 9 KB bag's chunks declaring a few bytes each inflated to 3.4 GB.
+  const bool declared = expected_size > 0;
+  if (declared) limit = expected_size;
   // A bag chunk's header saying 4 GiB over 40 bytes asked for 4 GiB here.
-  if (plausible_size(in.size(), expected_size)) out.reserve(expected_size);
+  if (declared && plausible_size(in.size(), expected_size)) out.reserve(expected_size + 1);
   switch (codec) {
     case Codec::kNone: out.assign(in.begin(), in.end()); return {};
-    case Codec::kBz2: return bz2(in, out);
-    case Codec::kLz4Frame: return lz4(in, out);
-    case Codec::kGzip: return gzip(in, out);
+    case Codec::kBz2: return bz2(in, out, limit, declared);
+    case Codec::kLz4Frame: return lz4(in, out, limit, declared);
+    case Codec::kGzip: return gzip(in, out, limit, declared);
     case Codec::kZstd: {
       Decompressor d;
-      return d.run(codec, in, expected_size, out);
+      return d.run(codec, in, expected_size, out, limit);
     }
   }
   return "unknown codec";

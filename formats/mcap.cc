@@ -162,7 +162,6 @@ namespace {
 struct Unzip {
   std::span<const uint8_t> in;  // the chunk's records as stored
   Codec codec = Codec::kZstd;
-  size_t hint = 0;    // the uncompressed size, when it is believable (0: unknown)
   uint64_t size = 0;  // the uncompressed size the chunk declares
   uint32_t crc = 0;   // the CRC its records must have (0: none)
   bool in_crc_wanted = false;
@@ -176,7 +175,7 @@ struct Unzip {
 
 void unzip(Unzip& u, Decompressor& d) {
   try {
-    u.what = d.run(u.codec, u.in, u.hint, u.out);
+    u.what = d.run(u.codec, u.in, u.size, u.out);  // stops at the declared size
     if (u.what.empty() && u.out.size() != u.size) {
       u.what = "its records decompress to " + std::to_string(u.out.size()) + " bytes, not " + std::to_string(u.size);
     } else if (u.what.empty() && u.crc != 0 && crc32_of(u.out) != u.crc) {
@@ -212,6 +211,8 @@ struct Stopped {};
 constexpr size_t kMaxBatches = 2;        // batches waiting for the calling thread
 constexpr size_t kWorkers = 2;           // threads decompressing chunks (two chunks at once)
 constexpr size_t kMaxDecompressed = 4;   // chunks being decompressed, waiting or being parsed
+// The declared sizes of the chunks held at once (at least one): honest large chunks are not decoded several at once.
+constexpr uint64_t kMaxInFlightBytes = uint64_t{256} << 20;
 constexpr size_t kMaxBatchSteps = 4096;  // records outside chunks per batch
 
 }  // namespace
@@ -255,6 +256,9 @@ int64_t McapReader::read(const std::function<void(const McapMessage&)>& on_messa
   // the calling thread giving it back; a worker takes those queued in `todo`.
   std::vector<std::unique_ptr<Unzip>> slots;
   std::vector<Unzip*> free_slots;
+  uint64_t in_flight = 0;             // the declared sizes of the chunks in the slots taken
+  DecodeBudget budget(bytes.size());  // the reading half's
+  bool budget_spent = false;
   for (size_t i = 0; i < kMaxDecompressed; ++i) {
     slots.push_back(std::make_unique<Unzip>());
     free_slots.push_back(slots.back().get());
@@ -422,6 +426,9 @@ int64_t McapReader::read(const std::function<void(const McapMessage&)>& on_messa
       if (st.unzip == nullptr) continue;
       st.unzip->done = false;
       st.unzip->error = nullptr;
+      in_flight -= st.unzip->size;
+      // A large chunk's buffer is not kept for the next (four slots of a 1 GiB chunk each would be 4 GiB).
+      if (st.unzip->out.capacity() > kFreeBlockBytes) std::vector<uint8_t>().swap(st.unzip->out);
       free_slots.push_back(st.unzip);
     }
     b.clear();
@@ -446,9 +453,12 @@ int64_t McapReader::read(const std::function<void(const McapMessage&)>& on_messa
     std::unique_lock lk(mu, std::defer_lock);
     if (threaded) {
       lk.lock();
-      cv.wait(lk, [&] { return stopped || !free_slots.empty(); });
+      cv.wait(lk, [&] {
+        return stopped || (!free_slots.empty() && (in_flight == 0 || in_flight + u.size <= kMaxInFlightBytes));
+      });
       if (stopped) throw Stopped{};
     }
+    in_flight += u.size;
     Unzip* slot = free_slots.back();
     free_slots.pop_back();
     u.out.swap(slot->out);
@@ -631,11 +641,21 @@ int64_t McapReader::read(const std::function<void(const McapMessage&)>& on_messa
                              "(MCAP's are zstd and lz4); its messages are left out");
           return;
         }
+        // A chunk declaring more than its bytes can honestly hold, or past what the whole file may decode to, is
+        // refused before anything is decoded (one line); a chunk decodes to its declared size at most.
+        if (budget_spent) return;  // said once, at the chunk that went past it
+        std::string refused = block_size_problem(records.size(), uncompressed_size);
+        if (refused.empty()) {
+          refused = budget.take(uncompressed_size);
+          budget_spent = !refused.empty();
+        }
+        if (!refused.empty()) {
+          problem(where, "chunk: " + refused);
+          return;
+        }
         Unzip u;
         u.in = records;
         u.codec = codec;
-        // A size beyond what the compressed bytes can expand to is a lie: do not allocate for it.
-        u.hint = plausible_size(records.size(), uncompressed_size) ? uncompressed_size : 0;
         u.size = uncompressed_size;
         u.crc = crc;
         // The stored bytes' CRC, for the data section's, by the worker that reads them anyway.

@@ -155,7 +155,7 @@ bool codec_of(std::string_view compression, Codec* codec) {
 /// never asks for (skipped after damage) are dropped. Thread-safety: take() and look_ahead() from one thread.
 class ChunkPrefetch {
  public:
-  explicit ChunkPrefetch(std::span<const uint8_t> bytes) : bytes_(bytes) {}
+  explicit ChunkPrefetch(std::span<const uint8_t> bytes) : bytes_(bytes), budget_(bytes.size()) {}
   ~ChunkPrefetch() {
     {
       std::lock_guard lk(mu_);
@@ -192,6 +192,10 @@ class ChunkPrefetch {
     if (!start()) return;
     std::lock_guard lk(mu_);
     uint64_t p = std::max(from, next_);
+    // Chunks decoded at once hold their declared sizes: at most kAheadBytes of them are queued (at least one),
+    // so that honest large chunks are not decoded several at once.
+    uint64_t queued = 0;
+    for (const auto& j : jobs_) queued += j->size;
     while (jobs_.size() < ahead() && p < bytes_.size()) {
       std::string why;
       bool cut = false;
@@ -202,12 +206,23 @@ class ChunkPrefetch {
       }
       Codec codec;
       if (r->op == kOpChunk && codec_of(r->field("compression").value_or(""), &codec) && codec != Codec::kNone) {
+        const size_t size = r->u32("size").value_or(0);
+        if (!jobs_.empty() && queued + size > kAheadBytes) break;  // this one waits until the reader is nearer
+        // A chunk the reader refuses is not decoded (the reader's budget is the same and sees the same chunks).
+        if (!block_size_problem(r->data.size(), size).empty()) {
+          p = r->end;
+          continue;
+        }
+        if (!budget_.take(size).empty()) {
+          p = bytes_.size();
+          break;
+        }
+        queued += size;
         auto job = std::make_shared<Job>();
         job->pos = p;
         job->codec = codec;
         job->in = r->data;
-        const size_t size = r->u32("size").value_or(0);
-        job->size = size <= r->data.size() * 1024 + (1 << 20) ? size : 0;  // a size it cannot expand to: no hint
+        job->size = size;  // decoding stops there
         jobs_.push_back(job);
         todo_.push_back(std::move(job));
         cv_.notify_all();
@@ -229,6 +244,7 @@ class ChunkPrefetch {
     std::exception_ptr failure;
   };
   static constexpr size_t kMinWorkers = 2, kMaxWorkers = 8;
+  static constexpr uint64_t kAheadBytes = uint64_t{256} << 20;
   // Chunks queued, being decompressed or waiting for the reader: two more than the workers (memory: that many
   // chunks, rosbag's are 768 KiB by default).
   size_t ahead() const { return threads_.size() + 2; }
@@ -281,6 +297,7 @@ class ChunkPrefetch {
   }
 
   std::span<const uint8_t> bytes_;
+  DecodeBudget budget_;  // under mu_
   std::vector<std::thread> threads_;
   bool started_ = false;
   // Under mu_: the jobs in file order (waiting for the reader), those not started yet, the flags, each job's state.
@@ -326,6 +343,8 @@ int64_t Ros1BagReader::read(const std::function<void(const BagMessage&)>& on_mes
   int64_t delivered = 0;
   std::vector<uint8_t> chunk;
   ChunkPrefetch prefetch(bytes);
+  DecodeBudget budget(bytes.size());
+  bool budget_spent = false;
 
   auto connection = [&](const Record& r, uint64_t where) {
     auto id = r.u32("conn");
@@ -422,6 +441,22 @@ int64_t Ros1BagReader::read(const std::function<void(const BagMessage&)>& on_mes
       std::string error;
       std::span<const uint8_t> records = rec->data;
       if (codec != Codec::kNone) {
+        // A chunk declaring more than its bytes can honestly hold, or past what the whole file may decode to, is
+        // refused before anything is decoded; a chunk decodes to its declared size at most.
+        if (budget_spent) {  // said once, at the chunk that went past it
+          pos = rec->end;
+          continue;
+        }
+        std::string refused = block_size_problem(rec->data.size(), size);
+        if (refused.empty()) {
+          refused = budget.take(size);
+          budget_spent = !refused.empty();
+        }
+        if (!refused.empty()) {
+          on_problem({pos, "chunk: " + refused});
+          pos = rec->end;
+          continue;
+        }
         if (pipelined_) prefetch.look_ahead(rec->end);
         error =
             pipelined_ ? prefetch.take(pos, codec, rec->data, size, chunk) : decompress(codec, rec->data, size, chunk);

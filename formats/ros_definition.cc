@@ -11,6 +11,7 @@
 #include <cstdio>
 #include <functional>
 #include <map>
+#include <unordered_map>
 
 #include "formats/internal/ros_reader.h"
 
@@ -114,14 +115,16 @@ class Json {
   }
 };
 
+constexpr size_t kMaxDepth = 64;  // how deep types may nest
+
 class Walker {
  public:
   Walker(const RosDefinition& d, Reader& r, Json* out, size_t budget) : d_(d), r_(r), out_(out), budget_(budget) {}
 
   void type(int index, int depth) {
     const RosType& t = d_.types()[static_cast<size_t>(index)];
-    if (depth > 64) {
-      r_.fail("types nested more than 64 deep");
+    if (depth > static_cast<int>(kMaxDepth)) {
+      r_.fail("types nested more than " + std::to_string(kMaxDepth) + " deep");
       return;
     }
     if (out_) out_->raw("{");
@@ -318,9 +321,18 @@ Result<RosDefinition> RosDefinition::parse(std::string_view type_name, std::stri
     pending.back().push_back(std::move(p));
   }
 
-  // Message types named in fields: fully qualified, in the same package, or by a unique short name.
-  std::map<std::string, int> by_name;
+  // Message types named in fields: fully qualified, in the same package, or by a unique short name. Looked up in
+  // hash maps: 90,000 types in packages of their own, each naming the next by its short name, were each looked
+  // for among all the others (quadratic).
+  std::unordered_map<std::string, int> by_name;
   for (size_t i = 0; i < d.types_.size(); ++i) by_name.emplace(d.types_[i].name, static_cast<int>(i));
+  std::unordered_map<std::string, int> by_short;  // the name after the package; -2: more than one type has it
+  for (const auto& [n, idx] : by_name) {
+    const size_t slash = n.rfind('/');
+    if (slash == std::string::npos) continue;
+    auto [it, fresh] = by_short.emplace(n.substr(slash + 1), idx);
+    if (!fresh) it->second = -2;
+  }
   for (size_t i = 0; i < d.types_.size(); ++i) {
     const std::string& owner = d.types_[i].name;
     const std::string package = owner.substr(0, owner.find('/'));
@@ -333,13 +345,9 @@ Result<RosDefinition> RosDefinition::parse(std::string_view type_name, std::stri
         } else if (want.find('/') == std::string::npos) {
           if (auto it2 = by_name.find(package + "/" + want); it2 != by_name.end()) {
             found = it2->second;
-          } else {
-            for (const auto& [n, idx] : by_name) {
-              if (n.size() > want.size() && n.ends_with("/" + want)) {
-                if (found >= 0) return Error("line " + std::to_string(p.line) + ": type " + want + " is ambiguous");
-                found = idx;
-              }
-            }
+          } else if (auto it3 = by_short.find(want); it3 != by_short.end()) {
+            if (it3->second == -2) return Error("line " + std::to_string(p.line) + ": type " + want + " is ambiguous");
+            found = it3->second;
           }
         }
         if (found < 0) {
@@ -351,18 +359,38 @@ Result<RosDefinition> RosDefinition::parse(std::string_view type_name, std::stri
       d.types_[i].fields.push_back(std::move(p.field));
     }
   }
-  // A type that contains itself can never end.
-  std::vector<int> state(d.types_.size(), 0);  // 0 new, 1 on the path, 2 done
-  std::function<bool(int)> acyclic = [&](int t) {
-    if (state[static_cast<size_t>(t)] == 1) return false;
-    if (state[static_cast<size_t>(t)] == 2) return true;
-    state[static_cast<size_t>(t)] = 1;
-    for (const auto& f : d.types_[static_cast<size_t>(t)].fields)
-      if (f.complex >= 0 && !acyclic(f.complex)) return false;
-    state[static_cast<size_t>(t)] = 2;
-    return true;
-  };
-  if (!acyclic(0)) return Error("type " + d.types_[0].name + " contains itself");
+  // A type that contains itself can never end, and one nested deeper than a message is read through (kMaxDepth)
+  // can never be read. Walked with a stack of its own, never recursively: a chain of 250,000 types overflowed the
+  // call stack here.
+  std::vector<uint8_t> state(d.types_.size(), 0);  // 0 new, 1 on the path, 2 done
+  std::vector<size_t> below(d.types_.size(), 0);   // a done type: how deep types nest inside it
+  std::vector<std::pair<int, size_t>> path;        // a type and its next field to look at
+  path.emplace_back(0, 0);
+  state[0] = 1;
+  while (!path.empty()) {
+    const int t = path.back().first;
+    const auto& fields = d.types_[static_cast<size_t>(t)].fields;
+    if (path.back().second == fields.size()) {
+      state[static_cast<size_t>(t)] = 2;
+      for (const auto& f : fields)
+        if (f.complex >= 0)
+          below[static_cast<size_t>(t)] =
+              std::max(below[static_cast<size_t>(t)], below[static_cast<size_t>(f.complex)] + 1);
+      path.pop_back();
+      continue;
+    }
+    const int c = fields[path.back().second++].complex;
+    if (c < 0) continue;
+    if (state[static_cast<size_t>(c)] == 1) return Error("type " + d.types_[0].name + " contains itself");
+    if (path.size() + (state[static_cast<size_t>(c)] == 2 ? below[static_cast<size_t>(c)] : 0) > kMaxDepth) {
+      return Error("type " + d.types_[0].name + " nests types more than " + std::to_string(kMaxDepth) +
+                   " deep (through " + d.types_[static_cast<size_t>(c)].name +
+                   "), more than a message is read through");
+    }
+    if (state[static_cast<size_t>(c)] == 2) continue;
+    state[static_cast<size_t>(c)] = 1;
+    path.emplace_back(c, 0);
+  }
   return d;
 }
 

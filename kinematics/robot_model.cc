@@ -10,6 +10,7 @@
 #include <mutex>
 #include <set>
 #include <sstream>
+#include <unordered_map>
 
 #include "core/text_file.h"
 
@@ -43,6 +44,7 @@ struct XmlJoint {
 /// The links and joints as written, for the structural checks and the lines of messages. Errors name the line.
 Status read_structure(const std::string& xml, const std::string& origin, std::vector<std::string>& links,
                       std::vector<XmlJoint>& joints) {
+  if (Status s = check_xml_depth(xml, origin); !s) return s;
   TiXmlDocument doc;
   doc.Parse(xml.c_str());
   if (doc.Error()) {
@@ -58,7 +60,7 @@ Status read_structure(const std::string& xml, const std::string& origin, std::ve
     if (!link_set.insert(n).second) return Error{at(e) + "link " + quoted(n) + " is defined twice"};
     links.emplace_back(n);
   }
-  std::map<std::string, const XmlJoint*> parent_of;  // child link -> its joint
+  std::unordered_map<std::string, const XmlJoint*> parent_of;  // child link -> its joint
   for (const TiXmlElement* e = robot->FirstChildElement("joint"); e != nullptr; e = e->NextSiblingElement("joint")) {
     XmlJoint j;
     j.line = e->Row();
@@ -84,23 +86,80 @@ Status read_structure(const std::string& xml, const std::string& origin, std::ve
                    " already has a parent joint, " + quoted(it->second->name) + " (a URDF is a tree)"};
     }
   }
-  // A loop: walking up from a joint's parent link reaches its child link again.
-  for (const XmlJoint& j : joints) {
-    std::string link = j.parent;
-    for (size_t hops = 0; hops <= joints.size(); ++hops) {
-      if (link == j.child) {
-        return Error{origin + ":" + std::to_string(j.line) + ": joint " + quoted(j.name) + " closes a loop: link " +
-                     quoted(j.child) + " is an ancestor of its own parent " + quoted(j.parent) + " (a URDF is a tree)"};
-      }
-      const auto up = parent_of.find(link);
+  // A loop: walking up from a joint's parent link reaches its child link again. Every link has one parent joint at
+  // most, so each link is walked up from once (a chain of 60,000 links was walked up from every joint: quadratic):
+  // a walk that meets itself found a loop, and the first joint in the file on one is named.
+  std::unordered_map<std::string_view, size_t> walked;  // link -> the walk that reached it first (1-based)
+  std::unordered_map<std::string_view, bool> on_loop;
+  for (size_t w = 0; w < joints.size(); ++w) {
+    std::string_view link = joints[w].child;
+    while (!walked.count(link)) {
+      walked.emplace(link, w + 1);
+      const auto up = parent_of.find(std::string(link));
       if (up == parent_of.end()) break;
       link = up->second->parent;
+    }
+    if (walked.at(link) == w + 1 && parent_of.count(std::string(link))) {
+      // This walk came back to a link of its own: the links from there round are a loop.
+      std::string_view l = link;
+      do {
+        on_loop[l] = true;
+        l = parent_of.at(std::string(l))->parent;
+      } while (l != link);
+    }
+  }
+  for (const XmlJoint& j : joints) {
+    if (on_loop.count(j.child)) {
+      return Error{origin + ":" + std::to_string(j.line) + ": joint " + quoted(j.name) + " closes a loop: link " +
+                   quoted(j.child) + " is an ancestor of its own parent " + quoted(j.parent) + " (a URDF is a tree)"};
     }
   }
   return {};
 }
 
 }  // namespace
+
+Status check_xml_depth(std::string_view xml, const std::string& origin) {
+  int depth = 0;
+  size_t i = 0;
+  auto skip_past = [&](std::string_view end) {
+    const size_t at = xml.find(end, i);
+    i = at == std::string_view::npos ? xml.size() : at + end.size();
+  };
+  while ((i = xml.find('<', i)) != std::string_view::npos) {
+    const size_t open = i++;
+    if (xml.substr(open).starts_with("<!--")) {
+      skip_past("-->");
+    } else if (xml.substr(open).starts_with("<![CDATA[")) {
+      skip_past("]]>");
+    } else if (i < xml.size() && (xml[i] == '?' || xml[i] == '!')) {
+      skip_past(">");
+    } else if (i < xml.size() && xml[i] == '/') {
+      --depth;
+      skip_past(">");
+    } else {
+      // An element's start tag: its end is the first '>' outside quoted attribute values.
+      char quote = 0;
+      for (; i < xml.size(); ++i) {
+        if (quote != 0) {
+          if (xml[i] == quote) quote = 0;
+        } else if (xml[i] == '"' || xml[i] == '\'') {
+          quote = xml[i];
+        } else if (xml[i] == '>') {
+          break;
+        }
+      }
+      const bool empty = i < xml.size() && i > open && xml[i - 1] == '/';
+      if (i < xml.size()) ++i;
+      if (!empty && ++depth > kMaxXmlDepth) {
+        const auto line = 1 + std::count(xml.begin(), xml.begin() + static_cast<ptrdiff_t>(open), '\n');
+        return Error{origin + ":" + std::to_string(line) + ": XML elements nested more than " +
+                     std::to_string(kMaxXmlDepth) + " deep: refused before it is parsed (a URDF nests a few levels)"};
+      }
+    }
+  }
+  return {};
+}
 
 Eigen::Isometry3d ModelJoint::transform(double q) const {
   switch (type) {
@@ -172,6 +231,11 @@ Result<RobotModel> RobotModel::parse(const std::string& xml, const std::string& 
     }
     m.joints_.push_back(std::move(j));
   }
+  for (size_t i = 0; i < m.joints_.size(); ++i) {
+    m.joint_by_name_.emplace(m.joints_[i].name, i);
+    m.joint_by_child_.emplace(m.joints_[i].child, i);
+  }
+  for (size_t i = 0; i < m.links_.size(); ++i) m.link_index_.emplace(m.links_[i], i);
   return m;
 }
 
@@ -182,22 +246,16 @@ Result<RobotModel> RobotModel::load(const std::string& path) {
 }
 
 const ModelJoint* RobotModel::joint(std::string_view name) const {
-  for (const ModelJoint& j : joints_) {
-    if (j.name == name) return &j;
-  }
-  return nullptr;
+  const auto it = joint_by_name_.find(std::string(name));
+  return it == joint_by_name_.end() ? nullptr : &joints_[it->second];
 }
 
 const ModelJoint* RobotModel::parent_joint(std::string_view link) const {
-  for (const ModelJoint& j : joints_) {
-    if (j.child == link) return &j;
-  }
-  return nullptr;
+  const auto it = joint_by_child_.find(std::string(link));
+  return it == joint_by_child_.end() ? nullptr : &joints_[it->second];
 }
 
-bool RobotModel::has_link(std::string_view link) const {
-  return std::find(links_.begin(), links_.end(), link) != links_.end();
-}
+bool RobotModel::has_link(std::string_view link) const { return link_index_.count(std::string(link)) != 0; }
 
 std::string RobotModel::where(const ModelJoint& joint) const {
   return origin_ + (joint.line > 0 ? ":" + std::to_string(joint.line) : std::string()) + ": joint " +

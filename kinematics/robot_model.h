@@ -10,6 +10,7 @@
 #include <memory>
 #include <string>
 #include <string_view>
+#include <unordered_map>
 #include <vector>
 
 #include "core/result.h"
@@ -41,6 +42,14 @@ struct ModelJoint {
   /// The child link's pose in the parent link's frame at joint position q [rad or m].
   Eigen::Isometry3d transform(double q) const;
 };
+
+/// How deep XML elements may nest in a URDF: TinyXML parses recursively, and 200,000 nested elements overflowed
+/// the stack. A URDF nests a few levels deep.
+constexpr int kMaxXmlDepth = 1000;
+
+/// Scans XML text for its elements' nesting, without parsing it; an error ("FILE:LINE: XML elements nested more
+/// than 1000 deep: refused before it is parsed") when it goes past kMaxXmlDepth. Call before TinyXML sees it.
+Status check_xml_depth(std::string_view xml, const std::string& origin);
 
 class RobotModel {
  public:
@@ -80,6 +89,8 @@ class RobotModel {
   std::string name_, origin_, root_, xml_;
   std::vector<ModelJoint> joints_;
   std::vector<std::string> links_;
+  // Indexes into joints_ and links_ (a chain of 60,000 links walked joints_ for each of its links: quadratic).
+  std::unordered_map<std::string, size_t> joint_by_name_, joint_by_child_, link_index_;
   std::shared_ptr<const urdf::ModelInterface> urdf_;
 };
 

@@ -4,12 +4,14 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <set>
 
+#include "core/log_index.h"
 #include "core/log_reader.h"
 #include "core/log_writer.h"
 #include "core/time.h"
@@ -84,6 +86,26 @@ Result<Scenario> scenario_of_log(const std::string& log) {
   auto sc =
       parse_scenario(m.scenario_yaml, m.scenario_path, std::filesystem::path(m.scenario_path).parent_path().string());
   if (!sc) return Error{log + ": its scenario " + m.scenario_path + ": " + sc.error().message};
+  // The duration is the log's word: 1e7 s, NaN or a negative number was obeyed (a closed-loop replay running for
+  // months, or not at all). It must be a positive number, and one the log's own span can account for: a simulation
+  // of D seconds logs events over about D seconds (a generous bound: twice the span and a minute).
+  {
+    char said[32];
+    std::snprintf(said, sizeof said, "%.6g", m.duration_s);
+    if (!std::isfinite(m.duration_s) || m.duration_s <= 0) {
+      return Error{log + ": its SIMULATION message's duration_s = " + said +
+                   " is not a duration (a positive number of seconds): the message is damaged"};
+    }
+    auto index = LogIndex::load_or_build(log);
+    if (!index) return index.error();
+    const double span = static_cast<double>(index->summary().end_utime - index->summary().start_utime) * 1e-6;
+    if (m.duration_s > 2 * span + 60) {
+      char spans[32];
+      std::snprintf(spans, sizeof spans, "%.6g", span);
+      return Error{log + ": its SIMULATION message's duration_s = " + said + " s, but the log spans " + spans +
+                   " s (a simulation that long would have logged for that long): the message is damaged"};
+    }
+  }
   sc->duration = m.duration_s;
   sc->seed = static_cast<uint64_t>(m.seed);
   if (!m.faults_yaml.empty()) {

@@ -239,17 +239,28 @@ class Parser {
     }
     if (gray.empty()) fail(file_node, where + ".file: cannot read " + path.string() + " as an image");
     const size_t first = world.boxes.size();
-    extrude(gray, resolution, Eigen::Vector2d(origin[0], origin[1]), height, threshold, rgb, world.boxes);
+    // Each box is a Bullet object: a 3000x3000 checkerboard made 4.5 million of them.
+    if (!extrude(gray, resolution, Eigen::Vector2d(origin[0], origin[1]), height, threshold, rgb, world.boxes,
+                 first + kMaxImageBoxes)) {
+      world.boxes.resize(first);
+      fail(file_node, where + ".file: " + path.string() + " (" + std::to_string(gray.cols) + "x" +
+                          std::to_string(gray.rows) + ") needs more than " + std::to_string(kMaxImageBoxes) +
+                          " boxes (its occupied pixels merged into rectangles by rows and runs): give an image with "
+                          "larger occupied areas, or fewer pixels");
+    }
     for (size_t i = first; i < world.boxes.size(); ++i) {
       world.boxes[i].name = "image_" + where.substr(where.find('[') + 1, where.find(']') - where.find('[') - 1) +
                             "_" + std::to_string(i - first);
     }
   }
 
+  /// The most boxes one image may become.
+  static constexpr size_t kMaxImageBoxes = 100'000;
+
   /// Occupied pixels (darker than `threshold`) as few boxes: runs of a row, and equal runs of consecutive rows
-  /// merged into one rectangle.
-  static void extrude(const cv::Mat& gray, double res, const Eigen::Vector2d& origin, double height,
-                      double threshold, const std::array<uint8_t, 3>& rgb, std::vector<Box>& out) {
+  /// merged into one rectangle. False, as soon as out would hold more than max_boxes.
+  static bool extrude(const cv::Mat& gray, double res, const Eigen::Vector2d& origin, double height, double threshold,
+                      const std::array<uint8_t, 3>& rgb, std::vector<Box>& out, size_t max_boxes) {
     struct Rect {
       int c0, c1, r0;  // columns [c0, c1), first row r0
     };
@@ -283,7 +294,9 @@ class Parser {
       }
       while (k < open.size()) emit(open[k], r), ++k;
       std::swap(open, next);
+      if (out.size() + open.size() > max_boxes) return false;
     }
+    return true;
   }
 
   std::string origin_;

@@ -5,13 +5,16 @@
 // line. Each log is simulated once per test process.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <regex>
 
+#include "core/log_writer.h"
 #include "driftlab/estimator_status_t.hpp"
+#include "driftlab/simulation_t.hpp"
 #include "driftlab/vehicle_status_t.hpp"
 #include "tests/test_util.h"
 
@@ -232,6 +235,39 @@ TEST(DroneStory, ClosedLoopReplayOfALogWithoutItsSimulationIsOneLine) {
       driftlab("replay " + simulated("drone") + " --closed-loop --modules estimator -o " + dir().file("y.lcm"));
   EXPECT_EQ(modules.code, 2);
   EXPECT_NE(modules.err.find("--modules does not apply"), std::string::npos) << modules.err;
+}
+
+// A log whose SIMULATION message says the simulation ran 1e7 s, NaN s or -5 s (issue 31): the closed-loop replay
+// obeyed it (months of simulation, or none). Refused with one line naming the log and the value, exit 2, nothing
+// written.
+TEST(DroneStory, ClosedLoopReplayRefusesALogBorneDurationThatIsNoDuration) {
+  const auto events = test::read_all(simulated("drone"));
+  for (const double lie : {1e7, std::nan(""), -5.0}) {
+    const std::string forged = dir().file("forged.lcm");
+    {
+      auto w = LogWriter::create(forged);
+      ASSERT_TRUE(w.ok());
+      for (const auto& e : events) {
+        if (e.channel != "SIMULATION") {
+          ASSERT_TRUE(w->write(e.utime, e.channel, e.data).ok());
+          continue;
+        }
+        auto m = test::decode<driftlab::simulation_t>(e);
+        m.duration_s = lie;
+        std::vector<uint8_t> bytes(static_cast<size_t>(m.getEncodedSize()));
+        m.encode(bytes.data(), 0, static_cast<int>(bytes.size()));
+        ASSERT_TRUE(w->write(e.utime, e.channel, bytes).ok());
+      }
+      ASSERT_TRUE(w->close().ok());
+    }
+    const std::string out = dir().file("closed.lcm");
+    const auto r = driftlab("replay " + forged + " --closed-loop -o " + out);
+    EXPECT_EQ(r.code, 2) << lie << ": " << r.err;
+    EXPECT_NE(r.err.find(forged + ": its SIMULATION message's duration_s = "), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find("the message is damaged"), std::string::npos) << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+    EXPECT_FALSE(std::filesystem::exists(out));
+  }
 }
 
 // The issue's bad drone URDFs: no rotor joints, a link of zero mass, a rotor without an axis: one line naming the

@@ -110,6 +110,18 @@ TEST(SweepSpec, BadSpecsNameTheFileAndTheKey) {
   EXPECT_NE(spec_error("vary: [\n").find(":"), std::string::npos);
 }
 
+// Two grids of 10,000 values each were each accepted, and their product (10^8 points) exhausted memory when the
+// sweep expanded it (issue 31). The product is bounded, said with its factors; at the bound it is accepted.
+TEST(SweepSpec, AProductOfGridsBeyondTheBoundIsRefusedWithItsFactors) {
+  const std::string e = spec_error(
+      "vary:\n  faults.IMU.latency_s: {from: 0, to: 1, count: 10000}\n  seed: {from: 0, to: 9999, step: 1}\n");
+  EXPECT_NE(e.find("vary: 10000 x 10000 = 100000000 points, more than the 100000 a sweep may have"), std::string::npos)
+      << e;
+  EXPECT_EQ(spec_error("vary:\n  faults.IMU.latency_s: {from: 0, to: 1, count: 10}\n  seed: {from: 0, to: 9999, "
+                       "step: 1}\n"),
+            "(accepted)");
+}
+
 TEST(SweepSpec, PointInputs) {
   test::TempDir dir;
   auto s = load_spec(write_spec(dir,

@@ -152,6 +152,19 @@ std::string error_of(const std::string& text, const std::string& dir = "") {
   return w.ok() ? std::string("(parsed)") : w.error().message;
 }
 
+// A 3000x3000 checkerboard: every occupied pixel its own box, 4.5 million Bullet objects. Refused with one line
+// naming the file and the bound (issue 31).
+TEST(ParseWorld, AnImageNeedingMillionsOfBoxesIsRefusedWithItsBound) {
+  test::TempDir dir;
+  cv::Mat img(3000, 3000, CV_8UC1, cv::Scalar(255));
+  for (int r = 0; r < img.rows; ++r)
+    for (int c = r % 2; c < img.cols; c += 2) img.at<uint8_t>(r, c) = 0;
+  ASSERT_TRUE(cv::imwrite(dir.file("checker.png"), img));
+  const std::string e = error_of("images:\n  - {file: checker.png, resolution: 0.05}\n", dir.path());
+  EXPECT_EQ(e.rfind("w.yaml:2: ", 0), 0u) << e;
+  EXPECT_NE(e.find("checker.png (3000x3000) needs more than 100000 boxes"), std::string::npos) << e;
+}
+
 TEST(ParseWorld, ErrorsNameFileLineAndKey) {
   EXPECT_EQ(error_of("boxes:\n  - {center: [1, 2], size: [1, 1, 1]\n").rfind("w.yaml:3: ", 0), 0u)
       << error_of("boxes:\n  - {center: [1, 2], size: [1, 1, 1]\n");  // malformed: unclosed map
