@@ -84,8 +84,8 @@ TEST(Compression, DataThatReallyExpandsFurtherStillComesOutWhole) {
 // An lz4 frame whose content checksum is wrong keeps what it decodes and says so, as a bad bz2 CRC does: the decoder
 // returns nothing of a call that ends on a bad checksum, and a ROS 1 bag chunk of 500 intact messages lost them all.
 TEST(Compression, AWrongLz4ChecksumKeepsTheDataAndSaysSo) {
-  std::vector<uint8_t> text;
-  for (int i = 0; i < 200000; ++i) text.push_back(static_cast<uint8_t>(i * 7 % 251));
+  std::vector<uint8_t> text(200000);
+  for (size_t i = 0; i < text.size(); ++i) text[i] = static_cast<uint8_t>(i * 7 % 251);
   LZ4F_preferences_t prefs{};
   prefs.frameInfo.contentChecksumFlag = LZ4F_contentChecksumEnabled;
   std::vector<uint8_t> packed(LZ4F_compressFrameBound(text.size(), &prefs));
