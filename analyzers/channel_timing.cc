@@ -23,7 +23,7 @@ void fit_clock(const Samples& s, int64_t log_start, ChannelTiming& c) {
   const size_t n = s.stamp.size();
   if (n < 20) return;
   Array<double> lat(n);
-  for (size_t i = 0; i < n; ++i) lat[i] = Duration::from_us(s.arrival[i] - s.stamp[i]).seconds();
+  for (size_t i = 0; i < n; ++i) lat[i] = seconds_between(s.stamp[i], s.arrival[i]);
   Array<double> sorted(lat);
   const double p50 = quantile(sorted, 0.5), p10 = quantile(sorted, 0.1);
   // 10 times the spread of the faster half of deliveries, and at least 1 ms (a clock's resolution and a
@@ -31,17 +31,17 @@ void fit_clock(const Samples& s, int64_t log_start, ChannelTiming& c) {
   const double bound = p50 - std::max(kLateStampMin_s, 10 * (p50 - p10));
   for (size_t i = 0; i < n; ++i) {
     if (lat[i] >= bound) continue;
-    if (c.late_stamps++ == 0) c.first_late_stamp_s = Duration::from_us(s.stamp[i] - log_start).seconds();
+    if (c.late_stamps++ == 0) c.first_late_stamp_s = seconds_between(log_start, s.stamp[i]);
     c.late_stamp_max_s = std::max(c.late_stamp_max_s, p50 - lat[i]);
   }
   const auto [lo, hi] = std::minmax_element(s.stamp.begin(), s.stamp.end());
-  const double span = Duration::from_us(*hi - *lo).seconds();
+  const double span = seconds_between(*lo, *hi);
   if (span < 10.0) return;  // too short to tell drift from jitter
   const size_t windows = std::clamp<size_t>(n / 20, 4, 200);
   std::vector<double> min_lat(windows, INFINITY), at_t(windows, 0);
   for (size_t i = 0; i < n; ++i) {
     if (lat[i] < bound) continue;
-    const double t = Duration::from_us(s.stamp[i] - *lo).seconds();
+    const double t = seconds_between(*lo, s.stamp[i]);
     const size_t w = std::min(windows - 1, static_cast<size_t>(t / span * static_cast<double>(windows)));
     if (lat[i] < min_lat[w]) {
       min_lat[w] = lat[i];
@@ -83,7 +83,7 @@ void fit_clock(const Samples& s, int64_t log_start, ChannelTiming& c) {
   scratch.assign(levels.begin(), levels.end());
   const double level = quantile(scratch, 0.5);
   const auto [r_lo, r_hi] = median_ci_ranks(levels.size());
-  const double t0 = Duration::from_us(log_start - *lo).seconds();
+  const double t0 = seconds_between(*lo, log_start);
   c.clock_valid = true;
   c.clock_drift_ppm = -slope * 1e6;
   c.clock_drift_ci_ppm = {-slope_hi * 1e6, -slope_lo * 1e6};
@@ -106,7 +106,7 @@ void fit_clock(const Samples& s, int64_t log_start, ChannelTiming& c) {
                          c.clock_offset_s + std::hypot(std::max(level_half, floor_gap), slope_half) + kResolution_s};
   Array<double> transport(n);
   for (size_t i = 0; i < n; ++i) {
-    const double t = Duration::from_us(s.stamp[i] - *lo).seconds();
+    const double t = seconds_between(*lo, s.stamp[i]);
     transport[i] = lat[i] - (level + slope * (t - tm));
   }
   c.transport_s = distribution(std::move(transport));
@@ -150,12 +150,11 @@ void analyse_period(const Samples& s, ChannelTiming& c, bool record_gaps) {
   }
   Array<double> intervals;
   for (size_t i = 1; i < sorted.size(); ++i) {
-    if (sorted[i] > sorted[i - 1]) intervals.push_back(Duration::from_us(sorted[i] - sorted[i - 1]).seconds());
+    if (sorted[i] > sorted[i - 1]) intervals.push_back(seconds_between(sorted[i - 1], sorted[i]));
   }
   if (intervals.empty()) return;
   const double median_interval = median(intervals);
-  const double mean_interval =
-      Duration::from_us(sorted.back() - sorted.front()).seconds() / static_cast<double>(sorted.size() - 1);
+  const double mean_interval = seconds_between(sorted.front(), sorted.back()) / static_cast<double>(sorted.size() - 1);
   // Bursts: the usual interval far shorter than the average one. A steady stream losing even 80% of its
   // messages at random keeps its median interval above half its mean (the gaps are geometric), so a quarter
   // means the messages come in groups: judged by the average rate, and its long gaps are not drops.
@@ -166,7 +165,7 @@ void analyse_period(const Samples& s, ChannelTiming& c, bool record_gaps) {
     Array<double> sizes;
     double size = 1;
     for (size_t i = 1; i < sorted.size(); ++i) {
-      if (Duration::from_us(sorted[i] - sorted[i - 1]).seconds() < 0.5 * mean_interval) {
+      if (seconds_between(sorted[i - 1], sorted[i]) < 0.5 * mean_interval) {
         ++size;
       } else {
         sizes.push_back(size);
@@ -196,7 +195,7 @@ void analyse_period(const Samples& s, ChannelTiming& c, bool record_gaps) {
   c.expected_period_s = median_interval;
   if (c.expected_period_s <= 0) return;
   for (size_t i = 1; i < sorted.size(); ++i) {
-    const double gap = Duration::from_us(sorted[i] - sorted[i - 1]).seconds();
+    const double gap = seconds_between(sorted[i - 1], sorted[i]);
     if (gap > 1.5 * c.expected_period_s) {
       const auto missing = static_cast<int64_t>(std::llround(gap / c.expected_period_s)) - 1;
       if (missing <= 0) continue;
@@ -214,8 +213,8 @@ void analyse_period(const Samples& s, ChannelTiming& c, bool record_gaps) {
 /// "41.3 s" from the log's start: where a hole begins.
 std::string hole_text(const Gap& g, int64_t log_start) {
   char buf[96];
-  std::snprintf(buf, sizeof(buf), "%.2f s at %.1f s", Duration::from_us(g.end_arrival - g.start_arrival).seconds(),
-                Duration::from_us(g.start_arrival - log_start).seconds());
+  std::snprintf(buf, sizeof(buf), "%.2f s at %.1f s", seconds_between(g.start_arrival, g.end_arrival),
+                seconds_between(log_start, g.start_arrival));
   return buf;
 }
 
@@ -393,7 +392,7 @@ ChannelTiming channel_timing(const std::string& name, Samples& s, int64_t log_st
   c.malformed_example = s.malformed_example;
   c.count = static_cast<int64_t>(s.arrival.size());
   const auto [a0, a1] = std::minmax_element(s.arrival.begin(), s.arrival.end());
-  if (c.count > 1 && *a1 > *a0) c.rate_hz = static_cast<double>(c.count - 1) / Duration::from_us(*a1 - *a0).seconds();
+  if (c.count > 1 && *a1 > *a0) c.rate_hz = static_cast<double>(c.count - 1) / seconds_between(*a0, *a1);
   for (size_t i = 1; i < s.arrival.size(); ++i) {
     if (s.arrival[i] < s.arrival[i - 1]) ++c.out_of_order_arrival;
   }
@@ -426,7 +425,7 @@ ChannelTiming channel_timing(const std::string& name, Samples& s, int64_t log_st
       newest = std::max(newest, s.stamp[i]);
       // A stamp of 0 was never set, and a static transform's says nothing of time (tf2 takes it as timeless).
       if (s.stamp[i] != 0 && !s.is_static_tf) {
-        latency.push_back(Duration::from_us(s.arrival[i] - s.stamp[i] - s.ready_after_us).seconds());
+        latency.push_back(seconds_between(s.stamp[i], s.arrival[i]) - Duration::from_us(s.ready_after_us).seconds());
       }
     }
     c.latency_valid = !latency.empty();

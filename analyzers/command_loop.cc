@@ -117,7 +117,7 @@ std::vector<CommandLoop> CommandLoopCheck::finish(int64_t start_utime) const {
     if (by_stamp.size() >= 2) {
       Array<double> gaps;
       for (size_t i = 1; i < by_stamp.size(); ++i) {
-        gaps.push_back((Time::from_us(by_stamp[i]->stamp) - Time::from_us(by_stamp[i - 1]->stamp)).seconds());
+        gaps.push_back(seconds_between(by_stamp[i - 1]->stamp, by_stamp[i]->stamp));
       }
       loop.command_period_s = median(std::move(gaps));
     }

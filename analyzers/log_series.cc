@@ -128,7 +128,7 @@ Result<LogSeries> read_log_series(const std::string& log) {
         es->fused.resize(n), es->stale.resize(n), es->future.resize(n), es->late.resize(n), es->outliers.resize(n);
       }
       if (st.input != es->inputs) continue;  // another estimator on the same channel: the first one's kept
-      es->t.push_back(Duration::from_us(e.utime - out.start_utime).seconds());
+      es->t.push_back(seconds_between(out.start_utime, e.utime));
       for (size_t i = 0; i < es->inputs.size(); ++i) {
         es->fused[i].push_back(st.fused[i]);
         es->stale[i].push_back(st.stale[i]);
@@ -154,14 +154,14 @@ Result<LogSeries> read_log_series(const std::string& log) {
   for (size_t k = 0; k < out.streams.size(); ++k) {
     StreamSeries& s = out.streams[k];
     s.arrival.reserve(arrivals[k].size());
-    for (int64_t t : arrivals[k]) s.arrival.push_back(Duration::from_us(t - out.start_utime).seconds());
+    for (int64_t t : arrivals[k]) s.arrival.push_back(seconds_between(out.start_utime, t));
     if (!s.has_header || stamps[k].size() != arrivals[k].size()) {
       s.has_header = false;
       continue;
     }
     s.latency.reserve(stamps[k].size());
     for (size_t i = 0; i < stamps[k].size(); ++i) {
-      s.latency.push_back(Duration::from_us(arrivals[k][i] - stamps[k][i] - ready_after[k]).seconds());
+      s.latency.push_back(seconds_between(stamps[k][i], arrivals[k][i]) - Duration::from_us(ready_after[k]).seconds());
     }
   }
   std::sort(out.streams.begin(), out.streams.end(),

@@ -60,9 +60,15 @@ class Page:
         self.figures = []
 
     def save(self, fig, name, title, caption):
+        # Written beside and renamed: a full disk never leaves a cut PNG over the one a user has.
         path = os.path.join(self.out_dir, name)
-        fig.savefig(path, bbox_inches="tight", facecolor="white")
-        plt.close(fig)
+        try:
+            fig.savefig(path + ".partial", format="png", bbox_inches="tight", facecolor="white")
+            os.replace(path + ".partial", path)
+        finally:
+            plt.close(fig)
+            if os.path.exists(path + ".partial"):
+                os.remove(path + ".partial")
         self.figures.append((name, title, caption))
 
 
@@ -562,9 +568,13 @@ def write_page(page, data, out_dir):
 </main>{CHECK}</body></html>
 """
     path = os.path.join(out_dir, "index.html")
-    with open(path + ".partial", "w", encoding="utf-8") as f:
-        f.write(text)
-    os.replace(path + ".partial", path)
+    try:
+        with open(path + ".partial", "w", encoding="utf-8") as f:
+            f.write(text)
+        os.replace(path + ".partial", path)
+    finally:
+        if os.path.exists(path + ".partial"):
+            os.remove(path + ".partial")
 
 
 def main(argv):
@@ -590,4 +600,9 @@ def main(argv):
 
 
 if __name__ == "__main__":
-    sys.exit(main(sys.argv))
+    try:
+        sys.exit(main(sys.argv))
+    except OSError as e:  # a full disk, a file-size limit: one line naming the folder, exit 4 (driftlab exits 1)
+        sys.stderr.write(f"{sys.argv[2] if len(sys.argv) > 2 else '.'}: cannot write the page: "
+                         f"{e.strerror or e}\n")
+        sys.exit(4)

@@ -108,10 +108,10 @@ TfDiagnosis TfCheck::finish(const std::function<int64_t(const std::string&, int6
       Array<double> age, ahead;
       for (size_t k = 0; k < e.stamps.size(); ++k) {
         const int64_t stamp = to_arrival(e.channel, e.stamps[k]);
-        age.push_back(Duration::from_us(e.arrival[k] - stamp).seconds());
+        age.push_back(seconds_between(stamp, e.arrival[k]));
         if (stamp > e.arrival[k] + kFutureToleranceUs) {
           ++edge.ahead;
-          ahead.push_back(Duration::from_us(stamp - e.arrival[k]).seconds());
+          ahead.push_back(seconds_between(e.arrival[k], stamp));
         }
       }
       edge.age_s = distribution(std::move(age));
@@ -202,7 +202,7 @@ TfDiagnosis TfCheck::finish(const std::function<int64_t(const std::string&, int6
       int64_t late = 0;
       for (const Use& u : uses) {
         const auto at = std::upper_bound(e->arrival.begin(), e->arrival.end(), u.arrival) - e->arrival.begin();
-        if (at > 0) leads.push_back(Duration::from_us(u.stamp - e->newest[static_cast<size_t>(at - 1)]).seconds());
+        if (at > 0) leads.push_back(seconds_between(e->newest[static_cast<size_t>(at - 1)], u.stamp));
         const auto as_new = std::lower_bound(e->newest.begin(), e->newest.end(), u.stamp) - e->newest.begin();
         if (as_new == static_cast<std::ptrdiff_t>(e->newest.size())) {
           ++c.never;
@@ -222,10 +222,10 @@ TfDiagnosis TfCheck::finish(const std::function<int64_t(const std::string&, int6
       c.wait_s = distribution(std::move(waits));
       Array<double> tf_latency, data_latency;
       for (size_t k = 0; k < e->arrival.size(); ++k) {
-        tf_latency.push_back(Duration::from_us(e->arrival[k] - to_arrival(e->channel, e->stamps[k])).seconds());
+        tf_latency.push_back(seconds_between(to_arrival(e->channel, e->stamps[k]), e->arrival[k]));
       }
       for (const Use& u : uses) {
-        data_latency.push_back(Duration::from_us(u.arrival - to_arrival(channel, u.stamp)).seconds());
+        data_latency.push_back(seconds_between(to_arrival(channel, u.stamp), u.arrival));
       }
       c.tf_latency_s = median(std::move(tf_latency));
       c.data_latency_s = median(std::move(data_latency));
@@ -243,8 +243,8 @@ TfDiagnosis TfCheck::finish(const std::function<int64_t(const std::string&, int6
       if (!e->newest.empty() && last_data - e->newest.back() > 1000000) {
         std::snprintf(buf, sizeof(buf),
                       "transform %s -> %s goes stale: its last stamp is %.1f s before the last %s message",
-                      quoted(e->parent).c_str(), quoted(child).c_str(),
-                      Duration::from_us(last_data - e->newest.back()).seconds(), channel.c_str());
+                      quoted(e->parent).c_str(), quoted(child).c_str(), seconds_between(e->newest.back(), last_data),
+                      channel.c_str());
         d.problems.push_back(buf);
       }
       by_edge[child].push_back(c);

@@ -396,7 +396,7 @@ int run_arm_eval(const EvalOptions& o) {
   }
   if (Status s = refuse_same_file(o.json, {o.arm}, "--json"); !s) return fail(s.message());
   auto log = event_log_for(o.arm);  // another tool's recording: its cached conversion
-  if (!log) return fail(log.error().message);
+  if (!log) return fail(log.error().message, exit_code_for_input(log.error()));
   ArmTrackingOptions options;
   options.reference = o.arm_reference == "desired" ? ArmReference::kDesired : ArmReference::kCommanded;
   options.command_channel = o.arm_command;
@@ -431,9 +431,9 @@ int run_eval(const EvalOptions& o) {
   // LOG:CHANNEL of another tool's recording: read from its cached conversion (the output names the source given).
   Result<std::string> gt_src = std::string();
   if (!o.gt.empty()) gt_src = log_channel_for(o.gt);
-  if (!gt_src) return fail(gt_src.error().message);
+  if (!gt_src) return fail(gt_src.error().message, exit_code_for_input(gt_src.error()));
   auto est_src = log_channel_for(o.est);
-  if (!est_src) return fail(est_src.error().message);
+  if (!est_src) return fail(est_src.error().message, exit_code_for_input(est_src.error()));
   for (const auto& [src, option] :
        {std::pair{*gt_src, "--gt"}, {*est_src, "--est"}, {o.odometry, "--relations-odometry"}}) {
     if (src.empty()) continue;

@@ -57,6 +57,7 @@ struct CsvFile {
   size_t header_columns = 0;             // columns in the header written first
   std::vector<std::string> row;
   int64_t rows = 0;
+  uint64_t last_use = 0;  // when a row was last written, for closing the file unused longest
 };
 
 void write_header(FILE* f, const std::vector<std::string>& names) {
@@ -127,6 +128,27 @@ int run_csv(const CsvArgs& a) {
       if (!keep) fs::remove(f.path + ".partial", ec);
     }
   };
+  // One file per channel, but not one open file per channel: a log with more channels than the open-file limit
+  // failed ("cannot create", no reason). When the limit is met the file unused longest is closed, and reopened to
+  // append when its channel comes again.
+  uint64_t clock = 0;
+  auto open_file = [&](CsvFile& f, const char* mode) -> Status {
+    for (;;) {
+      f.f = std::fopen((f.path + ".partial").c_str(), mode);
+      if (f.f != nullptr) return {};
+      const int err = errno;
+      CsvFile* oldest = nullptr;
+      for (auto& [name, g] : files) {
+        if (g.f != nullptr && &g != &f && (oldest == nullptr || g.last_use < oldest->last_use)) oldest = &g;
+      }
+      if ((err != EMFILE && err != ENFILE) || oldest == nullptr) {
+        return Error{f.path + ".partial: cannot " + (*mode == 'w' ? "create" : "reopen") + ": " + std::strerror(err)};
+      }
+      const bool ok = std::fclose(oldest->f) == 0;
+      oldest->f = nullptr;
+      if (!ok) return Error{oldest->path + ".partial: write failed (disk full?)"};
+    }
+  };
   Event e;
   std::vector<std::pair<std::string, std::string>> values;
   while (reader->next(e)) {
@@ -148,10 +170,9 @@ int run_csv(const CsvArgs& a) {
     if (it == files.end()) {
       CsvFile f;
       f.path = (fs::path(a.out) / (channel_file_name(e.channel) + ".csv")).string();
-      f.f = std::fopen((f.path + ".partial").c_str(), "w");
-      if (f.f == nullptr) {
+      if (Status st = open_file(f, "w"); !st) {
         close_all(false);
-        return fail(f.path + ".partial: cannot create", kExitFailure);
+        return fail(st.message(), kExitFailure);
       }
       for (const auto& [c, v] : values) {
         if (f.column.emplace(c, f.names.size()).second) f.names.push_back(c);
@@ -161,6 +182,13 @@ int run_csv(const CsvArgs& a) {
       it = files.emplace(std::string(e.channel), std::move(f)).first;
     }
     CsvFile& f = it->second;
+    f.last_use = ++clock;
+    if (f.f == nullptr) {
+      if (Status st = open_file(f, "a"); !st) {
+        close_all(false);
+        return fail(st.message(), kExitFailure);
+      }
+    }
     for (auto& cell : f.row) cell.clear();
     for (const auto& [c, v] : values) {
       auto [k, added] = f.column.emplace(c, f.names.size());
@@ -180,13 +208,15 @@ int run_csv(const CsvArgs& a) {
       return fail(f.path + ".partial: write failed (disk full?)", kExitFailure);
     }
   }
-  for (auto& [name, f] : files) {
-    const bool ok = std::fclose(f.f) == 0;
+  for (auto& [name, f] : files) {  // all closed first: widen() needs two files open
+    const bool ok = f.f == nullptr || std::fclose(f.f) == 0;
     f.f = nullptr;
     if (!ok) {
       close_all(false);
       return fail(f.path + ".partial: write failed (disk full?)", kExitFailure);
     }
+  }
+  for (auto& [name, f] : files) {
     if (f.names.size() > f.header_columns) {
       if (Status st = widen(f); !st) {
         close_all(false);
@@ -220,7 +250,7 @@ int run_tum(TumArgs a) {
   }
   if (Status s = refuse_same_file(a.out, {a.log}); !s) return fail(s.message());
   auto log = event_log_for(a.log);
-  if (!log) return fail(log.error().message);
+  if (!log) return fail(log.error().message, exit_code_for_input(log.error()));
   auto t = analyzers::load_log_channel(*log, a.channel);
   if (!t) return fail(t.error().message);
   // In stamp order, as evo and every TUM reader expect (a log holds poses in arrival order: a late or reordered
@@ -281,7 +311,7 @@ void add_export_commands(CLI::App& exp, int* exit_code) {
     }
     auto log = event_log_for(csv->inputs);
     if (!log) {
-      *exit_code = fail(log.error().message);
+      *exit_code = fail(log.error().message, exit_code_for_input(log.error()));
       return;
     }
     csv->log = *log;

@@ -57,7 +57,7 @@ int run_mcap(const McapArgs& a) {
   if (Status s = refuse_same_file(a.out, a.inputs, "-o", a.folder ? OutputKind::kFolder : OutputKind::kFile); !s)
     return fail(s.message());
   auto log = event_log_for(a.inputs);
-  if (!log) return fail(log.error().message);
+  if (!log) return fail(log.error().message, exit_code_for_input(log.error()));
   formats::McapExportOptions o;
   o.compression = a.compression == "zstd"  ? formats::McapCompression::kZstd
                   : a.compression == "lz4" ? formats::McapCompression::kLz4

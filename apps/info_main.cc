@@ -33,9 +33,12 @@ struct InfoOptions {
   int max_problems = 20;
 };
 
+/// Log times further apart than this are not one recording's [years].
+constexpr double kMaxSpanYears = 100;
+
 double rate_hz(const ChannelSummary& c) {
   if (c.count < 2 || c.last_utime <= c.first_utime) return 0.0;
-  return static_cast<double>(c.count - 1) / (Time::from_us(c.last_utime) - Time::from_us(c.first_utime)).seconds();
+  return static_cast<double>(c.count - 1) / seconds_between(c.first_utime, c.last_utime);
 }
 
 std::string type_of(const ChannelSummary& c) {
@@ -94,7 +97,7 @@ nlohmann::json to_json(const std::string& path, const LogSummary& s, const Sourc
           {"events", s.events},
           {"start_utime", s.start_utime},
           {"end_utime", s.end_utime},
-          {"duration_s", (Time::from_us(s.end_utime) - Time::from_us(s.start_utime)).seconds()},
+          {"duration_s", seconds_between(s.start_utime, s.end_utime)},
           {"channels", channels},
           {"problems", problems},
           {"problems_total", s.problems_total}};
@@ -102,7 +105,7 @@ nlohmann::json to_json(const std::string& path, const LogSummary& s, const Sourc
 
 void print_table(const std::string& path, const LogSummary& s, const SourceTypes& sources, int max_problems) {
   std::printf("%s: %s, %s events, %.3f s\n", path.c_str(), human_bytes(static_cast<double>(s.file_bytes)).c_str(),
-              thousands(s.events).c_str(), (Time::from_us(s.end_utime) - Time::from_us(s.start_utime)).seconds());
+              thousands(s.events).c_str(), seconds_between(s.start_utime, s.end_utime));
   if (s.events > 0) std::printf("from %s to %s\n", format_utime(s.start_utime).c_str(), format_utime(s.end_utime).c_str());
   // An imported log's channels also say their type in the recording (the ROS or PX4 type).
   size_t name_w = 7, type_w = 4, source_w = sources.empty() ? 0 : 11;
@@ -124,11 +127,23 @@ void print_table(const std::string& path, const LogSummary& s, const SourceTypes
     std::printf("%-*s  %-*s%s  %10s  %10s  %9.2f  %9.3f  %9.3f\n", static_cast<int>(name_w), c.name.c_str(),
                 static_cast<int>(type_w), type_of(c).c_str(), source_column(source.empty() ? "-" : source).c_str(),
                 thousands(c.count).c_str(), human_bytes(static_cast<double>(c.bytes)).c_str(), rate_hz(c),
-                (Time::from_us(c.first_utime) - Time::from_us(s.start_utime)).seconds(),
-                (Time::from_us(c.last_utime) - Time::from_us(s.start_utime)).seconds());
+                seconds_between(s.start_utime, c.first_utime), seconds_between(s.start_utime, c.last_utime));
   }
   // What the index saw in time, beside the framing: log times stepping back, frozen stamps.
   std::vector<std::string> timing;
+  // Log times far apart: an event stamped by a corrupt clock, or a time field overwritten (at the ends of int64_t the
+  // duration and rates came out negative, and "no problems").
+  constexpr double kYear = 365.25 * 86400;
+  if (const double span = seconds_between(s.start_utime, s.end_utime); span > kMaxSpanYears * kYear) {
+    std::string far;
+    for (const auto& c : s.channels) {
+      if (seconds_between(c.first_utime, c.last_utime) > kMaxSpanYears * kYear)
+        far += (far.empty() ? "" : ", ") + c.name;
+    }
+    timing.push_back("log times span " + thousands(static_cast<int64_t>(span / kYear)) + " years (" +
+                     format_utime(s.start_utime) + " to " + format_utime(s.end_utime) +
+                     "): some events' times are corrupt" + (far.empty() ? "" : " (on " + far + ")"));
+  }
   for (const auto& c : s.channels) {
     if (c.times_back > 0) {
       timing.push_back(c.name + ": log times step back " + thousands(c.times_back) +
@@ -228,7 +243,7 @@ void add_info_command(CLI::App& app, int* exit_code) {
   cmd->callback([opts, exit_code] {
     auto log = log_for(opts->inputs);
     if (!log) {
-      *exit_code = fail(log.error().message);
+      *exit_code = fail(log.error().message, exit_code_for_input(log.error()));
       return;
     }
     opts->log = *log;

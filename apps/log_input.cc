@@ -166,6 +166,17 @@ std::string import_cache_path(const std::vector<std::string>& inputs) {
   while (first.size() > 1 && first.back() == '/') first.pop_back();  // "bag/" names the folder "bag"
   std::string p = first;
   if (inputs.size() > 1) p += "+" + std::to_string(inputs.size() - 1);
+  // A file's name holds 255 bytes, and the cache's own files add up to 40 (".key.partial.PID.N", ".dlidx"): a
+  // recording with a long name was refused ("File name too long"). Such a name is cut and its hash appended.
+  const size_t slash = p.rfind('/');
+  const size_t name_at = slash == std::string::npos ? 0 : slash + 1;
+  if (constexpr size_t kMaxName = 160; p.size() - name_at > kMaxName) {
+    uint64_t h = 1469598103934665603ull;  // FNV-1a of the whole name
+    for (size_t i = name_at; i < p.size(); ++i) h = (h ^ static_cast<unsigned char>(p[i])) * 1099511628211ull;
+    char tag[20];
+    std::snprintf(tag, sizeof(tag), "%016llx", static_cast<unsigned long long>(h));
+    p = p.substr(0, name_at + 100) + "~" + tag;
+  }
   return p + ".dlimport.lcm";
 }
 
@@ -188,7 +199,10 @@ Result<std::string> log_for(const std::vector<std::string>& inputs) {
   if (!writable_dir(fs::path(cache).parent_path().string())) {
     const std::string beside = cache;
     cache = fallback_path(inputs, beside);
-    if (cache.empty()) return Error(beside + ": cannot write the conversion there, nor under ~/.cache/driftlab");
+    if (cache.empty()) {
+      return Error(inputs[0] + kCannotWriteConversion + beside +
+                   ": the folder is read-only, and ~/.cache/driftlab too");
+    }
   }
   const std::string key_path = cache + ".key";
   const std::string named = inputs[0] + (inputs.size() > 1 ? " (and " + std::to_string(inputs.size() - 1) + " more)" : "");
@@ -226,7 +240,17 @@ Result<std::string> log_for(const std::vector<std::string>& inputs) {
     ++problems;
     if (printed++ < kProblemLines) std::fprintf(stderr, "driftlab: %s\n", line.c_str());
   });
-  if (!summary) return Error(summary.error().message);
+  if (!summary) {
+    // Writing the conversion failed (a full disk): an I/O failure, named by the input and the cache, not by the
+    // partial file, which is gone. Anything else is the recording's.
+    const std::string& m = summary.error().message;
+    if (m.starts_with(cache)) {
+      const size_t colon = m.find(": ");
+      return Error(named + kCannotWriteConversion + cache +
+                   (colon == std::string::npos ? std::string() : m.substr(colon)));
+    }
+    return Error(m);
+  }
   if (problems > kProblemLines) {
     std::fprintf(stderr, "driftlab: %s: %s more problems\n", named.c_str(), thousands(problems - kProblemLines).c_str());
   }
@@ -235,11 +259,15 @@ Result<std::string> log_for(const std::vector<std::string>& inputs) {
   // The key last, written beside and renamed: a conversion cut short is never taken for a whole one. It records the
   // conversion as written, so that anything put in its place later is noticed.
   const std::string made = file_identity(cache, true);
-  if (made.empty()) return Error(cache + ": cannot read the conversion just written");
+  if (made.empty()) return Error(named + kCannotWriteConversion + cache + ": cannot read it back");
   if (Status s = write_key(key_path, key + "cache " + made + "\nproblems " + std::to_string(problems) + "\n"); !s) {
-    return Error(s.message());
+    return Error(named + kCannotWriteConversion + cache + ": " + s.message());
   }
   return cache;
+}
+
+int exit_code_for_input(const Error& error) {
+  return error.message.find(kCannotWriteConversion) != std::string::npos ? kExitFailure : kExitBadInput;
 }
 
 Result<std::string> event_log_for(const std::vector<std::string>& inputs) {

@@ -17,13 +17,22 @@
 
 namespace driftlab::apps {
 
+/// In the errors of log_for() and the functions below when the conversion could not be written (a full disk, a
+/// read-only folder): "INPUT: cannot write its conversion CACHE: why".
+inline constexpr char kCannotWriteConversion[] = ": cannot write its conversion ";
+
+/// The exit code for an error of log_for(), event_log_for() or log_channel_for(): kExitFailure (1) when writing
+/// the conversion failed (the environment), kExitBadInput (2) otherwise (the recording).
+int exit_code_for_input(const Error& error);
+
 /// The help of a command's log argument.
 inline constexpr char kLogInputHelp[] =
     "LCM log, or another tool's recording (a ROS 1 or ROS 2 bag, a bag folder, an MCAP file, a CARMEN log; the files of "
     "a split recording): converted once, kept beside it";
 
 /// Where the conversion of inputs is kept: beside the (first) file as FILE.dlimport.lcm (FOLDER.dlimport.lcm for a
-/// bag folder, FIRST+N.dlimport.lcm for the N more files of a split recording).
+/// bag folder, FIRST+N.dlimport.lcm for the N more files of a split recording); a name over 160 bytes is cut to
+/// 100 and the hash of the whole appended (NAME~HASH.dlimport.lcm), so that the cache's files fit in 255.
 std::string import_cache_path(const std::vector<std::string>& inputs);
 
 /// The LCM log to read for inputs: inputs[0] itself for an LCM log (only one then), else the cached conversion,

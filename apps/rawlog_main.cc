@@ -71,7 +71,7 @@ void add_rawlog_commands(CLI::App& import, CLI::App& exp, int* exit_code) {
     }
     auto log = event_log_for(out->in);  // another tool's recording: its cached conversion
     if (!log) {
-      *exit_code = fail(log.error().message);
+      *exit_code = fail(log.error().message, exit_code_for_input(log.error()));
       return;
     }
     auto r = slam::export_rawlog(*log, out->out);

@@ -268,7 +268,7 @@ int run_replay(ReplayArgs a) {
   if (Status s = refuse_same_file(a.out, a.logs); !s) return fail(s.message());  // the recordings given
   for (auto& log : a.logs) {
     auto converted = event_log_for(log);  // another tool's recording: its cached conversion
-    if (!converted) return fail(converted.error().message);
+    if (!converted) return fail(converted.error().message, exit_code_for_input(converted.error()));
     log = *converted;
   }
   replay::ReplayOptions o;
@@ -355,7 +355,7 @@ int run_replay(ReplayArgs a) {
   if (r.read == 0 && a.start > 0) {
     return fail("--start " + short_number(a.start) + ": nothing to replay after it (past the end of the logs)");
   }
-  const double span = (Time::from_us(r.end_utime) - Time::from_us(r.start_utime)).seconds();
+  const double span = seconds_between(r.start_utime, r.end_utime);
 
   if (a.json) {
     nlohmann::json j;

@@ -195,7 +195,7 @@ Result<std::string> make_report(const ReportOptions& o) {
     const LogSeries& l = logs[k];
     data["logs"].push_back({{"path", names[k]},  // as given; the conversion read is l.log
                             {"start_utime", l.start_utime},
-                            {"duration_s", (Time::from_us(l.end_utime) - Time::from_us(l.start_utime)).seconds()},
+                            {"duration_s", seconds_between(l.start_utime, l.end_utime)},
                             {"problems", l.problems}});
   }
   data["diagnosis"] = diagnosis;
@@ -328,7 +328,8 @@ Result<std::string> make_report(const ReportOptions& o) {
   const std::string json_path = (fs::path(o.out) / "report.json").string();
   if (auto st = write_atomically(json_path, data.dump() + "\n"); !st) return Error{st.message()};
   if (Status st = run_plot_script(kReportPageScript, "report_page.py", o.out, {json_path, o.out}); !st) {
-    return Error{"report: " + st.message()};
+    // A write error names the folder (exit 1, as every write error); anything else is the plotting's.
+    return Error{st.message().starts_with(o.out + ":") ? st.message() : "report: " + st.message()};
   }
   return (fs::path(o.out) / "index.html").string();
 }
@@ -361,7 +362,9 @@ void add_report_command(CLI::App& app, int* exit_code) {
     }
     auto page = make_report(*o);
     if (!page) {
-      *exit_code = fail(page.error().message, exit_code_for(page.error(), o->out));
+      *exit_code =
+          fail(page.error().message,
+               exit_code_for_input(page.error()) == kExitFailure ? kExitFailure : exit_code_for(page.error(), o->out));
       return;
     }
     std::printf("%s\n", page->c_str());

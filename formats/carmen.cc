@@ -75,6 +75,9 @@ quaternion_t yaw_quaternion(double yaw) {
   return q;
 }
 
+/// The largest magnitude of a time in seconds that whole microseconds in int64_t hold.
+constexpr double kMaxSeconds = 9.2e12;
+
 int64_t to_utime(double s) { return Time::from_seconds_rounded(s).us(); }
 
 /// The laser number K of RAWLASERK or ROBOTLASERK (digits only); empty for any other name.
@@ -346,6 +349,15 @@ int64_t CarmenReader::read(const std::function<void(const CarmenMessage&)>& on_m
       auto x = number(t[i]);
       if (!x) return bad("\"" + std::string(t[i].substr(0, 20)) + "\" is not a number");
       v.push_back(*x);
+    }
+    // A time beyond int64_t microseconds (about 292,000 years either side of 1970) cannot be a log time: llround
+    // of 1e300 s gave INT64_MIN, silently.
+    for (const double s : {*ipc, *logger}) {
+      if (std::fabs(s) >= kMaxSeconds) {
+        char text[32];
+        const auto end = std::to_chars(text, text + sizeof text, s).ptr;
+        return bad("time " + std::string(text, end) + " s is beyond what a log time can hold (+/-9.2e12 s)");
+      }
     }
     const int64_t stamp = to_utime(*ipc);
     const int64_t arrival = to_utime(*logger);

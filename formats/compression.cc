@@ -67,7 +67,10 @@ std::string bz2(std::span<const uint8_t> in, std::vector<uint8_t>& out, size_t l
   return error;
 }
 
-std::string lz4(std::span<const uint8_t> in, std::vector<uint8_t>& out, size_t limit, bool declared) {
+std::string lz4(std::span<const uint8_t> in, std::vector<uint8_t>& out, size_t limit, bool declared,
+                bool skip_checksums = false) {
+  LZ4F_decompressOptions_t options{};
+  options.skipChecksums = skip_checksums ? 1 : 0;
   LZ4F_dctx* ctx = nullptr;
   if (LZ4F_isError(LZ4F_createDecompressionContext(&ctx, LZ4F_VERSION))) return "lz4: cannot start the decoder";
   size_t pos = 0;
@@ -76,7 +79,7 @@ std::string lz4(std::span<const uint8_t> in, std::vector<uint8_t>& out, size_t l
   for (;;) {
     size_t free = room(out, used, limit + 1);
     size_t src = in.size() - pos;
-    const size_t hint = LZ4F_decompress(ctx, out.data() + used, &free, in.data() + pos, &src, nullptr);
+    const size_t hint = LZ4F_decompress(ctx, out.data() + used, &free, in.data() + pos, &src, &options);
     used += free;
     pos += src;
     if (used > limit) {
@@ -97,6 +100,18 @@ std::string lz4(std::span<const uint8_t> in, std::vector<uint8_t>& out, size_t l
   LZ4F_freeDecompressionContext(ctx);
   out.resize(used);
   return error;
+}
+
+/// lz4, and when the content checksum fails, decoded again without checking it: the decoder returns nothing of a call
+/// that ends on a bad checksum, so a chunk whose content checksum was wrong lost every intact message (a bad bz2 CRC
+/// keeps them). The data is kept and the failure reported, as for bz2; the records' own checks then apply.
+std::string lz4_keeping_data(std::span<const uint8_t> in, std::vector<uint8_t>& out, size_t limit, bool declared) {
+  std::string error = lz4(in, out, limit, declared);
+  if (error.find("contentChecksum_invalid") == std::string::npos) return error;
+  std::vector<uint8_t> again;
+  if (!lz4(in, again, limit, declared, true).empty()) return error;
+  out.swap(again);
+  return "lz4: the content checksum does not match";
 }
 
 std::string gzip(std::span<const uint8_t> in, std::vector<uint8_t>& out, size_t limit, bool declared) {
@@ -331,7 +346,7 @@ std::string decompress(Codec codec, std::span<const uint8_t> in, size_t expected
   switch (codec) {
     case Codec::kNone: out.assign(in.begin(), in.end()); return {};
     case Codec::kBz2: return bz2(in, out, limit, declared);
-    case Codec::kLz4Frame: return lz4(in, out, limit, declared);
+    case Codec::kLz4Frame: return lz4_keeping_data(in, out, limit, declared);
     case Codec::kGzip: return gzip(in, out, limit, declared);
     case Codec::kZstd: {
       Decompressor d;

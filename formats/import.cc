@@ -1,6 +1,7 @@
 #include "formats/import.h"
 
 #include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -137,9 +138,18 @@ class Importer {
   LogWriter& writer() { return writer_; }
   const Status& status() const { return status_; }
 
+  /// A temporary file read in place of the user's (a zstd-compressed bag decompressed) and what problems call it.
+  std::string temporary, temporary_named;
+
   void problem(const std::string& line) {
     ++summary.problems;
-    on_problem_(line);
+    on_problem_(named(line));
+  }
+
+  /// line with the temporary file, at its start, named as the user knows it: the temporary is gone when it is read.
+  std::string named(const std::string& line) const {
+    if (temporary.empty() || !line.starts_with(temporary)) return line;
+    return temporary_named + line.substr(temporary.size());
   }
 
   TopicCount& topic(std::string_view channel, std::string_view source_type, const char* driftlab_type) {
@@ -739,6 +749,31 @@ Detected detect_head(std::string_view h, bool inner) {
   return {Format::kUnknown, "", (text.size() == h.size() ? "" : "gzip holding ") + describe(text)};
 }
 
+/// files without the second and later spellings of one file (by device and inode, so "./a.mcap", links and
+/// "a.mcap" are one; by path when it cannot be looked at): a file listed twice in metadata.yaml, or given twice on
+/// the command line, is read once (it was imported twice, every message doubled). Each left out goes in *twice as
+/// "LATER (the same file as FIRST)".
+std::vector<std::string> once_each(const std::vector<std::string>& files, std::vector<std::string>* twice) {
+  std::vector<std::string> out;
+  std::map<std::string, std::string> first_of;  // by device:inode or path, the first spelling
+  for (const auto& f : files) {
+    struct stat st {};
+    std::string id;
+    if (::stat(f.c_str(), &st) == 0) {
+      id = std::to_string(st.st_dev) + ":" + std::to_string(st.st_ino);
+    } else {
+      id = "path " + std::filesystem::absolute(f).lexically_normal().string();
+    }
+    auto [it, fresh] = first_of.emplace(id, f);
+    if (fresh) {
+      out.push_back(f);
+    } else if (twice) {
+      twice->push_back(f + (f == it->second ? std::string() : " (the same file as " + it->second + ")"));
+    }
+  }
+  return out;
+}
+
 constexpr char kKnownFormats[] =
     "ROS 1 bag, ROS 2 bag (MCAP, sqlite3, or its folder), MCAP file, CARMEN log, PX4 ULog, MRPT rawlog";
 
@@ -759,11 +794,16 @@ Status import_file(const std::string& path, const std::string& out_path, Importe
       if (!s && !exists(plain)) return s;
       if (!s) out.problem(s.message());
       const Detected inner = detect_format(plain);
+      // Problems name the user's file, with offsets into what it decompresses to (they named the temporary file).
+      out.temporary = plain;
+      out.temporary_named = path + " (decompressed)";
       Status r = inner.format == Format::kMcap        ? import_mcap(plain, out)
                  : inner.format == Format::kRos2Sqlite ? import_sqlite(plain, out)
                  : inner.format == Format::kRos1Bag    ? import_ros1(plain, out)
                                                        : Status(Error(path + ": decompressed, not a bag"));
       std::remove(plain.c_str());
+      if (!r) r = Error(out.named(r.message()));
+      out.temporary.clear();
       return r;
     }
     case Format::kLcmLog: return Error(path + ": already an LCM log; nothing to import");
@@ -793,9 +833,9 @@ bool is_importable(Format f) {
 std::vector<std::string> recording_files(const std::vector<std::string>& inputs) {
   if (inputs.size() == 1 && is_dir(inputs[0])) {
     auto metadata = read_ros2_metadata(inputs[0]);
-    return folder_files(inputs[0], metadata ? &*metadata : nullptr);
+    return once_each(folder_files(inputs[0], metadata ? &*metadata : nullptr), nullptr);
   }
-  std::vector<std::string> files = inputs;
+  std::vector<std::string> files = once_each(inputs, nullptr);
   std::sort(files.begin(), files.end(), natural_less);
   return files;
 }
@@ -835,11 +875,16 @@ Result<ImportSummary> import_log(const std::vector<std::string>& inputs, const s
     } else {
       early_problems.push_back(m.error().message + "; reading the bag files in the folder in name order");
     }
-    files = folder_files(inputs[0], metadata ? &*metadata : nullptr);
+    std::vector<std::string> twice;
+    files = once_each(folder_files(inputs[0], metadata ? &*metadata : nullptr), &twice);
+    for (const auto& f : twice) early_problems.push_back(f + ": listed twice in metadata.yaml; read once");
     if (files.empty()) return Error(inputs[0] + ": metadata.yaml lists no files");
     const std::string storage = metadata ? metadata->storage_identifier : "";
     format = "ROS 2 bag (" + (storage.empty() ? std::string("folder") : storage) + ")";
   } else {
+    std::vector<std::string> twice;
+    (void)once_each(inputs, &twice);
+    for (const auto& f : twice) early_problems.push_back(f + ": given twice; read once");
     files = recording_files(inputs);
     for (const auto& f : files) {
       if (is_dir(f)) return Error(f + ": a bag folder among files: give the folder alone");

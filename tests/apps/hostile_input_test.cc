@@ -438,6 +438,27 @@ TEST(ConversionCache, TwoProcessesConvertingOneRecordingEachWriteTheirOwnPartial
   }
 }
 
+// A recording whose name is long (here 240 bytes, which the file system holds) was refused: its cache's files,
+// NAME.dlimport.lcm.key.partial.PID.N, are over 255 bytes ("File name too long"). The cache's name is cut and
+// hashed; two long names alike in their first 100 bytes get caches of their own.
+TEST(ConversionCache, ARecordingWithALongNameIsConverted) {
+  test::TempDir dir;
+  const auto [mcap, unused] = mcap_recording(dir);
+  const auto healthy = driftlab("info " + mcap);
+  ASSERT_EQ(healthy.code, 0) << healthy.err;
+  for (const char last : {'a', 'b'}) {
+    const std::string name = dir.file(std::string(235, 'x') + last + ".mcap");
+    fs::copy_file(mcap, name);
+    auto r = driftlab("info " + name);
+    EXPECT_EQ(r.code, 0) << r.err;
+    EXPECT_EQ(r.out.substr(r.out.find('\n')), healthy.out.substr(healthy.out.find('\n')));
+    EXPECT_NE(r.err.find("converting it to " + dir.file(std::string(100, 'x') + "~")), std::string::npos) << r.err;
+    r = driftlab("info " + name);
+    EXPECT_NE(r.err.find("reading its conversion"), std::string::npos) << r.err;
+  }
+  expect_no_partial_files(dir.path());
+}
+
 /// Every command that reads a log, with OUT as the output of those that write one.
 std::vector<std::string> log_readers(const std::string& log, const test::TempDir& dir) {
   return {"info " + log,
@@ -681,6 +702,46 @@ TEST(FullDisk, EveryCommandFailsWithCode1AndLeavesNothingBehind) {
     }
     EXPECT_EQ(left_behind(dir.path()), std::vector<std::string>{}) << cmd;
   }
+}
+
+// A disk that fills while report's Python draws (report.json written, the page not): a 51-line Python traceback and
+// exit 2. Now one line naming the folder, exit 1, and the user's earlier page and plots kept whole.
+TEST(FullDisk, ReportWhilePlottingIsOneLineAndCode1) {
+  test::TempDir dir;
+  const std::string out = dir.file("report");
+  ASSERT_EQ(driftlab("report " + kSample + " -o " + out).code, 0);
+  const auto page = test::read_file(out + "/index.html");
+  ASSERT_GT(page.size(), 200u * 1024);
+  // ulimit -f 200 (100 KiB in dash's 512-byte blocks, 200 in bash's): report.json (18 KiB) and each plot (under
+  // 64 KiB) fit; the page (250 KiB) does not.
+  const auto r = test::run_capture("ulimit -f 200; timeout 120 " + kDriftlab + " report " + kSample + " -o " + out);
+  EXPECT_EQ(r.code, 1) << r.err;
+  EXPECT_EQ(r.err, "driftlab: " + out + ": cannot write the page: File too large\n");
+  EXPECT_EQ(test::read_file(out + "/index.html"), page);  // the page the user had
+  EXPECT_EQ(left_behind(dir.path()), std::vector<std::string>{});
+}
+
+// A disk that fills while a recording is converted for a command: exit 2 (bad input) naming the partial file, gone
+// by then. Now exit 1 naming the recording and its conversion, and nothing left; the next run converts it whole.
+TEST(FullDisk, ConvertingARecordingIsCode1NamingIt) {
+  const std::string mcap = test::shared_data("bags/nav2_turtlebot.mcap");
+  if (mcap.empty()) GTEST_SKIP() << "no shared data";
+  test::TempDir dir;
+  const std::string bag = dir.file("nav2.mcap");
+  fs::copy_file(mcap, bag);
+  for (const std::string& cmd : std::vector<std::string>{"info", "diagnose", "export csv -o " + dir.file("csv")}) {
+    const auto r = test::run_capture("ulimit -f 1; timeout 60 " + kDriftlab + " " + cmd + " " + bag);
+    EXPECT_EQ(r.code, 1) << cmd << "\n" << r.err;
+    EXPECT_NE(r.err.find("driftlab: " + bag + ": cannot write its conversion " + bag +
+                         ".dlimport.lcm: write failed at byte "),
+              std::string::npos)
+        << cmd << "\n"
+        << r.err;
+    EXPECT_TRUE(r.err.ends_with(": File too large\n")) << cmd << "\n" << r.err;
+    EXPECT_EQ(r.err.find(".partial"), std::string::npos) << cmd << "\n" << r.err;
+    EXPECT_EQ(left_behind(dir.path()), std::vector<std::string>{}) << cmd;
+  }
+  EXPECT_EQ(driftlab("info " + bag).code, 0);
 }
 
 TEST(BadInput, RecordAndDemoExitWith2) {

@@ -92,6 +92,37 @@ TEST(Info, SaysWhenLogTimesStepBackAndStampsAreFrozen) {
   EXPECT_EQ(j["channels"][1]["stamped"], 100);
 }
 
+// Log times at the ends of int64_t (a corrupt time field): the duration and rates were subtracted in int64_t and came
+// out negative, with "no problems". They are subtracted in doubles and the span is named; diagnose faults the channel.
+TEST(Info, LogTimesAtTheEndsOfInt64AreNamedNotANegativeDuration) {
+  test::TempDir dir;
+  {
+    auto w = LogWriter::create(dir.file("t.lcm"));
+    ASSERT_TRUE(w.ok());
+    for (int64_t i = 0; i < 100; ++i) {
+      driftlab::imu_t m{};
+      m.header = {i, 1000000 + i * 10000, "imu"};
+      int64_t t = 1000000 + i * 10000;
+      if (i == 0) t = INT64_MIN;
+      if (i == 99) t = INT64_MAX;
+      ASSERT_TRUE(w->write(t, "IMU", test::encode(m)).ok());
+    }
+    ASSERT_TRUE(w->close().ok());
+  }
+  CmdResult r = driftlab("info " + dir.file("t.lcm"));
+  EXPECT_EQ(r.code, 0);
+  EXPECT_NE(r.out.find("100 events, 18446744073709.551 s"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("log times span 584,542 years"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("some events' times are corrupt (on IMU)"), std::string::npos) << r.out;
+  EXPECT_EQ(r.out.find("no problems"), std::string::npos) << r.out;
+  EXPECT_EQ(r.out.find("-0.0"), std::string::npos) << r.out;
+  const auto j = nlohmann::json::parse(driftlab("info --json " + dir.file("t.lcm")).out);
+  EXPECT_GT(j["duration_s"].get<double>(), 1.8e13);
+  EXPECT_GE(j["channels"][0]["rate_hz"].get<double>(), 0.0);
+  const auto d = nlohmann::json::parse(driftlab("diagnose --json - " + dir.file("t.lcm")).out);
+  EXPECT_GE(d["channels"][0]["rate_hz"].get<double>(), 0.0) << d["channels"][0].dump();
+}
+
 TEST(Info, MissingFileDirectoryAndNonLogExitWithCode2AndOneLine) {
   for (const std::string& target : {std::string("/nonexistent/x.lcm"), kData, kData + "/not_a_log.txt"}) {
     CmdResult r = driftlab("info " + target);

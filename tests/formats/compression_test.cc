@@ -3,6 +3,7 @@
 // out whole. Found by the fuzzers (docs/bad-input.md): 65 bytes of MCAP made the reader allocate and zero-fill
 // 1.7 GB; a 49-byte bag chunk asked for 4 GiB.
 #include <gtest/gtest.h>
+#include <lz4frame.h>
 
 #include <cstdint>
 #include <string>
@@ -78,6 +79,23 @@ TEST(Compression, DataThatReallyExpandsFurtherStillComesOutWhole) {
   std::vector<uint8_t> out;
   EXPECT_EQ(decompress(Codec::kZstd, packed, zeros.size(), out), "");
   EXPECT_EQ(out, zeros);
+}
+
+// An lz4 frame whose content checksum is wrong keeps what it decodes and says so, as a bad bz2 CRC does: the decoder
+// returns nothing of a call that ends on a bad checksum, and a ROS 1 bag chunk of 500 intact messages lost them all.
+TEST(Compression, AWrongLz4ChecksumKeepsTheDataAndSaysSo) {
+  std::vector<uint8_t> text(200000);
+  for (size_t i = 0; i < text.size(); ++i) text[i] = static_cast<uint8_t>(i * 7 % 251);
+  LZ4F_preferences_t prefs{};
+  prefs.frameInfo.contentChecksumFlag = LZ4F_contentChecksumEnabled;
+  std::vector<uint8_t> packed(LZ4F_compressFrameBound(text.size(), &prefs));
+  packed.resize(LZ4F_compressFrame(packed.data(), packed.size(), text.data(), text.size(), &prefs));
+  std::vector<uint8_t> out;
+  ASSERT_EQ(decompress(Codec::kLz4Frame, packed, text.size(), out), "");
+  ASSERT_EQ(out, text);
+  packed.back() ^= 0x55;  // the content checksum is the frame's last 4 bytes
+  EXPECT_EQ(decompress(Codec::kLz4Frame, packed, text.size(), out), "lz4: the content checksum does not match");
+  EXPECT_EQ(out, text);
 }
 
 }  // namespace

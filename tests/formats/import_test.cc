@@ -581,6 +581,23 @@ TEST(Import, CarmenCountsBeyondTheirLineAreBrokenLines) {
   EXPECT_EQ(channels, (std::vector<std::string>{"TF_STATIC", "FLASER", "FLASER_POSE"}));
 }
 
+// A time beyond what int64_t microseconds hold is a broken line naming it: 1e300 s became INT64_MIN silently
+// (llround of a number out of range), and the message was kept at the start of time.
+TEST(Import, CarmenTimesBeyondInt64AreBrokenLines) {
+  auto log = formats::CarmenReader::from_text(
+      "ODOM 0 0 0 0 0 0 1e300 host 1e300\n"
+      "ODOM 0 0 0 0 0 0 10.0 host -1e13\n"
+      "ODOM 1 0 0 0 0 0 10.05 host 10.05\n");
+  std::vector<std::string> problems;
+  std::vector<int64_t> times;
+  log.read([&](const formats::CarmenMessage& m) { times.push_back(m.log_utime); },
+           [&](size_t line, const std::string& what) { problems.push_back(std::to_string(line) + ": " + what); });
+  EXPECT_EQ(problems,
+            (std::vector<std::string>{"1: ODOM: time 1e+300 s is beyond what a log time can hold (+/-9.2e12 s)",
+                                      "2: ODOM: time -1e+13 s is beyond what a log time can hold (+/-9.2e12 s)"}));
+  for (const int64_t t : times) EXPECT_EQ(t, 10050000);
+}
+
 // A laser's name is the word and its number. "RAWLASER" and four NULs (found by the import fuzzer) was taken for a
 // laser whose frame, "laser" and a NUL, made a laser_scan_t that does not hold its type's layout; such names, and
 // any with more than digits after the word, are lines of an unknown message, counted as skipped.

@@ -644,5 +644,48 @@ TEST(Ros2Import, CommandsReadBagsThroughACache) {
   EXPECT_FALSE(fs::exists(ro + "/run.mcap.dlimport.lcm"));
 }
 
+// One file is read once, however often it is named: listed twice in metadata.yaml (also as "./b_0.mcap"), or given
+// twice on the command line (also through a link), it was imported twice, every message doubled, exit 0. Now each
+// repetition is one line and the messages are there once.
+TEST(Ros2Import, AFileListedOrGivenTwiceIsReadOnce) {
+  test::TempDir dir;
+  const std::string bag = dir.file("bag");
+  fs::create_directories(bag);
+  write_scans(bag + "/b_0.mcap", 0, 4);
+  formats::Ros2TopicInfo topic{"/scan", "sensor_msgs/msg/LaserScan", "cdr", "", "", 4};
+  write_text(bag + "/metadata.yaml",
+             formats::ros2_metadata_yaml("mcap", {topic}, {{"b_0.mcap", 0, 0, 4}, {"./b_0.mcap", 0, 0, 4}}));
+  CmdResult r = driftlab("import '" + bag + "' -o '" + dir.file("out.lcm") + "'");
+  EXPECT_EQ(r.code, 2) << r.err;
+  EXPECT_EQ(r.err, "driftlab: " + bag + "/./b_0.mcap (the same file as " + bag +
+                       "/b_0.mcap): listed twice in metadata.yaml; read once\n");
+  EXPECT_EQ(by_channel(dir.file("out.lcm")).at("/scan").size(), 4u);
+
+  fs::create_symlink(bag + "/b_0.mcap", dir.file("link.mcap"));
+  r = driftlab("import '" + bag + "/b_0.mcap' '" + dir.file("link.mcap") + "' -o '" + dir.file("two.lcm") + "'");
+  EXPECT_EQ(r.code, 2) << r.err;
+  EXPECT_EQ(r.err, "driftlab: " + dir.file("link.mcap") + " (the same file as " + bag +
+                       "/b_0.mcap): given twice; read once\n");
+  EXPECT_EQ(by_channel(dir.file("two.lcm")).at("/scan").size(), 4u);
+}
+
+// A problem inside a bag compressed whole with zstd names that file (offsets into what it decompresses to): it named
+// the temporary file the bag was decompressed into ("OUT.partial.PID.N.unzstd: at byte 58: ..."), gone by then.
+TEST(Ros2Import, AProblemInACompressedBagNamesItNotTheTemporaryFile) {
+  test::TempDir dir;
+  write_scans(dir.file("cut.mcap"), 0, 20);
+  auto bytes = test::read_file(dir.file("cut.mcap"));
+  bytes.resize(bytes.size() / 2);  // cut inside its chunk
+  formats::Compressor zstd(formats::Codec::kZstd, 3);
+  std::vector<uint8_t> packed;
+  ASSERT_EQ(zstd.run(bytes, packed), "");
+  test::write_file(dir.file("cut.mcap.zstd"), packed);
+  const CmdResult r = driftlab("import '" + dir.file("cut.mcap.zstd") + "' -o '" + dir.file("out.lcm") + "'");
+  EXPECT_EQ(r.code, 2) << r.err;
+  EXPECT_EQ(r.err.rfind("driftlab: " + dir.file("cut.mcap.zstd") + " (decompressed): at byte ", 0), 0u) << r.err;
+  EXPECT_EQ(r.err.find("unzstd"), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find(".partial"), std::string::npos) << r.err;
+}
+
 }  // namespace
 }  // namespace driftlab
