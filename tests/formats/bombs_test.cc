@@ -224,7 +224,9 @@ TEST(DecompressionBomb, ACarmenGzipIsReadALineAtATime) {
   const CmdResult r = test::run_capture(kDriftlab + " import '" + in + "' -o '" + dir.file("out.lcm") + "'");
   EXPECT_EQ(r.code, 2) << r.err;
   EXPECT_NE(r.err.find(in + ":31: a line longer than 16777216 bytes"), std::string::npos) << r.err;
-  EXPECT_LT(children_peak_mib(), 150) << "MiB";
+  // Inflated whole it peaked at 912 MiB; a line at a time holds at most one 16 MiB line and the decoder's buffers:
+  // 156 MiB peak under ASan (its shadow memory and quarantine), less in release. 300 tells the two apart.
+  EXPECT_LT(children_peak_mib(), 300) << "MiB";
   // The lines before it are converted.
   EXPECT_GE(test::read_all(dir.file("out.lcm")).size(), 30u);
 }
