@@ -4,7 +4,20 @@
 #include <cmath>
 #include <cstdlib>
 
+#include "apps/cli_util.h"
+
 namespace driftlab::apps {
+
+bool JsonOutput::emit(const std::string& text) const {
+  if (!file.empty() && !write_output(file, text)) return false;
+  return !print || file == "-" || write_output("-", text);
+}
+
+void add_json_options(CLI::App* cmd, JsonOutput* out, const std::string& what) {
+  cmd->add_flag("--json", out->print, "Print " + what + " as one JSON object instead of text");
+  cmd->add_option("--json-out", out->file, "Also write " + what + " as JSON to this file ('-': standard output)")
+      ->type_name("FILE");
+}
 
 std::string interval(const config::Range& r) {
   const auto bound = [](double v) {

@@ -29,6 +29,19 @@ inline constexpr config::Range kSeed = config::between(0, 9007199254740991.0);
 /// Pacing against the wall clock, as a multiple of real time.
 inline constexpr config::Range kPaceRate = config::above(0, 1e6);
 
+/// `--json` and `--json-out FILE`, meaning the same in every command: --json prints one JSON object on standard
+/// output instead of the text; --json-out writes it to FILE as well (the text still printed, unless --json).
+struct JsonOutput {
+  bool print = false;
+  std::string file;
+  bool wanted() const { return print || !file.empty(); }
+  /// Writes text (one JSON object) where asked; false, with one line naming the file, when FILE could not be
+  /// written.
+  bool emit(const std::string& text) const;
+};
+/// Adds --json and --json-out to cmd; `what` names the object ("the diagnosis", "a summary").
+void add_json_options(CLI::App* cmd, JsonOutput* out, const std::string& what);
+
 /// The range as --help shows it: "[0, 60]", "(0, 1e+06]", "[1, 4096]".
 std::string interval(const config::Range& r);
 

@@ -7,6 +7,7 @@
 #include <sys/mman.h>
 #include <unistd.h>
 
+#include <atomic>
 #include <cctype>
 #include <cerrno>
 #include <cstdio>
@@ -14,6 +15,7 @@
 #include <cstring>
 #include <ctime>
 #include <filesystem>
+#include <mutex>
 #include <thread>
 
 namespace driftlab::apps {
@@ -202,8 +204,49 @@ std::string format_utime(int64_t utime) {
 Progress::Progress(std::string label, Unit unit)
     : label_(std::move(label)), unit_(unit), enabled_(isatty(STDERR_FILENO) == 1) {}
 
-Progress::~Progress() {
+struct StageLine::State {
+  std::mutex mutex;
+  std::string what;
+  std::atomic<bool> done{false};
+  std::thread ticker;
+};
+
+StageLine::StageLine(std::string what) : state_(std::make_unique<State>()) {
+  state_->what = std::move(what);
+  if (isatty(STDERR_FILENO) != 1) return;
+  state_->ticker = std::thread([s = state_.get()] {
+    const Stopwatch running;
+    while (!s->done) {
+      {
+        std::lock_guard lock(s->mutex);
+        std::fprintf(stderr, "\r\033[K%s ... %.1f s", s->what.c_str(), running.seconds());
+      }
+      std::fflush(stderr);
+      for (int i = 0; i < 5 && !s->done; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    }
+  });
+}
+
+StageLine::~StageLine() { finish(); }
+
+void StageLine::set(std::string what) {
+  std::lock_guard lock(state_->mutex);
+  state_->what = std::move(what);
+}
+
+void StageLine::finish() {
+  state_->done = true;
+  if (state_->ticker.joinable()) {
+    state_->ticker.join();
+    std::fprintf(stderr, "\r\033[K");
+  }
+}
+
+Progress::~Progress() { finish(); }
+
+void Progress::finish() {
   if (drawn_) std::fprintf(stderr, "\r\033[K");
+  drawn_ = false;
 }
 
 void Progress::update(uint64_t done, uint64_t total) {

@@ -87,6 +87,8 @@ class Progress {
   explicit Progress(std::string label, Unit unit = Unit::kBytes);
   ~Progress();
   void update(uint64_t done, uint64_t total);
+  /// Clears the line, so what follows starts on a clean one.
+  void finish();
 
  private:
   std::string label_;
@@ -94,6 +96,23 @@ class Progress {
   bool enabled_;
   bool drawn_ = false;
   Stopwatch running_, since_drawn_;
+};
+
+/// "reading the logs ... 4.2 s", redrawn twice a second on stderr while a stage runs, when stderr is a terminal.
+class StageLine {
+ public:
+  explicit StageLine(std::string what);
+  ~StageLine();
+  StageLine(const StageLine&) = delete;
+  StageLine& operator=(const StageLine&) = delete;
+  /// What the line says from now on (the time keeps running).
+  void set(std::string what);
+  /// Stops the line and clears it.
+  void finish();
+
+ private:
+  struct State;
+  std::unique_ptr<State> state_;
 };
 
 /// Publishes messages on LCM, paced against the wall clock at `rate` x the messages' own time (0: as fast as

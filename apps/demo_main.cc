@@ -5,16 +5,12 @@
 // every number the demo prints can be reproduced with the command it shows.
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
-#include <unistd.h>
 
-#include <atomic>
-#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <memory>
-#include <thread>
 
 #include "apps/cli_checks.h"
 #include "apps/cli_util.h"
@@ -41,40 +37,13 @@ struct DemoArgs {
   std::string estimate = "EKF_ODOM";
   double estimator_window = 0;
   bool drone = false;
-  bool json = false;
+  JsonOutput json;
 };
 
-/// "[3/7] replay ... 4 s", redrawn on a terminal while a stage runs; nothing when stderr is not a terminal.
-class StageLine {
- public:
-  StageLine(int index, int total, std::string what) : what_(std::move(what)), enabled_(isatty(STDERR_FILENO) == 1) {
-    what_ = "[" + std::to_string(index) + "/" + std::to_string(total) + "] " + what_;
-    if (!enabled_) return;
-    ticker_ = std::thread([this] {
-      const Stopwatch running;
-      while (!done_) {
-        const double s = running.seconds();
-        std::fprintf(stderr, "\r\033[K%s ... %.1f s", what_.c_str(), s);
-        std::fflush(stderr);
-        for (int i = 0; i < 5 && !done_; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(100));
-      }
-    });
-  }
-  ~StageLine() { finish(); }
-  void finish() {
-    done_ = true;
-    if (ticker_.joinable()) {
-      ticker_.join();
-      std::fprintf(stderr, "\r\033[K");
-    }
-  }
-
- private:
-  std::string what_;
-  bool enabled_;
-  std::atomic<bool> done_{false};
-  std::thread ticker_;
-};
+/// "[3/7] replaying the log".
+std::string stage_label(int index, int total, const std::string& what) {
+  return "[" + std::to_string(index) + "/" + std::to_string(total) + "] " + what;
+}
 
 struct Stage {
   std::string name;
@@ -150,7 +119,7 @@ int run_steps(const std::vector<Step>& steps, int total, bool json, const fs::pa
     const Stopwatch stage;
     int code = 0;
     {
-      StageLine line(static_cast<int>(i) + 1, total, s.what);
+      StageLine line(stage_label(static_cast<int>(i) + 1, total, s.what));
       // The stage's errors go to a file (its progress would fight with ours): the last line is the one to show.
       code = run_program(s.args, s.stdout_file, errors);
     }
@@ -182,7 +151,7 @@ Result<std::string> draw_report(const ReportOptions& r, int total, bool json, st
   const Stopwatch drawing;
   Result<std::string> page = Error{""};
   {
-    StageLine line(total, total, "drawing the report");
+    StageLine line(stage_label(total, total, "drawing the report"));
     page = make_report(r);
   }
   if (page) stages.push_back({"report", drawing.seconds()});
@@ -227,7 +196,7 @@ int run_drone_demo(const DemoArgs& a, const fs::path& dir, const std::string& ex
       {"simulating the clean flight", with_seed({exe, "sim", scenarios + "/drone.yaml", "-o", clean, "--json"}),
        file("clean.json")},
       {"simulating the faulty flight", with_seed({exe, "sim", faulty_scenario, "-o", sim, "--json"}), file("sim.json")},
-      {"diagnosing the log", {exe, "diagnose", sim, "--json", file("diagnosis.json")}, file("diagnosis.txt")},
+      {"diagnosing the log", {exe, "diagnose", sim, "--json-out", file("diagnosis.json")}, file("diagnosis.txt")},
       {"flying again with corrected clocks",
        {exe, "replay", sim, "--closed-loop", "--restamp", "auto", "-o", restamped, "--json"},
        file("restamped.json")},
@@ -236,16 +205,16 @@ int run_drone_demo(const DemoArgs& a, const fs::path& dir, const std::string& ex
   for (const auto& [name, log] : flights) {
     steps.push_back({"scoring the setpoint tracking",
                      {exe, "eval", "--gt", log + ":GROUND_TRUTH", "--est", log + ":SETPOINT", "--align", "posyaw",
-                      "--json", file((std::string("tracking-") + name + ".json").c_str())},
+                      "--json-out", file((std::string("tracking-") + name + ".json").c_str())},
                      file((std::string("tracking-") + name + ".txt").c_str())});
     steps.push_back({"scoring the estimate",
                      {exe, "eval", "--gt", log + ":GROUND_TRUTH", "--est", log + ":VEHICLE_ODOM", "--align", "se3",
-                      "--json", file((std::string("estimate-") + name + ".json").c_str())},
+                      "--json-out", file((std::string("estimate-") + name + ".json").c_str())},
                      file((std::string("estimate-") + name + ".txt").c_str())});
   }
   const int total = static_cast<int>(steps.size()) + 1;
   std::vector<Stage> stages;
-  if (int code = run_steps(steps, total, a.json, dir, stages); code != kExitOk) return code;
+  if (int code = run_steps(steps, total, a.json.print, dir, stages); code != kExitOk) return code;
 
   ReportOptions r;
   r.logs = {sim, restamped};
@@ -253,7 +222,7 @@ int run_drone_demo(const DemoArgs& a, const fs::path& dir, const std::string& ex
   r.diagnosis = file("diagnosis.json");
   r.evals = {file("estimate-logged.json"), file("estimate-restamped.json")};
   r.title = "driftlab demo --drone: " + fs::path(faulty_scenario).stem().string() + ", as flown and flown again";
-  auto page = draw_report(r, total, a.json, stages);
+  auto page = draw_report(r, total, a.json.print, stages);
   if (!page) return fail("demo: " + page.error().message, kExitFailure);
 
   nlohmann::json summary;
@@ -271,7 +240,7 @@ int run_drone_demo(const DemoArgs& a, const fs::path& dir, const std::string& ex
   auto percent = [](const ImuRejections& r) {
     return r.received > 0 ? 100.0 * static_cast<double>(r.rejected) / static_cast<double>(r.received) : 0.0;
   };
-  if (a.json) {
+  if (a.json.wanted()) {
     nlohmann::json j;
     j["report"] = *page;
     j["dir"] = a.out;
@@ -282,8 +251,8 @@ int run_drone_demo(const DemoArgs& a, const fs::path& dir, const std::string& ex
     j["worst_stream"] = summary["worst_stream"];
     j["clock_offsets_s"] = summary["clocks_ahead_s"];
     j["stages"] = stages_json(stages);
-    std::printf("%s\n", j.dump(2).c_str());
-    return kExitOk;
+    if (!a.json.emit(j.dump(2) + "\n")) return kExitFailure;
+    if (a.json.print) return kExitOk;
   }
   print_worst_and_clocks(summary);
   std::printf(
@@ -332,23 +301,25 @@ int run_demo(const DemoArgs& a) {
   const std::string gt = sim + ":GROUND_TRUTH";
   const std::vector<Step> steps = {
       {"simulating the robot", sim_args, file("sim.json")},
-      {"diagnosing the log", {exe, "diagnose", sim, "--json", file("diagnosis.json")}, file("diagnosis.txt")},
-      {"replaying as logged", {exe, "replay", sim, "--modules", modules, "--config", config, "-o", replay, "--json"}, file("replay.json")},
+      {"diagnosing the log", {exe, "diagnose", sim, "--json-out", file("diagnosis.json")}, file("diagnosis.txt")},
+      {"replaying as logged",
+       {exe, "replay", sim, "--modules", modules, "--config", config, "-o", replay, "--json"},
+       file("replay.json")},
       {"replaying with corrected clocks",
        {exe, "replay", sim, "--modules", modules, "--config", config, "--restamp", "auto", "-o", restamped, "--json"},
        file("restamped.json")},
       {"scoring the estimates",
-       {exe, "eval", "--gt", gt, "--est", replay + ":" + a.estimate, "--align", "posyaw", "--json",
+       {exe, "eval", "--gt", gt, "--est", replay + ":" + a.estimate, "--align", "posyaw", "--json-out",
         file("eval-before.json")},
        file("eval-before.txt")},
       {"scoring the estimates",
-       {exe, "eval", "--gt", gt, "--est", restamped + ":" + a.estimate, "--align", "posyaw", "--json",
+       {exe, "eval", "--gt", gt, "--est", restamped + ":" + a.estimate, "--align", "posyaw", "--json-out",
         file("eval-after.json")},
        file("eval-after.txt")},
   };
   const int total = static_cast<int>(steps.size()) + 1;
   std::vector<Stage> stages;
-  if (int code = run_steps(steps, total, a.json, dir, stages); code != kExitOk) return code;
+  if (int code = run_steps(steps, total, a.json.print, dir, stages); code != kExitOk) return code;
 
   ReportOptions r;
   r.logs = {sim, replay, restamped};
@@ -357,7 +328,7 @@ int run_demo(const DemoArgs& a) {
   r.evals = {file("eval-before.json"), file("eval-after.json")};
   r.title = std::string("driftlab demo: ") + duration + " s of " +
             (a.scenario.empty() ? std::string("the default scenario") : fs::path(a.scenario).stem().string());
-  auto page = draw_report(r, total, a.json, stages);
+  auto page = draw_report(r, total, a.json.print, stages);
   if (!page) return fail("demo: " + page.error().message, kExitFailure);
 
   // The summary, from the stages' JSON.
@@ -373,7 +344,7 @@ int run_demo(const DemoArgs& a) {
   } catch (const nlohmann::json::exception& e) {
     return fail("demo: reading the stages' JSON in " + a.out + ": " + e.what(), kExitFailure);
   }
-  if (a.json) {
+  if (a.json.wanted()) {
     nlohmann::json j;
     j["report"] = *page;
     j["dir"] = a.out;
@@ -386,8 +357,8 @@ int run_demo(const DemoArgs& a) {
     j["clock_offsets_s"] = summary["clocks_ahead_s"];
     j["drops"] = summary["drops"];
     j["stages"] = stages_json(stages);
-    std::printf("%s\n", j.dump(2).c_str());
-    return kExitOk;
+    if (!a.json.emit(j.dump(2) + "\n")) return kExitFailure;
+    if (a.json.print) return kExitOk;
   }
   std::string drop_text;
   for (const auto& [name, v] : summary["drops"].items()) {
@@ -432,7 +403,7 @@ void add_demo_command(CLI::App& app, int* exit_code) {
   cmd->add_flag("--drone", a->drone,
                 "The drone's story instead: the clean drone and drone_timebase (SCENARIO: another faulty drone "
                 "scenario) simulated, diagnosed, flown again in closed loop with corrected clocks, scored");
-  cmd->add_flag("--json", a->json, "Print one JSON object (report path, ate_before, ate_after in metres, ...)");
+  add_json_options(cmd, &a->json, "a summary (report path, ate_before, ate_after in metres, ...)");
   cmd->callback([a, exit_code] {
     if (a->out.empty()) a->out = a->drone ? "logs/demo-drone" : "logs/demo";
     *exit_code = run_demo(*a);

@@ -27,7 +27,7 @@ using analyzers::StreamPair;
 struct DiagnoseOptions {
   std::vector<std::string> inputs;
   std::string log;
-  std::string json;
+  JsonOutput json;
   std::string html;
   std::string fail_on;  ///< "", "warn" or "fault"
   analyzers::DiagnoseOptions analysis;
@@ -291,7 +291,7 @@ std::string html_page(const Diagnosis& d, const std::vector<std::string>& lines,
 }
 
 int run_diagnose(const DiagnoseOptions& o) {
-  for (const auto& [out, option] : {std::pair{o.json, "--json"}, {o.html, "--html"}}) {
+  for (const auto& [out, option] : {std::pair{o.json.file, "--json-out"}, {o.html, "--html"}}) {
     if (Status s = refuse_same_file(out, {o.log}, option); !s) return fail(s.message());
   }
   auto run = run_diagnosis(o.log, o.analysis);
@@ -308,9 +308,9 @@ int run_diagnose(const DiagnoseOptions& o) {
     problems.insert(problems.begin(), flight.problems.begin(), flight.problems.end());
   }
   if (!o.html.empty() && !write_output(o.html, html_page(d, lines, problems))) return kExitFailure;
-  if (!o.json.empty()) {
-    if (!write_output(o.json, diagnose_json(*run).dump(2) + "\n")) return kExitFailure;
-    if (o.json == "-") return fails(d, problems, o.fail_on) ? kExitProblemsFound : kExitOk;
+  if (o.json.wanted()) {
+    if (!o.json.emit(diagnose_json(*run).dump(2) + "\n")) return kExitFailure;
+    if (o.json.print) return fails(d, problems, o.fail_on) ? kExitProblemsFound : kExitOk;
   }
   for (const auto& l : lines) std::printf("%s\n", l.c_str());
   std::printf("\n");
@@ -333,7 +333,7 @@ void add_diagnose_command(CLI::App& app, int* exit_code) {
       "Find skew, clock offset and drift, latency, drops, duplicates and reordering in a log; in a PX4 flight log, "
       "the logger's dropouts, the IMU's timing and the estimator's health too.");
   cmd->add_option("log", o->inputs, kLogInputHelp)->required();
-  cmd->add_option("--json", o->json, "Also write the diagnosis as JSON to this file ('-': print only the JSON)");
+  add_json_options(cmd, &o->json, "the diagnosis");
   cmd->add_option("--html", o->html, "Also write the report as an HTML page");
   cmd->add_option("-c,--channels", o->analysis.channels,
                   "Only channels fully matching this regex (ECMAScript), as export csv's -c");
@@ -347,7 +347,7 @@ void add_diagnose_command(CLI::App& app, int* exit_code) {
       ->capture_default_str()
       ->check(in_range(kWindowRange, "s"));
   cmd->callback([o, exit_code] {
-    for (const auto& [out, option] : {std::pair{o->json, "--json"}, {o->html, "--html"}}) {
+    for (const auto& [out, option] : {std::pair{o->json.file, "--json-out"}, {o->html, "--html"}}) {
       if (Status s = refuse_same_file(out, o->inputs, option); !s) {  // the recording given, not only its conversion
         *exit_code = fail(s.message());
         return;

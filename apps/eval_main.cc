@@ -52,7 +52,7 @@ struct EvalOptions {
   std::string arm_reference = "commanded";
   std::string arm_command, arm_ee, arm_base;
   double arm_cutoff = 5.0;
-  std::string json;
+  JsonOutput json;
 };
 
 /// driftlab diagnose trusts a skew whose peak correlation is at least this; --offset auto applies no less.
@@ -394,7 +394,7 @@ int run_arm_eval(const EvalOptions& o) {
   if (!o.gt.empty() || !o.est.empty() || !o.relations.empty()) {
     return fail("--arm evaluates an arm's tracking in one log: give it without --gt, --est and --relations");
   }
-  if (Status s = refuse_same_file(o.json, {o.arm}, "--json"); !s) return fail(s.message());
+  if (Status s = refuse_same_file(o.json.file, {o.arm}, "--json-out"); !s) return fail(s.message());
   auto log = event_log_for(o.arm);  // another tool's recording: its cached conversion
   if (!log) return fail(log.error().message, exit_code_for_input(log.error()));
   ArmTrackingOptions options;
@@ -406,9 +406,9 @@ int run_arm_eval(const EvalOptions& o) {
   auto a = evaluate_arm(*log, options);
   if (!a) return fail(a.error().message);
   a->log = o.arm;
-  if (o.json != "-") print_arm(*a);
+  if (!o.json.print) print_arm(*a);
   nlohmann::json j = {{"arm", arm_json(*a)}, {"notes", nlohmann::json::array()}};
-  if (!o.json.empty() && !write_output(o.json, j.dump(2) + "\n")) return kExitFailure;
+  if (o.json.wanted() && !o.json.emit(j.dump(2) + "\n")) return kExitFailure;
   return kExitOk;
 }
 
@@ -427,7 +427,7 @@ int run_eval(const EvalOptions& o) {
     inputs.push_back(split_log_channel(*src, &log, &channel) ? log : *src);
   }
   for (const auto* file : {&o.relations, &o.gt_times, &o.est_times}) inputs.push_back(*file);
-  if (Status s = refuse_same_file(o.json, inputs, "--json"); !s) return fail(s.message());
+  if (Status s = refuse_same_file(o.json.file, inputs, "--json-out"); !s) return fail(s.message());
   // LOG:CHANNEL of another tool's recording: read from its cached conversion (the output names the source given).
   Result<std::string> gt_src = std::string();
   if (!o.gt.empty()) gt_src = log_channel_for(o.gt);
@@ -461,8 +461,8 @@ int run_eval(const EvalOptions& o) {
     nlohmann::json j = {{"estimate", {{"source", o.est}, {"poses", ev.est_poses}}},
                         {"relations", relations_json(o, *ev.relations)},
                         {"notes", notes}};
-    if (o.json != "-") print_relations(o, *ev.relations);
-    if (!o.json.empty() && !write_output(o.json, j.dump(2) + "\n")) return kExitFailure;
+    if (!o.json.print) print_relations(o, *ev.relations);
+    if (o.json.wanted() && !o.json.emit(j.dump(2) + "\n")) return kExitFailure;
     return kExitOk;
   }
 
@@ -521,14 +521,14 @@ int run_eval(const EvalOptions& o) {
   nlohmann::json j = to_json(o, ev);
   if (ev.relations) j["relations"] = relations_json(o, *ev.relations);
   j["notes"] = notes;
-  if (o.json != "-") {
+  if (!o.json.print) {
     print_table(o, ev);
     if (ev.relations) {
       std::printf("\n");
       print_relations(o, *ev.relations);
     }
   }
-  if (!o.json.empty() && !write_output(o.json, j.dump(2) + "\n")) return kExitFailure;
+  if (o.json.wanted() && !o.json.emit(j.dump(2) + "\n")) return kExitFailure;
   return kExitOk;
 }
 
@@ -632,7 +632,7 @@ void add_eval_command(CLI::App& app, int* exit_code) {
                   "With --arm: the end effector's motion above this frequency is reported as oscillation [Hz]")
       ->capture_default_str()
       ->check(in_range(config::above(0, 50), "Hz"));
-  cmd->add_option("--json", o->json, "Also write the results as JSON to this file ('-': print only the JSON)");
+  add_json_options(cmd, &o->json, "the results");
   cmd->callback([o, exit_code] {
     if (o->delta_unit == "frames" && std::floor(o->delta) != o->delta) {
       *exit_code = fail("--delta must be a whole number of frames, got " + short_number(o->delta));

@@ -29,7 +29,7 @@ namespace {
 struct InfoOptions {
   std::vector<std::string> inputs;
   std::string log;
-  bool json = false;
+  JsonOutput json;
   int max_problems = 20;
 };
 
@@ -212,11 +212,12 @@ int run_info(const InfoOptions& o) {
   }
   const auto recorded = recorder_stats(o.log, s);
   const SourceTypes sources = source_types(o.log, s);
-  if (o.json) {
+  if (o.json.wanted()) {
     auto j = to_json(o.log, s, sources);
     if (recorded) j["recorder"] = recorder_json(*recorded);
-    std::cout << j.dump(2) << "\n";
-  } else {
+    if (!o.json.emit(j.dump(2) + "\n")) return kExitFailure;
+  }
+  if (!o.json.print) {
     print_table(o.log, s, sources, o.max_problems);
     if (recorded) {
       const auto& r = *recorded;
@@ -236,7 +237,7 @@ void add_info_command(CLI::App& app, int* exit_code) {
   auto opts = std::make_shared<InfoOptions>();
   CLI::App* cmd = app.add_subcommand("info", "Summarise a log: channels, message types, rates, time range and problems.");
   cmd->add_option("log", opts->inputs, kLogInputHelp)->required();
-  cmd->add_flag("--json", opts->json, "Print one JSON object instead of a table");
+  add_json_options(cmd, &opts->json, "the summary");
   cmd->add_option("--max-problems", opts->max_problems, "Problems listed in the table")
       ->capture_default_str()
       ->check(in_range(config::between(0, 1e9)));

@@ -41,6 +41,15 @@ int run_record(recorder::RecordOptions o) {
   if (Status s = refuse_same_file(o.out, {}); !s) return fail(s.message());
   const bool tty = isatty(STDERR_FILENO) == 1;
   if (tty) o.on_status = [](const std::string& line) { std::fprintf(stderr, "\r\033[K%s", line.c_str()); };
+  // What it listens to, once it does: on stderr, so standard output keeps only the summary.
+  o.on_listening = [&o] {
+    std::string what = o.channels == ".*" ? "every channel" : "channels matching '" + o.channels + "'";
+    if (!o.exclude.empty()) what += " except '" + o.exclude + "'";
+    std::string until = o.duration_s > 0 ? "for " + short_number(o.duration_s) + " s or until Ctrl-C" : "until Ctrl-C";
+    std::fprintf(stderr, "recording %s on %s to %s, %s\n", what.c_str(), o.url.c_str(),
+                 o.split_mb > 0 || o.split_s > 0 ? (o.out + " (in numbered parts)").c_str() : o.out.c_str(),
+                 until.c_str());
+  };
   recorder::Recorder rec(o, clock);
   g_recorder.store(&rec);
   struct sigaction sa {};

@@ -25,7 +25,7 @@ namespace {
 struct RecoverOptions {
   std::string log, out;
   bool keep_malformed = false;
-  bool json = false;
+  JsonOutput json;
   int max_problems = 20;
 };
 
@@ -78,7 +78,7 @@ int run_recover(const RecoverOptions& o) {
   const uint64_t total = reader->size_bytes();
   int64_t dropped_messages = 0;
   for (const auto& [channel, m] : malformed) dropped_messages += m.count;
-  if (o.json) {
+  if (o.json.wanted()) {
     nlohmann::json j;
     j["log"] = o.log;
     j["out"] = o.out;
@@ -94,8 +94,8 @@ int run_recover(const RecoverOptions& o) {
     }
     j["malformed"] = nlohmann::json::object();
     for (const auto& [channel, m] : malformed) j["malformed"][channel] = {{"count", m.count}, {"first", m.first}};
-    std::cout << j.dump(2) << "\n";
-    return kExitOk;
+    if (!o.json.emit(j.dump(2) + "\n")) return kExitFailure;
+    if (o.json.print) return kExitOk;
   }
   std::printf("%s -> %s: %s events, %s of %s\n", o.log.c_str(), o.out.c_str(), thousands(writer->events()).c_str(),
               human_bytes(static_cast<double>(kept_bytes)).c_str(), human_bytes(static_cast<double>(total)).c_str());
@@ -152,7 +152,7 @@ void add_recover_command(CLI::App& app, int* exit_code) {
   cmd->add_option("log", o->log, "Damaged LCM event log")->required();
   cmd->add_option("-o,--out", o->out, "Clean log to write")->required();
   cmd->add_flag("--keep-malformed", o->keep_malformed, "Keep intact events whose message is malformed for its type");
-  cmd->add_flag("--json", o->json, "Print one JSON object instead of text");
+  add_json_options(cmd, &o->json, "a summary");
   cmd->add_option("--max-problems", o->max_problems, "Damaged spots listed in the text")
       ->capture_default_str()
       ->check(in_range(config::between(0, 1e9)));

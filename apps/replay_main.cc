@@ -48,7 +48,7 @@ struct ReplayArgs {
   std::string publish;
   bool timing = false;
   bool no_inputs = false;
-  bool json = false;
+  JsonOutput json;
 };
 
 std::atomic<bool> g_stop{false};
@@ -232,7 +232,7 @@ int run_closed_loop(const ReplayArgs& a, const ReplayArgs& defaults) {
   if (!report) return fail(report.error().message, kExitFailure);
   int64_t total = 0;
   for (const auto& [channel, n] : report->messages) total += n;
-  if (a.json) {
+  if (a.json.wanted()) {
     nlohmann::json j;
     j["log"] = log;
     j["out"] = a.out;
@@ -248,8 +248,8 @@ int run_closed_loop(const ReplayArgs& a, const ReplayArgs& defaults) {
     for (const auto& [channel, d] : corrections.retime) j["retime"][channel] = d.seconds();
     j["messages"] = report->messages;
     j["run"] = report->notes;
-    std::printf("%s\n", j.dump(2).c_str());
-    return kExitOk;
+    if (!a.json.emit(j.dump(2) + "\n")) return kExitFailure;
+    if (a.json.print) return kExitOk;
   }
   for (const auto& n : notes) std::printf("%s\n", n.c_str());
   if (corrections.clocks.empty() && corrections.retime.empty()) {
@@ -330,6 +330,8 @@ int run_replay(ReplayArgs a) {
   const InputChannels inputs = a.modules.empty() ? InputChannels{} : replay::delivered_channels(o);
   auto modules = modules::load_modules(a.modules, a.config, inputs, notes);
   if (!modules) return fail(modules.error().message);
+  Progress progress("replaying");
+  o.progress = [&progress](uint64_t done, uint64_t total) { progress.update(done, total); };
   replay::Replayer replayer(o);
   for (auto& m : *modules) replayer.add_module(std::move(m));
 
@@ -349,6 +351,7 @@ int run_replay(ReplayArgs a) {
   sigaction(SIGTERM, &sa, nullptr);
   const Stopwatch running;
   auto report = replayer.run(sink, &g_stop);
+  progress.finish();
   const double wall = running.seconds();
   if (!report) return fail(report.error().message, kExitFailure);
   const auto& r = *report;
@@ -357,7 +360,7 @@ int run_replay(ReplayArgs a) {
   }
   const double span = seconds_between(r.start_utime, r.end_utime);
 
-  if (a.json) {
+  if (a.json.wanted()) {
     nlohmann::json j;
     j["logs"] = a.logs;
     j["out"] = a.out;
@@ -377,8 +380,8 @@ int run_replay(ReplayArgs a) {
     }
     j["modules"] = modules_json(r.modules);
     j["injected_faults"] = r.injected.size();
-    std::printf("%s\n", j.dump(2).c_str());
-    return kExitOk;
+    if (!a.json.emit(j.dump(2) + "\n")) return kExitFailure;
+    if (a.json.print) return kExitOk;
   }
   for (const auto& n : notes) std::printf("%s\n", n.c_str());
   std::printf("%s %.1f s of log in %.2f s (%.0fx real time): %s events in, %s module outputs%s%s\n",
@@ -396,7 +399,7 @@ int run_replay(ReplayArgs a) {
 struct RunArgs {
   std::string modules, config, url, out;
   double duration = 0;
-  bool json = false;
+  JsonOutput json;
 };
 
 int run_live(const RunArgs& a) {
@@ -414,7 +417,7 @@ int run_live(const RunArgs& a) {
   sigaction(SIGTERM, &sa, nullptr);
   auto report = runner.run(&g_stop);
   if (!report) return fail(report.error().message, kExitFailure);
-  if (a.json) {
+  if (a.json.wanted()) {
     nlohmann::json j;
     j["url"] = a.url;
     j["out"] = a.out;
@@ -423,8 +426,8 @@ int run_live(const RunArgs& a) {
     j["wall_s"] = report->wall_s;
     j["notes"] = notes;
     j["modules"] = modules_json(report->modules);
-    std::printf("%s\n", j.dump(2).c_str());
-    return kExitOk;
+    if (!a.json.emit(j.dump(2) + "\n")) return kExitFailure;
+    if (a.json.print) return kExitOk;
   }
   for (const auto& n : notes) std::printf("%s\n", n.c_str());
   std::printf("ran %.1f s on %s: %s messages handled, %s module outputs%s%s\n", report->wall_s, a.url.c_str(),
@@ -452,7 +455,7 @@ void add_run_command(CLI::App& app, int* exit_code) {
   cmd->add_option("--duration", a->duration, "Stop after this many seconds (0: at Ctrl-C)")
       ->capture_default_str()
       ->check(in_range(config::between(0, 1e7), "s"));
-  cmd->add_flag("--json", a->json, "Print a JSON summary instead of text");
+  add_json_options(cmd, &a->json, "a summary");
   cmd->callback([a, exit_code] { *exit_code = run_live(*a); });
 }
 
@@ -502,7 +505,7 @@ void add_replay_command(CLI::App& app, int* exit_code) {
   cmd->add_option("--publish", a->publish, "Re-publish inputs and outputs on this LCM URL, paced by --rate");
   cmd->add_flag("--timing", a->timing, "Measure processing time per input and the queues it implies");
   cmd->add_flag("--no-inputs", a->no_inputs, "Write only the module outputs and statistics to OUT");
-  cmd->add_flag("--json", a->json, "Print a JSON summary instead of text");
+  add_json_options(cmd, &a->json, "a summary");
   cmd->callback([a, exit_code] { *exit_code = run_replay(*a); });
 }
 

@@ -1,6 +1,7 @@
 // `driftlab report`: the HTML page with plots, also made by `driftlab demo`.
 #pragma once
 
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -15,6 +16,9 @@ struct ReportOptions {
   std::vector<std::string> evals;  ///< `driftlab eval --json` files to tabulate
   std::string gt_channel = "GROUND_TRUTH";
   std::string title;
+  /// Told what the report does next ("reading run.lcm", "diagnosing run.lcm", "drawing the plots"), for a progress
+  /// line.
+  std::function<void(const std::string&)> on_stage;
 };
 
 /// Writes the report; returns the page's path. Errors name the file or option at fault; a failure of the plotting

@@ -144,10 +144,14 @@ nlohmann::json path_json(const std::string& label, const Trajectory& t, double o
 
 Result<std::string> make_report(const ReportOptions& o) {
   if (o.logs.empty()) return Error{"report: no log given"};
+  const auto stage = [&o](const std::string& what) {
+    if (o.on_stage) o.on_stage(what);
+  };
   std::vector<LogSeries> logs;
   std::vector<std::string> names;  // as given: a bag's own name, not its conversion's
   for (const auto& given : o.logs) {
     names.push_back(given);
+    stage("reading " + given);
     auto path = event_log_for(given);  // another tool's recording: its cached conversion
     if (!path) return path.error();
     auto s = read_log_series(*path);
@@ -174,6 +178,7 @@ Result<std::string> make_report(const ReportOptions& o) {
       if (f->present) diagnosis["flight_log"] = flight_log_json(*f);
     }
   } else {
+    stage("diagnosing " + names.front());
     auto run = run_diagnosis(first.log, {});  // as diagnose --json: with a flight log's own diagnosis
     if (!run) return run.error();
     diagnosis = diagnose_json(*run);
@@ -325,6 +330,7 @@ Result<std::string> make_report(const ReportOptions& o) {
     }
   }
 
+  stage("drawing the plots");
   const std::string json_path = (fs::path(o.out) / "report.json").string();
   if (auto st = write_atomically(json_path, data.dump() + "\n"); !st) return Error{st.message()};
   if (Status st = run_plot_script(kReportPageScript, "report_page.py", o.out, {json_path, o.out}); !st) {
@@ -360,7 +366,11 @@ void add_report_command(CLI::App& app, int* exit_code) {
       *exit_code = fail(s.message());
       return;
     }
-    auto page = make_report(*o);
+    StageLine line("report");
+    ReportOptions options = *o;
+    options.on_stage = [&line](const std::string& what) { line.set("report: " + what); };
+    auto page = make_report(options);
+    line.finish();
     if (!page) {
       *exit_code =
           fail(page.error().message,

@@ -32,7 +32,7 @@ struct SimArgs {
   std::string live_url;
   double live_rate = 1.0;
   std::string rays = "grid";
-  bool json = false;
+  JsonOutput json;
 };
 
 std::atomic<bool> g_stop{false};
@@ -94,12 +94,12 @@ int run_sim(const SimArgs& a) {
   const Stopwatch running;
   auto report = (*simulation)->run(o);
   const double wall = running.seconds();
-  progress.update(1, 1);
+  progress.finish();
   if (!report) return fail(report.error().message, kExitFailure);
   const auto& r = *report;
   int64_t total = 0;
   for (const auto& [channel, n] : r.messages) total += n;
-  if (a.json) {
+  if (a.json.wanted()) {
     nlohmann::json j;
     j["log"] = a.out;
     j["faults"] = r.faults_json;
@@ -113,8 +113,8 @@ int run_sim(const SimArgs& a) {
     j["laps"] = r.laps;
     j["odometry_error_m"] = r.odometry_error_m;
     j["notes"] = r.notes;
-    std::printf("%s\n", j.dump(2).c_str());
-    return kExitOk;
+    if (!a.json.emit(j.dump(2) + "\n")) return kExitFailure;
+    if (a.json.print) return kExitOk;
   }
   std::printf("%s %.1f s of %s in %.2f s (%.0fx real time): %s messages to %s\n",
               r.interrupted ? "interrupted after" : "simulated", r.simulated_s, scenario->name.c_str(), wall,
@@ -154,7 +154,7 @@ void add_sim_command(CLI::App& app, int* exit_code) {
   cmd->add_option("--rays", a->rays, "Ray casting: grid (fast, exact for the world's shapes) or bullet (Bullet's ray test)")
       ->capture_default_str()
       ->check(CLI::IsMember({"grid", "bullet"}));
-  cmd->add_flag("--json", a->json, "Print a JSON summary instead of text");
+  add_json_options(cmd, &a->json, "a summary");
   cmd->callback([a, exit_code] { *exit_code = run_sim(*a); });
 }
 

@@ -49,7 +49,7 @@ struct ExecArgs {
   int max_parallel = 0;
   std::vector<std::string> slurm_opts;
   bool dry_run = false;
-  bool json = false;
+  JsonOutput json;
 };
 
 struct SweepArgs {
@@ -144,14 +144,14 @@ Counts count_points(const std::string& dir, const Plan& plan) {
   return c;
 }
 
-int run_status(const std::string& dir, bool json) {
+int run_status(const std::string& dir, const JsonOutput& json) {
   auto plan = load_plan(dir);
   if (!plan) return fail(plan.error().message);
   const Counts c = count_points(dir, *plan);
   const auto jobs = slurm_jobs(dir);
   const auto queue = slurm_queue(jobs);
   auto n = [&](PointState s) { return c.by_state.count(s) ? c.by_state.at(s) : 0; };
-  if (json) {
+  if (json.wanted()) {
     nlohmann::json j = {{"dir", dir}, {"points", plan->points.size()}, {"done", n(PointState::kDone)},
                         {"running", n(PointState::kRunning)}, {"failed", n(PointState::kFailed)},
                         {"pending", n(PointState::kPending)}, {"slurm_jobs", jobs}};
@@ -159,8 +159,8 @@ int run_status(const std::string& dir, bool json) {
     for (const auto& [id, state] : queue) j["slurm_tasks"][id] = state;
     j["failures"] = nlohmann::json::array();
     for (const auto& f : c.failed) j["failures"].push_back({{"id", f.id}, {"attempts", f.attempts}, {"record", f.record}});
-    std::printf("%s\n", j.dump(2).c_str());
-    return kExitOk;
+    if (!json.emit(j.dump(2) + "\n")) return kExitFailure;
+    if (json.print) return kExitOk;
   }
   std::printf("%s: %zu points: %zu done, %zu running, %zu failed, %zu pending\n", dir.c_str(), plan->points.size(),
               n(PointState::kDone), n(PointState::kRunning), n(PointState::kFailed), n(PointState::kPending));
@@ -238,10 +238,14 @@ int execute(const std::string& dir, Plan plan, const ExecArgs& e, const std::str
     }
     auto r = make_slurm_executor(so)->execute(dir, pending);
     if (!r) return fail(r.error().message, kExitFailure);
-    if (e.json) {
-      std::printf("%s\n", nlohmann::json{{"job_id", r->job_id}, {"submitted", pending.size()}, {"done", already},
-                                         {"dir", dir}}.dump().c_str());
-    } else {
+    if (e.json.wanted() &&
+        !e.json.emit(
+            nlohmann::json{{"job_id", r->job_id}, {"submitted", pending.size()}, {"done", already}, {"dir", dir}}
+                .dump() +
+            "\n")) {
+      return kExitFailure;
+    }
+    if (!e.json.print) {
       std::printf("submitted job %s: %zu points as a job array (%zu already done); follow with: driftlab sweep "
                   "status %s\n",
                   r->job_id.c_str(), pending.size(), already, dir.c_str());
@@ -251,7 +255,7 @@ int execute(const std::string& dir, Plan plan, const ExecArgs& e, const std::str
   LocalOptions lo;
   lo.jobs = e.jobs;
   lo.retries = e.retries;
-  lo.progress = isatty(STDERR_FILENO) == 1 && !e.json;
+  lo.progress = isatty(STDERR_FILENO) == 1 && !e.json.print;
   lo.stop = &g_stop;
   const std::string abs_dir = fs::absolute(dir).string();
   std::vector<std::string> flag_words;
@@ -272,14 +276,15 @@ int execute(const std::string& dir, Plan plan, const ExecArgs& e, const std::str
   const double wall = running.seconds();
   auto page = collect(dir, plan, !r->interrupted);
   const int code = r->interrupted ? 130 : r->failed > 0 ? kExitFailure : kExitOk;
-  if (e.json) {
+  if (e.json.wanted()) {
     nlohmann::json j = {{"dir", dir}, {"points", plan.points.size()}, {"already_done", already}, {"done", r->done},
                         {"failed", r->failed}, {"not_started", r->not_started}, {"interrupted", r->interrupted},
                         {"wall_s", wall}, {"jobs", lo.jobs > 0 ? lo.jobs : usable_cpus()},
                         {"table", (fs::path(dir) / "results.csv").string()}};
     if (page && !page->empty()) j["page"] = *page;
-    std::printf("%s\n", j.dump(2).c_str());
-  } else {
+    if (!e.json.emit(j.dump(2) + "\n")) return kExitFailure;
+  }
+  if (!e.json.print) {
     std::printf("%s %zu points in %.1f s (%zu already done): %zu done, %zu failed%s\n",
                 r->interrupted ? "stopped after" : "ran", r->done + r->failed, wall, already, r->done, r->failed,
                 r->interrupted ? "; finished points are kept, run the same command again to resume" : "");
@@ -308,7 +313,7 @@ void add_exec_options(CLI::App* cmd, ExecArgs& e) {
   cmd->add_option("--slurm-opt", e.slurm_opts, "slurm: an sbatch option, passed as it is (repeatable): --partition=P, --time=1:00:00, --mem=4G, --account=A")
       ->allow_extra_args(false);
   cmd->add_flag("--dry-run", e.dry_run, "List the points (id, done or pending, values) and run nothing");
-  cmd->add_flag("--json", e.json, "Print one JSON object instead of text");
+  add_json_options(cmd, &e.json, "a summary");
 }
 
 int run_sweep(const SweepArgs& a) {
@@ -397,10 +402,10 @@ void add_sweep_command(CLI::App& app, int* exit_code) {
   cmd->add_option("--point", a->point, "Run one point of the sweep in DIR (what each task runs)");
   add_exec_options(cmd, a->exec);
   auto status_dir = std::make_shared<std::string>();
-  auto status_json = std::make_shared<bool>(false);
+  auto status_json = std::make_shared<JsonOutput>();
   CLI::App* status = cmd->add_subcommand("status", "Points done, running, failed and pending, and the Slurm jobs' states.");
   status->add_option("dir", *status_dir, "Folder of the sweep")->required();
-  status->add_flag("--json", *status_json, "Print one JSON object");
+  add_json_options(status, status_json.get(), "the counts");
   status->callback([status_dir, status_json, exit_code] { *exit_code = run_status(*status_dir, *status_json); });
   auto collect_dir = std::make_shared<std::string>();
   auto no_plots = std::make_shared<bool>(false);
@@ -442,10 +447,10 @@ void add_batch_command(CLI::App& app, int* exit_code) {
     });
   }
   auto dir = std::make_shared<std::string>();
-  auto json = std::make_shared<bool>(false);
+  auto json = std::make_shared<JsonOutput>();
   CLI::App* status = cmd->add_subcommand("status", "Logs done, running, failed and pending, and the Slurm jobs' states.");
   status->add_option("dir", *dir, "Folder of the batch")->required();
-  status->add_flag("--json", *json, "Print one JSON object");
+  add_json_options(status, json.get(), "the counts");
   status->callback([dir, json, exit_code] { *exit_code = run_status(*dir, *json); });
   auto cdir = std::make_shared<std::string>();
   auto no_plots = std::make_shared<bool>(false);

@@ -234,6 +234,15 @@ int parse_and_run(CLI::App& app, int argc, char** argv, const int& exit_code) {
   // up its partial outputs and says so, instead of being killed by SIGXFSZ halfway through a write.
   std::signal(SIGXFSZ, SIG_IGN);
   harden(app);
+  // `--json FILE` was the way to write a diagnosis or evaluation to a file; --json now prints and takes no value,
+  // so the file would be read as an input. Said plainly rather than "FILE: no such file".
+  for (int i = 1; i + 1 < argc; ++i) {
+    const std::string_view next = argv[i + 1];
+    if (std::string_view(argv[i]) == "--json" &&
+        (next == "-" || (next.size() > 5 && next.substr(next.size() - 5) == ".json"))) {
+      return fail("--json takes no file: it prints the JSON; --json-out " + std::string(next) + " writes it");
+    }
+  }
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {

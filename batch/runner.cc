@@ -152,14 +152,14 @@ int run_point(const Plan& plan, const Point& point, const std::string& dir, cons
         r.out = file("replay.json");
         break;
       case Stage::kDiagnose:
-        r.argv.insert(r.argv.end(), {logs_with_faults && s.has(Stage::kReplay) ? file("replay.lcm") : input, "--json",
-                                     file("diagnosis.json")});
+        r.argv.insert(r.argv.end(), {logs_with_faults && s.has(Stage::kReplay) ? file("replay.lcm") : input,
+                                     "--json-out", file("diagnosis.json")});
         r.out = file("diagnose.txt");
         break;
       case Stage::kEval: {
         const std::string est_log = s.has(Stage::kReplay) ? file("replay.lcm") : input;
         r.argv.insert(r.argv.end(), {"--gt", input + ":" + s.gt_channel, "--est", est_log + ":" + s.est_channel,
-                                     "--align", s.align, "--json", file("eval.json")});
+                                     "--align", s.align, "--json-out", file("eval.json")});
         r.out = file("eval.txt");
         break;
       }

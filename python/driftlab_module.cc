@@ -207,7 +207,7 @@ class Log {
   std::shared_ptr<LogIndex> index_;
 };
 
-/// `driftlab diagnose --json -`'s JSON text for inputs.
+/// `driftlab diagnose --json`'s JSON text for inputs.
 std::string diagnose_json(const std::vector<std::string>& inputs, double max_lag_s, double window_s,
                           const std::string& channels) {
   for (const auto& [option, value, range] :
@@ -225,7 +225,7 @@ std::string diagnose_json(const std::vector<std::string>& inputs, double max_lag
   return apps::diagnose_json(value_or_raise(apps::run_diagnosis(log, options))).dump(2) + "\n";
 }
 
-/// A command of `driftlab` run in-process with these arguments (after "driftlab"), `--json -` among them: what it
+/// A command of `driftlab` run in-process with these arguments (after "driftlab"), `--json` among them: what it
 /// printed as JSON. Its error, or a usage error, as DriftlabError with the command's message.
 std::string run_command(const std::vector<std::string>& args) {
   py::gil_scoped_release release;

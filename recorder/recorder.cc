@@ -484,6 +484,7 @@ Result<RecordSummary> Recorder::run() {
   } else if (auto opened = session.open_part(); !opened) {
     result = Error{opened.message()};
   } else {
+    if (options_.on_listening) options_.on_listening();
     result = session.run();
   }
   ::close(*fd);

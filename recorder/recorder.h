@@ -31,6 +31,8 @@ struct RecordOptions {
   int64_t socket_buffer_bytes = 64 << 20;      ///< kernel receive buffer [bytes]
   /// Called about once a second with a one-line status (for a TTY).
   std::function<void(const std::string&)> on_status;
+  /// Called once the socket listens and the first file is open, before the first message is taken.
+  std::function<void()> on_listening;
 };
 
 /// Checks what the user gave, before anything is opened: the URL and the channel regexes. Errors are one line

@@ -120,6 +120,15 @@ class Merger {
     return true;
   }
   int64_t base() const { return base_; }
+  /// Bytes of the logs read so far, and their total.
+  std::pair<uint64_t, uint64_t> bytes() const {
+    uint64_t done = 0, total = 0;
+    for (const auto& s : sources_) {
+      done += s.has ? s.reader.position() : s.reader.size_bytes();
+      total += s.reader.size_bytes();
+    }
+    return {done, total};
+  }
   uint64_t problems() const {
     uint64_t n = 0;
     for (const auto& s : sources_) n += s.reader.problems();
@@ -310,6 +319,10 @@ Result<ReplayReport> Replayer::run(const Sink& sink, const std::atomic<bool>* st
   Event e;
   while (!(stop != nullptr && stop->load()) && merger->next(e)) {
     ++report.read;
+    if (o.progress && report.read % 4096 == 0) {
+      const auto [done, total] = merger->bytes();
+      o.progress(done, total);
+    }
     const std::string input(e.channel);
     Item item;
     item.time = e.utime;

@@ -65,6 +65,8 @@ struct ReplayOptions {
   bool write_inputs = true;       ///< the output log holds the dispatched inputs as well as the outputs
   std::string stats_channel = "MODULE_STATS";
   std::string faults_channel = "REPLAY_FAULTS";  ///< where the manifest of injected faults goes
+  /// Called now and then with the bytes of the logs read so far and their total (a progress line on a TTY).
+  std::function<void(uint64_t done, uint64_t total)> progress;
 };
 
 struct ReplayReport {

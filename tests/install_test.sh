@@ -74,7 +74,7 @@ run_installed() {
   # The Python module, where the build made one (pybind11 found): imported from the prefix, it reads the log and
   # diagnoses it as the installed program does.
   if [[ -d $prefix/lib/python3/dist-packages/driftlab ]]; then
-    "$driftlab" diagnose sim.lcm --json - >diagnose.json
+    "$driftlab" diagnose sim.lcm --json >diagnose.json
     PYTHONPATH=$prefix/lib/python3/dist-packages python3 -c '
 import json, driftlab
 log = driftlab.open("sim.lcm")
@@ -96,7 +96,7 @@ assert driftlab.diagnose("sim.lcm") == json.load(open("diagnose.json")), "diagno
     }
     COMP_WORDS=("$driftlab" info --j) COMP_CWORD=2
     _driftlab
-    [[ ${COMPREPLY[*]} == --json ]] || { echo "completion of 'driftlab info --j': ${COMPREPLY[*]}"; exit 1; }
+    [[ ${COMPREPLY[*]} == "--json --json-out" ]] || { echo "completion of 'driftlab info --j': ${COMPREPLY[*]}"; exit 1; }
     COMP_WORDS=("$driftlab" eval --align "") COMP_CWORD=3
     _driftlab
     [[ " ${COMPREPLY[*]} " == *" posyaw "* ]] || { echo "completion of 'eval --align': ${COMPREPLY[*]}"; exit 1; }

@@ -3,8 +3,8 @@
     import driftlab
     log = driftlab.open("run.mcap")          # anything the CLI reads: LCM logs, ROS 1/2 bags, MCAP, ULog, CARMEN
     odom = log.read("/odom")                 # {"stamp": int64 [us], "arrival": int64 [us], "pose.position.x": ...}
-    d = driftlab.diagnose("run.mcap")        # the dict `driftlab diagnose --json -` prints
-    e = driftlab.eval(gt="gt.tum", est="run.lcm:POSE", align="se3")   # `driftlab eval ... --json -`
+    d = driftlab.diagnose("run.mcap")        # the dict `driftlab diagnose --json` prints
+    e = driftlab.eval(gt="gt.tum", est="run.lcm:POSE", align="se3")   # `driftlab eval ... --json`
 
 Times are the log's: whole microseconds in int64 (TIME_UNIT), as LCM logs keep them. Errors are driftlab.Error (a
 RuntimeError and a ValueError) with the command's one-line message. The C++ work runs without the GIL.
@@ -97,7 +97,7 @@ def open(path):  # noqa: A001 (driftlab.open, as the issue names it)
 
 
 def diagnose(path, max_lag=0.3, window=10.0, channels=""):
-    """`driftlab diagnose PATH --json -` in-process: the diagnosis as the dict the command prints (times in
+    """`driftlab diagnose PATH --json` in-process: the diagnosis as the dict the command prints (times in
     seconds unless a key says utime [us]). max_lag: the skew search range [s] (--max-lag); window: the skew window
     [s] (--window); channels: only the channels fully matching this regex (-c)."""
     return _json.loads(_diagnose_json(_inputs(path), float(max_lag), float(window), str(channels)))
@@ -121,7 +121,7 @@ def _option_args(kwargs):
 
 
 def eval(gt=None, est=None, **options):  # noqa: A001 (driftlab.eval, as the command)
-    """`driftlab eval --gt GT --est EST --json -` in-process: the trajectory error as the dict the command prints.
+    """`driftlab eval --gt GT --est EST --json` in-process: the trajectory error as the dict the command prints.
 
     gt, est: LOG:CHANNEL or a TUM, KITTI or EuRoC file. Every other option of the command as a keyword, '-' as
     '_': align="se3", max_dt=0.02, offset="auto", interpolate=True, delta=1, delta_unit="m", all_pairs=True,
@@ -134,7 +134,7 @@ def eval(gt=None, est=None, **options):  # noqa: A001 (driftlab.eval, as the com
         args += ["--gt", _os.fspath(gt)]
     if est is not None:
         args += ["--est", _os.fspath(est)]
-    args += _option_args(options) + ["--json", "-"]
+    args += _option_args(options) + ["--json"]
     return _json.loads(_run_command(args))
 
 

@@ -716,7 +716,7 @@ TEST(DiagnoseCommand, PrintsTheJsonTheIssueAsksFor) {
   f.scan_drops = {5};
   write_log(dir.file("x.lcm"), f, 5);
   std::string out;
-  ASSERT_EQ(test::run(std::string(DRIFTLAB_BIN_DIR) + "/driftlab diagnose --json - " + dir.file("x.lcm"), &out), 0);
+  ASSERT_EQ(test::run(std::string(DRIFTLAB_BIN_DIR) + "/driftlab diagnose --json " + dir.file("x.lcm"), &out), 0);
   const auto j = nlohmann::json::parse(out);
   for (const char* key : {"log", "channels", "pairs", "tf"}) EXPECT_TRUE(j.contains(key)) << key;
   const auto& c = j["channels"][0];

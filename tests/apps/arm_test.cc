@@ -49,7 +49,7 @@ const std::string& simulated(const std::string& scenario, double seconds) {
 }
 
 nlohmann::json eval_arm(const std::string& log, const std::string& options = "") {
-  const auto r = driftlab("eval --arm " + log + " " + options + " --json -");
+  const auto r = driftlab("eval --arm " + log + " " + options + " --json");
   EXPECT_EQ(r.code, 0) << r.err;
   return nlohmann::json::parse(r.out.empty() ? "{}" : r.out)["arm"];
 }
@@ -258,7 +258,7 @@ TEST(ArmEval, LatencyRunLagsTheCommandsAndShakesAtTheCommandRate) {
   const auto& calm = clean["ee"]["oscillation"];
   EXPECT_EQ(shake["cutoff_hz"].get<double>(), 5.0);
   EXPECT_GT(shake["rms_m"].get<double>(), 4 * calm["rms_m"].get<double>());
-  const auto d = driftlab("diagnose " + simulated("manipulator_latency", 28) + " --json -");
+  const auto d = driftlab("diagnose " + simulated("manipulator_latency", 28) + " --json");
   ASSERT_EQ(d.code, 0) << d.err;
   const double period = nlohmann::json::parse(d.out)["command_loops"][0]["command_period_s"].get<double>();
   EXPECT_NEAR(shake["peak_hz"].get<double>(), 1 / period, 1.0);  // 20 Hz: each late command re-plans the arm
@@ -345,7 +345,7 @@ nlohmann::json tf_check(const nlohmann::json& diagnosis, const std::string& tran
 // 50 Hz odometry is waited for within its period and is no problem.
 TEST(ArmTf, MapToOdomStampedBehindTheOdometryIsMeasuredAndNamed) {
   const std::string& log = simulated("manipulator", 20);
-  const auto clean = driftlab("diagnose " + log + " --json -");
+  const auto clean = driftlab("diagnose " + log + " --json");
   ASSERT_EQ(clean.code, 0) << clean.err;
   const auto c = nlohmann::json::parse(clean.out);
   for (const auto& p : c["tf"]["problems"]) {
@@ -363,7 +363,7 @@ TEST(ArmTf, MapToOdomStampedBehindTheOdometryIsMeasuredAndNamed) {
   const std::string faults = std::string(DRIFTLAB_SOURCE_DIR) + "/docs/examples/tf-map-behind.yaml";
   const auto replay = driftlab("replay " + log + " --inject " + faults + " -o " + dir.file("behind.lcm"));
   ASSERT_EQ(replay.code, 0) << replay.err;
-  const auto bad = driftlab("diagnose " + dir.file("behind.lcm") + " --json -");
+  const auto bad = driftlab("diagnose " + dir.file("behind.lcm") + " --json");
   ASSERT_EQ(bad.code, 0) << bad.err;
   const auto b = nlohmann::json::parse(bad.out);
   const auto behind = tf_check(b, "map -> odom", "ODOM");
@@ -392,7 +392,7 @@ TEST(ArmTf, MapToOdomStampedBehindTheOdometryIsMeasuredAndNamed) {
 TEST(ArmReport, PlotsCommandedAgainstMeasuredJointMotionWithTheMeasuredDelay) {
   const std::string& log = simulated("manipulator_latency", 20);
   test::TempDir dir;
-  ASSERT_EQ(driftlab("eval --arm " + log + " --json " + dir.file("arm.json")).code, 0);
+  ASSERT_EQ(driftlab("eval --arm " + log + " --json-out " + dir.file("arm.json")).code, 0);
   const auto r = driftlab("report " + log + " --eval " + dir.file("arm.json") + " -o " + dir.file("report"));
   ASSERT_EQ(r.code, 0) << r.err;
   std::ifstream in(dir.file("report/report.json"));

@@ -64,7 +64,7 @@ TEST_P(DiagnoseOnTheBenchmark, AgreesWithAPlainLookAtTheLog) {
   test::TempDir dir;
   const std::string log = dir.file("log.lcm");
   ASSERT_EQ(test::run(kDriftlab + " import " + bag + " -o " + log + " >/dev/null"), 0);
-  const auto r = test::run_capture(kDriftlab + " diagnose " + log + " --json -");
+  const auto r = test::run_capture(kDriftlab + " diagnose " + log + " --json");
   ASSERT_EQ(r.code, 0) << r.err;
   const auto d = nlohmann::json::parse(r.out);
   const auto look = look_at(log);
@@ -142,7 +142,7 @@ TEST(DiagnoseNav2Bag, SaysTheSimulationClockOnceAndEveryLatencyInMilliseconds) {
   test::TempDir dir;
   const std::string log = dir.file("nav2.lcm");
   ASSERT_EQ(test::run(kDriftlab + " import " + bag + " -o " + log + " >/dev/null"), 0);
-  const auto r = test::run_capture(kDriftlab + " diagnose " + log + " --json -");
+  const auto r = test::run_capture(kDriftlab + " diagnose " + log + " --json");
   ASSERT_EQ(r.code, 0) << r.err;
   const auto d = nlohmann::json::parse(r.out);
   // Arrivals in 2026 (2026-01-01 to 2027-01-01 UTC, in seconds since the epoch).

@@ -53,7 +53,7 @@ nlohmann::json simulate_and_diagnose(const std::string& scenario, double duratio
   const auto sim = test::run_capture(kDriftlab + " sim " + scenario + " --duration " + std::to_string(duration) +
                                      " --seed " + std::to_string(seed) + " --faults " + faults + " -o " + log);
   EXPECT_EQ(sim.code, 0) << sim.err;
-  const auto d = test::run_capture(kDriftlab + " diagnose " + log + " --json -");
+  const auto d = test::run_capture(kDriftlab + " diagnose " + log + " --json");
   EXPECT_EQ(d.code, 0) << d.err;
   return nlohmann::json::parse(d.out, nullptr, false);
 }

@@ -63,7 +63,7 @@ const std::string& restamped(int seed) {
 /// The ATE RMSE [m] `driftlab eval` gives for an estimate channel against the ground truth.
 double ate(const std::string& log, const std::string& channel, const std::string& align) {
   const auto r =
-      driftlab("eval --gt " + log + ":GROUND_TRUTH --est " + log + ":" + channel + " --align " + align + " --json -");
+      driftlab("eval --gt " + log + ":GROUND_TRUTH --est " + log + ":" + channel + " --align " + align + " --json");
   EXPECT_EQ(r.code, 0) << r.err;
   const auto j = nlohmann::json::parse(r.out.empty() ? "{}" : r.out);
   return j.contains("ate") ? j["ate"]["rmse"].get<double>() : -1;
@@ -85,7 +85,7 @@ T last_on(const std::string& log, const std::string& channel) {
 // most IMU samples as from the future.
 TEST(DroneStory, DiagnoseNamesTheImuClockAndTheEstimatorCountsItsRejections) {
   const std::string& log = simulated("drone_timebase");
-  const auto r = driftlab("diagnose " + log + " --json -");
+  const auto r = driftlab("diagnose " + log + " --json");
   ASSERT_EQ(r.code, 0) << r.err;
   const auto j = nlohmann::json::parse(r.out);
   const nlohmann::json* imu = nullptr;
@@ -187,7 +187,7 @@ TEST(DroneStory, DemoDroneTellsTheStory) {
 // of its rate (the 100 Hz ground truth at 22 Hz), the setpoints at their own, and diagnose names the cause from
 // the simulator's own step times before the drifting clocks it explains.
 TEST(DroneStory, ASlowPhysicsStepIsNamedByDiagnose) {
-  const auto r = driftlab("diagnose " + simulated("drone_slow_physics") + " --json -");
+  const auto r = driftlab("diagnose " + simulated("drone_slow_physics") + " --json");
   ASSERT_EQ(r.code, 0) << r.err;
   const auto j = nlohmann::json::parse(r.out);
   ASSERT_EQ(j["physics"].size(), 1u);
@@ -214,7 +214,7 @@ TEST(DroneStory, SetpointBurstsAreOffboardLossesTheVehicleHoldsThrough) {
   const auto end = last_on<driftlab::vehicle_status_t>(log, "VEHICLE_STATUS");
   EXPECT_GT(end.offboard_losses, 0);
   EXPECT_FALSE(end.armed) << "it still finished the mission and landed";
-  const auto d = driftlab("diagnose " + log + " --json -");
+  const auto d = driftlab("diagnose " + log + " --json");
   ASSERT_EQ(d.code, 0) << d.err;
   const auto diagnosis = nlohmann::json::parse(d.out);  // kept: a range over a temporary's member dangles
   for (const auto& c : diagnosis["channels"]) {

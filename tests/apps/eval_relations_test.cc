@@ -65,8 +65,7 @@ TEST_P(RelationsOnTheBenchmark, GMappingAgreesWithTheReferenceAndTheLiterature) 
     SCOPED_TRACE(with_odometry ? "with odometry" : "stamps only");
     std::string ours_text, ref_text;
     ASSERT_EQ(test::run(kDriftlab + " eval --est " + dir.file("gmapping.tum") + " --relations " + relations +
-                            (with_odometry ? " --relations-odometry " + dir.file("odom.tum") : "") +
-                            " --json -",
+                            (with_odometry ? " --relations-odometry " + dir.file("odom.tum") : "") + " --json",
                         &ours_text),
               0)
         << ours_text;

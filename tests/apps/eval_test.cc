@@ -78,8 +78,8 @@ TEST_P(EvalEqualsEvoReference, OnTheSameTumFiles) {
   ASSERT_TRUE(analyzers::write_tum(dir.file("gt.tum"), gt).ok());
   ASSERT_TRUE(analyzers::write_tum(dir.file("est.tum"), est).ok());
   std::string ours_text, ref_text;
-  ASSERT_EQ(test::run(kDriftlab + " eval --gt " + dir.file("gt.tum") + " --est " + dir.file("est.tum") + " " +
-                          c.args + " --json -",
+  ASSERT_EQ(test::run(kDriftlab + " eval --gt " + dir.file("gt.tum") + " --est " + dir.file("est.tum") + " " + c.args +
+                          " --json",
                       &ours_text),
             0);
   ASSERT_EQ(test::run(kReference + " " + dir.file("gt.tum") + " " + dir.file("est.tum") + " " + c.args, &ref_text), 0)
@@ -135,7 +135,7 @@ TEST(EvalEqualsEvo, OnEveryCaseEvoComputedOnRealTrajectories) {
     const std::string args = eval_args(c, folder);
     SCOPED_TRACE(args);
     std::string out;
-    ASSERT_EQ(test::run(kDriftlab + args + " --json - 2>/dev/null", &out), 0);
+    ASSERT_EQ(test::run(kDriftlab + args + " --json 2>/dev/null", &out), 0);
     const auto j = nlohmann::json::parse(out);
     const bool ape = c["metric"] == "ape";
     if (ape) {
@@ -175,7 +175,8 @@ TEST(EvalOffsetAuto, FindsTheShiftOfARealTrajectoryAndNoneWhereThereIsNone) {
     if (gt.empty() || est.empty()) return;
     auto offset_of = [&](const std::string& file) {
       std::string out;
-      EXPECT_EQ(test::run(kDriftlab + " eval --gt " + gt + " --est " + file + " --offset auto --json - 2>/dev/null", &out), 0);
+      EXPECT_EQ(
+          test::run(kDriftlab + " eval --gt " + gt + " --est " + file + " --offset auto --json 2>/dev/null", &out), 0);
       return nlohmann::json::parse(out)["matching"];
     };
     const auto as_published = offset_of(est);
@@ -232,7 +233,8 @@ TEST(EvalFormats, KittiAndEurocFilesOfARealTrajectoryEqualItsTumFile) {
   const std::string times_file = write("times.txt", times);
   auto eval = [&](const std::string& args) {
     std::string out;
-    EXPECT_EQ(test::run(kDriftlab + " eval" + args + " --align se3 --delta 0.1 --delta-unit m --json - 2>/dev/null", &out), 0)
+    EXPECT_EQ(
+        test::run(kDriftlab + " eval" + args + " --align se3 --delta 0.1 --delta-unit m --json 2>/dev/null", &out), 0)
         << args;
     return nlohmann::json::parse(out.empty() ? "{}" : out);
   };
@@ -277,9 +279,8 @@ INSTANTIATE_TEST_SUITE_P(
 TEST(Eval, OnLogChannelsRecoversTheOdometryScaleError) {
   const std::string log = std::string(DRIFTLAB_TEST_DATA) + "/sample.lcm";
   std::string out;
-  ASSERT_EQ(test::run(kDriftlab + " eval --gt " + log + ":GROUND_TRUTH --est " + log + ":ODOM --align sim3 --json -",
-                      &out),
-            0);
+  ASSERT_EQ(
+      test::run(kDriftlab + " eval --gt " + log + ":GROUND_TRUTH --est " + log + ":ODOM --align sim3 --json", &out), 0);
   const auto j = nlohmann::json::parse(out);
   EXPECT_EQ(j["matched"], 51);
   // The sample's odometry overstates distances by 1%.
@@ -396,7 +397,7 @@ TEST(EvalBadPoses, OutOfOrderStampsAreSortedAndSaidSo) {
   std::string text;
   for (const auto& l : lines) text += l + "\n";
   test::write_file(dir.file("shuffled.txt"), {text.begin(), text.end()});
-  const std::string args = " --align se3 --delta 0.1 --delta-unit m --json -";
+  const std::string args = " --align se3 --delta 0.1 --delta-unit m --json";
   std::string sorted_out;
   ASSERT_EQ(test::run(kDriftlab + " eval --gt " + gt + " --est " + est + args + " 2>/dev/null", &sorted_out), 0);
   const auto r = test::run_capture(kDriftlab + " eval --gt " + gt + " --est " + dir.file("shuffled.txt") + args);
@@ -421,7 +422,9 @@ TEST(EvalBadPoses, AnRpeOverNoPairsSaysSoInsteadOfZero) {
       << r.out;
   EXPECT_EQ(r.out.find("RPE [m]"), std::string::npos) << r.out;
   std::string json;
-  ASSERT_EQ(test::run(kDriftlab + " eval --gt " + log + ":GT --est " + log + ":EST --delta 100 --delta-unit m --json -", &json), 0);
+  ASSERT_EQ(
+      test::run(kDriftlab + " eval --gt " + log + ":GT --est " + log + ":EST --delta 100 --delta-unit m --json", &json),
+      0);
   const auto j = nlohmann::json::parse(json);
   EXPECT_EQ(j["rpe"]["pairs"], 0);
   EXPECT_TRUE(j["rpe"]["trans"].is_null());
@@ -494,7 +497,7 @@ TEST(EvalSetpoints, ASetpointChannelIsTheTrajectoryItAsksFor) {
       },
       0.05);
   std::string out;
-  ASSERT_EQ(test::run(kDriftlab + " eval --gt " + log + ":GROUND_TRUTH --est " + log + ":SETPOINT --json -", &out), 0);
+  ASSERT_EQ(test::run(kDriftlab + " eval --gt " + log + ":GROUND_TRUTH --est " + log + ":SETPOINT --json", &out), 0);
   const auto j = nlohmann::json::parse(out);
   EXPECT_EQ(j["matched"], 601);
   EXPECT_NEAR(j["ate"]["rmse"].get<double>(), off.norm(), 1e-9);
@@ -523,7 +526,7 @@ TEST(EvalAlignOrigin, TakesTheFirstMatchedPoseOntoTheReferences) {
   const std::string log = write_drone_log(
       dir, [&](double t) { return setpoint_pose(t, frame); }, 0.0);
   std::string out;
-  const std::string args = " eval --gt " + log + ":GROUND_TRUTH --est " + log + ":SETPOINT --json -";
+  const std::string args = " eval --gt " + log + ":GROUND_TRUTH --est " + log + ":SETPOINT --json";
   ASSERT_EQ(test::run(kDriftlab + args + " --align origin", &out), 0);
   const auto j = nlohmann::json::parse(out);
   EXPECT_EQ(j["alignment"]["type"], "origin");

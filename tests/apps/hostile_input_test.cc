@@ -110,7 +110,7 @@ TEST(HostileLog, EveryCommandCountsTheLiesAndUsesTheRest) {
   int64_t imu = 0;
   for (const auto& e : test::read_all(kSample)) imu += e.channel == "IMU";
 
-  const auto d = driftlab("diagnose --json " + dir.file("d.json") + " " + log);
+  const auto d = driftlab("diagnose --json-out " + dir.file("d.json") + " " + log);
   ASSERT_FALSE(crashed(d)) << d.err;
   EXPECT_EQ(d.code, 0) << d.err;
   std::ifstream in(dir.file("d.json"));
@@ -248,10 +248,10 @@ TEST(OutputOverInput, IsRefusedBeforeAnythingIsWritten) {
   fs::create_hard_link(log, link);
   const auto before = test::read_file(log);
   for (const std::string& cmd : std::vector<std::string>{
-           "replay " + log + " -o " + link, "diagnose --json " + link + " " + log,
+           "replay " + log + " -o " + link, "diagnose --json-out " + link + " " + log,
            "export tum " + log + ":GROUND_TRUTH -o " + link, "import rawlog " + log + " -o " + log,
            "export rawlog " + log + " -o " + log, "recover " + log + " -o " + link,
-           "eval --gt " + log + ":GROUND_TRUTH --est " + log + ":GROUND_TRUTH --json " + link,
+           "eval --gt " + log + ":GROUND_TRUTH --est " + log + ":GROUND_TRUTH --json-out " + link,
            "sim " + log + " -o " + link}) {  // a scenario by the name of its output (any content: refused first)
     const auto r = driftlab(cmd);
     EXPECT_EQ(r.code, 2) << cmd << "\n" << r.err;
@@ -272,8 +272,8 @@ std::map<std::string, std::vector<uint8_t>> files_in(const std::string& dir) {
 
 TEST(OutputOverInput, AFileInsideAnInputBagFolderIsRefused) {
   // The check compared -o with the bag folder only, so `import BAG -o BAG/x_0.mcap` replaced the bag's own storage
-  // file (and diagnose --json, export tum and eval --json into the folder did the same). Now an output that is, or
-  // lies inside, an input folder is refused before anything is read, by its path with links resolved.
+  // file (and diagnose --json-out, export tum and eval --json-out into the folder did the same). Now an output that is,
+  // or lies inside, an input folder is refused before anything is read, by its path with links resolved.
   test::TempDir dir;
   const std::string bag = dir.file("bag");
   ASSERT_EQ(driftlab("export rosbag2 " + kSample + " -o " + bag).code, 0);
@@ -288,10 +288,10 @@ TEST(OutputOverInput, AFileInsideAnInputBagFolderIsRefused) {
   for (const std::string& cmd : std::vector<std::string>{
            "import " + bag + " -o " + storage, "import " + bag + " -o " + bag + "/new.lcm",
            "import " + bag + "/ -o " + metadata, "import " + bag + " -o " + dir.file("link.mcap"),
-           "diagnose --json " + metadata + " " + bag, "diagnose --html " + storage + " " + bag,
+           "diagnose --json-out " + metadata + " " + bag, "diagnose --html " + storage + " " + bag,
            "export tum " + bag + ":GROUND_TRUTH -o " + storage, "export csv " + bag + " -o " + bag + "/csv",
            "export mcap " + bag + " -o " + storage,
-           "eval --gt " + bag + ":GROUND_TRUTH --est " + kSample + ":GROUND_TRUTH --json " + metadata,
+           "eval --gt " + bag + ":GROUND_TRUTH --est " + kSample + ":GROUND_TRUTH --json-out " + metadata,
            "replay " + bag + " -o " + storage}) {
     const auto r = driftlab(cmd);
     EXPECT_EQ(r.code, 2) << cmd << "\n" << r.err;
@@ -318,9 +318,9 @@ TEST(OutputOverInput, AnOutputThatIsNotARegularFileIsRefusedAndKept) {
   nodes.emplace_back(dir.file("folder"), "a folder");
   for (const auto& [node, kind] : nodes) {
     for (const std::string& cmd : std::vector<std::string>{
-             "replay " + kSample + " -o " + node, "diagnose --json " + node + " " + kSample,
+             "replay " + kSample + " -o " + node, "diagnose --json-out " + node + " " + kSample,
              "export tum " + kSample + ":GROUND_TRUTH -o " + node, "recover " + kSample + " -o " + node,
-             "eval --gt " + kSample + ":GROUND_TRUTH --est " + kSample + ":GROUND_TRUTH --json " + node,
+             "eval --gt " + kSample + ":GROUND_TRUTH --est " + kSample + ":GROUND_TRUTH --json-out " + node,
              "export mcap " + kSample + " -o " + node, "export rawlog " + kSample + " -o " + node}) {
       const auto r = driftlab(cmd);
       EXPECT_EQ(r.code, 2) << cmd << "\n" << r.err;
@@ -463,7 +463,7 @@ TEST(ConversionCache, ARecordingWithALongNameIsConverted) {
 std::vector<std::string> log_readers(const std::string& log, const test::TempDir& dir) {
   return {"info " + log,
           "diagnose " + log,
-          "diagnose --json " + dir.file("d.json") + " " + log,
+          "diagnose --json-out " + dir.file("d.json") + " " + log,
           "replay " + log + " -o " + dir.file("r.lcm"),
           "export csv " + log + " -o " + dir.file("csv"),
           "export tum " + log + ":GROUND_TRUTH -o " + dir.file("t.tum"),
@@ -673,7 +673,7 @@ TEST(FullDisk, EveryCommandFailsWithCode1AndLeavesNothingBehind) {
   ASSERT_EQ(driftlab("export mcap " + kSample + " -o " + mcap).code, 0);
   const std::vector<std::pair<std::string, std::string>> cases = {
       // command, the file it writes (or "": a folder)
-      {"diagnose --json " + out + "/d.json " + kSample, "d.json"},
+      {"diagnose --json-out " + out + "/d.json " + kSample, "d.json"},
       {"diagnose --html " + out + "/d.html " + kSample, "d.html"},
       {"export csv " + kSample + " -o " + out + "/csv", ""},
       {"export tum " + kSample + ":GROUND_TRUTH -o " + out + "/t.tum", "t.tum"},
@@ -686,7 +686,7 @@ TEST(FullDisk, EveryCommandFailsWithCode1AndLeavesNothingBehind) {
       {"sim --duration 1 -o " + out + "/s.lcm", "s.lcm"},
       {"import rawlog " + rawlog + " -o " + out + "/i.lcm", "i.lcm"},
       {"import " + mcap + " -o " + out + "/j.lcm", "j.lcm"},
-      {"eval --gt " + kSample + ":GROUND_TRUTH --est " + kSample + ":ODOM --json " + out + "/e.json", "e.json"},
+      {"eval --gt " + kSample + ":GROUND_TRUTH --est " + kSample + ":ODOM --json-out " + out + "/e.json", "e.json"},
       {"report " + kSample + " -o " + out + "/report", ""},
   };
   const std::string precious = "the user's own file\n";

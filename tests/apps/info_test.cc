@@ -119,7 +119,7 @@ TEST(Info, LogTimesAtTheEndsOfInt64AreNamedNotANegativeDuration) {
   const auto j = nlohmann::json::parse(driftlab("info --json " + dir.file("t.lcm")).out);
   EXPECT_GT(j["duration_s"].get<double>(), 1.8e13);
   EXPECT_GE(j["channels"][0]["rate_hz"].get<double>(), 0.0);
-  const auto d = nlohmann::json::parse(driftlab("diagnose --json - " + dir.file("t.lcm")).out);
+  const auto d = nlohmann::json::parse(driftlab("diagnose --json " + dir.file("t.lcm")).out);
   EXPECT_GE(d["channels"][0]["rate_hz"].get<double>(), 0.0) << d["channels"][0].dump();
 }
 

@@ -35,7 +35,7 @@ class ReplayCli : public ::testing::Test {
 
   /// ATE RMSE [m] of LOG:CHANNEL against the session's ground truth, aligned in position and yaw.
   static double ate(const std::string& source) {
-    const auto r = driftlab("eval --gt " + log() + ":GROUND_TRUTH --est " + source + " --align posyaw --json -");
+    const auto r = driftlab("eval --gt " + log() + ":GROUND_TRUTH --est " + source + " --align posyaw --json");
     EXPECT_EQ(r.code, 0) << r.err;
     return nlohmann::json::parse(r.out)["ate"]["rmse"].get<double>();
   }

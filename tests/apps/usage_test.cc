@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <filesystem>
 #include <string>
 
 #include "tests/test_util.h"
@@ -55,6 +56,42 @@ TEST(UsageErrors, OtherErrorsPointToTheCommandsHelp) {
                      "--fail-on: sometimes not in {warn,fault} (see 'driftlab diagnose --help')");
 }
 
+// --json prints one JSON object and nothing else; --json-out FILE writes the same object and keeps the text: the
+// same two options in every command that reports (issue 28).
+TEST(JsonOptions, MeanTheSameInEveryCommand) {
+  test::TempDir dir;
+  const std::string eval = "eval --gt " + kSample + ":GROUND_TRUTH --est " + kSample + ":ODOM";
+  for (const std::string& command : {"diagnose " + kSample, "info " + kSample, eval}) {
+    SCOPED_TRACE(command);
+    const auto printed = driftlab(command + " --json");
+    ASSERT_EQ(printed.code, 0) << printed.err;
+    const auto object = nlohmann::json::parse(printed.out);  // the whole output is the object
+    ASSERT_TRUE(object.is_object());
+    const auto text = driftlab(command);
+    const auto both = driftlab(command + " --json-out " + dir.file("out.json"));
+    ASSERT_EQ(both.code, 0) << both.err;
+    EXPECT_EQ(both.out, text.out);  // the text as without it
+    const auto bytes = test::read_file(dir.file("out.json"));
+    EXPECT_EQ(nlohmann::json::parse(std::string(bytes.begin(), bytes.end())), object);
+  }
+  // The other reporting commands take both.
+  for (const char* command : {"sim", "replay", "recover", "demo", "sweep", "sweep status", "batch status", "run"}) {
+    const auto help = driftlab(std::string(command) + " --help");
+    EXPECT_NE(help.out.find("--json "), std::string::npos) << command;
+    EXPECT_NE(help.out.find("--json-out FILE"), std::string::npos) << command;
+  }
+}
+
+TEST(JsonOptions, TheOldFileArgumentIsExplained) {
+  // `--json FILE` used to write the file; the file would now be read as a log. Said plainly, nothing written.
+  test::TempDir dir;
+  expect_usage_error(driftlab("diagnose " + kSample + " --json " + dir.file("d.json")),
+                     "--json takes no file: it prints the JSON; --json-out " + dir.file("d.json") + " writes it");
+  expect_usage_error(driftlab("diagnose --json - " + kSample),
+                     "--json takes no file: it prints the JSON; --json-out - writes it");
+  EXPECT_FALSE(std::filesystem::exists(dir.file("d.json")));
+}
+
 TEST(DiagnoseFailOn, ExitsWithThreeWhenAStreamReachesTheLevel) {
   // The golden sample's SCAN is a fault (a source clock 95 ms ahead); its other streams are clean.
   auto plain = driftlab("diagnose " + kSample);
@@ -62,7 +99,7 @@ TEST(DiagnoseFailOn, ExitsWithThreeWhenAStreamReachesTheLevel) {
   EXPECT_EQ(driftlab("diagnose " + kSample + " --fail-on fault").code, 3);
   EXPECT_EQ(driftlab("diagnose " + kSample + " --fail-on warn").code, 3);
   // The same with only the JSON printed.
-  auto json = driftlab("diagnose " + kSample + " --json - --fail-on fault");
+  auto json = driftlab("diagnose " + kSample + " --json --fail-on fault");
   EXPECT_EQ(json.code, 3);
   EXPECT_TRUE(nlohmann::json::accept(json.out));
   // Without SCAN nothing is wrong.
@@ -70,7 +107,7 @@ TEST(DiagnoseFailOn, ExitsWithThreeWhenAStreamReachesTheLevel) {
 }
 
 TEST(DiagnoseChannels, OnlyTheChannelsMatchedAreAnalysed) {
-  auto r = driftlab("diagnose " + kSample + " -c 'IMU|SC.*' --json -");
+  auto r = driftlab("diagnose " + kSample + " -c 'IMU|SC.*' --json");
   ASSERT_EQ(r.code, 0) << r.err;
   auto j = nlohmann::json::parse(r.out);
   std::vector<std::string> names;
@@ -78,7 +115,7 @@ TEST(DiagnoseChannels, OnlyTheChannelsMatchedAreAnalysed) {
   EXPECT_EQ(names, (std::vector<std::string>{"IMU", "SCAN"}));
   // The same findings as in the full diagnosis: a filter leaves streams out, it does not change the others, but
   // for what is measured against the streams left out (the delay behind the first of a burst of peers).
-  auto all = nlohmann::json::parse(driftlab("diagnose " + kSample + " --json -").out);
+  auto all = nlohmann::json::parse(driftlab("diagnose " + kSample + " --json").out);
   for (auto c : all["channels"]) {
     if (c["name"] != "SCAN") continue;
     auto filtered = j["channels"][1];

@@ -514,7 +514,7 @@ TEST(Export, EveryTypeReadsInFoxglovesReaders) {
   test::TempDir dir;
   write_every_type_log(dir.file("all.lcm"));
   if (::testing::Test::HasFatalFailure()) return;
-  ASSERT_EQ(test::run(kDriftlab + " diagnose '" + dir.file("all.lcm") + "' --json '" + dir.file("d.json") +
+  ASSERT_EQ(test::run(kDriftlab + " diagnose '" + dir.file("all.lcm") + "' --json-out '" + dir.file("d.json") +
                       "' >/dev/null 2>&1"),
             0);
   const auto r = test::run_capture(kDriftlab + " export mcap '" + dir.file("all.lcm") + "' -o '" +

@@ -617,7 +617,7 @@ TEST(Ros2Import, CommandsReadBagsThroughACache) {
   EXPECT_EQ(r.err, "driftlab: " + bag + ": converting it to " + bag + ".dlimport.lcm (kept for later runs)\n" +
                        "driftlab: " + bag + " (ROS 2 bag (MCAP)): 8,201 messages converted\n");
   EXPECT_NE(r.out.find("/amcl_pose"), std::string::npos);
-  r = driftlab("diagnose '" + bag + "' --json '" + dir.file("d.json") + "'");
+  r = driftlab("diagnose '" + bag + "' --json-out '" + dir.file("d.json") + "'");
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_EQ(r.err, "driftlab: " + bag + ": reading its conversion " + bag + ".dlimport.lcm\n");
   r = driftlab("eval --gt '" + bag + ":/odom' --est '" + bag + ":/amcl_pose' --max-dt 0.05");

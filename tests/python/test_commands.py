@@ -9,17 +9,17 @@ from conftest import shared
 
 
 def test_diagnose_of_the_nav2_bag_equals_the_cli(nav2_bag, cli):
-    code, out, err = cli("diagnose", nav2_bag, "--json", "-")
+    code, out, err = cli("diagnose", nav2_bag, "--json")
     assert code == 0, err
     assert driftlab.diagnose(nav2_bag) == json.loads(out)
 
 
 def test_diagnose_options_are_the_cli_options(test_data, cli):
     path = os.path.join(test_data, "sample.lcm")
-    code, out, err = cli("diagnose", path, "--max-lag", "0.1", "--window", "0.5", "--json", "-")
+    code, out, err = cli("diagnose", path, "--max-lag", "0.1", "--window", "0.5", "--json")
     assert code == 0, err
     assert driftlab.diagnose(path, max_lag=0.1, window=0.5) == json.loads(out)
-    code, out, err = cli("diagnose", path, "-c", "IMU|SCAN", "--json", "-")
+    code, out, err = cli("diagnose", path, "-c", "IMU|SCAN", "--json")
     assert code == 0, err
     assert driftlab.diagnose(path, channels="IMU|SCAN") == json.loads(out)
     assert [c["name"] for c in json.loads(out)["channels"]] == ["IMU", "SCAN"]
@@ -33,7 +33,7 @@ def test_diagnose_options_are_the_cli_options(test_data, cli):
 
 def test_eval_on_log_channels_equals_the_cli(test_data, cli):
     log = os.path.join(test_data, "sample.lcm")
-    code, out, err = cli("eval", "--gt", log + ":GROUND_TRUTH", "--est", log + ":ODOM", "--align", "sim3", "--json", "-")
+    code, out, err = cli("eval", "--gt", log + ":GROUND_TRUTH", "--est", log + ":ODOM", "--align", "sim3", "--json")
     assert code == 0, err
     ours = driftlab.eval(gt=log + ":GROUND_TRUTH", est=log + ":ODOM", align="sim3")
     assert ours == json.loads(out)
@@ -44,7 +44,7 @@ def test_eval_on_real_tum_trajectories_equals_the_cli(cli):
     gt = shared("evo/fr2_desk_groundtruth.txt")
     est = shared("evo/fr2_desk_ORB.txt")
     args = ["--align", "se3", "--max-dt", "0.02", "--delta", "1", "--delta-unit", "m", "--all-pairs"]
-    code, out, err = cli("eval", "--gt", gt, "--est", est, *args, "--json", "-")
+    code, out, err = cli("eval", "--gt", gt, "--est", est, *args, "--json")
     assert code == 0, err
     ours = driftlab.eval(gt=gt, est=est, align="se3", max_dt=0.02, delta=1, delta_unit="m", all_pairs=True)
     assert ours == json.loads(out)

@@ -119,9 +119,12 @@ std::vector<Sent> recorded(const std::string& path, driftlab::recorder_stats_t* 
 using Record = test::LcmNetnsTest;
 
 /// What the recorder wrote to its error file, which must be exactly one line.
+/// The recorder's stderr without the line it prints once it listens ("recording ... on URL to FILE, ..."), which
+/// precedes any error raised after the socket opened.
 std::string error_text(const std::string& path) {
   const auto bytes = test::read_file(path);
-  const std::string text(bytes.begin(), bytes.end());
+  std::string text(bytes.begin(), bytes.end());
+  if (text.rfind("recording ", 0) == 0) text.erase(0, text.find('\n') + 1);
   EXPECT_EQ(std::count(text.begin(), text.end(), '\n'), 1) << text;
   return text;
 }
@@ -353,11 +356,15 @@ TEST_F(Record, ModulesRunLiveThroughAFloodOfHostileMessages) {
 
 TEST_F(Record, ChannelFiltersKeepOnlyMatchingChannels) {
   const std::string out = dir_.file("rec.lcm");
-  Process rec = start_recorder(out, {"-c", "S.*|IMU", "--exclude", "SCAN_DEBUG"});
+  Process rec = start_recorder(out, {"-c", "S.*|IMU", "--exclude", "SCAN_DEBUG"}, dir_.file("err"));
   const auto sent = publish(lcm_, 60, {"IMU", "SCAN", "SCAN_DEBUG", "CAMERA"});
   std::this_thread::sleep_for(std::chrono::milliseconds(300));
   kill(rec.pid, SIGTERM);
   EXPECT_EQ(rec.wait(), 0);
+  // It says what it listens to, before anything arrives: the filters, the URL and the file.
+  const auto err = test::read_file(dir_.file("err"));
+  EXPECT_EQ(std::string(err.begin(), err.end()), "recording channels matching 'S.*|IMU' except 'SCAN_DEBUG' on " +
+                                                     std::string(kLcmUrl) + " to " + out + ", until Ctrl-C\n");
   std::vector<Sent> expected;
   for (const auto& s : sent)
     if (s.channel == "IMU" || s.channel == "SCAN") expected.push_back(s);

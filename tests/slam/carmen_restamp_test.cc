@@ -72,7 +72,7 @@ TEST(RestampOnIntel, AnInjectedScanClockIsFoundCorrectedAndSlamIsNoWorse) {
   ASSERT_FALSE(left.is_null());
   EXPECT_TRUE(left["restamp"].empty());
   const auto unscored = test::run_capture(test::kDriftlabProgram + " eval --est " + dir.file("left.lcm") +
-                                          ":SLAM_TRAJECTORY --relations " + relations + " --json -");
+                                          ":SLAM_TRAJECTORY --relations " + relations + " --json");
   EXPECT_EQ(unscored.code, 2);
   EXPECT_NE(unscored.err.find("no relation has estimate poses at both of its stamps"), std::string::npos)
       << unscored.err;

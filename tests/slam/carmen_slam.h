@@ -22,7 +22,7 @@ inline std::string carmen_slam_config(const TempDir& dir) {
   return path;
 }
 
-/// `driftlab ARGS` with its output parsed as JSON (ARGS end in `--json` or `--json -`); a failed run fails the test.
+/// `driftlab ARGS` with its output parsed as JSON (ARGS end in `--json`); a failed run fails the test.
 inline nlohmann::json driftlab_json(const std::string& args) {
   const auto r = run_capture(kDriftlabProgram + " " + args);
   EXPECT_EQ(r.code, 0) << args << "\n" << r.err;
@@ -32,7 +32,7 @@ inline nlohmann::json driftlab_json(const std::string& args) {
 
 /// The relation error (Kuemmerle et al.) of a pose source against a relations file: `driftlab eval --relations`.
 inline nlohmann::json relation_error(const std::string& est, const std::string& relations) {
-  return driftlab_json("eval --est " + est + " --relations " + relations + " --json -")["relations"];
+  return driftlab_json("eval --est " + est + " --relations " + relations + " --json")["relations"];
 }
 
 }  // namespace driftlab::test
