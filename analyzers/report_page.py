@@ -4,7 +4,9 @@
 Usage: report_page.py REPORT_JSON OUT_DIR
 
 REPORT_JSON is what `driftlab report` gathered from the logs (docs/report.md lists its fields). Every plot is
-written to OUT_DIR as a PNG and embedded in OUT_DIR/index.html, so the page opens offline on its own.
+written to OUT_DIR as a PNG and embedded in OUT_DIR/index.html, so the page opens offline on its own. The time
+plots are also drawn zoomable with dygraphs, read from Debian's libjs-dygraphs ($DRIFTLAB_DYGRAPHS_DIR, default
+/usr/share/javascript/dygraphs) and inlined into the page; without it the page keeps the PNGs and says so.
 Exit codes: 0 done, 2 bad input, 3 matplotlib missing.
 """
 
@@ -20,11 +22,15 @@ try:
     import numpy
 
     matplotlib.use("Agg")
+    import matplotlib.lines
     import matplotlib.patches
     import matplotlib.pyplot as plt
 except ImportError:
     sys.exit(3)  # driftlab report says so, or tries another python3
 
+DYGRAPHS_DIR = os.environ.get("DRIFTLAB_DYGRAPHS_DIR") or "/usr/share/javascript/dygraphs"
+CHART_POINTS = 2000  # per series in an interactive chart: min and max of each bucket, so no spike is lost
+LOG_SPREAD = 20  # a time plot's y axis is logarithmic when one curve's median is this many times another's
 COLORS = ["#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#17becf", "#8c564b", "#e377c2", "#7f7f7f"]
 STYLE = {
     "figure.dpi": 100,
@@ -58,8 +64,12 @@ class Page:
     def __init__(self, out_dir):
         self.out_dir = out_dir
         self.figures = []
+        self.charts = {}  # figure file -> (the interactive charts drawn above it (see chart()), they replace it)
+        self.notes = []  # what was left out of the plots, and why
 
-    def save(self, fig, name, title, caption):
+    def save(self, fig, name, title, caption, charts=None, replaces=False):
+        """charts: interactive charts drawn above the PNG; replaces: they show all the PNG shows, which then folds
+        away under them."""
         # Written beside and renamed: a full disk never leaves a cut PNG over the one a user has.
         path = os.path.join(self.out_dir, name)
         try:
@@ -70,6 +80,51 @@ class Page:
             if os.path.exists(path + ".partial"):
                 os.remove(path + ".partial")
         self.figures.append((name, title, caption))
+        if charts:
+            self.charts[name] = (charts, replaces)
+
+
+def decimate(x, y, points=CHART_POINTS):
+    """At most about `points` of (x, y), keeping each bucket's lowest and highest y: a spike survives."""
+    x, y = numpy.asarray(x, dtype=float), numpy.asarray(y, dtype=float)
+    if len(x) <= points:
+        return x, y
+    keep = set()
+    for bucket in numpy.array_split(numpy.arange(len(x)), points // 2):
+        keep.add(int(bucket[numpy.argmin(y[bucket])]))
+        keep.add(int(bucket[numpy.argmax(y[bucket])]))
+    idx = numpy.asarray(sorted(keep))
+    return x[idx], y[idx]
+
+
+def spread(series):
+    """How many times the largest median of |y| is the smallest (positive) one."""
+    medians = [float(numpy.median(numpy.abs(y))) for y in series if len(y)]
+    medians = [m for m in medians if m > 0]
+    return max(medians) / min(medians) if len(medians) > 1 else 1.0
+
+
+def chart(labels, columns, ylabel, height=320, log=False, shade=(), title=""):
+    """An interactive chart: columns is [(x, y)] per label (x in seconds from the log's start), merged into dygraphs'
+    one table of rows [x, y1, y2...] (null where a series has no point)."""
+    rows = {}
+    for i, (x, y) in enumerate(columns):
+        for a, b in zip(*decimate(x, y)):
+            row = rows.setdefault(round(float(a), 4), [None] * len(columns))
+            row[i] = round(float(b), 5)
+    data = [[x] + rows[x] for x in sorted(rows)]
+    return {"labels": ["time [s]"] + list(labels), "data": data, "ylabel": ylabel, "height": height, "log": log,
+            "shade": [[round(a, 4), round(b, 4)] for a, b in shade], "title": title}
+
+
+def own_clock(data, e):
+    """An estimate's times, in seconds from the log's start; one stamped on a clock of another epoch (simulation time
+    in a bag of dates) from its own first stamp, never as a 1e9-second offset."""
+    t = e["t"]
+    duration = max([l["duration_s"] for l in data.get("logs", [])] + [1.0])
+    if t and (t[0] < -10 * duration - 60 or t[0] > 10 * duration + 60):
+        return [v - t[0] for v in t], True
+    return t, False
 
 
 def plot_trajectories(page, data):
@@ -102,55 +157,80 @@ def plot_trajectories(page, data):
 
 def plot_error_timeline(page, data):
     estimates = [e for e in data["estimates"] if e.get("error")]
-    streams = data["streams"]
-    if not estimates and not streams:
+    rows = [s for s in data["streams"] if s["gaps"] or s["spikes"]]  # a stream with nothing to mark is no row
+    if not estimates and not rows:
+        page.notes.append("Error over time: no estimate has a reference to be scored against, and no stream dropped "
+                          "messages or had a latency spike.")
         return
-    rows = [s for s in streams if s["gaps"] or s["spikes"]] or streams
-    height = 3.2 + 0.32 * max(1, len(rows))
-    fig, (top, bottom) = plt.subplots(
-        2, 1, figsize=(11, height + (3.2 if estimates else 0)), sharex=True,
-        gridspec_kw={"height_ratios": [3.2 if estimates else 0.01, 0.45 * max(1, len(rows)) + 0.6]})
-    if estimates:
+    log = len(estimates) > 1 and spread([e["error"] for e in estimates]) > LOG_SPREAD
+    if estimates and rows:
+        fig, (top, bottom) = plt.subplots(
+            2, 1, figsize=(11, 4.6 + 0.32 * len(rows)), sharex=True,
+            gridspec_kw={"height_ratios": [3.2, 0.45 * len(rows) + 0.6]})
+    elif estimates:
+        fig, top = plt.subplots(figsize=(11, 4.2))
+        bottom = None
+    else:
+        fig, bottom = plt.subplots(figsize=(11, 1.6 + 0.32 * len(rows)))
+        top = None
+    shade = [(g[0], g[0] + max(g[1] - g[0], 0.02)) for s in rows for g in s["gaps"]]
+    if top is not None:
         for i, e in enumerate(estimates):
-            top.plot(e["t"], e["error"], color=COLORS[i % len(COLORS)], lw=1.1,
+            t, _ = own_clock(data, e)
+            top.plot(t, e["error"], color=COLORS[i % len(COLORS)], lw=1.1,
                      label=f"{e['label']}  (RMS {e['ate_rmse']:.3f} m)")
-        top.set_ylabel("position error [m]")
-        top.set_ylim(bottom=0)
-        top.set_title("Position error over time, with what went wrong in the streams")
-        top.legend(loc="upper left")
-    else:
-        top.set_visible(False)
-        bottom.set_title("Drops and latency spikes over time")
-    # One row per stream: drops as red bars over their gap, latency spikes as orange ticks.
-    spans_drawn = spikes_drawn = False
-    for row, s in enumerate(rows):
-        y = len(rows) - 1 - row
-        gaps = [(g[0], max(g[1] - g[0], 0.02)) for g in s["gaps"]]
-        if gaps:
-            bottom.broken_barh(gaps, (y - 0.35, 0.7), facecolors="#d62728", alpha=0.85,
-                               label=None if spans_drawn else "dropped messages (gap)")
-            spans_drawn = True
-            if estimates:
-                for start, width in gaps:
-                    top.axvspan(start, start + width, color="#d62728", alpha=0.08, lw=0)
-        if s["spikes"]:
-            bottom.plot([p[0] for p in s["spikes"]], [y] * len(s["spikes"]), "|", color="#ff7f0e", ms=11, mew=1.6,
-                        label=None if spikes_drawn else "latency spike")
-            spikes_drawn = True
-    bottom.set_yticks(range(len(rows)))
-    bottom.set_yticklabels([s["channel"] for s in reversed(rows)])
-    bottom.set_ylim(-0.7, len(rows) - 0.3)
-    bottom.set_xlabel("time since the start of the log [s]")
-    bottom.grid(axis="y", visible=False)
-    if spans_drawn or spikes_drawn:
-        bottom.legend(loc="upper center", bbox_to_anchor=(0.5, -0.35 if len(rows) < 4 else -0.15), ncol=2)
-    else:
-        bottom.text(0.5, 0.5, "no drops and no latency spikes", transform=bottom.transAxes, ha="center",
-                    va="center", color="#555")
-    page.save(fig, "error_timeline.png", "Error over time",
-              "Top: each estimate's position error against the reference (aligned in position and yaw); red bands "
-              "are drops in any stream. Bottom: per stream, the gaps left by dropped messages (red) and latency "
-              "spikes (orange: above the median by more than 10 ms and three times the p99's distance from it).")
+        top.set_ylabel("position error [m]" + (", log scale" if log else ""))
+        if log:
+            top.set_yscale("log")
+        else:
+            top.set_ylim(bottom=0)
+        top.set_title("Position error over time" + (", with what went wrong in the streams" if rows else ""))
+        for start, end in shade:
+            top.axvspan(start, end, color="#d62728", alpha=0.08, lw=0)
+        top.set_xlabel("time since the start of the log [s]")
+        # Below the axes, never over the curves.
+        top.legend(loc="upper center", bbox_to_anchor=(0.5, -0.14 if bottom is None else -0.04),
+                   ncol=2 if len(estimates) > 3 else 1, fontsize=8.5)
+        if bottom is not None:
+            top.xaxis.label.set_visible(False)
+    if bottom is not None:
+        if top is None:
+            bottom.set_title("Drops and latency spikes over time")
+        # One row per stream: drops as red bars over their gap, latency spikes as orange ticks.
+        for row, s in enumerate(rows):
+            y = len(rows) - 1 - row
+            gaps = [(g[0], max(g[1] - g[0], 0.02)) for g in s["gaps"]]
+            if gaps:
+                bottom.broken_barh(gaps, (y - 0.35, 0.7), facecolors="#d62728", alpha=0.85)
+            if s["spikes"]:
+                bottom.plot([p[0] for p in s["spikes"]], [y] * len(s["spikes"]), "|", color="#ff7f0e", ms=11,
+                            mew=1.6)
+        bottom.set_yticks(range(len(rows)))
+        bottom.set_yticklabels([s["channel"] for s in reversed(rows)])
+        bottom.set_ylim(-0.7, len(rows) - 0.3)
+        bottom.set_xlabel("time since the start of the log [s]")
+        bottom.set_xlim(left=0)
+        bottom.grid(axis="y", visible=False)
+    fig.tight_layout()
+    if bottom is not None:  # below the figure, never over the rows
+        handles = [matplotlib.patches.Patch(color="#d62728", label="dropped messages (gap)"),
+                   matplotlib.lines.Line2D([], [], color="#ff7f0e", marker="|", ls="", ms=11, mew=1.6,
+                                           label="latency spike")]
+        fig.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, 0.0), ncol=2)
+    charts = []
+    if estimates:
+        columns = [(own_clock(data, e)[0], e["error"]) for e in estimates]
+        charts.append(chart([f"{e['label']} (RMS {e['ate_rmse']:.3f} m)" for e in estimates], columns,
+                            "position error [m]" + (", log" if log else ""), log=log, shade=shade))
+    caption = ("Each estimate's position error against the reference (aligned in position and yaw, as the "
+               "trajectories)" + ("; log scale: one error is more than 20 times another's" if log else "")
+               + ("; red bands are drops in any stream" if shade and estimates else "") + "." if estimates else "")
+    if rows:
+        caption += (" Below, per stream with anything to mark (the others had no drop and no spike): the gaps left "
+                    "by dropped messages (red) and latency spikes (orange: above the median by more than 10 ms and "
+                    "three times the p99's distance from it).")
+    page.save(fig, "error_timeline.png", "Error over time" if estimates else "Drops and latency spikes over time",
+              caption.strip(), charts, replaces=not rows)
 
 
 def grid_of(n, width=11, row_height=2.3):
@@ -163,22 +243,34 @@ def grid_of(n, width=11, row_height=2.3):
     return fig, flat
 
 
-def save_grid(page, fig, suptitle, name, title, caption):
+def save_grid(page, fig, suptitle, name, title, caption, charts=None):
     fig.suptitle(suptitle, fontweight="bold")
     fig.tight_layout()
-    page.save(fig, name, title, caption)
+    page.save(fig, name, title, caption, charts)
 
 
 def plot_latency(page, data):
     streams = [s for s in data["streams"] if s["latency"]]
     if not streams:
         return
-    fig, axes = grid_of(len(streams))
-    for ax, s in zip(axes, streams):
+    # A stream whose every message has the same latency is one bar: said in a line, not drawn as a panel.
+    constant = [s for s in streams if max(s["latency"]) - min(s["latency"]) < 1e-5]
+    varying = [s for s in streams if s not in constant]
+    said = ""
+    if constant:
+        said = (" Constant latency, not drawn: "
+                + ", ".join(f"{s['channel']} {nozero(format(ms(s['latency'][0]), '.1f'))} ms" for s in constant)
+                + ".")
+    if not varying:
+        page.notes.append("Latency: every stream's latency is constant (" + said.split(": ", 1)[1].rstrip(".")
+                          + "); no histogram drawn.")
+        return
+    fig, axes = grid_of(len(varying))
+    for ax, s in zip(axes, varying):
         lat = [ms(v) for v in s["latency"]]
         p50 = quantile(lat, 0.5)
         lo, hi = min(lat), max(lat)
-        span = max(hi - lo, 1.0)  # a constant latency still gets a visible bar, 1/60 ms wide at least
+        span = max(hi - lo, 1.0)  # a nearly constant latency still gets a visible bar, 1/60 ms wide at least
         edges = [lo - 0.02 * span + k * span * 1.04 / 60 for k in range(61)]
         ax.hist(lat, bins=edges, color="#1f77b4", alpha=0.85)
         ax.axvline(p50, color="black", lw=1, ls="--")
@@ -186,22 +278,53 @@ def plot_latency(page, data):
         if "spike_threshold" in s and threshold <= hi:
             ax.axvline(threshold, color="#ff7f0e", lw=1.2)
         ax.set_yscale("log")
-        what = "constant" if hi - lo < 0.01 else "median"
-        ax.set_title(f"{s['channel']}  ({what} {p50:.1f} ms)", fontsize=9.5)
+        ax.set_title(f"{s['channel']}  (median {p50:.1f} ms)", fontsize=9.5)
         ax.ticklabel_format(axis="x", useOffset=False)
         ax.set_xlabel("arrival - stamp on its clock's mapping [ms]" if s.get("mapped_clock")
                       else "arrival - stamp [ms]")
-    save_grid(page, fig, "Latency per stream", "latency.png", "Latency histograms",
+    # Over time, zoomable: one chart per stream, each on its own y range (a stream 1,000 times later than another
+    # never flattens it), their time axes zoomed together.
+    charts = []
+    for s in varying:
+        lat = [ms(v) for v in s["latency"]]
+        # Spikes a thousand times the median flatten the rest: a log axis then, when all but a few latencies (under
+        # 1%, not shown on it) are positive.
+        log = sum(v <= 0 for v in lat) < 0.01 * len(lat) and max(lat) > LOG_SPREAD * max(quantile(lat, 0.5), 1e-3)
+        charts.append(chart([s["channel"]], [(s["arrival"][:len(lat)], lat)],
+                            "latency [ms]" + (", log" if log else ""), height=220, log=log, title=s["channel"]))
+    save_grid(page, fig, "Latency per stream", "latency.png", "Latency",
               "Arrival time minus header stamp per message (a scan's from its last beam, as the diagnosis "
-              "measures it; log scale counts): a clock offset moves the whole "
-              "histogram, transport jitter widens it. A stream stamped on a clock of another epoch (simulation "
-              "time) is drawn as the diagnosis judges it: its stamps through that clock's mapping to arrival, "
-              "against the fastest stream on it. Dashed: median; orange: the spike threshold.")
+              "measures it): a clock offset moves the whole histogram, transport jitter widens it. A stream "
+              "stamped on a clock of another epoch (simulation time) is drawn as the diagnosis judges it: its "
+              "stamps through that clock's mapping to arrival, against the fastest stream on it. Histograms (log "
+              "counts): dashed the median, orange the spike threshold. Over time: each stream on its own scale (log "
+              "where its spikes are more than 20 times its median and under 1% of its latencies, not shown there, "
+              "are zero or less), drag to zoom them all, double-click to reset."
+              + said, charts)
 
 
 def plot_interarrival(page, data):
     streams = [s for s in data["streams"] if len(s["arrival"]) > 2]
     if not streams:
+        return
+
+    def steady(s):  # every interval its period: a flat line on the dashed one, said rather than drawn
+        period = s.get("expected_period_s") or 0
+        dt = numpy.diff(numpy.asarray(s["arrival"]))
+        return period > 0 and bool(numpy.all(numpy.abs(dt - period) <= max(0.01 * period, 5e-5)))
+
+    regular = [s for s in streams if steady(s)]
+    few = [s for s in streams if s not in regular and len(s["arrival"]) < 10]
+    streams = [s for s in streams if s not in regular and s not in few]
+    said = ""
+    if few:
+        said += " Fewer than ten messages, not drawn: " + ", ".join(
+            f"{s['channel']} ({len(s['arrival'])})" for s in few) + "."
+    if regular:
+        said += (" Every interval its period, not drawn: "
+                + ", ".join(f"{s['channel']} {ms(s['expected_period_s']):g} ms" for s in regular) + ".")
+    if not streams:
+        page.notes.append("Inter-arrival times: no stream to draw." + said)
         return
     fig, axes = grid_of(len(streams))
     for ax, s in zip(axes, streams):
@@ -217,7 +340,7 @@ def plot_interarrival(page, data):
         ax.set_ylabel("interval [ms]")
     save_grid(page, fig, "Inter-arrival time per stream", "interarrival.png", "Inter-arrival times",
               "Time between consecutive arrivals: drops show as steps of whole periods above the dashed expected "
-              "period, bursts as clusters, reordering and duplicates as points near zero.")
+              "period, bursts as clusters, reordering and duplicates as points near zero." + said)
 
 
 def plot_skew(page, data):
@@ -262,6 +385,9 @@ def plot_flight_timeline(page, data):
         for what in sorted(by_what, key=lambda w: -len(by_what[w]))[:10]:
             spans = [(e["start_s"], max(e["end_s"] - e["start_s"], duration * 0.002)) for e in by_what[what]]
             rows.append((what if kind != "dropout" else name, color, spans))
+    if not rows:
+        page.notes.append("Flight timeline: the flight log has no dropouts, sensor gaps or estimator rejections.")
+        return
     fig, ax = plt.subplots(figsize=(11, 1.2 + 0.32 * max(len(rows), 1)))
     for i, (label, color, spans) in enumerate(rows):
         ax.broken_barh(spans, (i - 0.35, 0.7), facecolors=color)
@@ -323,7 +449,7 @@ def plot_arms(page, data):
             ax.set_title(name, fontsize=9.5)
             ax.set_xlabel("time [s]")
             ax.set_ylabel("position [rad]")
-        axes[0].legend(loc="best", fontsize=8)
+        handles, labels = axes[0].get_legend_handles_labels()
         if arm.get("curve"):
             ax = axes[len(joints)]
             lags = [ms(c[0]) for c in arm["curve"]]
@@ -338,7 +464,10 @@ def plot_arms(page, data):
             said = "no delay measured (the joints do not follow the commanded motion clearly)"
         else:
             said = f"the joints follow {ms(delay):.1f} ms late (confidence {arm.get('confidence', 0):.2f})"
-        save_grid(page, fig, f"{arm['command_channel']} -> {arm['state_channel']}: {said}", f"arm_{i}.png",
+        fig.suptitle(f"{arm['command_channel']} -> {arm['state_channel']}: {said}", fontweight="bold")
+        fig.tight_layout()
+        fig.legend(handles, labels, loc="upper center", bbox_to_anchor=(0.5, 0.0), ncol=3, fontsize=8.5)
+        page.save(fig, f"arm_{i}.png",
                   f"Arm: commanded and measured joint motion ({arm['command_channel']})",
                   "Each joint's commanded position (dashed: the plan of the last command stamped at or before each "
                   "time) and measured position (red: the joint states), over the 3 s in which the commanded joints "
@@ -347,13 +476,22 @@ def plot_arms(page, data):
                   "lag (1: the same motion); its peak is the delay.")
 
 
+REASONS = ("stale", "future", "late", "outliers")
+
+
 def plot_estimators(page, data):
     """Per estimator status channel: each input's share of rejected measurements over time, by reason."""
     for i, est in enumerate(data.get("estimators", [])):
         t = numpy.asarray(est["t"])
-        inputs = [x for x in est["inputs"] if x["fused"] and (x["fused"][-1] or x["stale"][-1] or x["future"][-1]
-                                                            or x["late"][-1] or x["outliers"][-1])]
-        if len(t) < 2 or not inputs:
+        # An input that rejected nothing is a flat line at zero: named in the caption, not drawn.
+        rejected = [x for x in est["inputs"] if x["fused"] and any(max(x[r]) > 0 for r in REASONS)]
+        clean = [x["name"] for x in est["inputs"] if x["fused"] and x not in rejected]
+        said = f" Nothing rejected, not drawn: {', '.join(clean)}." if clean else ""
+        inputs = rejected
+        if len(t) < 2:
+            continue
+        if not inputs:
+            page.notes.append(f"{est['label']}: the estimator rejected no measurement ({', '.join(clean)}).")
             continue
         fig, axes = grid_of(len(inputs), row_height=2.4)
         for ax, x in zip(axes, inputs):
@@ -369,15 +507,21 @@ def plot_estimators(page, data):
             ax.set_title(f"{x['name']}: {x['fused'][-1]:,} fused", fontsize=9.5)
             ax.set_xlabel("time [s]")
             ax.set_ylabel("rejected [% of received]")
-            if ax.get_legend_handles_labels()[0]:
-                ax.legend(loc="best", fontsize=8)
-        save_grid(page, fig, f"{est['label']}: what the estimator rejected", f"estimator_{i}.png",
+        reasons = {}  # one legend for every panel, below them
+        for ax in axes:
+            for h, l in zip(*ax.get_legend_handles_labels()):
+                reasons.setdefault(l, h)
+        fig.suptitle(f"{est['label']}: what the estimator rejected", fontweight="bold")
+        fig.tight_layout()
+        fig.legend(list(reasons.values()), list(reasons), loc="upper center", bbox_to_anchor=(0.5, 0.0),
+                   ncol=4, fontsize=8.5)
+        page.save(fig, f"estimator_{i}.png",
                   f"Estimator: rejected measurements ({est['label']})",
                   "For each input of the estimator, the share of its measurements rejected so far, by reason, from "
                   "the estimator's own status messages: stale (stamped too long before the estimator's clock), "
                   "from the future (too far ahead of it: a source clock ahead), late (before the oldest state it "
                   "keeps) and outliers (failed the innovation test). A sensor on another clock shows as a share "
-                  "that rises and stays.")
+                  "that rises and stays." + said)
 
 
 def plot_maps(page, data, out_dir):
@@ -405,6 +549,10 @@ td:first-child,th:first-child{text-align:left}.fault{color:#b71c1c;font-weight:6
 figcaption{color:#555;font-size:.88em;max-width:900px}ul.problems li{margin:.2em 0}
 .cards{display:flex;flex-wrap:wrap;gap:1em}.card{flex:1 1 200px;border-left:4px solid #546e7a;padding:.3em .8em}
 .card b{display:block;font-size:1.25em}
+.charts{display:grid;grid-template-columns:repeat(auto-fit,minmax(520px,1fr));gap:.6em 1.6em;margin:.6em 0}
+.chart{width:100%}.chart-labels{font-size:.8em;color:#333;min-height:1.3em;margin:.2em 0 0 3em}
+.chart-labels span{margin-right:.8em}.hint{color:#555;font-size:.85em;margin:.2em 0}
+details summary{cursor:pointer;color:#37474f;font-size:.9em}
 """
 
 CHECK = """
@@ -433,6 +581,72 @@ window.addEventListener('load', function () {
 """
 
 
+CHARTS = """
+<script>
+// Draws the zoomable charts with dygraphs (inlined above) and marks the page when done, for the headless-browser
+// test: body[data-charts] charts to draw, [data-charts-drawn] drawn, [data-charts-ready] once all are,
+// [data-js-errors] errors thrown. Charts of one group zoom together; double-click resets.
+(function () {
+  var specs = %(specs)s, colors = %(colors)s;
+  var body = document.body, drawn = 0, errors = 0, groups = {}, syncing = false;
+  body.setAttribute('data-charts', specs.length);
+  body.setAttribute('data-js-errors', 0);
+  window.addEventListener('error', function () { body.setAttribute('data-js-errors', ++errors); });
+  specs.forEach(function (s) {
+    try {
+      var g = new Dygraph(document.getElementById(s.id), s.data, {
+        labels: s.labels, ylabel: s.ylabel, xlabel: 'time since the start of the log [s]', title: s.title || null,
+        titleHeight: s.title ? 22 : 0, logscale: s.log, height: s.height, connectSeparatedPoints: true,
+        strokeWidth: 1.2, colors: s.labels.length > 2 ? colors : [colors[s.color %% colors.length]],
+        labelsDiv: s.id + '-labels', legend: 'always', xRangePad: 4, includeZero: !s.log && s.zero,
+        axes: {x: {valueFormatter: function (x) { return x.toFixed(3) + ' s'; }},
+               y: {valueFormatter: function (y) { return y === null ? '-' : +y.toPrecision(5) + ''; },
+                   axisLabelFormatter: function (y) { return +(+y).toPrecision(3) + ''; },
+                   pixelsPerLabel: s.log ? 28 : 20, axisLabelWidth: 60}},
+        underlayCallback: function (ctx, area, dg) {
+          ctx.fillStyle = 'rgba(214,39,40,0.13)';
+          s.shade.forEach(function (r) {
+            var a = dg.toDomXCoord(r[0]), b = dg.toDomXCoord(r[1]);
+            ctx.fillRect(a, area.y, Math.max(b - a, 1), area.h);
+          });
+        },
+        drawCallback: function (dg, initial) {
+          if (initial) {
+            body.setAttribute('data-charts-drawn', ++drawn);
+            if (drawn === specs.length) body.setAttribute('data-charts-ready', 1);
+            return;
+          }
+          if (syncing) return;
+          syncing = true;
+          var range = dg.isZoomed('x') ? dg.xAxisRange() : null;
+          (groups[s.group] || []).forEach(function (o) { if (o !== dg) o.updateOptions({dateWindow: range}); });
+          syncing = false;
+        }
+      });
+      (groups[s.group] = groups[s.group] || []).push(g);
+    } catch (e) {
+      body.setAttribute('data-js-errors', ++errors);
+    }
+  });
+})();
+</script>
+"""
+
+
+def dygraphs():
+    """dygraphs' script and style from Debian's libjs-dygraphs, to inline into the page; None when absent."""
+    try:
+        with open(os.path.join(DYGRAPHS_DIR, "dygraph.min.js"), encoding="utf-8") as f:
+            js = f.read()
+        with open(os.path.join(DYGRAPHS_DIR, "dygraph.min.css"), encoding="utf-8") as f:
+            css = f.read()
+    except OSError:
+        return None
+    if "</script" in js.lower() or "</style" in css.lower():
+        return None  # cannot be inlined as it is
+    return js, css
+
+
 def esc(x):
     return html.escape(str(x))
 
@@ -459,9 +673,26 @@ def summary_cards(data):
                   "source clocks ahead of the recorder's"))
     drops = [f"{name} {n}" for name, n in summary.get("drops", {}).items()]
     cards.append(("dropped messages", ", ".join(drops[:3]) or "none", "from sequence gaps, or gaps in time"))
+    # The card gives the table's ATE when `driftlab eval` scored the estimate (its alignment, said), else the one
+    # plotted (aligned in position and yaw): a number on the page is the same number wherever it appears.
+    evals = [e for e in data.get("evals", []) if "ate" in e["result"]]
+    scored = set()
+    for ev in evals:
+        r = ev["result"]
+        source = r["estimate"]["source"]
+        plotted = [e for e in data.get("estimates", [])
+                   if "ate_rmse" in e and (source == e["label"] or source.endswith("/" + e["label"]))]
+        also = ""
+        if plotted:
+            scored.add(plotted[0]["label"])
+            if r["alignment"]["type"] != "posyaw":
+                also = f"; plotted aligned in position and yaw: {plotted[0]['ate_rmse']:.3f} m"
+        cards.append((f"ATE {os.path.basename(source)}", f"{r['ate']['rmse']:.3f} m",
+                      f"max {r['ate']['max']:.3f} m, {r['alignment']['type']} alignment, as in the table{also}"))
     for e in data.get("estimates", []):
-        if "ate_rmse" in e:
-            cards.append((f"ATE {e['label']}", f"{e['ate_rmse']:.3f} m", f"max {e['ate_max']:.3f} m, posyaw"))
+        if "ate_rmse" in e and e["label"] not in scored:
+            cards.append((f"ATE {e['label']}", f"{e['ate_rmse']:.3f} m",
+                          f"max {e['ate_max']:.3f} m, aligned in position and yaw (posyaw), as plotted"))
     return "<div class='cards'>" + "".join(
         f"<div class='card'>{esc(t)}<b>{esc(v)}</b><small>{esc(n)}</small></div>" for t, v, n in cards) + "</div>"
 
@@ -546,26 +777,52 @@ def write_page(page, data, out_dir):
     d = data.get("diagnosis") or {}
     logs = "".join(f"<li>{esc(l['path'])}: {l['duration_s']:.1f} s"
                    + (f", {l['problems']} damaged spots" if l["problems"] else "") + "</li>" for l in data["logs"])
-    figures = []
+    library = dygraphs()
+    figures, specs = [], []
     for name, title, caption in page.figures:
         with open(os.path.join(out_dir, name), "rb") as f:
             b64 = base64.b64encode(f.read()).decode("ascii")
-        figures.append(f"<section><h2>{esc(title)}</h2><figure><a href='{esc(name)}'>"
-                       f"<img alt='{esc(title)}' src='data:image/png;base64,{b64}'></a>"
-                       f"<figcaption>{esc(caption)}</figcaption></figure></section>")
+        image = (f"<figure><a href='{esc(name)}'><img alt='{esc(title)}' src='data:image/png;base64,{b64}'></a>"
+                 f"<figcaption>{esc(caption)}</figcaption></figure>")
+        charts, replaces = page.charts.get(name, (None, False))
+        zoom = ""
+        if charts and library:
+            divs = []
+            for i, c in enumerate(charts):
+                spec = dict(c, id=f"chart-{len(specs)}", group=name, color=i, zero=name == "error_timeline.png")
+                specs.append(spec)
+                divs.append(f"<div><div class='chart' id='{spec['id']}'></div>"
+                            f"<div class='chart-labels' id='{spec['id']}-labels'></div></div>")
+            zoom = ("<p class='hint'>Zoomable: drag across a chart to zoom in on that time, shift-drag to pan, "
+                    "double-click to zoom back out.</p><div class='charts'>" + "".join(divs) + "</div>")
+            if replaces:
+                image = f"<details><summary>the same as a picture (PNG)</summary>{image}</details>"
+        elif charts:
+            zoom = ("<p class='hint'>The zoomable view of this plot needs libjs-dygraphs (<code>apt-get install "
+                    "libjs-dygraphs</code>), not found in " + esc(DYGRAPHS_DIR) + "; this is its picture.</p>")
+        figures.append(f"<section><h2>{esc(title)}</h2>{zoom}{image}</section>")
+    if page.notes:
+        figures.append("<section><h2>Not drawn</h2><ul>" + "".join(f"<li>{esc(n)}</li>" for n in page.notes)
+                       + "</ul></section>")
+    style, script = "", ""
+    if library:
+        style = library[1]
+        script = ("<script>" + library[0] + "</script>"
+                  + CHARTS % {"specs": json.dumps(specs, separators=(",", ":")).replace("</", "<\\/"),
+                              "colors": json.dumps(COLORS)})
     unmatched = ""
     if data.get("unmatched"):
         unmatched = ("<p class='warn'>Left out of the trajectories: "
                      + esc(", ".join(data["unmatched"])) + "</p>")
     text = f"""<!doctype html>
 <html lang="en"><head><meta charset="utf-8"><meta name="viewport" content="width=device-width, initial-scale=1">
-<title>{esc(data['title'])}</title><style>{CSS}</style></head>
+<title>{esc(data['title'])}</title><style>{style}{CSS}</style></head>
 <body><header><h1>{esc(data['title'])}</h1><p>made by driftlab report from:</p><ul>{logs}</ul></header><main>
 <section><h2>Summary</h2>{summary_cards(data)}{unmatched}</section>
 <section><h2>Streams</h2>{channel_table(d)}<h2 style="margin-top:1em">Problems</h2>{problems_list(d)}</section>
 {eval_table(data.get('evals', []))}
 {''.join(figures)}
-</main>{CHECK}</body></html>
+</main>{CHECK}{script}</body></html>
 """
     path = os.path.join(out_dir, "index.html")
     try:

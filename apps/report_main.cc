@@ -347,11 +347,13 @@ void add_report_command(CLI::App& app, int* exit_code) {
   cmd->footer(
       "The first LOG is the recording (a simulator or recorder log); later logs are replays of it, whose new pose\n"
       "channels are shown as estimates. Plots: trajectories in the plane (estimates aligned in position and yaw);\n"
-      "error over time with drops, gaps and latency spikes on the same axis; latency histograms; inter-arrival times;\n"
-      "skew correlation curves; SLAM maps; an arm's commanded and measured joint motion with the delay diagnose\n"
-      "measures between them; a PX4 flight log's timeline (the logger's dropouts, sensor gaps, the estimator's\n"
-      "rejections and timeouts on one axis). Without --diagnosis the first log is diagnosed. Needs python3 with\n"
-      "matplotlib. DIR gets index.html, a PNG per plot and report.json (the data plotted).");
+      "error over time with drops, gaps and latency spikes on the same axis; latency over time and histograms;\n"
+      "inter-arrival times; skew correlation curves; SLAM maps; an arm's commanded and measured joint motion with\n"
+      "the delay diagnose measures between them; a PX4 flight log's timeline (the logger's dropouts, sensor gaps,\n"
+      "the estimator's rejections and timeouts on one axis). The time plots zoom in the page (dygraphs, from\n"
+      "libjs-dygraphs, inlined: it opens offline; without it the page keeps the PNGs). Without --diagnosis the first\n"
+      "log is diagnosed. Needs python3 with matplotlib. DIR gets index.html, a PNG per plot and report.json (the\n"
+      "data plotted).");
   cmd->add_option("logs", o->logs, "Logs: the recording first, then replays of it")->required()->check(CLI::ExistingFile);
   cmd->add_option("-o,--out", o->out, "Folder to write the report into")->required();
   cmd->add_option("--diagnosis", o->diagnosis, "Diagnosis of the first log (driftlab diagnose --json)");

@@ -18,7 +18,7 @@ if ((deb)); then
   (cd "$build" && cpack -G DEB -B "$tmp/package" >"$tmp/cpack.log" 2>&1) || { cat "$tmp/cpack.log"; exit 1; }
   package=$(ls "$tmp"/package/driftlab_*.deb)
   info=$(dpkg-deb -I "$package")
-  for dep in python3-matplotlib libbullet libmrpt liblcm libopencv liburdfdom libyaml-cpp; do
+  for dep in python3-matplotlib libjs-dygraphs libbullet libmrpt liblcm libopencv liburdfdom libyaml-cpp; do
     grep -q "^ Depends:.*$dep" <<<"$info" || { echo "the package's Depends lacks $dep:"; grep Depends <<<"$info"; exit 1; }
   done
   dpkg-deb -x "$package" "$tmp/root"
