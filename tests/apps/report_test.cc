@@ -206,7 +206,7 @@ TEST(ReportPages, ArmDemo) {
   auto r = driftlab("sim " + std::string(DRIFTLAB_SOURCE_DIR) +
                     "/sim/scenarios/manipulator_latency.yaml --duration 20 -o " + dir.file("late.lcm"));
   ASSERT_EQ(r.code, 0) << r.err;
-  r = driftlab("eval --arm " + dir.file("late.lcm") + " --json " + dir.file("arm.json"));
+  r = driftlab("eval --arm " + dir.file("late.lcm") + " --json-out " + dir.file("arm.json"));
   ASSERT_EQ(r.code, 0) << r.err;
   r = driftlab("report " + dir.file("late.lcm") + " --eval " + dir.file("arm.json") + " -o " + dir.file("report"));
   ASSERT_EQ(r.code, 0) << r.err;
