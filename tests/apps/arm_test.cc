@@ -342,7 +342,7 @@ TEST(ArmEval, ALogCarryingAUrdfNested200kDeepIsRefusedInOneLine) {
   test::TempDir dir;
   std::string deep = "<robot name=\"deep\">\n";
   constexpr int kLevels = 200'000;
-  deep.reserve(12 * kLevels);
+  deep.reserve(size_t{13} * kLevels);
   for (int i = 0; i < kLevels; ++i) deep += "<link>";
   for (int i = 0; i < kLevels; ++i) deep += "</link>";
   deep += "\n</robot>\n";
