@@ -29,6 +29,7 @@
 #include "core/install_layout.h"
 #include "core/log_writer.h"
 #include "core/process.h"
+#include "core/same_file.h"
 #include "core/text_file.h"
 #include "core/wall_clock.h"
 
@@ -129,6 +130,33 @@ Result<std::string> collect(const std::string& dir, const Plan& plan, bool plots
   return (fs::path(dir) / "index.html").string();
 }
 
+/// A sweep's or batch's folder -o DIR, checked before anything is written: DIR is a folder or absent, not an
+/// input and not inside an input folder (a ROS 2 bag); each file written at its top (plan.json, results.csv,
+/// results.json, index.html) is a regular file or absent and not an input; and no input lies in DIR/points,
+/// where the points' folders are made and cleared. `inputs`: the spec, its scenario and its logs.
+Status check_sweep_dir(const std::string& dir, const std::vector<std::string>& inputs) {
+  std::error_code ec;
+  if (fs::exists(fs::symlink_status(dir, ec)) && !fs::is_directory(dir, ec)) {
+    struct stat st {};
+    const char* kind = ::stat(dir.c_str(), &st) == 0 ? internal::node_kind(st) : "a dangling link";
+    return Error{"-o " + dir + ": is " + kind + ", not a folder: give the sweep's folder (made if absent)"};
+  }
+  if (Status s = refuse_same_file(dir, inputs, "-o", OutputKind::kFolder); !s) return s;
+  for (const char* name : {"plan.json", "results.csv", "results.json", "index.html"}) {
+    const std::string file = (fs::path(dir) / name).string();
+    if (Status s = refuse_same_file(file, inputs, "-o " + dir + " writes"); !s) return s;
+  }
+  const fs::path points = internal::resolved((fs::path(dir) / "points").string());
+  for (const auto& in : inputs) {
+    if (in.empty()) continue;
+    if (internal::is_within(internal::resolved(in), points)) {
+      return Error{"-o " + dir + ": the input " + in + " lies in " + (fs::path(dir) / "points").string() +
+                   ", where the points are written: give another folder"};
+    }
+  }
+  return {};
+}
+
 struct Counts {
   std::map<PointState, size_t> by_state;
   std::vector<PointStatus> failed;
@@ -185,6 +213,9 @@ int run_status(const std::string& dir, const JsonOutput& json) {
 int run_collect(const std::string& dir, bool plots) {
   auto plan = load_plan(dir);
   if (!plan) return fail(plan.error().message);
+  std::vector<std::string> inputs = plan->spec.logs;
+  if (!plan->spec.scenario.empty()) inputs.push_back(plan->spec.scenario);
+  if (Status s = check_sweep_dir(dir, inputs); !s) return fail(s.message());
   auto page = collect(dir, *plan, plots);
   if (!page) return fail(page.error().message, kExitFailure);
   const Counts c = count_points(dir, *plan);
@@ -327,6 +358,10 @@ int run_sweep(const SweepArgs& a) {
       return fail(s.message());
     }
   }
+  std::vector<std::string> inputs = spec->logs;
+  inputs.push_back(a.spec);
+  if (!spec->scenario.empty()) inputs.push_back(spec->scenario);
+  if (Status s = check_sweep_dir(a.out, inputs); !s) return fail(s.message());
   Plan plan{*spec, expand(*spec)};
   return execute(a.out, std::move(plan), a.exec, "sweep --point");
 }
@@ -381,6 +416,7 @@ int run_batch(const BatchArgs& a) {
   spec->gt_channel = a.gt;
   spec->est_channel = a.est;
   spec->align = a.align;
+  if (Status s = check_sweep_dir(a.out, spec->logs); !s) return fail(s.message());
   Plan plan{*spec, expand(*spec)};
   return execute(a.out, std::move(plan), a.exec, "batch --item");
 }

@@ -5,6 +5,7 @@
 // text, 96..191 a ROS message (its type and serialization from the selector), 192..255 a ULog file (from its magic).
 #include <cstdint>
 #include <cstdlib>
+#include <cstring>
 #include <span>
 #include <string>
 #include <vector>
@@ -14,6 +15,7 @@
 #include "formats/ros_messages.h"
 #include "formats/ulog.h"
 #include "formats/ulog_messages.h"
+#include "fuzz/structure_mutators.h"
 #include "lcmtypes/validate.h"
 
 namespace {
@@ -101,4 +103,20 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     if (auto c = convert_ros_message(type, s, rest, 0, 0, &error)) check(c->lcm);
   }
   return 0;
+}
+
+extern "C" size_t LLVMFuzzerMutate(uint8_t* data, size_t size, size_t max_size);
+
+// Half the mutations of an input holding a bag rewrite one of its chunks (fuzz/structure_mutators.h): lying
+// declared sizes, zeros appended behind them, another codec. The rest, and any input without a chunk, libFuzzer's.
+extern "C" size_t LLVMFuzzerCustomMutator(uint8_t* data, size_t size, size_t max_size, unsigned int seed) {
+  driftlab::fuzz::Rng rng(seed);
+  if (size >= 1 && max_size > 1 && data[0] < 64 && driftlab::fuzz::pick(rng, 2) == 0) {
+    std::vector<uint8_t> out;
+    if (driftlab::fuzz::mutate_bag(rng, {data + 1, size - 1}, max_size - 1, out)) {
+      std::memcpy(data + 1, out.data(), out.size());
+      return out.size() + 1;
+    }
+  }
+  return LLVMFuzzerMutate(data, size, max_size);
 }

@@ -6,6 +6,7 @@
 // Input: a selector byte, then the bytes for the reader it selects.
 #include <cstdint>
 #include <cstdlib>
+#include <cstring>
 #include <span>
 #include <string>
 
@@ -13,6 +14,7 @@
 #include "formats/ros2_bag.h"
 #include "formats/ros_definition.h"
 #include "formats/ros_messages.h"
+#include "fuzz/structure_mutators.h"
 #include "lcmtypes/validate.h"
 
 namespace {
@@ -95,4 +97,36 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
             all.substr(0, nul), payload);
   }
   return 0;
+}
+
+extern "C" size_t LLVMFuzzerMutate(uint8_t* data, size_t size, size_t max_size);
+
+// Half the mutations rewrite the input's structure (fuzz/structure_mutators.h): an MCAP file's chunk (lying
+// declared sizes, zeros appended behind them, the CRC cleared, another codec), or a definition replaced by one of
+// nested, cyclic or repeated types (the message after it kept). The rest, and anything else, libFuzzer's.
+extern "C" size_t LLVMFuzzerCustomMutator(uint8_t* data, size_t size, size_t max_size, unsigned int seed) {
+  using namespace driftlab::fuzz;
+  Rng rng(seed);
+  if (size >= 1 && max_size > 1 && pick(rng, 2) == 0) {
+    std::vector<uint8_t> out;
+    if (data[0] < 128 && mutate_mcap(rng, {data + 1, size - 1}, max_size - 1, out)) {
+      std::memcpy(data + 1, out.data(), out.size());
+      return out.size() + 1;
+    }
+    if (data[0] >= 160) {
+      const std::string_view all(reinterpret_cast<const char*>(data + 1), size - 1);
+      const size_t nul = all.find('\0');
+      const std::string payload(nul == std::string_view::npos ? std::string_view() : all.substr(nul + 1));
+      if (payload.size() + 2 < max_size) {
+        const std::string d = nested_definition(rng, max_size - payload.size() - 2);
+        if (d.size() + payload.size() + 2 <= max_size) {
+          std::memcpy(data + 1, d.data(), d.size());
+          data[1 + d.size()] = 0;
+          std::memcpy(data + 2 + d.size(), payload.data(), payload.size());
+          return d.size() + payload.size() + 2;
+        }
+      }
+    }
+  }
+  return LLVMFuzzerMutate(data, size, max_size);
 }

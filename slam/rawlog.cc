@@ -2,6 +2,7 @@
 
 #include <mrpt/io/CFileGZInputStream.h>
 #include <mrpt/io/CFileOutputStream.h>
+#include <mrpt/math/CMatrixF.h>
 #include <mrpt/obs/CActionCollection.h>
 #include <mrpt/obs/CActionRobotMovement2D.h>
 #include <mrpt/obs/CObservation2DRangeScan.h>
@@ -9,11 +10,13 @@
 #include <mrpt/obs/CObservationOdometry.h>
 #include <mrpt/obs/CObservationRobotPose.h>
 #include <mrpt/obs/CSensoryFrame.h>
+#include <mrpt/rtti/CObject.h>
 #include <mrpt/serialization/CArchive.h>
 
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <iostream>
 #include <optional>
 
 #include "core/log_reader.h"
@@ -38,6 +41,127 @@ Status put(LogWriter& w, int64_t utime, const std::string& channel, const T& msg
   msg.encode(bytes.data(), 0, static_cast<int>(bytes.size()));
   return w.write(utime, channel, bytes);
 }
+
+/// The most beams a 2D scan in a rawlog may declare. Real scanners give a few thousand (SICK LMS: 181 to 1141,
+/// Hokuyo UTM: 1081); a million is far beyond any and still only 9 MB per scan.
+constexpr uint32_t kMaxScanBeams = 1u << 20;
+
+/// Where the scan being read sits, for the error (set while a rawlog is imported; one import per thread).
+thread_local const mrpt::io::CFileGZInputStream* t_stream = nullptr;
+thread_local std::string t_refused;  ///< why a scan was refused ("" when none was)
+
+/// MRPT's CObservation2DRangeScan::serializeFrom resizes the scan to its declared beam count before reading the
+/// beams (2^31-1 beams: 18 GB). This reads the same fields in the same order (MRPT 2.5's versions 0 to 7) with
+/// MRPT's own readers for everything nested (the sensor pose, the old covariance), but refuses a count over
+/// kMaxScanBeams before anything is allocated and reads the beams in blocks, so what is held never exceeds what
+/// the stream really carries. It is registered in place of MRPT's class while a rawlog is imported.
+class BoundedScan : public mrpt::obs::CObservation2DRangeScan {
+ protected:
+  void serializeFrom(mrpt::serialization::CArchive& in, uint8_t version) override {
+    if (version > 7) {  // not written by MRPT 2.5: its own reader says so
+      CObservation2DRangeScan::serializeFrom(in, version);
+      return;
+    }
+    in >> aperture >> rightToLeft >> maxRange >> sensorPose;
+    if (version < 6) {  // the sensor pose's covariance, dropped in version 6
+      mrpt::math::CMatrixF cov;
+      in >> cov;
+    }
+    const uint64_t at = t_stream != nullptr ? t_stream->getPosition() : 0;
+    uint32_t n = 0;
+    in >> n;
+    if (n > kMaxScanBeams) {
+      t_refused = "a 2D laser scan (CObservation2DRangeScan) declaring " + std::to_string(n) +
+                  " ranges (its count at byte " + std::to_string(at) + " uncompressed), more than the " +
+                  std::to_string(kMaxScanBeams) + " a scan may have";
+      throw std::runtime_error(t_refused);
+    }
+    std::vector<float> ranges;
+    std::vector<char> valid;
+    constexpr uint32_t kBlock = 1u << 14;
+    for (uint32_t done = 0; done < n;) {  // blocks: a count the stream does not carry ends at its end (EOF)
+      const uint32_t k = std::min(kBlock, n - done);
+      ranges.resize(done + k);
+      in.ReadBufferFixEndianness(ranges.data() + done, k);
+      done += k;
+    }
+    if (version >= 1) {
+      for (uint32_t done = 0; done < n;) {
+        const uint32_t k = std::min(kBlock, n - done);
+        valid.resize(done + k);
+        in.ReadBuffer(valid.data() + done, k);
+        done += k;
+      }
+    } else {
+      valid.resize(n);
+      for (uint32_t i = 0; i < n; ++i) valid[i] = ranges[i] < maxRange ? 1 : 0;
+    }
+    if (version < 4) {
+      stdError = 0.01f;
+      if (version >= 2) in >> stdError;
+      if (version >= 3) in >> timestamp;
+      beamAperture = static_cast<float>(0.25 * M_PI / 180);
+      deltaPitch = 0;
+      sensorLabel = "";
+    } else {
+      in >> stdError;
+      in >> timestamp;
+      in >> beamAperture;
+      if (version >= 5) {
+        in >> sensorLabel;
+        in >> deltaPitch;
+      } else {
+        sensorLabel = "";
+        deltaPitch = 0;
+      }
+    }
+    std::vector<int32_t> intensity;
+    bool has_intensity = false;
+    if (version >= 7) {
+      in >> has_intensity;
+      for (uint32_t done = 0; has_intensity && done < n;) {
+        const uint32_t k = std::min(kBlock, n - done);
+        intensity.resize(done + k);
+        in.ReadBufferFixEndianness(intensity.data() + done, k);
+        done += k;
+      }
+    }
+    loadFromVectors(n, ranges.data(), valid.data());
+    setScanHasIntensity(has_intensity);
+    for (uint32_t i = 0; has_intensity && i < n; ++i) setScanIntensity(i, intensity[i]);
+  }
+};
+
+/// While alive, MRPT creates BoundedScan wherever a rawlog holds a CObservation2DRangeScan (also inside sensory
+/// frames, which MRPT reads itself); MRPT's own class is registered back afterwards.
+class BoundedScanRegistration {
+ public:
+  explicit BoundedScanRegistration(const mrpt::io::CFileGZInputStream& in) {
+    t_stream = &in;
+    t_refused.clear();
+    static const mrpt::rtti::TRuntimeClassId bounded = [] {
+      mrpt::rtti::TRuntimeClassId id = *CLASS_ID(mrpt::obs::CObservation2DRangeScan);
+      id.ptrCreateObject = [] { return std::make_shared<BoundedScan>(); };
+      return id;
+    }();
+    quietly_register(&bounded);
+  }
+  ~BoundedScanRegistration() {
+    quietly_register(CLASS_ID(mrpt::obs::CObservation2DRangeScan));
+    t_stream = nullptr;
+  }
+  BoundedScanRegistration(const BoundedScanRegistration&) = delete;
+
+ private:
+  /// MRPT's registry warns on std::cerr when a name is registered again: that is the point here, not news.
+  static void quietly_register(const mrpt::rtti::TRuntimeClassId* id) {
+    std::streambuf* err = std::cerr.rdbuf(nullptr);
+    mrpt::rtti::registerClass(id);
+    std::cerr.rdbuf(err);
+    std::cerr.clear();
+  }
+  BoundedScanRegistration& operator=(const BoundedScanRegistration&) = delete;
+};
 
 /// Writes one rawlog's observations into a log.
 class Importer {
@@ -174,6 +298,7 @@ Result<RawlogCounts> import_rawlog(const std::string& rawlog, const std::string&
   RawlogCounts counts;
   Importer importer(*w, counts);
   auto archive = mrpt::serialization::archiveFrom(in);
+  const BoundedScanRegistration bounded_scans(in);
   mrpt::obs::CActionCollection::Ptr pending_actions;
   for (size_t entry = 0;; ++entry) {
     mrpt::serialization::CSerializable::Ptr object;
@@ -187,6 +312,10 @@ Result<RawlogCounts> import_rawlog(const std::string& rawlog, const std::string&
                    " uncompressed) is cut off: the rawlog is truncated"};
     } catch (const std::exception& e) {
       w->discard();
+      if (!t_refused.empty()) {
+        return Error{rawlog + ": entry " + std::to_string(entry) + " (byte " + std::to_string(before) +
+                     " uncompressed): " + t_refused};
+      }
       if (in.getPosition() >= compressed && entry > 0 && before > 0 && in.checkEOF()) {
         return Error{rawlog + ": entry " + std::to_string(entry) + " is cut off: the rawlog is truncated"};
       }

@@ -4,6 +4,7 @@
 // runs; a batch of logs diagnosed and ranked.
 #include <gtest/gtest.h>
 #include <signal.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -156,6 +157,51 @@ TEST(SweepCli, BadSpecIsOneLineExitTwoNothingRun) {
       EXPECT_FALSE(fs::exists(out)) << c.body;  // nothing planned, nothing submitted
     }
   }
+}
+
+// -o DIR naming an input, a folder whose top or points/ hold an input, or a node that is not a folder (issue 31):
+// one line naming -o and the input, exit 2, before anything is written, every input as it was. Before, the
+// spec saved as DIR/plan.json was replaced by the plan, and an input under DIR/points by a point's folder.
+TEST(SweepCli, AnOutputFolderThatIsOrHoldsAnInputIsRefused) {
+  test::TempDir dir;
+  const std::string spec_text = "duration: 2\nvary:\n  seed: [1, 2]\n";
+  fs::create_directories(dir.file("s/points"));
+  for (const char* name : {"s/spec.yaml", "s/plan.json", "s/points/spec.yaml"})
+    std::ofstream(dir.file(name)) << spec_text;
+  const std::string log = dir.file("b/points/x.lcm");
+  fs::create_directories(dir.file("b/points"));
+  fs::copy_file(std::string(DRIFTLAB_TEST_DATA) + "/sample.lcm", log);
+  const auto sample_bytes = test::read_file(log);
+  ASSERT_EQ(::mkfifo(dir.file("fifo").c_str(), 0600), 0);
+  struct Case {
+    std::string args, words;
+  };
+  const std::vector<Case> cases = {
+      {"sweep " + dir.file("s/spec.yaml") + " -o " + dir.file("s/spec.yaml"), "is a regular file, not a folder"},
+      {"sweep " + dir.file("s/plan.json") + " -o " + dir.file("s"),
+       "-o " + dir.file("s") + " writes " + dir.file("s/plan.json") + ": is the input " + dir.file("s/plan.json")},
+      {"sweep " + dir.file("s/points/spec.yaml") + " -o " + dir.file("s"),
+       "the input " + dir.file("s/points/spec.yaml") + " lies in " + dir.file("s/points")},
+      {"sweep " + dir.file("s/spec.yaml") + " -o " + dir.file("fifo"), "is a FIFO, not a folder"},
+      {"batch diagnose " + log + " -o " + dir.file("b"), "the input " + log + " lies in " + dir.file("b/points")},
+      {"batch diagnose " + log + " -o " + log, "is a regular file, not a folder"},
+  };
+  for (const auto& c : cases) {
+    const auto r = test::driftlab(c.args);
+    EXPECT_EQ(r.code, 2) << c.args << "\n" << r.err;
+    EXPECT_NE(r.err.find(c.words), std::string::npos) << c.args << "\n" << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+  }
+  for (const char* name : {"s/spec.yaml", "s/plan.json", "s/points/spec.yaml"}) {
+    std::ifstream in(dir.file(name));
+    EXPECT_EQ(std::string(std::istreambuf_iterator<char>(in), {}), spec_text) << name;
+  }
+  EXPECT_EQ(test::read_file(log), sample_bytes);
+  EXPECT_FALSE(fs::exists(dir.file("b/plan.json")));
+  EXPECT_TRUE(fs::is_fifo(dir.file("fifo")));
+  // A sweep's folder beside its spec, inside the spec's folder, is what everyone does: accepted.
+  const auto ok = test::driftlab("sweep " + dir.file("s/spec.yaml") + " -o " + dir.file("s/out") + " --dry-run");
+  EXPECT_EQ(ok.code, 0) << ok.err;
 }
 
 TEST(BatchCli, DiagnoseManyLogsRanked) {
