@@ -368,7 +368,7 @@ TEST(ArmEval, ALogCarryingAUrdfNested200kDeepIsRefusedInOneLine) {
   const std::string peak = dir.file("peak");
   const auto start = std::chrono::steady_clock::now();
   const auto r = test::run_capture("/usr/bin/time -f %M -o " + peak + " timeout 60 " + kDriftlab + " eval --arm " +
-                                   log + " --json " + json);
+                                   log + " --json-out " + json);
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   EXPECT_EQ(r.code, 2) << r.err;
   EXPECT_NE(r.err.find(log + ":ROBOT_DESCRIPTION:2: XML elements nested more than 1000 deep"), std::string::npos)
