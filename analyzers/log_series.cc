@@ -112,6 +112,15 @@ Result<LogSeries> read_log_series(const std::string& log) {
     const int64_t fp = logfmt::fingerprint(e.data);
     if (fp == driftlab::pose_t::getHash() || fp == driftlab::odometry_t::getHash()) {
       append_pose(e.data, out.poses[s.channel]);
+      if (!out.pose_bodies.count(s.channel)) {  // the body the first pose is of: what the channel tracks
+        std::string body;
+        if (fp == driftlab::pose_t::getHash()) {
+          if (driftlab::pose_t m; lcmtypes::decode(e.data, m)) body = m.child_frame_id;
+        } else if (driftlab::odometry_t m; lcmtypes::decode(e.data, m)) {
+          body = m.child_frame_id;
+        }
+        out.pose_bodies[s.channel] = body;
+      }
     } else if (fp == command_hash) {
       commands[s.channel].add(e.data, e.utime);
     } else if (fp == joint_state_hash) {

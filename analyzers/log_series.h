@@ -55,6 +55,7 @@ struct LogSeries {
   int64_t start_utime = 0, end_utime = 0;      ///< first and last log time [us]
   std::vector<StreamSeries> streams;           ///< by channel name
   std::map<std::string, Trajectory> poses;     ///< driftlab.pose_t and odometry_t channels (stamps: header [s])
+  std::map<std::string, std::string> pose_bodies;  ///< pose channel -> its first pose's child_frame_id (the body)
   std::vector<MapImage> maps;                  ///< image_t channels whose frame is "map"
   std::vector<ArmSeries> arms;                 ///< per channel of joint trajectory commands
   std::vector<EstimatorSeries> estimators;     ///< per channel of driftlab.estimator_status_t

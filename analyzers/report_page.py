@@ -129,28 +129,55 @@ def own_clock(data, e):
 
 def plot_trajectories(page, data):
     ref = data.get("reference")
+    others = [r for r in data.get("other_references", []) if r["x"]]
     estimates = [e for e in data["estimates"] if e["x"]]
-    if not ref and not estimates:
+    apart = [e for e in data.get("apart", []) if e["x"]]
+    if not ref and not estimates and not apart:
         return
-    fig, ax = plt.subplots(figsize=(8.5, 7))
+    # Poses of another body (an arm's end effector beside its base's ground truth) are no estimate of the
+    # reference: drawn apart, on axes of their own, never overlaid unaligned.
+    fig, axes = plt.subplots(1, 2 if apart else 1, figsize=(13, 6.5) if apart else (8.5, 7), squeeze=False)
+    ax = axes[0][0]
     if ref:
         ax.plot(ref["x"], ref["y"], color="black", lw=2.2, alpha=0.85, label=f"{ref['label']} (reference)")
         ax.plot(ref["x"][0], ref["y"][0], "o", color="black", ms=7)
+    for r in others:  # a run flown again: its own truth, dashed
+        ax.plot(r["x"], r["y"], color="#616161", lw=1.8, ls="--", alpha=0.85,
+                label=f"{r['label']} (reference, flown again)")
     for i, e in enumerate(estimates):
         label = e["label"]
         if "ate_rmse" in e:
-            label += f"  (ATE {e['ate_rmse']:.3f} m)"
+            label += f"  (ATE {e['ate_rmse']:.3f} m"
+            label += f" against {e['reference']})" if e.get("reference") else ")"
         ax.plot(e["x"], e["y"], color=COLORS[i % len(COLORS)], lw=1.2, alpha=0.9, label=label)
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
     ax.set_title("Trajectories in the plane")
-    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=1)
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=1, fontsize=9 if apart else None)
+    if apart:
+        bx = axes[0][1]
+        for i, e in enumerate(apart):
+            color = COLORS[(len(estimates) + i) % len(COLORS)]
+            bx.plot(e["x"], e["y"], color=color, lw=1.2, alpha=0.9, label=f"{e['label']} ({e['body']})")
+            bx.plot(e["x"][0], e["y"][0], "o", color=color, ms=6)
+        bx.set_aspect("equal", adjustable="datalim")
+        bx.set_xlabel("x [m]")
+        bx.set_ylabel("y [m]")
+        bx.set_title("Other bodies, apart (not estimates of the reference)")
+        bx.legend(loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=1, fontsize=9)
     aligned = " Estimates are aligned to the reference in position and yaw." if ref else ""
     onto = sorted({e["aligned_to"] for e in estimates if e.get("aligned_to")})
     if onto:
         aligned = (f" Without a reference, the others are aligned onto {onto[0]} (the longest) in position and "
                    "yaw, as evo_traj --ref does: poses in different frames are never overlaid as they are.")
+    if others:
+        aligned += (" A run flown again is drawn with the others: its truth dashed, its estimate scored against that "
+                    "truth.")
+    if apart:
+        bodies = ", ".join(f"{e['label']} ({e['body']})" for e in apart)
+        aligned += (f" Right: {bodies}, of another body than the reference's ({apart[0]['not_of']}): drawn apart, "
+                    "as logged, never overlaid on it.")
     page.save(fig, "trajectories.png", "Trajectories",
               "Every pose channel, seen from above; the dot marks the reference's start." + aligned)
 
@@ -549,6 +576,8 @@ td:first-child,th:first-child{text-align:left}.fault{color:#b71c1c;font-weight:6
 figcaption{color:#555;font-size:.88em;max-width:900px}ul.problems li{margin:.2em 0}
 .cards{display:flex;flex-wrap:wrap;gap:1em}.card{flex:1 1 200px;border-left:4px solid #546e7a;padding:.3em .8em}
 .card b{display:block;font-size:1.25em}
+.card.lead{flex:1 1 100%}.card.lead b{font-size:1.1em}.card.lead-fault{border-color:#c62828}
+.card.lead-warn{border-color:#ef6c00}.card.lead-ok{border-color:#2e7d32}
 .charts{display:grid;grid-template-columns:repeat(auto-fit,minmax(520px,1fr));gap:.6em 1.6em;margin:.6em 0}
 .chart{width:100%}.chart-labels{font-size:.8em;color:#333;min-height:1.3em;margin:.2em 0 0 3em}
 .chart-labels span{margin-right:.8em}.hint{color:#555;font-size:.85em;margin:.2em 0}
@@ -663,11 +692,16 @@ def fmt_ms(seconds):
 def summary_cards(data):
     summary = data.get("summary") or {}  # made by driftlab report (diagnosis_summary), as the demo prints it
     cards = []
+    # The worst problem first, in diagnose's own words: its headline (the first of its problems) is the worst
+    # stream's first reason, its cause (a clock 110 ms ahead, a command loop 120 ms late), then what follows from it.
     w = summary.get("worst_stream")
-    if w:
-        cards.append(("worst stream", f"{w['name']} ({w['verdict']})", "; ".join(w["reasons"][:2])))
+    if w and w["reasons"]:
+        rest = w["reasons"][1:]
+        follows = ("then: " + "; ".join(rest[:2]) + ("; ..." if len(rest) > 2 else "")) if rest else ""
+        lead = (f"worst problem: {w['name']} ({w['verdict']}), as diagnose's headline says",
+                f"{w['name']}: {w['reasons'][0]}", follows, w["verdict"])
     else:
-        cards.append(("worst stream", "none", "no stream was flagged"))
+        lead = ("worst problem", "none: no stream was flagged", "", "ok")
     ahead = [f"{name} {offset * 1e3:+.1f} ms" for name, offset in summary.get("clocks_ahead_s", {}).items()]
     cards.append(("clocks ahead", ", ".join(ahead[:3]) or "none by more than 1 ms",
                   "source clocks ahead of the recorder's"))
@@ -693,8 +727,11 @@ def summary_cards(data):
         if "ate_rmse" in e and e["label"] not in scored:
             cards.append((f"ATE {e['label']}", f"{e['ate_rmse']:.3f} m",
                           f"max {e['ate_max']:.3f} m, aligned in position and yaw (posyaw), as plotted"))
-    return "<div class='cards'>" + "".join(
-        f"<div class='card'>{esc(t)}<b>{esc(v)}</b><small>{esc(n)}</small></div>" for t, v, n in cards) + "</div>"
+    t, v, n, verdict = lead
+    return (f"<div class='cards'><div class='card lead lead-{esc(verdict)}' id='headline'>{esc(t)}<b>{esc(v)}</b>"
+            f"<small>{esc(n)}</small></div>" + "".join(
+                f"<div class='card'>{esc(t)}<b>{esc(v)}</b><small>{esc(n)}</small></div>" for t, v, n in cards)
+            + "</div>")
 
 
 def channel_table(d):

@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cstdint>
 #include <memory>
+#include <set>
 #include <span>
 #include <string>
 #include <string_view>
@@ -64,10 +65,16 @@ Status run_plot_script(const char* script, const std::string& name, const std::s
 /// channel untouched) otherwise. Channel names may hold ':' only if the log's name has none after its last one.
 bool split_log_channel(const std::string& src, std::string* log, std::string* channel);
 
-/// A file name for a channel that no other channel maps to: bytes other than [A-Za-z0-9_-] and a leading '.' are
-/// percent-encoded ("a/b" -> "a%2Fb", "a_b" stays), and names longer than 200 bytes are cut and given a hash of the
-/// whole name, so every channel gets a file of its own within the file system's 255-byte limit.
+/// A file name a person can read for a channel: leading '/'s dropped, bytes other than [A-Za-z0-9_.-] (and a
+/// leading '.') made '_' ("/tf" -> "tf", "/camera/image_raw" -> "camera_image_raw", "" -> "channel"); names longer
+/// than 200 bytes cut and given a hash of the whole name, within the file system's 255-byte limit. Two channels may
+/// map to one name ("/a/b" and "a_b"): unique_channel_file_name tells them apart.
 std::string channel_file_name(std::string_view channel);
+
+/// channel_file_name, unless another channel took it already (compared without case, as macOS and Windows do):
+/// then "NAME~HASH", HASH 16 hex digits of the whole channel name (FNV-1a): deterministic and collision-free in
+/// the order the channels are given. Adds the name to *taken.
+std::string unique_channel_file_name(std::string_view channel, std::set<std::string>* taken);
 
 /// A number as a person writes it: "2", "0.25", "1e+308" (never 309 digits).
 std::string short_number(double v);

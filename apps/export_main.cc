@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <map>
 #include <memory>
+#include <set>
 
 #include "analyzers/trajectory_io.h"
 #include "apps/cli_checks.h"
@@ -116,6 +117,7 @@ int run_csv(const CsvArgs& a) {
   fs::create_directories(a.out, ec);
   if (ec) return fail(a.out + ": cannot create: " + ec.message());
   std::map<std::string, CsvFile, std::less<>> files;
+  std::set<std::string> file_names;        // taken, for channels that map to one name
   std::map<std::string, int64_t> unknown;  // channel -> messages of a type without a definition here
   std::map<std::string, std::pair<int64_t, std::string>> malformed;  // channel -> count, the first one's problem
   lcmtypes::FlattenOptions fo;
@@ -169,7 +171,7 @@ int run_csv(const CsvArgs& a) {
     auto it = files.find(e.channel);
     if (it == files.end()) {
       CsvFile f;
-      f.path = (fs::path(a.out) / (channel_file_name(e.channel) + ".csv")).string();
+      f.path = (fs::path(a.out) / (unique_channel_file_name(e.channel, &file_names) + ".csv")).string();
       if (Status st = open_file(f, "w"); !st) {
         close_all(false);
         return fail(st.message(), kExitFailure);
@@ -292,8 +294,10 @@ void add_export_commands(CLI::App& exp, int* exit_code) {
   auto csv = std::make_shared<CsvArgs>();
   CLI::App* c = exp.add_subcommand("csv", "Every channel to a CSV file of its own (for PlotJuggler, spreadsheets).");
   c->footer(
-      "OUT/CHANNEL.csv per channel of a driftlab type (characters other than letters, digits, '_' and '-'\n"
-      "percent-encoded: /odom -> %2Fodom.csv): log_time_s (arrival), then every field flattened by its\n"
+      "OUT/CHANNEL.csv per channel of a driftlab type, named as a person reads it (a leading '/' dropped, other\n"
+      "characters than letters, digits, '_', '-' and '.' made '_': /tf -> tf.csv, /camera/image_raw ->\n"
+      "camera_image_raw.csv; a second channel of the same name gets NAME~HASH.csv, HASH from its full name; the\n"
+      "output lists each channel's file): log_time_s (arrival), then every field flattened by its\n"
       "definition in lcmtypes/ (header.seq, header.utime, orientation.w, ranges[0], ...), in the order of their\n"
       "first appearance in any of the channel's messages (a second transform, a longer scan add columns; a\n"
       "message without them leaves them empty). Files are written as .partial and renamed when complete.");

@@ -222,35 +222,77 @@ Result<std::string> make_report(const ReportOptions& o) {
   }
 
   // Trajectories: the reference from the first log that has it; estimates: every pose channel of the first log
-  // and those of later logs that the first does not have (the replays' outputs).
+  // and those of later logs that the first does not have (the replays' outputs), or has but holds other poses of:
+  // a run flown again (a closed-loop replay) is drawn with the other flights, its estimate against its own
+  // reference, drawn too. A pose channel a later log repeats as it was is a replayed input, drawn once.
+  auto same_poses = [](const Trajectory& a, const Trajectory& b) {
+    if (a.size() != b.size()) return false;
+    for (size_t i = 0; i < a.size(); ++i) {
+      if (std::abs(a.stamps[i] - b.stamps[i]) > 1e-6 || (a.positions[i] - b.positions[i]).norm() > 1e-6) return false;
+    }
+    return true;
+  };
   const Trajectory* gt = nullptr;
+  size_t gt_log = 0;
   for (size_t k = 0; k < logs.size(); ++k) {
     if (auto it = logs[k].poses.find(o.gt_channel); it != logs[k].poses.end() && it->second.size() > 0) {
       gt = &it->second;
+      gt_log = k;
       data["reference"] = path_json(label_of(names[k], o.gt_channel), *gt, origin_s);
       break;
     }
   }
+  // Each log's reference: its own when it flew again (its truth differs from the first's), else the first's.
+  std::vector<const Trajectory*> reference_of(logs.size(), gt);
+  data["other_references"] = nlohmann::json::array();
+  for (size_t k = gt_log + 1; gt != nullptr && k < logs.size(); ++k) {
+    auto it = logs[k].poses.find(o.gt_channel);
+    if (it == logs[k].poses.end() || it->second.size() < 2 || same_poses(*gt, it->second)) continue;
+    reference_of[k] = &it->second;
+    data["other_references"].push_back(path_json(label_of(names[k], o.gt_channel), it->second, origin_s));
+  }
+  // The body the reference tracks (its child frame): a pose channel of another body (an arm's end effector beside
+  // its base's ground truth) is no estimate of it; drawn apart, in its own frame, never overlaid.
+  const std::string gt_body = gt == nullptr ? std::string() : [&] {
+    auto b = logs[gt_log].pose_bodies.find(o.gt_channel);
+    return b == logs[gt_log].pose_bodies.end() ? std::string() : b->second;
+  }();
+  auto body_of = [&](size_t k, const std::string& channel) {
+    auto b = logs[k].pose_bodies.find(channel);
+    return b == logs[k].pose_bodies.end() ? std::string() : b->second;
+  };
   data["estimates"] = nlohmann::json::array();
+  data["apart"] = nlohmann::json::array();
   data["unmatched"] = nlohmann::json::array();
   // Without a reference, poses in different frames (AMCL's in 'map', odometry in 'odom') are drawn aligned in
   // position and yaw onto the longest of them, as evo_traj --ref does, never overlaid as they are; one that cannot
   // be aligned is left out and named.
   const Trajectory* frame = nullptr;
-  std::string frame_label;
+  std::string frame_label, frame_body;
   if (gt == nullptr) {
     for (const auto& [channel, t] : first.poses) {
       if (frame == nullptr || t.size() > frame->size()) {
         frame = &t;
         frame_label = channel;
+        frame_body = body_of(0, channel);
       }
     }
   }
+  const std::string& body = gt != nullptr ? gt_body : frame_body;
   for (size_t k = 0; k < logs.size(); ++k) {
     for (const auto& [channel, t] : logs[k].poses) {
       if (channel == o.gt_channel || t.size() < 2) continue;
-      if (k > 0 && first.poses.count(channel)) continue;
+      if (k > 0) {
+        if (auto it = first.poses.find(channel); it != first.poses.end() && same_poses(it->second, t)) continue;
+      }
       const std::string label = label_of(names[k], channel);
+      if (const std::string own = body_of(k, channel); !own.empty() && !body.empty() && own != body) {
+        auto drawn = path_json(label, t, origin_s);
+        drawn["body"] = own;
+        drawn["not_of"] = body;
+        data["apart"].push_back(std::move(drawn));
+        continue;
+      }
       if (gt == nullptr && (frame == &t || frame == nullptr)) {
         data["estimates"].push_back(path_json(label, t, origin_s));
       } else if (gt == nullptr) {
@@ -267,7 +309,8 @@ Result<std::string> make_report(const ReportOptions& o) {
         auto drawn = path_json(label + " (aligned to " + frame_label + ")", apply(a, t), origin_s);
         drawn["aligned_to"] = frame_label;
         data["estimates"].push_back(std::move(drawn));
-      } else if (auto e = estimate_json(label, *gt, t, origin_s)) {
+      } else if (auto e = estimate_json(label, *reference_of[k], t, origin_s)) {
+        if (reference_of[k] != gt) (*e)["reference"] = label_of(names[k], o.gt_channel);
         data["estimates"].push_back(std::move(*e));
       } else {
         data["unmatched"].push_back(label + " (no time overlap with the reference)");

@@ -4,6 +4,8 @@
 
 #include <filesystem>
 #include <fstream>
+#include <regex>
+#include <set>
 #include <sstream>
 
 #include "analyzers/trajectory_io.h"
@@ -213,7 +215,7 @@ TEST(ExportCsv, EveryElementOfEveryMessageIsWrittenInColumnsOfTheirUnion) {
   }
   const auto r = driftlab("export csv " + log + " -o " + dir.file("csv"));
   ASSERT_EQ(r.code, 0) << r.err;
-  const auto rows = read_csv(dir.file("csv/%2Ftf.csv"));
+  const auto rows = read_csv(dir.file("csv/tf.csv"));
   ASSERT_EQ(rows.size(), 1u + 4);
   const auto& h = rows[0];
   for (const auto& row : rows) EXPECT_EQ(row.size(), h.size());
@@ -228,37 +230,81 @@ TEST(ExportCsv, EveryElementOfEveryMessageIsWrittenInColumnsOfTheirUnion) {
     EXPECT_EQ(row[child1], i % 2 == 1 ? "wheel \"left\"" : "");
     EXPECT_EQ(row[x1], i % 2 == 1 ? std::to_string(10 + i) : "");
   }
-  EXPECT_FALSE(std::filesystem::exists(dir.file("csv/%2Ftf.csv.partial2")));
+  EXPECT_FALSE(std::filesystem::exists(dir.file("csv/tf.csv.partial2")));
 }
 
 TEST(ExportCsv, ChannelsThatDifferOnlyInPunctuationGetFilesOfTheirOwn) {
-  // a/b and a_b used to share a_b.csv (the second truncating the first); a long name, percent-encoded, is beyond
-  // a file name's 255 bytes.
+  // Names a person reads ("/odom" -> odom.csv); a/b and a_b, and Odom and odom (one file on macOS and Windows),
+  // map to one name: the first met keeps it, the next gets a hash of its full name; a long name is cut within a
+  // file name's 255 bytes.
   test::TempDir dir;
   const std::string log = dir.file("names.lcm");
-  const std::string long_name(250, '/');
+  const std::string long_name(250, 'x');
+  const std::vector<std::string> channels = {"a/b", "a_b", "/odom", "/Odom", ".hidden", "/", long_name};
   {
     auto w = LogWriter::create(log);
     ASSERT_TRUE(w.ok());
     driftlab::imu_t m{};
     std::vector<uint8_t> b(static_cast<size_t>(m.getEncodedSize()));
     m.encode(b.data(), 0, static_cast<int>(b.size()));
-    for (const std::string channel : {"a/b", "a_b", "/odom", ".hidden", long_name.c_str()}) {
-      ASSERT_TRUE(w->write(1000, channel, b).ok());
-    }
+    for (const auto& channel : channels) ASSERT_TRUE(w->write(1000, channel, b).ok());
     ASSERT_TRUE(w->close().ok());
   }
   const auto r = driftlab("export csv " + log + " -o " + dir.file("csv"));
   ASSERT_EQ(r.code, 0) << r.err;
-  for (const std::string name : {"a%2Fb", "a_b", "%2Fodom", "%2Ehidden"}) {
+  for (const std::string name : {"a_b", "odom", "_hidden", "channel"}) {
     EXPECT_EQ(read_csv(dir.file("csv/" + name + ".csv")).size(), 2u) << name;
   }
-  int files = 0;
+  // The second of a name: NAME~ and 16 hex digits, the same on every run.
+  int hashed = 0;
+  std::set<std::string> names;
   for (const auto& f : std::filesystem::directory_iterator(dir.file("csv"))) {
-    ++files;
-    EXPECT_LE(f.path().filename().string().size(), 255u);
+    const std::string name = f.path().filename().string();
+    names.insert(name);
+    EXPECT_LE(name.size(), 255u);
+    EXPECT_EQ(name.find('%'), std::string::npos) << name;
+    if (std::regex_match(name, std::regex("(a_b|Odom)~[0-9a-f]{16}\\.csv"))) ++hashed;
   }
-  EXPECT_EQ(files, 5);
+  EXPECT_EQ(names.size(), channels.size());
+  EXPECT_EQ(hashed, 2);
+  // The output names each channel's file; run again, the same names.
+  EXPECT_NE(r.out.find("/Odom"), std::string::npos);
+  const auto again = driftlab("export csv " + log + " -o " + dir.file("again"));
+  ASSERT_EQ(again.code, 0) << again.err;
+  std::set<std::string> names_again;
+  for (const auto& f : std::filesystem::directory_iterator(dir.file("again"))) {
+    names_again.insert(f.path().filename().string());
+  }
+  EXPECT_EQ(names_again, names);
+}
+
+// nav2_turtlebot.mcap's /tf: 1,862 of its messages carry the two wheels' transforms; every one keeps both (the
+// columns used to come from the first message, of one transform, and the second was dropped).
+TEST(ExportCsv, ANav2BagsTfKeepsBothTransforms) {
+  const std::string bag = test::shared_data("bags/nav2_turtlebot.mcap");
+  if (bag.empty()) return;
+  test::TempDir dir;
+  const auto r = driftlab("export csv " + bag + " -c /tf -o " + dir.path());
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto rows = read_csv(dir.file("tf.csv"));  // named as read, not %2Ftf.csv
+  ASSERT_GT(rows.size(), 1u);
+  const auto& h = rows[0];
+  const size_t n = column(h, "ntransforms"), child0 = column(h, "transforms[0].child_frame_id"),
+               child1 = column(h, "transforms[1].child_frame_id"), x1 = column(h, "transforms[1].translation.x");
+  int two = 0;
+  for (size_t i = 1; i < rows.size(); ++i) {
+    const auto& row = rows[i];
+    ASSERT_EQ(row.size(), h.size()) << i;
+    if (row[n] != "2") {
+      EXPECT_EQ(row[child1], "") << i;
+      continue;
+    }
+    ++two;
+    EXPECT_EQ(row[child0], "left_wheel") << i;
+    EXPECT_EQ(row[child1], "right_wheel") << i;
+    EXPECT_FALSE(row[x1].empty()) << i;
+  }
+  EXPECT_EQ(two, 1862);
 }
 
 // More channels than the open-file limit (300 under `ulimit -n 64`), interleaved: it failed with "CH.csv.partial:

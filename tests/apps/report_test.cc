@@ -11,6 +11,9 @@
 #include <map>
 #include <nlohmann/json.hpp>
 #include <regex>
+#include <string>
+#include <utility>
+#include <vector>
 
 #include "tests/test_util.h"
 
@@ -94,6 +97,33 @@ void check_page(const std::string& page, const std::string& name, int min_charts
   ASSERT_TRUE(std::filesystem::exists(shot)) << name;
   // A blank 1200x3000 page compresses to a few kilobytes; tables, charts and plots to hundreds.
   EXPECT_GT(std::filesystem::file_size(shot), 60000u) << shot;
+}
+
+/// diagnose's headline: the first of its problems ("NAME: reason"), from its text.
+std::string diagnose_headline(const std::string& log) {
+  const auto r = driftlab("diagnose " + log);
+  const std::string mark = "\nproblems:\n  ";
+  const auto at = r.out.find(mark);
+  if (at == std::string::npos) return "";
+  const auto from = at + mark.size();
+  return r.out.substr(from, r.out.find('\n', from) - from);
+}
+
+/// The text of the page's first summary card, unescaped; empty when the first card is not the headline.
+std::string page_headline(const std::string& page) {
+  std::ifstream in(page);
+  const std::string html((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  std::smatch m;
+  if (!std::regex_search(
+          html, m, std::regex("<div class='cards'><div class='card lead[^']*' id='headline'>[^<]*<b>([^<]*)</b>"))) {
+    return "";
+  }
+  std::string text = m[1];
+  for (const auto& [from, to] : std::vector<std::pair<std::string, std::string>>{
+           {"&#x27;", "'"}, {"&quot;", "\""}, {"&lt;", "<"}, {"&gt;", ">"}, {"&amp;", "&"}}) {
+    for (size_t at; (at = text.find(from)) != std::string::npos;) text.replace(at, from.size(), to);
+  }
+  return text;
 }
 
 class DemoCli : public ::testing::Test {
@@ -198,6 +228,27 @@ TEST(ReportPages, DroneDemo) {
   EXPECT_NE(html.find("se3 alignment, as in the table; plotted aligned in position and yaw"), std::string::npos);
   // Inputs the estimator rejected nothing of are named, not drawn as empty panels.
   EXPECT_NE(html.find("Nothing rejected, not drawn: "), std::string::npos);
+  // The page leads with diagnose's headline: the IMU's clock ahead (the cause), not its reordering (the symptom).
+  const std::string headline = diagnose_headline(dir.file("sim.lcm"));
+  EXPECT_EQ(headline.rfind("IMU: stamps are ", 0), 0u) << headline;
+  EXPECT_NE(headline.find("ahead of arrival"), std::string::npos) << headline;
+  EXPECT_EQ(page_headline(page), headline);
+  const auto data = read_json(dir.file("report/report.json"));
+  EXPECT_EQ(data["summary"]["worst_stream"]["name"], "IMU");
+  // The flight flown again is drawn with the other: its estimate scored against its own truth, drawn too.
+  ASSERT_EQ(data["other_references"].size(), 1u);
+  EXPECT_EQ(data["other_references"][0]["label"], "restamped.lcm:GROUND_TRUTH");
+  std::map<std::string, nlohmann::json> estimates;
+  for (const auto& e : data["estimates"]) estimates[e["label"]] = e;
+  ASSERT_TRUE(estimates.count("sim.lcm:VEHICLE_ODOM"));
+  ASSERT_TRUE(estimates.count("restamped.lcm:VEHICLE_ODOM"));
+  EXPECT_EQ(estimates["restamped.lcm:VEHICLE_ODOM"]["reference"], "restamped.lcm:GROUND_TRUTH");
+  EXPECT_FALSE(estimates["sim.lcm:VEHICLE_ODOM"].contains("reference"));  // the first log's
+  // Flown again with corrected clocks, its estimate is the better one (the table's se3 ATE says so too).
+  EXPECT_LT(estimates["restamped.lcm:VEHICLE_ODOM"]["ate_rmse"].get<double>(),
+            estimates["sim.lcm:VEHICLE_ODOM"]["ate_rmse"].get<double>());
+  EXPECT_NE(html.find("restamped.lcm:VEHICLE_ODOM (RMS "), std::string::npos);  // in the error over time
+  EXPECT_NE(html.find("A run flown again is drawn with the others"), std::string::npos);
 }
 
 TEST(ReportPages, ArmDemo) {
@@ -215,6 +266,22 @@ TEST(ReportPages, ArmDemo) {
   const std::string html((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
   EXPECT_EQ(html.find("latency.png"), std::string::npos);  // every stream's latency constant: said, not drawn
   EXPECT_NE(html.find("latency is constant (ARM_CMD 120.0 ms"), std::string::npos);
+  // The page leads with diagnose's headline: the 120 ms command loop, the arm's worst stream.
+  const std::string headline = diagnose_headline(dir.file("late.lcm"));
+  EXPECT_EQ(headline.rfind("ARM_CMD: the joints (JOINT_STATES) follow its commands 12", 0), 0u) << headline;
+  EXPECT_EQ(page_headline(dir.file("report/index.html")), headline);
+  const auto data = read_json(dir.file("report/report.json"));
+  EXPECT_EQ(data["summary"]["worst_stream"]["name"], "ARM_CMD");
+  // The end effector (EE_TRUTH, of panda_hand_tcp) is no estimate of the base's GROUND_TRUTH (base_link): drawn
+  // apart, never overlaid on it and scored against it.
+  ASSERT_EQ(data["apart"].size(), 1u);
+  EXPECT_EQ(data["apart"][0]["label"], "late.lcm:EE_TRUTH");
+  EXPECT_EQ(data["apart"][0]["body"], "panda_hand_tcp");
+  EXPECT_EQ(data["apart"][0]["not_of"], "base_link");
+  ASSERT_EQ(data["estimates"].size(), 1u);
+  EXPECT_EQ(data["estimates"][0]["label"], "late.lcm:ODOM");
+  EXPECT_NE(html.find("drawn apart, as logged, never overlaid on it"), std::string::npos);
+  EXPECT_EQ(html.find("EE_TRUTH (RMS"), std::string::npos);  // no error over time against the base
 }
 
 TEST(ReportCli, WithoutDygraphsThePageKeepsItsPicturesAndSaysWhy) {
