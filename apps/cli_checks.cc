@@ -3,14 +3,31 @@
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
+#include <filesystem>
 
 #include "apps/cli_util.h"
+#include "core/same_file.h"
 
 namespace driftlab::apps {
 
 bool JsonOutput::emit(const std::string& text) const {
   if (!file.empty() && !write_output(file, text)) return false;
   return !print || file == "-" || write_output("-", text);
+}
+
+Status JsonOutput::check(const std::vector<std::string>& inputs, const std::vector<std::string>& outputs) const {
+  if (Status s = refuse_same_file(file, inputs, "--json-out"); !s) return s;
+  if (file.empty() || file == "-") return {};
+  std::error_code ec;
+  const auto where = std::filesystem::weakly_canonical(file, ec);
+  for (const auto& out : outputs) {
+    if (out.empty() || out == "-") continue;
+    std::error_code ec2;
+    if (!ec && where == std::filesystem::weakly_canonical(out, ec2) && !ec2) {
+      return Error{"--json-out " + file + ": is also where the command writes " + out + ": give another file"};
+    }
+  }
+  return {};
 }
 
 void add_json_options(CLI::App* cmd, JsonOutput* out, const std::string& what) {

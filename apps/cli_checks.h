@@ -8,8 +8,10 @@
 #include <CLI/CLI.hpp>
 
 #include <string>
+#include <vector>
 
 #include "core/config.h"
+#include "core/result.h"
 
 namespace driftlab::apps {
 
@@ -38,6 +40,9 @@ struct JsonOutput {
   /// Writes text (one JSON object) where asked; false, with one line naming the file, when FILE could not be
   /// written.
   bool emit(const std::string& text) const;
+  /// Refuses FILE, before anything is written, when it is one of `inputs` (or inside an input folder), not a
+  /// plain file (a FIFO, a device), or the same path as one of the command's own `outputs`.
+  Status check(const std::vector<std::string>& inputs, const std::vector<std::string>& outputs = {}) const;
 };
 /// Adds --json and --json-out to cmd; `what` names the object ("the diagnosis", "a summary").
 void add_json_options(CLI::App* cmd, JsonOutput* out, const std::string& what);

@@ -406,6 +406,10 @@ void add_demo_command(CLI::App& app, int* exit_code) {
   add_json_options(cmd, &a->json, "a summary (report path, ate_before, ate_after in metres, ...)");
   cmd->callback([a, exit_code] {
     if (a->out.empty()) a->out = a->drone ? "logs/demo-drone" : "logs/demo";
+    if (Status s = a->json.check({a->scenario}); !s) {
+      *exit_code = fail(s.message());
+      return;
+    }
     *exit_code = run_demo(*a);
   });
 }

@@ -248,6 +248,12 @@ void add_info_command(CLI::App& app, int* exit_code) {
       return;
     }
     opts->log = *log;
+    std::vector<std::string> inputs = opts->inputs;
+    inputs.push_back(opts->log);  // and its conversion
+    if (Status s = opts->json.check(inputs); !s) {
+      *exit_code = fail(s.message());
+      return;
+    }
     *exit_code = run_info(*opts);
   });
 }

@@ -36,6 +36,7 @@ struct Malformed {
 
 int run_recover(const RecoverOptions& o) {
   if (Status s = refuse_same_file(o.out, {o.log}); !s) return fail(s.message());
+  if (Status s = o.json.check({o.log}, {o.out}); !s) return fail(s.message());
   if (Status s = check_event_log(o.log); !s) return fail(s.message());
   std::vector<Problem> problems;
   auto reader = LogReader::open(o.log, {.on_problem = [&](const Problem& p) {

@@ -170,6 +170,7 @@ int run_closed_loop(const ReplayArgs& a, const ReplayArgs& defaults) {
     }
   }
   if (Status s = refuse_same_file(a.out, a.logs); !s) return fail(s.message());
+  if (Status s = a.json.check(a.logs, {a.out}); !s) return fail(s.message());
   const std::string& log = a.logs[0];
   auto scenario = sim::scenario_of_log(log);
   if (!scenario) return fail(scenario.error().message);
@@ -266,6 +267,7 @@ int run_replay(ReplayArgs a) {
   if (a.closed_loop) return run_closed_loop(a, ReplayArgs{});
   if (!a.retime.empty()) return fail("--retime applies to --closed-loop (commands re-timed as the arm receives them)");
   if (Status s = refuse_same_file(a.out, a.logs); !s) return fail(s.message());  // the recordings given
+  if (Status s = a.json.check(a.logs, {a.out}); !s) return fail(s.message());
   for (auto& log : a.logs) {
     auto converted = event_log_for(log);  // another tool's recording: its cached conversion
     if (!converted) return fail(converted.error().message, exit_code_for_input(converted.error()));
@@ -289,6 +291,7 @@ int run_replay(ReplayArgs a) {
     o.remap.emplace_back(m.substr(0, eq), m.substr(eq + 1));
   }
   if (Status s = refuse_same_file(a.out, a.logs); !s) return fail(s.message());  // and their conversions
+  if (Status s = a.json.check(a.logs, {a.out}); !s) return fail(s.message());
   if (a.end > 0 && a.end <= a.start) {
     return fail("--end " + short_number(a.end) + " must be after --start " + short_number(a.start) +
                 " (both in seconds from the start of the logs)");
@@ -403,6 +406,7 @@ struct RunArgs {
 };
 
 int run_live(const RunArgs& a) {
+  if (Status s = a.json.check({a.config}, {a.out}); !s) return fail(s.message());
   std::vector<std::string> notes;
   auto modules = modules::load_modules(a.modules, a.config, {}, notes);
   if (!modules) return fail(modules.error().message);

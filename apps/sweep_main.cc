@@ -130,6 +130,15 @@ Result<std::string> collect(const std::string& dir, const Plan& plan, bool plots
   return (fs::path(dir) / "index.html").string();
 }
 
+/// The files a sweep or batch writes at the top of its folder.
+std::vector<std::string> sweep_files(const std::string& dir) {
+  std::vector<std::string> files;
+  for (const char* name : {"plan.json", "results.csv", "results.json", "index.html"}) {
+    files.push_back((fs::path(dir) / name).string());
+  }
+  return files;
+}
+
 /// A sweep's or batch's folder -o DIR, checked before anything is written: DIR is a folder or absent, not an
 /// input and not inside an input folder (a ROS 2 bag); each file written at its top (plan.json, results.csv,
 /// results.json, index.html) is a regular file or absent and not an input; and no input lies in DIR/points,
@@ -142,8 +151,7 @@ Status check_sweep_dir(const std::string& dir, const std::vector<std::string>& i
     return Error{"-o " + dir + ": is " + kind + ", not a folder: give the sweep's folder (made if absent)"};
   }
   if (Status s = refuse_same_file(dir, inputs, "-o", OutputKind::kFolder); !s) return s;
-  for (const char* name : {"plan.json", "results.csv", "results.json", "index.html"}) {
-    const std::string file = (fs::path(dir) / name).string();
+  for (const std::string& file : sweep_files(dir)) {
     if (Status s = refuse_same_file(file, inputs, "-o " + dir + " writes"); !s) return s;
   }
   const fs::path points = internal::resolved((fs::path(dir) / "points").string());
@@ -362,6 +370,7 @@ int run_sweep(const SweepArgs& a) {
   inputs.push_back(a.spec);
   if (!spec->scenario.empty()) inputs.push_back(spec->scenario);
   if (Status s = check_sweep_dir(a.out, inputs); !s) return fail(s.message());
+  if (Status s = a.exec.json.check(inputs, sweep_files(a.out)); !s) return fail(s.message());
   Plan plan{*spec, expand(*spec)};
   return execute(a.out, std::move(plan), a.exec, "sweep --point");
 }
@@ -417,6 +426,7 @@ int run_batch(const BatchArgs& a) {
   spec->est_channel = a.est;
   spec->align = a.align;
   if (Status s = check_sweep_dir(a.out, spec->logs); !s) return fail(s.message());
+  if (Status s = a.exec.json.check(spec->logs, sweep_files(a.out)); !s) return fail(s.message());
   Plan plan{*spec, expand(*spec)};
   return execute(a.out, std::move(plan), a.exec, "batch --item");
 }

@@ -252,11 +252,25 @@ TEST(OutputOverInput, IsRefusedBeforeAnythingIsWritten) {
            "export tum " + log + ":GROUND_TRUTH -o " + link, "import rawlog " + log + " -o " + log,
            "export rawlog " + log + " -o " + log, "recover " + log + " -o " + link,
            "eval --gt " + log + ":GROUND_TRUTH --est " + log + ":GROUND_TRUTH --json-out " + link,
-           "sim " + log + " -o " + link}) {  // a scenario by the name of its output (any content: refused first)
+           "sim " + log + " -o " + link,  // a scenario by the name of its output (any content: refused first)
+           // --json-out, in every command that has it
+           "info " + log + " --json-out " + link, "recover " + log + " -o " + dir.file("r.lcm") + " --json-out " + link,
+           "replay " + log + " --json-out " + link,
+           "replay " + log + " --closed-loop -o " + dir.file("c.lcm") + " --json-out " + link,
+           "sim " + log + " -o " + dir.file("s.lcm") + " --json-out " + link}) {
     const auto r = driftlab(cmd);
     EXPECT_EQ(r.code, 2) << cmd << "\n" << r.err;
     EXPECT_NE(r.err.find("is the input"), std::string::npos) << cmd << "\n" << r.err;
     EXPECT_EQ(test::read_file(log), before) << cmd;
+  }
+  // --json-out naming the command's own output: refused before either is written.
+  for (const std::string& cmd :
+       std::vector<std::string>{"replay " + log + " -o " + dir.file("o.lcm") + " --json-out " + dir.file("o.lcm"),
+                                "recover " + log + " -o " + dir.file("o.lcm") + " --json-out " + dir.file("o.lcm")}) {
+    const auto r = driftlab(cmd);
+    EXPECT_EQ(r.code, 2) << cmd << "\n" << r.err;
+    EXPECT_NE(r.err.find("is also where the command writes"), std::string::npos) << cmd << "\n" << r.err;
+    EXPECT_FALSE(fs::exists(dir.file("o.lcm"))) << cmd;
   }
   expect_no_partial_files(dir.path());
 }
