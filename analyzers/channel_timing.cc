@@ -380,6 +380,14 @@ void order_reasons(ChannelTiming& c) {
   c.causes = std::move(causes);
 }
 
+bool written_at_once(const Samples& s) {
+  if (!s.has_header || s.stamp.size() < 20 || s.stamp.size() != s.arrival.size()) return false;
+  const auto [s0, s1] = std::minmax_element(s.stamp.begin(), s.stamp.end());
+  const auto [a0, a1] = std::minmax_element(s.arrival.begin(), s.arrival.end());
+  const double stamps = seconds_between(*s0, *s1);
+  return stamps >= 10.0 && seconds_between(*a0, *a1) <= 0.01 * stamps;
+}
+
 ChannelTiming channel_timing(const std::string& name, Samples& s, int64_t log_start,
                              const std::function<int64_t(int64_t)>& to_arrival) {
   if (s.has_header && s.stamp.size() != s.arrival.size()) s.has_header = false;
@@ -395,6 +403,11 @@ ChannelTiming channel_timing(const std::string& name, Samples& s, int64_t log_st
   if (c.count > 1 && *a1 > *a0) c.rate_hz = static_cast<double>(c.count - 1) / seconds_between(*a0, *a1);
   for (size_t i = 1; i < s.arrival.size(); ++i) {
     if (s.arrival[i] < s.arrival[i - 1]) ++c.out_of_order_arrival;
+  }
+  if (written_at_once(s)) {  // a result, not a stream: nothing of its timing to judge
+    c.written_at_once = true;
+    c.rate_hz = 0;
+    return c;
   }
   if (s.has_header) {
     // The median stamp on the source's own clock, by the one quantile definition (core/quantile.h, numpy's), to

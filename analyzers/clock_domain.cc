@@ -174,12 +174,18 @@ ClockDomains ClockDomains::find(const std::vector<DomainStream>& in, int64_t log
     } else {
       std::tie(dom.kind, dom.description) = name_clock(dom.offset_s, median_of(stamps), arrivals_dates);
     }
-    // The reference: per window of stamps, the fastest delivery. Transforms are left out when other streams are
-    // there: a transform may be post-dated on purpose (AMCL's transform_tolerance), which would make every other
-    // stream look late.
+    // The reference: per window of stamps, the fastest delivery. A simulator's clock (/clock) recorded with the
+    // streams is theirs alone: it is sent as the simulation's time ticks, so the others' latency is against the
+    // simulation itself, and a bridge delaying every sensor shows. Without it, transforms are left out when other
+    // streams are there: a transform may be post-dated on purpose (AMCL's transform_tolerance), which would make
+    // every other stream look late.
     std::vector<const Stream*> refs;
     for (const Stream* m : members) {
-      if (!m->in->is_tf) refs.push_back(m);
+      if (m->in->is_clock) refs.push_back(m);
+    }
+    if (!refs.empty()) dom.reference = refs.front()->in->name;
+    for (const Stream* m : members) {
+      if (dom.reference.empty() && !m->in->is_tf) refs.push_back(m);
     }
     if (refs.empty()) refs = members;
     double s_lo = std::numeric_limits<double>::infinity(), s_hi = -s_lo;
@@ -286,8 +292,8 @@ ClockDomains ClockDomains::find(const std::vector<DomainStream>& in, int64_t log
         const Fastest& f = per_stream[k][b];
         if (std::isfinite(f.lat) && !knots.empty()) delays.push_back(f.lat - mapping.at(f.stamp));
       }
-      const double delay =
-          members.size() >= 2 ? median_of(std::move(delays)) * 1e-6 : std::numeric_limits<double>::quiet_NaN();
+      const double delay = members.size() >= 2 || !dom.reference.empty() ? median_of(std::move(delays)) * 1e-6
+                                                                         : std::numeric_limits<double>::quiet_NaN();
       out.peer_delay_s_[members[k]->in->name] = delay;
       out.channel_domain_[members[k]->in->name] = static_cast<int>(out.domains_.size());
     }
@@ -318,12 +324,18 @@ double ClockDomains::peer_delay_s(const std::string& channel) const {
   return it == peer_delay_s_.end() ? std::numeric_limits<double>::quiet_NaN() : it->second;
 }
 
+bool is_clock_source(const std::string& source_type) {
+  return source_type == "rosgraph_msgs/Clock" || source_type == "rosgraph_msgs/msg/Clock";
+}
+
 void judge_domains(Diagnosis& d) {
   char buf[768];
   // The clock most streams are on (the recorder's among equals) is the recording's; others are a wrong time base.
+  // A simulator's clock channel is simulation time by definition, whichever clock the others use: never counted,
+  // never a wrong time base.
   std::vector<size_t> members(d.domains.size(), 0);
   for (const auto& c : d.channels) {
-    if (c.domain >= 0) ++members[static_cast<size_t>(c.domain)];
+    if (c.domain >= 0 && !is_clock_source(c.source_type)) ++members[static_cast<size_t>(c.domain)];
   }
   int main_domain = -1;
   for (size_t i = 0; i < d.domains.size(); ++i) {
@@ -336,7 +348,7 @@ void judge_domains(Diagnosis& d) {
     return x.kind == "gps" || x.kind == "gps_epoch" || x.kind == "tai" || x.kind == "time_zone" || x.kind == "other";
   };
   for (auto& c : d.channels) {
-    if (c.domain < 0) continue;
+    if (c.domain < 0 || is_clock_source(c.source_type)) continue;
     const ClockDomain& own = d.domains[static_cast<size_t>(c.domain)];
     if (c.domain != main_domain) {
       const ClockDomain& main = d.domains[static_cast<size_t>(main_domain)];
@@ -357,14 +369,22 @@ void judge_domains(Diagnosis& d) {
     } else if (is_set_wrong(own)) {
       add_reason(c, true, "stamped on " + own.description, Cause::kClock);
     }
-    // Latency on a clock of another epoch is against its peers: a stream arriving 10 ms (a 100 Hz period, more
-    // than a scheduler's delay) after the fastest of them is late.
+    // Latency on a clock of another epoch is against /clock where it was recorded, else against the stream's
+    // peers: a stream arriving 10 ms (a 100 Hz period, more than a scheduler's delay) after it is late.
     constexpr double kLatePeer_s = 0.010;
     if (own.mapped && std::isfinite(c.peer_delay_s) && c.peer_delay_s >= kLatePeer_s && c.type != "driftlab.tf_t") {
-      std::snprintf(buf, sizeof(buf),
-                    "arrives %.1f ms after the fastest streams on its clock (%s), by its fastest deliveries against "
-                    "theirs: late, or stamped early",
-                    c.peer_delay_s * 1e3, own.kind == "simulation" ? "simulation time" : own.description.c_str());
+      const std::string clock = own.kind == "simulation" ? "simulation time" : own.description;
+      if (own.reference.empty()) {
+        std::snprintf(buf, sizeof(buf),
+                      "arrives %.1f ms after the fastest streams on its clock (%s), by its fastest deliveries "
+                      "against theirs: late, or stamped early",
+                      c.peer_delay_s * 1e3, clock.c_str());
+      } else {
+        std::snprintf(buf, sizeof(buf),
+                      "arrives %.1f ms after the simulator's clock (%s, %s) reached its stamps, by its fastest "
+                      "deliveries: late, or stamped early",
+                      c.peer_delay_s * 1e3, own.reference.c_str(), clock.c_str());
+      }
       add_reason(c, false, buf, Cause::kLate);
     }
   }
@@ -381,6 +401,40 @@ void judge_domains(Diagnosis& d) {
                     static_cast<long long>(e.out_of_order), e.parent.c_str(), e.child.c_str());
       add_reason(c, true, buf, Cause::kSymptom);
     }
+  }
+}
+
+void judge_late_streams(Diagnosis& d) {
+  // The typical stream of each clock judged as stamped: the median of its streams' delays against the fastest.
+  // The fastest may be a stream stamped ahead (a clock running ahead, its own fault), so the typical one is the
+  // reference; transforms (post-dated on purpose) and the simulator's clock are left out.
+  std::vector<std::vector<double>> delays(d.domains.size());
+  auto judged = [&](const ChannelTiming& c) {
+    return c.domain >= 0 && !d.domains[static_cast<size_t>(c.domain)].mapped && std::isfinite(c.peer_delay_s) &&
+           c.type != "driftlab.tf_t" && !is_clock_source(c.source_type);
+  };
+  for (const auto& c : d.channels) {
+    if (judged(c)) delays[static_cast<size_t>(c.domain)].push_back(c.peer_delay_s);
+  }
+  char buf[512];
+  for (auto& c : d.channels) {
+    const auto& peers = judged(c) ? delays[static_cast<size_t>(c.domain)] : std::vector<double>{};
+    if (peers.size() < 3) continue;  // a median of two is either
+    // Already late by a finding that says more (the command loop's delay, which the transport is part of).
+    if (std::find(c.causes.begin(), c.causes.end(), Cause::kLate) != c.causes.end()) continue;
+    const double late_s = c.peer_delay_s - median_of(peers);
+    // 10 ms, as on a foreign clock; the sensors stamped when their acquisition starts and sent when it ends (a
+    // camera's exposure, a lidar's sweep) may take a period of theirs more, which is how they work.
+    const bool acquires =
+        c.type == "driftlab.image_t" || c.type == "driftlab.point_cloud_t" || c.type == "driftlab.laser_scan_t";
+    constexpr double kLatePeer_s = 0.010;
+    if (late_s < kLatePeer_s + (acquires ? c.expected_period_s : 0)) continue;
+    const ClockDomain& own = d.domains[static_cast<size_t>(c.domain)];
+    std::snprintf(buf, sizeof(buf),
+                  "arrives %.1f ms after the typical stream on its clock (%s), by its fastest deliveries against "
+                  "theirs: late, or stamped early",
+                  late_s * 1e3, own.kind == "recorder" ? "the recorder's" : own.description.c_str());
+    add_reason(c, false, buf, Cause::kLate);
   }
 }
 

@@ -131,10 +131,14 @@ Result<Diagnosis> diagnose(const std::string& log, const DiagnoseOptions& option
     d.flight_log = d.flight_log || name.starts_with("ULOG_");
     s.is_tf = s.type == "driftlab.tf_t";
     s.is_static_tf = s.is_tf && internal::is_static_tf_channel(name);
-    if (const auto it = sources.find(name); it != sources.end()) {
-      s.seq_counted = it->second.seq_origin == static_cast<int8_t>(lcmtypes::SeqOrigin::kCounted);
+    const auto source = sources.find(name);
+    if (source != sources.end()) {
+      s.seq_counted = source->second.seq_origin == static_cast<int8_t>(lcmtypes::SeqOrigin::kCounted);
     }
-    if (!ignored(name) && s.has_header && !s.is_static_tf) streams.push_back({name, &s, s.is_tf});
+    const bool is_clock = source != sources.end() && internal::is_clock_source(source->second.source_type);
+    if (!ignored(name) && s.has_header && !s.is_static_tf && !internal::written_at_once(s)) {
+      streams.push_back({name, &s, s.is_tf, is_clock});
+    }
   }
   const internal::ClockDomains domains = internal::ClockDomains::find(streams, d.start_utime, d.end_utime);
   d.domains = domains.domains();
@@ -150,7 +154,7 @@ Result<Diagnosis> diagnose(const std::string& log, const DiagnoseOptions& option
     c.domain = domain;
     c.peer_delay_s = domains.peer_delay_s(name);
     if (const auto it = sources.find(name); it != sources.end()) c.source_type = it->second.source_type;
-    if (s.has_header && !s.is_tf) tf.add_data(name, s.frame, s.stamp, s.arrival);
+    if (s.has_header && !s.is_tf && !c.written_at_once) tf.add_data(name, s.frame, s.stamp, s.arrival);
     d.channels.push_back(std::move(c));
   }
   d.tf = tf.finish(to_arrival);
@@ -159,6 +163,7 @@ Result<Diagnosis> diagnose(const std::string& log, const DiagnoseOptions& option
   d.pairs = internal::stream_pairs(channels, d.start_utime, d.end_utime, options);
   d.command_loops = loops.finish(d.start_utime);
   for (const CommandLoop& l : d.command_loops) internal::judge_loop(l, d.channels);
+  internal::judge_late_streams(d);
   d.timesync = timesync.finish(d.start_utime, d.channels);
   for (auto& c : d.channels) internal::order_reasons(c);
   for (auto& [name, p] : physics) d.physics.push_back(std::move(p));

@@ -51,6 +51,9 @@ struct ChannelTiming {
   /// seq was counted by the import, not sent by the source (ROS 2 headers carry none): drops are told from the
   /// stamps' period
   bool seq_counted = false;
+  /// A result written at once, not a stream: stamps spanning 10 s or more, every message arriving within 1% of that
+  /// (a SLAM's whole trajectory as last optimised, written at the end). No latency, clock or period is judged.
+  bool written_at_once = false;
   int domain = -1;  ///< its stamps' clock: an index into Diagnosis::domains (-1: no header, or unset)
   /// How much later than the fastest of its clock's streams its messages arrive: the median over windows of its
   /// fastest delivery against theirs [s]; NaN when its clock has no other stream
@@ -112,6 +115,10 @@ struct ClockDomain {
   bool rate_valid = false;  ///< a foreign clock seen over 10 s or more of arrivals
   double rate = 1;          ///< its seconds per second of the recorder's clock (a simulation's real-time factor)
   double rate_min = 1, rate_max = 1;  ///< the same over 10 s windows of arrivals
+  /// What its streams are judged against: a simulator's clock channel recorded with them (/clock, whose stamps
+  /// are the simulation's time as it ticked), or "" for its fastest streams' deliveries (without /clock, latency
+  /// has no absolute zero on a clock of another epoch).
+  std::string reference;
   /// A mapped clock's mapping to arrival: knots (stamp [s], arrival - stamp [s]), by stamp, read with
   /// mapped_offset_s; empty for the recorder's clock and clocks judged as stamped.
   std::vector<std::array<double, 2>> mapping;

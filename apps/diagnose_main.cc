@@ -151,14 +151,27 @@ std::vector<std::string> report_lines(const Diagnosis& d, std::vector<std::strin
     lines.push_back("");
     lines.push_back("drops cannot be told (no sequence number travelled, and no steady period): " + untold);
   }
+  // Results written at once (a SLAM's optimised trajectory at the end): not streams, said once.
+  std::string at_once;
+  for (const auto& c : d.channels) {
+    if (c.written_at_once) at_once += (at_once.empty() ? "" : ", ") + c.name;
+  }
+  if (!at_once.empty()) {
+    lines.push_back("");
+    lines.push_back("written at once, not streamed (results, whose times are not judged): " + at_once);
+  }
   if (foreign) {
     lines.push_back("");
-    lines.push_back("clocks (latency on a clock of another epoch is against the fastest stream on it):");
+    lines.push_back(
+        "clocks (latency on a clock of another epoch is against the simulator's /clock where recorded, else the "
+        "fastest stream on it):");
     for (size_t i = 0; i < d.domains.size(); ++i) {
       const analyzers::ClockDomain& x = d.domains[i];
       std::string list;
       for (const auto& ch : x.channels) list += (list.empty() ? "" : ", ") + ch;
-      std::snprintf(buf, sizeof(buf), "  clock %zu: %s: %s", i + 1, x.description.c_str(), list.c_str());
+      const std::string against = x.reference.empty() ? "" : " (against " + x.reference + ")";
+      std::snprintf(buf, sizeof(buf), "  clock %zu: %s%s: %s", i + 1, x.description.c_str(), against.c_str(),
+                    list.c_str());
       lines.push_back(buf);
     }
   }

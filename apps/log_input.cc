@@ -23,7 +23,7 @@ namespace {
 namespace fs = std::filesystem;
 
 /// Bumped whenever `driftlab import` writes a recording differently, so older conversions are made again.
-constexpr int kCacheVersion = 3;
+constexpr int kCacheVersion = 4;
 constexpr int kProblemLines = 20;
 
 bool is_dir(const std::string& p) {

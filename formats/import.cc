@@ -240,6 +240,8 @@ class Importer {
     }
     if (ros && !st.definition_checked) {
       st.definition_checked = true;
+      st.clock = is_ros_clock_type(m.type);
+      st.stamped = st.clock;
       const bool msg_text = m.definition_encoding == "ros1msg" || m.definition_encoding == "ros2msg";
       if (msg_text && !m.definition.empty()) {
         auto d = RosDefinition::parse(m.type, m.definition, ser);
@@ -248,8 +250,9 @@ class Importer {
           // A type that starts with a std_msgs/Header is carried with its header read out (any stamped message).
           const auto& types = st.definition->types();
           const auto& fields = types[0].fields;
-          st.stamped = !fields.empty() && fields[0].complex >= 0 && fields[0].array == RosField::Array::kNone &&
-                       types[static_cast<size_t>(fields[0].complex)].name == "std_msgs/Header";
+          st.stamped =
+              st.clock || (!fields.empty() && fields[0].complex >= 0 && fields[0].array == RosField::Array::kNone &&
+                           types[static_cast<size_t>(fields[0].complex)].name == "std_msgs/Header");
         } else {
           problem(file + ": " + std::string(m.topic) + " " + m.where.text() + ": the schema of " +
                   std::string(m.type) + " does not parse (" + d.error().message +
@@ -270,7 +273,16 @@ class Importer {
     header_t header;
     bool has_seq = false;
     // A checked message holds its header; read_leading_header cannot fail on one.
-    if (st.stamped) read_leading_header(ser, payload, fallback_seq, &header, &has_seq);
+    if (st.clock) {
+      if (!read_clock(ser, payload, fallback_seq, &header)) {
+        ++t.malformed;
+        problem(file + ": " + std::string(m.topic) + " " + m.where.text() + ": not a " + std::string(m.type) +
+                ": shorter than a time");
+        return;
+      }
+    } else if (st.stamped) {
+      read_leading_header(ser, payload, fallback_seq, &header, &has_seq);
+    }
     using lcmtypes::SeqOrigin;
     const SeqOrigin origin = has_seq ? SeqOrigin::kSource : st.sequences ? SeqOrigin::kTransport : SeqOrigin::kCounted;
     if (!describe(m.arrival_us, m.topic, m.source_type.empty() ? m.type : m.source_type,
@@ -317,6 +329,7 @@ class Importer {
     int64_t sequence_high = 0;
     bool definition_checked = false;
     bool stamped = false;  // its definition starts with a std_msgs/Header: carried as stamped_foreign_message_t
+    bool clock = false;    // rosgraph_msgs/Clock: carried stamped with its time
     bool schema_written = false;
     std::unique_ptr<RosDefinition> definition;
   };

@@ -15,6 +15,7 @@
 #include "driftlab/image_t.hpp"
 #include "driftlab/imu_t.hpp"
 #include "driftlab/joint_state_t.hpp"
+#include "driftlab/joint_trajectory_state_t.hpp"
 #include "driftlab/joint_trajectory_t.hpp"
 #include "driftlab/laser_scan_t.hpp"
 #include "driftlab/magnetometer_t.hpp"
@@ -221,9 +222,34 @@ std::vector<uint8_t> joint_state(Reader& r, Serialization s, int64_t, int64_t* s
   return encode(m);
 }
 
-/// trajectory_msgs/JointTrajectory after its header: the joints, then each point's positions and velocities
-/// (accelerations and efforts read past: driftlab's points hold neither) and its time from the start (a duration:
-/// ROS 1 int32 nsec, ROS 2 uint32 nanosec; both read as the sign-agnostic sum).
+/// trajectory_msgs/JointTrajectoryPoint for n joints: positions and velocities (accelerations and efforts read past:
+/// driftlab's points hold neither) and the time from the start (a duration: ROS 1 int32 nsec, ROS 2 uint32 nanosec;
+/// both read as the sign-agnostic sum). Positions may be empty where `positions_may_be_empty` (a controller state's
+/// error or output of a velocity-controlled joint), velocities always.
+void trajectory_point(Reader& r, uint32_t n, const std::string& which, bool positions_may_be_empty,
+                      joint_trajectory_point_t& p) {
+  auto values = [&](std::vector<double>* out, const char* what, bool may_be_empty) {
+    const uint32_t k = r.count(8);
+    if (!(k == n || (may_be_empty && k == 0))) {
+      r.fail(which + " has " + std::to_string(k) + " " + what + " for " + std::to_string(n) + " joints");
+    }
+    for (uint32_t j = 0; j < k && r.ok(); ++j) {
+      const double v = r.get<double>();
+      if (out != nullptr) out->push_back(v);
+    }
+  };
+  values(&p.positions, "positions", positions_may_be_empty);
+  values(&p.velocities, "velocities", true);
+  values(nullptr, "accelerations", true);
+  values(nullptr, "efforts", true);
+  const int64_t sec = r.get<int32_t>();
+  const int64_t nsec = r.get<uint32_t>();
+  p.time_from_start_us = sec * 1'000'000 + nsec / 1000;
+  p.npositions = static_cast<int32_t>(p.positions.size());
+  p.nvelocities = static_cast<int32_t>(p.velocities.size());
+}
+
+/// trajectory_msgs/JointTrajectory after its header: the joints, then each point.
 void trajectory_body(Reader& r, joint_trajectory_t& m) {
   const uint32_t n = r.count(4);
   m.joint_names.resize(n);
@@ -232,27 +258,7 @@ void trajectory_body(Reader& r, joint_trajectory_t& m) {
   const uint32_t points = r.count(4 * 4 + 8);  // four empty sequences and a duration
   m.points.resize(points);
   for (uint32_t i = 0; i < points && r.ok(); ++i) {
-    joint_trajectory_point_t& p = m.points[i];
-    auto values = [&](std::vector<double>* out, const char* what, bool may_be_empty) {
-      const uint32_t k = r.count(8);
-      if (!(k == n || (may_be_empty && k == 0))) {
-        r.fail("point " + std::to_string(i) + " has " + std::to_string(k) + " " + what + " for " + std::to_string(n) +
-               " joints");
-      }
-      for (uint32_t j = 0; j < k && r.ok(); ++j) {
-        const double v = r.get<double>();
-        if (out != nullptr) out->push_back(v);
-      }
-    };
-    values(&p.positions, "positions", false);
-    values(&p.velocities, "velocities", true);
-    values(nullptr, "accelerations", true);
-    values(nullptr, "efforts", true);
-    const int64_t sec = r.get<int32_t>();
-    const int64_t nsec = r.get<uint32_t>();
-    p.time_from_start_us = sec * 1'000'000 + nsec / 1000;
-    p.npositions = static_cast<int32_t>(p.positions.size());
-    p.nvelocities = static_cast<int32_t>(p.velocities.size());
+    trajectory_point(r, n, "point " + std::to_string(i), false, m.points[i]);
   }
   m.npoints = static_cast<int32_t>(m.points.size());
 }
@@ -292,6 +298,47 @@ std::vector<uint8_t> follow_joint_trajectory_goal(Reader& r, Serialization s, in
   }
   r.get<int32_t>();  // goal_time_tolerance
   r.get<int32_t>();
+  *stamp = m.header.utime;
+  return encode(m);
+}
+
+/// control_msgs/JointTrajectoryControllerState, what a joint trajectory controller publishes on controller_state.
+/// Three layouts share their first three points: ROS 1 and ROS 2 before Humble (desired, actual, error), Humble
+/// (reference, feedback, error, output, then desired and actual again and the multi-DOF points) and Jazzy on
+/// (reference, feedback, error, output, then the multi-DOF points). The reference (desired) and feedback (actual)
+/// are read; the output's velocities, where the message has an output, are the commands. What follows the output
+/// (deprecated copies, the multi-DOF points of a mobile base) is read past. `following` is 1 while the desired
+/// velocity of a joint is not zero: ROS's message does not say whether a trajectory is active, and a controller
+/// holding its position desires no velocity.
+std::vector<uint8_t> joint_trajectory_controller_state(Reader& r, Serialization s, int64_t, int64_t* stamp,
+                                                       bool* has_seq) {
+  joint_trajectory_state_t m;
+  header(r, s, m.header, has_seq);
+  const uint32_t n = r.count(4);
+  m.joint_names.resize(n);
+  for (auto& name : m.joint_names) name = lcm_string(r);
+  m.njoints = static_cast<int32_t>(n);
+  joint_trajectory_point_t desired, actual, error, output;
+  trajectory_point(r, n, "the reference", false, desired);
+  trajectory_point(r, n, "the feedback", false, actual);
+  trajectory_point(r, n, "the error", true, error);
+  const bool has_output = r.ok() && !r.at_end();
+  if (has_output) trajectory_point(r, n, "the output", true, output);
+  if (!r.ok()) return {};
+  if (!r.at_end()) r.bytes(r.remaining());
+  auto velocities = [n](std::vector<double>& v) {
+    if (v.size() != n) v.assign(n, kNaN);
+    return std::move(v);
+  };
+  m.desired_positions = std::move(desired.positions);
+  m.desired_velocities = velocities(desired.velocities);
+  m.actual_positions = std::move(actual.positions);
+  m.actual_velocities = velocities(actual.velocities);
+  m.commands = velocities(output.velocities);
+  m.following = std::any_of(m.desired_velocities.begin(), m.desired_velocities.end(),
+                            [](double v) { return std::isfinite(v) && v != 0; })
+                    ? 1
+                    : 0;
   *stamp = m.header.utime;
   return encode(m);
 }
@@ -615,6 +662,8 @@ constexpr Mapping kMappings[] = {
     {"sensor_msgs/JointState", "driftlab.joint_state_t", joint_state},
     {"trajectory_msgs/JointTrajectory", "driftlab.joint_trajectory_t", joint_trajectory},
     {"control_msgs/FollowJointTrajectoryActionGoal", "driftlab.joint_trajectory_t", follow_joint_trajectory_goal},
+    {"control_msgs/JointTrajectoryControllerState", "driftlab.joint_trajectory_state_t",
+     joint_trajectory_controller_state},
     {"sensor_msgs/NavSatFix", "driftlab.gnss_t", nav_sat_fix},
     {"sensor_msgs/MagneticField", "driftlab.magnetometer_t", magnetic_field},
     {"sensor_msgs/FluidPressure", "driftlab.barometer_t", fluid_pressure},
@@ -647,6 +696,16 @@ std::string ros1_type_name(std::string_view type) {
 const char* driftlab_type_for(std::string_view ros_type) {
   const Mapping* m = find_mapping(ros_type);
   return m ? m->driftlab : nullptr;
+}
+
+bool is_ros_clock_type(std::string_view ros_type) { return ros1_type_name(ros_type) == "rosgraph_msgs/Clock"; }
+
+bool read_clock(Serialization serialization, std::span<const uint8_t> payload, int64_t fallback_seq, header_t* out) {
+  Reader r(payload, serialization);
+  out->seq = fallback_seq;
+  out->utime = r.time_us();
+  out->frame_id.clear();
+  return r.ok();
 }
 
 bool read_leading_header(Serialization serialization, std::span<const uint8_t> payload, int64_t fallback_seq,

@@ -29,6 +29,13 @@ struct Converted {
   bool has_seq = false;      ///< header.seq is the source's (ROS 1 header.seq), not fallback_seq
 };
 
+/// rosgraph_msgs/Clock (ROS 1 or 2): the simulation's clock, as a simulator publishes it on /clock.
+bool is_ros_clock_type(std::string_view ros_type);
+/// A rosgraph_msgs/Clock as a header: its time the stamp, `fallback_seq` the seq, no frame; false when the payload
+/// is too short for one. Carried so, /clock is a stream on simulation time like the others, and their reference
+/// (analyzers/clock_domain.cc).
+bool read_clock(Serialization serialization, std::span<const uint8_t> payload, int64_t fallback_seq, header_t* out);
+
 /// The std_msgs/Header a message of another type starts with, as header_t (ROS 1's seq, else `fallback_seq`), or
 /// false when the payload is too short for one. `has_seq` says whether the seq was the source's.
 bool read_leading_header(Serialization serialization, std::span<const uint8_t> payload, int64_t fallback_seq,

@@ -19,6 +19,10 @@ namespace driftlab::analyzers::internal {
 ChannelTiming channel_timing(const std::string& name, Samples& s, int64_t log_start,
                              const std::function<int64_t(int64_t)>& to_arrival = {});
 
+/// Whether the channel is a result written at once (ChannelTiming::written_at_once): its stamps span 10 s or more
+/// and its arrivals under 1% of that. A stream sent as it is made arrives over as long as its stamps span.
+bool written_at_once(const Samples& s);
+
 /// Adds a reason to a channel's verdict: a fault, or a warning (which leaves a fault a fault), and what it says is
 /// wrong.
 void add_reason(ChannelTiming& c, bool fault, const std::string& why, Cause cause);

@@ -24,7 +24,13 @@ struct DomainStream {
   const Samples* samples = nullptr;  ///< with a header
   bool is_tf = false;                ///< transforms: their stamps may be post-dated on purpose (AMCL's), so they
                                      ///< are not the domain's reference when other streams are there
+  bool is_clock = false;             ///< a simulator's clock (/clock): its stamps are the clock's own time, sent
+                                     ///< as it ticks, so it is its domain's reference where it is recorded
 };
+
+/// Whether a channel of this source type (CHANNEL_SOURCES) is a simulator's clock: rosgraph_msgs/Clock, ROS 1's
+/// name or ROS 2's.
+bool is_clock_source(const std::string& source_type);
 
 /// The domains found and each one's mapping from stamps to the recorder's clock.
 class ClockDomains {
@@ -59,5 +65,10 @@ class ClockDomains {
 /// TAI, a time zone), a stream arriving later than its peers on a clock of its own (where latency has no absolute
 /// zero), and each transform received older than one before it (reordered).
 void judge_domains(Diagnosis& d);
+
+/// A stream on a clock judged as stamped (the recorder's, or one set wrong by a constant) arriving 10 ms or more
+/// after the typical stream on it (a camera or lidar: a period of its own more), where no other finding already
+/// says it is late (the command loop's delay). After the loops are judged.
+void judge_late_streams(Diagnosis& d);
 
 }  // namespace driftlab::analyzers::internal

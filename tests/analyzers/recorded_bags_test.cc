@@ -15,7 +15,9 @@
 #include <string>
 #include <vector>
 
+#include "analyzers/arm_tracking.h"
 #include "analyzers/timing.h"
+#include "driftlab/joint_trajectory_state_t.hpp"
 #include "formats/import.h"
 #include "tests/formats/oracle.h"
 #include "tests/test_util.h"
@@ -64,6 +66,8 @@ struct Faults {
   std::vector<std::pair<double, double>> odom_holes = {{20.0, 1.0}, {40.0, 0.3}};  // (start, length) [s of sim]
   double map_odom_ahead_s = 0.5;   // map -> odom post-dated, as AMCL does
   bool imu_on_wall_clock = false;  // the IMU's node without use_sim_time
+  double clock_hz = 0;             // the simulator's /clock, published at this rate (0: not recorded)
+  double bridge_late_ms = 0;       // every sensor stream delivered this much late (a bridge), /clock on time
 };
 
 /// The bag's messages (as write_mcap.mjs takes them), in arrival order; out: the holes' message counts.
@@ -78,7 +82,13 @@ nlohmann::json sim_bag(const SimRun& run, const Faults& f, int64_t* odom_missing
   for (int64_t ms = 1; ms < steps; ++ms) {  // stamps on whole milliseconds of simulation time
     const double t = static_cast<double>(ms) * 1e-3;
     const int64_t stamp = ms * 1000;
-    auto arrive = [&](double extra_ms) { return run.wall_us(t) + std::llround((extra_ms + jitter_ms(++n)) * 1e3); };
+    auto arrive = [&](double extra_ms) {
+      return run.wall_us(t) + std::llround((f.bridge_late_ms + extra_ms + jitter_ms(++n)) * 1e3);
+    };
+    if (f.clock_hz > 0 && ms % std::llround(1000 / f.clock_hz) == 0) {  // the simulator's clock, 0.1 ms transport
+      add("/clock", "rosgraph_msgs/msg/Clock", run.wall_us(t) + std::llround((0.1 + 0.2 * jitter_ms(++n)) * 1e3),
+          {{"clock", ros_time(stamp)}});
+    }
     if (ms % 10 == 0) {  // IMU at 100 Hz, 0.2 ms transport
       const int64_t at = arrive(0.2);
       const int64_t imu_stamp = f.imu_on_wall_clock ? run.wall_us(t) : stamp;
@@ -252,6 +262,72 @@ TEST(DiagnoseSimTimeBag, OneClockTheLateStreamTheHolesAndTheTree) {
   EXPECT_NE(channel(d, "/tf_static").verdict, "fault") << reasons(channel(d, "/tf_static"));
 }
 
+// The simulator's /clock recorded with the streams (rosgraph_msgs/Clock, as Gazebo publishes it): the reference of
+// the simulation's clock, so latency has an absolute zero. A bridge delivers every sensor stream 25 ms late: against
+// the fastest peer that is invisible, against /clock each stream is named late by its own delay (the scan by its
+// 37 ms more), within 3 ms: the streams' jitter is under 1 ms above their 0.2-0.6 ms transports, /clock's 0.2 ms.
+TEST(DiagnoseSimTimeBag, TheSimulatorsClockIsTheReferenceWhereItWasRecorded) {
+  const SimRun run;
+  Faults faults;
+  faults.clock_hz = 100;
+  faults.bridge_late_ms = 25;
+  int64_t odom_missing = 0;
+  test::TempDir dir;
+  Diagnosis d;
+  if (!diagnose_bag(sim_bag(run, faults, &odom_missing), dir, &d)) return;
+  ASSERT_EQ(d.domains.size(), 1u);
+  const auto& sim = d.domains[0];
+  EXPECT_EQ(sim.kind, "simulation") << sim.description;
+  EXPECT_EQ(sim.reference, "/clock");
+  EXPECT_EQ(sim.channels, (std::vector<std::string>{"/clock", "/imu", "/odom", "/scan", "/tf"}));
+  const double rtf = run.duration_s / (static_cast<double>(run.wall_us(run.duration_s) - run.wall0_us) * 1e-6);
+  ASSERT_TRUE(sim.rate_valid);
+  EXPECT_NEAR(sim.rate, rtf, 1e-3);
+  const auto& clock = channel(d, "/clock");
+  EXPECT_EQ(clock.source_type, "rosgraph_msgs/msg/Clock");
+  EXPECT_TRUE(clock.has_header);
+  EXPECT_NEAR(clock.rate_hz, 100 * rtf, 1.0);
+  EXPECT_EQ(clock.verdict, "ok") << reasons(clock);
+  EXPECT_NEAR(clock.peer_delay_s * 1e3, 0, 0.5);
+  for (const auto& [name, late_ms] :
+       std::vector<std::pair<std::string, double>>{{"/imu", faults.bridge_late_ms},
+                                                   {"/odom", faults.bridge_late_ms},
+                                                   {"/scan", faults.bridge_late_ms + faults.scan_late_ms}}) {
+    SCOPED_TRACE(name);
+    const auto& c = channel(d, name);
+    EXPECT_NEAR(c.peer_delay_s * 1e3, late_ms, 3.0);
+    EXPECT_NEAR(c.latency_s.p50 * 1e3, late_ms, 3.0);
+    EXPECT_TRUE(has_reason(c, "after the simulator's clock (/clock")) << reasons(c);
+  }
+}
+
+// A simulator's /clock in a recording whose streams are on the wall clock (no node has use_sim_time): /clock is
+// simulation time by definition, never "on another clock than its peers"; the streams are judged as stamped.
+TEST(DiagnoseSimTimeBag, ClockIsNeverTheWrongTimeBase) {
+  const SimRun run;
+  Faults faults;
+  faults.clock_hz = 50;
+  int64_t odom_missing = 0;
+  nlohmann::json spec = sim_bag(run, faults, &odom_missing);
+  for (auto& m : spec["messages"]) {  // every stream restamped with its wall-clock time, /clock left as it is
+    if (m["topic"] == "/clock") continue;
+    nlohmann::json& h = m["msg"].contains("transforms") ? m["msg"]["transforms"][0] : m["msg"];
+    if (h["header"]["stamp"]["sec"] == 0) continue;  // static transforms
+    const auto& st = h["header"]["stamp"];
+    const double sim_s = st["sec"].get<double>() + st["nanosec"].get<double>() * 1e-9;
+    h["header"] = header(run.wall_us(sim_s), h["header"]["frame_id"]);
+  }
+  test::TempDir dir;
+  Diagnosis d;
+  if (!diagnose_bag(spec, dir, &d)) return;
+  EXPECT_FALSE(has_reason(channel(d, "/clock"), "another clock")) << reasons(channel(d, "/clock"));
+  for (const char* name : {"/imu", "/odom", "/scan"}) {
+    SCOPED_TRACE(name);
+    EXPECT_FALSE(has_reason(channel(d, name), "another clock")) << reasons(channel(d, name));
+    EXPECT_LT(std::abs(channel(d, name).latency_s.p50), 0.05);
+  }
+}
+
 // The field report's IMU: its node stamps with the wall clock while everything else runs on simulation time. The
 // IMU, and only it, is on the wrong time base.
 TEST(DiagnoseSimTimeBag, AStreamOnTheWallClockAmongSimulationTimeIsTheWrongTimeBase) {
@@ -334,7 +410,12 @@ const ChannelTiming* worst_stream(const Diagnosis& d) {
 /// FollowJointTrajectory action goals (how MoveIt's ROS 1 controller manager hands it over); the trajectory
 /// stamped 0, as MoveIt leaves it, so the controller starts it when it arrives. Some joint states arrive in a
 /// burst, out of order (a symptom on another stream the headline must not put first).
-nlohmann::json arm_bag(bool ros2, double delay_ms, double duration_s) {
+/// With a controller state (control_msgs/JointTrajectoryControllerState, in the layout of a `controller` release),
+/// the controller publishes it at 100 Hz: its reference the plan `delay_ms - tracking_lag_ms` late (its plans start
+/// late), its feedback the joints, its output the velocities of the plan.
+enum class Controller { kNone, kBeforeHumble, kHumble, kJazzy };
+nlohmann::json arm_bag(bool ros2, double delay_ms, double duration_s, Controller controller = Controller::kNone,
+                       double tracking_lag_ms = 0) {
   const std::vector<std::string> joints = {"shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint"};
   auto q = [](size_t j, double t) { return 0.6 * std::sin(2 * M_PI * (0.3 + 0.1 * j) * t + j); };
   auto qd = [](size_t j, double t) {
@@ -400,12 +481,66 @@ nlohmann::json arm_bag(bool ros2, double delay_ms, double duration_s) {
     // Around 20 s a burst: ten states held up 30 ms and delivered after newer ones.
     const double held = (ms >= 20'000 && ms < 20'100) ? 30 : 0;
     add("/joint_states", joint_state_type, stamp + std::llround((0.5 + held + jitter_ms(++n)) * 1e3),
-        {{"header", hdr(stamp, seq++)}, {"name", joints}, {"position", pos}, {"velocity", vel}, {"effort", effort}});
+        {{"header", hdr(stamp, seq)}, {"name", joints}, {"position", pos}, {"velocity", vel}, {"effort", effort}});
+    if (controller != Controller::kNone) {
+      std::vector<double> ref, ref_vel, err;
+      for (size_t j = 0; j < joints.size(); ++j) {
+        ref.push_back(q(j, t - (delay_ms - tracking_lag_ms) * 1e-3));
+        ref_vel.push_back(qd(j, t - (delay_ms - tracking_lag_ms) * 1e-3));
+        err.push_back(ref[j] - pos[j]);
+      }
+      auto point = [&](const std::vector<double>& p, const std::vector<double>& v) {
+        return nlohmann::json{{"positions", p},
+                              {"velocities", v},
+                              {"accelerations", std::vector<double>()},
+                              {"effort", std::vector<double>()},
+                              {"time_from_start", time_msg(0)}};
+      };
+      const std::vector<double> none;
+      nlohmann::json state = {{"header", hdr(stamp, seq)}, {"joint_names", joints}};
+      if (controller == Controller::kBeforeHumble) {
+        state["desired"] = point(ref, ref_vel), state["actual"] = point(pos, vel), state["error"] = point(err, none);
+      } else {
+        state["reference"] = point(ref, ref_vel), state["feedback"] = point(pos, vel);
+        state["error"] = point(err, none), state["output"] = point(none, ref_vel);
+        state["multi_dof_joint_names"] = nlohmann::json::array();
+        std::vector<std::string> multi = {"reference", "feedback", "error", "output"};
+        if (controller == Controller::kHumble) {
+          state["desired"] = point(ref, ref_vel), state["actual"] = point(pos, vel);
+          multi.insert(multi.end(), {"desired", "actual"});
+        }
+        for (const auto& f : multi) {
+          state["multi_dof_" + f] = {{"transforms", nlohmann::json::array()},
+                                     {"velocities", nlohmann::json::array()},
+                                     {"accelerations", nlohmann::json::array()},
+                                     {"time_from_start", time_msg(0)}};
+        }
+      }
+      add(ros2 ? "/arm_controller/controller_state" : "/arm_controller/state",
+          ros2 ? "control_msgs/msg/JointTrajectoryControllerState" : "control_msgs/JointTrajectoryControllerState",
+          stamp + std::llround((0.3 + jitter_ms(++n)) * 1e3), state);
+    }
+    ++seq;
   }
   std::stable_sort(msgs.begin(), msgs.end(), [](const nlohmann::json& a, const nlohmann::json& b) {
     return a["time_ns"].get<int64_t>() < b["time_ns"].get<int64_t>();
   });
-  return {{"profile", ros2 ? "ros2" : "ros1"}, {"compression", "zstd"}, {"messages", msgs}};
+  nlohmann::json spec = {{"profile", ros2 ? "ros2" : "ros1"}, {"compression", "zstd"}, {"messages", msgs}};
+  // control_msgs before Humble (ROS 2 Foxy, Galactic) had ROS 1's three points; Jazzy dropped the deprecated two.
+  const std::string point = "trajectory_msgs/JointTrajectoryPoint ";
+  const std::string multi = "trajectory_msgs/MultiDOFJointTrajectoryPoint multi_dof_";
+  const std::string head = "std_msgs/Header header\nstring[] joint_names\n";
+  if (ros2 && controller == Controller::kBeforeHumble) {
+    spec["definitions"]["control_msgs/JointTrajectoryControllerState"] =
+        head + point + "desired\n" + point + "actual\n" + point + "error\n";
+  }
+  if (ros2 && controller == Controller::kJazzy) {
+    spec["definitions"]["control_msgs/JointTrajectoryControllerState"] =
+        head + point + "reference\n" + point + "feedback\n" + point + "error\n" + point + "output\n" +
+        "string[] multi_dof_joint_names\n" + multi + "reference\n" + multi + "feedback\n" + multi + "error\n" + multi +
+        "output\n";
+  }
+  return spec;
 }
 
 // The arm on a real recording (issue 26): MoveIt's plans imported as joint trajectories, the loop delay measured
@@ -444,6 +579,75 @@ TEST(DiagnoseArmBag, TheLoopDelayIsTheCommandStreamsFaultAndTheHeadline) {
   ASSERT_EQ(d.command_loops.size(), 1u);
   EXPECT_NEAR(d.command_loops[0].delay_s * 1e3, 0, 5.0);
   EXPECT_FALSE(has_reason(channel(d, "/arm_controller/joint_trajectory"), "follow its commands"));
+}
+
+// ros2_control's controller state (control_msgs/JointTrajectoryControllerState) in each release's layout, written
+// by Foxglove's writers: imported as driftlab.joint_trajectory_state_t with the reference, feedback and output
+// written (to the last bit: no arithmetic on the way), and `eval --arm --arm-reference desired` measuring the
+// controller's own tracking lag (20 ms) apart from the commands' whole loop (120 ms).
+TEST(ImportArmBag, TheControllerStateOfEveryReleaseIsTheDesiredAndTheActualJoints) {
+  const struct {
+    bool ros2;
+    Controller controller;
+    const char* name;
+  } kCases[] = {{false, Controller::kBeforeHumble, "ROS 1"},
+                {true, Controller::kBeforeHumble, "ROS 2 Foxy"},
+                {true, Controller::kHumble, "ROS 2 Humble"},
+                {true, Controller::kJazzy, "ROS 2 Jazzy"}};
+  constexpr double kDelayMs = 120, kLagMs = 20;
+  for (const auto& c : kCases) {
+    SCOPED_TRACE(c.name);
+    test::TempDir dir;
+    const nlohmann::json spec = arm_bag(c.ros2, kDelayMs, 12, c.controller, kLagMs);
+    const std::string bag = dir.file("arm.mcap"), log = dir.file("arm.lcm");
+    if (!test::oracle_write_mcap(spec, bag)) return;
+    auto imported = formats::import_log(bag, log, [](const std::string& p) { ADD_FAILURE() << p; });
+    ASSERT_TRUE(imported.ok()) << imported.error().message;
+    const std::string topic = c.ros2 ? "/arm_controller/controller_state" : "/arm_controller/state";
+    std::vector<nlohmann::json> written;
+    for (const auto& m : spec["messages"]) {
+      if (m["topic"] == topic) written.push_back(m["msg"]);
+    }
+    size_t k = 0;
+    for (const auto& e : test::read_all(log)) {
+      if (e.channel != topic) continue;
+      const auto s = test::decode<driftlab::joint_trajectory_state_t>(e);
+      ASSERT_LT(k, written.size());
+      const auto& w = written[k++];
+      const bool v1 = !w.contains("reference");
+      const auto& ref = w[v1 ? "desired" : "reference"];
+      const auto& fb = w[v1 ? "actual" : "feedback"];
+      EXPECT_EQ(s.joint_names, w["joint_names"].get<std::vector<std::string>>());
+      EXPECT_EQ(s.desired_positions, ref["positions"].get<std::vector<double>>());
+      EXPECT_EQ(s.desired_velocities, ref["velocities"].get<std::vector<double>>());
+      EXPECT_EQ(s.actual_positions, fb["positions"].get<std::vector<double>>());
+      EXPECT_EQ(s.actual_velocities, fb["velocities"].get<std::vector<double>>());
+      if (v1) {  // no output in the message: the commands are not known
+        EXPECT_TRUE(std::all_of(s.commands.begin(), s.commands.end(), [](double v) { return std::isnan(v); }));
+      } else {
+        EXPECT_EQ(s.commands, w["output"]["velocities"].get<std::vector<double>>());
+      }
+      EXPECT_EQ(s.following, 1);
+    }
+    ASSERT_FALSE(written.empty());
+    EXPECT_EQ(k, written.size());
+    // The joints against the controller's desired state trail it by the controller's lag alone; against the
+    // commands' plans, by the whole loop. A joint's mean |error| is its lag times its mean |speed| (the first
+    // joint: 0.6 rad at 0.3 Hz, 0.72 rad/s on average); 25% is the plan's interpolation between its 100 ms
+    // points (second order: under 1% here) and the first plan's start, with margin.
+    analyzers::ArmTrackingOptions options;
+    options.reference = analyzers::ArmReference::kDesired;
+    auto desired = analyzers::evaluate_arm(log, options);
+    ASSERT_TRUE(desired.ok()) << desired.error().message;
+    EXPECT_EQ(desired->controller_channel, topic);
+    auto commanded = analyzers::evaluate_arm(log);
+    ASSERT_TRUE(commanded.ok()) << commanded.error().message;
+    const double mean_speed = 0.6 * 2 * M_PI * 0.3 * 2 / M_PI;
+    ASSERT_FALSE(desired->joints.empty());
+    ASSERT_FALSE(commanded->joints.empty());
+    EXPECT_NEAR(desired->joints[0].error_rad.mean, kLagMs * 1e-3 * mean_speed, 0.25 * kLagMs * 1e-3 * mean_speed);
+    EXPECT_NEAR(commanded->joints[0].error_rad.mean, kDelayMs * 1e-3 * mean_speed, 0.25 * kDelayMs * 1e-3 * mean_speed);
+  }
 }
 
 /// A MAVROS-style bag on the wall clock: the flight controller's IMU at 100 Hz and local position at 30 Hz (1 and
@@ -512,6 +716,18 @@ TEST(DiagnoseMavrosBag, AStampedMessageOfAnyTypeAndTheTimeSync) {
   ASSERT_TRUE(state.has_header);
   ASSERT_TRUE(state.latency_valid);
   EXPECT_NEAR(state.latency_s.p50 * 1e3, kStateLateMs, 3.0);
+  // Named late against the typical stream on the recorder's clock (the IMU's 1 ms and the position's 2 ms of
+  // transport, the time sync's 0.3 ms: the median 1 to 2 ms), by its amount within 3 ms; the others are not.
+  std::string said;
+  for (const auto& r : state.reasons) said += r.find("after the typical stream") != std::string::npos ? r : "";
+  double late_ms = 0;
+  ASSERT_EQ(
+      std::sscanf(said.c_str(), "arrives %lf ms after the typical stream on its clock (the recorder's)", &late_ms), 1)
+      << reasons(state);
+  EXPECT_NEAR(late_ms, kStateLateMs, 3.0);
+  for (const char* other : {"/mavros/imu/data", "/mavros/local_position/pose", "/mavros/timesync_status"}) {
+    EXPECT_FALSE(has_reason(channel(d, other), "after the typical stream")) << other;
+  }
   EXPECT_TRUE(state.seq_counted);
   EXPECT_EQ(state.missing_by_period, 0);
 

@@ -47,6 +47,7 @@ struct Faults {
   std::string static_channel = "TF_STATIC";
   bool static_once = false;     // the static transforms published once, at the start (ROS's latched /tf_static)
   bool copy_truth = false;      // POSE: the ground truth's poses again, with its stamps (as a pose logged with a scan)
+  bool trajectory_at_end = false;  // TRAJECTORY: the ground truth's poses again, all written at the end (a SLAM's)
 };
 
 constexpr int64_t kT0 = 1763776800000000;
@@ -91,6 +92,7 @@ void write_log(const std::string& path, const Faults& f, uint64_t seed) {
     m.orientation = {std::cos(yaw(t) / 2), 0, 0, std::sin(yaw(t) / 2)};
     out.push_back({kT0 + us(t) + 100, "GROUND_TRUTH", encode(m)});
     if (f.copy_truth) out.push_back({kT0 + us(t) + 300, "POSE", encode(m)});
+    if (f.trajectory_at_end) out.push_back({kT0 + us(kSeconds) + 1000 + i, "TRAJECTORY", encode(m)});
   }
   for (int64_t i = 0; i * 0.005 <= kSeconds; ++i) {  // IMU, 200 Hz, its clock offset
     const double t = i * 0.005;
@@ -186,6 +188,32 @@ TEST(Diagnose, FlagsNothingOnACleanLog) {
     EXPECT_LT(std::abs(p.offset_s), 0.001) << p.a << " -> " << p.b;
     EXPECT_GT(p.confidence, 0.9) << p.a << " -> " << p.b;
   }
+}
+
+// A result written at once (a SLAM's trajectory as last optimised, written at the end: 60 s of stamps arriving
+// within a millisecond) is no stream: no latency of a minute, no clock a million ppm fast, nothing to restamp, no
+// clock of its own; the streams beside it keep their verdicts.
+TEST(Diagnose, AResultWrittenAtOnceIsNotAStream) {
+  test::TempDir dir;
+  Faults f;
+  f.trajectory_at_end = true;
+  write_log(dir.file("result.lcm"), f, 1);
+  auto d = diagnose(dir.file("result.lcm"));
+  ASSERT_TRUE(d.ok()) << d.error().message;
+  const auto& t = channel(*d, "TRAJECTORY");
+  EXPECT_TRUE(t.written_at_once);
+  EXPECT_EQ(t.verdict, "ok") << (t.reasons.empty() ? "" : t.reasons[0]);
+  EXPECT_FALSE(t.clock_valid);
+  EXPECT_FALSE(t.latency_valid);
+  EXPECT_EQ(t.domain, -1);
+  for (const auto& c : d->channels) {
+    if (c.name != "TRAJECTORY") EXPECT_EQ(c.verdict, "ok") << c.name << ": " << (c.reasons.empty() ? "" : c.reasons[0]);
+    EXPECT_EQ(c.written_at_once, c.name == "TRAJECTORY") << c.name;
+  }
+  for (const auto& dom : d->domains) {
+    EXPECT_EQ(std::count(dom.channels.begin(), dom.channels.end(), "TRAJECTORY"), 0);
+  }
+  EXPECT_EQ(clock_corrections(*d).count("TRAJECTORY"), 0u);
 }
 
 TEST(Diagnose, CountsDropsDuplicatesAndReorderingExactly) {

@@ -4,7 +4,8 @@
 //   node write_mcap.mjs SPEC.json OUT.mcap
 // SPEC: {"profile": "ros2" (CDR, ros2msg schemas) or "ros1" (ROS 1 serialization, ros1msg schemas),
 //        "compression": "zstd" or "none",
-//        "messages": [{"topic", "type" ("sensor_msgs/msg/Imu" or "sensor_msgs/Imu"), "time_ns", "sequence", "msg"}]}
+//        "messages": [{"topic", "type" ("sensor_msgs/msg/Imu" or "sensor_msgs/Imu"), "time_ns", "sequence", "msg"}],
+//        "definitions": {"pkg/Type": ".msg text"} (optional: another release's definition of a type)}
 // A number that JSON cannot hold is written as a string: "NaN", "Infinity", "-Infinity", a 64-bit integer "12n". The definitions are this
 // file's own (below): the fields of the standard messages as ROS 1 and ROS 2 define them.
 import { openSync, readFileSync, writeSync, closeSync } from "node:fs";
@@ -76,16 +77,35 @@ const COMMON = {
     "float32 round_trip_time_ms\n",
 };
 const POINT = "float64[] positions\nfloat64[] velocities\nfloat64[] accelerations\nfloat64[] effort\n";
+const TRAJECTORY_POINT = "trajectory_msgs/JointTrajectoryPoint";
+// A joint trajectory controller's state: ROS 1 and ROS 2 before Humble (desired, actual, error).
+const CONTROLLER_STATE_V1 =
+  "std_msgs/Header header\nstring[] joint_names\n" +
+  ["desired", "actual", "error"].map((f) => `${TRAJECTORY_POINT} ${f}\n`).join("");
 const ROS2 = {
   ...COMMON,
   "std_msgs/Header": "builtin_interfaces/Time stamp\nstring frame_id\n",
   "builtin_interfaces/Time": "int32 sec\nuint32 nanosec\n",
   "builtin_interfaces/Duration": "int32 sec\nuint32 nanosec\n",
+  "rosgraph_msgs/Clock": "builtin_interfaces/Time clock\n",
   "trajectory_msgs/JointTrajectoryPoint": POINT + "builtin_interfaces/Duration time_from_start\n",
+  "trajectory_msgs/MultiDOFJointTrajectoryPoint":
+    "geometry_msgs/Transform[] transforms\ngeometry_msgs/Twist[] velocities\ngeometry_msgs/Twist[] accelerations\n" +
+    "builtin_interfaces/Duration time_from_start\n",
+  // control_msgs 4 (Humble): reference, feedback, error, output, the deprecated desired and actual, then the
+  // multi-DOF points. A spec's "definitions" replaces it with another release's (Jazzy drops desired and actual).
+  "control_msgs/JointTrajectoryControllerState":
+    "std_msgs/Header header\nstring[] joint_names\n" +
+    ["reference", "feedback", "error", "output", "desired", "actual"].map((f) => `${TRAJECTORY_POINT} ${f}\n`).join("") +
+    "string[] multi_dof_joint_names\n" +
+    ["reference", "feedback", "error", "output", "desired", "actual"]
+      .map((f) => `trajectory_msgs/MultiDOFJointTrajectoryPoint multi_dof_${f}\n`)
+      .join(""),
 };
 const ROS1 = {
   ...COMMON,
   "std_msgs/Header": "uint32 seq\ntime stamp\nstring frame_id\n",
+  "rosgraph_msgs/Clock": "time clock\n",
   "trajectory_msgs/JointTrajectoryPoint": POINT + "duration time_from_start\n",
   // MoveIt's hand-over to a ROS 1 controller: an actionlib goal.
   "control_msgs/FollowJointTrajectoryActionGoal":
@@ -95,6 +115,7 @@ const ROS1 = {
     "trajectory_msgs/JointTrajectory trajectory\ncontrol_msgs/JointTolerance[] path_tolerance\n" +
     "control_msgs/JointTolerance[] goal_tolerance\nduration goal_time_tolerance\n",
   "control_msgs/JointTolerance": "string name\nfloat64 position\nfloat64 velocity\nfloat64 acceleration\n",
+  "control_msgs/JointTrajectoryControllerState": CONTROLLER_STATE_V1,
 };
 
 /// The full definition of a type: its text, then each type it uses after a line of '=' and "MSG: pkg/Type".
@@ -137,7 +158,7 @@ function revive(value, key) {
 
 const spec = JSON.parse(readFileSync(specFile, "utf8"));
 const ros2 = spec.profile === "ros2";
-const defs = ros2 ? ROS2 : ROS1;
+const defs = { ...(ros2 ? ROS2 : ROS1), ...(spec.definitions ?? {}) };
 const fd = openSync(outFile, "w");
 let position = 0n;
 const writer = new McapWriter({
