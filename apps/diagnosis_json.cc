@@ -262,15 +262,6 @@ nlohmann::json flight_log_json(const analyzers::FlightLogDiagnosis& f) {
   }
   nlohmann::json loss = nlohmann::json::array();
   for (const auto& l : f.imu_loss) loss.push_back({{"channel", l.channel}, {"field", l.field}, {"growth", l.growth}});
-  nlohmann::json timesync = nlohmann::json::array();
-  for (const auto& t : f.timesync) {
-    timesync.push_back({{"channel", t.channel},
-                        {"count", t.count},
-                        {"offset_s", {{"p50", t.offset_p50_s}, {"min", t.offset_min_s}, {"max", t.offset_max_s}}},
-                        {"rtt_s", {{"p50", t.rtt_p50_s}, {"p99", t.rtt_p99_s}, {"max", t.rtt_max_s}}},
-                        {"rtt_slow_share", t.rtt_slow_share},
-                        {"resyncs", t.resyncs}});
-  }
   nlohmann::json timeline = nlohmann::json::array();
   for (const auto& e : f.timeline) {
     timeline.push_back({{"kind", e.kind}, {"what", e.what}, {"start_s", e.start_s}, {"end_s", e.end_s}});
@@ -284,7 +275,6 @@ nlohmann::json flight_log_json(const analyzers::FlightLogDiagnosis& f) {
           {"imu_intervals", imu},
           {"estimator", estimator},
           {"imu_loss", loss},
-          {"timesync", timesync},
           {"timeline", timeline},
           {"problems", f.problems}};
 }
@@ -391,15 +381,6 @@ std::vector<std::string> flight_log_lines(const analyzers::FlightLogDiagnosis& f
   if (counted) {
     lines.push_back("  IMU driver errors (vehicle_imu_status error counts over the log): " +
                     (error_total > 0 ? errors : std::string("none")));
-  }
-  for (const auto& t : f.timesync) {
-    std::snprintf(buf, sizeof buf,
-                  "  timesync (%s, %lld samples): offset %.3f ms (%.3f to %.3f), round trip %.2f ms p50, %.2f ms "
-                  "p99, %.2f ms max, %lld resyncs",
-                  t.channel.c_str(), static_cast<long long>(t.count), t.offset_p50_s * 1e3, t.offset_min_s * 1e3,
-                  t.offset_max_s * 1e3, t.rtt_p50_s * 1e3, t.rtt_p99_s * 1e3, t.rtt_max_s * 1e3,
-                  static_cast<long long>(t.resyncs));
-    lines.push_back(buf);
   }
   return lines;
 }

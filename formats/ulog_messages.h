@@ -1,7 +1,9 @@
 // PX4 topics (ULog data messages) onto driftlab's messages where driftlab has the same quantity: sensor_combined
 // and vehicle_imu -> imu_t, sensor_gps / vehicle_gps_position -> gnss_t, vehicle_local_position -> odometry_t,
 // vehicle_attitude -> pose_t (its orientation), sensor_baro -> barometer_t, sensor_mag and vehicle_magnetometer ->
-// magnetometer_t. Fields are found by name
+// magnetometer_t, vehicle_odometry -> odometry_t, actuator_motors -> motor_command_t, trajectory_setpoint and
+// vehicle_local_position_setpoint -> trajectory_setpoint_t, vehicle_status -> vehicle_status_t, timesync_status (and
+// the older timesync) -> timesync_status_t. Fields are found by name
 // in the message's own format, so PX4 versions that moved or added fields convert alike; a format without the fields a
 // mapping needs is carried as foreign_message_t instead. header.utime is the message's `timestamp_sample` when it has
 // one (when the sensor sampled), else its `timestamp`. Thread-safety: plain functions.
