@@ -9,6 +9,7 @@
 #include <limits>
 #include <map>
 #include <memory>
+#include <optional>
 #include <set>
 
 #include "core/log_format.h"
@@ -18,6 +19,7 @@
 #include "driftlab/dropout_t.hpp"
 #include "driftlab/foreign_message_t.hpp"
 #include "driftlab/foreign_schema_t.hpp"
+#include "driftlab/timesync_status_t.hpp"
 #include "formats/ulog.h"
 #include "formats/ulog_messages.h"
 #include "lcmtypes/stream_header.h"
@@ -596,6 +598,41 @@ Result<FlightLogDiagnosis> diagnose_flight_log(const std::string& log, const Fli
   }
   std::stable_sort(out.timeline.begin(), out.timeline.end(),
                    [](const FlightEvent& a, const FlightEvent& b) { return a.start_s < b.start_s; });
+  out.utc = flight_utc(log, out.start_utime);
+  return out;
+}
+
+FlightUtc flight_utc(const std::string& log, int64_t start_utime) {
+  FlightUtc out;
+  const std::string info = "ULOG_INFO";  // its information fields: stamped with the ULog header's start
+  auto reader = LogReader::open(log, {.channels = std::string(formats::kUlogUtcChannel) + "|" + info});
+  if (!reader) return out;
+  std::vector<double> offsets;  // [us]: exact in a double up to 2^53 us (285 years)
+  std::optional<int64_t> header_start;
+  Event e;
+  timesync_status_t m;
+  while (reader->next(e)) {
+    if (e.channel == info) {
+      header_start = std::min(header_start.value_or(e.utime), e.utime);
+      continue;
+    }
+    if (e.channel != formats::kUlogUtcChannel || !lcmtypes::decode(e.data, m)) continue;
+    const double offset = static_cast<double>(m.remote_utime) - static_cast<double>(m.header.utime);
+    if (!(std::abs(offset) < 9e15)) continue;  // hostile values: outside what an int64_t sum can hold
+    if (offsets.empty()) out.channel = m.header.frame_id;
+    offsets.push_back(offset);
+  }
+  out.start_utime = header_start.value_or(start_utime);
+  if (offsets.empty()) return out;
+  out.known = true;
+  out.fixes = static_cast<int64_t>(offsets.size());
+  const auto [lo, hi] = std::minmax_element(offsets.begin(), offsets.end());
+  out.spread_s = (*hi - *lo) * 1e-6;
+  out.boot_to_utc_us = std::llround(quantile_in_place(offsets, 0.5));
+  // A hostile start may lie anywhere in int64_t: held at its ends.
+  if (__builtin_add_overflow(out.start_utime, out.boot_to_utc_us, &out.start_utc_us)) {
+    out.start_utc_us = out.start_utime < 0 ? INT64_MIN : INT64_MAX;
+  }
   return out;
 }
 

@@ -105,6 +105,23 @@ struct FlightEvent {
   double start_s = 0, end_s = 0;  ///< from the log's start [s]
 };
 
+/// The flight's time of day, from its GNSS receiver's UTC against the boot clock (ULOG_UTC, formats/ulog_messages.h):
+/// each fix's UTC - boot time, their median the boot clock's offset to UTC.
+struct FlightUtc {
+  bool known = false;          ///< false: no GNSS fix with a time in the log
+  int64_t boot_to_utc_us = 0;  ///< UTC = boot time + this [us]; the median of the fixes' offsets
+  int64_t start_utime = 0;     ///< the log's start on the boot clock [us]: the ULog header's (ULOG_INFO's stamp)
+  int64_t start_utc_us = 0;    ///< the log's start in UTC [us since 1970]
+  int64_t fixes = 0;           ///< GNSS messages with a 3D fix and a time [count]
+  double spread_s = 0;         ///< the largest minus the smallest offset [s]: how much the ties disagree
+  std::string channel;         ///< the GNSS topic of the first tie ("vehicle_gps_position")
+};
+
+/// The UTC of log's flight; `known` false without GNSS time. Its start is the ULog header's, with which the import
+/// stamps the information fields (ULOG_INFO), else `start_utime` (the log's earliest event [us]). Reads ULOG_UTC
+/// and ULOG_INFO only.
+FlightUtc flight_utc(const std::string& log, int64_t start_utime);
+
 struct FlightLogDiagnosis {
   bool present = false;  ///< the log came from a ULog (or carries ULog topics)
   int64_t start_utime = 0;
@@ -119,6 +136,7 @@ struct FlightLogDiagnosis {
   std::vector<ImuIntervals> imu;
   std::vector<EstimatorCheck> estimator;  ///< only series with a sample over / set, and every test ratio's max
   std::vector<ImuLoss> imu_loss;
+  FlightUtc utc;
   std::vector<FlightEvent> timeline;  ///< by start time, at most 500 of each kind
   std::vector<std::string> problems;  ///< cause first, in words
 };

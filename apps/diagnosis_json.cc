@@ -2,6 +2,7 @@
 #include "apps/diagnosis_json.h"
 
 #include "analyzers/clock_corrections.h"
+#include "apps/cli_util.h"
 
 #include <algorithm>
 #include <cmath>
@@ -267,6 +268,7 @@ nlohmann::json flight_log_json(const analyzers::FlightLogDiagnosis& f) {
     timeline.push_back({{"kind", e.kind}, {"what", e.what}, {"start_s", e.start_s}, {"end_s", e.end_s}});
   }
   return {{"start_utime", f.start_utime},
+          {"utc", flight_utc_json(f.utc)},
           {"fusion_horizon",
            f.horizon_s > 0 ? nlohmann::json{{"s", f.horizon_s}, {"channel", f.horizon_channel}} : nlohmann::json()},
           {"dropouts",
@@ -279,11 +281,36 @@ nlohmann::json flight_log_json(const analyzers::FlightLogDiagnosis& f) {
           {"problems", f.problems}};
 }
 
+nlohmann::json flight_utc_json(const analyzers::FlightUtc& u) {
+  if (!u.known) return nullptr;
+  return {{"start", format_utime(u.start_utc_us)},
+          {"start_utc_us", u.start_utc_us},
+          {"start_utime", u.start_utime},
+          {"boot_to_utc_us", u.boot_to_utc_us},
+          {"fixes", u.fixes},
+          {"spread_s", u.spread_s},
+          {"channel", u.channel}};
+}
+
+std::string flight_utc_line(const analyzers::FlightUtc& u) {
+  if (!u.known) return "";
+  char buf[320];
+  std::snprintf(buf, sizeof buf,
+                "UTC (GNSS time, %s, %lld fixes agreeing within %.1f ms): the log starts (boot time %.6f s) at %s; UTC "
+                "= boot time + %lld.%06lld s",
+                u.channel.c_str(), static_cast<long long>(u.fixes), u.spread_s * 1e3,
+                static_cast<double>(u.start_utime) * 1e-6, format_utime(u.start_utc_us).c_str(),
+                static_cast<long long>(u.boot_to_utc_us / 1000000),
+                static_cast<long long>(std::abs(u.boot_to_utc_us % 1000000)));
+  return buf;
+}
+
 std::vector<std::string> flight_log_lines(const analyzers::FlightLogDiagnosis& f) {
   std::vector<std::string> lines;
   if (!f.present) return lines;
   char buf[512];
   lines.push_back("flight log (PX4 ULog; times from the log's start):");
+  if (f.utc.known) lines.push_back("  " + flight_utc_line(f.utc));
   if (f.dropout_count == 0) {
     lines.push_back("  logger dropouts: none");
   } else {

@@ -445,6 +445,20 @@ const char* driftlab_type_for_ulog(std::string_view name) {
   return nullptr;
 }
 
+std::optional<UlogUtcTie> ulog_gnss_utc(const UlogLayout& layout, std::span<const uint8_t> payload,
+                                        uint64_t timestamp) {
+  if (layout.name != "sensor_gps" && layout.name != "vehicle_gps_position") return std::nullopt;
+  const auto utc = layout.u64(payload, "time_utc_usec");
+  if (!utc || *utc == 0 || *utc > static_cast<uint64_t>(INT64_MAX) || !has(layout, "fix_type")) return std::nullopt;
+  if (!(layout.number(payload, "fix_type") >= 3)) return std::nullopt;
+  double relative = has(layout, "timestamp_time_relative") ? layout.number(payload, "timestamp_time_relative") : 0;
+  if (!std::isfinite(relative)) relative = 0;
+  const int64_t boot = ulog_utime(timestamp);
+  // timestamp_time_relative is an int32_t [us]: the sum stays in int64_t for any boot time short of its end.
+  if (boot > INT64_MAX / 2) return std::nullopt;
+  return UlogUtcTie{boot + static_cast<int64_t>(relative), static_cast<int64_t>(*utc)};
+}
+
 std::optional<UlogConverted> convert_ulog_message(const UlogLayout& layout, std::span<const uint8_t> payload,
                                                   uint64_t timestamp, int64_t seq) {
   if (layout.name == "sensor_combined") return imu(layout, payload, timestamp, seq);

@@ -32,4 +32,20 @@ const char* driftlab_type_for_ulog(std::string_view name);
 std::optional<UlogConverted> convert_ulog_message(const UlogLayout& layout, std::span<const uint8_t> payload,
                                                   uint64_t timestamp, int64_t seq);
 
+/// A GNSS receiver's UTC against the flight controller's boot clock, from one sensor_gps / vehicle_gps_position
+/// message: `time_utc_usec` (UTC [us since 1970]) at `timestamp + timestamp_time_relative` (boot [us]; PX4 says so
+/// in vehicle_gps_position.msg; timestamp alone where the format has no timestamp_time_relative).
+struct UlogUtcTie {
+  int64_t boot_us = 0;
+  int64_t utc_us = 0;
+};
+/// The tie of a GNSS message with a 3D fix (fix_type 3 and up: the receiver has solved its clock) and a UTC time;
+/// nullopt for another topic, no fix, a time of 0 (not known) or a format without those fields.
+std::optional<UlogUtcTie> ulog_gnss_utc(const UlogLayout& layout, std::span<const uint8_t> payload, uint64_t timestamp);
+
+/// The channel on which `driftlab import` writes each tie, as driftlab.timesync_status_t: header.utime the boot
+/// time, remote_utime the UTC time, both offsets (UTC - boot) [s], round_trip_s 0 (a receiver's time, no exchange),
+/// header.frame_id the GNSS topic's channel.
+inline constexpr char kUlogUtcChannel[] = "ULOG_UTC";
+
 }  // namespace driftlab::formats

@@ -16,6 +16,7 @@
 #include <map>
 #include <set>
 
+#include "analyzers/flight_log.h"
 #include "driftlab/barometer_t.hpp"
 #include "driftlab/channel_source_t.hpp"
 #include "driftlab/dropout_t.hpp"
@@ -43,7 +44,7 @@ namespace {
 
 using test::OwnedEvent;
 
-const std::set<std::string> kRecordChannels = {"ULOG_LOG",      "ULOG_PARAMS",     "ULOG_INFO",
+const std::set<std::string> kRecordChannels = {"ULOG_LOG",      "ULOG_PARAMS",     "ULOG_INFO",      "ULOG_UTC",
                                                "ULOG_DROPOUTS", "FOREIGN_SCHEMAS", "CHANNEL_SOURCES"};
 
 using test::f32;
@@ -358,6 +359,8 @@ struct Imported {
   std::map<std::string, std::array<int64_t, 3>> topics;
   int64_t logs = 0, tagged_logs = 0;
   std::vector<int64_t> dropouts_ms;
+  std::vector<std::array<int64_t, 2>> gnss_utc;  // ULOG_UTC: (boot, UTC) [us]
+  analyzers::FlightUtc utc;                      // what info and diagnose say of them
 };
 Imported imported(const std::string& path) {
   Imported out;
@@ -370,6 +373,9 @@ Imported imported(const std::string& path) {
       ++(test::decode<log_text_t>(e).tag < 0 ? out.logs : out.tagged_logs);
     } else if (e.channel == "ULOG_DROPOUTS") {
       out.dropouts_ms.push_back(test::decode<dropout_t>(e).duration_us / 1000);
+    } else if (e.channel == "ULOG_UTC") {
+      const auto m = test::decode<timesync_status_t>(e);
+      out.gnss_utc.push_back({m.header.utime, m.remote_utime});
     } else if (!kRecordChannels.count(e.channel)) {
       auto [it, fresh] = out.topics.try_emplace(e.channel, std::array<int64_t, 3>{0, e.utime, e.utime});
       auto& t = it->second;
@@ -378,6 +384,7 @@ Imported imported(const std::string& path) {
       t[2] = std::max(t[2], e.utime);
     }
   }
+  out.utc = analyzers::flight_utc(dir.file("out.lcm"), 0);
   return out;
 }
 
@@ -414,6 +421,27 @@ TEST(Ulog, ImportAgreesWithFoxglovesReader) {
     EXPECT_EQ(got.logs, fox["logs"].get<int64_t>());
     EXPECT_EQ(got.tagged_logs, fox["tagged_logs"].get<int64_t>());
     EXPECT_EQ(got.dropouts_ms, fox["dropouts_ms"].get<std::vector<int64_t>>());
+    // The GNSS receiver's UTC against the boot clock: each fix's pair as Foxglove reads it, and the log's start in
+    // UTC from their median offset (numpy's: the middle two's mean for an even count) and the header's start.
+    const auto want_utc = fox["gnss_utc"].get<std::vector<std::array<int64_t, 2>>>();
+    EXPECT_EQ(got.gnss_utc, want_utc);
+    EXPECT_EQ(got.utc.known, !want_utc.empty());
+    if (want_utc.empty()) continue;
+    std::vector<int64_t> offsets;
+    for (const auto& [boot, utc] : want_utc) offsets.push_back(utc - boot);
+    std::sort(offsets.begin(), offsets.end());
+    const size_t n = offsets.size();
+    const int64_t median =
+        n % 2 ? offsets[n / 2]
+              : std::llround((static_cast<double>(offsets[n / 2 - 1]) + static_cast<double>(offsets[n / 2])) / 2);
+    EXPECT_EQ(got.utc.boot_to_utc_us, median);
+    EXPECT_EQ(got.utc.start_utime, fox["start_us"].get<int64_t>());
+    EXPECT_EQ(got.utc.start_utc_us, fox["start_us"].get<int64_t>() + median);
+    EXPECT_EQ(got.utc.fixes, static_cast<int64_t>(n));
+    EXPECT_NEAR(got.utc.spread_s, static_cast<double>(offsets.back() - offsets.front()) * 1e-6, 1e-9);
+    // A GNSS time is UTC of this century: after 2015 (the oldest of these PX4 versions) and before 2030.
+    EXPECT_GT(got.utc.start_utc_us, int64_t{1420070400} * 1000000);
+    EXPECT_LT(got.utc.start_utc_us, int64_t{1893456000} * 1000000);
   }
 }
 
@@ -973,6 +1001,45 @@ TEST(Ulog, OdometryAndSetpointsOfEarlierPx4AndIncompleteFormats) {
   EXPECT_EQ(o10.header.frame_id, "local_frd");  // local_frame 1 before PX4 1.14
   EXPECT_NEAR(o10.position.z, 3, 1e-6);
   EXPECT_TRUE(std::isnan(o10.linear_velocity.x));
+}
+
+// A GNSS time counts only with a 3D fix (before it, a receiver's clock is not solved) and when set (0: not known);
+// it is the UTC of timestamp + timestamp_time_relative, as vehicle_gps_position.msg defines it.
+TEST(Ulog, GnssUtcNeedsA3dFixAndATime) {
+  Ulog u;
+  u.flags(0);
+  u.format(
+      "vehicle_gps_position:uint64_t timestamp;uint64_t time_utc_usec;int32_t lat;int32_t lon;int32_t alt;float "
+      "eph;float epv;int32_t timestamp_time_relative;uint8_t fix_type;uint8_t satellites_used;");
+  u.subscribe(0, 1, "vehicle_gps_position");
+  auto gps = [&](uint64_t t, uint64_t utc, int32_t relative, uint8_t fix) {
+    Fields f;
+    f.u64(t).u64(utc);
+    put(f.b, 473977420, 4);
+    put(f.b, 85455940, 4);
+    put(f.b, 488000, 4);
+    f.f({1, 2});
+    put(f.b, static_cast<uint32_t>(relative), 4);
+    f.u8(fix).u8(fix >= 3 ? 10 : 0);
+    u.data_bytes(1, f.b);
+  };
+  const uint64_t utc0 = 1700000000000000;
+  gps(2000000, utc0, 0, 2);                // a 2D fix: its time is not taken
+  gps(3000000, 0, 0, 3);                   // a 3D fix without a time
+  gps(4000000, utc0 + 2000000, -5000, 3);  // UTC at boot time 3.995 s
+  gps(5000000, utc0 + 3000000, -5000, 3);
+  gps(6000000, utc0 + 4000000, -5000, 6);  // RTK fixed: a 3D fix too
+  test::TempDir dir;
+  test::write_file(dir.file("f.ulg"), u.b);
+  ASSERT_TRUE(import_log(dir.file("f.ulg"), dir.file("out.lcm"), [](const std::string& p) { ADD_FAILURE() << p; }));
+  const auto utc = analyzers::flight_utc(dir.file("out.lcm"), 0);
+  ASSERT_TRUE(utc.known);
+  EXPECT_EQ(utc.fixes, 3);
+  EXPECT_EQ(utc.boot_to_utc_us, static_cast<int64_t>(utc0) - 1995000);  // utc0 + 2 s at 3.995 s
+  EXPECT_EQ(utc.spread_s, 0);
+  EXPECT_EQ(utc.channel, "vehicle_gps_position");
+  // No information fields: the log's start is the one given, here 0, the boot.
+  EXPECT_EQ(utc.start_utc_us, static_cast<int64_t>(utc0) - 1995000);
 }
 
 }  // namespace
