@@ -9,6 +9,7 @@
 #include <limits>
 #include <map>
 #include <memory>
+#include <optional>
 #include <set>
 
 #include "core/log_format.h"
@@ -18,6 +19,7 @@
 #include "driftlab/dropout_t.hpp"
 #include "driftlab/foreign_message_t.hpp"
 #include "driftlab/foreign_schema_t.hpp"
+#include "driftlab/timesync_status_t.hpp"
 #include "formats/ulog.h"
 #include "formats/ulog_messages.h"
 #include "lcmtypes/stream_header.h"
@@ -116,7 +118,6 @@ struct Topic {
     double growth = 0;
   };
   std::vector<Counter> counters;
-  std::vector<std::pair<double, double>> timesync;  // (estimated offset, round trip) [us]
 };
 
 void make_watches(Topic& t) {
@@ -200,12 +201,6 @@ void read_message(Topic& t, std::span<const uint8_t> p, int64_t event_utime) {
     if (!std::isfinite(v)) continue;
     if (std::isfinite(c.last) && v > c.last) c.growth += v - c.last;
     c.last = v;
-  }
-  if (t.topic == "timesync_status" || t.topic == "timesync") {
-    double offset = l.number(p, "estimated_offset");
-    if (!std::isfinite(offset)) offset = l.number(p, "observed_offset");
-    const double rtt = l.number(p, "round_trip_time");
-    if (std::isfinite(offset) || std::isfinite(rtt)) t.timesync.emplace_back(offset, rtt);
   }
 }
 
@@ -600,54 +595,44 @@ Result<FlightLogDiagnosis> diagnose_flight_log(const std::string& log, const Fli
                 c.growth, t.channel.c_str(), c.field.c_str()));
       }
     }
-    // ---- timesync with a companion computer ----
-    if (!t.timesync.empty()) {
-      TimesyncStats ts;
-      ts.channel = t.channel;
-      ts.count = static_cast<int64_t>(t.timesync.size());
-      std::vector<double> offset, rtt;
-      double previous = std::numeric_limits<double>::quiet_NaN();
-      int64_t slow = 0;
-      for (const auto& [o, r] : t.timesync) {
-        if (std::isfinite(o)) {
-          offset.push_back(o * 1e-6);
-          if (std::isfinite(previous) && std::abs(o - previous) * 1e-6 > th.timesync_step_s) ++ts.resyncs;
-          previous = o;
-        }
-        if (std::isfinite(r)) {
-          rtt.push_back(r * 1e-6);
-          if (r * 1e-6 > th.timesync_rtt_s) ++slow;
-        }
-      }
-      if (!offset.empty()) {
-        ts.offset_min_s = *std::min_element(offset.begin(), offset.end());
-        ts.offset_max_s = *std::max_element(offset.begin(), offset.end());
-        ts.offset_p50_s = quantile_in_place(offset, 0.5);
-      }
-      if (!rtt.empty()) {
-        ts.rtt_max_s = *std::max_element(rtt.begin(), rtt.end());
-        ts.rtt_p50_s = quantile_in_place(rtt, 0.5);
-        ts.rtt_p99_s = quantile_in_place(rtt, 0.99);
-        ts.rtt_slow_share = static_cast<double>(slow) / static_cast<double>(rtt.size());
-      }
-      if (!rtt.empty() && ts.rtt_slow_share >= th.timesync_slow_share) {
-        out.problems.push_back(
-            fmt("the companion computer's link is slow: %.0f%% of %s's round trips over %.0f ms "
-                "(p99 %.1f ms), which PX4's timesync discards; its clock offset is held stale",
-                ts.rtt_slow_share * 100, t.channel.c_str(), th.timesync_rtt_s * 1e3, ts.rtt_p99_s * 1e3));
-      }
-      if (ts.resyncs >= 1) {
-        out.problems.push_back(
-            fmt("the companion computer's clock offset was reset %lld time%s (%s: steps over "
-                "%.0f ms): stamps it sent across a reset jump by the step",
-                static_cast<long long>(ts.resyncs), ts.resyncs == 1 ? "" : "s", t.channel.c_str(),
-                th.timesync_step_s * 1e3));
-      }
-      out.timesync.push_back(std::move(ts));
-    }
   }
   std::stable_sort(out.timeline.begin(), out.timeline.end(),
                    [](const FlightEvent& a, const FlightEvent& b) { return a.start_s < b.start_s; });
+  out.utc = flight_utc(log, out.start_utime);
+  return out;
+}
+
+FlightUtc flight_utc(const std::string& log, int64_t start_utime) {
+  FlightUtc out;
+  const std::string info = "ULOG_INFO";  // its information fields: stamped with the ULog header's start
+  auto reader = LogReader::open(log, {.channels = std::string(formats::kUlogUtcChannel) + "|" + info});
+  if (!reader) return out;
+  std::vector<double> offsets;  // [us]: exact in a double up to 2^53 us (285 years)
+  std::optional<int64_t> header_start;
+  Event e;
+  timesync_status_t m;
+  while (reader->next(e)) {
+    if (e.channel == info) {
+      header_start = std::min(header_start.value_or(e.utime), e.utime);
+      continue;
+    }
+    if (e.channel != formats::kUlogUtcChannel || !lcmtypes::decode(e.data, m)) continue;
+    const double offset = static_cast<double>(m.remote_utime) - static_cast<double>(m.header.utime);
+    if (!(std::abs(offset) < 9e15)) continue;  // hostile values: outside what an int64_t sum can hold
+    if (offsets.empty()) out.channel = m.header.frame_id;
+    offsets.push_back(offset);
+  }
+  out.start_utime = header_start.value_or(start_utime);
+  if (offsets.empty()) return out;
+  out.known = true;
+  out.fixes = static_cast<int64_t>(offsets.size());
+  const auto [lo, hi] = std::minmax_element(offsets.begin(), offsets.end());
+  out.spread_s = (*hi - *lo) * 1e-6;
+  out.boot_to_utc_us = std::llround(quantile_in_place(offsets, 0.5));
+  // A hostile start may lie anywhere in int64_t: held at its ends.
+  if (__builtin_add_overflow(out.start_utime, out.boot_to_utc_us, &out.start_utc_us)) {
+    out.start_utc_us = out.start_utime < 0 ? INT64_MIN : INT64_MAX;
+  }
   return out;
 }
 

@@ -3,7 +3,9 @@
 // The logger's dropouts (ULOG_DROPOUTS); the delay from sample to publication where a topic carries both
 // `timestamp` and `timestamp_sample`; the regularity of the IMU's intervals (a scheduler that skips a cycle and
 // catches up shows intervals of 2 periods and 0); the estimator's health over time (innovation test ratios over 1,
-// rejected fusions, timeouts, IMU data it dropped); `timesync_status` with a companion computer. Topics are read by
+// rejected fusions, timeouts, IMU data it dropped). A companion computer's `timesync_status` is imported as
+// driftlab.timesync_status_t and judged with every other time sync by the timing diagnosis (analyzers/timing.h,
+// "timesync"), MAVROS's and PX4's alike. Topics are read by
 // field name through the formats the import stores on FOREIGN_SCHEMAS (formats/ulog.h resolves them), so PX4
 // versions that renamed or moved fields are read alike: each check runs on whichever of its topics the log has, and
 // a field that is missing, of another type or outside a message is skipped. The thresholds that make a finding a
@@ -44,13 +46,6 @@ struct FlightLogThresholds {
   int64_t timeouts = 1;
   /// IMU data the estimator dropped: its time_slip grew by this much [s] (one 250 Hz sample is 4 ms).
   double time_slip_s = 0.004;
-  /// Timesync: round trips over this [s] are discarded by PX4's timesync filter; a problem when they are at least
-  /// timesync_slow_share of the samples, or the offset was reset (resyncs) at least once.
-  double timesync_rtt_s = 0.010;
-  double timesync_slow_share = 0.05;
-  /// A step of the estimated offset between two samples larger than this is a resync [s]: the filter moves the
-  /// offset by microseconds per sample; only a reset steps it by milliseconds.
-  double timesync_step_s = 0.010;
 };
 
 struct FlightDropout {
@@ -103,21 +98,29 @@ struct ImuLoss {
   double growth = 0;  ///< over the flight: [s] for time_slip, [count] for error counts
 };
 
-struct TimesyncStats {
-  std::string channel;
-  int64_t count = 0;
-  double offset_p50_s = 0, offset_min_s = 0, offset_max_s = 0;  ///< estimated offset [s]
-  double rtt_p50_s = 0, rtt_p99_s = 0, rtt_max_s = 0;           ///< round-trip time [s]
-  double rtt_slow_share = 0;                                    ///< round trips over timesync_rtt_s [fraction]
-  int64_t resyncs = 0;
-};
-
 /// One thing on the flight's timeline.
 struct FlightEvent {
   std::string kind;               ///< "dropout", "rejection", "timeout", "sensor_gap"
   std::string what;               ///< the channel and field, or "logger"
   double start_s = 0, end_s = 0;  ///< from the log's start [s]
 };
+
+/// The flight's time of day, from its GNSS receiver's UTC against the boot clock (ULOG_UTC, formats/ulog_messages.h):
+/// each fix's UTC - boot time, their median the boot clock's offset to UTC.
+struct FlightUtc {
+  bool known = false;          ///< false: no GNSS fix with a time in the log
+  int64_t boot_to_utc_us = 0;  ///< UTC = boot time + this [us]; the median of the fixes' offsets
+  int64_t start_utime = 0;     ///< the log's start on the boot clock [us]: the ULog header's (ULOG_INFO's stamp)
+  int64_t start_utc_us = 0;    ///< the log's start in UTC [us since 1970]
+  int64_t fixes = 0;           ///< GNSS messages with a 3D fix and a time [count]
+  double spread_s = 0;         ///< the largest minus the smallest offset [s]: how much the ties disagree
+  std::string channel;         ///< the GNSS topic of the first tie ("vehicle_gps_position")
+};
+
+/// The UTC of log's flight; `known` false without GNSS time. Its start is the ULog header's, with which the import
+/// stamps the information fields (ULOG_INFO), else `start_utime` (the log's earliest event [us]). Reads ULOG_UTC
+/// and ULOG_INFO only.
+FlightUtc flight_utc(const std::string& log, int64_t start_utime);
 
 struct FlightLogDiagnosis {
   bool present = false;  ///< the log came from a ULog (or carries ULog topics)
@@ -133,7 +136,7 @@ struct FlightLogDiagnosis {
   std::vector<ImuIntervals> imu;
   std::vector<EstimatorCheck> estimator;  ///< only series with a sample over / set, and every test ratio's max
   std::vector<ImuLoss> imu_loss;
-  std::vector<TimesyncStats> timesync;
+  FlightUtc utc;
   std::vector<FlightEvent> timeline;  ///< by start time, at most 500 of each kind
   std::vector<std::string> problems;  ///< cause first, in words
 };

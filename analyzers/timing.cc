@@ -81,7 +81,11 @@ Result<Diagnosis> diagnose(const std::string& log, const DiagnoseOptions& option
     if (fp == tf_hash) tf.add_tf(std::string(last_name), e.data, e.utime, internal::is_static_tf_channel(last_name));
     if (fp == trajectory_hash) loops.add_command(std::string(last_name), e.data, e.utime);
     if (fp == joint_state_hash) loops.add_state(std::string(last_name), e.data);
-    if (fp == timesync_hash) timesync.add(std::string(last_name), e.data);
+    // Not a bookkeeping channel's (ULOG_UTC: a GNSS receiver's time, not an exchange between two computers).
+    if (fp == timesync_hash && std::find(options.ignore_channels.begin(), options.ignore_channels.end(), last_name) ==
+                                   options.ignore_channels.end()) {
+      timesync.add(std::string(last_name), e.data);
+    }
     if (fp == source_hash) {
       driftlab::channel_source_t m;
       if (lcmtypes::decode(e.data, m)) sources[m.channel] = std::move(m);

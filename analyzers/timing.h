@@ -268,10 +268,11 @@ struct DiagnoseOptions {
   double window_s = 10.0;    ///< skew window [s] (longer on long logs: at most 64 windows)
   /// Bookkeeping, not streams: the recorder's and the replayer's statistics (one seq per module, so they would
   /// look duplicated) and the fault manifests; an import's records: what it says of channels and schemas, a PX4
-  /// flight log's text, parameters, information fields and its logger's dropouts (records at a time, not streams).
+  /// flight log's text, parameters, information fields, its logger's dropouts and its GNSS receiver's UTC against
+  /// the boot clock (records at a time, not streams).
   std::vector<std::string> ignore_channels = {
       "CHANNEL_SOURCES", "DRIFTLAB_RECORDER_STATS", "FAULTS",    "FOREIGN_SCHEMAS", "MODULE_STATS", "REPLAY_FAULTS",
-      "SIMULATION",      "ULOG_DROPOUTS",           "ULOG_INFO", "ULOG_LOG",        "ULOG_PARAMS"};
+      "SIMULATION",      "ULOG_DROPOUTS",           "ULOG_INFO", "ULOG_LOG",        "ULOG_PARAMS",  "ULOG_UTC"};
   /// Only the channels fully matching this ECMAScript regex (as lcm-logger's -c), and the bookkeeping channels
   /// above, which say how to read them; empty: every channel.
   std::string channels;

@@ -2,6 +2,7 @@
 #include "apps/diagnosis_json.h"
 
 #include "analyzers/clock_corrections.h"
+#include "apps/cli_util.h"
 
 #include <algorithm>
 #include <cmath>
@@ -264,20 +265,12 @@ nlohmann::json flight_log_json(const analyzers::FlightLogDiagnosis& f) {
   }
   nlohmann::json loss = nlohmann::json::array();
   for (const auto& l : f.imu_loss) loss.push_back({{"channel", l.channel}, {"field", l.field}, {"growth", l.growth}});
-  nlohmann::json timesync = nlohmann::json::array();
-  for (const auto& t : f.timesync) {
-    timesync.push_back({{"channel", t.channel},
-                        {"count", t.count},
-                        {"offset_s", {{"p50", t.offset_p50_s}, {"min", t.offset_min_s}, {"max", t.offset_max_s}}},
-                        {"rtt_s", {{"p50", t.rtt_p50_s}, {"p99", t.rtt_p99_s}, {"max", t.rtt_max_s}}},
-                        {"rtt_slow_share", t.rtt_slow_share},
-                        {"resyncs", t.resyncs}});
-  }
   nlohmann::json timeline = nlohmann::json::array();
   for (const auto& e : f.timeline) {
     timeline.push_back({{"kind", e.kind}, {"what", e.what}, {"start_s", e.start_s}, {"end_s", e.end_s}});
   }
   return {{"start_utime", f.start_utime},
+          {"utc", flight_utc_json(f.utc)},
           {"fusion_horizon",
            f.horizon_s > 0 ? nlohmann::json{{"s", f.horizon_s}, {"channel", f.horizon_channel}} : nlohmann::json()},
           {"dropouts",
@@ -286,9 +279,32 @@ nlohmann::json flight_log_json(const analyzers::FlightLogDiagnosis& f) {
           {"imu_intervals", imu},
           {"estimator", estimator},
           {"imu_loss", loss},
-          {"timesync", timesync},
           {"timeline", timeline},
           {"problems", f.problems}};
+}
+
+nlohmann::json flight_utc_json(const analyzers::FlightUtc& u) {
+  if (!u.known) return nullptr;
+  return {{"start", format_utime(u.start_utc_us)},
+          {"start_utc_us", u.start_utc_us},
+          {"start_utime", u.start_utime},
+          {"boot_to_utc_us", u.boot_to_utc_us},
+          {"fixes", u.fixes},
+          {"spread_s", u.spread_s},
+          {"channel", u.channel}};
+}
+
+std::string flight_utc_line(const analyzers::FlightUtc& u) {
+  if (!u.known) return "";
+  char buf[320];
+  std::snprintf(buf, sizeof buf,
+                "UTC (GNSS time, %s, %lld fixes agreeing within %.1f ms): the log starts (boot time %.6f s) at %s; UTC "
+                "= boot time + %lld.%06lld s",
+                u.channel.c_str(), static_cast<long long>(u.fixes), u.spread_s * 1e3,
+                static_cast<double>(u.start_utime) * 1e-6, format_utime(u.start_utc_us).c_str(),
+                static_cast<long long>(u.boot_to_utc_us / 1000000),
+                static_cast<long long>(std::abs(u.boot_to_utc_us % 1000000)));
+  return buf;
 }
 
 std::vector<std::string> flight_log_lines(const analyzers::FlightLogDiagnosis& f) {
@@ -296,6 +312,7 @@ std::vector<std::string> flight_log_lines(const analyzers::FlightLogDiagnosis& f
   if (!f.present) return lines;
   char buf[512];
   lines.push_back("flight log (PX4 ULog; times from the log's start):");
+  if (f.utc.known) lines.push_back("  " + flight_utc_line(f.utc));
   if (f.dropout_count == 0) {
     lines.push_back("  logger dropouts: none");
   } else {
@@ -393,15 +410,6 @@ std::vector<std::string> flight_log_lines(const analyzers::FlightLogDiagnosis& f
   if (counted) {
     lines.push_back("  IMU driver errors (vehicle_imu_status error counts over the log): " +
                     (error_total > 0 ? errors : std::string("none")));
-  }
-  for (const auto& t : f.timesync) {
-    std::snprintf(buf, sizeof buf,
-                  "  timesync (%s, %lld samples): offset %.3f ms (%.3f to %.3f), round trip %.2f ms p50, %.2f ms "
-                  "p99, %.2f ms max, %lld resyncs",
-                  t.channel.c_str(), static_cast<long long>(t.count), t.offset_p50_s * 1e3, t.offset_min_s * 1e3,
-                  t.offset_max_s * 1e3, t.rtt_p50_s * 1e3, t.rtt_p99_s * 1e3, t.rtt_max_s * 1e3,
-                  static_cast<long long>(t.resyncs));
-    lines.push_back(buf);
   }
   return lines;
 }

@@ -38,6 +38,12 @@ nlohmann::json to_json(const analyzers::Diagnosis& d);
 /// seconds from the log's start.
 nlohmann::json flight_log_json(const analyzers::FlightLogDiagnosis& f);
 
+/// A flight's UTC (analyzers/flight_log.h) as `info --json` and `diagnose --json` print it under "utc": null when
+/// the log has no GNSS time.
+nlohmann::json flight_utc_json(const analyzers::FlightUtc& u);
+/// Its line in `info`'s and `diagnose`'s text; empty when the log has no GNSS time.
+std::string flight_utc_line(const analyzers::FlightUtc& u);
+
 /// The flight-log section of `driftlab diagnose`'s text, a line each (empty when the log has no ULog data).
 std::vector<std::string> flight_log_lines(const analyzers::FlightLogDiagnosis& f);
 

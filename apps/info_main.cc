@@ -12,6 +12,7 @@
 #include "apps/cli_checks.h"
 #include "apps/cli_util.h"
 #include "apps/commands.h"
+#include "apps/diagnosis_json.h"
 #include "apps/log_input.h"
 #include "core/log_format.h"
 #include "core/log_index.h"
@@ -19,6 +20,7 @@
 #include "core/time.h"
 #include "driftlab/channel_source_t.hpp"
 #include "driftlab/recorder_stats_t.hpp"
+#include "formats/ulog_messages.h"
 #include "lcmtypes/seq_origin.h"
 #include "lcmtypes/type_registry.h"
 #include "lcmtypes/validate.h"
@@ -212,13 +214,19 @@ int run_info(const InfoOptions& o) {
   }
   const auto recorded = recorder_stats(o.log, s);
   const SourceTypes sources = source_types(o.log, s);
+  // A PX4 flight log's time of day, from its GNSS receiver (ULOG_UTC: the import writes it).
+  const bool has_utc = std::any_of(s.channels.begin(), s.channels.end(),
+                                   [](const auto& c) { return c.name == formats::kUlogUtcChannel; });
+  const analyzers::FlightUtc utc = has_utc ? analyzers::flight_utc(o.log, s.start_utime) : analyzers::FlightUtc{};
   if (o.json.wanted()) {
     auto j = to_json(o.log, s, sources);
     if (recorded) j["recorder"] = recorder_json(*recorded);
+    if (utc.known) j["utc"] = flight_utc_json(utc);
     if (!o.json.emit(j.dump(2) + "\n")) return kExitFailure;
   }
   if (!o.json.print) {
     print_table(o.log, s, sources, o.max_problems);
+    if (utc.known) std::printf("\n%s\n", flight_utc_line(utc).c_str());
     if (recorded) {
       const auto& r = *recorded;
       std::printf("\nrecorded by driftlab record: %s messages received from %d sender%s; lost %s (sequence gaps), "

@@ -27,6 +27,7 @@
 #include "driftlab/log_text_t.hpp"
 #include "driftlab/parameter_t.hpp"
 #include "driftlab/stamped_foreign_message_t.hpp"
+#include "driftlab/timesync_status_t.hpp"
 #include "formats/carmen.h"
 #include "formats/compression.h"
 #include "formats/mcap.h"
@@ -579,6 +580,20 @@ Status import_ulog(const std::string& path, Importer& out) {
       if (out.write(t, c.name, m->lcm)) {
         ++tc.messages;
         ++c.count;
+      }
+      if (const auto tie = ulog_gnss_utc(*s.layout, d.payload, d.timestamp)) {
+        Channel& u = records[kUlogUtcChannel];
+        timesync_status_t ts;
+        ts.header.seq = u.count;
+        ts.header.utime = tie->boot_us;
+        ts.header.frame_id = c.name;
+        ts.remote_utime = tie->utc_us;
+        ts.observed_offset_s = ts.estimated_offset_s = static_cast<double>(tie->utc_us - tie->boot_us) * 1e-6;
+        ts.round_trip_s = 0;  // a receiver's time: no exchange
+        if (out.write(t, kUlogUtcChannel, encode(ts))) {
+          ++out.topic(kUlogUtcChannel, "ULog GNSS UTC", "driftlab.timesync_status_t").messages;
+          ++u.count;
+        }
       }
       return;
     }

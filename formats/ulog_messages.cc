@@ -1,15 +1,21 @@
 #include "formats/ulog_messages.h"
 
+#include <array>
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <string>
 
 #include "driftlab/barometer_t.hpp"
 #include "driftlab/gnss_t.hpp"
 #include "driftlab/imu_t.hpp"
 #include "driftlab/magnetometer_t.hpp"
+#include "driftlab/motor_command_t.hpp"
 #include "driftlab/odometry_t.hpp"
 #include "driftlab/pose_t.hpp"
+#include "driftlab/timesync_status_t.hpp"
+#include "driftlab/trajectory_setpoint_t.hpp"
+#include "driftlab/vehicle_status_t.hpp"
 #include "lcmtypes/encode.h"
 
 namespace driftlab::formats {
@@ -210,6 +216,216 @@ std::optional<UlogConverted> attitude(const UlogLayout& l, std::span<const uint8
   return UlogConverted{"driftlab.pose_t", lcmtypes::encode(m)};
 }
 
+/// Three values of a vector PX4 logs either as one array (PX4 1.14 and later: `position[3]`) or as three fields
+/// (earlier: `x`, `y`, `z`); nullopt when the format has neither.
+std::optional<std::array<double, 3>> vector3(const UlogLayout& l, std::span<const uint8_t> p, const char* array,
+                                             const std::array<const char*, 3>& fields) {
+  if (has(l, array, 3))
+    return std::array<double, 3>{l.number(p, array, 0), l.number(p, array, 1), l.number(p, array, 2)};
+  for (const char* f : fields)
+    if (!has(l, f)) return std::nullopt;
+  return std::array<double, 3>{l.number(p, fields[0]), l.number(p, fields[1]), l.number(p, fields[2])};
+}
+
+/// v, given in the frame the unit quaternion q (w, x, y, z) rotates the body into, expressed in the body: q^-1 v q.
+std::array<double, 3> into_body(const std::array<double, 4>& q, const std::array<double, 3>& v) {
+  const double w = q[0], x = -q[1], y = -q[2], z = -q[3];  // the conjugate rotates the other way
+  // v + 2 w (u x v) + 2 u x (u x v), u = (x, y, z)
+  const double cx = y * v[2] - z * v[1], cy = z * v[0] - x * v[2], cz = x * v[1] - y * v[0];
+  return {v[0] + 2 * (w * cx + y * cz - z * cy), v[1] + 2 * (w * cy + z * cx - x * cz),
+          v[2] + 2 * (w * cz + x * cy - y * cx)};
+}
+
+/// vehicle_odometry: the pose of the body (forward-right-down) in a local frame and its velocities. PX4 1.14 and
+/// later: `position[3]`, `q[4]`, `velocity[3]`, `angular_velocity[3]`, `pose_frame` (1 NED, 2 FRD: a local frame
+/// whose x is the vehicle's heading at start), `velocity_frame` (1 NED, 2 FRD, 3 the body's FRD), the variances'
+/// diagonals; before: `x`, `y`, `z`, `vx`, `vy`, `vz`, `rollspeed`, `pitchspeed`, `yawspeed`, `local_frame` (0 NED,
+/// 1 FRD), `velocity_frame` (0 NED, 1 FRD, 3 body; PX4 1.12 and later), the upper triangles of the covariances.
+std::optional<UlogConverted> odometry(const UlogLayout& l, std::span<const uint8_t> p, uint64_t timestamp,
+                                      int64_t seq) {
+  const auto position = vector3(l, p, "position", {"x", "y", "z"});
+  const auto velocity = vector3(l, p, "velocity", {"vx", "vy", "vz"});
+  const auto rates = vector3(l, p, "angular_velocity", {"rollspeed", "pitchspeed", "yawspeed"});
+  if (!position || !velocity || !rates || !has(l, "q", 4)) return std::nullopt;
+  const bool v1_14 = has(l, "pose_frame");
+  if (!v1_14 && !has(l, "local_frame")) return std::nullopt;
+  const double pose_frame = l.number(p, v1_14 ? "pose_frame" : "local_frame");
+  odometry_t m;
+  m.header.seq = seq;
+  m.header.utime = sample_time(l, p, timestamp);
+  // Which local frame: north-east-down, or forward-right-down (x along the heading PX4 started with).
+  const double frd = v1_14 ? 2 : 1;
+  m.header.frame_id = pose_frame == frd ? "local_frd" : "local_ned";
+  m.child_frame_id = "body_frd";
+  m.position.x = (*position)[0];
+  m.position.y = (*position)[1];
+  m.position.z = (*position)[2];
+  const std::array<double, 4> q{l.number(p, "q", 0), l.number(p, "q", 1), l.number(p, "q", 2), l.number(p, "q", 3)};
+  m.orientation.w = q[0];
+  m.orientation.x = q[1];
+  m.orientation.y = q[2];
+  m.orientation.z = q[3];
+  // The velocity into the body's frame, as odometry_t holds it: as it is when PX4 gives it there, turned by the
+  // attitude when given in the local frame; NaN (not known) when the frame is not said (PX4 before 1.12) or is
+  // another PX4 does not define.
+  const double body_frame = 3;
+  const double velocity_frame = has(l, "velocity_frame") ? l.number(p, "velocity_frame") : kNaN;
+  const bool local = v1_14 ? velocity_frame == 1 || velocity_frame == 2 : velocity_frame == 0 || velocity_frame == 1;
+  std::array<double, 3> v{kNaN, kNaN, kNaN};
+  if (velocity_frame == body_frame) {
+    v = *velocity;
+  } else if (local) {
+    v = into_body(q, *velocity);
+  }
+  m.linear_velocity.x = v[0];
+  m.linear_velocity.y = v[1];
+  m.linear_velocity.z = v[2];
+  m.angular_velocity.x = (*rates)[0];  // PX4: about the body's axes
+  m.angular_velocity.y = (*rates)[1];
+  m.angular_velocity.z = (*rates)[2];
+  for (int i = 0; i < 36; ++i) m.pose_covariance[i] = m.twist_covariance[i] = 0;
+  auto finite_or_0 = [](double x) { return std::isfinite(x) ? x : 0.0; };  // 0: not given, as elsewhere
+  if (has(l, "position_variance", 3)) {
+    for (uint32_t i = 0; i < 3; ++i) {
+      const size_t d = size_t{7} * i;  // (i, i) of the 6x6
+      m.pose_covariance[d] = finite_or_0(l.number(p, "position_variance", i));
+      m.pose_covariance[d + 21] = finite_or_0(l.number(p, "orientation_variance", i));  // (i + 3, i + 3)
+      m.twist_covariance[d] = finite_or_0(l.number(p, "velocity_variance", i));
+    }
+  } else {
+    // The upper triangle of a 6x6, row by row (21 values), into the full matrix.
+    for (const char* name : {"pose_covariance", "velocity_covariance"}) {
+      if (!has(l, name, 21)) continue;
+      double* out = std::string_view(name) == "pose_covariance" ? m.pose_covariance : m.twist_covariance;
+      uint32_t k = 0;
+      for (int r = 0; r < 6; ++r) {
+        for (int c = r; c < 6; ++c, ++k) out[6 * r + c] = out[6 * c + r] = finite_or_0(l.number(p, name, k));
+      }
+    }
+  }
+  return UlogConverted{"driftlab.odometry_t", lcmtypes::encode(m)};
+}
+
+/// actuator_motors (PX4 1.13 and later): each motor's thrust setpoint, normalised, NaN for a motor stopped (all of
+/// them when disarmed) or not configured (those after the vehicle's last motor). actuator_outputs is not mapped: its
+/// values are in the output driver's units (PWM microseconds, DShot steps), not thrust.
+std::optional<UlogConverted> motors(const UlogLayout& l, std::span<const uint8_t> p, uint64_t timestamp, int64_t seq) {
+  const UlogLayout::Field* f = l.find("control");
+  if (!f || f->count == 0 || f->type != UlogType::kFloat) return std::nullopt;
+  motor_command_t m;
+  m.header.seq = seq;
+  m.header.utime = sample_time(l, p, timestamp);
+  m.header.frame_id = "base_link";
+  std::vector<double> control(f->count);
+  int32_t n = 0;  // up to the last motor with a setpoint
+  for (uint32_t i = 0; i < f->count; ++i) {
+    control[i] = l.number(p, "control", i);
+    if (std::isfinite(control[i])) n = static_cast<int32_t>(i) + 1;
+  }
+  m.armed = n > 0;
+  m.nmotors = n;
+  // A motor stopped among running ones (NaN) commands no thrust.
+  for (int32_t i = 0; i < n; ++i) m.control.push_back(std::isfinite(control[i]) ? control[i] : 0.0);
+  return UlogConverted{"driftlab.motor_command_t", lcmtypes::encode(m)};
+}
+
+/// trajectory_setpoint and vehicle_local_position_setpoint: where the vehicle should be in PX4's local frame
+/// (north-east-down), how fast and how it should be accelerating, and its heading (about down, from north); NaN
+/// where PX4 leaves a part unset. PX4 1.14 and later: `position[3]`, `velocity[3]`, `acceleration[3]`; before: `x`,
+/// `y`, `z`, `vx`, `vy`, `vz`, and `acceleration[3]` or (PX4 1.9) `acc_x`, `acc_y`, `acc_z`.
+std::optional<UlogConverted> setpoint(const UlogLayout& l, std::span<const uint8_t> p, uint64_t timestamp,
+                                      int64_t seq) {
+  const auto position = vector3(l, p, "position", {"x", "y", "z"});
+  const auto velocity = vector3(l, p, "velocity", {"vx", "vy", "vz"});
+  const auto acceleration = vector3(l, p, "acceleration", {"acc_x", "acc_y", "acc_z"});
+  if (!position || !velocity || !acceleration || !has(l, "yaw")) return std::nullopt;
+  trajectory_setpoint_t m;
+  m.header.seq = seq;
+  m.header.utime = sample_time(l, p, timestamp);
+  m.header.frame_id = "local_ned";
+  auto put = [](vector3_t& out, const std::array<double, 3>& v) {
+    out.x = v[0];
+    out.y = v[1];
+    out.z = v[2];
+  };
+  put(m.position, *position);
+  put(m.velocity, *velocity);
+  put(m.acceleration, *acceleration);
+  m.yaw = l.number(p, "yaw");
+  return UlogConverted{"driftlab.trajectory_setpoint_t", lcmtypes::encode(m)};
+}
+
+/// PX4's nav_state as a mode's name (vehicle_status.msg: the values have kept their meaning across versions).
+const char* nav_state_name(double s) {
+  static constexpr const char* kNames[] = {"manual",
+                                           "altitude",
+                                           "position",
+                                           "mission",
+                                           "hold",
+                                           "return",
+                                           "position_slow",
+                                           "",
+                                           "",
+                                           "",
+                                           "acro",
+                                           "",
+                                           "descend",
+                                           "termination",
+                                           "offboard",
+                                           "stabilized",
+                                           "",
+                                           "takeoff",
+                                           "land",
+                                           "follow_target",
+                                           "precision_land",
+                                           "orbit",
+                                           "vtol_takeoff"};
+  if (!(s >= 0 && s < static_cast<double>(std::size(kNames)))) return "unknown";
+  const char* n = kNames[static_cast<size_t>(s)];
+  return *n ? n : "unknown";
+}
+
+/// vehicle_status: armed (arming_state 2, ARMED, in every version), the navigation state's name as the mode, and why
+/// the vehicle was last armed or disarmed where PX4 says (latest_arming_reason, latest_disarming_reason: the number).
+/// vehicle_status carries no land detector's verdict (vehicle_land_detected does): `landed` is what PX4's land
+/// detector holds of a disarmed vehicle (landed) and false when armed; no offboard losses or setpoint age (-1).
+std::optional<UlogConverted> status(const UlogLayout& l, std::span<const uint8_t> p, uint64_t timestamp, int64_t seq) {
+  if (!has(l, "arming_state") || !has(l, "nav_state")) return std::nullopt;
+  vehicle_status_t m;
+  m.header.seq = seq;
+  m.header.utime = sample_time(l, p, timestamp);
+  m.header.frame_id = "base_link";
+  m.armed = l.number(p, "arming_state") == 2;
+  m.landed = !m.armed;
+  m.mode = nav_state_name(l.number(p, "nav_state"));
+  const char* reason = m.armed ? "latest_arming_reason" : "latest_disarming_reason";
+  const double r = has(l, reason) ? l.number(p, reason) : kNaN;
+  m.reason = std::isfinite(r)
+                 ? std::string(m.armed ? "armed" : "disarmed") + " by reason " + std::to_string(static_cast<int64_t>(r))
+                 : "";
+  m.offboard_losses = 0;
+  m.setpoint_age_s = -1;  // none known
+  return UlogConverted{"driftlab.vehicle_status_t", lcmtypes::encode(m)};
+}
+
+/// timesync_status (PX4 1.13 and later; `timesync` before): the flight controller's estimate of a companion's clock
+/// against its own, from one exchange: `remote_timestamp`, `observed_offset` and `estimated_offset` (remote - local
+/// [us]), `round_trip_time` [us]. Stamped with its timestamp, the flight controller's clock (the local side).
+std::optional<UlogConverted> timesync(const UlogLayout& l, std::span<const uint8_t> p, uint64_t timestamp,
+                                      int64_t seq) {
+  for (const char* f : {"remote_timestamp", "observed_offset", "estimated_offset", "round_trip_time"})
+    if (!has(l, f)) return std::nullopt;
+  timesync_status_t m;
+  m.header.seq = seq;
+  m.header.utime = ulog_utime(timestamp);
+  m.header.frame_id = "";
+  m.remote_utime = ulog_utime(l.u64(p, "remote_timestamp").value_or(0));
+  m.observed_offset_s = l.number(p, "observed_offset") * 1e-6;
+  m.estimated_offset_s = l.number(p, "estimated_offset") * 1e-6;
+  m.round_trip_s = l.number(p, "round_trip_time") * 1e-6;
+  return UlogConverted{"driftlab.timesync_status_t", lcmtypes::encode(m)};
+}
+
 }  // namespace
 
 const char* driftlab_type_for_ulog(std::string_view name) {
@@ -219,7 +435,28 @@ const char* driftlab_type_for_ulog(std::string_view name) {
   if (name == "sensor_gps" || name == "vehicle_gps_position") return "driftlab.gnss_t";
   if (name == "vehicle_local_position") return "driftlab.odometry_t";
   if (name == "vehicle_attitude") return "driftlab.pose_t";
+  if (name == "vehicle_odometry") return "driftlab.odometry_t";
+  if (name == "actuator_motors") return "driftlab.motor_command_t";
+  if (name == "trajectory_setpoint" || name == "vehicle_local_position_setpoint") {
+    return "driftlab.trajectory_setpoint_t";
+  }
+  if (name == "vehicle_status") return "driftlab.vehicle_status_t";
+  if (name == "timesync_status" || name == "timesync") return "driftlab.timesync_status_t";
   return nullptr;
+}
+
+std::optional<UlogUtcTie> ulog_gnss_utc(const UlogLayout& layout, std::span<const uint8_t> payload,
+                                        uint64_t timestamp) {
+  if (layout.name != "sensor_gps" && layout.name != "vehicle_gps_position") return std::nullopt;
+  const auto utc = layout.u64(payload, "time_utc_usec");
+  if (!utc || *utc == 0 || *utc > static_cast<uint64_t>(INT64_MAX) || !has(layout, "fix_type")) return std::nullopt;
+  if (!(layout.number(payload, "fix_type") >= 3)) return std::nullopt;
+  double relative = has(layout, "timestamp_time_relative") ? layout.number(payload, "timestamp_time_relative") : 0;
+  if (!std::isfinite(relative)) relative = 0;
+  const int64_t boot = ulog_utime(timestamp);
+  // timestamp_time_relative is an int32_t [us]: the sum stays in int64_t for any boot time short of its end.
+  if (boot > INT64_MAX / 2) return std::nullopt;
+  return UlogUtcTie{boot + static_cast<int64_t>(relative), static_cast<int64_t>(*utc)};
 }
 
 std::optional<UlogConverted> convert_ulog_message(const UlogLayout& layout, std::span<const uint8_t> payload,
@@ -235,6 +472,13 @@ std::optional<UlogConverted> convert_ulog_message(const UlogLayout& layout, std:
   }
   if (layout.name == "vehicle_local_position") return local_position(layout, payload, timestamp, seq);
   if (layout.name == "vehicle_attitude") return attitude(layout, payload, timestamp, seq);
+  if (layout.name == "vehicle_odometry") return odometry(layout, payload, timestamp, seq);
+  if (layout.name == "actuator_motors") return motors(layout, payload, timestamp, seq);
+  if (layout.name == "trajectory_setpoint" || layout.name == "vehicle_local_position_setpoint") {
+    return setpoint(layout, payload, timestamp, seq);
+  }
+  if (layout.name == "vehicle_status") return status(layout, payload, timestamp, seq);
+  if (layout.name == "timesync_status" || layout.name == "timesync") return timesync(layout, payload, timestamp, seq);
   return std::nullopt;
 }
 

@@ -1,8 +1,9 @@
 // The flight-log diagnosis (analyzers/flight_log.h): on the shared real PX4 flight logs (../shared/data/ulog, with
 // what pyulog finds in expected.json), and on flight logs written here with known faults injected (logger dropouts,
 // an IMU scheduler that skips, a sensor publishing late, test ratios over 1, rejection and timeout flags, time
-// slip, a slow timesync link), each threshold checked with a fault on either side of it; and on hostile logs
-// (formats with fields missing or of other types, messages cut short, schemas that do not resolve).
+// slip; a companion's timesync reset, judged by the timing diagnosis), each threshold checked with a fault on either
+// side of it; and on hostile logs (formats with fields missing or of other types, messages cut short, schemas that do
+// not resolve).
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
@@ -14,6 +15,7 @@
 #include <vector>
 
 #include "analyzers/flight_log.h"
+#include "analyzers/timing.h"
 #include "core/log_writer.h"
 #include "driftlab/dropout_t.hpp"
 #include "driftlab/foreign_message_t.hpp"
@@ -163,9 +165,8 @@ TEST(FlightLog, SitlFlightShowsTheSkippingSchedulerAndThreeEstimators) {
   }
   EXPECT_EQ(check(d, "estimator_innovation_test_ratios/0", "baro_vpos")->samples, 1279);
   ASSERT_NE(check(d, "estimator_status/2", "mag_test_ratio"), nullptr);
-  // No dropouts, no timesync (no companion computer).
+  // No dropouts.
   EXPECT_EQ(d.dropout_count, 0);
-  EXPECT_TRUE(d.timesync.empty());
 }
 
 TEST(FlightLog, AppendedDataFlightHasA4MsImu) {
@@ -379,17 +380,51 @@ TEST(FlightLog, InjectedFaultsAreEachFoundAndNamed) {
   // The same rejection as estimator_status' innovation_check_flags (the log has no estimator_status_flags).
   EXPECT_TRUE(has_problem(d, "rejected innovation_check_flags: vertical position")) << all_problems(d);
   EXPECT_TRUE(on_timeline("rejection", "baro_vpos", 2.0));
-  // The timeout, time slip and timesync.
+  // The timeout and time slip.
   EXPECT_TRUE(has_problem(d, "the estimator timed out on gps_fusion_timout")) << all_problems(d);
   EXPECT_TRUE(on_timeline("timeout", "gps_fusion_timout", 2.0));
   EXPECT_TRUE(has_problem(d, "fell 20 ms behind the IMU")) << all_problems(d);
-  ASSERT_EQ(d.timesync.size(), 1u);
-  EXPECT_EQ(d.timesync[0].count, 39);
-  EXPECT_EQ(d.timesync[0].resyncs, 1);
-  EXPECT_NEAR(d.timesync[0].rtt_slow_share, 4.0 / 39, 1e-9);
-  EXPECT_NEAR(d.timesync[0].rtt_max_s, 0.015, 1e-9);
-  EXPECT_TRUE(has_problem(d, "companion computer's link is slow")) << all_problems(d);
-  EXPECT_TRUE(has_problem(d, "clock offset was reset 1 time")) << all_problems(d);
+  // The companion's timesync_status is the timing diagnosis' (CompanionTimesyncIsJudgedAsEveryTimeSync), not this.
+  EXPECT_FALSE(has_problem(d, "timesync")) << all_problems(d);
+}
+
+// PX4's timesync_status is imported as driftlab.timesync_status_t, so the timing diagnosis judges it as it judges
+// MAVROS's: the same offsets, round trips and resyncs as the flight wrote (1 ms, then 51 ms from 2.0 s: one resync;
+// round trips of 2 ms, 4 of 39 of 15 ms).
+TEST(FlightLog, CompanionTimesyncIsJudgedAsEveryTimeSync) {
+  for (const bool slow_link : {true, false}) {
+    SCOPED_TRACE(slow_link ? "offset reset" : "steady link");
+    Faults f;
+    f = {false, false, false, false, false, false, false, false, false, slow_link};
+    test::TempDir dir;
+    test::write_file(dir.file("flight.ulg"), flight(f));
+    const std::string lcm = dir.file("flight.lcm");
+    ASSERT_TRUE(formats::import_log(dir.file("flight.ulg"), lcm, [](const std::string& p) { ADD_FAILURE() << p; }));
+    const auto d = diagnose(lcm);
+    ASSERT_TRUE(d) << d.error().message;
+    ASSERT_EQ(d->timesync.size(), 1u);
+    const TimesyncTiming& t = d->timesync[0];
+    EXPECT_EQ(t.channel, "timesync_status");
+    EXPECT_EQ(t.messages, 39);
+    EXPECT_NEAR(t.offset_first_s, 0.001, 1e-12);
+    EXPECT_NEAR(t.offset_last_s, slow_link ? 0.051 : 0.001, 1e-12);
+    EXPECT_NEAR(t.round_trip_s.p50, 0.002, 1e-12);
+    EXPECT_NEAR(t.round_trip_s.max, slow_link ? 0.015 : 0.002, 1e-12);
+    EXPECT_NEAR(t.residual_s.max, 0, 1e-12);  // observed = estimated in every exchange written
+    EXPECT_EQ(t.resyncs, slow_link ? 1 : 0);
+    if (slow_link) {
+      ASSERT_EQ(t.resync_at_s.size(), 1u);
+      // The step is at the sample of 2.0 s; the log starts at its first message, the sample of 0.1 s.
+      EXPECT_NEAR(t.resync_at_s[0] + static_cast<double>(d->start_utime) * 1e-6, 2.0, 1e-9);
+    }
+    const auto c = std::find_if(d->channels.begin(), d->channels.end(),
+                                [](const ChannelTiming& x) { return x.name == "timesync_status"; });
+    ASSERT_NE(c, d->channels.end());
+    const bool reason = std::any_of(c->reasons.begin(), c->reasons.end(), [](const auto& r) {
+      return r.find("time sync started over 1 times") != std::string::npos;
+    });
+    EXPECT_EQ(reason, slow_link);
+  }
 }
 
 TEST(FlightLog, CleanFlightHasNoProblems) {
@@ -556,7 +591,6 @@ TEST(FlightLog, DamagedRecordsInTheLogAreSkipped) {
   EXPECT_EQ(d->dropout_count, 0);
   // The cut float reads as nothing: a ratio series with no sample is left out.
   EXPECT_EQ(check(*d, "a", "gps_hpos[0]"), nullptr);
-  EXPECT_TRUE(d->timesync.empty());
   EXPECT_TRUE(d->problems.empty()) << all_problems(*d);
 }
 

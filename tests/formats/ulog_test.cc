@@ -5,15 +5,18 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <set>
 
+#include "analyzers/flight_log.h"
 #include "driftlab/barometer_t.hpp"
 #include "driftlab/channel_source_t.hpp"
 #include "driftlab/dropout_t.hpp"
@@ -23,9 +26,13 @@
 #include "driftlab/imu_t.hpp"
 #include "driftlab/log_text_t.hpp"
 #include "driftlab/magnetometer_t.hpp"
+#include "driftlab/motor_command_t.hpp"
 #include "driftlab/odometry_t.hpp"
 #include "driftlab/parameter_t.hpp"
 #include "driftlab/pose_t.hpp"
+#include "driftlab/timesync_status_t.hpp"
+#include "driftlab/trajectory_setpoint_t.hpp"
+#include "driftlab/vehicle_status_t.hpp"
 #include "formats/import.h"
 #include "formats/ulog.h"
 #include "lcmtypes/seq_origin.h"
@@ -37,7 +44,7 @@ namespace {
 
 using test::OwnedEvent;
 
-const std::set<std::string> kRecordChannels = {"ULOG_LOG",      "ULOG_PARAMS",     "ULOG_INFO",
+const std::set<std::string> kRecordChannels = {"ULOG_LOG",      "ULOG_PARAMS",     "ULOG_INFO",      "ULOG_UTC",
                                                "ULOG_DROPOUTS", "FOREIGN_SCHEMAS", "CHANNEL_SOURCES"};
 
 using test::f32;
@@ -189,6 +196,8 @@ TEST(Ulog, MessagesKeepTheirFormatAndTime) {
     std::map<std::string, foreign_schema_t> schemas;
     std::map<std::string, int64_t> seen;
     int64_t imus = 0;
+    std::vector<std::pair<int64_t, bool>> armed_times;        // vehicle_status: (time, armed)
+    std::vector<std::pair<int64_t, double>> vertical_speeds;  // vehicle_local_position: (time, vz) [m/s]
     for (const OwnedEvent& e : test::read_all(dir.file("out.lcm"))) {
       if (e.channel == "FOREIGN_SCHEMAS") {
         const auto s = test::decode<foreign_schema_t>(e);
@@ -229,6 +238,7 @@ TEST(Ulog, MessagesKeepTheirFormatAndTime) {
         }
         EXPECT_EQ(m.header.seq, seen[e.channel]);
         EXPECT_NEAR(std::hypot(m.orientation.w, m.orientation.z), 1.0, 1e-9);
+        if (std::isfinite(m.linear_velocity.z)) vertical_speeds.emplace_back(e.utime, m.linear_velocity.z);
         ++seen[e.channel];
         continue;
       }
@@ -243,6 +253,15 @@ TEST(Ulog, MessagesKeepTheirFormatAndTime) {
         const auto& q = m.orientation;
         EXPECT_NEAR(std::sqrt(q.w * q.w + q.x * q.x + q.y * q.y + q.z * q.z), 1.0, 1e-5);
         EXPECT_TRUE(std::isnan(m.position.x));
+        ++seen[e.channel];
+        continue;
+      }
+      if (e.channel == "vehicle_status") {
+        const auto m = test::decode<vehicle_status_t>(e);
+        EXPECT_EQ(m.header.utime, e.utime);  // no timestamp_sample
+        EXPECT_NE(m.mode, "unknown") << "a nav_state PX4 defines";
+        EXPECT_NE(m.landed, m.armed);
+        armed_times.push_back({e.utime, m.armed});
         ++seen[e.channel];
         continue;
       }
@@ -312,6 +331,23 @@ TEST(Ulog, MessagesKeepTheirFormatAndTime) {
         << schemas["position_setpoint_triplet"].definition;
     EXPECT_GT(seen["vehicle_gps_position"], 0);
     EXPECT_GT(seen["vehicle_local_position"], 0);
+    EXPECT_GT(seen["vehicle_status"], 0);
+    // Physics against the status: while vehicle_status says disarmed, the vehicle stands still (its motors are
+    // stopped): the estimated vertical speed stays under 0.5 m/s, well above an estimator's noise at rest (the SITL
+    // log's, disarmed throughout, stays within centimetres per second) and well below a landing's descent.
+    int64_t disarmed_samples = 0;
+    for (const auto& [t, vz] : vertical_speeds) {
+      auto at = std::upper_bound(armed_times.begin(), armed_times.end(), std::make_pair(t, true));
+      if (at == armed_times.begin() || std::prev(at)->second) continue;
+      ++disarmed_samples;
+      EXPECT_LT(std::abs(vz), 0.5) << "moving at " << t << " us while disarmed";
+    }
+    EXPECT_GT(disarmed_samples, 0);
+    // The CubeOrange log is a landing: armed, then disarmed once on the ground; the SITL vehicle never arms.
+    const bool lands = std::string(name) == "sample_log_small.ulg";
+    ASSERT_FALSE(armed_times.empty());
+    EXPECT_EQ(armed_times.front().second, lands);
+    EXPECT_FALSE(armed_times.back().second);
     EXPECT_GT(seen["vehicle_attitude"], 0);
     for (const char* topic : {"vehicle_imu", "sensor_baro", "sensor_mag"}) EXPECT_GT(seen[topic], 0) << topic;
   }
@@ -323,6 +359,8 @@ struct Imported {
   std::map<std::string, std::array<int64_t, 3>> topics;
   int64_t logs = 0, tagged_logs = 0;
   std::vector<int64_t> dropouts_ms;
+  std::vector<std::array<int64_t, 2>> gnss_utc;  // ULOG_UTC: (boot, UTC) [us]
+  analyzers::FlightUtc utc;                      // what info and diagnose say of them
 };
 Imported imported(const std::string& path) {
   Imported out;
@@ -335,6 +373,9 @@ Imported imported(const std::string& path) {
       ++(test::decode<log_text_t>(e).tag < 0 ? out.logs : out.tagged_logs);
     } else if (e.channel == "ULOG_DROPOUTS") {
       out.dropouts_ms.push_back(test::decode<dropout_t>(e).duration_us / 1000);
+    } else if (e.channel == "ULOG_UTC") {
+      const auto m = test::decode<timesync_status_t>(e);
+      out.gnss_utc.push_back({m.header.utime, m.remote_utime});
     } else if (!kRecordChannels.count(e.channel)) {
       auto [it, fresh] = out.topics.try_emplace(e.channel, std::array<int64_t, 3>{0, e.utime, e.utime});
       auto& t = it->second;
@@ -343,6 +384,7 @@ Imported imported(const std::string& path) {
       t[2] = std::max(t[2], e.utime);
     }
   }
+  out.utc = analyzers::flight_utc(dir.file("out.lcm"), 0);
   return out;
 }
 
@@ -379,6 +421,27 @@ TEST(Ulog, ImportAgreesWithFoxglovesReader) {
     EXPECT_EQ(got.logs, fox["logs"].get<int64_t>());
     EXPECT_EQ(got.tagged_logs, fox["tagged_logs"].get<int64_t>());
     EXPECT_EQ(got.dropouts_ms, fox["dropouts_ms"].get<std::vector<int64_t>>());
+    // The GNSS receiver's UTC against the boot clock: each fix's pair as Foxglove reads it, and the log's start in
+    // UTC from their median offset (numpy's: the middle two's mean for an even count) and the header's start.
+    const auto want_utc = fox["gnss_utc"].get<std::vector<std::array<int64_t, 2>>>();
+    EXPECT_EQ(got.gnss_utc, want_utc);
+    EXPECT_EQ(got.utc.known, !want_utc.empty());
+    if (want_utc.empty()) continue;
+    std::vector<int64_t> offsets;
+    for (const auto& [boot, utc] : want_utc) offsets.push_back(utc - boot);
+    std::sort(offsets.begin(), offsets.end());
+    const size_t n = offsets.size();
+    const int64_t median =
+        n % 2 ? offsets[n / 2]
+              : std::llround((static_cast<double>(offsets[n / 2 - 1]) + static_cast<double>(offsets[n / 2])) / 2);
+    EXPECT_EQ(got.utc.boot_to_utc_us, median);
+    EXPECT_EQ(got.utc.start_utime, fox["start_us"].get<int64_t>());
+    EXPECT_EQ(got.utc.start_utc_us, fox["start_us"].get<int64_t>() + median);
+    EXPECT_EQ(got.utc.fixes, static_cast<int64_t>(n));
+    EXPECT_NEAR(got.utc.spread_s, static_cast<double>(offsets.back() - offsets.front()) * 1e-6, 1e-9);
+    // A GNSS time is UTC of this century: after 2015 (the oldest of these PX4 versions) and before 2030.
+    EXPECT_GT(got.utc.start_utc_us, int64_t{1420070400} * 1000000);
+    EXPECT_LT(got.utc.start_utc_us, int64_t{1893456000} * 1000000);
   }
 }
 
@@ -722,6 +785,261 @@ TEST(Ulog, RecordsOnTheirOwnChannels) {
   EXPECT_EQ(logs, 1);
   EXPECT_EQ(drops, 1);
   EXPECT_EQ(infos, 1);
+}
+
+/// A data message's bytes as its format lays them out, field by field.
+struct Fields {
+  std::vector<uint8_t> b;
+  Fields& u64(uint64_t v) {
+    put(b, v, 8);
+    return *this;
+  }
+  Fields& u8(uint8_t v) {
+    b.push_back(v);
+    return *this;
+  }
+  Fields& u16(uint16_t v) {
+    put(b, v, 2);
+    return *this;
+  }
+  Fields& f(std::initializer_list<float> values) {
+    for (const float v : values) {
+      const auto x = f32(v);
+      b.insert(b.end(), x.begin(), x.end());
+    }
+    return *this;
+  }
+};
+
+/// The import of u: every channel's events, in order.
+std::map<std::string, std::vector<OwnedEvent>> import_written(const Ulog& u) {
+  test::TempDir dir;
+  test::write_file(dir.file("f.ulg"), u.b);
+  auto s = import_log(dir.file("f.ulg"), dir.file("out.lcm"), [](const std::string& p) { ADD_FAILURE() << p; });
+  EXPECT_TRUE(s);
+  std::map<std::string, std::vector<OwnedEvent>> out;
+  for (auto& e : test::read_all(dir.file("out.lcm"))) out[e.channel].push_back(std::move(e));
+  return out;
+}
+
+constexpr float kNaNf = std::numeric_limits<float>::quiet_NaN();
+const float kHalfSqrt2 = static_cast<float>(std::sqrt(0.5));
+
+// vehicle_odometry, the setpoints and actuator_motors as PX4 1.14 lays them out (arrays: position[3], velocity[3];
+// pose_frame and velocity_frame 1 NED, 2 FRD, 3 body; variances), each value read by its name.
+TEST(Ulog, OdometrySetpointsAndMotorsOfPx4_1_14) {
+  Ulog u;
+  u.flags(0);
+  u.format(
+      "vehicle_odometry:uint64_t timestamp;uint64_t timestamp_sample;float[3] position;float[4] q;float[3] velocity;"
+      "float[3] angular_velocity;float[3] position_variance;float[3] orientation_variance;float[3] "
+      "velocity_variance;uint8_t pose_frame;uint8_t velocity_frame;uint8_t reset_counter;int8_t quality;uint8_t[4] "
+      "_padding0;");
+  u.format(
+      "trajectory_setpoint:uint64_t timestamp;float[3] position;float[3] velocity;float[3] acceleration;float[3] "
+      "jerk;float yaw;float yawspeed;");
+  u.format("actuator_motors:uint64_t timestamp;uint64_t timestamp_sample;uint16_t reversible_flags;float[12] control;");
+  u.subscribe(0, 1, "vehicle_odometry");
+  u.subscribe(0, 2, "trajectory_setpoint");
+  u.subscribe(0, 3, "actuator_motors");
+  // Heading east (90 degrees about down), flying north at 1 m/s: in the body that is 1 m/s to its left (-y).
+  u.data_bytes(1, Fields{}
+                      .u64(2000)
+                      .u64(1900)
+                      .f({1, 2, -3, kHalfSqrt2, 0, 0, kHalfSqrt2, 1, 0, 0, 0.1f, 0.2f, 0.3f})
+                      .f({0.01f, 0.02f, 0.03f, 0.001f, 0.002f, 0.003f, 0.04f, 0.05f, 0.06f})
+                      .u8(1)
+                      .u8(1)
+                      .u8(0)
+                      .u8(100)
+                      .b);
+  // In an FRD local frame, its velocity already in the body's: kept as it is.
+  u.data_bytes(1, Fields{}
+                      .u64(3000)
+                      .u64(2950)
+                      .f({0, 0, 0, 1, 0, 0, 0, 0.5f, 0, 0, 0, 0, 0})
+                      .f({0, 0, 0, 0, 0, 0, 0, 0, 0})
+                      .u8(2)
+                      .u8(3)
+                      .u8(0)
+                      .u8(100)
+                      .b);
+  u.data_bytes(2, Fields{}.u64(2100).f({1, 2, -5, kNaNf, kNaNf, kNaNf, 0, 0, 0.5f, 0, 0, 0, 1.5f, 0}).b);
+  u.data_bytes(3, Fields{}
+                      .u64(2200)
+                      .u64(2190)
+                      .u16(0)
+                      .f({0.1f, 0.2f, 0.3f, 0.4f})
+                      .f(std::initializer_list<float>({kNaNf, kNaNf, kNaNf, kNaNf, kNaNf, kNaNf, kNaNf, kNaNf}))
+                      .b);
+  Fields disarmed;
+  disarmed.u64(2300).u64(2290).u16(0);
+  for (int i = 0; i < 12; ++i) disarmed.f({kNaNf});
+  u.data_bytes(3, disarmed.b);
+  auto ch = import_written(u);
+
+  ASSERT_EQ(ch["vehicle_odometry"].size(), 2u);
+  const auto o = test::decode<odometry_t>(ch["vehicle_odometry"][0]);
+  EXPECT_EQ(ch["vehicle_odometry"][0].utime, 2000);
+  EXPECT_EQ(o.header.utime, 1900);  // timestamp_sample
+  EXPECT_EQ(o.header.frame_id, "local_ned");
+  EXPECT_EQ(o.child_frame_id, "body_frd");
+  EXPECT_NEAR(o.position.x, 1, 1e-6);
+  EXPECT_NEAR(o.position.z, -3, 1e-6);
+  EXPECT_NEAR(o.orientation.w, std::sqrt(0.5), 1e-6);
+  EXPECT_NEAR(o.orientation.z, std::sqrt(0.5), 1e-6);
+  EXPECT_NEAR(o.linear_velocity.x, 0, 1e-6);
+  EXPECT_NEAR(o.linear_velocity.y, -1, 1e-6);
+  EXPECT_NEAR(o.linear_velocity.z, 0, 1e-6);
+  EXPECT_NEAR(o.angular_velocity.z, 0.3, 1e-6);
+  EXPECT_NEAR(o.pose_covariance[0], 0.01, 1e-8);
+  EXPECT_NEAR(o.pose_covariance[14], 0.03, 1e-8);
+  EXPECT_NEAR(o.pose_covariance[35], 0.003, 1e-9);
+  EXPECT_NEAR(o.twist_covariance[7], 0.05, 1e-8);
+  EXPECT_EQ(o.pose_covariance[1], 0);
+  const auto frd = test::decode<odometry_t>(ch["vehicle_odometry"][1]);
+  EXPECT_EQ(frd.header.frame_id, "local_frd");
+  EXPECT_NEAR(frd.linear_velocity.x, 0.5, 1e-6);
+
+  ASSERT_EQ(ch["trajectory_setpoint"].size(), 1u);
+  const auto sp = test::decode<trajectory_setpoint_t>(ch["trajectory_setpoint"][0]);
+  EXPECT_EQ(sp.header.utime, 2100);
+  EXPECT_EQ(sp.header.frame_id, "local_ned");
+  EXPECT_NEAR(sp.position.z, -5, 1e-6);
+  EXPECT_TRUE(std::isnan(sp.velocity.x));  // unset by PX4: kept unset
+  EXPECT_NEAR(sp.acceleration.z, 0.5, 1e-6);
+  EXPECT_NEAR(sp.yaw, 1.5, 1e-6);
+
+  ASSERT_EQ(ch["actuator_motors"].size(), 2u);
+  const auto armed = test::decode<motor_command_t>(ch["actuator_motors"][0]);
+  EXPECT_EQ(armed.header.utime, 2190);
+  EXPECT_TRUE(armed.armed);
+  ASSERT_EQ(armed.nmotors, 4);  // the motors after the fourth are not configured (NaN)
+  EXPECT_NEAR(armed.control[3], 0.4, 1e-6);
+  const auto stopped = test::decode<motor_command_t>(ch["actuator_motors"][1]);
+  EXPECT_FALSE(stopped.armed);
+  EXPECT_EQ(stopped.nmotors, 0);
+}
+
+// The same topics as earlier PX4 versions lay them out: x, y, z and vx, vy, vz (1.12: local_frame 0 NED,
+// velocity_frame 0 NED, the covariances' upper triangles; 1.10: no velocity_frame, so the velocity's frame is not
+// known), PX4 1.9's acc_x, acc_y, acc_z; and formats lacking a field a mapping needs, which stay carried as they are.
+TEST(Ulog, OdometryAndSetpointsOfEarlierPx4AndIncompleteFormats) {
+  Ulog u;
+  u.flags(0);
+  u.format(
+      "vehicle_odometry:uint64_t timestamp;uint64_t timestamp_sample;float x;float y;float z;float[4] q;float[4] "
+      "q_offset;float[21] pose_covariance;float vx;float vy;float vz;float rollspeed;float pitchspeed;float "
+      "yawspeed;float[21] velocity_covariance;uint8_t local_frame;uint8_t velocity_frame;");
+  u.format(
+      "vehicle_local_position_setpoint:uint64_t timestamp;float x;float y;float z;float yaw;float vx;float vy;float "
+      "vz;float acc_x;float acc_y;float acc_z;");
+  u.format("trajectory_setpoint:uint64_t timestamp;float x;float y;float z;float vx;float vy;float vz;");  // no yaw
+  u.format("actuator_motors:uint64_t timestamp;uint16_t[12] control;");                                    // not floats
+  u.subscribe(0, 1, "vehicle_odometry");
+  u.subscribe(0, 2, "vehicle_local_position_setpoint");
+  u.subscribe(0, 3, "trajectory_setpoint");
+  u.subscribe(0, 4, "actuator_motors");
+  // Heading south (180 degrees about down), flying east at 2 m/s: 2 m/s to its left in the body.
+  Fields odom;
+  odom.u64(5000).u64(4900).f({4, 5, 6, 0, 0, 0, 1, 1, 0, 0, 0});
+  for (int k = 0; k < 21; ++k) odom.f({0.01f * static_cast<float>(k + 1)});
+  odom.f({0, 2, 0, 0, 0, -0.5f});
+  for (int k = 0; k < 21; ++k) odom.f({0});
+  odom.u8(0).u8(0);
+  u.data_bytes(1, odom.b);
+  u.data_bytes(2, Fields{}.u64(5100).f({1, 1, -2, 0.5f, 0, 0, -1, 0, 0, 0.2f}).b);
+  u.data_bytes(3, Fields{}.u64(5200).f({1, 1, -2, 0, 0, 0}).b);
+  Fields motors;
+  motors.u64(5300);
+  for (int i = 0; i < 12; ++i) motors.u16(1500);
+  u.data_bytes(4, motors.b);
+  auto ch = import_written(u);
+
+  ASSERT_EQ(ch["vehicle_odometry"].size(), 1u);
+  const auto o = test::decode<odometry_t>(ch["vehicle_odometry"][0]);
+  EXPECT_EQ(o.header.utime, 4900);
+  EXPECT_EQ(o.header.frame_id, "local_ned");
+  EXPECT_NEAR(o.position.y, 5, 1e-6);
+  EXPECT_NEAR(o.linear_velocity.x, 0, 1e-6);
+  EXPECT_NEAR(o.linear_velocity.y, -2, 1e-6);
+  EXPECT_NEAR(o.angular_velocity.z, -0.5, 1e-6);
+  // The upper triangle, row by row, mirrored: (0,0) is its first value, (0,1) and (1,0) its second, (1,1) its
+  // seventh (after row 0's six), (5,5) its last.
+  EXPECT_NEAR(o.pose_covariance[0], 0.01, 1e-8);
+  EXPECT_NEAR(o.pose_covariance[1], 0.02, 1e-8);
+  EXPECT_NEAR(o.pose_covariance[6], 0.02, 1e-8);
+  EXPECT_NEAR(o.pose_covariance[7], 0.07, 1e-8);
+  EXPECT_NEAR(o.pose_covariance[35], 0.21, 1e-8);
+
+  ASSERT_EQ(ch["vehicle_local_position_setpoint"].size(), 1u);
+  const auto sp = test::decode<trajectory_setpoint_t>(ch["vehicle_local_position_setpoint"][0]);
+  EXPECT_NEAR(sp.position.z, -2, 1e-6);
+  EXPECT_NEAR(sp.velocity.z, -1, 1e-6);
+  EXPECT_NEAR(sp.acceleration.z, 0.2, 1e-6);
+  EXPECT_NEAR(sp.yaw, 0.5, 1e-6);
+
+  // Without yaw, or with control in integers, the topics are carried as the file has them.
+  for (const char* topic : {"trajectory_setpoint", "actuator_motors"}) {
+    ASSERT_EQ(ch[topic].size(), 1u) << topic;
+    const auto f = test::decode<foreign_message_t>(ch[topic][0]);
+    EXPECT_EQ(f.type, topic);
+  }
+
+  // PX4 1.10's vehicle_odometry, without velocity_frame: the pose as given, the velocity not known.
+  Ulog v10;
+  v10.flags(0);
+  v10.format(
+      "vehicle_odometry:uint64_t timestamp;float x;float y;float z;float[4] q;float vx;float vy;float vz;float "
+      "rollspeed;float pitchspeed;float yawspeed;uint8_t local_frame;");
+  v10.subscribe(0, 1, "vehicle_odometry");
+  v10.data_bytes(1, Fields{}.u64(7000).f({1, 2, 3, 1, 0, 0, 0, 1, 1, 1, 0, 0, 0}).u8(1).b);
+  auto ch10 = import_written(v10);
+  ASSERT_EQ(ch10["vehicle_odometry"].size(), 1u);
+  const auto o10 = test::decode<odometry_t>(ch10["vehicle_odometry"][0]);
+  EXPECT_EQ(o10.header.utime, 7000);
+  EXPECT_EQ(o10.header.frame_id, "local_frd");  // local_frame 1 before PX4 1.14
+  EXPECT_NEAR(o10.position.z, 3, 1e-6);
+  EXPECT_TRUE(std::isnan(o10.linear_velocity.x));
+}
+
+// A GNSS time counts only with a 3D fix (before it, a receiver's clock is not solved) and when set (0: not known);
+// it is the UTC of timestamp + timestamp_time_relative, as vehicle_gps_position.msg defines it.
+TEST(Ulog, GnssUtcNeedsA3dFixAndATime) {
+  Ulog u;
+  u.flags(0);
+  u.format(
+      "vehicle_gps_position:uint64_t timestamp;uint64_t time_utc_usec;int32_t lat;int32_t lon;int32_t alt;float "
+      "eph;float epv;int32_t timestamp_time_relative;uint8_t fix_type;uint8_t satellites_used;");
+  u.subscribe(0, 1, "vehicle_gps_position");
+  auto gps = [&](uint64_t t, uint64_t utc, int32_t relative, uint8_t fix) {
+    Fields f;
+    f.u64(t).u64(utc);
+    put(f.b, 473977420, 4);
+    put(f.b, 85455940, 4);
+    put(f.b, 488000, 4);
+    f.f({1, 2});
+    put(f.b, static_cast<uint32_t>(relative), 4);
+    f.u8(fix).u8(fix >= 3 ? 10 : 0);
+    u.data_bytes(1, f.b);
+  };
+  const uint64_t utc0 = 1700000000000000;
+  gps(2000000, utc0, 0, 2);                // a 2D fix: its time is not taken
+  gps(3000000, 0, 0, 3);                   // a 3D fix without a time
+  gps(4000000, utc0 + 2000000, -5000, 3);  // UTC at boot time 3.995 s
+  gps(5000000, utc0 + 3000000, -5000, 3);
+  gps(6000000, utc0 + 4000000, -5000, 6);  // RTK fixed: a 3D fix too
+  test::TempDir dir;
+  test::write_file(dir.file("f.ulg"), u.b);
+  ASSERT_TRUE(import_log(dir.file("f.ulg"), dir.file("out.lcm"), [](const std::string& p) { ADD_FAILURE() << p; }));
+  const auto utc = analyzers::flight_utc(dir.file("out.lcm"), 0);
+  ASSERT_TRUE(utc.known);
+  EXPECT_EQ(utc.fixes, 3);
+  EXPECT_EQ(utc.boot_to_utc_us, static_cast<int64_t>(utc0) - 1995000);  // utc0 + 2 s at 3.995 s
+  EXPECT_EQ(utc.spread_s, 0);
+  EXPECT_EQ(utc.channel, "vehicle_gps_position");
+  // No information fields: the log's start is the one given, here 0, the boot.
+  EXPECT_EQ(utc.start_utc_us, static_cast<int64_t>(utc0) - 1995000);
 }
 
 }  // namespace

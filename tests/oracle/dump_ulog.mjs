@@ -1,7 +1,10 @@
 // Reads a PX4 ULog with Foxglove's own reader (@foxglove/ulog) and prints, as one JSON object, what driftlab's
 // import is compared with (tests/formats/ulog_test.cc):
 //   node dump_ulog.mjs FILE.ulg
-// {"start_us", "topics": {CHANNEL: {"count", "first_us", "last_us"}}, "logs", "tagged_logs", "dropouts_ms": [...]}
+// {"start_us", "topics": {CHANNEL: {"count", "first_us", "last_us"}}, "logs", "tagged_logs", "dropouts_ms": [...],
+//  "gnss_utc": [[boot_us, utc_us], ...]}
+// gnss_utc: every sensor_gps / vehicle_gps_position message with a 3D fix (fix_type 3 and up) and a UTC time
+// (time_utc_usec, not 0), the boot time of that UTC time as PX4 defines it: timestamp + timestamp_time_relative.
 // A channel is named as driftlab names it: the topic's name when it is logged in one instance, 0, else
 // "name/multi_id". first_us and last_us are the smallest and largest `timestamp` of the topic's messages (the
 // reader yields them in time order, not in file order).
@@ -20,6 +23,7 @@ const perId = new Map();  // msgId -> {count, first, last}
 let logs = 0;
 let taggedLogs = 0;
 const dropouts = [];
+const gnssUtc = [];
 for await (const msg of ulog.readMessages()) {
   if (msg.type === MessageType.Data) {
     const t = msg.value.timestamp;
@@ -28,6 +32,11 @@ for await (const msg of ulog.readMessages()) {
     if (t < s.first) s.first = t;
     if (t > s.last) s.last = t;
     perId.set(msg.msgId, s);
+    const name = ulog.subscriptions.get(msg.msgId)?.name;
+    const v = msg.value;
+    if ((name === "sensor_gps" || name === "vehicle_gps_position") && v.fix_type >= 3 && v.time_utc_usec > 0n) {
+      gnssUtc.push([Number(t + BigInt(v.timestamp_time_relative ?? 0)), Number(v.time_utc_usec)]);
+    }
   } else if (msg.type === MessageType.Log) {
     logs += 1;
   } else if (msg.type === MessageType.LogTagged) {
@@ -65,4 +74,5 @@ console.log(JSON.stringify({
   logs,
   tagged_logs: taggedLogs,
   dropouts_ms: dropouts,
+  gnss_utc: gnssUtc,
 }));
