@@ -180,4 +180,15 @@ Result<PairImport> import_flight_log_pair(const FlightLogPair& pair, const std::
   return r;
 }
 
+Result<formats::ImportSummary> import_recording(const std::vector<std::string>& inputs, const std::string& out,
+                                                const std::function<void(const std::string&)>& on_problem,
+                                                std::string* alignment) {
+  const std::optional<FlightLogPair> pair = flight_log_pair(inputs);
+  if (!pair) return formats::import_log(inputs, out, on_problem);
+  auto both = import_flight_log_pair(*pair, out, on_problem);
+  if (!both) return both.error();
+  *alignment = std::move(both->alignment);
+  return std::move(both->summary);
+}
+
 }  // namespace driftlab::apps

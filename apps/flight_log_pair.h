@@ -38,4 +38,10 @@ struct PairImport {
 Result<PairImport> import_flight_log_pair(const FlightLogPair& pair, const std::string& out,
                                           const std::function<void(const std::string&)>& on_problem);
 
+/// What `driftlab import` and the conversion cache make of inputs: import_flight_log_pair() for a flight log beside
+/// a bag (its alignment line in *alignment), formats::import_log() for anything else (*alignment left empty).
+Result<formats::ImportSummary> import_recording(const std::vector<std::string>& inputs, const std::string& out,
+                                                const std::function<void(const std::string&)>& on_problem,
+                                                std::string* alignment);
+
 }  // namespace driftlab::apps

@@ -85,18 +85,7 @@ void add_import_file_command(CLI::App& import, int* exit_code) {
       if (printed++ < kProblemLines) std::fprintf(stderr, "driftlab: %s\n", line.c_str());
     };
     std::string alignment;
-    Result<formats::ImportSummary> r = Error("");
-    if (const auto pair = flight_log_pair(args->in)) {
-      auto both = import_flight_log_pair(*pair, args->out, on_problem);
-      if (both) {
-        alignment = both->alignment;
-        r = std::move(both->summary);
-      } else {
-        r = both.error();
-      }
-    } else {
-      r = formats::import_log(args->in, args->out, on_problem);
-    }
+    auto r = import_recording(args->in, args->out, on_problem, &alignment);
     if (!r) {
       *exit_code = fail(r.error().message, exit_code_for(r.error(), args->out));
       return;

@@ -183,7 +183,6 @@ std::string import_cache_path(const std::vector<std::string>& inputs) {
 
 Result<std::string> log_for(const std::vector<std::string>& inputs) {
   if (inputs.empty()) return Error("no log given");
-  const std::optional<FlightLogPair> pair = flight_log_pair(inputs);
   for (const auto& in : inputs) {
     const formats::Detected d = formats::detect_format(in);
     if (d.format == formats::Format::kMrptRawlog) {
@@ -251,18 +250,7 @@ Result<std::string> log_for(const std::vector<std::string>& inputs) {
     if (printed++ < kProblemLines) std::fprintf(stderr, "driftlab: %s\n", line.c_str());
   };
   std::string alignment;
-  Result<formats::ImportSummary> summary = Error("");
-  if (pair) {
-    auto both = import_flight_log_pair(*pair, cache, on_problem);
-    if (both) {
-      alignment = both->alignment;
-      summary = std::move(both->summary);
-    } else {
-      summary = both.error();
-    }
-  } else {
-    summary = formats::import_log(inputs, cache, on_problem);
-  }
+  auto summary = import_recording(inputs, cache, on_problem, &alignment);
   if (!summary) {
     // Writing the conversion failed (a full disk): an I/O failure, named by the input and the cache, not by the
     // partial file, which is gone. Anything else is the recording's.

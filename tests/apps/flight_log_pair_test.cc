@@ -162,8 +162,8 @@ TEST(FlightLogBesideBag, ABagOfAnotherMotionIsRefusedInOneLine) {
   const std::vector<Sample> imu = flight_imu(ulog, dir);
   const std::string bag = dir.file("other.mcap");
   if (!test::oracle_write_mcap(mavros_bag(imu, true), bag)) return;
-  for (const std::string cmd : {"import '" + bag + "' '" + ulog + "' -o '" + dir.file("both.lcm") + "'",
-                                "diagnose '" + bag + "' '" + ulog + "'"}) {
+  for (const std::string& cmd : {"import '" + bag + "' '" + ulog + "' -o '" + dir.file("both.lcm") + "'",
+                                 "diagnose '" + bag + "' '" + ulog + "'"}) {
     const auto r = test::run_capture(kDriftlab + " " + cmd);
     EXPECT_EQ(r.code, 2) << cmd;
     EXPECT_EQ(r.out, "");
@@ -184,7 +184,7 @@ TEST(FlightLogBesideBag, ABagWithoutAnImuIsRefused) {
   const std::string bag = dir.file("status.mcap");
   json msgs = json::array();
   for (int i = 0; i < 20; ++i) {
-    const int64_t us = kBootOnWallClockUs + 12'000'000 + i * 100'000;
+    const int64_t us = kBootOnWallClockUs + 12'000'000 + int64_t{i} * 100'000;
     msgs.push_back(
         {{"topic", "/mavros/state"},
          {"type", "mavros_msgs/msg/State"},
