@@ -6,6 +6,7 @@
 
 #include "apps/cli_util.h"
 #include "apps/commands.h"
+#include "apps/flight_log_pair.h"
 #include "core/same_file.h"
 #include "formats/import.h"
 
@@ -51,8 +52,10 @@ void add_import_file_command(CLI::App& import, int* exit_code) {
       "flight logs (ULog, .ulg) and MRPT rawlogs. The files of a split recording are one recording: give its folder\n"
       "or all of its files. Header stamps become header.utime, the recording's receive times the event times (a\n"
       "ULog message: timestamp_sample, or timestamp, and its timestamp). Topics keep their names as channels (a\n"
-      "ULog topic logged in several instances: name/instance). See docs/import.md.");
-  import.add_option("file", args->in, "Log to convert (a bag folder, or the files of one recording)");
+      "ULog topic logged in several instances: name/instance). A flight log (ULog) given beside a bag of the same\n"
+      "flight is put on the bag's clock by their IMUs and both go into one log. See docs/import.md.");
+  import.add_option("file", args->in,
+                    "Log to convert (a bag folder, or the files of one recording; a flight log beside a bag)");
   import.add_option("-o,--out", args->out, "Log to write");
   import.callback([&import, args, exit_code] {
     if (import.get_subcommands().size() > 0) return;  // import rawlog
@@ -77,10 +80,12 @@ void add_import_file_command(CLI::App& import, int* exit_code) {
     }
     int printed = 0;
     int64_t problems = 0;
-    auto r = formats::import_log(args->in, args->out, [&](const std::string& line) {
+    const auto on_problem = [&](const std::string& line) {
       ++problems;
       if (printed++ < kProblemLines) std::fprintf(stderr, "driftlab: %s\n", line.c_str());
-    });
+    };
+    std::string alignment;
+    auto r = import_recording(args->in, args->out, on_problem, &alignment);
     if (!r) {
       *exit_code = fail(r.error().message, exit_code_for(r.error(), args->out));
       return;
@@ -92,6 +97,7 @@ void add_import_file_command(CLI::App& import, int* exit_code) {
     std::string from = args->in[0];
     if (args->in.size() > 1) from += " and " + std::to_string(args->in.size() - 1) + " more";
     print_summary(*r, from, args->out);
+    if (!alignment.empty()) std::printf("%s\n", alignment.c_str());
     // Everything intact is in the log; the exit code still says that not all of the file was.
     if (r->problems > 0) *exit_code = kExitBadInput;
   });

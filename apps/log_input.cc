@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "apps/cli_util.h"
+#include "apps/flight_log_pair.h"
 #include "core/log_reader.h"
 #include "formats/import.h"
 
@@ -190,7 +191,9 @@ Result<std::string> log_for(const std::vector<std::string>& inputs) {
     if (!formats::is_importable(d.format)) {
       // An LCM log (or what no importer recognises) is read as an LCM log, which reports what it finds.
       if (inputs.size() == 1) return inputs[0];
-      return Error(in + ": several files make one recording only for bags and MCAP files (this is " +
+      return Error(in +
+                   ": several files make one recording only for bags and MCAP files, or a flight log (ULog) "
+                   "beside a bag (this is " +
                    (d.format == formats::Format::kLcmLog ? std::string("an LCM log") : d.description) + ")");
     }
   }
@@ -227,6 +230,12 @@ Result<std::string> log_for(const std::vector<std::string>& inputs) {
     std::fprintf(stderr, "driftlab: %s: reading its conversion %s%s\n", named.c_str(), cache.c_str(),
                  problems ? (" (" + thousands(problems) + " problems when converted; `driftlab import` lists them)").c_str()
                           : "");
+    // A flight log beside a bag: how it was put on the bag's clock, said on every use as when converted.
+    if (const size_t at = old.find("\nalignment ", key.size() > 0 ? key.size() - 1 : 0); at != std::string::npos) {
+      const size_t end = old.find('\n', at + 1);
+      std::fprintf(stderr, "driftlab: %s\n",
+                   old.substr(at + 11, end == std::string::npos ? end : end - at - 11).c_str());
+    }
     return cache;
   }
   if (same_recording) {
@@ -236,10 +245,12 @@ Result<std::string> log_for(const std::vector<std::string>& inputs) {
   std::fprintf(stderr, "driftlab: %s: converting it to %s (kept for later runs)\n", named.c_str(), cache.c_str());
   int printed = 0;
   int64_t problems = 0;
-  auto summary = formats::import_log(inputs, cache, [&](const std::string& line) {
+  const auto on_problem = [&](const std::string& line) {
     ++problems;
     if (printed++ < kProblemLines) std::fprintf(stderr, "driftlab: %s\n", line.c_str());
-  });
+  };
+  std::string alignment;
+  auto summary = import_recording(inputs, cache, on_problem, &alignment);
   if (!summary) {
     // Writing the conversion failed (a full disk): an I/O failure, named by the input and the cache, not by the
     // partial file, which is gone. Anything else is the recording's.
@@ -256,11 +267,14 @@ Result<std::string> log_for(const std::vector<std::string>& inputs) {
   }
   std::fprintf(stderr, "driftlab: %s (%s): %s messages converted\n", named.c_str(), summary->format.c_str(),
                thousands(summary->messages).c_str());
+  if (!alignment.empty()) std::fprintf(stderr, "driftlab: %s\n", alignment.c_str());
   // The key last, written beside and renamed: a conversion cut short is never taken for a whole one. It records the
   // conversion as written, so that anything put in its place later is noticed.
   const std::string made = file_identity(cache, true);
   if (made.empty()) return Error(named + kCannotWriteConversion + cache + ": cannot read it back");
-  if (Status s = write_key(key_path, key + "cache " + made + "\nproblems " + std::to_string(problems) + "\n"); !s) {
+  if (Status s = write_key(key_path, key + "cache " + made + "\nproblems " + std::to_string(problems) + "\n" +
+                                         (alignment.empty() ? std::string() : "alignment " + alignment + "\n"));
+      !s) {
     return Error(named + kCannotWriteConversion + cache + ": " + s.message());
   }
   return cache;

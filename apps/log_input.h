@@ -27,8 +27,10 @@ int exit_code_for_input(const Error& error);
 
 /// The help of a command's log argument.
 inline constexpr char kLogInputHelp[] =
-    "LCM log, or another tool's recording (a ROS 1 or ROS 2 bag, a bag folder, an MCAP file, a CARMEN log; the files of "
-    "a split recording): converted once, kept beside it";
+    "LCM log, or another tool's recording (a ROS 1 or ROS 2 bag, a bag folder, an MCAP file, a CARMEN log; the files "
+    "of "
+    "a split recording; a PX4 flight log beside a bag of the same flight, put on its clock): converted once, kept "
+    "beside it";
 
 /// Where the conversion of inputs is kept: beside the (first) file as FILE.dlimport.lcm (FOLDER.dlimport.lcm for a
 /// bag folder, FIRST+N.dlimport.lcm for the N more files of a split recording); a name over 160 bytes is cut to

@@ -1,0 +1,210 @@
+// A real PX4 flight log beside a MAVROS-style bag of the same flight written by Foxglove's own MCAP writer
+// (tests/oracle/write_mcap.mjs): `driftlab import BAG FLIGHT.ulg` and `driftlab diagnose BAG FLIGHT.ulg` put the
+// flight log on the bag's clock (apps/flight_log_pair.h), and refuse a bag whose IMU is not the flight's.
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <random>
+#include <regex>
+
+#include "driftlab/imu_t.hpp"
+#include "formats/import.h"
+#include "lcmtypes/validate.h"
+#include "tests/formats/oracle.h"
+#include "tests/test_util.h"
+
+namespace driftlab {
+namespace {
+
+using nlohmann::json;
+
+const std::string kDriftlab = std::string(DRIFTLAB_BIN_DIR) + "/driftlab";
+
+/// The FMUv4-Pro flight (9.6 s, hand-held motion: the CubeOrange and SITL flights sit still, so their rates are the
+/// gyros' noise alone).
+constexpr char kFlight[] = "ulog/sample_appended_multiple.ulg";
+/// The bag's clock: the wall clock at the flight controller's boot (2023-11-14) plus an extra offset, as a companion
+/// computer stamping MAVROS's messages with its own time sees it.
+constexpr int64_t kBootOnWallClockUs = 1'700'000'000'000'000 + 12'345'678;
+
+struct Sample {
+  int64_t utime;
+  double x, y, z;
+};
+
+/// The flight log's sensor_combined (imported by driftlab: its stamps are timestamp, checked against pyulog by
+/// ulog_test).
+std::vector<Sample> flight_imu(const std::string& ulog, const test::TempDir& dir) {
+  const std::string log = dir.file("flight.lcm");
+  auto r = formats::import_log(ulog, log, [](const std::string& p) { ADD_FAILURE() << p; });
+  EXPECT_TRUE(r.ok()) << r.error().message;
+  std::vector<Sample> out;
+  for (const auto& e : test::read_all(log)) {
+    if (e.channel != "sensor_combined") continue;
+    const auto m = test::decode<imu_t>(e);
+    out.push_back({m.header.utime, m.angular_velocity.x, m.angular_velocity.y, m.angular_velocity.z});
+  }
+  return out;
+}
+
+/// A MAVROS bag of the flight: /mavros/imu/data every fifth sample of the flight controller's (250 Hz -> 50 Hz, as
+/// MAVROS streams it by default), in ROS's forward-left-up frame, with 0.005 rad/s of Gaussian noise (a MEMS
+/// gyro's at 50 Hz), stamped on the wall clock, arriving 3 ms later; `shuffled`: the same values in another order
+/// (another motion, the same statistics).
+json mavros_bag(const std::vector<Sample>& imu, bool shuffled) {
+  std::vector<Sample> picked;
+  for (size_t i = 0; i < imu.size(); i += 5) picked.push_back(imu[i]);
+  std::mt19937_64 rng(27);
+  if (shuffled) {
+    std::vector<Sample> values = picked;
+    std::shuffle(values.begin(), values.end(), rng);
+    for (size_t i = 0; i < picked.size(); ++i) {
+      picked[i] = {picked[i].utime, values[i].x, values[i].y, values[i].z};
+    }
+  }
+  std::normal_distribution<double> noise(0.0, 0.005);
+  json msgs = json::array();
+  int64_t seq = 0;
+  for (const Sample& s : picked) {
+    const int64_t us = kBootOnWallClockUs + s.utime;
+    const json stamp = {{"sec", us / 1'000'000}, {"nanosec", (us % 1'000'000) * 1000}};
+    const json zero9 = std::vector<double>(9, 0.0);
+    msgs.push_back(
+        {{"topic", "/mavros/imu/data"},
+         {"type", "sensor_msgs/msg/Imu"},
+         {"time_ns", (us + 3000) * 1000},
+         {"sequence", seq++},
+         {"msg",
+          {{"header", {{"stamp", stamp}, {"frame_id", "base_link"}}},
+           {"orientation", {{"x", 0}, {"y", 0}, {"z", 0}, {"w", 1}}},
+           {"orientation_covariance", zero9},
+           {"angular_velocity", {{"x", s.x + noise(rng)}, {"y", -s.y + noise(rng)}, {"z", -s.z + noise(rng)}}},
+           {"angular_velocity_covariance", zero9},
+           {"linear_acceleration", {{"x", 0}, {"y", 0}, {"z", 9.81}}},
+           {"linear_acceleration_covariance", zero9}}}});
+  }
+  return {{"profile", "ros2"}, {"compression", "zstd"}, {"messages", msgs}};
+}
+
+TEST(FlightLogBesideBag, TheFlightLogGoesOnTheBagsClock) {
+  const std::string ulog = test::shared_data(kFlight);
+  if (ulog.empty()) return;
+  test::TempDir dir;
+  const std::vector<Sample> imu = flight_imu(ulog, dir);
+  ASSERT_GT(imu.size(), 2000u);
+  const std::string bag = dir.file("flight.mcap"), both = dir.file("both.lcm");
+  if (!test::oracle_write_mcap(mavros_bag(imu, false), bag)) return;
+
+  const auto r = test::run_capture(kDriftlab + " import '" + bag + "' '" + ulog + "' -o '" + both + "'");
+  ASSERT_EQ(r.code, 0) << r.err;
+  // Said once: the method and the offset.
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(r.out, m,
+                                std::regex("IMUs' angular rates \\(sensor_combined against "
+                                           "/mavros/imu/data, correlation ([0-9.]+) over ([0-9.]+) s\\): "
+                                           "offset \\+([0-9.]+) s, drift not measured")))
+      << r.out;
+  EXPECT_GT(std::stod(m[1]), 0.95);
+  EXPECT_NEAR(std::stod(m[2]), 9.6, 0.6);
+  // The offset within 10 ms: half the bag's 20 ms IMU period, so that every flight-log sample lands nearest the bag
+  // sample of the same instant. The mean |rate| over 0.5 s windows of a 50 Hz copy with noise against the 250 Hz
+  // original, its peak found on a 10 ms grid and refined by a parabola: on this flight the injected offset came
+  // back 2 to 7 ms early with noise from 0 to 0.02 rad/s (the 50 Hz copy's windows see other vibration peaks than
+  // the original's).
+  const double offset_s = std::stod(m[3]);
+  EXPECT_NEAR(offset_s, static_cast<double>(kBootOnWallClockUs) * 1e-6, 10e-3);
+
+  // In the log: the bag's IMU as recorded, the flight log's on the bag's clock (its stamps and its event times).
+  int64_t bag_imu = 0, px4_imu = 0;
+  for (const auto& e : test::read_all(both)) {
+    if (e.channel == "/mavros/imu/data") ++bag_imu;
+    if (e.channel != "sensor_combined") continue;
+    const auto msg = test::decode<imu_t>(e);
+    ASSERT_LT(static_cast<size_t>(px4_imu), imu.size());
+    const int64_t want = kBootOnWallClockUs + imu[static_cast<size_t>(px4_imu++)].utime;
+    EXPECT_NEAR(static_cast<double>(msg.header.utime), static_cast<double>(want), 10e3);
+    EXPECT_EQ(e.utime, msg.header.utime);  // sensor_combined's timestamp is its sample's
+  }
+  EXPECT_EQ(bag_imu, (static_cast<int64_t>(imu.size()) + 4) / 5);
+  EXPECT_EQ(px4_imu, static_cast<int64_t>(imu.size()));
+
+  // diagnose of the pair: one recording on one clock, the flight log's latencies those of PX4 (sample to
+  // publication, well under a millisecond for sensor_combined), none of 10^12 ms; its own account still found.
+  const auto d = test::run_capture(kDriftlab + " diagnose '" + bag + "' '" + ulog + "' --json");
+  ASSERT_EQ(d.code, 0) << d.err;
+  const json j = json::parse(d.out);
+  std::set<std::string> names;
+  for (const auto& c : j.at("channels")) {
+    names.insert(c.at("name").get<std::string>());
+    if (c.at("latency_s").is_object()) {
+      EXPECT_LT(c.at("latency_s").at("max").get<double>(), 0.01) << c.at("name");
+      EXPECT_GE(c.at("latency_s").at("p50").get<double>(), 0.0) << c.at("name");
+    }
+  }
+  EXPECT_TRUE(names.count("/mavros/imu/data") && names.count("sensor_combined") && names.count("vehicle_attitude"));
+  ASSERT_EQ(j.at("clock_domains").size(), 1u) << j.at("clock_domains").dump();
+  EXPECT_EQ(j.at("clock_domains")[0].at("kind"), "recorder");
+  EXPECT_TRUE(j.at("flight_log").is_object());
+  EXPECT_GT(j.at("start_utime").get<int64_t>(), 1'700'000'000'000'000);
+  // The alignment is said on stderr on the run that converts, and again on a later run reading the conversion.
+  EXPECT_NE(d.err.find("offset +1700000012.3"), std::string::npos) << d.err;
+  const auto again = test::run_capture(kDriftlab + " diagnose '" + bag + "' '" + ulog + "' --json");
+  EXPECT_NE(again.err.find("reading its conversion"), std::string::npos) << again.err;
+  EXPECT_NE(again.err.find("offset +1700000012.3"), std::string::npos) << again.err;
+}
+
+TEST(FlightLogBesideBag, ABagOfAnotherMotionIsRefusedInOneLine) {
+  const std::string ulog = test::shared_data(kFlight);
+  if (ulog.empty()) return;
+  test::TempDir dir;
+  const std::vector<Sample> imu = flight_imu(ulog, dir);
+  const std::string bag = dir.file("other.mcap");
+  if (!test::oracle_write_mcap(mavros_bag(imu, true), bag)) return;
+  for (const std::string& cmd : {"import '" + bag + "' '" + ulog + "' -o '" + dir.file("both.lcm") + "'",
+                                 "diagnose '" + bag + "' '" + ulog + "'"}) {
+    const auto r = test::run_capture(kDriftlab + " " + cmd);
+    EXPECT_EQ(r.code, 2) << cmd;
+    EXPECT_EQ(r.out, "");
+    // One line naming both recordings and why (the lines before it say what is being converted).
+    const size_t at = r.err.find("cannot put " + ulog + " on " + bag +
+                                 "'s clock: sensor_combined against "
+                                 "/mavros/imu/data: the IMUs' angular rates do not match");
+    ASSERT_NE(at, std::string::npos) << r.err;
+    EXPECT_EQ(r.err.find('\n', at), r.err.size() - 1) << r.err;
+  }
+  EXPECT_FALSE(std::filesystem::exists(dir.file("both.lcm")));
+}
+
+TEST(FlightLogBesideBag, ABagWithoutAnImuIsRefused) {
+  const std::string ulog = test::shared_data(kFlight);
+  if (ulog.empty()) return;
+  test::TempDir dir;
+  const std::string bag = dir.file("status.mcap");
+  json msgs = json::array();
+  for (int i = 0; i < 20; ++i) {
+    const int64_t us = kBootOnWallClockUs + 12'000'000 + int64_t{i} * 100'000;
+    msgs.push_back(
+        {{"topic", "/mavros/state"},
+         {"type", "mavros_msgs/msg/State"},
+         {"time_ns", us * 1000},
+         {"sequence", i},
+         {"msg",
+          {{"header", {{"stamp", {{"sec", us / 1'000'000}, {"nanosec", (us % 1'000'000) * 1000}}}, {"frame_id", ""}}},
+           {"connected", true},
+           {"armed", false},
+           {"guided", false},
+           {"manual_input", true},
+           {"mode", "MANUAL"},
+           {"system_status", 3}}}});
+  }
+  if (!test::oracle_write_mcap({{"profile", "ros2"}, {"compression", "none"}, {"messages", msgs}}, bag)) return;
+  const auto r = test::run_capture(kDriftlab + " diagnose '" + bag + "' '" + ulog + "'");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("cannot put " + ulog + " on " + bag + "'s clock: the bag has no IMU"), std::string::npos)
+      << r.err;
+}
+
+}  // namespace
+}  // namespace driftlab
