@@ -304,9 +304,8 @@ std::string html_page(const Diagnosis& d, const std::vector<std::string>& lines,
 }
 
 int run_diagnose(const DiagnoseOptions& o) {
-  for (const auto& [out, option] : {std::pair{o.json.file, "--json-out"}, {o.html, "--html"}}) {
-    if (Status s = refuse_same_file(out, {o.log}, option); !s) return fail(s.message());
-  }
+  if (Status s = o.json.check({o.log}, {o.html}); !s) return fail(s.message());
+  if (Status s = refuse_same_file(o.html, {o.log}, "--html"); !s) return fail(s.message());
   auto run = run_diagnosis(o.log, o.analysis);
   if (!run) return fail(run.error().message);
   const Diagnosis& d = run->diagnosis;
@@ -360,11 +359,12 @@ void add_diagnose_command(CLI::App& app, int* exit_code) {
       ->capture_default_str()
       ->check(in_range(kWindowRange, "s"));
   cmd->callback([o, exit_code] {
-    for (const auto& [out, option] : {std::pair{o->json.file, "--json-out"}, {o->html, "--html"}}) {
-      if (Status s = refuse_same_file(out, o->inputs, option); !s) {  // the recording given, not only its conversion
-        *exit_code = fail(s.message());
-        return;
-      }
+    // The recording given, not only its conversion; --json-out nor --html where the other goes.
+    Status checked = o->json.check(o->inputs, {o->html});
+    if (checked) checked = refuse_same_file(o->html, o->inputs, "--html");
+    if (!checked) {
+      *exit_code = fail(checked.message());
+      return;
     }
     auto log = event_log_for(o->inputs);
     if (!log) {

@@ -264,9 +264,10 @@ TEST(OutputOverInput, IsRefusedBeforeAnythingIsWritten) {
     EXPECT_EQ(test::read_file(log), before) << cmd;
   }
   // --json-out naming the command's own output: refused before either is written.
-  for (const std::string& cmd :
-       std::vector<std::string>{"replay " + log + " -o " + dir.file("o.lcm") + " --json-out " + dir.file("o.lcm"),
-                                "recover " + log + " -o " + dir.file("o.lcm") + " --json-out " + dir.file("o.lcm")}) {
+  for (const std::string& cmd : std::vector<std::string>{
+           "replay " + log + " -o " + dir.file("o.lcm") + " --json-out " + dir.file("o.lcm"),
+           "recover " + log + " -o " + dir.file("o.lcm") + " --json-out " + dir.file("o.lcm"),
+           "diagnose " + log + " --html " + dir.file("o.lcm") + " --json-out " + dir.file("o.lcm")}) {
     const auto r = driftlab(cmd);
     EXPECT_EQ(r.code, 2) << cmd << "\n" << r.err;
     EXPECT_NE(r.err.find("is also where the command writes"), std::string::npos) << cmd << "\n" << r.err;
