@@ -60,9 +60,11 @@ TEST(AlignImuClocks, NoDriftAppliedWhereThereIsNone) {
   const ClockAlignment a = align_imu_clocks(mavros, px4);
   ASSERT_TRUE(a.found) << a.problem;
   ASSERT_TRUE(a.drift_measured);
-  // The measured slope is within its own interval of zero (and below 3 ppm): nothing to apply.
+  // The measured slope is within its own interval of zero: nothing to apply. And small: a segment's offset is
+  // good to about a millisecond, which over the 280 s overlap is a slope of a few ppm (3 ppm with GCC's build, 5
+  // with clang's, from the same samples); 10 ppm is a tenth of the 100 ppm the diagnosis calls a drifting clock.
   EXPECT_FALSE(a.drift_applied) << a.drift_measured_value << " +/- " << a.drift_ci95;
-  EXPECT_LT(std::abs(a.drift_measured_value), 3e-6);
+  EXPECT_LT(std::abs(a.drift_measured_value), 10e-6);
   EXPECT_NEAR(a.to_reference(150), wall(150), 2e-3);
 }
 
