@@ -6,6 +6,7 @@
 #include <optional>
 #include <thread>
 
+#include "core/huge_page_allocator.h"
 #include "core/time.h"
 #include "driftlab/laser_scan_t.hpp"
 #include "lcmtypes/planar.h"
@@ -66,56 +67,60 @@ std::optional<double> scan_rotation(const std::vector<float>& previous, const st
   return (static_cast<double>(best) - max_shift + refine) * increment;
 }
 
-/// Scans: the yaw rate between consecutive scans (kept as views into the mapped log during the pass), at their
-/// midpoint. Pairs of scans are independent, so two threads share them.
-void add_scan_motion(Samples& s) {
-  const size_t n = s.scans.size();
-  if (n < 2) return;
-  std::vector<double> t(n, NAN), w(n, NAN);
-  auto work = [&](size_t begin, size_t end) {
-    driftlab::laser_scan_t previous, current;
-    bool have_previous = false;
-    for (size_t i = begin; i < end; ++i) {
-      if (!lcmtypes::decode(s.scans[i], current)) {
-        have_previous = false;
-        continue;
-      }
-      const double ti = Time::from_us(current.header.utime).seconds();
-      const double tp = Time::from_us(previous.header.utime).seconds();
-      const double span = static_cast<double>(current.angle_increment) * static_cast<double>(current.nranges);
-      if (have_previous && i > begin && ti > tp) {
-        if (auto d = scan_rotation(previous.ranges, current.ranges, current.angle_increment,
-                                   std::abs(span - 2 * M_PI) < 0.05)) {
-          // Beams are measured through the scan: on average half its duration after the stamp.
-          const double beams = 0.5 * (current.nranges - 1) * std::max(0.0f, current.time_increment);
-          t[i] = 0.5 * (ti + tp) + (beams < 1.0 ? beams : 0.0);
-          w[i] = *d / (ti - tp);
-        }
-      }
-      std::swap(previous, current);
-      have_previous = true;
-    }
-  };
-  // The second thread starts one scan early, to have the previous one of its first.
-  const size_t half = n / 2;
-  std::thread helper(work, half - 1, n);
-  work(0, half);
-  helper.join();
-  for (size_t i = 1; i < n; ++i) {
-    if (std::isfinite(t[i])) {
-      s.motion_t.push_back(t[i]);
-      s.motion_w.push_back(w[i]);
+/// The yaw rate between two consecutive scans, at their midpoint, where it can be told.
+std::optional<std::pair<double, double>> scan_motion(const driftlab::laser_scan_t& previous,
+                                                     const driftlab::laser_scan_t& current) {
+  const double ti = Time::from_us(current.header.utime).seconds();
+  const double tp = Time::from_us(previous.header.utime).seconds();
+  if (!(ti > tp)) return std::nullopt;
+  const double span = static_cast<double>(current.angle_increment) * static_cast<double>(current.nranges);
+  const auto d =
+      scan_rotation(previous.ranges, current.ranges, current.angle_increment, std::abs(span - 2 * M_PI) < 0.05);
+  if (!d) return std::nullopt;
+  // Beams are measured through the scan: on average half its duration after the stamp.
+  const double beams = 0.5 * (current.nranges - 1) * std::max(0.0f, current.time_increment);
+  return std::pair{0.5 * (ti + tp) + (beams < 1.0 ? beams : 0.0), *d / (ti - tp)};
+}
+
+}  // namespace
+
+/// A channel's scans, as the pass meets them: the last one decoded, to measure the rotation to the next.
+struct ScanMotion {
+  driftlab::laser_scan_t previous, current;
+  bool have_previous = false;
+  std::span<const uint8_t> first;  // the stretch's first scan, for the rotation across a join (append_samples)
+  size_t first_at = 0;             // motion_t.size() when it came
+};
+
+namespace {
+
+void add_scan(Samples& s, std::span<const uint8_t> data) {
+  ScanMotion& m = *s.scan;
+  if (!lcmtypes::decode(data, m.current)) {
+    m.have_previous = false;
+    return;
+  }
+  if (m.have_previous) {
+    if (const auto tw = scan_motion(m.previous, m.current)) {
+      s.motion_t.push_back(tw->first);
+      s.motion_w.push_back(tw->second);
     }
   }
-  s.scans.clear();
+  std::swap(m.previous, m.current);
+  m.have_previous = true;
 }
 
 }  // namespace
 
 void add_motion(Samples& s, int64_t fingerprint, std::span<const uint8_t> data) {
   if (fingerprint == driftlab::laser_scan_t::getHash()) {
-    if (s.scans.empty()) s.ready_after_us = lcmtypes::ready_after_us(data);
-    s.scans.push_back(data);  // analysed after the pass, in parallel
+    if (!s.scan) {
+      s.ready_after_us = lcmtypes::ready_after_us(data);
+      s.scan = std::make_shared<ScanMotion>();
+      s.scan->first = data;
+      s.scan->first_at = s.motion_t.size();
+    }
+    add_scan(s, data);
     return;
   }
   const auto motion = lcmtypes::read_motion(data);
@@ -128,6 +133,11 @@ void add_motion(Samples& s, int64_t fingerprint, std::span<const uint8_t> data) 
   }
   // Ground truth or an estimate: the yaw rate between consecutive poses, at their midpoint.
   s.motion_from_pose = true;
+  if (!s.have_last) {
+    s.first_yaw = value;
+    s.first_t = t;
+    s.first_pose_at = s.motion_t.size();
+  }
   if (s.have_last && t > s.last_t) {
     s.motion_t.push_back(0.5 * (t + s.last_t));
     s.motion_w.push_back(wrap_angle(value - s.last_yaw) / (t - s.last_t));
@@ -135,6 +145,58 @@ void add_motion(Samples& s, int64_t fingerprint, std::span<const uint8_t> data) 
   s.last_yaw = value;
   s.last_t = t;
   s.have_last = true;
+}
+
+bool append_samples(Samples& a, Samples& b) {
+  // One pass decides at a channel's first message whether it has a header; b must begin as a ended.
+  if (a.type != b.type || b.header_at_start != a.has_header) return false;
+  if ((a.have_last || b.have_last) && (a.scan || b.scan)) return false;  // poses and scans on one channel
+  auto append = [](auto& to, const auto& from) { to.insert(to.end(), from.begin(), from.end()); };
+  if (a.malformed == 0) a.malformed_example = b.malformed_example;
+  a.malformed += b.malformed;
+  append(a.arrival, b.arrival);
+  if (a.has_header && a.stamp.empty()) a.frame = b.frame;  // the first stamped message's
+  if (a.has_header && !b.has_header) {  // lost in b, at the message where one pass would have lost it
+    a.seq.clear();
+    a.stamp.clear();
+  }
+  a.has_header = b.has_header;
+  if (a.has_header) {
+    append(a.seq, b.seq);
+    append(a.stamp, b.stamp);
+  }
+  append(a.digest, b.digest);
+  // The yaw rate across the join (from a's last pose or scan to b's first), where one pass would have put it.
+  std::optional<std::pair<double, double>> join;
+  size_t at = 0;
+  if (a.have_last && b.have_last && b.first_t > a.last_t) {
+    join = {0.5 * (b.first_t + a.last_t), wrap_angle(b.first_yaw - a.last_yaw) / (b.first_t - a.last_t)};
+    at = b.first_pose_at;
+  }
+  if (a.scan && a.scan->have_previous && b.scan && lcmtypes::decode(b.scan->first, b.scan->current)) {
+    join = scan_motion(a.scan->previous, b.scan->current);
+    at = b.scan->first_at;
+  }
+  const auto split = static_cast<std::ptrdiff_t>(at);
+  a.motion_t.insert(a.motion_t.end(), b.motion_t.begin(), b.motion_t.begin() + split);
+  a.motion_w.insert(a.motion_w.end(), b.motion_w.begin(), b.motion_w.begin() + split);
+  if (join) {
+    a.motion_t.push_back(join->first);
+    a.motion_w.push_back(join->second);
+  }
+  a.motion_t.insert(a.motion_t.end(), b.motion_t.begin() + split, b.motion_t.end());
+  a.motion_w.insert(a.motion_w.end(), b.motion_w.begin() + split, b.motion_w.end());
+  a.motion_from_pose = a.motion_from_pose || b.motion_from_pose;
+  if (b.have_last) {
+    a.last_yaw = b.last_yaw;
+    a.last_t = b.last_t;
+    a.have_last = true;
+  }
+  if (b.scan) {
+    if (!a.scan) a.ready_after_us = b.ready_after_us;
+    a.scan = std::move(b.scan);
+  }
+  return true;
 }
 
 namespace {
@@ -183,7 +245,7 @@ bool sample_at(const Array<double>& t, const Array<double>& v, double x, size_t&
 /// channel has no data. Built once per channel and shared by every pair and window.
 struct Grid {
   static constexpr double kStep = 0.001;
-  std::vector<float> v;
+  HugeVector<float> v;  // 4 million points an hour: on huge pages, a page fault per 2 MiB
 };
 
 Grid make_grid(const Samples& s, double log_start, double log_end) {
@@ -331,7 +393,6 @@ std::optional<StreamPair> skew(const std::string& a_name, const Samples& a, cons
 
 std::vector<StreamPair> stream_pairs(std::map<std::string, Samples, std::less<>>& channels, int64_t start_utime,
                                      int64_t end_utime, const DiagnoseOptions& options) {
-  for (auto& [name, s] : channels) add_scan_motion(s);
   std::vector<const std::pair<const std::string, Samples>*> moving;
   for (const auto& entry : channels) {
     const auto& w = entry.second.motion_w;

@@ -261,6 +261,9 @@ struct Diagnosis {
   /// The log carries a PX4 flight log's records (ULOG_* channels, written by `driftlab import` of a .ulg): its
   /// flight-log diagnosis (analyzers/flight_log.h) has something to say
   bool flight_log = false;
+  /// How many stretches of the log were read, each on its own thread (1: one pass from the start, as on a short
+  /// or damaged log). Nothing else depends on it.
+  int stretches = 1;
 };
 
 struct DiagnoseOptions {
@@ -276,6 +279,9 @@ struct DiagnoseOptions {
   /// Only the channels fully matching this ECMAScript regex (as lcm-logger's -c), and the bookkeeping channels
   /// above, which say how to read them; empty: every channel.
   std::string channels;
+  /// Threads reading the log, each a stretch of it (0: one per core, on logs of 64 MB a stretch or more). The
+  /// diagnosis is the same whatever the number.
+  int pass_threads = 0;
 };
 
 Result<Diagnosis> diagnose(const std::string& log, const DiagnoseOptions& options = {});

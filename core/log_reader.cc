@@ -118,6 +118,15 @@ Status LogReader::seek(int64_t utime) {
 }
 
 void LogReader::rewind() { impl_->scanner.set_position(0); }
+
+std::optional<uint64_t> LogReader::event_at_or_after(uint64_t offset) const {
+  return impl_->scanner.event_at_or_after(offset);
+}
+
+void LogReader::read_range(uint64_t begin, uint64_t end) {
+  impl_->scanner.set_position(begin);
+  impl_->scanner.stop_at(end);
+}
 const std::string& LogReader::path() const { return impl_->path; }
 uint64_t LogReader::size_bytes() const { return impl_->bytes.size(); }
 uint64_t LogReader::position() const { return impl_->scanner.position(); }

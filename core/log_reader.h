@@ -6,6 +6,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
@@ -44,6 +45,13 @@ class LogReader {
   Status seek(int64_t utime);
   /// Back to the first event.
   void rewind();
+
+  /// For readers that split a log between threads, each reading its byte range: where an event seems to start at
+  /// or after offset (nullopt: none does); reading [begin, end) of the file: from the event at begin (the start
+  /// of an event), up to the last event that starts before end. After the range, position() is end exactly when
+  /// the range's last event ended there, as a reader from the start would have found it.
+  std::optional<uint64_t> event_at_or_after(uint64_t offset) const;
+  void read_range(uint64_t begin, uint64_t end);
 
   const std::string& path() const;
   uint64_t size_bytes() const;

@@ -24,14 +24,17 @@ class MappedFile {
 
   std::span<const uint8_t> bytes() const { return {data_, size_}; }
 
-  /// Drops the pages before offset from this process (they stay in the page cache, and the bytes stay
-  /// readable: touching them again faults them back in). Keeps resident memory constant while streaming.
+  /// For a reader streaming forwards, at offset: drops the pages before offset from this process (they stay in
+  /// the page cache, and the bytes stay readable: touching them again faults them back in), which keeps resident
+  /// memory constant, and maps the next few MiB ahead of it at once.
   void release_before(uint64_t offset);
 
  private:
   const uint8_t* data_ = nullptr;
   uint64_t size_ = 0;
   uint64_t released_ = 0;
+  uint64_t last_offset_ = 0;  ///< of the last call
+  uint64_t ahead_until_ = 0;  ///< mapped ahead up to here
 };
 
 }  // namespace driftlab

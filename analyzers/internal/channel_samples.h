@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <memory>
 #include <numeric>
 #include <span>
 #include <string>
@@ -19,6 +20,8 @@ namespace driftlab::analyzers::internal {
 
 template <typename T>
 using Array = HugeVector<T>;
+
+struct ScanMotion;
 
 /// What one pass over the log keeps of a channel.
 struct Samples {
@@ -39,7 +42,12 @@ struct Samples {
   std::string malformed_example;
   double last_yaw = 0, last_t = 0;
   bool have_last = false;
-  std::vector<std::span<const uint8_t>> scans;  // 2D scans, as views into the mapped log
+  // For a pass read in stretches (timing.cc), what joins a stretch to the one before: whether its first message
+  // had a header, and its first pose (the yaw rate across the join needs the pose before it).
+  bool header_at_start = false;
+  double first_yaw = 0, first_t = 0;
+  size_t first_pose_at = 0;          // motion_t.size() at the first pose
+  std::shared_ptr<ScanMotion> scan;  // 2D scans: the rotation between consecutive ones (stream_skew.cc)
   // A spinning lidar stamps its first beam but is complete only at its last: that much later [us] (from the
   // first scan), which latency and the clock fit add to the stamp.
   int64_t ready_after_us = 0;

@@ -14,9 +14,12 @@
 
 namespace driftlab::analyzers::internal {
 
-/// Keeps the yaw rate a message observes (fingerprint tells its type), during the pass over the log; 2D scans are
-/// kept as views into the log and turned into a yaw rate by stream_pairs().
+/// Keeps the yaw rate a message observes (fingerprint tells its type), during the pass over the log: a gyro's or
+/// odometry's as it is, from consecutive poses or 2D scans the rotation between them over the time between them.
 void add_motion(Samples& s, int64_t fingerprint, std::span<const uint8_t> data);
+/// Appends to a channel's samples those of the next stretch of the log, as if one pass had read both. False when
+/// that cannot be told: the channel's type or whether it has a header differs at the join.
+bool append_samples(Samples& a, Samples& b);
 
 /// The skew of every two channels that observe the robot turning (ground truth first, then IMUs: the reference
 /// side of each pair), leaving out pairs that carry the same stamps. The log spans [start_utime, end_utime].

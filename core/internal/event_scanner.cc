@@ -87,7 +87,7 @@ bool EventScanner::next(Event& out) {
     empty_reported_ = true;
     return false;
   }
-  while (pos_ < size) {
+  while (pos_ < size && pos_ < limit_) {
     if (size - pos_ < 4 && std::memcmp(bytes_.data() + pos_, kSyncBytes, size - pos_) == 0) {
       report(pos_, ProblemKind::kTruncatedEvent,
              "last event cut off by the end of the file after " + std::to_string(size - pos_) + " of 28 header bytes");

@@ -22,6 +22,10 @@ class EventScanner {
   uint64_t position() const { return pos_; }
   /// Continue from offset (which should be the start of an event, e.g. from an index).
   void set_position(uint64_t offset) { pos_ = offset < bytes_.size() ? offset : bytes_.size(); }
+  /// No event that starts at or after offset is read (next() is false once position() reaches it).
+  void stop_at(uint64_t offset) { limit_ = offset; }
+  /// Where an event seems to start at or after offset (one that chains to the next, as after corruption).
+  std::optional<uint64_t> event_at_or_after(uint64_t offset) const { return resync(offset); }
   uint64_t problems() const { return problems_; }
 
  private:
@@ -44,6 +48,7 @@ class EventScanner {
   std::span<const uint8_t> bytes_;
   const ProblemCallback* on_problem_;
   uint64_t pos_ = 0;
+  uint64_t limit_ = UINT64_MAX;
   uint64_t problems_ = 0;
   bool empty_reported_ = false;
 };

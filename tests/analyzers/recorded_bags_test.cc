@@ -202,7 +202,9 @@ TEST(DiagnoseSimTimeBag, OneClockTheLateStreamTheHolesAndTheTree) {
 
   for (const auto& c : d.channels) {
     SCOPED_TRACE(c.name);
-    if (c.has_header) EXPECT_LT(std::abs(c.latency_s.p50), 0.1);  // never 10^12 ms
+    if (c.has_header) {
+      EXPECT_LT(std::abs(c.latency_s.p50), 0.1);  // never 10^12 ms
+    }
     EXPECT_FALSE(has_reason(c, "drifts")) << reasons(c);          // the real-time factor is the clock's, once
   }
   // The late stream, by the injected amount: it and its peers each have up to 1 ms of jitter above their
@@ -369,7 +371,9 @@ TEST(DiagnoseNav2Bag, OneSimulationClockTheOdometryHoleAndAmclsPostDatedTransfor
   EXPECT_NEAR(d.domains[0].rate, 0.9932, 0.001);
   for (const auto& c : d.channels) {
     SCOPED_TRACE(c.name);
-    if (c.has_header) EXPECT_LT(std::abs(c.latency_s.p50), 1.0);
+    if (c.has_header) {
+      EXPECT_LT(std::abs(c.latency_s.p50), 1.0);
+    }
     EXPECT_FALSE(has_reason(c, "reordered")) << reasons(c);
     EXPECT_FALSE(has_reason(c, "drifts")) << reasons(c);
   }

@@ -14,6 +14,7 @@
 
 #include "analyzers/clock_corrections.h"
 #include "analyzers/internal/tf_check.h"
+#include "apps/diagnosis_json.h"
 #include "core/faults.h"
 #include "core/log_reader.h"
 #include "core/log_writer.h"
@@ -207,7 +208,9 @@ TEST(Diagnose, AResultWrittenAtOnceIsNotAStream) {
   EXPECT_FALSE(t.latency_valid);
   EXPECT_EQ(t.domain, -1);
   for (const auto& c : d->channels) {
-    if (c.name != "TRAJECTORY") EXPECT_EQ(c.verdict, "ok") << c.name << ": " << (c.reasons.empty() ? "" : c.reasons[0]);
+    if (c.name != "TRAJECTORY") {
+      EXPECT_EQ(c.verdict, "ok") << c.name << ": " << (c.reasons.empty() ? "" : c.reasons[0]);
+    }
     EXPECT_EQ(c.written_at_once, c.name == "TRAJECTORY") << c.name;
   }
   for (const auto& dom : d->domains) {
@@ -664,36 +667,40 @@ double room_range(double a) {
 
 class DiagnoseScanSkew : public ::testing::TestWithParam<double> {};
 
+/// A robot turning in place in a room, for a minute: its ground truth at 100 Hz and its 720-beam lidar at 10 Hz,
+/// whose stamps are late by scan_late_s.
+void write_room_log(const std::string& path, double scan_late_s) {
+  std::vector<Arrival> out;
+  for (int64_t i = 0; i * 0.01 <= kSeconds; ++i) {
+    const double t = i * 0.01;
+    driftlab::pose_t m{};
+    m.header = {i, kT0 + static_cast<int64_t>(std::llround(t * 1e6)), "world"};
+    m.orientation = {std::cos(yaw(t) / 2), 0, 0, std::sin(yaw(t) / 2)};
+    out.push_back({m.header.utime + 100, "GROUND_TRUTH", encode(m)});
+  }
+  std::mt19937_64 rng(9);
+  std::normal_distribution<double> noise(0, 0.01);
+  for (int64_t i = 0; i * 0.1 <= kSeconds; ++i) {
+    const double t = i * 0.1;
+    driftlab::laser_scan_t m{};
+    m.header = {i, kT0 + static_cast<int64_t>(std::llround((t + scan_late_s) * 1e6)), "laser"};
+    m.nranges = 720;
+    m.angle_min = static_cast<float>(-M_PI);
+    m.angle_increment = static_cast<float>(2 * M_PI / 720);
+    m.angle_max = m.angle_min + 719 * m.angle_increment;
+    for (int b = 0; b < 720; ++b) {
+      m.ranges.push_back(static_cast<float>(room_range(yaw(t) + m.angle_min + b * m.angle_increment) + noise(rng)));
+    }
+    out.push_back({kT0 + static_cast<int64_t>(std::llround((t + 0.004) * 1e6)), "SCAN", encode(m)});
+  }
+  write_in_arrival_order(path, out);
+}
+
 TEST_P(DiagnoseScanSkew, TellsTheScanClockFromTheRotationScansSee) {
   // A robot turning in place in a room; its lidar's stamps are late by the parameter.
   test::TempDir dir;
   const std::string path = dir.file("scan.lcm");
-  {
-    std::vector<Arrival> out;
-    for (int64_t i = 0; i * 0.01 <= kSeconds; ++i) {
-      const double t = i * 0.01;
-      driftlab::pose_t m{};
-      m.header = {i, kT0 + static_cast<int64_t>(std::llround(t * 1e6)), "world"};
-      m.orientation = {std::cos(yaw(t) / 2), 0, 0, std::sin(yaw(t) / 2)};
-      out.push_back({m.header.utime + 100, "GROUND_TRUTH", encode(m)});
-    }
-    std::mt19937_64 rng(9);
-    std::normal_distribution<double> noise(0, 0.01);
-    for (int64_t i = 0; i * 0.1 <= kSeconds; ++i) {
-      const double t = i * 0.1;
-      driftlab::laser_scan_t m{};
-      m.header = {i, kT0 + static_cast<int64_t>(std::llround((t + GetParam()) * 1e6)), "laser"};
-      m.nranges = 720;
-      m.angle_min = static_cast<float>(-M_PI);
-      m.angle_increment = static_cast<float>(2 * M_PI / 720);
-      m.angle_max = m.angle_min + 719 * m.angle_increment;
-      for (int b = 0; b < 720; ++b) {
-        m.ranges.push_back(static_cast<float>(room_range(yaw(t) + m.angle_min + b * m.angle_increment) + noise(rng)));
-      }
-      out.push_back({kT0 + static_cast<int64_t>(std::llround((t + 0.004) * 1e6)), "SCAN", encode(m)});
-    }
-    write_in_arrival_order(path, out);
-  }
+  write_room_log(path, GetParam());
   auto d = diagnose(path);
   ASSERT_TRUE(d.ok());
   const StreamPair* p = pair(*d, "GROUND_TRUTH", "SCAN");
@@ -730,6 +737,85 @@ TEST(Diagnose, ReadsOurHeaderInOtherProgramsTypes) {
   EXPECT_EQ(foreign.seq_gaps, 2);
   EXPECT_NEAR(foreign.latency_s.p50, 0.0005, 1e-9);
   EXPECT_FALSE(channel(*d, "BLOB").has_header);
+}
+
+/// The diagnosis of a log read in stretches, one per thread, is the one of a pass from the start, to the bit.
+void expect_read_in_stretches_as_in_one_pass(const std::string& path, bool whole) {
+  DiagnoseOptions one;
+  one.pass_threads = 1;
+  auto reference = diagnose(path, one);
+  ASSERT_TRUE(reference.ok());
+  EXPECT_EQ(reference->stretches, 1);
+  const nlohmann::json expected = apps::to_json(*reference);
+  for (int threads : {2, 3, 5, 16}) {
+    DiagnoseOptions options;
+    options.pass_threads = threads;
+    auto d = diagnose(path, options);
+    ASSERT_TRUE(d.ok());
+    // Where the stretches cannot stand for one pass (a damaged log, a channel that changes at a join), it is read
+    // again from the start.
+    EXPECT_EQ(d->stretches, whole ? threads : 1) << path;
+    EXPECT_EQ(apps::to_json(*d), expected) << path << " in " << threads << " stretches";
+  }
+}
+
+TEST(Diagnose, ALogReadInStretchesOnThreadsIsDiagnosedAsInOnePass) {
+  test::TempDir dir;
+  // Every kind of sample a stretch keeps and joins: drops, duplicates, reordering, untyped messages (their
+  // digests), transforms (given to the TF check in log order), poses (a yaw rate across each join), a result
+  // written at once.
+  Faults f;
+  f.scan_drops = {5, 6, 300};
+  f.scan_duplicates = {100, 400};
+  f.scan_reorder = 250;
+  f.raw_gap = 4;
+  f.copy_truth = true;
+  f.trajectory_at_end = true;
+  f.imu_offset_s = 0.01;
+  write_log(dir.file("faults.lcm"), f, 3);
+  expect_read_in_stretches_as_in_one_pass(dir.file("faults.lcm"), true);
+  // Scans: the rotation between the last scan before a join and the first after it.
+  write_room_log(dir.file("room.lcm"), 0.03);
+  expect_read_in_stretches_as_in_one_pass(dir.file("room.lcm"), true);
+
+  // A foreign type that carries our header until its messages become too short for one: one pass calls the
+  // channel untyped from there on, and keeps the digests of its messages from there. A stretch that begins after
+  // that point begins without a header and joins; one that loses it inside joins too. A stretch that begins
+  // with a header after one that lost it (the messages were short only for a while) cannot: one pass reads it.
+  struct Loss {
+    double from, to;  // the fraction of the messages that are short
+    bool whole;       // read in stretches
+  };
+  for (const Loss loss : {Loss{0.3, 1, true}, Loss{0.97, 1, true}, Loss{0.3, 0.35, false}}) {
+    const std::string path = dir.file("foreign" + std::to_string(loss.from) + std::to_string(loss.to) + ".lcm");
+    std::vector<Arrival> out;
+    constexpr int64_t kMessages = 3000;
+    for (int64_t seq = 0; seq < kMessages; ++seq) {
+      driftlab::header_t h{seq, kT0 + seq * 20000, "sensor"};
+      std::vector<uint8_t> data(8 + static_cast<size_t>(h._getEncodedSizeNoHash()) + 16, 0);
+      data[0] = 0x12;  // a fingerprint no driftlab type has
+      h._encodeNoHash(data.data(), 8, static_cast<int>(data.size()) - 8);
+      const double at = static_cast<double>(seq) / kMessages;
+      if (at >= loss.from && at < loss.to) data.resize(6);
+      out.push_back({kT0 + seq * 20000 + 500, "FOREIGN", data});
+      out.push_back({kT0 + seq * 20000 + 700, "BLOB", test::payload(static_cast<uint64_t>(seq), 300)});
+    }
+    write_in_arrival_order(path, out);
+    expect_read_in_stretches_as_in_one_pass(path, loss.whole);
+  }
+
+  // A damaged log: its problems are found and told by one pass.
+  {
+    std::vector<uint8_t> bytes = test::read_file(dir.file("faults.lcm"));
+    for (size_t i = bytes.size() / 2; i < bytes.size() / 2 + 300; ++i) bytes[i] = 0x5a;
+    test::write_file(dir.file("damaged.lcm"), bytes);
+  }
+  expect_read_in_stretches_as_in_one_pass(dir.file("damaged.lcm"), false);
+  DiagnoseOptions options;
+  options.pass_threads = 4;
+  auto d = diagnose(dir.file("damaged.lcm"), options);
+  ASSERT_TRUE(d.ok());
+  EXPECT_GT(d->log_problems, 0u);
 }
 
 TEST(Diagnose, MissingFileIsAnErrorNamingIt) {
