@@ -81,6 +81,8 @@ class EventTable {
   const std::vector<uint64_t>* offsets(const std::string& channel) const;
   /// The event at one of offsets().
   Event event_at(uint64_t offset) const;
+  /// Asks the CPU for the first lines of the event at one of offsets(), to be read soon.
+  void prefetch(uint64_t offset) const;
 
   EventTable(std::string path, MappedFile mapped) : path_(std::move(path)), mapped_(std::move(mapped)) {}
 
