@@ -32,30 +32,48 @@ std::pair<char, size_t> kind_of(const std::string& type) {
   return {'O', 0};  // string
 }
 
-/// Reverses the bytes of each U-sized element of p[0, n) in place (n a multiple of sizeof(U)).
+/// The column of a field, without elements: its kind, element size and fixed dimensions (none when one is another
+/// field's value).
+Column empty_column(const std::string& name, const lcmtypes::FieldDef& field) {
+  Column c;
+  c.name = name;
+  std::tie(c.kind, c.item_bytes) = kind_of(field.type);
+  bool fixed = true;
+  for (const auto& d : field.dims) {
+    if (!std::isdigit(static_cast<unsigned char>(d[0]))) fixed = false;
+  }
+  if (fixed) {
+    for (const auto& d : field.dims) c.dims.push_back(static_cast<size_t>(std::atoll(d.c_str())));
+  }
+  return c;
+}
+
+/// Copies the U-sized elements of src[0, bytes) to dst, each with its bytes reversed.
 template <typename U, typename Swap>
-void swap_each(uint8_t* p, size_t n, Swap swap) {
-  for (size_t k = 0; k < n; k += sizeof(U)) {
+void copy_each_swapped(uint8_t* dst, const uint8_t* src, size_t bytes, Swap swap) {
+  for (size_t k = 0; k < bytes; k += sizeof(U)) {
     U v;
-    std::memcpy(&v, p + k, sizeof(U));
+    std::memcpy(&v, src + k, sizeof(U));
     v = swap(v);
-    std::memcpy(p + k, &v, sizeof(U));
+    std::memcpy(dst + k, &v, sizeof(U));
   }
 }
 
-/// Appends n big-endian elements of `size` bytes to out in native order: copied (no zero-filling first, as resize
-/// would), then swapped in place.
+/// Copies bytes (elements of `size` bytes, big-endian) to dst in native order.
+inline void copy_swapped(uint8_t* dst, const uint8_t* src, size_t bytes, size_t size) {
+  switch (size) {
+    case 8: copy_each_swapped<uint64_t>(dst, src, bytes, [](uint64_t v) { return __builtin_bswap64(v); }); break;
+    case 4: copy_each_swapped<uint32_t>(dst, src, bytes, [](uint32_t v) { return __builtin_bswap32(v); }); break;
+    case 2: copy_each_swapped<uint16_t>(dst, src, bytes, [](uint16_t v) { return __builtin_bswap16(v); }); break;
+    default: std::memcpy(dst, src, bytes); break;
+  }
+}
+
+/// Appends n big-endian elements of `size` bytes to out in native order.
 void append_swapped(Bytes& out, std::span<const uint8_t> bytes, size_t size) {
   const size_t at = out.size();
-  out.insert(out.end(), bytes.begin(), bytes.end());
-  uint8_t* p = out.data() + at;
-  const size_t n = bytes.size();
-  switch (size) {
-    case 8: swap_each<uint64_t>(p, n, [](uint64_t v) { return __builtin_bswap64(v); }); break;
-    case 4: swap_each<uint32_t>(p, n, [](uint32_t v) { return __builtin_bswap32(v); }); break;
-    case 2: swap_each<uint16_t>(p, n, [](uint16_t v) { return __builtin_bswap16(v); }); break;
-    default: break;
-  }
+  out.resize(at + bytes.size());  // uninitialized: written next
+  copy_swapped(out.data() + at, bytes.data(), bytes.size(), size);
 }
 
 /// One channel's decoding state through lcmtypes::walk (the reference): its columns so far, filled message by
@@ -125,16 +143,7 @@ class WalkReader {
     if (k == SIZE_MAX) {
       auto it = index_.find(column);
       if (it == index_.end()) {  // a column first met now: none in the messages before
-        Column c;
-        c.name = column;
-        std::tie(c.kind, c.item_bytes) = kind_of(field.type);
-        bool fixed = true;
-        for (const auto& d : field.dims) {
-          if (!std::isdigit(static_cast<unsigned char>(d[0]))) fixed = false;
-        }
-        if (fixed) {
-          for (const auto& d : field.dims) c.dims.push_back(static_cast<size_t>(std::atoll(d.c_str())));
-        }
+        Column c = empty_column(column, field);
         c.counts.assign(out_.arrival.size(), 0);
         size_t per_message = c.item_bytes;
         for (size_t d : c.dims) per_message *= d;
@@ -207,18 +216,18 @@ struct DecodePlan {
   enum class Kind : uint8_t { kNumbers, kString, kLoop, kEnd };
   struct Op {
     Kind kind = Kind::kNumbers;
-    uint8_t size = 0;       ///< kNumbers: bytes of one element
-    bool is_byte = false;   ///< an LCM byte: unsigned when it is a length
-    int32_t slot = -1;      ///< a scalar integer a later field takes its length from: where its value goes
-    uint32_t column = 0;    ///< kNumbers, kString: the destination
-    uint32_t end = 0;       ///< kLoop: the index of its kEnd
-    int64_t count = 1;      ///< elements (kLoop: iterations): the product of the fixed dimensions
+    uint8_t size = 0;         ///< kNumbers: bytes of one element
+    bool is_byte = false;     ///< an LCM byte: unsigned when it is a length
+    int32_t slot = -1;        ///< a scalar integer a later field takes its length from: where its value goes
+    uint32_t column = 0;      ///< kNumbers, kString: the destination
+    uint32_t end = 0;         ///< kLoop: the index of its kEnd
+    int64_t count = 1;        ///< elements (kLoop: iterations): the product of the fixed dimensions
     uint32_t dims_begin = 0;  ///< dim_slots[dims_begin, dims_end): the slots of the variable dimensions
     uint32_t dims_end = 0;
   };
   std::vector<Op> ops;
   std::vector<int32_t> dim_slots;
-  std::vector<Column> columns;       ///< name, kind, item_bytes, dims and fixed_count of each op's column
+  std::vector<Column> columns;  ///< name, kind, item_bytes, dims and fixed_count of each op's column
   int32_t slots = 0;
   size_t depth = 0;  ///< the deepest nesting of loops
 };
@@ -300,16 +309,7 @@ class PlanCompiler {
   }
 
   uint32_t add_column(const std::string& name, const lcmtypes::FieldDef& field, int64_t per_message) {
-    Column c;
-    c.name = name;
-    std::tie(c.kind, c.item_bytes) = kind_of(field.type);
-    bool fixed = true;
-    for (const auto& d : field.dims) {
-      if (!std::isdigit(static_cast<unsigned char>(d[0]))) fixed = false;
-    }
-    if (fixed) {
-      for (const auto& d : field.dims) c.dims.push_back(static_cast<size_t>(std::atoll(d.c_str())));
-    }
+    Column c = empty_column(name, field);
     c.fixed_count = per_message;
     plan_.columns.push_back(std::move(c));
     return static_cast<uint32_t>(plan_.columns.size() - 1);
@@ -330,37 +330,6 @@ class PlanCache {
  private:
   std::unordered_map<const lcmtypes::StructDef*, std::unique_ptr<DecodePlan>> plans_;
 };
-
-/// Copies bytes (elements of `size` bytes, big-endian) to dst in native order.
-inline void copy_swapped(uint8_t* dst, const uint8_t* src, size_t bytes, size_t size) {
-  switch (size) {
-    case 8:
-      for (size_t k = 0; k < bytes; k += 8) {
-        uint64_t v;
-        std::memcpy(&v, src + k, 8);
-        v = __builtin_bswap64(v);
-        std::memcpy(dst + k, &v, 8);
-      }
-      break;
-    case 4:
-      for (size_t k = 0; k < bytes; k += 4) {
-        uint32_t v;
-        std::memcpy(&v, src + k, 4);
-        v = __builtin_bswap32(v);
-        std::memcpy(dst + k, &v, 4);
-      }
-      break;
-    case 2:
-      for (size_t k = 0; k < bytes; k += 2) {
-        uint16_t v;
-        std::memcpy(&v, src + k, 2);
-        v = __builtin_bswap16(v);
-        std::memcpy(dst + k, &v, 2);
-      }
-      break;
-    default: std::memcpy(dst, src, bytes); break;
-  }
-}
 
 /// A big-endian integer of `size` bytes, sign-extended unless an LCM byte (as the walk reads lengths).
 inline int64_t integer_at(const uint8_t* p, size_t size, bool is_byte) {
@@ -451,7 +420,9 @@ class PlanReader {
     }
   }
 
-  size_t filled(size_t k) const { return columns_[k].kind == 'O' ? columns_[k].strings.size() : fill_[k] / columns_[k].item_bytes; }
+  size_t filled(size_t k) const {
+    return columns_[k].kind == 'O' ? columns_[k].strings.size() : fill_[k] / columns_[k].item_bytes;
+  }
 
   /// Back to `elements` elements in column k.
   void unfill(size_t k, size_t elements) {
@@ -566,17 +537,17 @@ class PlanReader {
   const DecodePlan* plan_ = nullptr;
   int64_t fingerprint_ = 0;
   Channel out_;
-  size_t rows_ = 0;                  // messages decoded
-  std::vector<Column> columns_;      // the plan's, filled
-  std::vector<uint8_t*> base_;       // columns_[k].data.data()
-  std::vector<size_t> fill_;         // bytes written to each numbers column
-  std::vector<size_t> capacity_;     // columns_[k].data.size()
-  std::vector<uint32_t> variable_;   // columns whose messages hold varying counts
-  std::vector<size_t> before_;       // elements of those columns before the message being read
-  std::vector<uint8_t> seen_;        // whether a message held column k yet
-  std::vector<uint32_t> order_;      // columns in the order messages first held them
-  std::vector<int64_t> slots_;       // lengths read in the message being read
-  std::vector<Loop> loops_;          // the loops the decoder is in
+  size_t rows_ = 0;                 // messages decoded
+  std::vector<Column> columns_;     // the plan's, filled
+  std::vector<uint8_t*> base_;      // columns_[k].data.data()
+  std::vector<size_t> fill_;        // bytes written to each numbers column
+  std::vector<size_t> capacity_;    // columns_[k].data.size()
+  std::vector<uint32_t> variable_;  // columns whose messages hold varying counts
+  std::vector<size_t> before_;      // elements of those columns before the message being read
+  std::vector<uint8_t> seen_;       // whether a message held column k yet
+  std::vector<uint32_t> order_;     // columns in the order messages first held them
+  std::vector<int64_t> slots_;      // lengths read in the message being read
+  std::vector<Loop> loops_;         // the loops the decoder is in
 };
 
 }  // namespace
@@ -593,7 +564,8 @@ void* allocate_column(size_t bytes) {
   }
   void* p = std::aligned_alloc(kHugePage, (bytes + kHugePage - 1) / kHugePage * kHugePage);
   if (p == nullptr) throw std::bad_alloc();
-  madvise(p, (bytes + kHugePage - 1) / kHugePage * kHugePage, MADV_HUGEPAGE);  // advice only: without it (or huge pages), small pages
+  madvise(p, (bytes + kHugePage - 1) / kHugePage * kHugePage,
+          MADV_HUGEPAGE);  // advice only: without it (or huge pages), small pages
   return p;
 }
 
@@ -656,13 +628,6 @@ Result<std::vector<Channel>> read_channels(const EventTable& log,
   return read_with(log, channels, readers);
 }
 
-Result<std::vector<Channel>> read_channels(const std::string& path,
-                                           const std::vector<std::pair<std::string, int64_t>>& channels) {
-  auto log = EventTable::build(path);
-  if (!log) return log.error();
-  return read_channels(**log, channels);
-}
-
 Result<std::vector<Channel>> read_channels_reference(const std::string& path,
                                                      const std::vector<std::pair<std::string, int64_t>>& channels) {
   // A pass over the log with LogReader, as every reader did before the plans: independent of EventTable.
@@ -682,12 +647,6 @@ Result<std::vector<Channel>> read_channels_reference(const std::string& path,
   out.reserve(readers.size());
   for (auto& r : readers) out.push_back(r.take());
   return out;
-}
-
-Result<Channel> read_channel(const std::string& path, const std::string& channel, int64_t expected) {
-  auto r = read_channels(path, {{channel, expected}});
-  if (!r) return r.error();
-  return std::move(r->front());
 }
 
 }  // namespace driftlab::python

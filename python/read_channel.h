@@ -92,23 +92,15 @@ class EventTable {
   std::unordered_map<std::string, std::vector<uint64_t>> offsets_;
 };
 
-/// Reads every message of each of `channels` (name, the index's count) from the table's log, in that order.
+/// Reads every message of each of `channels` (name, the index's count, which sizes the columns) from the table's
+/// log, in that order. Messages of another type than the channel's first, or cut short, are left out.
 /// Errors: a channel whose messages are of no driftlab type.
 Result<std::vector<Channel>> read_channels(const EventTable& log,
                                            const std::vector<std::pair<std::string, int64_t>>& channels);
 
-/// Reads every message of `channel` in the LCM log at `path`. `expected` (the index's count) sizes the columns.
-/// Messages of another type than the channel's first, or cut short, are left out.
-/// Errors: the log cannot be read; a channel whose messages are of no driftlab type.
-Result<Channel> read_channel(const std::string& path, const std::string& channel, int64_t expected);
-
-/// Reads every message of each of `channels` (name, the index's count) in one pass over the log, in that order.
-/// Errors: the log cannot be read; a channel whose messages are of no driftlab type.
-Result<std::vector<Channel>> read_channels(const std::string& path,
-                                           const std::vector<std::pair<std::string, int64_t>>& channels);
-
-/// read_channels() through lcmtypes::walk, message by message and field by field: the reference the plans are
-/// tested against (the same columns, in the same order, with the same elements). Slow.
+/// read_channels() of the log at path through lcmtypes::walk, message by message and field by field, in one
+/// LogReader pass: the reference the plans are tested against (the same columns, in the same order, with the same
+/// elements). Slow. Errors: also, the log cannot be read.
 Result<std::vector<Channel>> read_channels_reference(const std::string& path,
                                                      const std::vector<std::pair<std::string, int64_t>>& channels);
 
