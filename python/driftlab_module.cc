@@ -1,6 +1,7 @@
 // _driftlab: the C++ side of `import driftlab` (python/driftlab/__init__.py is the package users see). Logs are
 // opened as every command opens them (apps/log_input.h: another tool's recording through its cached conversion),
-// channels read with the schema walker (lcmtypes/schema.h) straight into buffers NumPy takes over, and diagnose,
+// channels decoded by plans compiled per type (python/read_channel.h) from the log mapped once (at the first read,
+// kept while the Log lives) straight into buffers NumPy takes over, and diagnose,
 // eval and import run in-process: diagnose and import through the library functions the commands call, eval
 // through the command itself (its CLI11 options, built from keyword arguments by the package) with its output and
 // its one-line error captured (apps/cli_util.h OutputCapture). The GIL is released while C++ works.

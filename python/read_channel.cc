@@ -381,6 +381,7 @@ class PlanReader {
     out_.arrival.push_back(e.utime);
     ++rows_;
     for (uint32_t k : variable_) columns_[k].counts.push_back(static_cast<int64_t>(filled(k) - before_[k]));
+    if (rows_ == 1) size_variable_columns();
     return true;
   }
 
@@ -413,9 +414,21 @@ class PlanReader {
       if (c.kind == 'O') {
         c.strings.reserve(expected_ * per_message);
       } else {
-        c.data.resize(expected_ * per_message * c.item_bytes);  // uninitialized: written before it is read
-        base_[k] = c.data.data();
-        capacity_[k] = c.data.size();
+        resize(k, expected_ * per_message * c.item_bytes);
+      }
+    }
+  }
+
+  /// Columns of varying counts sized as if every message held as many elements as the first: most channels keep
+  /// their counts (a scan's beams, a TF's transforms), and growing by doubling would copy and over-allocate.
+  void size_variable_columns() {
+    for (uint32_t k : variable_) {
+      Column& c = columns_[k];
+      const auto first = static_cast<size_t>(c.counts.front());
+      if (c.kind == 'O') {
+        c.strings.reserve(expected_ * first);
+      } else if (expected_ * first * c.item_bytes > capacity_[k]) {
+        resize(k, expected_ * first * c.item_bytes);
       }
     }
   }
@@ -441,9 +454,12 @@ class PlanReader {
   }
 
   /// Room for `bytes` more in column k.
-  void grow(uint32_t k, size_t bytes) {
+  void grow(uint32_t k, size_t bytes) { resize(k, std::max(fill_[k] + bytes, 2 * capacity_[k] + 64)); }
+
+  /// Column k's buffer made `bytes` long (uninitialized past what it held: written before it is read).
+  void resize(uint32_t k, size_t bytes) {
     Bytes& data = columns_[k].data;
-    data.resize(std::max(fill_[k] + bytes, 2 * data.size() + 64));
+    data.resize(bytes);
     base_[k] = data.data();
     capacity_[k] = data.size();
   }
