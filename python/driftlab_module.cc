@@ -192,14 +192,27 @@ class Log {
         if (lcmtypes::type_name(c.fingerprint) != nullptr) wanted.emplace_back(c.name, c.count);
       }
     }
-    Result<std::vector<Channel>> r = Error{""};
-    {
-      py::gil_scoped_release release;
-      r = reference ? read_channels_reference(lcm_path_, wanted) : read_channels(*events(), wanted);
-    }
-    std::vector<Channel> channels = value_or_raise(std::move(r));
     py::dict out;
-    for (size_t k = 0; k < channels.size(); ++k) out[py::str(wanted[k].first)] = to_dict(std::move(channels[k]));
+    if (reference) {
+      Result<std::vector<Channel>> r = Error{""};
+      {
+        py::gil_scoped_release release;
+        r = read_channels_reference(lcm_path_, wanted);
+      }
+      std::vector<Channel> channels = value_or_raise(std::move(r));
+      for (size_t k = 0; k < channels.size(); ++k) out[py::str(wanted[k].first)] = to_dict(std::move(channels[k]));
+      return out;
+    }
+    // A channel at a time, each made NumPy arrays while its strings are still in the cache and before the next
+    // one's buffers are allocated.
+    for (const auto& channel : wanted) {
+      Result<std::vector<Channel>> r = Error{""};
+      {
+        py::gil_scoped_release release;
+        r = read_channels(*events(), {channel});
+      }
+      out[py::str(channel.first)] = to_dict(std::move(value_or_raise(std::move(r)).front()));
+    }
     return out;
   }
 

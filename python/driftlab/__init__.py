@@ -83,7 +83,7 @@ class Log:
         return self._log.read(channel)
 
     def read_all(self, channels=None):
-        """Several channels in one pass over the log: {channel: read(channel)}, for the given channel names, or by
+        """Several channels at once: {channel: read(channel)}, for the given channel names, or by
         default for every channel of a driftlab type (the others are left out). Raises as read()."""
         return self._log.read_many(None if channels is None else list(channels))
 
