@@ -1,6 +1,7 @@
 // _driftlab: the C++ side of `import driftlab` (python/driftlab/__init__.py is the package users see). Logs are
 // opened as every command opens them (apps/log_input.h: another tool's recording through its cached conversion),
-// channels read with the schema walker (lcmtypes/schema.h) straight into buffers NumPy takes over, and diagnose,
+// channels decoded by plans compiled per type (python/read_channel.h) from the log mapped once (at the first read,
+// kept while the Log lives) straight into buffers NumPy takes over, and diagnose,
 // eval and import run in-process: diagnose and import through the library functions the commands call, eval
 // through the command itself (its CLI11 options, built from keyword arguments by the package) with its output and
 // its one-line error captured (apps/cli_util.h OutputCapture). The GIL is released while C++ works.
@@ -12,6 +13,7 @@
 
 #include <cstring>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <stdexcept>
 #include <tuple>
@@ -45,10 +47,10 @@ T value_or_raise(Result<T> r) {
 }
 
 /// A vector handed to NumPy without a copy: the array owns it through a capsule.
-template <typename T>
-py::array adopt(std::vector<T>&& v, const py::dtype& dtype, std::vector<py::ssize_t> shape) {
-  auto* owned = new std::vector<T>(std::move(v));
-  py::capsule free_when_done(owned, [](void* p) { delete static_cast<std::vector<T>*>(p); });
+template <typename Vector>
+py::array adopt(Vector&& v, const py::dtype& dtype, std::vector<py::ssize_t> shape) {
+  auto* owned = new Vector(std::forward<Vector>(v));
+  py::capsule free_when_done(owned, [](void* p) { delete static_cast<Vector*>(p); });
   return py::array(dtype, std::move(shape), {}, owned->data(), free_when_done);
 }
 
@@ -72,7 +74,7 @@ void set_cell(py::array& a, size_t m, py::object value) {
 /// an object array of 1-D arrays (or of lists of strings).
 py::object column_array(Column&& c, size_t messages) {
   bool same = true;
-  const int64_t first = c.counts.empty() ? 0 : c.counts[0];
+  const int64_t first = !c.counts.empty() ? c.counts[0] : messages > 0 ? c.fixed_count : 0;
   for (int64_t n : c.counts) same = same && n == first;
   std::vector<py::ssize_t> shape = {static_cast<py::ssize_t>(messages)};
   if (same && !(first == 1 && c.dims.empty())) {
@@ -87,13 +89,24 @@ py::object column_array(Column&& c, size_t messages) {
   if (c.kind == 'O') {
     py::array out = object_array(messages);
     size_t at = 0;
+    // A string as the one before it (a frame name, message after message) is that one's str, not a new one.
+    py::str last;
+    const std::string* last_text = nullptr;
+    const auto text = [&](const std::string& s) {
+      if (last_text == nullptr || *last_text != s) {
+        last = py::str(s);
+        last_text = &s;
+      }
+      return last;
+    };
     for (size_t m = 0; m < messages; ++m) {
       if (same && first == 1) {
-        set_cell(out, m, py::str(c.strings[at++]));
+        set_cell(out, m, text(c.strings[at++]));
         continue;
       }
-      py::list l;
-      for (int64_t k = 0; k < c.counts[m]; ++k) l.append(py::str(c.strings[at++]));
+      const int64_t n = c.counts.empty() ? c.fixed_count : c.counts[m];
+      py::list l(n);
+      for (int64_t k = 0; k < n; ++k) PyList_SET_ITEM(l.ptr(), k, text(c.strings[at++]).release().ptr());
       set_cell(out, m, std::move(l));
     }
     return out;
@@ -154,18 +167,23 @@ class Log {
   }
 
   py::dict read(const std::string& channel) const {
-    const ChannelSummary& s = summary(channel);
-    Result<Channel> r = Error{""};
-    {
-      py::gil_scoped_release release;
-      r = read_channel(lcm_path_, channel, s.count);
-    }
-    return to_dict(value_or_raise(std::move(r)));
+    summary(channel);  // a KeyError for an unknown channel
+    return read_many(std::vector<std::string>{channel})[py::str(channel)].cast<py::dict>();
   }
 
-  /// Channels read in one pass over the log: {channel: read(channel)}. Without names, every channel of a driftlab
-  /// type.
+  /// Channels read together: {channel: read(channel)}. Without names, every channel of a driftlab type.
   py::dict read_many(const std::optional<std::vector<std::string>>& names) const {
+    return read_many_with(names, false);
+  }
+
+  /// read_many() through the reference decode (lcmtypes::walk over a LogReader pass), for the tests to hold the
+  /// decode plans to.
+  py::dict read_reference(const std::optional<std::vector<std::string>>& names) const {
+    return read_many_with(names, true);
+  }
+
+ private:
+  py::dict read_many_with(const std::optional<std::vector<std::string>>& names, bool reference) const {
     std::vector<std::pair<std::string, int64_t>> wanted;
     if (names) {
       for (const auto& n : *names) wanted.emplace_back(n, summary(n).count);
@@ -174,18 +192,38 @@ class Log {
         if (lcmtypes::type_name(c.fingerprint) != nullptr) wanted.emplace_back(c.name, c.count);
       }
     }
-    Result<std::vector<Channel>> r = Error{""};
-    {
-      py::gil_scoped_release release;
-      r = read_channels(lcm_path_, wanted);
-    }
-    std::vector<Channel> channels = value_or_raise(std::move(r));
     py::dict out;
-    for (size_t k = 0; k < channels.size(); ++k) out[py::str(wanted[k].first)] = to_dict(std::move(channels[k]));
+    if (reference) {
+      Result<std::vector<Channel>> r = Error{""};
+      {
+        py::gil_scoped_release release;
+        r = read_channels_reference(lcm_path_, wanted);
+      }
+      std::vector<Channel> channels = value_or_raise(std::move(r));
+      for (size_t k = 0; k < channels.size(); ++k) out[py::str(wanted[k].first)] = to_dict(std::move(channels[k]));
+      return out;
+    }
+    // A channel at a time, each made NumPy arrays while its strings are still in the cache and before the next
+    // one's buffers are allocated.
+    for (const auto& channel : wanted) {
+      Result<std::vector<Channel>> r = Error{""};
+      {
+        py::gil_scoped_release release;
+        r = read_channels(*events(), {channel});
+      }
+      out[py::str(channel.first)] = to_dict(std::move(value_or_raise(std::move(r)).front()));
+    }
     return out;
   }
 
- private:
+  /// The log mapped, with where each channel's events are: built by the first read, kept for the next ones.
+  /// Called without the GIL.
+  std::shared_ptr<const EventTable> events() const {
+    std::lock_guard<std::mutex> lock(events_mutex_);
+    if (!events_) events_ = value_or_raise(EventTable::build(lcm_path_));
+    return events_;
+  }
+
   static py::dict to_dict(Channel ch) {
     const size_t n = ch.arrival.size();
     py::dict out;
@@ -201,10 +239,11 @@ class Log {
     return out;
   }
 
- private:
   std::vector<std::string> inputs_;
   std::string lcm_path_;
   std::shared_ptr<LogIndex> index_;
+  mutable std::mutex events_mutex_;
+  mutable std::shared_ptr<const EventTable> events_;
 };
 
 /// `driftlab diagnose --json`'s JSON text for inputs.
@@ -299,7 +338,8 @@ PYBIND11_MODULE(_driftlab, m) {
       .def_property_readonly("channels", &Log::channels)
       .def("info", &Log::info)
       .def("read", &Log::read, py::arg("channel"))
-      .def("read_many", &Log::read_many, py::arg("channels") = py::none());
+      .def("read_many", &Log::read_many, py::arg("channels") = py::none())
+      .def("_read_reference", &Log::read_reference, py::arg("channels") = py::none());
   m.def("diagnose_json", &diagnose_json, py::arg("inputs"), py::arg("max_lag_s"), py::arg("window_s"),
         py::arg("channels"));
   m.def("run_command", &run_command, py::arg("args"));

@@ -36,6 +36,9 @@ class Log:
     made beside it once, as the CLI does.
 
     Attributes: path (as given), lcm_path (the LCM log read), channels (names, sorted), time_unit ("us").
+
+    The first read maps the LCM log and notes where each channel's events are (one pass); the mapping is kept
+    while the Log lives, so that later reads visit only their channels' events.
     """
 
     time_unit = TIME_UNIT
@@ -80,9 +83,8 @@ class Log:
         return self._log.read(channel)
 
     def read_all(self, channels=None):
-        """Several channels in one pass over the log: {channel: read(channel)}, for the given channel names, or by
-        default for every channel of a driftlab type (the others are left out). Quicker than a read per channel,
-        which passes over the whole log each time. Raises as read()."""
+        """Several channels at once: {channel: read(channel)}, for the given channel names, or by
+        default for every channel of a driftlab type (the others are left out). Raises as read()."""
         return self._log.read_many(None if channels is None else list(channels))
 
     def __repr__(self):
