@@ -565,13 +565,19 @@ const UlogLayout::Field* UlogLayout::find(std::string_view field) const {
 }
 
 std::optional<uint64_t> UlogLayout::u64(std::span<const uint8_t> data, std::string_view field) const {
-  const Field* f = find(field);
+  return u64(data, find(field));
+}
+
+std::optional<uint64_t> UlogLayout::u64(std::span<const uint8_t> data, const Field* f) const {
   if (!f || f->type != UlogType::kUint64 || f->count != 0 || f->offset + 8ull > data.size()) return std::nullopt;
   return le64(data.data() + f->offset);
 }
 
 double UlogLayout::number(std::span<const uint8_t> data, std::string_view field, uint32_t i) const {
-  const Field* f = find(field);
+  return number(data, find(field), i);
+}
+
+double UlogLayout::number(std::span<const uint8_t> data, const Field* f, uint32_t i) const {
   const double nan = std::numeric_limits<double>::quiet_NaN();
   if (!f || (f->count == 0 ? i != 0 : i >= f->count) || f->type == UlogType::kChar) return nan;
   const uint64_t at = f->offset + static_cast<uint64_t>(i) * size_of(f->type);

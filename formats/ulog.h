@@ -67,6 +67,9 @@ struct UlogLayout {
   double number(std::span<const uint8_t> data, std::string_view field, uint32_t i = 0) const;
   /// A uint64_t field's exact value (PX4's times), nullopt when the format has none or data ends before it.
   std::optional<uint64_t> u64(std::span<const uint8_t> data, std::string_view field) const;
+  /// The same of a field found before (nullptr: a field the format does not have).
+  double number(std::span<const uint8_t> data, const Field* field, uint32_t i = 0) const;
+  std::optional<uint64_t> u64(std::span<const uint8_t> data, const Field* field) const;
 };
 
 /// A ULog time [us] as driftlab's int64_t microseconds: a hostile value past int64_t's end is held at its end.
