@@ -285,7 +285,7 @@ class Bytes {
 
   void want(uint64_t pos, uint64_t n) {
     const uint64_t need = std::min(size_, pos + std::min<uint64_t>(n, kBuffer / 2));
-    if (need <= end_ || fd_ < 0) return;
+    if (fd_ < 0 || (pos >= start_ && need <= end_)) return;
     if (pos < start_ || pos > end_) {
       start_ = end_ = pos;
     } else {
