@@ -522,8 +522,11 @@ Status import_ulog(const std::string& path, Importer& out) {
     int64_t count = 0;
     bool described = false;  // its channel_source_t written
     bool schema_written = false;
-    bool mapped = false;      // its topic has a driftlab type (driftlab_type_for_ulog), told once per subscription
     size_t topic = SIZE_MAX;  // its entry in out.summary.topics, once it has one
+    // Of its current subscription: its topic's mapping (none when the format does not resolve or has no mapping),
+    // and the bytes that start each of its messages as foreign_message_t (all but its size and data).
+    std::optional<UlogConverter> converter;
+    std::vector<uint8_t> foreign_head;
   };
   std::map<std::string, Channel, std::less<>> channels;
   std::map<std::string, Channel, std::less<>> records;  // ULOG_LOG, ULOG_PARAMS, ...: counted apart from the topics
@@ -537,9 +540,9 @@ Status import_ulog(const std::string& path, Importer& out) {
       c.topic = static_cast<size_t>(&out.topic(c.name, s.name, type) - out.summary.topics.data());
     return out.summary.topics[c.topic];
   };
-  foreign_message_t f;  // kept from one message to the next (its payload's memory)
+  foreign_message_t f;  // the start of each topic's foreign messages (foreign_head)
   f.encoding = "ulog";
-  std::vector<uint8_t> encoded;  // f encoded, its memory kept likewise
+  std::vector<uint8_t> encoded;  // each message encoded, its memory kept from one to the next
 
   UlogReader::Callbacks cb;
   cb.problem = [&](uint64_t offset, const std::string& what) { out.problem(where(offset) + ": " + what); };
@@ -551,7 +554,13 @@ Status import_ulog(const std::string& path, Importer& out) {
     }
     Channel& c = channels[name];
     c.name = name;
-    c.mapped = driftlab_type_for_ulog(s.name) != nullptr;
+    c.converter.reset();
+    if (s.layout && driftlab_type_for_ulog(s.name) != nullptr) c.converter.emplace(s.layout);
+    f.type = s.name;
+    f.data.clear();
+    f.size = 0;
+    lcmtypes::encode_into(f, &c.foreign_head);
+    c.foreign_head.resize(c.foreign_head.size() - 4);  // its size, 0, written per message
     by_id[s.msg_id] = &c;
   };
   cb.data = [&](const UlogData& d) {
@@ -575,13 +584,13 @@ Status import_ulog(const std::string& path, Importer& out) {
     // ULog has no sequence number: seq is the count on the channel (CHANNEL_SOURCES says so).
     if (!c.described && !out.describe(t, c.name, s.name, lcmtypes::SeqOrigin::kCounted)) return;
     c.described = true;
-    if (auto m = c.mapped ? convert_ulog_message(*s.layout, d.payload, d.timestamp, c.count) : std::nullopt) {
-      TopicCount& tc = topic(c, s, m->type);
-      if (out.write(t, c.name, m->lcm)) {
+    if (const char* type = c.converter ? c.converter->convert(d.payload, d.timestamp, c.count, &encoded) : nullptr) {
+      TopicCount& tc = topic(c, s, type);
+      if (out.write(t, c.name, encoded)) {
         ++tc.messages;
         ++c.count;
       }
-      if (const auto tie = ulog_gnss_utc(*s.layout, d.payload, d.timestamp)) {
+      if (const auto tie = c.converter->gnss_utc(d.payload, d.timestamp)) {
         Channel& u = records[kUlogUtcChannel];
         timesync_status_t ts;
         ts.header.seq = u.count;
@@ -607,10 +616,13 @@ Status import_ulog(const std::string& path, Importer& out) {
       if (!out.write(t, kSchemaChannel, encode(fs))) return;
       c.schema_written = true;
     }
-    f.type = s.name;
-    f.data.assign(d.payload.begin(), d.payload.end());
-    f.size = static_cast<int32_t>(f.data.size());
-    lcmtypes::encode_into(f, &encoded);
+    // foreign_message_t's encoding: its head, its size (big-endian, as LCM writes an int32_t), its data.
+    const auto size = static_cast<uint32_t>(d.payload.size());
+    const uint8_t size_be[4] = {static_cast<uint8_t>(size >> 24), static_cast<uint8_t>(size >> 16),
+                                static_cast<uint8_t>(size >> 8), static_cast<uint8_t>(size)};
+    encoded.assign(c.foreign_head.begin(), c.foreign_head.end());
+    encoded.insert(encoded.end(), size_be, size_be + 4);
+    encoded.insert(encoded.end(), d.payload.begin(), d.payload.end());
     if (out.write(t, c.name, encoded)) {
       ++tc.messages;
       ++c.count;

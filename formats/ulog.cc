@@ -5,8 +5,12 @@
 // byte.
 #include "formats/ulog.h"
 
+#include <fcntl.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <cctype>
+#include <cerrno>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -256,10 +260,72 @@ const char* type_name(uint8_t t) {
   return nullptr;
 }
 
+/// The log's bytes as the reader walks them, forward: a log in memory whole; a file through a window read with
+/// pread(2) into one buffer, each part read once. (A mapping of the file costs more: each of its pages faults in
+/// when first read, which on virtual machines costs more than the copy; and pages of a buffer that is read again
+/// stay mapped.) want(pos, n) makes [pos, pos + n) readable (as far as the log goes) and may drop what lies before
+/// pos: spans taken before it are not read after it.
+class Bytes {
+ public:
+  explicit Bytes(std::span<const uint8_t> whole) : data_(whole.data()), size_(whole.size()), end_(whole.size()) {}
+  /// fd: open for reading (closed by ~Bytes), size bytes long.
+  Bytes(int fd, uint64_t size) : fd_(fd), size_(size), buffer_(kBuffer) { data_ = buffer_.data(); }
+  Bytes(const Bytes&) = delete;
+  Bytes& operator=(const Bytes&) = delete;
+  ~Bytes() {
+    if (fd_ >= 0) ::close(fd_);
+  }
+
+  uint64_t size() const { return size_; }
+  uint8_t operator[](uint64_t pos) const { return data_[pos - start_]; }
+  const uint8_t* at(uint64_t pos) const { return data_ + (pos - start_); }
+  std::span<const uint8_t> subspan(uint64_t pos, uint64_t n) const { return {at(pos), n}; }
+  /// The read error that ended the window early ("" when none): the bytes past it read as zeros.
+  const std::string& error() const { return error_; }
+
+  void want(uint64_t pos, uint64_t n) {
+    const uint64_t need = std::min(size_, pos + std::min<uint64_t>(n, kBuffer / 2));
+    if (fd_ < 0 || (pos >= start_ && need <= end_)) return;
+    if (pos < start_ || pos > end_) {
+      start_ = end_ = pos;
+    } else {
+      std::memmove(buffer_.data(), at(pos), end_ - pos);
+      start_ = pos;
+    }
+    const uint64_t until = std::min(size_, start_ + kBuffer);
+    while (end_ < until) {
+      const ssize_t got = ::pread(fd_, buffer_.data() + (end_ - start_), until - end_, static_cast<off_t>(end_));
+      if (got > 0) {
+        end_ += static_cast<uint64_t>(got);
+        continue;
+      }
+      if (got < 0 && errno == EINTR) continue;
+      if (error_.empty()) error_ = got < 0 ? std::strerror(errno) : "the file is shorter than when it was opened";
+      std::memset(buffer_.data() + (end_ - start_), 0, until - end_);
+      end_ = until;
+    }
+  }
+
+ private:
+  /// [bytes]: at least two of the largest record (65535 bytes and its header) and the next record's header.
+  static constexpr uint64_t kBuffer = 1 << 20;
+  int fd_ = -1;
+  const uint8_t* data_ = nullptr;
+  uint64_t size_ = 0;
+  uint64_t start_ = 0;  // the offset of data_[0]
+  uint64_t end_ = 0;    // where what data_ holds ends
+  std::vector<uint8_t> buffer_;
+  std::string error_;
+};
+
+/// The bytes a record at pos and the header of the one after it may take: its header, the largest content, the
+/// next header.
+constexpr uint64_t kRecordReach = 3 + 65535 + 3;
+
 /// One pass over a file's records.
 class Pass {
  public:
-  Pass(std::span<const uint8_t> b, const UlogReader::Callbacks& cb, uint64_t start_us, uint64_t* last_us,
+  Pass(Bytes& b, const UlogReader::Callbacks& cb, uint64_t start_us, uint64_t* last_us,
        std::map<char, int64_t>* unknown)
       : b_(b), cb_(cb), start_us_(start_us), last_us_(last_us), unknown_(unknown) {}
 
@@ -270,11 +336,13 @@ class Pass {
   /// Reads the records of [pos, end).
   void section(uint64_t pos, uint64_t end) {
     while (pos < end) {
+      b_.want(pos, kRecordReach);
+      if (!b_.error().empty()) return;
       if (end - pos < 3) {
         problem(pos, cut_text(end, "a record's header"));
         return;
       }
-      const uint16_t size = le16(&b_[pos]);
+      const uint16_t size = le16(b_.at(pos));
       const uint8_t type = b_[pos + 2];
       if (pos + 3 + size > end) {
         if (plausible_header(pos, end)) {
@@ -323,14 +391,14 @@ class Pass {
   /// Whether a record starting at pos whose content lies past end could be a real record cut there: a known
   /// type of a size it can have (for data: the size of its subscription's messages).
   bool plausible_header(uint64_t pos, uint64_t end) const {
-    const uint16_t size = le16(&b_[pos]);
+    const uint16_t size = le16(b_.at(pos));
     const uint8_t type = b_[pos + 2];
     if (!type_name(type) || size == 0) return false;
     if (type == 'R' || type == 'O') return size == 2;
     if (type == 'S') return size == 8;
     if (type == 'D') {
       if (pos + 5 > end) return true;
-      const UlogSubscription* sub = subscriptions_[le16(&b_[pos + 3])].get();
+      const UlogSubscription* sub = subscriptions_[le16(b_.at(pos + 3))].get();
       if (sub == nullptr) return false;
       const auto& l = sub->layout;
       return !l || (size >= 2u + l->size_written && size <= 2u + l->size);
@@ -342,7 +410,9 @@ class Pass {
   /// followed by another record's header or the end). Reports the stretch once; returns where reading goes on.
   uint64_t resync(uint64_t pos, uint64_t end, const std::string& why) {
     for (uint64_t q = pos + 1; q + 3 <= end; ++q) {
-      const uint16_t size = le16(&b_[q]);
+      b_.want(q, kRecordReach);
+      if (!b_.error().empty()) return end;
+      const uint16_t size = le16(b_.at(q));
       const uint8_t type = b_[q + 2];
       if (!type_name(type) || q + 3 + size > end) continue;
       const uint64_t next = q + 3 + size;
@@ -536,7 +606,7 @@ class Pass {
     ++(*unknown_)[static_cast<char>(type)];
   }
 
-  std::span<const uint8_t> b_;
+  Bytes& b_;
   const UlogReader::Callbacks& cb_;
   uint64_t start_us_;
   uint64_t* last_us_;
@@ -565,13 +635,19 @@ const UlogLayout::Field* UlogLayout::find(std::string_view field) const {
 }
 
 std::optional<uint64_t> UlogLayout::u64(std::span<const uint8_t> data, std::string_view field) const {
-  const Field* f = find(field);
+  return u64(data, find(field));
+}
+
+std::optional<uint64_t> UlogLayout::u64(std::span<const uint8_t> data, const Field* f) const {
   if (!f || f->type != UlogType::kUint64 || f->count != 0 || f->offset + 8ull > data.size()) return std::nullopt;
   return le64(data.data() + f->offset);
 }
 
 double UlogLayout::number(std::span<const uint8_t> data, std::string_view field, uint32_t i) const {
-  const Field* f = find(field);
+  return number(data, find(field), i);
+}
+
+double UlogLayout::number(std::span<const uint8_t> data, const Field* f, uint32_t i) const {
   const double nan = std::numeric_limits<double>::quiet_NaN();
   if (!f || (f->count == 0 ? i != 0 : i >= f->count) || f->type == UlogType::kChar) return nan;
   const uint64_t at = f->offset + static_cast<uint64_t>(i) * size_of(f->type);
@@ -626,6 +702,7 @@ Result<UlogReader> UlogReader::open(const std::string& path) {
   if (std::string why = header_problem(f->bytes()); !why.empty()) return Error(path + ": " + why);
   UlogReader r;
   r.file_ = std::move(*f);
+  r.path_ = path;
   return r;
 }
 
@@ -637,29 +714,31 @@ Result<UlogReader> UlogReader::from_memory(std::vector<uint8_t> bytes) {
   return r;
 }
 
-std::span<const uint8_t> UlogReader::bytes() const {
-  return in_memory_ ? std::span<const uint8_t>(memory_) : file_.bytes();
-}
-
 Status UlogReader::read(const Callbacks& callbacks) {
-  const std::span<const uint8_t> b = bytes();
+  // A file is read again through its own descriptor (its mapping only when it cannot be opened again).
+  const int fd = in_memory_ ? -1 : ::open(path_.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK);
+  Bytes w =
+      fd >= 0 ? Bytes(fd, file_.bytes().size()) : Bytes(in_memory_ ? std::span<const uint8_t>(memory_) : file_.bytes());
+  const uint64_t n = w.size();
+  w.want(0, kHeaderSize + kRecordReach);
+  const std::span<const uint8_t> b = w.subspan(0, std::min(n, kHeaderSize + kRecordReach));
   version_ = b[7];
   start_us_ = le64(&b[8]);
   last_us_ = start_us_;
   unknown_types_.clear();
-  Pass pass(b, callbacks, start_us_, &last_us_, &unknown_types_);
+  Pass pass(w, callbacks, start_us_, &last_us_, &unknown_types_);
   // The flag bits, when present, are the first record: incompatible flags this reader does not know make the rest
   // unreadable; the appended data's offsets say where further sections start.
   std::vector<uint64_t> starts{kHeaderSize};
-  if (b.size() >= kHeaderSize + 3 && b[kHeaderSize + 2] == 'B') {
+  if (n >= kHeaderSize + 3 && b[kHeaderSize + 2] == 'B') {
     const uint16_t size = le16(&b[kHeaderSize]);
-    if (size < 40 && kHeaderSize + 3 + size <= b.size()) {
+    if (size < 40 && kHeaderSize + 3 + size <= n) {
       pass.problem(kHeaderSize,
                    "a flag bits record of " + std::to_string(size) + " bytes (40 or more); read as if it set no flag");
     }
   }
-  if (b.size() >= kHeaderSize + 3 + 40 && b[kHeaderSize + 2] == 'B' && le16(&b[kHeaderSize]) >= 40 &&
-      kHeaderSize + 3 + le16(&b[kHeaderSize]) <= b.size()) {
+  if (n >= kHeaderSize + 3 + 40 && b[kHeaderSize + 2] == 'B' && le16(&b[kHeaderSize]) >= 40 &&
+      kHeaderSize + 3 + le16(&b[kHeaderSize]) <= n) {
     const uint8_t* f = &b[kHeaderSize + 3];
     const uint8_t* incompat = f + 8;
     for (int i = 0; i < 8; ++i) {
@@ -675,7 +754,7 @@ Status UlogReader::read(const Callbacks& callbacks) {
       for (int i = 0; i < 3; ++i) {
         const uint64_t off = le64(f + 16 + 8 * static_cast<ptrdiff_t>(i));
         if (off == 0) continue;
-        if (off <= starts.back() || off > b.size()) {
+        if (off <= starts.back() || off > n) {
           pass.problem(
               kHeaderSize + 3 + 16 + 8 * static_cast<uint64_t>(i),
               "appended data at offset " + std::to_string(off) + ", outside the file or before the data; left out");
@@ -686,8 +765,9 @@ Status UlogReader::read(const Callbacks& callbacks) {
     }
   }
   for (size_t i = 0; i < starts.size(); ++i) {
-    pass.section(starts[i], i + 1 < starts.size() ? starts[i + 1] : b.size());
+    pass.section(starts[i], i + 1 < starts.size() ? starts[i + 1] : n);
   }
+  if (!w.error().empty()) return Error("cannot read " + path_ + ": " + w.error());
   return {};
 }
 

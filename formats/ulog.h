@@ -4,10 +4,11 @@
 // flag bits say so, appended data sections read in turn. Little-endian throughout; times are microseconds of the
 // flight controller's boot clock.
 //
-// The reader is bounds-checked over the bytes (a mapped file, or memory): a message that does not parse is
-// reported once with its byte offset, and reading goes on at the next message that parses (a sync record, or a
-// message whose header and content fit what the file defined, followed by another such header or the end); a file
-// cut short keeps every message before the cut. Thread-safety: one reader per thread.
+// The reader is bounds-checked over the bytes (a file, read forward through a window of it, or memory): a message
+// that does not parse is reported once with its byte offset, and reading goes on at the next message that parses (a
+// sync record, or a message whose header and content fit what the file defined, followed by another such header or
+// the end); a file cut short keeps every message before the cut. The spans a callback is given hold only during the
+// call. Thread-safety: one reader per thread.
 #pragma once
 
 #include <cstdint>
@@ -67,6 +68,9 @@ struct UlogLayout {
   double number(std::span<const uint8_t> data, std::string_view field, uint32_t i = 0) const;
   /// A uint64_t field's exact value (PX4's times), nullopt when the format has none or data ends before it.
   std::optional<uint64_t> u64(std::span<const uint8_t> data, std::string_view field) const;
+  /// The same of a field found before (nullptr: a field the format does not have).
+  double number(std::span<const uint8_t> data, const Field* field, uint32_t i = 0) const;
+  std::optional<uint64_t> u64(std::span<const uint8_t> data, const Field* field) const;
 };
 
 /// A ULog time [us] as driftlab's int64_t microseconds: a hostile value past int64_t's end is held at its end.
@@ -150,9 +154,9 @@ class UlogReader {
 
  private:
   UlogReader() = default;
-  std::span<const uint8_t> bytes() const;
 
-  MappedFile file_;
+  MappedFile file_;  ///< its header checked when opened; read() reads path_ again through a descriptor
+  std::string path_;
   std::vector<uint8_t> memory_;
   bool in_memory_ = false;
   uint8_t version_ = 0;

@@ -23,19 +23,49 @@ namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
+/// A format's fields, each looked up by name once: at its first use, in the layout's index; after, by the address
+/// of its name. Every name given is a string literal of this file (a name's address stands for its text).
+class Fields {
+ public:
+  explicit Fields(const UlogLayout& l) : l_(l) {}
+  const UlogLayout& layout() const { return l_; }
+  const UlogLayout::Field* find(const char* name) const {
+    for (const auto& [n, f] : memo_)
+      if (n == name) return f;
+    const UlogLayout::Field* f = l_.find(name);
+    memo_.emplace_back(name, f);
+    return f;
+  }
+  double number(std::span<const uint8_t> p, const char* name, uint32_t i = 0) const {
+    return l_.number(p, find(name), i);
+  }
+  std::optional<uint64_t> u64(std::span<const uint8_t> p, const char* name) const { return l_.u64(p, find(name)); }
+
+ private:
+  const UlogLayout& l_;
+  mutable std::vector<std::pair<const char*, const UlogLayout::Field*>> memo_;
+};
+
+/// m encoded into *out: its type's name.
+template <typename T>
+const char* put(const T& m, const char* type, std::vector<uint8_t>* out) {
+  lcmtypes::encode_into(m, out);
+  return type;
+}
+
 /// header.utime: when the sensor sampled (timestamp_sample) where the message says, else its timestamp.
-int64_t sample_time(const UlogLayout& l, std::span<const uint8_t> p, uint64_t timestamp) {
+int64_t sample_time(const Fields& l, std::span<const uint8_t> p, uint64_t timestamp) {
   return ulog_utime(l.u64(p, "timestamp_sample").value_or(timestamp));
 }
 
-bool has(const UlogLayout& l, std::string_view name, uint32_t count = 0) {
+bool has(const Fields& l, const char* name, uint32_t count = 0) {
   const UlogLayout::Field* f = l.find(name);
   return f && f->count == count && f->type != UlogType::kChar;
 }
 
 /// An imu_t of a PX4 IMU topic: no orientation (PX4's IMU topics carry none), stamped when sampled, in PX4's body
 /// frame (forward, right, down); the caller sets its rates and accelerations.
-imu_t bare_imu(const UlogLayout& l, std::span<const uint8_t> p, uint64_t timestamp, int64_t seq) {
+imu_t bare_imu(const Fields& l, std::span<const uint8_t> p, uint64_t timestamp, int64_t seq) {
   imu_t m;
   m.header.seq = seq;
   m.header.utime = sample_time(l, p, timestamp);
@@ -51,8 +81,9 @@ imu_t bare_imu(const UlogLayout& l, std::span<const uint8_t> p, uint64_t timesta
   return m;
 }
 
-std::optional<UlogConverted> imu(const UlogLayout& l, std::span<const uint8_t> p, uint64_t timestamp, int64_t seq) {
-  if (!has(l, "gyro_rad", 3) || !has(l, "accelerometer_m_s2", 3)) return std::nullopt;
+const char* imu(const Fields& l, std::span<const uint8_t> p, uint64_t timestamp, int64_t seq,
+                std::vector<uint8_t>* out) {
+  if (!has(l, "gyro_rad", 3) || !has(l, "accelerometer_m_s2", 3)) return nullptr;
   // sensor_combined's timestamp is its gyro sample's time (the accelerometer's is timestamp +
   // accelerometer_timestamp_relative); it has no timestamp_sample.
   imu_t m = bare_imu(l, p, timestamp, seq);
@@ -62,16 +93,16 @@ std::optional<UlogConverted> imu(const UlogLayout& l, std::span<const uint8_t> p
   m.linear_acceleration.x = l.number(p, "accelerometer_m_s2", 0);
   m.linear_acceleration.y = l.number(p, "accelerometer_m_s2", 1);
   m.linear_acceleration.z = l.number(p, "accelerometer_m_s2", 2);
-  return UlogConverted{"driftlab.imu_t", lcmtypes::encode(m)};
+  return put(m, "driftlab.imu_t", out);
 }
 
 /// vehicle_imu (PX4 1.11 and later): one IMU's integrated rotation and velocity change over its interval; the mean
 /// rate and specific force over the interval are the changes over their dt (NaN, not measured, for a dt of 0).
-std::optional<UlogConverted> vehicle_imu(const UlogLayout& l, std::span<const uint8_t> p, uint64_t timestamp,
-                                         int64_t seq) {
+const char* vehicle_imu(const Fields& l, std::span<const uint8_t> p, uint64_t timestamp, int64_t seq,
+                        std::vector<uint8_t>* out) {
   if (!has(l, "delta_angle", 3) || !has(l, "delta_velocity", 3) || !has(l, "delta_angle_dt") ||
       !has(l, "delta_velocity_dt")) {
-    return std::nullopt;
+    return nullptr;
   }
   imu_t m = bare_imu(l, p, timestamp, seq);
   const double angle_dt = l.number(p, "delta_angle_dt") * 1e-6, velocity_dt = l.number(p, "delta_velocity_dt") * 1e-6;
@@ -82,14 +113,14 @@ std::optional<UlogConverted> vehicle_imu(const UlogLayout& l, std::span<const ui
   m.linear_acceleration.x = rate(l.number(p, "delta_velocity", 0), velocity_dt);
   m.linear_acceleration.y = rate(l.number(p, "delta_velocity", 1), velocity_dt);
   m.linear_acceleration.z = rate(l.number(p, "delta_velocity", 2), velocity_dt);
-  return UlogConverted{"driftlab.imu_t", lcmtypes::encode(m)};
+  return put(m, "driftlab.imu_t", out);
 }
 
 /// sensor_baro: static pressure and temperature. PX4 1.12 and earlier log millibar, later Pascal: a pressure under
 /// 2000 is millibar (2000 Pa is the air 27 km up; 2000 mbar no air a vehicle meets).
-std::optional<UlogConverted> barometer(const UlogLayout& l, std::span<const uint8_t> p, uint64_t timestamp,
-                                       int64_t seq) {
-  if (!has(l, "pressure")) return std::nullopt;
+const char* barometer(const Fields& l, std::span<const uint8_t> p, uint64_t timestamp, int64_t seq,
+                      std::vector<uint8_t>* out) {
+  if (!has(l, "pressure")) return nullptr;
   barometer_t m;
   m.header.seq = seq;
   m.header.utime = sample_time(l, p, timestamp);
@@ -98,13 +129,13 @@ std::optional<UlogConverted> barometer(const UlogLayout& l, std::span<const uint
   m.pressure_pa = std::abs(pressure) < 2000 ? pressure * 100 : pressure;
   m.temperature_c = has(l, "temperature") ? l.number(p, "temperature") : kNaN;
   m.pressure_variance = 0;  // not given
-  return UlogConverted{"driftlab.barometer_t", lcmtypes::encode(m)};
+  return put(m, "driftlab.barometer_t", out);
 }
 
 /// sensor_mag (the sensor's frame: x, y, z) and vehicle_magnetometer (the body frame: magnetometer_ga), in gauss:
 /// tesla are 1e-4 of them.
-std::optional<UlogConverted> magnetometer(const UlogLayout& l, std::span<const uint8_t> p, uint64_t timestamp,
-                                          int64_t seq) {
+const char* magnetometer(const Fields& l, std::span<const uint8_t> p, uint64_t timestamp, int64_t seq,
+                         std::vector<uint8_t>* out) {
   magnetometer_t m;
   if (has(l, "magnetometer_ga", 3)) {
     m.header.frame_id = "body_frd";
@@ -117,15 +148,16 @@ std::optional<UlogConverted> magnetometer(const UlogLayout& l, std::span<const u
     m.magnetic_field.y = l.number(p, "y") * 1e-4;
     m.magnetic_field.z = l.number(p, "z") * 1e-4;
   } else {
-    return std::nullopt;
+    return nullptr;
   }
   m.header.seq = seq;
   m.header.utime = sample_time(l, p, timestamp);
   for (double& c : m.magnetic_field_covariance) c = 0;  // not given
-  return UlogConverted{"driftlab.magnetometer_t", lcmtypes::encode(m)};
+  return put(m, "driftlab.magnetometer_t", out);
 }
 
-std::optional<UlogConverted> gnss(const UlogLayout& l, std::span<const uint8_t> p, uint64_t timestamp, int64_t seq) {
+const char* gnss(const Fields& l, std::span<const uint8_t> p, uint64_t timestamp, int64_t seq,
+                 std::vector<uint8_t>* out) {
   gnss_t m;
   if (has(l, "latitude_deg") && has(l, "longitude_deg") && has(l, "altitude_msl_m")) {
     // PX4 1.14 and later: degrees and metres as doubles.
@@ -138,9 +170,9 @@ std::optional<UlogConverted> gnss(const UlogLayout& l, std::span<const uint8_t> 
     m.longitude_deg = l.number(p, "lon") * 1e-7;
     m.altitude_m = l.number(p, "alt") * 1e-3;
   } else {
-    return std::nullopt;
+    return nullptr;
   }
-  if (!has(l, "fix_type")) return std::nullopt;
+  if (!has(l, "fix_type")) return nullptr;
   m.header.seq = seq;
   m.header.utime = sample_time(l, p, timestamp);
   m.header.frame_id = "gps";
@@ -156,15 +188,15 @@ std::optional<UlogConverted> gnss(const UlogLayout& l, std::span<const uint8_t> 
   m.velocity.y = l.number(p, "vel_n_m_s");
   m.velocity.z = -l.number(p, "vel_d_m_s");
   m.speed_accuracy_m_s = has(l, "s_variance_m_s") ? l.number(p, "s_variance_m_s") : kNaN;
-  return UlogConverted{"driftlab.gnss_t", lcmtypes::encode(m)};
+  return put(m, "driftlab.gnss_t", out);
 }
 
-std::optional<UlogConverted> local_position(const UlogLayout& l, std::span<const uint8_t> p, uint64_t timestamp,
-                                            int64_t seq) {
+const char* local_position(const Fields& l, std::span<const uint8_t> p, uint64_t timestamp, int64_t seq,
+                           std::vector<uint8_t>* out) {
   const char* heading = has(l, "heading") ? "heading" : has(l, "yaw") ? "yaw" : nullptr;  // "yaw" before PX4 1.10
   for (const char* f : {"x", "y", "z", "vx", "vy", "vz"})
-    if (!has(l, f)) return std::nullopt;
-  if (!heading) return std::nullopt;
+    if (!has(l, f)) return nullptr;
+  if (!heading) return nullptr;
   odometry_t m;
   m.header.seq = seq;
   m.header.utime = sample_time(l, p, timestamp);
@@ -194,12 +226,12 @@ std::optional<UlogConverted> local_position(const UlogLayout& l, std::span<const
   m.pose_covariance[14] = variance("epv");
   m.twist_covariance[0] = m.twist_covariance[7] = variance("evh");
   m.twist_covariance[14] = variance("evv");
-  return UlogConverted{"driftlab.odometry_t", lcmtypes::encode(m)};
+  return put(m, "driftlab.odometry_t", out);
 }
 
-std::optional<UlogConverted> attitude(const UlogLayout& l, std::span<const uint8_t> p, uint64_t timestamp,
-                                      int64_t seq) {
-  if (!has(l, "q", 4)) return std::nullopt;
+const char* attitude(const Fields& l, std::span<const uint8_t> p, uint64_t timestamp, int64_t seq,
+                     std::vector<uint8_t>* out) {
+  if (!has(l, "q", 4)) return nullptr;
   pose_t m;
   m.header.seq = seq;
   m.header.utime = sample_time(l, p, timestamp);
@@ -213,12 +245,12 @@ std::optional<UlogConverted> attitude(const UlogLayout& l, std::span<const uint8
   m.orientation.y = l.number(p, "q", 2);
   m.orientation.z = l.number(p, "q", 3);
   for (double& c : m.covariance) c = 0;
-  return UlogConverted{"driftlab.pose_t", lcmtypes::encode(m)};
+  return put(m, "driftlab.pose_t", out);
 }
 
 /// Three values of a vector PX4 logs either as one array (PX4 1.14 and later: `position[3]`) or as three fields
 /// (earlier: `x`, `y`, `z`); nullopt when the format has neither.
-std::optional<std::array<double, 3>> vector3(const UlogLayout& l, std::span<const uint8_t> p, const char* array,
+std::optional<std::array<double, 3>> vector3(const Fields& l, std::span<const uint8_t> p, const char* array,
                                              const std::array<const char*, 3>& fields) {
   if (has(l, array, 3))
     return std::array<double, 3>{l.number(p, array, 0), l.number(p, array, 1), l.number(p, array, 2)};
@@ -241,14 +273,14 @@ std::array<double, 3> into_body(const std::array<double, 4>& q, const std::array
 /// whose x is the vehicle's heading at start), `velocity_frame` (1 NED, 2 FRD, 3 the body's FRD), the variances'
 /// diagonals; before: `x`, `y`, `z`, `vx`, `vy`, `vz`, `rollspeed`, `pitchspeed`, `yawspeed`, `local_frame` (0 NED,
 /// 1 FRD), `velocity_frame` (0 NED, 1 FRD, 3 body; PX4 1.12 and later), the upper triangles of the covariances.
-std::optional<UlogConverted> odometry(const UlogLayout& l, std::span<const uint8_t> p, uint64_t timestamp,
-                                      int64_t seq) {
+const char* odometry(const Fields& l, std::span<const uint8_t> p, uint64_t timestamp, int64_t seq,
+                     std::vector<uint8_t>* out) {
   const auto position = vector3(l, p, "position", {"x", "y", "z"});
   const auto velocity = vector3(l, p, "velocity", {"vx", "vy", "vz"});
   const auto rates = vector3(l, p, "angular_velocity", {"rollspeed", "pitchspeed", "yawspeed"});
-  if (!position || !velocity || !rates || !has(l, "q", 4)) return std::nullopt;
+  if (!position || !velocity || !rates || !has(l, "q", 4)) return nullptr;
   const bool v1_14 = has(l, "pose_frame");
-  if (!v1_14 && !has(l, "local_frame")) return std::nullopt;
+  if (!v1_14 && !has(l, "local_frame")) return nullptr;
   const double pose_frame = l.number(p, v1_14 ? "pose_frame" : "local_frame");
   odometry_t m;
   m.header.seq = seq;
@@ -303,15 +335,16 @@ std::optional<UlogConverted> odometry(const UlogLayout& l, std::span<const uint8
       }
     }
   }
-  return UlogConverted{"driftlab.odometry_t", lcmtypes::encode(m)};
+  return put(m, "driftlab.odometry_t", out);
 }
 
 /// actuator_motors (PX4 1.13 and later): each motor's thrust setpoint, normalised, NaN for a motor stopped (all of
 /// them when disarmed) or not configured (those after the vehicle's last motor). actuator_outputs is not mapped: its
 /// values are in the output driver's units (PWM microseconds, DShot steps), not thrust.
-std::optional<UlogConverted> motors(const UlogLayout& l, std::span<const uint8_t> p, uint64_t timestamp, int64_t seq) {
+const char* motors(const Fields& l, std::span<const uint8_t> p, uint64_t timestamp, int64_t seq,
+                   std::vector<uint8_t>* out) {
   const UlogLayout::Field* f = l.find("control");
-  if (!f || f->count == 0 || f->type != UlogType::kFloat) return std::nullopt;
+  if (!f || f->count == 0 || f->type != UlogType::kFloat) return nullptr;
   motor_command_t m;
   m.header.seq = seq;
   m.header.utime = sample_time(l, p, timestamp);
@@ -326,33 +359,33 @@ std::optional<UlogConverted> motors(const UlogLayout& l, std::span<const uint8_t
   m.nmotors = n;
   // A motor stopped among running ones (NaN) commands no thrust.
   for (int32_t i = 0; i < n; ++i) m.control.push_back(std::isfinite(control[i]) ? control[i] : 0.0);
-  return UlogConverted{"driftlab.motor_command_t", lcmtypes::encode(m)};
+  return put(m, "driftlab.motor_command_t", out);
 }
 
 /// trajectory_setpoint and vehicle_local_position_setpoint: where the vehicle should be in PX4's local frame
 /// (north-east-down), how fast and how it should be accelerating, and its heading (about down, from north); NaN
 /// where PX4 leaves a part unset. PX4 1.14 and later: `position[3]`, `velocity[3]`, `acceleration[3]`; before: `x`,
 /// `y`, `z`, `vx`, `vy`, `vz`, and `acceleration[3]` or (PX4 1.9) `acc_x`, `acc_y`, `acc_z`.
-std::optional<UlogConverted> setpoint(const UlogLayout& l, std::span<const uint8_t> p, uint64_t timestamp,
-                                      int64_t seq) {
+const char* setpoint(const Fields& l, std::span<const uint8_t> p, uint64_t timestamp, int64_t seq,
+                     std::vector<uint8_t>* out) {
   const auto position = vector3(l, p, "position", {"x", "y", "z"});
   const auto velocity = vector3(l, p, "velocity", {"vx", "vy", "vz"});
   const auto acceleration = vector3(l, p, "acceleration", {"acc_x", "acc_y", "acc_z"});
-  if (!position || !velocity || !acceleration || !has(l, "yaw")) return std::nullopt;
+  if (!position || !velocity || !acceleration || !has(l, "yaw")) return nullptr;
   trajectory_setpoint_t m;
   m.header.seq = seq;
   m.header.utime = sample_time(l, p, timestamp);
   m.header.frame_id = "local_ned";
-  auto put = [](vector3_t& out, const std::array<double, 3>& v) {
-    out.x = v[0];
-    out.y = v[1];
-    out.z = v[2];
+  auto set = [](vector3_t& to, const std::array<double, 3>& v) {
+    to.x = v[0];
+    to.y = v[1];
+    to.z = v[2];
   };
-  put(m.position, *position);
-  put(m.velocity, *velocity);
-  put(m.acceleration, *acceleration);
+  set(m.position, *position);
+  set(m.velocity, *velocity);
+  set(m.acceleration, *acceleration);
   m.yaw = l.number(p, "yaw");
-  return UlogConverted{"driftlab.trajectory_setpoint_t", lcmtypes::encode(m)};
+  return put(m, "driftlab.trajectory_setpoint_t", out);
 }
 
 /// PX4's nav_state as a mode's name (vehicle_status.msg: the values have kept their meaning across versions).
@@ -389,8 +422,9 @@ const char* nav_state_name(double s) {
 /// the vehicle was last armed or disarmed where PX4 says (latest_arming_reason, latest_disarming_reason: the number).
 /// vehicle_status carries no land detector's verdict (vehicle_land_detected does): `landed` is what PX4's land
 /// detector holds of a disarmed vehicle (landed) and false when armed; no offboard losses or setpoint age (-1).
-std::optional<UlogConverted> status(const UlogLayout& l, std::span<const uint8_t> p, uint64_t timestamp, int64_t seq) {
-  if (!has(l, "arming_state") || !has(l, "nav_state")) return std::nullopt;
+const char* status(const Fields& l, std::span<const uint8_t> p, uint64_t timestamp, int64_t seq,
+                   std::vector<uint8_t>* out) {
+  if (!has(l, "arming_state") || !has(l, "nav_state")) return nullptr;
   vehicle_status_t m;
   m.header.seq = seq;
   m.header.utime = sample_time(l, p, timestamp);
@@ -405,16 +439,16 @@ std::optional<UlogConverted> status(const UlogLayout& l, std::span<const uint8_t
                  : "";
   m.offboard_losses = 0;
   m.setpoint_age_s = -1;  // none known
-  return UlogConverted{"driftlab.vehicle_status_t", lcmtypes::encode(m)};
+  return put(m, "driftlab.vehicle_status_t", out);
 }
 
 /// timesync_status (PX4 1.13 and later; `timesync` before): the flight controller's estimate of a companion's clock
 /// against its own, from one exchange: `remote_timestamp`, `observed_offset` and `estimated_offset` (remote - local
 /// [us]), `round_trip_time` [us]. Stamped with its timestamp, the flight controller's clock (the local side).
-std::optional<UlogConverted> timesync(const UlogLayout& l, std::span<const uint8_t> p, uint64_t timestamp,
-                                      int64_t seq) {
+const char* timesync(const Fields& l, std::span<const uint8_t> p, uint64_t timestamp, int64_t seq,
+                     std::vector<uint8_t>* out) {
   for (const char* f : {"remote_timestamp", "observed_offset", "estimated_offset", "round_trip_time"})
-    if (!has(l, f)) return std::nullopt;
+    if (!has(l, f)) return nullptr;
   timesync_status_t m;
   m.header.seq = seq;
   m.header.utime = ulog_utime(timestamp);
@@ -423,35 +457,48 @@ std::optional<UlogConverted> timesync(const UlogLayout& l, std::span<const uint8
   m.observed_offset_s = l.number(p, "observed_offset") * 1e-6;
   m.estimated_offset_s = l.number(p, "estimated_offset") * 1e-6;
   m.round_trip_s = l.number(p, "round_trip_time") * 1e-6;
-  return UlogConverted{"driftlab.timesync_status_t", lcmtypes::encode(m)};
+  return put(m, "driftlab.timesync_status_t", out);
 }
 
-}  // namespace
+/// Each mapped topic: its driftlab type and mapping.
+using Mapping = const char* (*)(const Fields&, std::span<const uint8_t>, uint64_t, int64_t, std::vector<uint8_t>*);
+struct Mapped {
+  std::string_view topic;
+  const char* type;
+  Mapping mapping;
+};
+constexpr Mapped kMapped[] = {
+    {"sensor_combined", "driftlab.imu_t", imu},
+    {"vehicle_imu", "driftlab.imu_t", vehicle_imu},
+    {"sensor_baro", "driftlab.barometer_t", barometer},
+    {"sensor_mag", "driftlab.magnetometer_t", magnetometer},
+    {"vehicle_magnetometer", "driftlab.magnetometer_t", magnetometer},
+    {"sensor_gps", "driftlab.gnss_t", gnss},
+    {"vehicle_gps_position", "driftlab.gnss_t", gnss},
+    {"vehicle_local_position", "driftlab.odometry_t", local_position},
+    {"vehicle_attitude", "driftlab.pose_t", attitude},
+    {"vehicle_odometry", "driftlab.odometry_t", odometry},
+    {"actuator_motors", "driftlab.motor_command_t", motors},
+    {"trajectory_setpoint", "driftlab.trajectory_setpoint_t", setpoint},
+    {"vehicle_local_position_setpoint", "driftlab.trajectory_setpoint_t", setpoint},
+    {"vehicle_status", "driftlab.vehicle_status_t", status},
+    {"timesync_status", "driftlab.timesync_status_t", timesync},
+    {"timesync", "driftlab.timesync_status_t", timesync},
+};
 
-const char* driftlab_type_for_ulog(std::string_view name) {
-  if (name == "sensor_combined" || name == "vehicle_imu") return "driftlab.imu_t";
-  if (name == "sensor_baro") return "driftlab.barometer_t";
-  if (name == "sensor_mag" || name == "vehicle_magnetometer") return "driftlab.magnetometer_t";
-  if (name == "sensor_gps" || name == "vehicle_gps_position") return "driftlab.gnss_t";
-  if (name == "vehicle_local_position") return "driftlab.odometry_t";
-  if (name == "vehicle_attitude") return "driftlab.pose_t";
-  if (name == "vehicle_odometry") return "driftlab.odometry_t";
-  if (name == "actuator_motors") return "driftlab.motor_command_t";
-  if (name == "trajectory_setpoint" || name == "vehicle_local_position_setpoint") {
-    return "driftlab.trajectory_setpoint_t";
-  }
-  if (name == "vehicle_status") return "driftlab.vehicle_status_t";
-  if (name == "timesync_status" || name == "timesync") return "driftlab.timesync_status_t";
+const Mapped* mapped(std::string_view topic) {
+  for (const Mapped& m : kMapped)
+    if (m.topic == topic) return &m;
   return nullptr;
 }
 
-std::optional<UlogUtcTie> ulog_gnss_utc(const UlogLayout& layout, std::span<const uint8_t> payload,
-                                        uint64_t timestamp) {
-  if (layout.name != "sensor_gps" && layout.name != "vehicle_gps_position") return std::nullopt;
-  const auto utc = layout.u64(payload, "time_utc_usec");
-  if (!utc || *utc == 0 || *utc > static_cast<uint64_t>(INT64_MAX) || !has(layout, "fix_type")) return std::nullopt;
-  if (!(layout.number(payload, "fix_type") >= 3)) return std::nullopt;
-  double relative = has(layout, "timestamp_time_relative") ? layout.number(payload, "timestamp_time_relative") : 0;
+bool is_gnss(std::string_view topic) { return topic == "sensor_gps" || topic == "vehicle_gps_position"; }
+
+std::optional<UlogUtcTie> gnss_utc(const Fields& l, std::span<const uint8_t> payload, uint64_t timestamp) {
+  const auto utc = l.u64(payload, "time_utc_usec");
+  if (!utc || *utc == 0 || *utc > static_cast<uint64_t>(INT64_MAX) || !has(l, "fix_type")) return std::nullopt;
+  if (!(l.number(payload, "fix_type") >= 3)) return std::nullopt;
+  double relative = has(l, "timestamp_time_relative") ? l.number(payload, "timestamp_time_relative") : 0;
   if (!std::isfinite(relative)) relative = 0;
   const int64_t boot = ulog_utime(timestamp);
   // timestamp_time_relative is an int32_t [us]: the sum stays in int64_t for any boot time short of its end.
@@ -459,27 +506,53 @@ std::optional<UlogUtcTie> ulog_gnss_utc(const UlogLayout& layout, std::span<cons
   return UlogUtcTie{boot + static_cast<int64_t>(relative), static_cast<int64_t>(*utc)};
 }
 
+}  // namespace
+
+const char* driftlab_type_for_ulog(std::string_view name) {
+  const Mapped* m = mapped(name);
+  return m ? m->type : nullptr;
+}
+
+std::optional<UlogUtcTie> ulog_gnss_utc(const UlogLayout& layout, std::span<const uint8_t> payload,
+                                        uint64_t timestamp) {
+  if (!is_gnss(layout.name)) return std::nullopt;
+  return gnss_utc(Fields(layout), payload, timestamp);
+}
+
 std::optional<UlogConverted> convert_ulog_message(const UlogLayout& layout, std::span<const uint8_t> payload,
                                                   uint64_t timestamp, int64_t seq) {
-  if (layout.name == "sensor_combined") return imu(layout, payload, timestamp, seq);
-  if (layout.name == "vehicle_imu") return vehicle_imu(layout, payload, timestamp, seq);
-  if (layout.name == "sensor_baro") return barometer(layout, payload, timestamp, seq);
-  if (layout.name == "sensor_mag" || layout.name == "vehicle_magnetometer") {
-    return magnetometer(layout, payload, timestamp, seq);
-  }
-  if (layout.name == "sensor_gps" || layout.name == "vehicle_gps_position") {
-    return gnss(layout, payload, timestamp, seq);
-  }
-  if (layout.name == "vehicle_local_position") return local_position(layout, payload, timestamp, seq);
-  if (layout.name == "vehicle_attitude") return attitude(layout, payload, timestamp, seq);
-  if (layout.name == "vehicle_odometry") return odometry(layout, payload, timestamp, seq);
-  if (layout.name == "actuator_motors") return motors(layout, payload, timestamp, seq);
-  if (layout.name == "trajectory_setpoint" || layout.name == "vehicle_local_position_setpoint") {
-    return setpoint(layout, payload, timestamp, seq);
-  }
-  if (layout.name == "vehicle_status") return status(layout, payload, timestamp, seq);
-  if (layout.name == "timesync_status" || layout.name == "timesync") return timesync(layout, payload, timestamp, seq);
-  return std::nullopt;
+  UlogConverted c;
+  const Mapped* m = mapped(layout.name);
+  if (!m || !(c.type = m->mapping(Fields(layout), payload, timestamp, seq, &c.lcm))) return std::nullopt;
+  return c;
+}
+
+struct UlogConverter::Plan {
+  std::shared_ptr<const UlogLayout> layout;
+  Fields fields;
+  Mapping mapping;
+  bool gnss;
+};
+
+UlogConverter::UlogConverter(std::shared_ptr<const UlogLayout> layout) {
+  const UlogLayout& l = *layout;
+  const Mapped* m = formats::mapped(l.name);
+  plan_ = std::make_unique<Plan>(Plan{std::move(layout), Fields(l), m ? m->mapping : nullptr, is_gnss(l.name)});
+}
+UlogConverter::UlogConverter(UlogConverter&&) noexcept = default;
+UlogConverter& UlogConverter::operator=(UlogConverter&&) noexcept = default;
+UlogConverter::~UlogConverter() = default;
+
+bool UlogConverter::mapped() const { return plan_->mapping != nullptr; }
+
+const char* UlogConverter::convert(std::span<const uint8_t> payload, uint64_t timestamp, int64_t seq,
+                                   std::vector<uint8_t>* out) const {
+  return plan_->mapping ? plan_->mapping(plan_->fields, payload, timestamp, seq, out) : nullptr;
+}
+
+std::optional<UlogUtcTie> UlogConverter::gnss_utc(std::span<const uint8_t> payload, uint64_t timestamp) const {
+  if (!plan_->gnss) return std::nullopt;
+  return formats::gnss_utc(plan_->fields, payload, timestamp);
 }
 
 }  // namespace driftlab::formats

@@ -10,6 +10,7 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <optional>
 #include <span>
 #include <string_view>
@@ -47,5 +48,29 @@ std::optional<UlogUtcTie> ulog_gnss_utc(const UlogLayout& layout, std::span<cons
 /// time, remote_utime the UTC time, both offsets (UTC - boot) [s], round_trip_s 0 (a receiver's time, no exchange),
 /// header.frame_id the GNSS topic's channel.
 inline constexpr char kUlogUtcChannel[] = "ULOG_UTC";
+
+/// One topic's mapping resolved once for all of its messages: the mapping chosen by the format's name, each field
+/// the mapping reads found by name at its first use (convert_ulog_message and ulog_gnss_utc look them all up per
+/// message). The same results, message for message. Thread-safety: one converter per thread.
+class UlogConverter {
+ public:
+  explicit UlogConverter(std::shared_ptr<const UlogLayout> layout);
+  UlogConverter(UlogConverter&&) noexcept;
+  UlogConverter& operator=(UlogConverter&&) noexcept;
+  ~UlogConverter();
+
+  /// Whether the topic has a mapping (driftlab_type_for_ulog).
+  bool mapped() const;
+  /// convert_ulog_message's message encoded into *out (its memory kept from one message to the next): its driftlab
+  /// type, or nullptr where convert_ulog_message gives nullopt (*out then holds nothing of use).
+  const char* convert(std::span<const uint8_t> payload, uint64_t timestamp, int64_t seq,
+                      std::vector<uint8_t>* out) const;
+  /// ulog_gnss_utc of the message.
+  std::optional<UlogUtcTie> gnss_utc(std::span<const uint8_t> payload, uint64_t timestamp) const;
+
+ private:
+  struct Plan;
+  std::unique_ptr<Plan> plan_;
+};
 
 }  // namespace driftlab::formats

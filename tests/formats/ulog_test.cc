@@ -77,9 +77,9 @@ struct Read {
   Status status;
 };
 
-Read read(std::vector<uint8_t> bytes) {
+/// What reader r reads: a log in memory, or a file (open).
+Read read(Result<UlogReader> r) {
   Read out;
-  auto r = UlogReader::from_memory(std::move(bytes));
   if (!r) {
     out.status = r.error();
     return out;
@@ -96,6 +96,8 @@ Read read(std::vector<uint8_t> bytes) {
   out.unknown = r->unknown_types();
   return out;
 }
+
+Read read(std::vector<uint8_t> bytes) { return read(UlogReader::from_memory(std::move(bytes))); }
 
 std::vector<uint8_t> file_bytes(const std::string& path) { return test::read_file(path); }
 
@@ -544,6 +546,49 @@ TEST(Ulog, CorruptedByteInTheMiddleResyncsAndKeepsTheRest) {
   ASSERT_EQ(r.problems.size(), 1u);
   EXPECT_EQ(r.problems[0].first, at);
   EXPECT_EQ(r.data.size(), all.data.size() - 1);
+}
+
+// A file is read forward through a window of it (formats/ulog.cc, Bytes): read from its file, a log damaged in many
+// places (records' types and sizes broken, garbage, around the window's edges too), cut short, or with appended
+// data reads as the same bytes in memory do, message for message and problem for problem.
+TEST(Ulog, AFileReadsAsTheSameBytesInMemory) {
+  const std::string path = test::shared_data("ulog/sample_logging_tagged_and_default_params.ulg");
+  const std::string appended = test::shared_data("ulog/sample_appended_multiple.ulg");
+  if (path.empty() || appended.empty()) return;
+  const std::vector<uint8_t> whole = file_bytes(path);
+  const Read all = read(whole);
+  ASSERT_TRUE(all.status);
+  ASSERT_GT(all.data.size(), 1000u);
+  std::vector<uint8_t> bad = whole;
+  for (size_t i = 7; i < all.data.size(); i += all.data.size() / 23) {
+    const uint64_t at = all.data[i].first;
+    if (i % 3 == 0) {
+      bad[at + 2] = 0xff;
+    } else if (i % 3 == 1) {
+      bad[at] = bad[at + 1] = 0xff;
+    } else {
+      bad[at + 2] = 'x';
+    }
+  }
+  for (const uint64_t edge : {uint64_t{1} << 20, (uint64_t{1} << 20) + (uint64_t{1} << 19)}) {
+    for (uint64_t k = edge - 40; k < edge + 40; ++k) bad[k] = static_cast<uint8_t>(0x90 + k % 50);
+  }
+  std::vector<uint8_t> cut(bad.begin(), bad.begin() + static_cast<ptrdiff_t>(bad.size() - 1000));
+  test::TempDir dir;
+  for (const auto& [name, bytes] : std::vector<std::pair<std::string, std::vector<uint8_t>>>{
+           {"whole.ulg", whole}, {"bad.ulg", bad}, {"cut.ulg", cut}, {"appended.ulg", file_bytes(appended)}}) {
+    SCOPED_TRACE(name);
+    test::write_file(dir.file(name), bytes);
+    const Read memory = read(bytes), file = read(UlogReader::open(dir.file(name)));
+    ASSERT_TRUE(memory.status);
+    ASSERT_TRUE(file.status) << file.status.message();
+    if (name == "bad.ulg") EXPECT_GT(memory.problems.size(), 10u);
+    EXPECT_EQ(file.problems, memory.problems);
+    EXPECT_EQ(file.data, memory.data);
+    EXPECT_EQ(file.unknown, memory.unknown);
+    EXPECT_EQ(file.logged, memory.logged);
+    EXPECT_EQ(file.dropouts, memory.dropouts);
+  }
 }
 
 // Garbage between two records of a written log: the messages on both sides are kept.
