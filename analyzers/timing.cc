@@ -1,4 +1,5 @@
-// The timing diagnosis: one pass over the log keeps each channel's samples (analyzers/internal/channel_samples.h),
+// The timing diagnosis: one pass over the log (on a long log, a stretch of it per core, joined as one pass would
+// have read them) keeps each channel's samples (analyzers/internal/channel_samples.h),
 // then each concern has its file: per-channel timing (channel_timing.cc), skew between streams (stream_skew.cc)
 // and the TF tree (tf_check.cc).
 #include "analyzers/timing.h"

@@ -582,7 +582,9 @@ TEST(Ulog, AFileReadsAsTheSameBytesInMemory) {
     const Read memory = read(bytes), file = read(UlogReader::open(dir.file(name)));
     ASSERT_TRUE(memory.status);
     ASSERT_TRUE(file.status) << file.status.message();
-    if (name == "bad.ulg") EXPECT_GT(memory.problems.size(), 10u);
+    if (name == "bad.ulg") {
+      EXPECT_GT(memory.problems.size(), 10u);
+    }
     EXPECT_EQ(file.problems, memory.problems);
     EXPECT_EQ(file.data, memory.data);
     EXPECT_EQ(file.unknown, memory.unknown);
