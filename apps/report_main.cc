@@ -25,6 +25,7 @@
 #include "apps/cli_util.h"
 #include "apps/commands.h"
 #include "apps/diagnosis_json.h"
+#include "apps/flight_log_pair.h"
 #include "apps/log_input.h"
 #include "apps/report.h"
 #include "core/same_file.h"
@@ -149,14 +150,23 @@ Result<std::string> make_report(const ReportOptions& o) {
   };
   std::vector<LogSeries> logs;
   std::vector<std::string> names;  // as given: a bag's own name, not its conversion's
-  for (const auto& given : o.logs) {
-    names.push_back(given);
-    stage("reading " + given);
+  // A flight log beside a bag of the same flight is one recording, on the bag's clock (apps/flight_log_pair.h).
+  std::vector<std::vector<std::string>> recordings;
+  if (flight_log_pair(o.logs)) {
+    recordings.push_back(o.logs);
+  } else {
+    for (const auto& given : o.logs) recordings.push_back({given});
+  }
+  for (const auto& given : recordings) {
+    std::string name = given[0];
+    for (size_t i = 1; i < given.size(); ++i) name += " + " + given[i];
+    names.push_back(name);
+    stage("reading " + name);
     auto path = event_log_for(given);  // another tool's recording: its cached conversion
     if (!path) return path.error();
     auto s = read_log_series(*path);
     if (!s) return s.error();
-    if (s->streams.empty()) return Error{given + ": no events"};
+    if (s->streams.empty()) return Error{name + ": no events"};
     logs.push_back(std::move(*s));
   }
   const LogSeries& first = logs.front();
@@ -389,14 +399,15 @@ void add_report_command(CLI::App& app, int* exit_code) {
       "report", "Write one self-contained HTML page with plots (and a PNG of each) of what the logs say.");
   cmd->footer(
       "The first LOG is the recording (a simulator or recorder log); later logs are replays of it, whose new pose\n"
-      "channels are shown as estimates. Plots: trajectories in the plane (estimates aligned in position and yaw);\n"
-      "error over time with drops, gaps and latency spikes on the same axis; latency over time and histograms;\n"
-      "inter-arrival times; skew correlation curves; SLAM maps; an arm's commanded and measured joint motion with\n"
-      "the delay diagnose measures between them; a PX4 flight log's timeline (the logger's dropouts, sensor gaps,\n"
-      "the estimator's rejections and timeouts on one axis). The time plots zoom in the page (dygraphs, from\n"
-      "libjs-dygraphs, inlined: it opens offline; without it the page keeps the PNGs). Without --diagnosis the first\n"
-      "log is diagnosed. Needs python3 with matplotlib. DIR gets index.html, a PNG per plot and report.json (the\n"
-      "data plotted).");
+      "channels are shown as estimates. A PX4 flight log (.ulg) given with a bag of the same flight is one\n"
+      "recording, the flight log put on the bag's clock as `driftlab diagnose BAG FLIGHT.ulg` does. Plots:\n"
+      "trajectories in the plane (estimates aligned in position and yaw); error over time with drops, gaps and\n"
+      "latency spikes on the same axis; latency over time and histograms; inter-arrival times; skew correlation\n"
+      "curves; SLAM maps; an arm's commanded and measured joint motion with the delay diagnose measures between\n"
+      "them; a PX4 flight log's timeline (the logger's dropouts, sensor gaps, the estimator's rejections and\n"
+      "timeouts on one axis). The time plots zoom in the page (dygraphs, from libjs-dygraphs, inlined: it opens\n"
+      "offline; without it the page keeps the PNGs). Without --diagnosis the first log is diagnosed. Needs python3\n"
+      "with matplotlib. DIR gets index.html, a PNG per plot and report.json (the data plotted).");
   cmd->add_option("logs", o->logs, "Logs: the recording first, then replays of it")->required()->check(CLI::ExistingFile);
   cmd->add_option("-o,--out", o->out, "Folder to write the report into")->required();
   cmd->add_option("--diagnosis", o->diagnosis, "Diagnosis of the first log (driftlab diagnose --json)");

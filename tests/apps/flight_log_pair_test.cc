@@ -6,8 +6,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
+#include <fstream>
 #include <random>
 #include <regex>
+#include <set>
 
 #include "driftlab/imu_t.hpp"
 #include "formats/import.h"
@@ -153,6 +156,20 @@ TEST(FlightLogBesideBag, TheFlightLogGoesOnTheBagsClock) {
   const auto again = test::run_capture(kDriftlab + " diagnose '" + bag + "' '" + ulog + "' --json");
   EXPECT_NE(again.err.find("reading its conversion"), std::string::npos) << again.err;
   EXPECT_NE(again.err.find("offset +1700000012.3"), std::string::npos) << again.err;
+
+  // report of the pair: one recording (not a recording and its replay), its streams those of both, and the flight's
+  // timeline drawn from the flight log's own account.
+  const std::string out = dir.file("report");
+  const auto rep = test::run_capture(kDriftlab + " report '" + bag + "' '" + ulog + "' -o '" + out + "'");
+  ASSERT_EQ(rep.code, 0) << rep.err;
+  EXPECT_TRUE(std::filesystem::exists(out + "/flight_timeline.png"));
+  std::ifstream data(out + "/report.json");
+  const json page = json::parse(data);
+  ASSERT_EQ(page.at("logs").size(), 1u);
+  EXPECT_EQ(page.at("logs")[0].at("path"), bag + " + " + ulog);
+  std::set<std::string> drawn;
+  for (const auto& st : page.at("streams")) drawn.insert(st.at("channel").get<std::string>());
+  EXPECT_TRUE(drawn.count("/mavros/imu/data") && drawn.count("sensor_combined")) << page.at("streams").dump();
 }
 
 TEST(FlightLogBesideBag, ABagOfAnotherMotionIsRefusedInOneLine) {
