@@ -272,7 +272,8 @@ def grid_of(n, width=11, row_height=2.3):
 
 def save_grid(page, fig, suptitle, name, title, caption, charts=None):
     fig.suptitle(suptitle, fontweight="bold")
-    fig.tight_layout()
+    # The title's own band, 0.4 inch at the top, so that a tall grid's first row does not run into it.
+    fig.tight_layout(rect=(0, 0, 1, 1 - 0.4 / fig.get_figheight()))
     page.save(fig, name, title, caption, charts)
 
 
