@@ -46,7 +46,7 @@ std::map<std::string, Duration> command_retiming(const Diagnosis& d, std::vector
   char buf[320];
   for (const CommandLoop& loop : d.command_loops) {
     if (!loop.delay_valid) continue;
-    const bool sure = loop.confidence >= kRetimeConfidenceMin;
+    const bool sure = loop.confidence >= kConfidentCorrelation;
     if (loop.delay_s >= kRetimeDelayMin_s && sure) {
       out[loop.command_channel] = Duration::from_seconds_rounded(loop.delay_s);
       std::snprintf(buf, sizeof(buf),

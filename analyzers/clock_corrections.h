@@ -23,8 +23,7 @@ inline bool clock_drifts(double drift_ppm) { return drift_ppm >= kClockDriftMin_
 /// A command loop whose measured delay is this long or longer is re-timed: longer than the controller's own lag
 /// (under a millisecond in the shipped arm), short of any transport worth naming.
 inline constexpr double kRetimeDelayMin_s = 0.01;
-/// ... when the measured joints repeat the commanded motion this closely at that delay (1: the same motion).
-inline constexpr double kRetimeConfidenceMin = 0.8;
+/// ... when the measured joints repeat the commanded motion at that delay as closely as analyzers/correlation.h asks.
 
 /// Per command channel of a diagnosis' command loops, the delay to take off each command's arrival when a
 /// closed-loop replay re-times them (`driftlab replay --closed-loop --retime auto`): the measured command-to-motion

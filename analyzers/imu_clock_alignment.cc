@@ -6,6 +6,7 @@
 #include <array>
 #include <cmath>
 
+#include "analyzers/correlation.h"
 #include "analyzers/time_offset.h"
 #include "analyzers/trajectory.h"
 
@@ -19,10 +20,9 @@ constexpr double kMinDriftSpan = 120;
 /// this many: enough points for a line and its interval, each still long.
 constexpr double kMinSegment = 30;
 constexpr int kMaxSegments = 8;
-/// A segment's offset counts for the drift when its own correlation is at least this (what `driftlab diagnose`
-/// trusts a skew estimate at) and it lies within this of the whole overlap's offset [s] (a clock drifting 100 ppm
-/// moves by 0.36 s in an hour; a segment further off matched another stretch of similar motion).
-constexpr double kSegmentConfidence = 0.8;
+/// A segment's offset counts for the drift when its own correlation is confident (analyzers/correlation.h) and it
+/// lies within this of the whole overlap's offset [s] (a clock drifting 100 ppm moves by 0.36 s in an hour; a
+/// segment further off matched another stretch of similar motion).
 constexpr double kSegmentAgreement = 0.5;
 /// Fewer segments than this give no line with an interval worth the name.
 constexpr int kMinDriftSegments = 4;
@@ -111,10 +111,10 @@ ClockAlignment align_imu_clocks(const AngularRates& reference, const AngularRate
   }
   out.confidence = whole.confidence;
   out.overlap_s = whole.overlap_s;
-  if (whole.confidence < kMinAlignmentConfidence) {
+  if (whole.confidence < kConfidentCorrelation) {
     char why[160];
     std::snprintf(why, sizeof(why), "the IMUs' angular rates do not match (best correlation %.2f, below %.1f)",
-                  whole.confidence, kMinAlignmentConfidence);
+                  whole.confidence, kConfidentCorrelation);
     out.problem = why;
     return out;
   }
@@ -137,7 +137,8 @@ ClockAlignment align_imu_clocks(const AngularRates& reference, const AngularRate
     const Trajectory seg =
         slice(oth, static_cast<size_t>(lo - oth.stamps.begin()), static_cast<size_t>(hi - oth.stamps.begin()));
     const TimeOffset o = estimate_time_offset(ref, seg, whole_segment);
-    if (o.found && o.confidence >= kSegmentConfidence && std::abs(o.offset_s - whole.offset_s) <= kSegmentAgreement) {
+    if (o.found && o.confidence >= kConfidentCorrelation &&
+        std::abs(o.offset_s - whole.offset_s) <= kSegmentAgreement) {
       points.emplace_back(0.5 * (a + b), o.offset_s);
     }
   }

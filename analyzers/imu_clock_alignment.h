@@ -13,6 +13,8 @@
 #include <string>
 #include <vector>
 
+#include "analyzers/correlation.h"
+
 namespace driftlab::analyzers {
 
 /// An IMU's angular rates, sorted by stamp.
@@ -40,14 +42,13 @@ struct ClockAlignment {
   double to_reference(double t) const { return t + offset_s + drift * (t - at_s); }
 };
 
-/// Correlations below this are no alignment: the two IMUs did not see one motion. What `driftlab diagnose` trusts a
-/// skew estimate at; the shared FMUv4-Pro flight against a 50 Hz copy of its own rates shuffled in time (the same
-/// values, no common timing) reaches 0.42 over its 9 s, against the true copy with 0.02 rad/s of noise 0.98.
-inline constexpr double kMinAlignmentConfidence = 0.8;
+/// Correlations below kConfidentCorrelation (analyzers/correlation.h) are no alignment: the two IMUs did not see one
+/// motion. The shared FMUv4-Pro flight against a 50 Hz copy of its own rates shuffled in time (the same values, no
+/// common timing) reaches 0.42 over its 9 s, against the true copy with 0.02 rad/s of noise 0.98.
 
 /// How `other`'s clock maps onto `reference`'s (both IMUs of one vehicle, any frames and rates). Not found (with a
 /// problem saying why) when either has fewer than 10 samples or under 2 s, when they never overlap by half the
-/// shorter one, or when the best correlation is below kMinAlignmentConfidence. The drift is measured when the
+/// shorter one, or when the best correlation is below kConfidentCorrelation. The drift is measured when the
 /// overlap is at least 120 s long, on up to 8 segments of at least 30 s of `other`.
 ClockAlignment align_imu_clocks(const AngularRates& reference, const AngularRates& other);
 

@@ -760,7 +760,7 @@ def problems_list(d):
         for r in c["reasons"]:
             items.append(f"<li class='{esc(c['verdict'])}'><b>{esc(c['name'])}</b>: {esc(r)}</li>")
     for p in d.get("pairs", []):
-        if abs(p["offset_s"]) >= 0.002 and p["confidence"] >= 0.8:
+        if abs(p["offset_s"]) >= 0.002 and p["confident"]:
             later = "later" if p["offset_s"] > 0 else "earlier"
             items.append(f"<li class='warn'><b>{esc(p['b'])}</b> is stamped {abs(p['offset_s']) * 1e3:.1f} ms "
                          f"{later} than {esc(p['a'])} for the same motion</li>")

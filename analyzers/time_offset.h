@@ -14,7 +14,7 @@ struct TimeOffset {
   bool found = false;
   double offset_s = 0;     ///< add to the estimate's stamps to line its motion up with the reference's [s]
   /// Peak normalised (Pearson) correlation of the two motion signals at that offset, 0..1: the measure the timing
-  /// diagnosis gives stream skew (driftlab diagnose trusts 0.8 and more).
+  /// diagnosis gives stream skew (trusted from kConfidentCorrelation, analyzers/correlation.h).
   double confidence = 0;
   std::string signal;      ///< "speed" or "angular speed": the one that correlated best
   double overlap_s = 0;    ///< how long the two trajectories share at that offset [s]

@@ -13,6 +13,7 @@
 #include <utility>
 #include <vector>
 
+#include "analyzers/correlation.h"
 #include "core/result.h"
 
 namespace driftlab::analyzers {
@@ -145,6 +146,9 @@ struct StreamPair {
   std::vector<SkewWindow> windows;
   /// (lag [s], correlation) every 10 ms of lag over the search range, the windows' confidence-weighted mean
   std::vector<std::pair<double, double>> curve;
+  /// A skew driftlab names: its motions match and its windows agree (analyzers/correlation.h). The others are kept
+  /// with their curves, unsure.
+  bool confident() const { return confidence >= kConfidentCorrelation; }
 };
 
 /// How the stamps of a dynamic transform meet those of a channel whose data is composed with it (the transforms

@@ -177,14 +177,13 @@ std::vector<std::string> report_lines(const Diagnosis& d, std::vector<std::strin
   }
   // A skew is shown when the streams' motions match and the windows agree on it (docs/diagnosis.md,
   // "Calibration"); the others stay in --json with their curves.
-  constexpr double kConfident = 0.8;
-  const auto confident = std::count_if(d.pairs.begin(), d.pairs.end(),
-                                       [&](const StreamPair& p) { return p.confidence >= kConfident; });
+  const auto confident =
+      std::count_if(d.pairs.begin(), d.pairs.end(), [](const StreamPair& p) { return p.confident(); });
   if (!d.pairs.empty()) {
     lines.push_back("");
     lines.push_back("skew (how much later b's stamps are than a's, from the yaw rate both observe):");
     for (const auto& p : d.pairs) {
-      if (p.confidence < kConfident) continue;
+      if (!p.confident()) continue;
       std::snprintf(buf, sizeof(buf), "  %s -> %s: %+.1f ms (95%%: %+.1f to %+.1f; confidence %.2f)", p.a.c_str(),
                     p.b.c_str(), p.offset_s * 1e3, p.offset_ci_s[0] * 1e3, p.offset_ci_s[1] * 1e3, p.confidence);
       lines.push_back(buf);
@@ -199,7 +198,7 @@ std::vector<std::string> report_lines(const Diagnosis& d, std::vector<std::strin
                     "  %zu pair%s without a clear, consistent lag (confidence below %.1f): not "
                     "shown (--json has them)",
                     d.pairs.size() - static_cast<size_t>(confident),
-                    d.pairs.size() - static_cast<size_t>(confident) == 1 ? "" : "s", kConfident);
+                    d.pairs.size() - static_cast<size_t>(confident) == 1 ? "" : "s", analyzers::kConfidentCorrelation);
       lines.push_back(buf);
     }
   }

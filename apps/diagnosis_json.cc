@@ -85,6 +85,7 @@ nlohmann::json to_json(const analyzers::Diagnosis& d) {
                      {"offset_s", p.offset_s},
                      {"offset_ci_s", p.offset_ci_s},
                      {"confidence", p.confidence},
+                     {"confident", p.confident()},
                      {"method", p.method},
                      {"windows", windows},
                      {"curve", curve}});

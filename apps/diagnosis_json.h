@@ -28,12 +28,6 @@ nlohmann::json diagnose_json(const DiagnoseRun& run);
 /// What `driftlab diagnose --json` prints: times in seconds unless the key says utime [us].
 nlohmann::json to_json(const analyzers::Diagnosis& d);
 
-/// The headline of a diagnosis (as to_json gives it), shared by the report page and the demo's summary:
-/// `worst_stream` ({name, verdict, reasons, causes}, or null when nothing was flagged: faults before warnings, among
-/// them the deepest first cause: a clock, then a late stream or loop, loss, undecodable data, a symptom; then the
-/// most reasons), `clocks_ahead_s` (channel -> offset,
-/// clocks ahead by 1 ms or more; one behind cannot be told from latency in one log) and `drops` (channel -> count).
-/// Throws nlohmann::json::exception when the JSON is not a diagnosis.
 /// The flight-log diagnosis (analyzers/flight_log.h) as `diagnose --json` prints it under "flight_log": times in
 /// seconds from the log's start.
 nlohmann::json flight_log_json(const analyzers::FlightLogDiagnosis& f);
@@ -47,6 +41,12 @@ std::string flight_utc_line(const analyzers::FlightUtc& u);
 /// The flight-log section of `driftlab diagnose`'s text, a line each (empty when the log has no ULog data).
 std::vector<std::string> flight_log_lines(const analyzers::FlightLogDiagnosis& f);
 
+/// The headline of a diagnosis (as to_json gives it), shared by the report page and the demo's summary:
+/// `worst_stream` ({name, verdict, reasons, causes}, or null when nothing was flagged: faults before warnings, among
+/// them the deepest first cause: a clock, then a late stream or loop, loss, undecodable data, a symptom; then the
+/// most reasons), `clocks_ahead_s` (channel -> offset,
+/// clocks ahead by 1 ms or more; one behind cannot be told from latency in one log) and `drops` (channel -> count).
+/// Throws nlohmann::json::exception when the JSON is not a diagnosis.
 nlohmann::json diagnosis_summary(const nlohmann::json& diagnosis);
 
 }  // namespace driftlab::apps

@@ -10,6 +10,7 @@
 #include <memory>
 
 #include "analyzers/arm_tracking.h"
+#include "analyzers/correlation.h"
 #include "analyzers/relations.h"
 #include "analyzers/time_offset.h"
 #include "analyzers/trajectory.h"
@@ -54,9 +55,6 @@ struct EvalOptions {
   double arm_cutoff = 5.0;
   JsonOutput json;
 };
-
-/// driftlab diagnose trusts a skew whose peak correlation is at least this; --offset auto applies no less.
-constexpr double kConfidentOffset = 0.8;
 
 /// Statistics as JSON; null when there is nothing to take them over.
 nlohmann::json stats_json(const Stats& s) {
@@ -473,12 +471,13 @@ int run_eval(const EvalOptions& o) {
       ev.offset_auto = estimate_time_offset(*gt, *est);
       const TimeOffset& a = *ev.offset_auto;
       if (!a.found) return fail("--offset auto: no offset found between " + o.est + " and " + o.gt + ": " + a.problem);
-      if (a.confidence < kConfidentOffset) {
+      if (a.confidence < analyzers::kConfidentCorrelation) {
         char buf[400];
         std::snprintf(buf, sizeof(buf),
                       "--offset auto: the motions of %s and %s do not line up clearly (best %+.4f s, from the %s, "
                       "confidence %.2f < %.1f): give --offset",
-                      o.est.c_str(), o.gt.c_str(), a.offset_s, a.signal.c_str(), a.confidence, kConfidentOffset);
+                      o.est.c_str(), o.gt.c_str(), a.offset_s, a.signal.c_str(), a.confidence,
+                      analyzers::kConfidentCorrelation);
         return fail(buf);
       }
       ev.offset = a.offset_s;

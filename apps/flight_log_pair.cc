@@ -83,13 +83,13 @@ std::string describe(const analyzers::ClockAlignment& a, const std::string& ulog
 Status merge(const std::string& bag_log, const std::string& ulog_log, const std::string& out,
              const std::function<int64_t(int64_t)>& to_bag) {
   auto bag = LogReader::open(bag_log);
-  if (!bag) return Error(bag.error().message);
+  if (!bag) return bag.error();
   auto ulog = LogReader::open(ulog_log);
-  if (!ulog) return Error(ulog.error().message);
+  if (!ulog) return ulog.error();
   WriteOptions wo;
   wo.atomic = true;
   auto writer = LogWriter::create(out, wo);
-  if (!writer) return Error(writer.error().message);
+  if (!writer) return writer.error();
   Event b, u;
   bool has_b = bag->next(b), has_u = ulog->next(u);
   std::vector<uint8_t> bytes;
@@ -168,7 +168,7 @@ Result<PairImport> import_flight_log_pair(const FlightLogPair& pair, const std::
   const int64_t offset_us = std::llround(a.offset_s * 1e6), at_us = std::llround(a.at_s * 1e6);
   const double drift = a.drift;
   auto to_bag = [&](int64_t t) { return t + offset_us + std::llround(drift * static_cast<double>(t - at_us)); };
-  if (Status s = merge(bag_log, ulog_log, out, to_bag); !s) return Error(s.message());
+  if (Status s = merge(bag_log, ulog_log, out, to_bag); !s) return s.error();
 
   PairImport r;
   r.summary = std::move(*bag_summary);

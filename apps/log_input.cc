@@ -203,8 +203,8 @@ Result<std::string> log_for(const std::vector<std::string>& inputs) {
     const std::string beside = cache;
     cache = fallback_path(inputs, beside);
     if (cache.empty()) {
-      return Error(inputs[0] + kCannotWriteConversion + beside +
-                   ": the folder is read-only, and ~/.cache/driftlab too");
+      return Error(inputs[0] + kCannotWriteConversion + beside + ": the folder is read-only, and ~/.cache/driftlab too",
+                   ErrorCode::kCannotWrite);
     }
   }
   const std::string key_path = cache + ".key";
@@ -255,12 +255,13 @@ Result<std::string> log_for(const std::vector<std::string>& inputs) {
     // Writing the conversion failed (a full disk): an I/O failure, named by the input and the cache, not by the
     // partial file, which is gone. Anything else is the recording's.
     const std::string& m = summary.error().message;
-    if (m.starts_with(cache)) {
+    if (summary.error().code == ErrorCode::kCannotWrite) {
       const size_t colon = m.find(": ");
-      return Error(named + kCannotWriteConversion + cache +
-                   (colon == std::string::npos ? std::string() : m.substr(colon)));
+      return Error(
+          named + kCannotWriteConversion + cache + (colon == std::string::npos ? std::string() : m.substr(colon)),
+          ErrorCode::kCannotWrite);
     }
-    return Error(m);
+    return summary.error();
   }
   if (problems > kProblemLines) {
     std::fprintf(stderr, "driftlab: %s: %s more problems\n", named.c_str(), thousands(problems - kProblemLines).c_str());
@@ -271,17 +272,18 @@ Result<std::string> log_for(const std::vector<std::string>& inputs) {
   // The key last, written beside and renamed: a conversion cut short is never taken for a whole one. It records the
   // conversion as written, so that anything put in its place later is noticed.
   const std::string made = file_identity(cache, true);
-  if (made.empty()) return Error(named + kCannotWriteConversion + cache + ": cannot read it back");
+  if (made.empty())
+    return Error(named + kCannotWriteConversion + cache + ": cannot read it back", ErrorCode::kCannotWrite);
   if (Status s = write_key(key_path, key + "cache " + made + "\nproblems " + std::to_string(problems) + "\n" +
                                          (alignment.empty() ? std::string() : "alignment " + alignment + "\n"));
       !s) {
-    return Error(named + kCannotWriteConversion + cache + ": " + s.message());
+    return Error(named + kCannotWriteConversion + cache + ": " + s.message(), ErrorCode::kCannotWrite);
   }
   return cache;
 }
 
 int exit_code_for_input(const Error& error) {
-  return error.message.find(kCannotWriteConversion) != std::string::npos ? kExitFailure : kExitBadInput;
+  return error.code == ErrorCode::kCannotWrite ? kExitFailure : kExitBadInput;
 }
 
 Result<std::string> event_log_for(const std::vector<std::string>& inputs) {

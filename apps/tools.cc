@@ -16,6 +16,7 @@
 #include "apps/cli_checks.h"
 #include "apps/cli_util.h"
 #include "apps/commands.h"
+#include "core/check.h"
 #include "core/install_layout.h"
 
 namespace driftlab::apps {
@@ -87,9 +88,9 @@ void harden(CLI::App& app) {
     const std::string full = opt->get_type_name();  // "FLOAT", or "FLOAT:[0, 60]" with validators
     const std::string type = full.substr(0, full.find(':'));
     if ((type == "FLOAT" || type == "INT" || type == "UINT") && !has_range(*opt)) {
-      std::fprintf(stderr, "driftlab: internal error: option %s of '%s' has no range (apps/cli_checks.h)\n",
-                   opt->get_name().c_str(), app.get_name().c_str());
-      std::abort();
+      const std::string why =
+          "option " + opt->get_name() + " of '" + app.get_name() + "' has no range (apps/cli_checks.h)";
+      internal_error(__FILE__, __LINE__, why.c_str());
     }
     if (type == "FLOAT") {
       opt->check(CLI::Validator(

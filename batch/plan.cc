@@ -12,22 +12,21 @@
 #include <set>
 #include <sstream>
 
-#include "core/faults.h"
 #include "core/install_layout.h"
 #include "core/text_file.h"
+#include "faults/faults.h"
+#include "modules/module_table.h"
 
 namespace driftlab::batch {
 namespace {
 
 namespace fs = std::filesystem;
 
-constexpr const char* kModules[] = {"slam", "estimator", "controller"};
 constexpr const char* kTopKeys =
     "name, scenario, logs, duration, seed, faults, modules, settings, restamp, eval, keep_logs, pipeline, vary";
 
-bool is_module(const std::string& m) {
-  return std::any_of(std::begin(kModules), std::end(kModules), [&](const char* k) { return m == k; });
-}
+using modules::is_module;
+using modules::known_modules;
 
 /// "FILE:LINE: KEY" for messages.
 std::string where(const std::string& file, const YAML::Node& node, const std::string& key) {
@@ -205,8 +204,10 @@ Status check_parameter(const std::string& file, const YAML::Node& node, const Pa
     if (!s.has(Stage::kReplay)) return Error{here + ": module settings need a replay stage"};
     return {};  // the replay program checks the key and values (validate_module_settings)
   }
-  return Error{here + ": unknown parameter (seed, duration, restamp, faults.CHANNEL.FIELD or MODULE.KEY with "
-                      "MODULE one of slam, estimator, controller)"};
+  return Error{here +
+               ": unknown parameter (seed, duration, restamp, faults.CHANNEL.FIELD or MODULE.KEY with "
+               "MODULE one of " +
+               known_modules() + ")"};
 }
 
 /// The channels a scenario publishes (its sensors' `channel`s), for checking faults early; empty when unreadable
@@ -377,17 +378,18 @@ Result<Spec> load_spec(const std::string& path) {
         } else if (v.IsSequence()) {
           for (const auto& m : v) names.push_back(m.Scalar());
         } else {
-          return Error{here + ": a list of modules (slam, estimator, controller)"};
+          return Error{here + ": a list of modules (" + known_modules() + ")"};
         }
         for (const auto& m : names) {
-          if (!is_module(m)) return Error{here + ": unknown module '" + m + "' (slam, estimator, controller)"};
+          if (!is_module(m)) return Error{here + ": unknown module '" + m + "' (" + known_modules() + ")"};
           s.modules += (s.modules.empty() ? "" : ",") + m;
         }
       } else if (key == "settings") {
         if (!v.IsMap()) return Error{here + ": one map of settings per module (estimator: {window_s: 0.5})"};
         for (const auto& m : v) {
           const std::string module = m.first.Scalar();
-          if (!is_module(module)) return Error{where(path, m.first, "settings: " + module) + ": unknown module (slam, estimator, controller)"};
+          if (!is_module(module))
+            return Error{where(path, m.first, "settings: " + module) + ": unknown module (" + known_modules() + ")"};
           if (!m.second.IsMap()) return Error{where(path, m.second, "settings: " + module) + ": a map of key: value"};
           for (const auto& kv2 : m.second) {
             if (!kv2.second.IsScalar()) {

@@ -35,7 +35,7 @@ struct Value {
 ///   seed, duration                      the simulation's (sweeps of a scenario)
 ///   restamp                             none | auto (driftlab replay --restamp)
 ///   faults.CHANNEL.FIELD                a fault field of docs/faults.md on one channel
-///   MODULE.KEY                          a module setting (slam, estimator, controller), written into replay's --config
+///   MODULE.KEY                          a module setting (modules/module_table.h), written into replay's --config
 struct Parameter {
   std::string key;
   std::vector<Value> values;

@@ -22,7 +22,7 @@ Result<LogWriter> LogWriter::create(const std::string& path, WriteOptions option
   w.atomic_ = options.atomic;
   w.file_path_ = options.atomic ? path + ".partial" : path;
   w.fd_ = ::open(w.file_path_.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-  if (w.fd_ < 0) return Error{w.file_path_ + ": cannot create log: " + std::strerror(errno)};
+  if (w.fd_ < 0) return Error{w.file_path_ + ": cannot create log: " + std::strerror(errno), ErrorCode::kCannotWrite};
   w.buffer_capacity_ = std::max<size_t>(options.buffer_bytes, 4 * kPage);
   w.buffer_ = std::make_unique<uint8_t[]>(w.buffer_capacity_);
   return w;
@@ -60,7 +60,7 @@ Status LogWriter::fail(const std::string& what, int err, uint64_t complete) {
   }
   written_ = committed_;
   buffered_ = 0;
-  return Error{error_};
+  return Error{error_, ErrorCode::kCannotWrite};
 }
 
 int LogWriter::write_raw(const uint8_t* data, size_t size) {
@@ -78,7 +78,7 @@ int LogWriter::write_raw(const uint8_t* data, size_t size) {
 }
 
 Status LogWriter::write(int64_t utime, std::string_view channel, std::span<const uint8_t> data) {
-  if (!error_.empty()) return Error{error_};
+  if (!error_.empty()) return Error{error_, ErrorCode::kCannotWrite};
   if (fd_ < 0) return Error{path_ + ": write after close"};
   if (channel.empty() || channel.size() > static_cast<size_t>(logfmt::kMaxWriteChannelLength)) {
     return Error{path_ + ": channel name must be 1.." + std::to_string(logfmt::kMaxWriteChannelLength) +
@@ -127,7 +127,7 @@ Status LogWriter::write(int64_t utime, std::string_view channel, std::span<const
 }
 
 Status LogWriter::flush() {
-  if (!error_.empty()) return Error{error_};
+  if (!error_.empty()) return Error{error_, ErrorCode::kCannotWrite};
   if (fd_ < 0 || buffered_ == 0) return {};
   const uint64_t start = written_;
   if (const int err = write_raw(buffer_.get(), buffered_); err != 0) {
@@ -161,18 +161,20 @@ Status LogWriter::sync() {
 }
 
 Status LogWriter::close() {
-  if (fd_ < 0) return error_.empty() ? Status{} : Status{Error{error_}};
+  if (fd_ < 0) return error_.empty() ? Status{} : Status{Error{error_, ErrorCode::kCannotWrite}};
   Status st = flush();
-  if (::close(fd_) != 0 && st.ok()) st = Error{file_path_ + ": close failed: " + std::strerror(errno)};
+  if (::close(fd_) != 0 && st.ok())
+    st = Error{file_path_ + ": close failed: " + std::strerror(errno), ErrorCode::kCannotWrite};
   fd_ = -1;
   if (!atomic_) return st;
   if (!st.ok() || !error_.empty()) {
     // A log cut short (a full disk) never replaces what PATH held: the partial file goes, PATH stays untouched.
     std::remove(file_path_.c_str());
-    return st.ok() ? Status{Error{error_}} : st;
+    return st.ok() ? Status{Error{error_, ErrorCode::kCannotWrite}} : st;
   }
   if (std::rename(file_path_.c_str(), path_.c_str()) != 0) {
-    st = Error{path_ + ": cannot rename " + file_path_ + " into place: " + std::strerror(errno)};
+    st = Error{path_ + ": cannot rename " + file_path_ + " into place: " + std::strerror(errno),
+               ErrorCode::kCannotWrite};
     std::remove(file_path_.c_str());
   }
   return st;

@@ -15,6 +15,7 @@
 
 #include "core/result.h"
 #include "formats/mcap.h"
+#include "formats/ros2_schema.h"
 
 namespace driftlab::formats {
 
@@ -55,15 +56,5 @@ Result<McapExportSummary> export_mcap(const std::string& log, const std::string&
 Result<McapExportSummary> export_rosbag2(const std::string& log, const std::string& folder,
                                          const McapExportOptions& options,
                                          const std::function<void(const std::string&)>& on_problem);
-
-/// The ROS 2 type a driftlab type goes out as ("sensor_msgs/msg/LaserScan" for "driftlab.laser_scan_t";
-/// "driftlab_msgs/msg/ChannelStats" for types without a standard equivalent).
-std::string ros2_type_for(std::string_view driftlab_type);
-
-/// The ros2msg schema of a type as rosbag2 stores it: its .msg text, then each type it uses (depth first, in
-/// name order, each once) after a line of 80 '=' and "MSG: pkg/Type". Standard types (sensor_msgs,
-/// geometry_msgs, nav_msgs, std_msgs, tf2_msgs, builtin_interfaces) have their exact upstream text; driftlab_msgs
-/// types are made from lcmtypes/. Empty for a type neither knows.
-std::string ros2_schema(std::string_view ros_type);
 
 }  // namespace driftlab::formats

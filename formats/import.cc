@@ -951,10 +951,12 @@ Result<ImportSummary> import_log(const std::vector<std::string>& inputs, const s
       ::close(fd);
       partial.path = name;
     } else if (errno != EEXIST) {
-      return Error(name + ": cannot create log: " + std::strerror(errno));
+      return Error(name + ": cannot create log: " + std::strerror(errno), ErrorCode::kCannotWrite);
     }
   }
-  if (partial.path.empty()) return Error(out_path + ".partial: cannot create a partial file of its own");
+  if (partial.path.empty()) {
+    return Error(out_path + ".partial: cannot create a partial file of its own", ErrorCode::kCannotWrite);
+  }
   auto writer = LogWriter::create(partial.path);
   if (!writer) return writer.error();
   Importer out(std::move(*writer), on_problem);
@@ -970,13 +972,13 @@ Result<ImportSummary> import_log(const std::vector<std::string>& inputs, const s
       // A file that cannot be read at all: fatal alone, a problem among several (the others still convert).
       if (files.size() == 1) {
         out.writer().discard();
-        return Error(s.message());
+        return s.error();
       }
       out.problem(s.message());
     }
     if (!out.status()) {
       out.writer().discard();
-      return Error(out.status().message());
+      return out.status().error();
     }
   }
   // Every message accounted for: what metadata.yaml counts per topic against what the files held.
@@ -991,9 +993,10 @@ Result<ImportSummary> import_log(const std::vector<std::string>& inputs, const s
       }
     }
   }
-  if (Status c = out.writer().close(); !c) return Error(c.message());
+  if (Status c = out.writer().close(); !c) return c.error();
   if (std::rename(partial.path.c_str(), out_path.c_str()) != 0) {
-    return Error(out_path + ": cannot rename " + partial.path + " into place: " + std::strerror(errno));
+    return Error(out_path + ": cannot rename " + partial.path + " into place: " + std::strerror(errno),
+                 ErrorCode::kCannotWrite);
   }
   partial.path.clear();  // in place: nothing to remove
   return out.summary;

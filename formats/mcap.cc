@@ -22,6 +22,7 @@
 #include <system_error>
 #include <thread>
 
+#include "core/check.h"
 #include "formats/compression.h"
 
 namespace driftlab::formats {
@@ -1330,7 +1331,7 @@ Status McapWriter::write(uint16_t channel_id, uint32_t sequence, uint64_t log_ti
                          const std::function<void(uint8_t*)>& fill) {
   Impl& s = *impl_;
   if (!s.error.empty()) return Error(s.error);
-  if (channel_id >= s.channels.size()) std::abort();  // a broken invariant: channels come from add_channel
+  DRIFTLAB_CHECK(channel_id < s.channels.size(), "a channel id comes from add_channel");
   ChannelEntry& c = s.channels[channel_id];
   if (!c.written) {
     if (c.schema_id != 0 && !s.schemas[c.schema_id - 1].written) {

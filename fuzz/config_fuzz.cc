@@ -11,8 +11,8 @@
 
 #include "controller/controller_module.h"
 #include "core/config.h"
-#include "core/faults.h"
 #include "estimator/estimator_module.h"
+#include "faults/faults.h"
 #include "replayer/replayer.h"
 #include "sim/bullet_world.h"
 #include "sim/robot.h"

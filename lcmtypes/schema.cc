@@ -5,7 +5,10 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <string>
 #include <utility>
+
+#include "core/check.h"
 
 namespace driftlab::lcmtypes {
 
@@ -46,8 +49,9 @@ std::vector<StructDef> parse(std::string_view text) {
   std::vector<StructDef> structs;
   auto expect = [&](size_t i, const char* what) {
     if (i >= t.size() || t[i] != what) {
-      std::fprintf(stderr, "lcmtypes/schema: expected '%s' at token %zu of the compiled-in definitions\n", what, i);
-      std::abort();
+      const std::string why =
+          std::string("expected '") + what + "' at token " + std::to_string(i) + " of the compiled-in definitions";
+      internal_error(__FILE__, __LINE__, why.c_str());
     }
   };
   size_t i = 0;

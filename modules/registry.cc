@@ -19,9 +19,6 @@
 namespace driftlab::modules {
 namespace {
 
-constexpr std::array<const char*, 6> kModules = {"slam",   "estimator", "controller", "drone_estimator",
-                                                 "flight", "offboard"};
-
 std::string line_of(const std::string& file, const YAML::Mark& mark) {
   return file + ":" + std::to_string(mark.line + 1);
 }
@@ -61,34 +58,64 @@ Result<std::unique_ptr<Module>> make_controller(const YAML::Node& config, const 
   return controller::make_controller(config, origin, std::move(base));
 }
 
-Result<std::unique_ptr<Module>> make_module(const std::string& name, const YAML::Node& config,
-                                            const std::string& origin, const std::string& config_dir,
-                                            const InputChannels& inputs, std::vector<std::string>& notes) {
-  if (name == "estimator") return estimator::make_estimator(config, origin);
-  if (name == "slam") return slam::make_slam(config, origin, inputs, &notes);
-  if (name == "controller") return make_controller(config, origin, config_dir, notes);
-  if (name == "drone_estimator") return estimator::make_drone_estimator(config, origin);
-  if (name == "flight") return flight::make_flight(config, origin);
-  if (name == "offboard") return flight::make_offboard(config, origin);
+/// What a module is made from: its settings (a YAML node, the file it came from for messages, that file's folder
+/// for relative paths), the channels the run delivers, and the notes for the user.
+struct Making {
+  const YAML::Node& config;
+  const std::string& origin;
+  const std::string& config_dir;
+  const InputChannels& inputs;
+  std::vector<std::string>& notes;
+};
+
+/// A row of modules/module_table.h made real: its settings' reference (the keys with the module's name in front)
+/// and its factory.
+struct ModuleRow {
+  std::string_view name;
+  std::string (*reference)(const std::string& prefix);
+  Result<std::unique_ptr<Module>> (*make)(const Making& m);
+};
+
+constexpr std::array<ModuleRow, kModuleKinds.size()> kRows{{
+    {"slam", [](const std::string& p) { return slam::slam_config_table().reference(p); },
+     [](const Making& m) { return slam::make_slam(m.config, m.origin, m.inputs, &m.notes); }},
+    {"estimator", [](const std::string& p) { return estimator::estimator_config_table().reference(p); },
+     [](const Making& m) { return estimator::make_estimator(m.config, m.origin); }},
+    {"controller", [](const std::string& p) { return controller::controller_config_table().reference(p); },
+     [](const Making& m) { return make_controller(m.config, m.origin, m.config_dir, m.notes); }},
+    {"drone_estimator", [](const std::string& p) { return estimator::drone_estimator_config_table().reference(p); },
+     [](const Making& m) { return estimator::make_drone_estimator(m.config, m.origin); }},
+    {"flight", [](const std::string& p) { return flight::flight_config_table().reference(p); },
+     [](const Making& m) { return flight::make_flight(m.config, m.origin); }},
+    {"offboard", [](const std::string& p) { return flight::offboard_config_table().reference(p); },
+     [](const Making& m) { return flight::make_offboard(m.config, m.origin); }},
+}};
+
+/// The rows are the table's, in its order: a module named in one and not the other fails the build.
+constexpr bool rows_follow_the_table() {
+  for (size_t i = 0; i < kRows.size(); ++i) {
+    if (kRows[i].name != kModuleKinds[i].name) return false;
+  }
+  return true;
+}
+static_assert(rows_follow_the_table(), "modules/registry.cc: kRows must list modules/module_table.h's modules");
+
+Result<std::unique_ptr<Module>> make_module(const std::string& name, const Making& making) {
+  for (const auto& row : kRows) {
+    if (row.name == name) return row.make(making);
+  }
   return Error{"--modules: unknown module '" + name + "' (known: " + known_modules() + ")"};
 }
 
 }  // namespace
 
 std::string config_reference() {
-  std::string out = "### slam\n\n" + slam::slam_config_table().reference("slam.");
-  out += "\n### estimator\n\n" + estimator::estimator_config_table().reference("estimator.");
-  out += "\n### controller\n\n" + controller::controller_config_table().reference("controller.");
-  out += "\n### drone_estimator\n\n" + estimator::drone_estimator_config_table().reference("drone_estimator.");
-  out += "\n### flight\n\n" + flight::flight_config_table().reference("flight.");
-  out += "\n### offboard\n\n" + flight::offboard_config_table().reference("offboard.");
+  std::string out;
+  for (const auto& row : kRows) {
+    const std::string name(row.name);
+    out += (out.empty() ? "### " : "\n### ") + name + "\n\n" + row.reference(name + ".");
+  }
   return out;
-}
-
-std::string known_modules() {
-  std::string s;
-  for (const char* m : kModules) s += (s.empty() ? "" : ", ") + std::string(m);
-  return s;
 }
 
 Result<std::vector<std::unique_ptr<Module>>> load_modules(const std::string& list, const std::string& config_path,
@@ -110,7 +137,7 @@ Result<std::vector<std::unique_ptr<Module>>> load_modules(const std::string& lis
         return Error{line_of(config_path, kv.first.Mark()) + ": expected a module name (" + known_modules() + ")"};
       }
       const std::string& key = kv.first.Scalar();
-      if (std::find_if(kModules.begin(), kModules.end(), [&](const char* m) { return key == m; }) == kModules.end()) {
+      if (!is_module(key)) {
         return Error{line_of(config_path, kv.first.Mark()) + ": unknown module '" + key + "' (known: " +
                      known_modules() + ")"};
       }
@@ -122,7 +149,8 @@ Result<std::vector<std::unique_ptr<Module>>> load_modules(const std::string& lis
     if (name.empty()) continue;
     const YAML::Node node = config.IsMap() ? config[name] : YAML::Node();
     try {
-      auto m = make_module(name, node, config_path.empty() ? "--config" : config_path, config_dir, inputs, notes);
+      const std::string origin = config_path.empty() ? "--config" : config_path;
+      auto m = make_module(name, Making{node, origin, config_dir, inputs, notes});
       if (!m) return m.error();
       modules.push_back(std::move(*m));
     } catch (const YAML::Exception& e) {

@@ -1,4 +1,4 @@
-// The processing modules `driftlab replay` and `driftlab run` can host (slam, estimator, controller), made from one
+// The processing modules `driftlab replay` and `driftlab run` can host (modules/module_table.h), made from one
 // YAML config (a map of module name -> settings, docs/replay.md) in one place, so both commands offer the same
 // modules with the same settings and the same errors. Thread-safety: pure functions.
 #pragma once
@@ -10,11 +10,9 @@
 
 #include "core/bus.h"
 #include "core/result.h"
+#include "modules/module_table.h"
 
 namespace driftlab::modules {
-
-/// The module names, comma-separated, in the order they are listed ("slam, estimator, controller").
-std::string known_modules();
 
 /// The reference of the module config: every module's keys with type, unit, default, range and description, as
 /// markdown (from the modules' config tables, core/config.h).

@@ -6,6 +6,7 @@
 #include <exception>
 #include <regex>
 
+#include "core/check.h"
 #include "core/log_writer.h"
 #include "core/wall_clock.h"
 #include "lcmtypes/stream_header.h"
@@ -49,7 +50,7 @@ class ModuleHost::HostBus final : public Bus {
   }
   Time now() const override { return host_.now(); }
   void every(Duration period, std::function<void()> fn) override {
-    if (period.us() <= 0) std::abort();  // a broken invariant: modules validate their rates
+    DRIFTLAB_CHECK(period.us() > 0, "a timer's period is positive (modules validate their rates)");
     host_.timers_.push_back({period.us(), 0, std::move(fn), this});
   }
   std::string artifact_prefix() const override { return host_.prefix_; }

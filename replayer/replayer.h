@@ -19,8 +19,8 @@
 
 #include "core/bus.h"
 #include "core/clock_correction.h"
-#include "core/faults.h"
 #include "core/result.h"
+#include "faults/faults.h"
 #include "replayer/module_host.h"
 
 namespace driftlab::config {

@@ -10,6 +10,7 @@
 #include <set>
 #include <sstream>
 
+#include "core/check.h"
 #include "core/config.h"
 #include "core/install_layout.h"
 #include "core/text_file.h"
@@ -216,7 +217,7 @@ const config::Table<SensorConfig>& sensor_table(SensorType type) {
     case SensorType::kGroundTruth:
     case SensorType::kJointState: return common;
   }
-  std::abort();  // not a SensorType
+  driftlab::internal_error(__FILE__, __LINE__, "not a SensorType");
 }
 
 /// The `sensors:` list: each a map whose keys depend on its type; messages name a sensor by its channel.

@@ -9,8 +9,8 @@
 #include <vector>
 
 #include "controller/pure_pursuit.h"
-#include "core/faults.h"
 #include "core/result.h"
+#include "faults/faults.h"
 #include "sim/arm_config.h"
 #include "sim/drone_config.h"
 #include "sim/robot.h"

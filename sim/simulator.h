@@ -1,6 +1,6 @@
 // Runs a scenario: steps the Bullet world at a fixed rate, drives the robot with the pure-pursuit controller from
 // its own wheel odometry, samples every sensor at its rate with its noise model, applies the scenario's faults
-// (core/faults.h) and writes every stream to a log in arrival order, with ground truth and the fault manifest.
+// (faults/faults.h) and writes every stream to a log in arrival order, with ground truth and the fault manifest.
 // Deterministic: the same scenario gives a byte-identical log. Never reads the wall clock.
 // Thread-safety: simulate() uses only the calling thread; run one per thread.
 #pragma once

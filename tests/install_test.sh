@@ -21,6 +21,12 @@ if ((deb)); then
   for dep in python3-matplotlib libjs-dygraphs libbullet libmrpt liblcm libopencv liburdfdom libyaml-cpp; do
     grep -q "^ Depends:.*$dep" <<<"$info" || { echo "the package's Depends lacks $dep:"; grep Depends <<<"$info"; exit 1; }
   done
+  # What `apt install ./driftlab_*.deb` does on this machine, simulated: every Depends resolves against its archive
+  # (a name Debian 12 does not have, or a version it cannot give, fails here: "Depends: ... but it is not installable").
+  if command -v apt-get >/dev/null; then
+    plan=$(apt-get install --simulate "$package" 2>&1) || { echo "apt would not install $package:"; echo "$plan"; exit 1; }
+    grep -q "^Inst driftlab " <<<"$plan" || { echo "apt's plan does not install driftlab:"; echo "$plan"; exit 1; }
+  fi
   dpkg-deb -x "$package" "$tmp/root"
   prefix=$tmp/root/usr
 else

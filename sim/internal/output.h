@@ -13,8 +13,8 @@
 #include <string>
 #include <vector>
 
-#include "core/faults.h"
 #include "core/log_writer.h"
+#include "faults/faults.h"
 
 namespace driftlab::sim {
 

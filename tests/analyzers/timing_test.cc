@@ -15,7 +15,6 @@
 #include "analyzers/clock_corrections.h"
 #include "analyzers/internal/tf_check.h"
 #include "apps/diagnosis_json.h"
-#include "core/faults.h"
 #include "core/log_reader.h"
 #include "core/log_writer.h"
 #include "driftlab/fault_manifest_t.hpp"
@@ -25,6 +24,7 @@
 #include "driftlab/odometry_t.hpp"
 #include "driftlab/pose_t.hpp"
 #include "driftlab/tf_t.hpp"
+#include "faults/faults.h"
 #include "tests/test_util.h"
 
 namespace driftlab::analyzers {

@@ -4,13 +4,15 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <set>
 
 #include "batch/plan.h"
 #include "batch/store.h"
-#include "core/faults.h"
+#include "faults/faults.h"
+#include "modules/module_table.h"
 #include "tests/test_util.h"
 
 namespace driftlab::batch {
@@ -112,6 +114,23 @@ TEST(SweepSpec, BadSpecsNameTheFileAndTheKey) {
 
 // Two grids of 10,000 values each were each accepted, and their product (10^8 points) exhausted memory when the
 // sweep expanded it (issue 31). The product is bounded, said with its factors; at the bound it is accepted.
+// A sweep offers every module replay hosts, from the one table (modules/module_table.h): the drone's modules and
+// their settings too (a copy of the names here once drifted to three of six), and an unknown module's message lists
+// them all.
+TEST(SweepSpec, EveryModuleOfTheTableIsAModuleOfASweep) {
+  test::TempDir dir;
+  std::string all;
+  for (const auto& k : modules::kModuleKinds) (all += all.empty() ? "" : ", ") += k.name;
+  auto s = load_spec(write_spec(dir, "modules: [" + all + "]\nvary:\n  flight.position_rate: [50, 100]\n"));
+  ASSERT_TRUE(s) << s.error().message;
+  std::string joined(all);
+  joined.erase(std::remove(joined.begin(), joined.end(), ' '), joined.end());
+  EXPECT_EQ(s->modules, joined);
+  const std::string e = spec_error("modules: [estimator, planner]\n");
+  EXPECT_NE(e.find("unknown module 'planner' (" + all + ")"), std::string::npos) << e;
+  EXPECT_NE(spec_error("settings:\n  planner: {x: 1}\n").find("unknown module (" + all + ")"), std::string::npos);
+}
+
 TEST(SweepSpec, AProductOfGridsBeyondTheBoundIsRefusedWithItsFactors) {
   const std::string e = spec_error(
       "vary:\n  faults.IMU.latency_s: {from: 0, to: 1, count: 10000}\n  seed: {from: 0, to: 9999, step: 1}\n");

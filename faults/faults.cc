@@ -1,4 +1,4 @@
-#include "core/faults.h"
+#include "faults/faults.h"
 
 #include <cmath>
 #include <functional>
@@ -133,8 +133,8 @@ std::vector<driftlab::fault_t> StreamFaultInjector::manifest(int64_t end_utime) 
     out.push_back(fault(channel_, "drop", s, e, {{"probability", f_.drop_probability}}, dropped_));
   }
   if (f_.burst_enter != 0) {
-    out.push_back(fault(channel_, "burst_drop", s, e, {{"enter_probability", f_.burst_enter}, {"exit_probability", f_.burst_exit}},
-                        burst_dropped_));
+    out.push_back(fault(channel_, "burst_drop", s, e,
+                        {{"enter_probability", f_.burst_enter}, {"exit_probability", f_.burst_exit}}, burst_dropped_));
   }
   if (f_.duplicate_probability != 0) {
     out.push_back(fault(channel_, "duplicate", s, e, {{"probability", f_.duplicate_probability}}, duplicated_));

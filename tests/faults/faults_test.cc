@@ -1,5 +1,5 @@
-// Tests for core/faults.h: the YAML fault description and its errors, and the injector's effects and manifest.
-#include "core/faults.h"
+// Tests for faults/faults.h: the YAML fault description and its errors, and the injector's effects and manifest.
+#include "faults/faults.h"
 
 #include <gtest/gtest.h>
 
@@ -33,7 +33,8 @@ TEST(ParseFaults, ErrorsNameTheFileLineAndKey) {
       {"streams:\n  IMU:\n    drop_probability: 1.5\n",
        "faults.yaml:3: streams.IMU.drop_probability = 1.5 is outside 0..1"},
       {"streams:\n  IMU:\n    jitter_s: fast\n", "faults.yaml:3: streams.IMU.jitter_s = fast must be a number"},
-      {"streams:\n  IMU:\n    latency_s: 1e309\n", "faults.yaml:3: streams.IMU.latency_s = 1e309 is too large for a number"},
+      {"streams:\n  IMU:\n    latency_s: 1e309\n",
+       "faults.yaml:3: streams.IMU.latency_s = 1e309 is too large for a number"},
       {"streams:\n  IMU:\n    burst_enter: 0.1\n", "faults.yaml:3: streams.IMU needs both burst_enter and burst_exit"},
       {"seed: 1\nstreem: {}\n", "faults.yaml:2: unknown key 'streem'"},
       {"streams: [1, 2\n", "faults.yaml:"},
@@ -98,8 +99,8 @@ TEST(StreamFaultInjector, DropsDuplicatesAndReordersAsTheManifestSays) {
   EXPECT_NEAR(static_cast<double>(burst.size()) / n, 0.01 * 4 / (1 + 0.01 * 4), 0.01);
   EXPECT_FALSE(affected["reorder"].empty());
   for (int64_t seq = 0; seq < n; ++seq) {
-    const bool lost = std::binary_search(dropped.begin(), dropped.end(), seq) ||
-                      std::binary_search(burst.begin(), burst.end(), seq);
+    const bool lost =
+        std::binary_search(dropped.begin(), dropped.end(), seq) || std::binary_search(burst.begin(), burst.end(), seq);
     const bool twice = std::binary_search(duplicated.begin(), duplicated.end(), seq);
     ASSERT_EQ(delivered.count(seq), lost ? 0u : (twice ? 2u : 1u)) << seq;
   }
