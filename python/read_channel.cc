@@ -5,9 +5,11 @@
 #include <cerrno>
 #include <cstdlib>
 #include <cstring>
+#include <exception>
 #include <memory>
 #include <new>
 #include <optional>
+#include <system_error>
 #include <thread>
 #include <tuple>
 #include <unordered_map>
@@ -798,10 +800,30 @@ Result<std::optional<std::vector<Channel>>> read_intact_log(
       if (auto r = readers[reader].add(e); !r) failed[reader] = r.error();
     });
   };
+  // What a pass threw (std::bad_alloc for a column a damaged count would make too large), thrown again here once
+  // every pass is done.
+  std::vector<std::exception_ptr> thrown(threads);
+  const auto guarded = [&](size_t t) {
+    try {
+      pass(t);
+    } catch (...) {
+      thrown[t] = std::current_exception();
+    }
+  };
   std::vector<std::thread> others;
-  for (size_t t = 1; t < threads; ++t) others.emplace_back(pass, t);
-  pass(0);
+  std::vector<size_t> here = {0};  // the passes made on this thread: the first, and any no thread could be made for
+  for (size_t t = 1; t < threads; ++t) {
+    try {
+      others.emplace_back(guarded, t);
+    } catch (const std::system_error&) {
+      here.push_back(t);
+    }
+  }
+  for (size_t t : here) guarded(t);
   for (auto& t : others) t.join();
+  for (const auto& e : thrown) {
+    if (e) std::rethrow_exception(e);
+  }
   if (std::find(intact.begin(), intact.end(), 0) != intact.end()) return std::optional<std::vector<Channel>>();
   for (auto& f : failed) {  // the first of the channels (in their order) whose messages are of no driftlab type
     if (f) return *f;
