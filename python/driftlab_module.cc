@@ -1,10 +1,11 @@
 // _driftlab: the C++ side of `import driftlab` (python/driftlab/__init__.py is the package users see). Logs are
 // opened as every command opens them (apps/log_input.h: another tool's recording through its cached conversion),
-// channels decoded by plans compiled per type (python/read_channel.h) from the log mapped once (at the first read,
-// kept while the Log lives) straight into buffers NumPy takes over, and diagnose,
-// eval and import run in-process: diagnose and import through the library functions the commands call, eval
-// through the command itself (its CLI11 options, built from keyword arguments by the package) with its output and
-// its one-line error captured (apps/cli_util.h OutputCapture). The GIL is released while C++ works.
+// channels decoded by plans compiled per type (python/read_channel.h) straight into buffers NumPy takes over (an
+// intact log read through a buffer, a pass per core, each decoding its share of the channels; a damaged one mapped
+// once, at the first read, and kept while the Log lives), and diagnose, eval and import run in-process: diagnose and
+// import through the library functions the commands call, eval through the command itself (its CLI11 options, built
+// from keyword arguments by the package) with its output and its one-line error captured (apps/cli_util.h
+// OutputCapture). The GIL is released while C++ works.
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
@@ -16,6 +17,7 @@
 #include <mutex>
 #include <optional>
 #include <stdexcept>
+#include <thread>
 #include <tuple>
 #include <utility>
 #include <vector>
@@ -58,9 +60,29 @@ py::dtype dtype_of(const Column& c) {
   return py::dtype(std::string(1, c.kind == 'b' ? '?' : c.kind) + (c.kind == 'b' ? "" : std::to_string(c.item_bytes)));
 }
 
-/// An object array of n cells, each None.
+/// The cells of an object array (object_array()), in column memory (a large one on huge pages, faulted in 2 MiB at
+/// a time, where NumPy's own would be faulted in 4 KiB at a time): each holds a reference to its object, dropped
+/// with the cells.
+struct ObjectCells {
+  explicit ObjectCells(size_t count)
+      : n(count), cells(static_cast<PyObject**>(allocate_column(n * sizeof(PyObject*)))) {
+    std::memset(cells, 0, n * sizeof(PyObject*));
+  }
+  ObjectCells(const ObjectCells&) = delete;
+  ObjectCells& operator=(const ObjectCells&) = delete;
+  ~ObjectCells() {
+    for (size_t k = 0; k < n; ++k) Py_XDECREF(cells[k]);
+    free_column(cells, n * sizeof(PyObject*));
+  }
+  size_t n;
+  PyObject** cells;
+};
+
+/// An object array of n cells, each empty (NULL) until set_cell() fills it: all are, before it is handed out.
 py::array object_array(size_t n) {
-  return py::module_::import("numpy").attr("empty")(n, py::arg("dtype") = "object").cast<py::array>();
+  auto* owned = new ObjectCells(n);
+  py::capsule free_when_done(owned, [](void* p) { delete static_cast<ObjectCells*>(p); });
+  return {py::dtype("O"), std::vector<py::ssize_t>{static_cast<py::ssize_t>(n)}, {}, owned->cells, free_when_done};
 }
 
 /// Puts value into cell m of an object array (object_array()).
@@ -89,24 +111,21 @@ py::object column_array(Column&& c, size_t messages) {
   if (c.kind == 'O') {
     py::array out = object_array(messages);
     size_t at = 0;
-    // A string as the one before it (a frame name, message after message) is that one's str, not a new one.
-    py::str last;
-    const std::string* last_text = nullptr;
-    const auto text = [&](const std::string& s) {
-      if (last_text == nullptr || *last_text != s) {
-        last = py::str(s);
-        last_text = &s;
-      }
-      return last;
+    // A string kept once (Strings: a frame name, message after message) is one str.
+    std::vector<py::object> made(c.strings.distinct().size());
+    const auto text = [&](size_t element) {
+      py::object& s = made[c.strings.id(element)];
+      if (!s) s = py::str(c.strings.distinct()[c.strings.id(element)]);
+      return s;
     };
     for (size_t m = 0; m < messages; ++m) {
       if (same && first == 1) {
-        set_cell(out, m, text(c.strings[at++]));
+        set_cell(out, m, text(at++));
         continue;
       }
       const int64_t n = c.counts.empty() ? c.fixed_count : c.counts[m];
       py::list l(n);
-      for (int64_t k = 0; k < n; ++k) PyList_SET_ITEM(l.ptr(), k, text(c.strings[at++]).release().ptr());
+      for (int64_t k = 0; k < n; ++k) PyList_SET_ITEM(l.ptr(), k, text(at++).release().ptr());
       set_cell(out, m, std::move(l));
     }
     return out;
@@ -168,22 +187,23 @@ class Log {
 
   py::dict read(const std::string& channel) const {
     summary(channel);  // a KeyError for an unknown channel
-    return read_many(std::vector<std::string>{channel})[py::str(channel)].cast<py::dict>();
+    return read_many(std::vector<std::string>{channel}, 0)[py::str(channel)].cast<py::dict>();
   }
 
-  /// Channels read together: {channel: read(channel)}. Without names, every channel of a driftlab type.
-  py::dict read_many(const std::optional<std::vector<std::string>>& names) const {
-    return read_many_with(names, false);
+  /// Channels read together: {channel: read(channel)}. Without names, every channel of a driftlab type. threads:
+  /// the passes over an intact log at once (0: one per core; the tests ask for several on small logs).
+  py::dict read_many(const std::optional<std::vector<std::string>>& names, size_t threads) const {
+    return read_many_with(names, false, threads);
   }
 
   /// read_many() through the reference decode (lcmtypes::walk over a LogReader pass), for the tests to hold the
   /// decode plans to.
   py::dict read_reference(const std::optional<std::vector<std::string>>& names) const {
-    return read_many_with(names, true);
+    return read_many_with(names, true, 1);
   }
 
  private:
-  py::dict read_many_with(const std::optional<std::vector<std::string>>& names, bool reference) const {
+  py::dict read_many_with(const std::optional<std::vector<std::string>>& names, bool reference, size_t threads) const {
     std::vector<std::pair<std::string, int64_t>> wanted;
     if (names) {
       for (const auto& n : *names) wanted.emplace_back(n, summary(n).count);
@@ -203,15 +223,30 @@ class Log {
       for (size_t k = 0; k < channels.size(); ++k) out[py::str(wanted[k].first)] = to_dict(std::move(channels[k]));
       return out;
     }
-    // A channel at a time, each made NumPy arrays while its strings are still in the cache and before the next
-    // one's buffers are allocated.
+    // An intact log: a pass over it per core, each through a buffer, each decoding its share of the channels (so
+    // that the cores share the decoding and the faulting in of the columns' fresh pages).
+    std::vector<uint64_t> bytes;
+    bytes.reserve(wanted.size());
+    for (const auto& channel : wanted) bytes.push_back(summary(channel.first).bytes);
+    Result<std::optional<std::vector<Channel>>> r = Error{""};
+    {
+      py::gil_scoped_release release;
+      const size_t passes = threads > 0 ? threads : std::min(8u, std::thread::hardware_concurrency());
+      r = read_intact_log(lcm_path_, wanted, bytes, passes);
+    }
+    if (std::optional<std::vector<Channel>> channels = value_or_raise(std::move(r))) {
+      for (size_t k = 0; k < channels->size(); ++k) out[py::str(wanted[k].first)] = to_dict(std::move((*channels)[k]));
+      return out;
+    }
+    // A damaged log: its events found as LogReader finds them past the damage, once; then a channel at a time, each
+    // made NumPy arrays while its strings are still in the cache and before the next one's buffers are allocated.
     for (const auto& channel : wanted) {
-      Result<std::vector<Channel>> r = Error{""};
+      Result<std::vector<Channel>> one = Error{""};
       {
         py::gil_scoped_release release;
-        r = read_channels(*events(), {channel});
+        one = read_channels(*events(), {channel});
       }
-      out[py::str(channel.first)] = to_dict(std::move(value_or_raise(std::move(r)).front()));
+      out[py::str(channel.first)] = to_dict(std::move(value_or_raise(std::move(one)).front()));
     }
     return out;
   }
@@ -338,7 +373,7 @@ PYBIND11_MODULE(_driftlab, m) {
       .def_property_readonly("channels", &Log::channels)
       .def("info", &Log::info)
       .def("read", &Log::read, py::arg("channel"))
-      .def("read_many", &Log::read_many, py::arg("channels") = py::none())
+      .def("read_many", &Log::read_many, py::arg("channels") = py::none(), py::arg("threads") = 0)
       .def("_read_reference", &Log::read_reference, py::arg("channels") = py::none());
   m.def("diagnose_json", &diagnose_json, py::arg("inputs"), py::arg("max_lag_s"), py::arg("window_s"),
         py::arg("channels"));

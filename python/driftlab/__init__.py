@@ -37,8 +37,9 @@ class Log:
 
     Attributes: path (as given), lcm_path (the LCM log read), channels (names, sorted), time_unit ("us").
 
-    The first read maps the LCM log and notes where each channel's events are (one pass); the mapping is kept
-    while the Log lives, so that later reads visit only their channels' events.
+    A read is a pass over the LCM log (read_all: a pass per core, each decoding its share of the channels). A
+    damaged log (bytes between events) is mapped by the first read, which notes where each channel's events are,
+    and the mapping is kept while the Log lives, so that later reads visit only their channels' events.
     """
 
     time_unit = TIME_UNIT
