@@ -11,7 +11,7 @@ namespace driftlab {
 namespace {
 
 driftlab::fault_t fault(const std::string& channel, const char* kind, int64_t start, int64_t end,
-                        std::vector<std::pair<std::string, double>> params, std::vector<int64_t> affected = {}) {
+                        const std::vector<std::pair<std::string, double>>& params, std::vector<int64_t> affected = {}) {
   driftlab::fault_t f;
   f.channel = channel;
   f.kind = kind;

@@ -128,7 +128,7 @@ std::set<std::string> dependencies(const std::string& name, const std::string& t
 
 }  // namespace
 
-std::string ros2_type_for(std::string_view t) {
+std::string ros2_type_for(std::string_view driftlab_type) {
   static const std::pair<const char*, const char*> kMap[] = {
       {"driftlab.laser_scan_t", "sensor_msgs/msg/LaserScan"},
       {"driftlab.imu_t", "sensor_msgs/msg/Imu"},
@@ -144,8 +144,8 @@ std::string ros2_type_for(std::string_view t) {
       {"driftlab.barometer_t", "sensor_msgs/msg/FluidPressure"},
   };
   for (const auto& [d, r] : kMap)
-    if (t == d) return r;
-  std::string_view n = t;
+    if (driftlab_type == d) return r;
+  std::string_view n = driftlab_type;
   if (n.starts_with("driftlab.")) n.remove_prefix(9);
   return "driftlab_msgs/msg/" + camel(n);
 }

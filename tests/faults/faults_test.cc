@@ -90,7 +90,8 @@ TEST(StreamFaultInjector, DropsDuplicatesAndReordersAsTheManifestSays) {
     for (const auto& d : out) EXPECT_GE(d.arrival_utime, kStart + seq * 100'000);
   }
   std::map<std::string, std::vector<int64_t>> affected;
-  for (const auto& fault : inj.manifest(kStart + n * 100'000)) affected[fault.kind] = fault.affected_seq;
+  for (const auto& fault : inj.manifest(kStart + static_cast<int64_t>(n) * 100'000))
+    affected[fault.kind] = fault.affected_seq;
   const auto& dropped = affected["drop"];
   const auto& burst = affected["burst_drop"];
   const auto& duplicated = affected["duplicate"];
@@ -115,6 +116,7 @@ TEST(StreamFaultInjector, IsDeterministicPerSeedAndChannel) {
     std::vector<Delivery> out;
     for (int64_t seq = 0; seq < 1000; ++seq) inj.apply(seq, kStart + seq * 1000, out);
     std::vector<int64_t> arrivals;
+    arrivals.reserve(out.size());
     for (const auto& d : out) arrivals.push_back(d.arrival_utime);
     return arrivals;
   };
