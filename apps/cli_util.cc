@@ -201,22 +201,6 @@ std::string thousands(int64_t n) {
   return n < 0 ? "-" + out : out;
 }
 
-std::string format_utime(int64_t utime) {
-  constexpr int64_t kYear2000 = 946684800LL * 1000000;
-  char buf[64];
-  if (utime < kYear2000) {
-    std::snprintf(buf, sizeof(buf), "%.6f s", Time::from_us(utime).seconds());
-    return buf;
-  }
-  const time_t secs = static_cast<time_t>(utime / 1000000);
-  std::tm tm{};
-  gmtime_r(&secs, &tm);
-  char date[32];
-  std::strftime(date, sizeof(date), "%Y-%m-%d %H:%M:%S", &tm);
-  std::snprintf(buf, sizeof(buf), "%s.%06lld UTC", date, static_cast<long long>(utime % 1000000));
-  return buf;
-}
-
 Progress::Progress(std::string label, Unit unit)
     : label_(std::move(label)), unit_(unit), enabled_(isatty(STDERR_FILENO) == 1) {}
 

@@ -83,8 +83,6 @@ std::string short_number(double v);
 std::string human_bytes(double bytes);
 /// 1234567 -> "1,234,567".
 std::string thousands(int64_t n);
-/// A log timestamp [us] as "2026-11-22 02:20:22.123456 UTC", or as seconds when it is not a plausible epoch time.
-std::string format_utime(int64_t utime);
 
 /// A one-line progress indicator on stderr, drawn only when stderr is a terminal, at most 10 times a second.
 class Progress {

@@ -12,10 +12,10 @@
 #include <fstream>
 #include <memory>
 
+#include "analyzers/diagnosis_json.h"
 #include "apps/cli_checks.h"
 #include "apps/cli_util.h"
 #include "apps/commands.h"
-#include "apps/diagnosis_json.h"
 #include "apps/report.h"
 #include "core/install_layout.h"
 #include "core/log_reader.h"
@@ -228,7 +228,7 @@ int run_drone_demo(const DemoArgs& a, const fs::path& dir, const std::string& ex
   nlohmann::json summary;
   std::map<std::string, double> tracking, estimate;
   try {
-    summary = diagnosis_summary(read_json(r.diagnosis));
+    summary = analyzers::diagnosis_summary(read_json(r.diagnosis));
     for (const auto& [name, log] : flights) {
       tracking[name] = read_json(file((std::string("tracking-") + name + ".json").c_str()))["ate"]["rmse"];
       estimate[name] = read_json(file((std::string("estimate-") + name + ".json").c_str()))["ate"]["rmse"];
@@ -336,7 +336,7 @@ int run_demo(const DemoArgs& a) {
   double before = 0, after = 0;
   int64_t rejected_before = 0, rejected_after = 0;
   try {
-    summary = diagnosis_summary(read_json(r.diagnosis));
+    summary = analyzers::diagnosis_summary(read_json(r.diagnosis));
     before = read_json(r.evals[0])["ate"]["rmse"].get<double>();
     after = read_json(r.evals[1])["ate"]["rmse"].get<double>();
     rejected_before = late_rejected(read_json(file("replay.json")));

@@ -9,12 +9,13 @@
 #include <memory>
 #include <set>
 
+#include "analyzers/diagnosis_json.h"
 #include "analyzers/flight_log.h"
 #include "analyzers/timing.h"
 #include "apps/cli_checks.h"
 #include "apps/cli_util.h"
 #include "apps/commands.h"
-#include "apps/diagnosis_json.h"
+#include "apps/diagnosis_text.h"
 #include "apps/log_input.h"
 #include "core/same_file.h"
 
@@ -305,7 +306,7 @@ std::string html_page(const Diagnosis& d, const std::vector<std::string>& lines,
 int run_diagnose(const DiagnoseOptions& o) {
   if (Status s = o.json.check({o.log}, {o.html}); !s) return fail(s.message());
   if (Status s = refuse_same_file(o.html, {o.log}, "--html"); !s) return fail(s.message());
-  auto run = run_diagnosis(o.log, o.analysis);
+  auto run = analyzers::run_diagnosis(o.log, o.analysis);
   if (!run) return fail(run.error().message);
   const Diagnosis& d = run->diagnosis;
   std::vector<std::string> problems;
@@ -320,7 +321,7 @@ int run_diagnose(const DiagnoseOptions& o) {
   }
   if (!o.html.empty() && !write_output(o.html, html_page(d, lines, problems))) return kExitFailure;
   if (o.json.wanted()) {
-    if (!o.json.emit(diagnose_json(*run).dump(2) + "\n")) return kExitFailure;
+    if (!o.json.emit(analyzers::diagnose_json(*run).dump(2) + "\n")) return kExitFailure;
     if (o.json.print) return fails(d, problems, o.fail_on) ? kExitProblemsFound : kExitOk;
   }
   for (const auto& l : lines) std::printf("%s\n", l.c_str());

@@ -5,16 +5,11 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
-#include <optional>
-#include <future>
 #include <memory>
+#include <optional>
 
 #include "analyzers/arm_tracking.h"
-#include "analyzers/correlation.h"
-#include "analyzers/relations.h"
-#include "analyzers/time_offset.h"
-#include "analyzers/trajectory.h"
-#include "analyzers/trajectory_io.h"
+#include "analyzers/evaluate.h"
 #include "apps/cli_checks.h"
 #include "apps/cli_util.h"
 #include "apps/commands.h"
@@ -56,88 +51,9 @@ struct EvalOptions {
   JsonOutput json;
 };
 
-/// Statistics as JSON; null when there is nothing to take them over.
-nlohmann::json stats_json(const Stats& s) {
-  if (s.count == 0) return nullptr;
-  return {{"rmse", s.rmse}, {"mean", s.mean}, {"median", s.median}, {"std", s.std}, {"min", s.min}, {"max", s.max}};
-}
-
-struct Evaluation {
-  size_t gt_poses = 0, est_poses = 0;
-  double offset = 0;                  ///< applied to the estimate's stamps [s]
-  std::optional<TimeOffset> offset_auto;
-  std::vector<std::string> notes;     ///< what was done to the inputs (sorted, repeated stamps), also on stderr
-  std::optional<RelationResult> relations;
-  Matched matched;
-  Alignment alignment;
-  ApeResult ape;
-  RpeResult rpe;
-  DriftResult drift;
-};
-
-nlohmann::json to_json(const EvalOptions& o, const Evaluation& ev) {
-  nlohmann::json rotation = nlohmann::json::array();
-  for (int r = 0; r < 3; ++r) {
-    rotation.push_back({ev.alignment.rotation(r, 0), ev.alignment.rotation(r, 1), ev.alignment.rotation(r, 2)});
-  }
-  nlohmann::json segments = nlohmann::json::array();
-  for (const auto& s : ev.drift.segments) {
-    segments.push_back({{"length_m", s.length_m}, {"count", s.count}, {"trans_pct", s.trans_pct},
-                        {"rot_deg_per_m", s.rot_deg_per_m}});
-  }
-  return {{"reference", {{"source", o.gt}, {"poses", ev.gt_poses}}},
-          {"estimate", {{"source", o.est}, {"poses", ev.est_poses}}},
-          {"matching", {{"method", !ev.matched.ref.stamped ? "index" : o.interpolate ? "interpolate" : "nearest"},
-                        {"max_dt", o.max_dt},
-                        {"offset", ev.offset},
-                        {"offset_auto", ev.offset_auto ? nlohmann::json{{"offset_s", ev.offset_auto->offset_s},
-                                                                        {"confidence", ev.offset_auto->confidence},
-                                                                        {"signal", ev.offset_auto->signal},
-                                                                        {"overlap_s", ev.offset_auto->overlap_s}}
-                                                       : nlohmann::json(nullptr)}}},
-          {"matched", ev.matched.ref.size()},
-          {"alignment", {{"type", to_string(ev.alignment.type)},
-                         {"rotation", rotation},
-                         {"translation", {ev.alignment.translation.x(), ev.alignment.translation.y(),
-                                          ev.alignment.translation.z()}},
-                         {"scale", ev.alignment.scale}}},
-          {"ate", stats_json(ev.ape.trans)},
-          {"ate_rot_deg", stats_json(ev.ape.rot_deg)},
-          {"rpe", {{"delta", ev.rpe.options.delta},
-                   {"unit", to_string(ev.rpe.options.unit)},
-                   {"all_pairs", ev.rpe.options.all_pairs},
-                   {"pairs_from", ev.rpe.options.pairs_from_reference ? "reference" : "estimate"},
-                   {"delta_tol", ev.rpe.options.delta_tol},
-                   {"pairs", ev.rpe.pairs.size()},
-                   {"trans", stats_json(ev.rpe.trans)},
-                   {"rot_deg", stats_json(ev.rpe.rot_deg)}}},
-          {"drift", {{"trans_pct", ev.drift.trans_pct},
-                     {"rot_deg_per_m", ev.drift.rot_deg_per_m},
-                     {"count", ev.drift.count},
-                     {"step", o.segment_step},
-                     {"segments", segments}}}};
-}
-
-nlohmann::json relation_stats_json(const RelationStats& s) {
-  return {{"mean", s.mean}, {"std", s.std}, {"max", s.max}};
-}
-
-nlohmann::json relations_json(const EvalOptions& o, const RelationResult& r) {
-  return {{"source", o.relations},
-          {"odometry", o.odometry.empty() ? nlohmann::json(nullptr) : nlohmann::json(o.odometry)},
-          {"max_dt", o.relations_max_dt},
-          {"relations", r.relations},
-          {"used", r.used},
-          {"bridged", r.bridged},
-          {"max_bridge_s", r.max_bridge_s},
-          {"trans_m", relation_stats_json(r.trans_m)},
-          {"trans_sq_m2", relation_stats_json(r.trans_sq_m2)},
-          {"rot_deg", relation_stats_json(r.rot_deg)},
-          {"rot_sq_deg2", relation_stats_json(r.rot_sq_deg2)}};
-}
-
-void print_relations(const EvalOptions& o, const RelationResult& r) {
-  std::printf("relation error (Kuemmerle et al. 2009) of %s over %s of %s relations", o.est.c_str(),
+void print_relations(const Evaluation& ev) {
+  const RelationResult& r = *ev.relations;
+  std::printf("relation error (Kuemmerle et al. 2009) of %s over %s of %s relations", ev.options.est_name.c_str(),
               thousands(static_cast<int64_t>(r.used)).c_str(), thousands(static_cast<int64_t>(r.relations)).c_str());
   if (r.bridged > 0) {
     std::printf(" (%s with a pose carried by odometry, at most %.3f s)", thousands(static_cast<int64_t>(r.bridged)).c_str(),
@@ -156,7 +72,8 @@ void print_stats_row(const char* label, const Stats& s) {
               s.max);
 }
 
-void print_table(const EvalOptions& o, const Evaluation& ev) {
+void print_table(const Evaluation& ev) {
+  const EvaluateOptions& o = ev.options;
   const std::string matched = thousands(static_cast<int64_t>(ev.matched.ref.size()));
   if (!ev.matched.ref.stamped) {
     std::printf("matched %s poses pose for pose (no stamps)\n", matched.c_str());
@@ -197,7 +114,7 @@ void print_table(const EvalOptions& o, const Evaluation& ev) {
     std::printf("drift: no segment fits in the reference path (%.3f m)\n", ev.matched.ref.path_length());
     return;
   }
-  std::printf("drift: %.3f %% of distance, %.5f deg/m (KITTI style: %s segments, one from every %d poses)\n",
+  std::printf("drift: %.3f %% of distance, %.5f deg/m (KITTI style: %s segments, one from every %zu poses)\n",
               ev.drift.trans_pct, ev.drift.rot_deg_per_m, thousands(static_cast<int64_t>(ev.drift.count)).c_str(),
               o.segment_step);
   std::printf("%12s %10s %10s %12s\n", "length [m]", "segments", "trans [%]", "rot [deg/m]");
@@ -206,101 +123,11 @@ void print_table(const EvalOptions& o, const Evaluation& ev) {
   }
 }
 
-/// Puts a loaded trajectory in stamp order and checks its stamps: out-of-order poses are sorted (said in a note),
-/// poses sharing the stamp before them are kept (matching takes the first, as evo does; said in a note), and a
-/// trajectory whose stamps mostly repeat is refused: frozen stamps, which no matching can tell apart. Returns
-/// false after printing why.
-bool put_in_order(const std::string& what, const std::string& src, Trajectory& t, Evaluation& ev) {
-  if (!t.stamped) return true;
-  const StampOrder order = sort_by_stamp(t);
-  char buf[512];
-  if (order.repeated * 2 > t.size()) {
-    std::snprintf(buf, sizeof(buf),
-                  "%s %s: %zu of %zu poses carry the stamp of the pose before them (the first at %.6f s): frozen "
-                  "stamps (a stamp set once, or one time given to every pose), which leave nothing to match in time",
-                  what.c_str(), src.c_str(), order.repeated, t.size(), order.first_repeated);
-    fail(buf);
-    return false;
-  }
-  if (order.out_of_order > 0) {
-    const bool one = order.out_of_order == 1;
-    std::snprintf(buf, sizeof(buf), "%s %s: %zu pose%s stamped earlier than the pose before %s (the first at %.6f s); "
-                  "sorted by stamp",
-                  what.c_str(), src.c_str(), order.out_of_order, one ? " was" : "s were", one ? "it" : "them",
-                  order.first_out_of_order);
-    ev.notes.push_back(buf);
-  }
-  if (order.repeated > 0) {
-    const bool one = order.repeated == 1;
-    std::snprintf(buf, sizeof(buf), "%s %s: %zu pose%s %s stamp with the pose before %s (the first at %.6f s); "
-                  "matching takes the first of them, as evo does",
-                  what.c_str(), src.c_str(), order.repeated, one ? "" : "s", one ? "shares its" : "share their",
-                  one ? "it" : "them", order.first_repeated);
-    ev.notes.push_back(buf);
-  }
-  return true;
-}
-
-/// The relation error of the estimate, when --relations is given; false (after printing why) on bad input.
-bool evaluate_relations(const EvalOptions& o, const Trajectory& est, Evaluation& ev) {
-  if (!est.stamped) {
-    fail("--est " + o.est + ": relations are found by stamp, and these poses have none (give --est-times)");
-    return false;
-  }
-  auto pending_odometry = std::async(std::launch::async, [&]() -> Result<Trajectory> {
-    if (o.odometry.empty()) return Trajectory{};
-    return load_trajectory(o.odometry);
-  });
-  auto relations = load_relations(o.relations);
-  auto odometry = pending_odometry.get();
-  if (!relations) return fail(relations.error().message), false;
-  if (!odometry) return fail(odometry.error().message), false;
-  if (!odometry->stamped) return fail("--relations-odometry " + o.odometry + ": odometry without stamps"), false;
-  if (!put_in_order("--relations-odometry", o.odometry, *odometry, ev)) return false;
-  RelationOptions options;
-  options.max_dt = o.relations_max_dt;
-  options.odometry = o.odometry.empty() ? nullptr : &*odometry;
-  ev.relations = relation_error(est, *relations, options);
-  if (ev.relations->used == 0) {
-    fail(o.relations + ": no relation has estimate poses at both of its stamps (within --relations-max-dt " +
-         short_number(o.relations_max_dt) + " s" + (o.odometry.empty() ? "; --relations-odometry can carry the nearest poses to them" : "") + ")");
-    return false;
-  }
-  return true;
-}
-
 TrajectoryFormat format_of(const std::string& name) {
   return name == "tum"     ? TrajectoryFormat::kTum
          : name == "kitti" ? TrajectoryFormat::kKitti
          : name == "euroc" ? TrajectoryFormat::kEuroc
                            : TrajectoryFormat::kAuto;
-}
-
-/// The pairs of an unstamped trajectory (KITTI poses without times) with another: pose for pose, as evo compares
-/// them; false after printing why when that is impossible.
-bool match_by_index(const EvalOptions& o, const Trajectory& gt, const Trajectory& est, Matched& m) {
-  if (gt.stamped != est.stamped) {
-    const bool gt_unstamped = !gt.stamped;
-    fail(std::string(gt_unstamped ? "--gt " + o.gt : "--est " + o.est) +
-         ": KITTI poses without stamps can only be compared pose for pose with another trajectory without stamps; "
-         "give " + (gt_unstamped ? "--gt-times" : "--est-times") + " FILE (one stamp a line)");
-    return false;
-  }
-  if (gt.size() != est.size()) {
-    fail("--gt " + o.gt + " has " + std::to_string(gt.size()) + " poses and --est " + o.est + " " +
-         std::to_string(est.size()) + ": without stamps they are compared pose for pose, so they must be as many");
-    return false;
-  }
-  if (o.offset == "auto" || std::strtod(o.offset.c_str(), nullptr) != 0 || o.interpolate) {
-    fail("--offset and --interpolate need stamps, and KITTI poses without --gt-times/--est-times have none");
-    return false;
-  }
-  m.ref = gt;
-  m.est = est;
-  for (auto* t : {&m.ref, &m.est}) {
-    for (auto& q : t->orientations) q.normalize();
-  }
-  return true;
 }
 
 /// A source (LOG:CHANNEL, or a trajectory file) checked: a log must hold events, and a log given without its
@@ -312,45 +139,6 @@ Status check_source(const std::string& src, const char* option) {
     return Error{src + ": an LCM event log: name the channel, as " + option + " " + src + ":CHANNEL"};
   }
   return {};
-}
-
-nlohmann::json arm_json(const ArmTracking& a) {
-  auto or_null = [](const std::string& s) { return s.empty() ? nlohmann::json() : nlohmann::json(s); };
-  nlohmann::json joints = nlohmann::json::array();
-  for (const JointTracking& j : a.joints) {
-    joints.push_back(
-        {{"name", j.name},
-         {"error_rad", stats_json(j.error_rad)},
-         {"mean_signed_rad", j.mean_signed_rad},
-         {"limits", j.has_position_limits
-                        ? nlohmann::json{{"lower", j.lower}, {"upper", j.upper}, {"velocity", j.velocity_limit}}
-                        : nlohmann::json()},
-         {"reached", {{"min", j.min}, {"max", j.max}, {"max_speed", j.max_speed}}},
-         {"beyond", {{"position", j.beyond_position}, {"velocity", j.beyond_velocity}}}});
-  }
-  nlohmann::json ee;
-  if (a.ee_position_m.count > 0) {
-    ee = {
-        {"base_link", a.base_link},
-        {"tip_link", a.tip_link},
-        {"position_m", stats_json(a.ee_position_m)},
-        {"rotation_deg", stats_json(a.ee_rotation_deg)},
-        {"oscillation",
-         {{"cutoff_hz", a.oscillation.cutoff_hz}, {"rms_m", a.oscillation.rms_m}, {"peak_hz", a.oscillation.peak_hz}}}};
-  }
-  return {{"log", a.log},
-          {"reference", to_string(a.reference)},
-          {"channels",
-           {{"commands", a.command_channel},
-            {"joint_states", a.state_channel},
-            {"controller_state", or_null(a.controller_channel)},
-            {"ee_truth", or_null(a.ee_channel)},
-            {"base_truth", or_null(a.base_channel)}}},
-          {"commands", a.commands},
-          {"span_s", {a.start_s, a.end_s}},
-          {"joints", joints},
-          {"ee", ee},
-          {"ee_problem", or_null(a.ee_problem)}};
 }
 
 void print_arm(const ArmTracking& a) {
@@ -405,7 +193,7 @@ int run_arm_eval(const EvalOptions& o) {
   if (!a) return fail(a.error().message);
   a->log = o.arm;
   if (!o.json.print) print_arm(*a);
-  nlohmann::json j = {{"arm", arm_json(*a)}, {"notes", nlohmann::json::array()}};
+  nlohmann::json j = {{"arm", to_json(*a)}, {"notes", nlohmann::json::array()}};
   if (o.json.wanted() && !o.json.emit(j.dump(2) + "\n")) return kExitFailure;
   return kExitOk;
 }
@@ -437,97 +225,49 @@ int run_eval(const EvalOptions& o) {
     if (src.empty()) continue;
     if (Status s = check_source(src, option); !s) return fail(s.message());
   }
-  // The inputs load in parallel: parsing is most of the work on large trajectories.
-  auto pending_gt = std::async(std::launch::async, [&]() -> Result<Trajectory> {
-    if (o.gt.empty()) return Trajectory{};
-    return load_trajectory(*gt_src, format_of(o.gt_format), o.gt_times);
-  });
-  auto est = load_trajectory(*est_src, format_of(o.est_format), o.est_times);
-  auto gt = pending_gt.get();
-  if (!gt) return fail(gt.error().message);
-  if (!est) return fail(est.error().message);
-  Evaluation ev;
-  ev.est_poses = est->size();
-  ev.gt_poses = gt->size();
-  if (!put_in_order("--est", o.est, *est, ev)) return kExitBadInput;
-  if (!o.gt.empty() && !put_in_order("--gt", o.gt, *gt, ev)) return kExitBadInput;
-  if (!o.relations.empty() && !evaluate_relations(o, *est, ev)) return kExitBadInput;
-  for (const auto& note : ev.notes) std::fprintf(stderr, "driftlab: note: %s\n", note.c_str());
-  nlohmann::json notes(ev.notes);
-
-  if (o.gt.empty()) {
-    nlohmann::json j = {{"estimate", {{"source", o.est}, {"poses", ev.est_poses}}},
-                        {"relations", relations_json(o, *ev.relations)},
-                        {"notes", notes}};
-    if (!o.json.print) print_relations(o, *ev.relations);
-    if (o.json.wanted() && !o.json.emit(j.dump(2) + "\n")) return kExitFailure;
-    return kExitOk;
-  }
-
-  if (!gt->stamped || !est->stamped) {
-    if (!match_by_index(o, *gt, *est, ev.matched)) return kExitBadInput;
-  } else {
-    if (o.offset == "auto") {
-      ev.offset_auto = estimate_time_offset(*gt, *est);
-      const TimeOffset& a = *ev.offset_auto;
-      if (!a.found) return fail("--offset auto: no offset found between " + o.est + " and " + o.gt + ": " + a.problem);
-      if (a.confidence < analyzers::kConfidentCorrelation) {
-        char buf[400];
-        std::snprintf(buf, sizeof(buf),
-                      "--offset auto: the motions of %s and %s do not line up clearly (best %+.4f s, from the %s, "
-                      "confidence %.2f < %.1f): give --offset",
-                      o.est.c_str(), o.gt.c_str(), a.offset_s, a.signal.c_str(), a.confidence,
-                      analyzers::kConfidentCorrelation);
-        return fail(buf);
-      }
-      ev.offset = a.offset_s;
-    } else {
-      ev.offset = std::strtod(o.offset.c_str(), nullptr);
-    }
-    ev.matched = o.interpolate ? match_interpolated(*gt, *est, o.max_gap, ev.offset)
-                               : match_nearest(*gt, *est, o.max_dt, ev.offset);
-    if (ev.matched.ref.size() == 0) {
-      return fail(o.est + " against " + o.gt + ": " +
-                  explain_no_match(*gt, *est, o.interpolate ? o.max_gap : o.max_dt, ev.offset) +
-                  (o.offset == "auto" ? "" : " (or --offset auto)"));
-    }
-  }
-  const AlignmentType type = o.align == "se3"      ? AlignmentType::kSe3
-                             : o.align == "sim3"   ? AlignmentType::kSim3
-                             : o.align == "posyaw" ? AlignmentType::kPosYaw
-                             : o.align == "origin" ? AlignmentType::kOrigin
-                                                   : AlignmentType::kNone;
-  ev.alignment = align(ev.matched, type);
-  if (!ev.alignment.problem.empty()) {
-    return fail("--align " + o.align + " of " + o.est + " onto " + o.gt + ": " + ev.alignment.problem);
-  }
-  if (type != AlignmentType::kNone) ev.matched.est = apply(ev.alignment, std::move(ev.matched.est));
-  const Matched& aligned = ev.matched;
-  ev.ape = ape(aligned);
-  RpeOptions rpe_options;
-  rpe_options.delta = o.delta;
-  rpe_options.unit = o.delta_unit == "m"     ? DeltaUnit::kMeters
+  EvaluateOptions options;
+  options.gt = *gt_src;
+  options.est = *est_src;
+  options.gt_name = o.gt;
+  options.est_name = o.est;
+  options.gt_format = format_of(o.gt_format);
+  options.est_format = format_of(o.est_format);
+  options.gt_times = o.gt_times;
+  options.est_times = o.est_times;
+  options.max_dt = o.max_dt;
+  options.offset = o.offset == "auto" ? std::nullopt : std::optional(std::strtod(o.offset.c_str(), nullptr));
+  options.interpolate = o.interpolate;
+  options.max_gap = o.max_gap;
+  options.align = o.align == "se3"      ? AlignmentType::kSe3
+                  : o.align == "sim3"   ? AlignmentType::kSim3
+                  : o.align == "posyaw" ? AlignmentType::kPosYaw
+                  : o.align == "origin" ? AlignmentType::kOrigin
+                                        : AlignmentType::kNone;
+  options.rpe.delta = o.delta;
+  options.rpe.unit = o.delta_unit == "m"     ? DeltaUnit::kMeters
                      : o.delta_unit == "s"   ? DeltaUnit::kSeconds
                      : o.delta_unit == "deg" ? DeltaUnit::kDegrees
                      : o.delta_unit == "rad" ? DeltaUnit::kRadians
                                              : DeltaUnit::kFrames;
-  rpe_options.all_pairs = o.all_pairs;
-  rpe_options.pairs_from_reference = o.pairs_from_reference;
-  rpe_options.delta_tol = o.delta_tol;
-  ev.rpe = rpe(aligned, rpe_options);
-  ev.drift = drift(aligned, o.segments, static_cast<size_t>(o.segment_step));
-
-  nlohmann::json j = to_json(o, ev);
-  if (ev.relations) j["relations"] = relations_json(o, *ev.relations);
-  j["notes"] = notes;
+  options.rpe.all_pairs = o.all_pairs;
+  options.rpe.pairs_from_reference = o.pairs_from_reference;
+  options.rpe.delta_tol = o.delta_tol;
+  options.segments = o.segments;
+  options.segment_step = static_cast<size_t>(o.segment_step);
+  options.relations = o.relations;
+  options.relations_max_dt = o.relations_max_dt;
+  options.odometry = o.odometry;
+  auto ev = evaluate(options);
+  if (!ev) return fail(ev.error().message);
+  for (const auto& note : ev->notes) std::fprintf(stderr, "driftlab: note: %s\n", note.c_str());
   if (!o.json.print) {
-    print_table(o, ev);
-    if (ev.relations) {
-      std::printf("\n");
-      print_relations(o, *ev.relations);
+    if (ev->has_reference) print_table(*ev);
+    if (ev->relations) {
+      if (ev->has_reference) std::printf("\n");
+      print_relations(*ev);
     }
   }
-  if (o.json.wanted() && !o.json.emit(j.dump(2) + "\n")) return kExitFailure;
+  if (o.json.wanted() && !o.json.emit(to_json(*ev).dump(2) + "\n")) return kExitFailure;
   return kExitOk;
 }
 

@@ -9,10 +9,11 @@
 #include <memory>
 #include <optional>
 
+#include "analyzers/diagnosis_json.h"
 #include "apps/cli_checks.h"
 #include "apps/cli_util.h"
 #include "apps/commands.h"
-#include "apps/diagnosis_json.h"
+#include "apps/diagnosis_text.h"
 #include "apps/log_input.h"
 #include "core/log_format.h"
 #include "core/log_index.h"
@@ -221,7 +222,7 @@ int run_info(const InfoOptions& o) {
   if (o.json.wanted()) {
     auto j = to_json(o.log, s, sources);
     if (recorded) j["recorder"] = recorder_json(*recorded);
-    if (utc.known) j["utc"] = flight_utc_json(utc);
+    if (utc.known) j["utc"] = analyzers::flight_utc_json(utc);
     if (!o.json.emit(j.dump(2) + "\n")) return kExitFailure;
   }
   if (!o.json.print) {

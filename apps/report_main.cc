@@ -18,13 +18,13 @@
 #include <fstream>
 #include <memory>
 
+#include "analyzers/diagnosis_json.h"
 #include "analyzers/flight_log.h"
 #include "analyzers/log_series.h"
 #include "analyzers/timing.h"
 #include "analyzers/trajectory.h"
 #include "apps/cli_util.h"
 #include "apps/commands.h"
-#include "apps/diagnosis_json.h"
 #include "apps/flight_log_pair.h"
 #include "apps/log_input.h"
 #include "apps/report.h"
@@ -185,13 +185,13 @@ Result<std::string> make_report(const ReportOptions& o) {
     if (!diagnosis.contains("flight_log")) {
       auto f = analyzers::diagnose_flight_log(first.log);
       if (!f) return f.error();
-      if (f->present) diagnosis["flight_log"] = flight_log_json(*f);
+      if (f->present) diagnosis["flight_log"] = analyzers::flight_log_json(*f);
     }
   } else {
     stage("diagnosing " + names.front());
-    auto run = run_diagnosis(first.log, {});  // as diagnose --json: with a flight log's own diagnosis
+    auto run = analyzers::run_diagnosis(first.log, {});  // as diagnose --json: with a flight log's own diagnosis
     if (!run) return run.error();
-    diagnosis = diagnose_json(*run);
+    diagnosis = analyzers::diagnose_json(*run);
   }
   nlohmann::json evals = nlohmann::json::array();
   for (const auto& path : o.evals) {
@@ -226,7 +226,7 @@ Result<std::string> make_report(const ReportOptions& o) {
       data["streams"].push_back(
           stream_json(s, diagnosed[s.channel], diagnosis.value("clock_domains", nlohmann::json::array()), origin_s));
     }
-    data["summary"] = diagnosis_summary(diagnosis);
+    data["summary"] = analyzers::diagnosis_summary(diagnosis);
   } catch (const nlohmann::json::exception& e) {
     return Error{"--diagnosis " + o.diagnosis + ": not the JSON of driftlab diagnose --json (" + e.what() + ")"};
   }

@@ -21,7 +21,6 @@
 #include "apps/cli_checks.h"
 #include "apps/cli_util.h"
 #include "apps/commands.h"
-#include "apps/diagnosis_json.h"
 #include "batch/executor.h"
 #include "batch/plan.h"
 #include "batch/runner.h"
@@ -72,9 +71,7 @@ std::string self_path() {
   return p.empty() ? "driftlab" : p.string();
 }
 
-RunnerOptions runner_options() {
-  return {self_path(), [](const nlohmann::json& d) { return diagnosis_summary(d); }};
-}
+RunnerOptions runner_options() { return {self_path()}; }
 
 /// Asks the replay program whether it accepts a module config: `driftlab replay` with it of a log holding one event
 /// on a channel no module reads (an empty file is not a log, and would be refused before the config is read). Its

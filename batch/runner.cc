@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <fstream>
 
+#include "analyzers/diagnosis_json.h"
 #include "batch/store.h"
 #include "core/process.h"
 #include "core/wall_clock.h"
@@ -34,7 +35,7 @@ struct StageRun {
 
 }  // namespace
 
-nlohmann::json point_metrics(const Plan& plan, const std::string& pdir, const RunnerOptions& options) {
+nlohmann::json point_metrics(const Plan& plan, const std::string& pdir) {
   const Spec& s = plan.spec;
   const fs::path d(pdir);
   nlohmann::json m = nlohmann::json::object();
@@ -46,9 +47,9 @@ nlohmann::json point_metrics(const Plan& plan, const std::string& pdir, const Ru
       m["matched_poses"] = (*e).at("matched");
     }
   }
-  if (s.has(Stage::kDiagnose) && options.summarize) {
+  if (s.has(Stage::kDiagnose)) {
     if (auto dj = read_json_file((d / "diagnosis.json").string())) {
-      const nlohmann::json sum = options.summarize(*dj);
+      const nlohmann::json sum = analyzers::diagnosis_summary(*dj);
       int64_t drops = 0;
       for (const auto& [ch, n] : sum.at("drops").items()) {
         m["drops." + ch] = n;
@@ -208,7 +209,7 @@ int run_point(const Plan& plan, const Point& point, const std::string& dir, cons
 
   nlohmann::json metrics;
   try {
-    metrics = point_metrics(plan, d.string(), options);
+    metrics = point_metrics(plan, d.string());
   } catch (const nlohmann::json::exception& e) {
     return fail_with("collect", 1, std::string("reading the stages' JSON: ") + e.what());
   }

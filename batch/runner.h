@@ -4,7 +4,6 @@
 // already done returns at once. Thread-safety: one point per process at a time (it handles SIGINT and SIGTERM).
 #pragma once
 
-#include <functional>
 #include <string>
 
 #include <nlohmann/json.hpp>
@@ -16,9 +15,6 @@ namespace driftlab::batch {
 
 struct RunnerOptions {
   std::string driftlab;  ///< the driftlab program the stages run
-  /// The headline of a diagnosis (apps' diagnosis_summary: worst_stream, clocks_ahead_s, drops); may throw
-  /// nlohmann::json::exception on a JSON of the wrong shape.
-  std::function<nlohmann::json(const nlohmann::json& diagnosis)> summarize;
 };
 
 /// Exit codes of run_point.
@@ -34,6 +30,6 @@ int run_point(const Plan& plan, const Point& point, const std::string& dir, cons
 
 /// The metrics of a finished point from its stages' JSON in folder pdir (ate_rmse, rpe_rmse, drops, offsets found,
 /// the worst stream, the estimator's late measurements ...); exposed for tests.
-nlohmann::json point_metrics(const Plan& plan, const std::string& pdir, const RunnerOptions& options);
+nlohmann::json point_metrics(const Plan& plan, const std::string& pdir);
 
 }  // namespace driftlab::batch

@@ -8,6 +8,8 @@
 #pragma once
 
 #include <chrono>
+#include <cstdint>
+#include <string>
 
 #include "core/time.h"
 
@@ -25,6 +27,9 @@ class SystemWallClock final : public WallClock {
  public:
   Time now() const override;
 };
+
+/// A log timestamp [us] as "2026-11-22 02:20:22.123456 UTC", or as seconds when it is not a plausible epoch time.
+std::string format_utime(int64_t utime);
 
 /// Time elapsed on the steady clock since it was made or last restarted.
 class Stopwatch {

@@ -22,9 +22,10 @@
 #include <utility>
 #include <vector>
 
+#include "analyzers/diagnosis_json.h"
 #include "apps/cli_util.h"
 #include "apps/commands.h"
-#include "apps/diagnosis_json.h"
+#include "apps/diagnosis_text.h"
 #include "apps/log_input.h"
 #include "core/log_index.h"
 #include "core/same_file.h"
@@ -296,7 +297,7 @@ std::string diagnose_json(const std::vector<std::string>& inputs, double max_lag
   options.max_lag_s = max_lag_s;
   options.window_s = window_s;
   options.channels = channels;
-  return apps::diagnose_json(value_or_raise(apps::run_diagnosis(log, options))).dump(2) + "\n";
+  return analyzers::diagnose_json(value_or_raise(analyzers::run_diagnosis(log, options))).dump(2) + "\n";
 }
 
 /// A command of `driftlab` run in-process with these arguments (after "driftlab"), `--json` among them: what it

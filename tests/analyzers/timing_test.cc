@@ -3,6 +3,7 @@
 // with its own clock, latency and losses. Accuracy targets from the issue: drop counts exact, relative offsets
 // from 2 to 200 ms within 1 ms, drift within 20 ppm, nothing flagged on a clean log.
 #include "analyzers/timing.h"
+#include "analyzers/diagnosis_json.h"
 
 #include <gtest/gtest.h>
 
@@ -14,7 +15,6 @@
 
 #include "analyzers/clock_corrections.h"
 #include "analyzers/internal/tf_check.h"
-#include "apps/diagnosis_json.h"
 #include "core/log_reader.h"
 #include "core/log_writer.h"
 #include "driftlab/fault_manifest_t.hpp"
@@ -746,7 +746,7 @@ void expect_read_in_stretches_as_in_one_pass(const std::string& path, bool whole
   auto reference = diagnose(path, one);
   ASSERT_TRUE(reference.ok());
   EXPECT_EQ(reference->stretches, 1);
-  const nlohmann::json expected = apps::to_json(*reference);
+  const nlohmann::json expected = analyzers::to_json(*reference);
   for (int threads : {2, 3, 5, 16}) {
     DiagnoseOptions options;
     options.pass_threads = threads;
@@ -755,7 +755,7 @@ void expect_read_in_stretches_as_in_one_pass(const std::string& path, bool whole
     // Where the stretches cannot stand for one pass (a damaged log, a channel that changes at a join), it is read
     // again from the start.
     EXPECT_EQ(d->stretches, whole ? threads : 1) << path;
-    EXPECT_EQ(apps::to_json(*d), expected) << path << " in " << threads << " stretches";
+    EXPECT_EQ(analyzers::to_json(*d), expected) << path << " in " << threads << " stretches";
   }
 }
 
