@@ -4,9 +4,9 @@
 #include <cstdio>
 #include <memory>
 
+#include "analyzers/flight_log_pair.h"
 #include "apps/cli_util.h"
 #include "apps/commands.h"
-#include "apps/flight_log_pair.h"
 #include "core/same_file.h"
 #include "formats/import.h"
 
@@ -85,7 +85,7 @@ void add_import_file_command(CLI::App& import, int* exit_code) {
       if (printed++ < kProblemLines) std::fprintf(stderr, "driftlab: %s\n", line.c_str());
     };
     std::string alignment;
-    auto r = import_recording(args->in, args->out, on_problem, &alignment);
+    auto r = analyzers::import_recording(args->in, args->out, on_problem, &alignment);
     if (!r) {
       *exit_code = fail(r.error().message, exit_code_for(r.error(), args->out));
       return;

@@ -1,4 +1,5 @@
 #include "apps/log_input.h"
+#include "analyzers/flight_log_pair.h"
 
 #include <fcntl.h>
 #include <sys/stat.h>
@@ -14,7 +15,6 @@
 #include <vector>
 
 #include "apps/cli_util.h"
-#include "apps/flight_log_pair.h"
 #include "core/log_reader.h"
 #include "formats/import.h"
 
@@ -250,7 +250,7 @@ Result<std::string> log_for(const std::vector<std::string>& inputs) {
     if (printed++ < kProblemLines) std::fprintf(stderr, "driftlab: %s\n", line.c_str());
   };
   std::string alignment;
-  auto summary = import_recording(inputs, cache, on_problem, &alignment);
+  auto summary = analyzers::import_recording(inputs, cache, on_problem, &alignment);
   if (!summary) {
     // Writing the conversion failed (a full disk): an I/O failure, named by the input and the cache, not by the
     // partial file, which is gone. Anything else is the recording's.

@@ -20,12 +20,12 @@
 
 #include "analyzers/diagnosis_json.h"
 #include "analyzers/flight_log.h"
+#include "analyzers/flight_log_pair.h"
 #include "analyzers/log_series.h"
 #include "analyzers/timing.h"
 #include "analyzers/trajectory.h"
 #include "apps/cli_util.h"
 #include "apps/commands.h"
-#include "apps/flight_log_pair.h"
 #include "apps/log_input.h"
 #include "apps/report.h"
 #include "core/same_file.h"
@@ -150,9 +150,9 @@ Result<std::string> make_report(const ReportOptions& o) {
   };
   std::vector<LogSeries> logs;
   std::vector<std::string> names;  // as given: a bag's own name, not its conversion's
-  // A flight log beside a bag of the same flight is one recording, on the bag's clock (apps/flight_log_pair.h).
+  // A flight log beside a bag of the same flight is one recording, on the bag's clock (analyzers/flight_log_pair.h).
   std::vector<std::vector<std::string>> recordings;
-  if (flight_log_pair(o.logs)) {
+  if (analyzers::flight_log_pair(o.logs)) {
     recordings.push_back(o.logs);
   } else {
     for (const auto& given : o.logs) recordings.push_back({given});

@@ -1,6 +1,6 @@
 // A real PX4 flight log beside a MAVROS-style bag of the same flight written by Foxglove's own MCAP writer
 // (tests/oracle/write_mcap.mjs): `driftlab import BAG FLIGHT.ulg` and `driftlab diagnose BAG FLIGHT.ulg` put the
-// flight log on the bag's clock (apps/flight_log_pair.h), and refuse a bag whose IMU is not the flight's.
+// flight log on the bag's clock (analyzers/flight_log_pair.h), and refuse a bag whose IMU is not the flight's.
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
@@ -8,6 +8,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 #include <random>
 #include <regex>
 #include <set>
@@ -185,10 +186,15 @@ TEST(FlightLogBesideBag, ABagOfAnotherMotionIsRefusedInOneLine) {
     EXPECT_EQ(r.code, 2) << cmd;
     EXPECT_EQ(r.out, "");
     // One line naming both recordings and why (the lines before it say what is being converted).
-    const size_t at = r.err.find("cannot put " + ulog + " on " + bag +
-                                 "'s clock: sensor_combined against "
-                                 "/mavros/imu/data: the IMUs' angular rates do not match");
+    const size_t at = r.err.find("cannot put " + ulog + " on " + bag + "'s clock: ");
     ASSERT_NE(at, std::string::npos) << r.err;
+    // Each way tried, and why it failed: the IMUs' motions differ, and the bag has no time sync, the flight no GNSS.
+    EXPECT_NE(
+        r.err.find("by the IMUs: sensor_combined against /mavros/imu/data: the IMUs' angular rates do not match", at),
+        std::string::npos)
+        << r.err;
+    EXPECT_NE(r.err.find("by a time sync: the bag has no time sync", at), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find("by GNSS time: no GNSS time in the flight log", at), std::string::npos) << r.err;
     EXPECT_EQ(r.err.find('\n', at), r.err.size() - 1) << r.err;
   }
   EXPECT_FALSE(std::filesystem::exists(dir.file("both.lcm")));
@@ -219,8 +225,115 @@ TEST(FlightLogBesideBag, ABagWithoutAnImuIsRefused) {
   if (!test::oracle_write_mcap({{"profile", "ros2"}, {"compression", "none"}, {"messages", msgs}}, bag)) return;
   const auto r = test::run_capture(kDriftlab + " diagnose '" + bag + "' '" + ulog + "'");
   EXPECT_EQ(r.code, 2);
-  EXPECT_NE(r.err.find("cannot put " + ulog + " on " + bag + "'s clock: the bag has no IMU"), std::string::npos)
-      << r.err;
+  EXPECT_NE(r.err.find("cannot put " + ulog + " on " + bag + "'s clock: "), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("by the IMUs: the bag has no IMU"), std::string::npos) << r.err;
+}
+
+/// /mavros/state at 10 Hz over [from, to) on the bag's clock [us], and /mavros/timesync_status at 10 Hz as MAVROS
+/// writes it when its companion clock is `offset_us` ahead of the flight controller's boot clock: remote_timestamp
+/// the controller's time of the exchange, the stamp the companion's a one-way trip (2 ms) later, the estimated
+/// offset local - remote (MAVROS's sign), the observed one with 0.2 ms of jitter.
+json status_bag(int64_t from, int64_t to, std::optional<int64_t> offset_us) {
+  json msgs = json::array();
+  auto stamp = [](int64_t us) { return json{{"sec", us / 1'000'000}, {"nanosec", (us % 1'000'000) * 1000}}; };
+  int64_t seq = 0;
+  for (int64_t us = from; us < to; us += 100'000) {
+    msgs.push_back({{"topic", "/mavros/state"},
+                    {"type", "mavros_msgs/msg/State"},
+                    {"time_ns", (us + 1000) * 1000},
+                    {"sequence", seq++},
+                    {"msg",
+                     {{"header", {{"stamp", stamp(us)}, {"frame_id", ""}}},
+                      {"connected", true},
+                      {"armed", false},
+                      {"guided", false},
+                      {"manual_input", true},
+                      {"mode", "MANUAL"},
+                      {"system_status", 3}}}});
+    if (!offset_us) continue;
+    const int64_t remote = us - *offset_us, local = us + 2000;
+    const int64_t jitter_ns = (seq % 3 - 1) * 200'000;
+    msgs.push_back({{"topic", "/mavros/timesync_status"},
+                    {"type", "mavros_msgs/msg/TimesyncStatus"},
+                    {"time_ns", (local + 300) * 1000},
+                    {"sequence", seq++},
+                    {"msg",
+                     {{"header", {{"stamp", stamp(local)}, {"frame_id", ""}}},
+                      {"remote_timestamp_ns", std::to_string(remote * 1000) + "n"},
+                      {"observed_offset_ns", std::to_string(*offset_us * 1000 + jitter_ns) + "n"},
+                      {"estimated_offset_ns", std::to_string(*offset_us * 1000) + "n"},
+                      {"round_trip_time_ms", 4.0}}}});
+  }
+  return {{"profile", "ros2"}, {"compression", "none"}, {"messages", msgs}};
+}
+
+/// The first sensor_combined stamp of the flight log alone and of the log of both [us].
+std::pair<int64_t, int64_t> first_imu_stamps(const std::string& ulog, const std::string& both,
+                                             const test::TempDir& dir) {
+  const std::vector<Sample> imu = flight_imu(ulog, dir);
+  for (const auto& e : test::read_all(both)) {
+    if (e.channel == "sensor_combined" && !imu.empty()) return {imu[0].utime, test::decode<imu_t>(e).header.utime};
+  }
+  ADD_FAILURE() << both << ": no sensor_combined";
+  return {0, 0};
+}
+
+// A bag whose only tie to the flight controller is MAVROS's time sync (no IMU): the flight log goes on the bag's
+// clock by the offset MAVROS estimated, to the microsecond (every exchange says the same estimate; the observed
+// offsets' jitter is not used), and the line says so.
+TEST(FlightLogBesideBag, ATimeSyncPutsTheFlightLogOnTheBagsClock) {
+  const std::string ulog = test::shared_data(kFlight);
+  if (ulog.empty()) return;
+  test::TempDir dir;
+  const std::string bag = dir.file("sync.mcap"), both = dir.file("both.lcm");
+  if (!test::oracle_write_mcap(status_bag(kBootOnWallClockUs, kBootOnWallClockUs + 12'000'000, kBootOnWallClockUs),
+                               bag)) {
+    return;
+  }
+  const auto r = test::run_capture(kDriftlab + " import '" + bag + "' '" + ulog + "' -o '" + both + "'");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("by the bag's time sync (/mavros/timesync_status, 120 exchanges, estimated offsets within 0.0 "
+                       "ms): offset +1700000012.345678 s"),
+            std::string::npos)
+      << r.out;
+  const auto [alone, together] = first_imu_stamps(ulog, both, dir);
+  EXPECT_EQ(together - alone, kBootOnWallClockUs);
+}
+
+// A flight log with GNSS time beside a bag on UTC with neither an IMU nor a time sync: GNSS time puts the flight on
+// the bag's clock (the CubeOrange flight's 32 fixes; the bag's status stamped in UTC while it flew). A bag on
+// another clock (its stamps days away from the flight's UTC) is refused, saying why each way failed.
+TEST(FlightLogBesideBag, GnssTimePutsTheFlightOnABagInUtc) {
+  const std::string ulog = test::shared_data("ulog/sample_logging_tagged_and_default_params.ulg");
+  if (ulog.empty()) return;
+  // UTC = boot time + 1651221926.946000 s (`driftlab info` of the flight; pyulog's GPS fixes say the same).
+  constexpr int64_t kBootToUtcUs = 1'651'221'926'946'000;
+  test::TempDir dir;
+  const std::string bag = dir.file("utc.mcap"), both = dir.file("both.lcm");
+  if (!test::oracle_write_mcap(status_bag(kBootToUtcUs + 1'000'000, kBootToUtcUs + 8'000'000, std::nullopt), bag)) {
+    return;
+  }
+  const auto r = test::run_capture(kDriftlab + " import '" + bag + "' '" + ulog + "' -o '" + both + "'");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("by GNSS time (vehicle_gps_position, 32 fixes agreeing within 0.0 ms), the bag's clock taken "
+                       "as UTC: offset +1651221926.946000 s"),
+            std::string::npos)
+      << r.out;
+  const auto [alone, together] = first_imu_stamps(ulog, both, dir);
+  EXPECT_EQ(together - alone, kBootToUtcUs);
+
+  const std::string elsewhere = dir.file("elsewhere.mcap");
+  if (!test::oracle_write_mcap(
+          status_bag(kBootToUtcUs + 5 * 86'400'000'000, kBootToUtcUs + 5 * 86'400'000'000 + 7'000'000, std::nullopt),
+          elsewhere)) {
+    return;
+  }
+  const auto refused =
+      test::run_capture(kDriftlab + " import '" + elsewhere + "' '" + ulog + "' -o '" + dir.file("no.lcm") + "'");
+  EXPECT_EQ(refused.code, 2);
+  EXPECT_NE(refused.err.find("by GNSS time: the flight was at 2022-04-29 08:45:"), std::string::npos) << refused.err;
+  EXPECT_NE(refused.err.find("and the bag's events are at 2022-05-04 08:45:"), std::string::npos) << refused.err;
+  EXPECT_FALSE(std::filesystem::exists(dir.file("no.lcm")));
 }
 
 }  // namespace

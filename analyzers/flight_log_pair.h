@@ -16,7 +16,7 @@
 #include "core/result.h"
 #include "formats/import.h"
 
-namespace driftlab::apps {
+namespace driftlab::analyzers {
 
 struct FlightLogPair {
   std::string ulog;              ///< the flight log
@@ -44,4 +44,4 @@ Result<formats::ImportSummary> import_recording(const std::vector<std::string>& 
                                                 const std::function<void(const std::string&)>& on_problem,
                                                 std::string* alignment);
 
-}  // namespace driftlab::apps
+}  // namespace driftlab::analyzers
