@@ -48,8 +48,12 @@ void print_config_help() {
 
 int run_sim(const SimArgs& a) {
   const std::string path = a.scenario.empty() ? sim::default_scenario_path() : a.scenario;
-  if (Status s = refuse_same_file(a.out, {path}); !s) return fail(s.message());
-  if (Status s = a.json.check({path}, {a.out}); !s) return fail(s.message());
+  // The log and the fault manifest beside it are both outputs: neither may be the scenario or --json-out.
+  const std::string manifest = a.out.empty() ? std::string() : sim::faults_json_path(a.out);
+  for (const std::string& out : {a.out, manifest}) {
+    if (Status s = refuse_same_file(out, {path}); !s) return fail(s.message());
+  }
+  if (Status s = a.json.check({path}, {a.out, manifest}); !s) return fail(s.message());
   auto scenario = sim::load_scenario(path);
   if (!scenario) return fail(scenario.error().message);
   if (a.duration > 0) scenario->duration = a.duration;

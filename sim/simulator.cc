@@ -29,13 +29,14 @@
 #include "sim/raycaster.h"
 
 namespace driftlab::sim {
-namespace {
 
 std::string faults_json_path(const std::string& log) {
   std::filesystem::path p(log);
   if (p.extension() == ".lcm") p.replace_extension();
   return p.string() + ".faults.json";
 }
+
+namespace {
 
 Status write_faults_json(const std::string& path, const Scenario& sc, int64_t end_utime,
                          const std::vector<driftlab::fault_t>& faults) {

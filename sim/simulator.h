@@ -48,6 +48,9 @@ struct SimOptions {
   std::function<void(double, double)> progress;
 };
 
+/// The fault manifest written beside a simulation's log: OUT without its .lcm, then .faults.json.
+std::string faults_json_path(const std::string& log);
+
 struct SimReport {
   double simulated_s = 0;  ///< [s]
   bool interrupted = false;

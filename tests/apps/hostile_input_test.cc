@@ -273,6 +273,22 @@ TEST(OutputOverInput, IsRefusedBeforeAnythingIsWritten) {
     EXPECT_NE(r.err.find("is also where the command writes"), std::string::npos) << cmd << "\n" << r.err;
     EXPECT_FALSE(fs::exists(dir.file("o.lcm"))) << cmd;
   }
+  // The simulator writes its fault manifest beside its log (o.faults.json beside o.lcm): neither --json-out nor the
+  // scenario may be it.
+  const std::string manifest = dir.file("o.faults.json");
+  for (const std::string& cmd :
+       std::vector<std::string>{"sim " + log + " -o " + dir.file("o.lcm") + " --json-out " + manifest,
+                                "sim " + manifest + " -o " + dir.file("o.lcm")}) {
+    if (cmd.find("sim " + manifest) == 0) test::write_file(manifest, {'x'});
+    const auto r = driftlab(cmd);
+    EXPECT_EQ(r.code, 2) << cmd << "\n" << r.err;
+    EXPECT_TRUE(r.err.find("is also where the command writes") != std::string::npos ||
+                r.err.find("is the input") != std::string::npos)
+        << cmd << "\n"
+        << r.err;
+    EXPECT_FALSE(fs::exists(dir.file("o.lcm"))) << cmd;
+  }
+  EXPECT_EQ(test::read_file(manifest), std::vector<uint8_t>{'x'});  // the scenario by the manifest's name, kept
   expect_no_partial_files(dir.path());
 }
 
