@@ -278,6 +278,20 @@ std::pair<int64_t, int64_t> first_imu_stamps(const std::string& ulog, const std:
   return {0, 0};
 }
 
+/// Writes bag (Foxglove's writer), imports it with ulog and checks the alignment line says `said` and the flight
+/// log moved by offset_us. False when the writer is not there (the test is skipped).
+bool expect_on_bags_clock(const std::string& ulog, const json& bag, const std::string& said, int64_t offset_us,
+                          const test::TempDir& dir) {
+  const std::string mcap = dir.file("bag.mcap"), both = dir.file("both.lcm");
+  if (!test::oracle_write_mcap(bag, mcap)) return false;
+  const auto r = test::run_capture(kDriftlab + " import '" + mcap + "' '" + ulog + "' -o '" + both + "'");
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find(said), std::string::npos) << r.out;
+  const auto [alone, together] = first_imu_stamps(ulog, both, dir);
+  EXPECT_EQ(together - alone, offset_us);
+  return true;
+}
+
 // A bag whose only tie to the flight controller is MAVROS's time sync (no IMU): the flight log goes on the bag's
 // clock by the offset MAVROS estimated, to the microsecond (every exchange says the same estimate; the observed
 // offsets' jitter is not used), and the line says so.
@@ -285,19 +299,10 @@ TEST(FlightLogBesideBag, ATimeSyncPutsTheFlightLogOnTheBagsClock) {
   const std::string ulog = test::shared_data(kFlight);
   if (ulog.empty()) return;
   test::TempDir dir;
-  const std::string bag = dir.file("sync.mcap"), both = dir.file("both.lcm");
-  if (!test::oracle_write_mcap(status_bag(kBootOnWallClockUs, kBootOnWallClockUs + 12'000'000, kBootOnWallClockUs),
-                               bag)) {
-    return;
-  }
-  const auto r = test::run_capture(kDriftlab + " import '" + bag + "' '" + ulog + "' -o '" + both + "'");
-  ASSERT_EQ(r.code, 0) << r.err;
-  EXPECT_NE(r.out.find("by the bag's time sync (/mavros/timesync_status, 120 exchanges, estimated offsets within 0.0 "
-                       "ms): offset +1700000012.345678 s"),
-            std::string::npos)
-      << r.out;
-  const auto [alone, together] = first_imu_stamps(ulog, both, dir);
-  EXPECT_EQ(together - alone, kBootOnWallClockUs);
+  expect_on_bags_clock(ulog, status_bag(kBootOnWallClockUs, kBootOnWallClockUs + 12'000'000, kBootOnWallClockUs),
+                       "by the bag's time sync (/mavros/timesync_status, 120 exchanges, estimated offsets within 0.0 "
+                       "ms): offset +1700000012.345678 s",
+                       kBootOnWallClockUs, dir);
 }
 
 // A flight log with GNSS time beside a bag on UTC with neither an IMU nor a time sync: GNSS time puts the flight on
@@ -309,18 +314,12 @@ TEST(FlightLogBesideBag, GnssTimePutsTheFlightOnABagInUtc) {
   // UTC = boot time + 1651221926.946000 s (`driftlab info` of the flight; pyulog's GPS fixes say the same).
   constexpr int64_t kBootToUtcUs = 1'651'221'926'946'000;
   test::TempDir dir;
-  const std::string bag = dir.file("utc.mcap"), both = dir.file("both.lcm");
-  if (!test::oracle_write_mcap(status_bag(kBootToUtcUs + 1'000'000, kBootToUtcUs + 8'000'000, std::nullopt), bag)) {
+  if (!expect_on_bags_clock(ulog, status_bag(kBootToUtcUs + 1'000'000, kBootToUtcUs + 8'000'000, std::nullopt),
+                            "by GNSS time (vehicle_gps_position, 32 fixes agreeing within 0.0 ms), the bag's clock "
+                            "taken as UTC: offset +1651221926.946000 s",
+                            kBootToUtcUs, dir)) {
     return;
   }
-  const auto r = test::run_capture(kDriftlab + " import '" + bag + "' '" + ulog + "' -o '" + both + "'");
-  ASSERT_EQ(r.code, 0) << r.err;
-  EXPECT_NE(r.out.find("by GNSS time (vehicle_gps_position, 32 fixes agreeing within 0.0 ms), the bag's clock taken "
-                       "as UTC: offset +1651221926.946000 s"),
-            std::string::npos)
-      << r.out;
-  const auto [alone, together] = first_imu_stamps(ulog, both, dir);
-  EXPECT_EQ(together - alone, kBootToUtcUs);
 
   const std::string elsewhere = dir.file("elsewhere.mcap");
   if (!test::oracle_write_mcap(
