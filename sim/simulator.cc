@@ -24,6 +24,7 @@
 #include "sim/bullet_world.h"
 #include "sim/internal/arm_loop.h"
 #include "sim/internal/drone_loop.h"
+#include "sim/internal/ground_loop.h"
 #include "sim/internal/output.h"
 #include "sim/internal/sensors.h"
 #include "sim/raycaster.h"
@@ -69,6 +70,52 @@ Status write_faults_json(const std::string& path, const Scenario& sc, int64_t en
 }
 
 driftlab::vector3_t vec(const Eigen::Vector3d& v) { return {v.x(), v.y(), v.z()}; }
+
+/// The static TF at now: the links fixed in the robot's base that carry sensors, the arm's and the drone's fixed
+/// joints, and world -> `odom_frame` (the odometry frame at the robot's start pose) when given.
+driftlab::tf_t static_tf(const Scenario& sc, const Robot& robot, const std::vector<std::string>& static_links,
+                         const ArmLoop* arm, const DroneLoop* drone, const std::string* odom_frame, int64_t now) {
+  driftlab::tf_t tf{};
+  tf.header.frame_id = robot.base_link();
+  for (const std::string& link : static_links) {
+    const Eigen::Isometry3d p = *robot.fixed_in_base(link);
+    driftlab::transform_t t{};
+    t.header.utime = now;
+    t.header.frame_id = robot.base_link();
+    t.child_frame_id = link;
+    t.translation = vec(p.translation());
+    const Eigen::Quaterniond q(p.rotation());
+    t.rotation = {q.w(), q.x(), q.y(), q.z()};
+    tf.transforms.push_back(t);
+  }
+  if (arm != nullptr) arm->add_static(tf, now);
+  if (drone != nullptr) drone->add_static(tf, now);
+  if (odom_frame != nullptr) {
+    driftlab::transform_t t{};
+    t.header.utime = now;
+    t.header.frame_id = "world";
+    t.child_frame_id = *odom_frame;
+    t.translation = {sc.start.x(), sc.start.y(), 0};
+    t.rotation = {std::cos(sc.start.z() / 2), 0, 0, std::sin(sc.start.z() / 2)};
+    tf.transforms.push_back(t);
+  }
+  return tf;
+}
+
+/// The fault manifest's message: every fault injected, as the log's last event at end_utime.
+std::vector<uint8_t> manifest_bytes(const Scenario& sc, const std::vector<driftlab::fault_t>& faults,
+                                    int64_t end_utime) {
+  driftlab::fault_manifest_t manifest{};
+  manifest.header.seq = 0;
+  manifest.header.utime = end_utime;
+  manifest.header.frame_id = "";
+  manifest.seed = static_cast<int64_t>(sc.faults.seed);
+  manifest.faults = faults;
+  manifest.nfaults = static_cast<int32_t>(faults.size());
+  std::vector<uint8_t> bytes(static_cast<std::size_t>(manifest.getEncodedSize()));
+  manifest.encode(bytes.data(), 0, static_cast<int>(bytes.size()));
+  return bytes;
+}
 
 }  // namespace
 
@@ -268,13 +315,8 @@ Result<SimReport> Simulation::run(const SimOptions& options) {
       return Error{s.message()};
     }
   }
-  std::optional<controller::PurePursuit> pursuit;  // the route follower of a wheeled robot
-  if (ground) pursuit.emplace(sc.route, sc.controller.pursuit);
-  constexpr int kProximityRays = 36;
-  std::vector<controller::Point2> proximity;
-  controller::AvoidOptions avoid;
-  avoid.radius = sc.controller.footprint_radius;
-  const int cmd_stream = ground ? out.add_stream(sc.controller.channel) : -1;
+  std::optional<GroundLoop> wheels;  // a wheeled robot, driven along the route
+  if (ground) wheels.emplace(sc, robot, caster, out, odometry, has_odometry, odom_rate);
   const int physics_stream = sc.physics_cost > 0 ? out.add_stream(sc.physics_channel) : -1;
   int64_t n_physics = 0, physics_updates = 0;
   const int static_stream = out.add_stream(sc.tf_static_channel);
@@ -290,10 +332,8 @@ Result<SimReport> Simulation::run(const SimOptions& options) {
   const int64_t step_us = step.us();
   const double dt = step.seconds();
   const int64_t end_us = Duration::from_seconds_rounded(sc.duration).us();
-  const double r = robot.wheel_radius(), b = robot.wheel_separation();
-  const double c0 = std::cos(sc.start.z()), s0 = std::sin(sc.start.z());
   SimReport report;
-  int64_t n_cmd = 0, n_static = 0, n_odom = 0, next_progress = 0;
+  int64_t n_static = 0, next_progress = 0;
   Eigen::Vector3d last_position = robot.link_pose(robot.base_link()).translation();
 
   int64_t t_us = 0;
@@ -303,70 +343,21 @@ Result<SimReport> Simulation::run(const SimOptions& options) {
       break;
     }
     const int64_t now = sc.start_utime + t_us;
-    if (ground && !has_odometry && t_us >= due_us(n_odom, odom_rate)) {
-      ++n_odom;
-      odometry.update(robot, 1.0 / odom_rate);
-    }
+    if (wheels) wheels->advance_odometry(t_us);
     SensorContext ctx{robot, caster, range, out, sc.start_utime, now};
     for (auto& s : sensors) s->step(ctx);
 
     if (t_us >= due_us(n_static, sc.tf_static_rate)) {
       ++n_static;
-      driftlab::tf_t tf{};
-      tf.header.frame_id = robot.base_link();
-      for (const std::string& link : static_links) {
-        const Eigen::Isometry3d p = *robot.fixed_in_base(link);
-        driftlab::transform_t t{};
-        t.header.utime = now;
-        t.header.frame_id = robot.base_link();
-        t.child_frame_id = link;
-        t.translation = vec(p.translation());
-        const Eigen::Quaterniond q(p.rotation());
-        t.rotation = {q.w(), q.x(), q.y(), q.z()};
-        tf.transforms.push_back(t);
-      }
-      if (arm != nullptr) arm->add_static(tf, now);
-      if (drone != nullptr) drone->add_static(tf, now);
-      if (has_odometry && (arm == nullptr || sc.arm.map_channel.empty())) {
-        // The odometry frame starts at the robot's start pose in the ground truth's world frame (with an arm's
-        // localization, map -> odom takes its place).
-        driftlab::transform_t t{};
-        t.header.utime = now;
-        t.header.frame_id = "world";
-        t.child_frame_id = hidden.frame;
-        t.translation = {sc.start.x(), sc.start.y(), 0};
-        t.rotation = {std::cos(sc.start.z() / 2), 0, 0, std::sin(sc.start.z() / 2)};
-        tf.transforms.push_back(t);
-      }
+      // The odometry frame at the robot's start pose in the ground truth's world frame (with an arm's
+      // localization, map -> odom takes its place).
+      const bool odom_frame = has_odometry && (arm == nullptr || sc.arm.map_channel.empty());
+      driftlab::tf_t tf = static_tf(sc, robot, static_links, arm, drone, odom_frame ? &hidden.frame : nullptr, now);
       tf.ntransforms = static_cast<int32_t>(tf.transforms.size());
       out.publish(static_stream, tf, now, now);
     }
 
-    // The controller follows the route from the robot's odometry (started at the robot's start pose).
-    if (ground && t_us >= due_us(n_cmd, sc.controller.rate)) {
-      ++n_cmd;
-      const Pose2 estimate{sc.start.x() + c0 * odometry.x() - s0 * odometry.y(),
-                           sc.start.y() + s0 * odometry.x() + c0 * odometry.y(), sc.start.z() + odometry.yaw()};
-      controller::Command cmd = pursuit->update(estimate, 1.0 / sc.controller.rate);
-      // The robot's proximity ring (a bumper-height range-sensor ring) feeds the reactive safety layer.
-      const Eigen::Isometry3d base = robot.link_pose(robot.base_link());
-      const Eigen::Vector3d ring_origin = base * Eigen::Vector3d(0, 0, 0.05);
-      proximity.clear();
-      for (int i = 0; i < kProximityRays; ++i) {
-        const double a = 2 * M_PI * i / kProximityRays;
-        const Eigen::Vector3d local(std::cos(a), std::sin(a), 0);
-        const double d = caster.range(ring_origin, base.rotation() * local, 1.0);
-        if (std::isfinite(d)) proximity.push_back({local.x() * d, local.y() * d});
-      }
-      cmd = controller::avoid_obstacles(cmd, proximity, avoid);
-      if (arm != nullptr && arm->holds_base()) cmd = {};
-      robot.set_wheel_rates((cmd.linear - cmd.angular * b / 2) / r, (cmd.linear + cmd.angular * b / 2) / r, dt);
-      driftlab::velocity_command_t m{};
-      m.header.frame_id = robot.base_link();
-      m.linear = {cmd.linear, 0, 0};
-      m.angular = {0, 0, cmd.angular};
-      out.publish(cmd_stream, m, now, now);
-    }
+    if (wheels) wheels->control(t_us, now, dt, arm != nullptr && arm->holds_base());
 
     if (physics_stream >= 0 && t_us >= due_us(n_physics, sc.physics_rate)) {
       // The simulator's own step times, as Gazebo's performance metrics: every update costs physics_cost.
@@ -413,16 +404,7 @@ Result<SimReport> Simulation::run(const SimOptions& options) {
     return Error{s.message()};
   }
   const std::vector<driftlab::fault_t> faults = out.manifest(end_utime);
-  driftlab::fault_manifest_t manifest{};
-  manifest.header.seq = 0;
-  manifest.header.utime = end_utime;
-  manifest.header.frame_id = "";
-  manifest.seed = static_cast<int64_t>(sc.faults.seed);
-  manifest.faults = faults;
-  manifest.nfaults = static_cast<int32_t>(faults.size());
-  std::vector<uint8_t> bytes(static_cast<std::size_t>(manifest.getEncodedSize()));
-  manifest.encode(bytes.data(), 0, static_cast<int>(bytes.size()));
-  if (Status s = out.write_now(sc.faults_channel, end_utime, bytes); !s) {
+  if (Status s = out.write_now(sc.faults_channel, end_utime, manifest_bytes(sc, faults, end_utime)); !s) {
     writer->discard();
     return Error{s.message()};
   }
@@ -432,12 +414,10 @@ Result<SimReport> Simulation::run(const SimOptions& options) {
 
   report.simulated_s = Duration::from_us(std::min(t_us, end_us)).seconds();
   report.messages = out.written();
-  report.laps = pursuit ? pursuit->laps() : 0;
+  report.laps = wheels ? wheels->laps() : 0;
   if (drone != nullptr) report.notes = drone->summary();
   const Eigen::Vector3d truth = robot.link_pose(robot.base_link()).translation();
-  const Eigen::Vector2d estimate(sc.start.x() + c0 * odometry.x() - s0 * odometry.y(),
-                                 sc.start.y() + s0 * odometry.x() + c0 * odometry.y());
-  report.odometry_error_m = ground ? (truth.head<2>() - estimate).norm() : 0;
+  report.odometry_error_m = wheels ? (truth.head<2>() - wheels->odometry_position()).norm() : 0;
   return report;
 }
 
