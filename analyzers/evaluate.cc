@@ -11,7 +11,7 @@ namespace {
 /// Puts a loaded trajectory in stamp order and checks its stamps: out-of-order poses are sorted (said in a note),
 /// poses sharing the stamp before them are kept (matching takes the first, as evo does; said in a note), and a
 /// trajectory whose stamps mostly repeat is refused: frozen stamps, which no matching can tell apart.
-Status put_in_order(const std::string& what, const std::string& src, Trajectory& t, std::vector<std::string>& notes) {
+Status put_in_order(const std::string& what, const std::string& src, Trajectory& t, Evaluation& ev) {
   if (!t.stamped) return {};
   const StampOrder order = sort_by_stamp(t);
   char buf[512];
@@ -28,7 +28,8 @@ Status put_in_order(const std::string& what, const std::string& src, Trajectory&
                   "%s %s: %zu pose%s stamped earlier than the pose before %s (the first at %.6f s); sorted by stamp",
                   what.c_str(), src.c_str(), order.out_of_order, one ? " was" : "s were", one ? "it" : "them",
                   order.first_out_of_order);
-    notes.emplace_back(buf);
+    ev.notes.emplace_back(buf);
+    if (ev.options.on_note) ev.options.on_note(buf);
   }
   if (order.repeated > 0) {
     const bool one = order.repeated == 1;
@@ -37,7 +38,8 @@ Status put_in_order(const std::string& what, const std::string& src, Trajectory&
                   "of them, as evo does",
                   what.c_str(), src.c_str(), order.repeated, one ? "" : "s", one ? "shares its" : "share their",
                   one ? "it" : "them", order.first_repeated);
-    notes.emplace_back(buf);
+    ev.notes.emplace_back(buf);
+    if (ev.options.on_note) ev.options.on_note(buf);
   }
   return {};
 }
@@ -63,7 +65,7 @@ Status evaluate_relations(const EvaluateOptions& o, const Trajectory& est, Evalu
   if (!relations) return relations.error();
   if (!odometry) return odometry.error();
   if (!odometry->stamped) return Error{"--relations-odometry " + o.odometry + ": odometry without stamps"};
-  if (Status s = put_in_order("--relations-odometry", o.odometry, *odometry, ev.notes); !s) return s;
+  if (Status s = put_in_order("--relations-odometry", o.odometry, *odometry, ev); !s) return s;
   RelationOptions options;
   options.max_dt = o.relations_max_dt;
   options.odometry = o.odometry.empty() ? nullptr : &*odometry;
@@ -152,9 +154,9 @@ Result<Evaluation> evaluate(const EvaluateOptions& options) {
   if (!est) return est.error();
   ev.est_poses = est->size();
   ev.gt_poses = gt->size();
-  if (Status s = put_in_order("--est", o.est_name, *est, ev.notes); !s) return s.error();
+  if (Status s = put_in_order("--est", o.est_name, *est, ev); !s) return s.error();
   if (ev.has_reference) {
-    if (Status s = put_in_order("--gt", o.gt_name, *gt, ev.notes); !s) return s.error();
+    if (Status s = put_in_order("--gt", o.gt_name, *gt, ev); !s) return s.error();
   }
   if (!o.relations.empty()) {
     if (Status s = evaluate_relations(o, *est, ev); !s) return s.error();

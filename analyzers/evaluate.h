@@ -4,6 +4,7 @@
 // The command parses options and prints; the tests and the Python module call this.
 #pragma once
 
+#include <functional>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
@@ -42,6 +43,8 @@ struct EvaluateOptions {
   std::string relations;
   double relations_max_dt = 1e-4;
   std::string odometry;
+  /// Called with each note as it is found (before a later step can fail), besides Evaluation::notes.
+  std::function<void(const std::string&)> on_note;
 };
 
 struct Evaluation {

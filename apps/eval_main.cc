@@ -257,9 +257,9 @@ int run_eval(const EvalOptions& o) {
   options.relations = o.relations;
   options.relations_max_dt = o.relations_max_dt;
   options.odometry = o.odometry;
+  options.on_note = [](const std::string& note) { std::fprintf(stderr, "driftlab: note: %s\n", note.c_str()); };
   auto ev = evaluate(options);
   if (!ev) return fail(ev.error().message);
-  for (const auto& note : ev->notes) std::fprintf(stderr, "driftlab: note: %s\n", note.c_str());
   if (!o.json.print) {
     if (ev->has_reference) print_table(*ev);
     if (ev->relations) {
