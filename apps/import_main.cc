@@ -53,7 +53,8 @@ void add_import_file_command(CLI::App& import, int* exit_code) {
       "or all of its files. Header stamps become header.utime, the recording's receive times the event times (a\n"
       "ULog message: timestamp_sample, or timestamp, and its timestamp). Topics keep their names as channels (a\n"
       "ULog topic logged in several instances: name/instance). A flight log (ULog) given beside a bag of the same\n"
-      "flight is put on the bag's clock by their IMUs and both go into one log. See docs/import.md.");
+      "flight is put on the bag's clock (by the bag's time sync, their IMUs or GNSS time) and both go into one log.\n"
+      "See docs/import.md.");
   import.add_option("file", args->in,
                     "Log to convert (a bag folder, or the files of one recording; a flight log beside a bag)");
   import.add_option("-o,--out", args->out, "Log to write");
