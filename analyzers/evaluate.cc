@@ -4,6 +4,7 @@
 #include <future>
 
 #include "analyzers/correlation.h"
+#include "core/config.h"
 
 namespace driftlab::analyzers {
 namespace {
@@ -44,12 +45,6 @@ Status put_in_order(const std::string& what, const std::string& src, Trajectory&
   return {};
 }
 
-std::string short_number(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof(buf), "%g", v);
-  return buf;
-}
-
 /// The relation error of the estimate.
 Status evaluate_relations(const EvaluateOptions& o, const Trajectory& est, Evaluation& ev) {
   if (!est.stamped) {
@@ -72,7 +67,7 @@ Status evaluate_relations(const EvaluateOptions& o, const Trajectory& est, Evalu
   ev.relations = relation_error(est, *relations, options);
   if (ev.relations->used == 0) {
     return Error{o.relations + ": no relation has estimate poses at both of its stamps (within --relations-max-dt " +
-                 short_number(o.relations_max_dt) + " s" +
+                 config::format_number(o.relations_max_dt) + " s" +
                  (o.odometry.empty() ? "; --relations-odometry can carry the nearest poses to them" : "") + ")"};
   }
   return {};

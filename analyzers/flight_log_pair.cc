@@ -12,6 +12,7 @@
 #include "analyzers/imu_clock_alignment.h"
 #include "core/log_reader.h"
 #include "core/log_writer.h"
+#include "core/quantile.h"
 #include "core/wall_clock.h"
 #include "driftlab/imu_t.hpp"
 #include "driftlab/timesync_status_t.hpp"
@@ -30,7 +31,11 @@ bool bookkeeping(std::string_view channel) { return channel == "CHANNEL_SOURCES"
 struct ClockEvidence {
   std::string imu_channel;
   AngularRates rates;
-  std::map<std::string, std::vector<timesync_status_t>, std::less<>> timesyncs;
+  /// Per time-sync channel, each exchange's estimated offset and its stamp less the remote time [s].
+  struct Exchange {
+    double estimated_s, seen_s;
+  };
+  std::map<std::string, std::vector<Exchange>, std::less<>> timesyncs;
   int64_t first_utime = 0, last_utime = 0;
   std::set<std::string> channels;
 };
@@ -51,7 +56,8 @@ Result<ClockEvidence> clock_evidence(const std::string& log) {
     if (!bookkeeping(e.channel)) ev.channels.emplace(e.channel);
     // A flight log's ULOG_UTC (its GNSS time, in the same type) is not an exchange between two computers.
     if (e.channel != "ULOG_UTC" && lcmtypes::decode(e.data, sync) && std::isfinite(sync.estimated_offset_s)) {
-      ev.timesyncs[std::string(e.channel)].push_back(sync);
+      ev.timesyncs[std::string(e.channel)].push_back(
+          {sync.estimated_offset_s, static_cast<double>(sync.header.utime - sync.remote_utime) * 1e-6});
       continue;
     }
     if (!lcmtypes::decode(e.data, m)) continue;
@@ -81,11 +87,6 @@ Result<ClockEvidence> clock_evidence(const std::string& log) {
   return ev;
 }
 
-double median(std::vector<double> v) {
-  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
-  return v[v.size() / 2];
-}
-
 /// The flight controller's clock onto the bag's by the bag's time sync (MAVROS's /mavros/timesync_status, whose
 /// `remote_timestamp_ns` is the flight controller's boot time, the clock the flight log is on): the offset MAVROS
 /// estimated, the median over the exchanges, which is what MAVROS adds to the controller's stamps. MAVROS gives
@@ -100,7 +101,7 @@ struct SyncOffset {
 
 SyncOffset timesync_offset(const ClockEvidence& bag) {
   SyncOffset r;
-  const std::vector<timesync_status_t>* best = nullptr;
+  const std::vector<ClockEvidence::Exchange>* best = nullptr;
   std::string channel;
   for (const auto& [name, v] : bag.timesyncs) {
     if (best == nullptr || v.size() > best->size()) best = &v, channel = name;
@@ -111,10 +112,10 @@ SyncOffset timesync_offset(const ClockEvidence& bag) {
   }
   std::vector<double> estimated, seen;
   for (const auto& x : *best) {
-    estimated.push_back(x.estimated_offset_s);
-    seen.push_back(static_cast<double>(x.header.utime - x.remote_utime) * 1e-6);
+    estimated.push_back(x.estimated_s);
+    seen.push_back(x.seen_s);
   }
-  const double est = median(estimated), stamps = median(seen);
+  const double est = quantile_in_place(estimated, 0.5), stamps = quantile_in_place(seen, 0.5);
   const double offset = std::abs(est - stamps) <= std::abs(-est - stamps) ? est : -est;
   char line[320];
   if (std::abs(offset - stamps) > 1.0) {
