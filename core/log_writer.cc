@@ -5,16 +5,98 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <condition_variable>
 #include <cstdio>
 #include <cstring>
+#include <deque>
+#include <mutex>
+#include <thread>
 #include <utility>
+#include <vector>
 
 #include "core/log_format.h"
 
 namespace driftlab {
 namespace {
 constexpr size_t kPage = 4096;
+/// Buffers a background writer may hold filled beside the one being filled.
+constexpr size_t kBuffersInFlight = 3;
+
+/// write(2) until done; returns 0 or errno. written counts what went through.
+int write_all(int fd, const uint8_t* data, size_t size, uint64_t& written) {
+  while (size > 0) {
+    const ssize_t n = ::write(fd, data, size);
+    if (n < 0) {
+      if (errno == EINTR) continue;
+      return errno;
+    }
+    data += n;
+    size -= static_cast<size_t>(n);
+    written += static_cast<uint64_t>(n);
+  }
+  return 0;
+}
+
+/// Where the complete events end after the first done bytes of a buffer written from file offset start reached the
+/// file: its events from first_event on are walked by their headers (bytes before first_event end an event begun
+/// earlier); committed when not even those bytes went through.
+uint64_t complete_events(const uint8_t* buffer, size_t first_event, size_t done, uint64_t start, uint64_t committed) {
+  if (done < first_event) return committed;
+  size_t p = first_event;
+  while (p + logfmt::kEventHeaderSize <= done) {
+    const uint8_t* h = buffer + p;
+    const size_t size = logfmt::kEventHeaderSize + logfmt::load_be32(h + 20) + logfmt::load_be32(h + 24);
+    if (p + size > done) break;
+    p += size;
+  }
+  return start + p;
+}
 }  // namespace
+
+/// The thread of a background writer and the buffers it shares with the writer; on the heap, so the writer can move.
+struct LogWriter::Background {
+  struct Chunk {
+    std::unique_ptr<uint8_t[]> data;
+    size_t size = 0;
+    size_t first_event = 0;  // as first_event_in_buffer_
+    uint64_t start = 0;      // its file offset
+    uint64_t committed = 0;  // where the complete events before it end
+  };
+  std::mutex mutex;
+  std::condition_variable changed;
+  std::deque<Chunk> filled;  // oldest first
+  std::vector<std::unique_ptr<uint8_t[]>> free;
+  bool busy = false;  // a chunk is being written
+  bool stop = false;
+  // The first failure: errno, the bytes in the file and where its complete events end. Nothing is written after it.
+  int error = 0;
+  uint64_t failed_at = 0, complete = 0;
+  std::thread thread;
+
+  void run(int fd) {
+    std::unique_lock lock(mutex);
+    for (;;) {
+      changed.wait(lock, [&] { return stop || !filled.empty(); });
+      if (filled.empty()) return;
+      Chunk c = std::move(filled.front());
+      filled.pop_front();
+      busy = true;
+      const bool skip = error != 0;
+      lock.unlock();
+      uint64_t written = c.start;
+      const int err = skip ? 0 : write_all(fd, c.data.get(), c.size, written);
+      lock.lock();
+      if (err != 0) {
+        error = err;
+        failed_at = written;
+        complete = complete_events(c.data.get(), c.first_event, written - c.start, c.start, c.committed);
+      }
+      free.push_back(std::move(c.data));
+      busy = false;
+      changed.notify_all();
+    }
+  }
+};
 
 Result<LogWriter> LogWriter::create(const std::string& path, WriteOptions options) {
   LogWriter w;
@@ -25,6 +107,12 @@ Result<LogWriter> LogWriter::create(const std::string& path, WriteOptions option
   if (w.fd_ < 0) return Error{w.file_path_ + ": cannot create log: " + std::strerror(errno), ErrorCode::kCannotWrite};
   w.buffer_capacity_ = std::max<size_t>(options.buffer_bytes, 4 * kPage);
   w.buffer_ = std::make_unique<uint8_t[]>(w.buffer_capacity_);
+  if (options.background) {
+    w.background_ = std::make_unique<Background>();
+    for (size_t i = 0; i < kBuffersInFlight; ++i)
+      w.background_->free.push_back(std::make_unique<uint8_t[]>(w.buffer_capacity_));
+    w.background_->thread = std::thread([bg = w.background_.get(), fd = w.fd_] { bg->run(fd); });
+  }
   return w;
 }
 
@@ -45,6 +133,7 @@ LogWriter& LogWriter::operator=(LogWriter&& other) noexcept {
     events_ = other.events_;
     atomic_ = other.atomic_;
     error_ = std::move(other.error_);
+    background_ = std::move(other.background_);
   }
   return *this;
 }
@@ -63,18 +152,55 @@ Status LogWriter::fail(const std::string& what, int err, uint64_t complete) {
   return Error{error_, ErrorCode::kCannotWrite};
 }
 
-int LogWriter::write_raw(const uint8_t* data, size_t size) {
-  while (size > 0) {
-    const ssize_t n = ::write(fd_, data, size);
-    if (n < 0) {
-      if (errno == EINTR) continue;
-      return errno;
-    }
-    data += n;
-    size -= static_cast<size_t>(n);
-    written_ += static_cast<uint64_t>(n);
+int LogWriter::write_raw(const uint8_t* data, size_t size) { return write_all(fd_, data, size, written_); }
+
+Status LogWriter::hand_off() {
+  if (buffered_ == 0) return {};
+  Background& bg = *background_;
+  std::unique_lock lock(bg.mutex);
+  bg.changed.wait(lock, [&] { return !bg.free.empty() || bg.error != 0; });
+  if (bg.error != 0) {
+    lock.unlock();
+    return drain();
   }
-  return 0;
+  bg.filled.push_back({std::move(buffer_), buffered_, first_event_in_buffer_, written_, committed_});
+  buffer_ = std::move(bg.free.back());
+  bg.free.pop_back();
+  bg.changed.notify_all();
+  written_ += buffered_;
+  buffered_ = 0;
+  first_event_in_buffer_ = 0;
+  return {};
+}
+
+Status LogWriter::drain() {
+  Background& bg = *background_;
+  std::unique_lock lock(bg.mutex);
+  if (buffered_ > 0 && bg.error == 0) {
+    lock.unlock();
+    if (auto st = hand_off(); !st) return st;
+    lock.lock();
+  }
+  bg.changed.wait(lock, [&] { return (bg.filled.empty() && !bg.busy) || bg.error != 0; });
+  if (bg.error != 0) {
+    // What the thread still holds is never written: the file ends where the failed write left it.
+    bg.changed.wait(lock, [&] { return !bg.busy; });
+    written_ = bg.failed_at;
+    return fail("write failed", bg.error, bg.complete);
+  }
+  committed_ = written_;
+  return {};
+}
+
+void LogWriter::stop_background() {
+  if (!background_) return;
+  {
+    std::lock_guard lock(background_->mutex);
+    background_->stop = true;
+  }
+  background_->changed.notify_all();
+  background_->thread.join();
+  background_.reset();
 }
 
 Status LogWriter::write(int64_t utime, std::string_view channel, std::span<const uint8_t> data) {
@@ -93,7 +219,8 @@ Status LogWriter::write(int64_t utime, std::string_view channel, std::span<const
                               static_cast<int32_t>(data.size()));
   const bool direct = total > buffer_capacity_ / 2;
   if (direct || buffered_ + total > buffer_capacity_) {
-    if (auto st = flush(); !st) return st;
+    // In background mode a large event waits for the thread: it goes to the file from the caller's memory.
+    if (auto st = background_ && !direct ? hand_off() : flush(); !st) return st;
   }
   if (!direct) {
     uint8_t* out = buffer_.get() + buffered_;
@@ -128,24 +255,14 @@ Status LogWriter::write(int64_t utime, std::string_view channel, std::span<const
 
 Status LogWriter::flush() {
   if (!error_.empty()) return Error{error_, ErrorCode::kCannotWrite};
-  if (fd_ < 0 || buffered_ == 0) return {};
+  if (fd_ < 0) return {};
+  if (background_) return drain();
+  if (buffered_ == 0) return {};
   const uint64_t start = written_;
   if (const int err = write_raw(buffer_.get(), buffered_); err != 0) {
     // Keep every event the kernel took whole: walk the event headers through the part that was written.
-    const size_t done = written_ - start;
-    uint64_t complete = committed_;
-    size_t p = first_event_in_buffer_;
-    if (done >= p) {
-      complete = start + p;
-      while (p + logfmt::kEventHeaderSize <= done) {
-        const uint8_t* h = buffer_.get() + p;
-        const size_t size = logfmt::kEventHeaderSize + logfmt::load_be32(h + 20) + logfmt::load_be32(h + 24);
-        if (p + size > done) break;
-        p += size;
-        complete = start + p;
-      }
-    }
-    return fail("write failed", err, complete);
+    return fail("write failed", err,
+                complete_events(buffer_.get(), first_event_in_buffer_, written_ - start, start, committed_));
   }
   // The buffer only ever ends with a complete event.
   committed_ = written_;
@@ -163,6 +280,7 @@ Status LogWriter::sync() {
 Status LogWriter::close() {
   if (fd_ < 0) return error_.empty() ? Status{} : Status{Error{error_, ErrorCode::kCannotWrite}};
   Status st = flush();
+  stop_background();
   if (::close(fd_) != 0 && st.ok())
     st = Error{file_path_ + ": close failed: " + std::strerror(errno), ErrorCode::kCannotWrite};
   fd_ = -1;
@@ -182,6 +300,7 @@ Status LogWriter::close() {
 
 void LogWriter::discard() {
   if (fd_ < 0) return;
+  stop_background();
   ::close(fd_);
   fd_ = -1;
   buffered_ = 0;

@@ -2,6 +2,9 @@
 // Events are batched in a buffer and written with few system calls; large payloads go straight from the
 // caller's memory to the file. On a write error (full disk) the file is cut back to the last complete
 // event, so everything written before stays readable. Thread-safety: one writer per thread.
+// With WriteOptions::background a thread of the writer's own makes the write(2) calls: a full buffer is handed to
+// it and filling goes on in another, so the kernel's copy into the file overlaps the caller's work. A write error is
+// then returned by a later write(), flush() or close(), with the same cut back to the last complete event.
 #pragma once
 
 #include <cstdint>
@@ -20,6 +23,9 @@ struct WriteOptions {
   /// Write to PATH.partial and rename to PATH on close(), so no half-written log is ever seen under PATH. After a
   /// write error close() removes the partial file and leaves PATH as it was.
   bool atomic = false;
+  /// Write on a thread of the writer's own (see above): for a converter that makes events as fast as the kernel
+  /// takes them.
+  bool background = false;
 };
 
 class LogWriter {
@@ -60,6 +66,14 @@ class LogWriter {
   Status fail(const std::string& what, int err, uint64_t complete);
   /// write(2) until done; returns 0 or errno (written_ counts what went through).
   int write_raw(const uint8_t* data, size_t size);
+  /// Background mode: hands the buffer to the thread and takes a free one.
+  Status hand_off();
+  /// Background mode: hands the buffer off and waits until the thread has written everything.
+  Status drain();
+  /// Background mode: stops the thread (after it has written what it holds).
+  void stop_background();
+
+  struct Background;
 
   std::string path_;
   std::string file_path_;  // path_, or path_ + ".partial"
@@ -73,6 +87,7 @@ class LogWriter {
   int64_t events_ = 0;
   bool atomic_ = false;
   std::string error_;  // sticky after a failure
+  std::unique_ptr<Background> background_;  // background mode; written_ then counts bytes handed to the thread
 };
 
 }  // namespace driftlab

@@ -957,7 +957,8 @@ Result<ImportSummary> import_log(const std::vector<std::string>& inputs, const s
   if (partial.path.empty()) {
     return Error(out_path + ".partial: cannot create a partial file of its own", ErrorCode::kCannotWrite);
   }
-  auto writer = LogWriter::create(partial.path);
+  // The kernel's copy into the file on a thread of its own, overlapping the conversion.
+  auto writer = LogWriter::create(partial.path, {.background = true});
   if (!writer) return writer.error();
   Importer out(std::move(*writer), on_problem);
   out.summary.format = format;

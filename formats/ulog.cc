@@ -12,9 +12,15 @@
 #include <cctype>
 #include <cerrno>
 #include <cmath>
+#include <condition_variable>
 #include <cstring>
+#include <deque>
 #include <limits>
+#include <memory>
+#include <mutex>
 #include <set>
+#include <thread>
+#include <vector>
 
 namespace driftlab::formats {
 namespace {
@@ -260,67 +266,137 @@ const char* type_name(uint8_t t) {
   return nullptr;
 }
 
-/// The log's bytes as the reader walks them, forward: a log in memory whole; a file through a window read with
-/// pread(2) into one buffer, each part read once. (A mapping of the file costs more: each of its pages faults in
-/// when first read, which on virtual machines costs more than the copy; and pages of a buffer that is read again
-/// stay mapped.) want(pos, n) makes [pos, pos + n) readable (as far as the log goes) and may drop what lies before
-/// pos: spans taken before it are not read after it.
+/// The bytes a record at pos and the header of the one after it may take: its header, the largest content, the
+/// next header.
+constexpr uint64_t kRecordReach = 3 + 65535 + 3;
+
+/// The log's bytes as the reader walks them, forward (every position asked for is at or after the one before): a
+/// log in memory whole; a file read ahead by a thread of its own with pread(2), a chunk at a time into a few reused
+/// buffers, each part read once, so the kernel's copy overlaps the conversion. (A mapping of the file costs more:
+/// each of its pages faults in when first read, which on virtual machines costs more than the copy.) want(pos, n)
+/// makes [pos, pos + n) readable (as far as the log goes; n at most kRecordReach) and may drop what lies before pos:
+/// spans taken before it are not read after it.
 class Bytes {
  public:
   explicit Bytes(std::span<const uint8_t> whole) : data_(whole.data()), size_(whole.size()), end_(whole.size()) {}
   /// fd: open for reading (closed by ~Bytes), size bytes long.
-  Bytes(int fd, uint64_t size) : fd_(fd), size_(size), buffer_(kBuffer) { data_ = buffer_.data(); }
+  Bytes(int fd, uint64_t size) : fd_(fd), size_(size) {
+    for (int i = 0; i < kAhead; ++i) ahead_.free.push_back(std::make_unique<uint8_t[]>(kHead + kChunk));
+    ahead_.thread = std::thread([this] { read_ahead(); });
+  }
   Bytes(const Bytes&) = delete;
   Bytes& operator=(const Bytes&) = delete;
   ~Bytes() {
-    if (fd_ >= 0) ::close(fd_);
+    if (fd_ < 0) return;
+    {
+      std::lock_guard lock(ahead_.mutex);
+      ahead_.stop = true;
+    }
+    ahead_.changed.notify_all();
+    ahead_.thread.join();
+    ::close(fd_);
   }
 
   uint64_t size() const { return size_; }
   uint8_t operator[](uint64_t pos) const { return data_[pos - start_]; }
   const uint8_t* at(uint64_t pos) const { return data_ + (pos - start_); }
   std::span<const uint8_t> subspan(uint64_t pos, uint64_t n) const { return {at(pos), n}; }
-  /// The read error that ended the window early ("" when none): the bytes past it read as zeros.
+  /// The read error that ended the file early ("" when none): the bytes past it read as zeros.
   const std::string& error() const { return error_; }
 
   void want(uint64_t pos, uint64_t n) {
-    const uint64_t need = std::min(size_, pos + std::min<uint64_t>(n, kBuffer / 2));
-    if (fd_ < 0 || (pos >= start_ && need <= end_)) return;
-    if (pos < start_ || pos > end_) {
-      start_ = end_ = pos;
-    } else {
-      std::memmove(buffer_.data(), at(pos), end_ - pos);
-      start_ = pos;
-    }
-    const uint64_t until = std::min(size_, start_ + kBuffer);
-    while (end_ < until) {
-      const ssize_t got = ::pread(fd_, buffer_.data() + (end_ - start_), until - end_, static_cast<off_t>(end_));
-      if (got > 0) {
-        end_ += static_cast<uint64_t>(got);
-        continue;
+    const uint64_t need = std::min(size_, pos + std::min(n, kRecordReach));
+    while (need > end_) {
+      // The next chunk, with what is kept of this one ([pos, end_), less than a record's reach) copied before it.
+      Chunk c;
+      {
+        std::unique_lock lock(ahead_.mutex);
+        ahead_.changed.wait(lock, [&] { return !ahead_.filled.empty(); });
+        c = std::move(ahead_.filled.front());
+        ahead_.filled.pop_front();
       }
-      if (got < 0 && errno == EINTR) continue;
-      if (error_.empty()) error_ = got < 0 ? std::strerror(errno) : "the file is shorter than when it was opened";
-      std::memset(buffer_.data() + (end_ - start_), 0, until - end_);
-      end_ = until;
+      const uint64_t keep = pos < end_ ? end_ - pos : 0;
+      uint8_t* base = c.data.get() + kHead - keep;
+      if (keep > 0) std::memcpy(base, at(pos), keep);
+      if (!c.error.empty() && error_.empty()) error_ = c.error;
+      if (current_) give_back(std::move(current_));
+      current_ = std::move(c.data);
+      data_ = base;
+      start_ = c.start - keep;
+      end_ = c.start + kChunk < size_ ? c.start + kChunk : size_;
     }
   }
 
  private:
-  /// [bytes]: at least two of the largest record (65535 bytes and its header) and the next record's header.
-  static constexpr uint64_t kBuffer = 1 << 20;
+  static constexpr uint64_t kChunk = 1 << 20;
+  static constexpr int kAhead = 3;                 // buffers the thread may fill ahead of the one being read
+  static constexpr uint64_t kHead = kRecordReach;  // room before a chunk for the end of the one before it
+
+  struct Chunk {
+    std::unique_ptr<uint8_t[]> data;  // kHead bytes of room, then the chunk
+    uint64_t start = 0;               // the file offset of its first byte
+    std::string error;                // a read error in it: the bytes from there on are zeros
+  };
+
+  void give_back(std::unique_ptr<uint8_t[]> buffer) {
+    {
+      std::lock_guard lock(ahead_.mutex);
+      ahead_.free.push_back(std::move(buffer));
+    }
+    ahead_.changed.notify_all();
+  }
+
+  /// The thread: reads the file from its start, chunk after chunk, while buffers are free.
+  void read_ahead() {
+    for (uint64_t at = 0; at < size_;) {
+      Chunk c;
+      {
+        std::unique_lock lock(ahead_.mutex);
+        ahead_.changed.wait(lock, [&] { return ahead_.stop || !ahead_.free.empty(); });
+        if (ahead_.stop) return;
+        c.data = std::move(ahead_.free.back());
+        ahead_.free.pop_back();
+      }
+      c.start = at;
+      const uint64_t until = std::min(size_, at + kChunk);
+      uint8_t* out = c.data.get() + kHead;
+      uint64_t end = at;
+      while (end < until) {
+        const ssize_t got = ::pread(fd_, out + (end - at), until - end, static_cast<off_t>(end));
+        if (got > 0) {
+          end += static_cast<uint64_t>(got);
+          continue;
+        }
+        if (got < 0 && errno == EINTR) continue;
+        c.error = got < 0 ? std::strerror(errno) : "the file is shorter than when it was opened";
+        std::memset(out + (end - at), 0, until - end);
+        end = until;
+      }
+      at = until;
+      {
+        std::lock_guard lock(ahead_.mutex);
+        ahead_.filled.push_back(std::move(c));
+      }
+      ahead_.changed.notify_all();
+    }
+  }
+
   int fd_ = -1;
-  const uint8_t* data_ = nullptr;
+  const uint8_t* data_ = nullptr;  // the byte at start_
   uint64_t size_ = 0;
   uint64_t start_ = 0;  // the offset of data_[0]
   uint64_t end_ = 0;    // where what data_ holds ends
-  std::vector<uint8_t> buffer_;
+  std::unique_ptr<uint8_t[]> current_;  // the buffer data_ points into (a file)
   std::string error_;
+  struct {
+    std::mutex mutex;
+    std::condition_variable changed;
+    std::deque<Chunk> filled;  // in the file's order
+    std::vector<std::unique_ptr<uint8_t[]>> free;
+    bool stop = false;
+    std::thread thread;
+  } ahead_;
 };
-
-/// The bytes a record at pos and the header of the one after it may take: its header, the largest content, the
-/// next header.
-constexpr uint64_t kRecordReach = 3 + 65535 + 3;
 
 /// One pass over a file's records.
 class Pass {
