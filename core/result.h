@@ -26,9 +26,9 @@ struct Error {
       : message(std::move(m)), code(c) {
     static constexpr char kHex[] = "0123456789abcdef";
     for (size_t i = 0; i < message.size(); ++i) {
-      const auto c = static_cast<unsigned char>(message[i]);
-      if (c >= 0x20 && c != 0x7f) continue;
-      message.replace(i, 1, std::string{'\\', 'x', kHex[c >> 4], kHex[c & 15]});
+      const auto ch = static_cast<unsigned char>(message[i]);
+      if (ch >= 0x20 && ch != 0x7f) continue;
+      message.replace(i, 1, std::string{'\\', 'x', kHex[ch >> 4], kHex[ch & 15]});
       i += 3;
     }
   }
