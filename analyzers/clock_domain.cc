@@ -106,6 +106,8 @@ ClockDomains ClockDomains::find(const std::vector<DomainStream>& in, int64_t log
     st.profile.assign(kProfileBins, std::numeric_limits<double>::infinity());
     st.have.assign(kProfileBins, false);
     std::vector<double> lat, stamps;
+    lat.reserve(s.stamp.size());  // grown by doubling, a long stream's copies faulted in its pages twice over
+    stamps.reserve(s.stamp.size());
     for (size_t i = 0; i < s.stamp.size(); ++i) {
       if (s.stamp[i] == 0) continue;  // never set: no clock at all
       const double l = latency_us(s.arrival[i], s.stamp[i]);
@@ -311,8 +313,7 @@ int ClockDomains::domain_of(const std::string& channel) const {
   return it == channel_domain_.end() ? -1 : it->second;
 }
 
-int64_t ClockDomains::to_arrival(const std::string& channel, int64_t stamp) const {
-  const int d = domain_of(channel);
+int64_t ClockDomains::to_arrival(int d, int64_t stamp) const {
   if (d < 0 || mappings_[static_cast<size_t>(d)].identity || stamp == 0) return stamp;
   const double t = static_cast<double>(stamp) + mappings_[static_cast<size_t>(d)].at(static_cast<double>(stamp));
   constexpr double kLast = 9223372036854774784.0;  // the largest double below 2^63

@@ -25,23 +25,44 @@ std::optional<double> scan_rotation(const std::vector<float>& previous, const st
   if (n < 16 || static_cast<int>(previous.size()) != n || increment <= 0) return std::nullopt;
   const int max_shift = std::min(n / 4, static_cast<int>(std::ceil(0.35 / increment)));  // 0.35 rad per scan
   std::vector<double> cost(2 * static_cast<size_t>(max_shift) + 1, INFINITY);
-  // Mean squared range difference at shift k, over every step-th beam.
+  // Each range that is not a measurement (not positive, or not finite) as NaN, so a difference involving one is
+  // NaN; the previous scan with max_shift beams before and after it (wrapped around on a full circle, NaN where
+  // the scan does not reach), so a shift never needs an index check. Scratch reused from scan to scan.
+  thread_local std::vector<float> cur, prev;
+  auto measured = [](float r) { return r > 0 && r < INFINITY ? r : NAN; };
+  cur.resize(static_cast<size_t>(n));
+  prev.assign(static_cast<size_t>(n) + 2 * static_cast<size_t>(max_shift), NAN);
+  for (int j = 0; j < n; ++j) cur[static_cast<size_t>(j)] = measured(current[static_cast<size_t>(j)]);
+  for (int m = 0; m < n + 2 * max_shift; ++m) {
+    int i = m - max_shift;
+    if (full_circle) i = i < 0 ? i + n : (i >= n ? i - n : i);
+    if (i >= 0 && i < n) prev[static_cast<size_t>(m)] = measured(previous[static_cast<size_t>(i)]);
+  }
+  // Mean squared range difference at shift k, over every step-th beam, where both beams are measurements. Four
+  // sums, each of every fourth beam taken, so that no addition waits for the one before (the pass spent a fifth
+  // of its time here with one).
   auto cost_at = [&](int k, int step) {
-    double sum = 0;
-    int used = 0, tried = 0;
-    for (int j = 0; j < n; j += step, ++tried) {
-      int i = j + k;
-      if (full_circle) {
-        i = i < 0 ? i + n : (i >= n ? i - n : i);
-      } else if (i < 0 || i >= n) {
-        continue;
+    const float* a = cur.data();
+    const float* b = prev.data() + max_shift + k;
+    double s0 = 0, s1 = 0, s2 = 0, s3 = 0;  // named, so they stay in registers
+    int u0 = 0, u1 = 0, u2 = 0, u3 = 0;
+    auto add = [](float d, double& sum, int& used) {
+      if (d == d) {
+        sum += d * d;
+        ++used;
       }
-      const float a = current[static_cast<size_t>(j)], b = previous[static_cast<size_t>(i)];
-      if (!(a > 0 && b > 0 && a < INFINITY && b < INFINITY)) continue;
-      sum += (a - b) * (a - b);
-      ++used;
+    };
+    int j = 0;
+    for (; j + 3 * step < n; j += 4 * step) {
+      add(a[j] - b[j], s0, u0);
+      add(a[j + step] - b[j + step], s1, u1);
+      add(a[j + 2 * step] - b[j + 2 * step], s2, u2);
+      add(a[j + 3 * step] - b[j + 3 * step], s3, u3);
     }
-    return used > tried / 2 ? sum / used : INFINITY;
+    for (; j < n; j += step) add(a[j] - b[j], s0, u0);
+    const int used = u0 + u1 + u2 + u3;
+    const int tried = (n + step - 1) / step;
+    return used > tried / 2 ? ((s0 + s1) + (s2 + s3)) / used : INFINITY;
   };
   // Coarse (every 3rd shift, every 3rd beam), then every shift around the best (every 2nd beam).
   int coarse = 0;
@@ -207,9 +228,19 @@ namespace {
 /// IMU, 100 Hz ground truth) share only some stamps and are still compared.
 bool same_stamps(const Samples& a, const Samples& b) {
   if (a.stamp.empty() || b.stamp.empty()) return false;
-  Array<int64_t> x(a.stamp), y(b.stamp);
-  std::sort(x.begin(), x.end());
-  std::sort(y.begin(), y.end());
+  const size_t most = std::max(a.stamp.size(), b.stamp.size());
+  // 90% of the larger in common needs the smaller to be as large.
+  if (std::min(a.stamp.size(), b.stamp.size()) * 10 < most * 9) return false;
+  // Sorted copies only where the stamps are not already in order (they nearly always are).
+  Array<int64_t> x_copy, y_copy;
+  auto in_order = [](const Array<int64_t>& stamps, Array<int64_t>& copy) -> const Array<int64_t>& {
+    if (std::is_sorted(stamps.begin(), stamps.end())) return stamps;
+    copy = stamps;
+    std::sort(copy.begin(), copy.end());
+    return copy;
+  };
+  const Array<int64_t>& x = in_order(a.stamp, x_copy);
+  const Array<int64_t>& y = in_order(b.stamp, y_copy);
   size_t i = 0, j = 0, common = 0;
   while (i < x.size() && j < y.size()) {
     if (x[i] < y[j]) {
@@ -220,7 +251,7 @@ bool same_stamps(const Samples& a, const Samples& b) {
       ++common, ++i, ++j;
     }
   }
-  return common * 10 >= std::max(x.size(), y.size()) * 9;
+  return common * 10 >= most * 9;
 }
 
 /// Linear interpolation of (t, v) (t ascending) at time x; false outside.
@@ -288,12 +319,28 @@ std::pair<double, double> correlate(const Grid& a, const Grid& b, double from, d
   if (!(var_a / points >= 1e-4)) return {0, 0};  // also false for NaN: a has gaps here
   auto correlation = [&](int k, size_t step) {
     const float* y = sb + k;
-    double sum = 0, sum_sq = 0, dot = 0, count = 0;
-    for (size_t i = 0; i < n; i += step, ++count) {
-      sum += y[i];
-      sum_sq += static_cast<double>(y[i]) * y[i];
-      dot += (sa[i] - mean_a) * y[i];
+    // Two of each sum, of alternate points (named, so they stay in registers), so that no addition waits for the
+    // one before.
+    double sum0 = 0, sum1 = 0, sq0 = 0, sq1 = 0, dot0 = 0, dot1 = 0;
+    size_t i = 0;
+    for (; i + step < n; i += 2 * step) {
+      const double v0 = y[i], v1 = y[i + step];
+      sum0 += v0;
+      sum1 += v1;
+      sq0 += v0 * v0;
+      sq1 += v1 * v1;
+      dot0 += (sa[i] - mean_a) * v0;
+      dot1 += (sa[i + step] - mean_a) * v1;
     }
+    if (i < n) {
+      const double v = y[i];
+      sum0 += v;
+      sq0 += v * v;
+      dot0 += (sa[i] - mean_a) * v;
+    }
+    const size_t points_used = (n + step - 1) / step;  // whole points, as the loop counted them
+    const auto count = static_cast<double>(points_used);
+    const double sum = sum0 + sum1, sum_sq = sq0 + sq1, dot = dot0 + dot1;
     const double var_b = sum_sq - sum * sum / count;
     const double c = dot / std::sqrt(var_a * (count / points) * var_b);
     return var_b > 1e-12 && std::isfinite(c) ? c : -2.0;
@@ -391,9 +438,9 @@ std::optional<StreamPair> skew(const std::string& a_name, const Samples& a, cons
 
 }  // namespace
 
-std::vector<StreamPair> stream_pairs(std::map<std::string, Samples, std::less<>>& channels, int64_t start_utime,
-                                     int64_t end_utime, const DiagnoseOptions& options) {
-  std::vector<const std::pair<const std::string, Samples>*> moving;
+PairPlan plan_pairs(const std::map<std::string, Samples, std::less<>>& channels) {
+  PairPlan plan;
+  auto& moving = plan.moving;
   for (const auto& entry : channels) {
     const auto& w = entry.second.motion_w;
     if (w.size() < 20) continue;
@@ -407,15 +454,21 @@ std::vector<StreamPair> stream_pairs(std::map<std::string, Samples, std::less<>>
   std::stable_sort(moving.begin(), moving.end(), [](const auto* x, const auto* y) {
     return x->second.motion_from_pose > y->second.motion_from_pose;
   });
-  const double log_start = Time::from_us(start_utime).seconds();
-  // Each pair is independent: two threads share them (this machine has two cores).
-  std::vector<std::pair<size_t, size_t>> jobs;
   for (size_t i = 0; i < moving.size(); ++i) {
     for (size_t j = i + 1; j < moving.size(); ++j) {
-      if (!same_stamps(moving[i]->second, moving[j]->second)) jobs.emplace_back(i, j);
+      if (!same_stamps(moving[i]->second, moving[j]->second)) plan.jobs.emplace_back(i, j);
     }
   }
+  return plan;
+}
+
+std::vector<StreamPair> stream_pairs(const PairPlan& plan, int64_t start_utime, int64_t end_utime,
+                                     const DiagnoseOptions& options) {
+  const auto& moving = plan.moving;
+  const auto& jobs = plan.jobs;
+  const double log_start = Time::from_us(start_utime).seconds();
   const double log_end = Time::from_us(end_utime).seconds();
+  // Each channel's grid, then each pair, is independent: two threads share them (this machine has two cores).
   std::vector<Grid> grids(moving.size());
   std::vector<std::optional<StreamPair>> results(jobs.size());
   auto work = [&](size_t first, size_t stride) {

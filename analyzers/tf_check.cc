@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <map>
 #include <set>
@@ -79,8 +80,8 @@ void TfCheck::add_tf(const std::string& channel, std::span<const uint8_t> data, 
 void TfCheck::add_data(const std::string& channel, const std::string& frame, std::span<const int64_t> stamps,
                        std::span<const int64_t> arrivals) {
   if (frame.empty() || stamps.empty()) return;
-  auto& uses = uses_[{channel, frame}];
-  for (size_t i = 0; i < stamps.size(); ++i) uses.push_back({stamps[i], arrivals[i]});
+  const size_t n = std::min(stamps.size(), arrivals.size());
+  uses_[{channel, frame}] = {stamps.first(n), arrivals.first(n)};
 }
 
 TfDiagnosis TfCheck::finish(const std::function<int64_t(const std::string&, int64_t)>& to_arrival) const {
@@ -172,6 +173,7 @@ TfDiagnosis TfCheck::finish(const std::function<int64_t(const std::string&, int6
   // Per dynamic transform, the data composed with it: the stamps' check of each channel.
   std::map<std::string, std::vector<TfStampCheck>> by_edge;  // by child frame
   std::map<std::string, std::vector<std::string>> lagging;   // by child frame: the lagging problems
+  std::map<const Edge*, double> tf_latency_of;               // each dynamic transform's median latency [s]
   for (const auto& [key, uses] : uses_) {
     const auto& [channel, frame] = key;
     if (frames.count(frame) == 0) {
@@ -200,10 +202,29 @@ TfDiagnosis TfCheck::finish(const std::function<int64_t(const std::string&, int6
       c.period_s = Duration::from_us(period).seconds();
       Array<double> leads, waits;
       int64_t late = 0;
-      for (const Use& u : uses) {
-        const auto at = std::upper_bound(e->arrival.begin(), e->arrival.end(), u.arrival) - e->arrival.begin();
-        if (at > 0) leads.push_back(seconds_between(e->newest[static_cast<size_t>(at - 1)], u.stamp));
-        const auto as_new = std::lower_bound(e->newest.begin(), e->newest.end(), u.stamp) - e->newest.begin();
+      // The messages come in arrival order, their stamps nearly so: each search goes on from the last answer while
+      // its key does not go back (the same answer as a binary search over the whole, in a step or two).
+      const bool arrivals_sorted = std::is_sorted(e->arrival.begin(), e->arrival.end());
+      auto at = e->arrival.begin();
+      auto as_new_it = e->newest.begin();  // newest is the running maximum: sorted
+      int64_t last_arrival = INT64_MIN, last_stamp = INT64_MIN;
+      for (size_t k = 0; k < uses.size(); ++k) {
+        const Use u = uses[k];
+        if (arrivals_sorted && u.arrival >= last_arrival) {
+          while (at != e->arrival.end() && *at <= u.arrival) ++at;
+        } else {
+          at = std::upper_bound(e->arrival.begin(), e->arrival.end(), u.arrival);
+        }
+        if (u.stamp >= last_stamp) {
+          while (as_new_it != e->newest.end() && *as_new_it < u.stamp) ++as_new_it;
+        } else {
+          as_new_it = std::lower_bound(e->newest.begin(), e->newest.end(), u.stamp);
+        }
+        last_arrival = u.arrival;
+        last_stamp = u.stamp;
+        const auto before = at - e->arrival.begin();
+        if (before > 0) leads.push_back(seconds_between(e->newest[static_cast<size_t>(before - 1)], u.stamp));
+        const auto as_new = as_new_it - e->newest.begin();
         if (as_new == static_cast<std::ptrdiff_t>(e->newest.size())) {
           ++c.never;
           ++late;
@@ -220,14 +241,21 @@ TfDiagnosis TfCheck::finish(const std::function<int64_t(const std::string&, int6
       }
       c.lead_s = distribution(std::move(leads));
       c.wait_s = distribution(std::move(waits));
-      Array<double> tf_latency, data_latency;
-      for (size_t k = 0; k < e->arrival.size(); ++k) {
-        tf_latency.push_back(seconds_between(to_arrival(e->channel, e->stamps[k]), e->arrival[k]));
+      // The transform's own median latency, the same for every channel composed with it: worked out once.
+      auto [known, fresh] = tf_latency_of.try_emplace(e, 0.0);
+      if (fresh) {
+        Array<double> tf_latency;
+        for (size_t k = 0; k < e->arrival.size(); ++k) {
+          tf_latency.push_back(seconds_between(to_arrival(e->channel, e->stamps[k]), e->arrival[k]));
+        }
+        known->second = median(std::move(tf_latency));
       }
-      for (const Use& u : uses) {
+      c.tf_latency_s = known->second;
+      Array<double> data_latency;
+      for (size_t k = 0; k < uses.size(); ++k) {
+        const Use u = uses[k];
         data_latency.push_back(seconds_between(to_arrival(channel, u.stamp), u.arrival));
       }
-      c.tf_latency_s = median(std::move(tf_latency));
       c.data_latency_s = median(std::move(data_latency));
       // Within its period and 50 ms of the message's arrival, had a transform at or after its stamp arrived?
       if (late * 10 > static_cast<int64_t>(uses.size())) {
@@ -239,7 +267,7 @@ TfDiagnosis TfCheck::finish(const std::function<int64_t(const std::string&, int6
         lagging[child].push_back(buf);
       }
       // Stale: the transform stops while the data goes on.
-      const int64_t last_data = uses.back().stamp;
+      const int64_t last_data = uses.stamps.back();
       if (!e->newest.empty() && last_data - e->newest.back() > 1000000) {
         std::snprintf(buf, sizeof(buf),
                       "transform %s -> %s goes stale: its last stamp is %.1f s before the last %s message",

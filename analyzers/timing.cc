@@ -5,6 +5,7 @@
 #include "analyzers/timing.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <functional>
 #include <map>
@@ -102,6 +103,13 @@ struct Stretch {
   };
 
   void read(LogReader& reader) {
+    // A log interleaves a few channels: the last ones met, found without the map (names are views of its keys).
+    struct Recent {
+      std::string_view name;
+      internal::Samples* samples = nullptr;
+    };
+    std::array<Recent, 8> recent{};
+    size_t next_slot = 0;
     internal::Samples* last = nullptr;
     std::string_view last_name;
     Event e;
@@ -111,6 +119,16 @@ struct Stretch {
       start_utime = std::min(start_utime, e.utime);
       end_utime = std::max(end_utime, e.utime);
       if (last == nullptr || e.channel != last_name) {
+        last = nullptr;
+        for (const Recent& r : recent) {
+          if (r.samples != nullptr && r.name == e.channel) {
+            last = r.samples;
+            last_name = r.name;
+            break;
+          }
+        }
+      }
+      if (last == nullptr) {
         auto it = channels.find(e.channel);
         if (it == channels.end()) {
           it = channels.emplace(std::string(e.channel), internal::Samples{}).first;
@@ -121,6 +139,8 @@ struct Stretch {
         }
         last = &it->second;
         last_name = it->first;
+        recent[next_slot] = {last_name, last};
+        next_slot = (next_slot + 1) % recent.size();
       }
       internal::Samples& s = *last;
       if (!s.type.empty()) {
@@ -186,7 +206,7 @@ struct Stretch {
 
   Channels channels;
   Exchanges* exchanges = nullptr;
-  std::vector<Exchange> later;
+  HugeVector<Exchange> later;
   HugeVector<uint8_t> later_bytes;
   size_t stretches = 1;  // read into this one
   bool any = false;
@@ -265,6 +285,11 @@ Result<Diagnosis> diagnose(const std::string& log, const DiagnoseOptions& option
     d.end_utime = pass->end_utime;
   }
 
+  // Skew between every two streams that observe the yaw rate (IMU gyro, wheel odometry, poses, scans), on threads
+  // of its own while the rest is worked out here: it reads only the channels' motion once the pairs are chosen.
+  const internal::PairPlan pair_plan = internal::plan_pairs(channels);
+  std::jthread pairs_thread([&] { d.pairs = internal::stream_pairs(pair_plan, d.start_utime, d.end_utime, options); });
+
   auto ignored = [&](const std::string& name) {
     return std::find(options.ignore_channels.begin(), options.ignore_channels.end(), name) !=
            options.ignore_channels.end();
@@ -286,13 +311,20 @@ Result<Diagnosis> diagnose(const std::string& log, const DiagnoseOptions& option
   }
   const internal::ClockDomains domains = internal::ClockDomains::find(streams, d.start_utime, d.end_utime);
   d.domains = domains.domains();
-  auto to_arrival = [&](const std::string& channel, int64_t stamp) { return domains.to_arrival(channel, stamp); };
+  // Asked for many stamps of one channel in a row: its domain found once per run of them.
+  auto to_arrival = [&, last = std::string(), domain = -1](const std::string& channel, int64_t stamp) mutable {
+    if (domain < 0 || channel != last) {
+      last = channel;
+      domain = domains.domain_of(channel);
+    }
+    return domains.to_arrival(domain, stamp);
+  };
   for (auto& [name, s] : channels) {
     if (ignored(name)) continue;
     const int domain = domains.domain_of(name);
     std::function<int64_t(int64_t)> mapping;
     if (domain >= 0 && d.domains[static_cast<size_t>(domain)].mapped) {
-      mapping = [&, channel = name](int64_t stamp) { return domains.to_arrival(channel, stamp); };
+      mapping = [&, domain](int64_t stamp) { return domains.to_arrival(domain, stamp); };
     }
     ChannelTiming c = internal::channel_timing(name, s, d.start_utime, mapping);
     c.domain = domain;
@@ -303,8 +335,7 @@ Result<Diagnosis> diagnose(const std::string& log, const DiagnoseOptions& option
   }
   d.tf = tf.finish(to_arrival);
   internal::judge_domains(d);
-  // Skew between every two streams that observe the yaw rate: IMU gyro, wheel odometry, poses, scans.
-  d.pairs = internal::stream_pairs(channels, d.start_utime, d.end_utime, options);
+  pairs_thread.join();
   d.command_loops = exchanges->loops.finish(d.start_utime);
   for (const CommandLoop& l : d.command_loops) internal::judge_loop(l, d.channels);
   internal::judge_late_streams(d);

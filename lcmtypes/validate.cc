@@ -1,6 +1,7 @@
 #include "lcmtypes/validate.h"
 
 #include <algorithm>
+#include <array>
 #include <bit>
 #include <cctype>
 #include <cmath>
@@ -90,21 +91,29 @@ size_t fixed_size(const std::string& type) {
 class Plans {
  public:
   const Plan* find(int64_t fingerprint) {
-    // Messages come in runs of one type: the last answer of this thread, without the lock.
-    thread_local int64_t last_fingerprint = 0;
-    thread_local const Plan* last_plan = nullptr;
-    if (fingerprint == last_fingerprint && last_plan != nullptr) return last_plan;
-    std::lock_guard lock(mutex_);
-    if (auto it = by_fingerprint_.find(fingerprint); it != by_fingerprint_.end()) {
-      last_fingerprint = fingerprint;
-      last_plan = it->second;
-      return it->second;
+    // A log interleaves a few types (IMU, odometry, poses, scans): this thread's last answers, without the lock.
+    struct Recent {
+      int64_t fingerprint = 0;
+      const Plan* plan = nullptr;
+    };
+    thread_local std::array<Recent, 8> recent{};
+    thread_local size_t next_slot = 0;
+    for (const Recent& r : recent) {
+      if (r.fingerprint == fingerprint && r.plan != nullptr) return r.plan;
     }
-    const char* name = type_name(fingerprint);
-    const Plan* p = name != nullptr ? compile(name) : nullptr;
-    by_fingerprint_[fingerprint] = p;
-    last_fingerprint = fingerprint;
-    last_plan = p;
+    const Plan* p = nullptr;
+    {
+      std::lock_guard lock(mutex_);
+      if (auto it = by_fingerprint_.find(fingerprint); it != by_fingerprint_.end()) {
+        p = it->second;
+      } else {
+        const char* name = type_name(fingerprint);
+        p = name != nullptr ? compile(name) : nullptr;
+        by_fingerprint_[fingerprint] = p;
+      }
+    }
+    recent[next_slot] = {fingerprint, p};
+    next_slot = (next_slot + 1) % recent.size();
     return p;
   }
 

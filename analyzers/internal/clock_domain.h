@@ -43,7 +43,10 @@ class ClockDomains {
   int domain_of(const std::string& channel) const;
   /// A stamp of the channel's clock as the recorder's clock would read at the same instant, delivered as fast as
   /// its domain's fastest stream [us]: the stamp itself for streams on the recorder's clock.
-  int64_t to_arrival(const std::string& channel, int64_t stamp) const;
+  int64_t to_arrival(const std::string& channel, int64_t stamp) const { return to_arrival(domain_of(channel), stamp); }
+  /// The same for a stamp of a domain's clock (domain as domain_of gives it): for a channel's many stamps, its domain
+  /// found once.
+  int64_t to_arrival(int domain, int64_t stamp) const;
   /// How much later than its domain's reference the channel's messages arrive [s]: the median over windows of its
   /// fastest delivery above the reference's. NaN without a reference to compare with.
   double peer_delay_s(const std::string& channel) const;

@@ -21,9 +21,18 @@ void add_motion(Samples& s, int64_t fingerprint, std::span<const uint8_t> data);
 /// that cannot be told: the channel's type or whether it has a header differs at the join.
 bool append_samples(Samples& a, Samples& b);
 
-/// The skew of every two channels that observe the robot turning (ground truth first, then IMUs: the reference
-/// side of each pair), leaving out pairs that carry the same stamps. The log spans [start_utime, end_utime].
-std::vector<StreamPair> stream_pairs(std::map<std::string, Samples, std::less<>>& channels, int64_t start_utime,
-                                     int64_t end_utime, const DiagnoseOptions& options);
+/// The pairs of channels whose skew stream_pairs measures: every two that observe the robot turning (ground truth
+/// first, then IMUs: the reference side of each pair), leaving out pairs that carry the same stamps. It reads the
+/// channels' stamps, so it comes before anything changes them (channel_timing maps them for a while).
+struct PairPlan {
+  std::vector<const std::pair<const std::string, Samples>*> moving;
+  std::vector<std::pair<size_t, size_t>> jobs;  // indices into moving
+};
+PairPlan plan_pairs(const std::map<std::string, Samples, std::less<>>& channels);
+
+/// The skew of each planned pair, on two threads. It reads only the channels' motion (their yaw rates), so it may
+/// run beside what changes their stamps. The log spans [start_utime, end_utime].
+std::vector<StreamPair> stream_pairs(const PairPlan& plan, int64_t start_utime, int64_t end_utime,
+                                     const DiagnoseOptions& options);
 
 }  // namespace driftlab::analyzers::internal

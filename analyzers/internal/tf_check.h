@@ -26,7 +26,9 @@ class TfCheck {
  public:
   /// A driftlab.tf_t message on `channel` that arrived at arrival [us].
   void add_tf(const std::string& channel, std::span<const uint8_t> data, int64_t arrival, bool is_static);
-  /// The messages of a stream channel in frame `frame`: their stamps and arrivals [us], in arrival order.
+  /// The messages of a stream channel in frame `frame`: their stamps and arrivals [us], in arrival order; once per
+  /// channel and frame. Kept as views, not copied (a long log's streams hold millions): they must stay valid and
+  /// unchanged until finish().
   void add_data(const std::string& channel, const std::string& frame, std::span<const int64_t> stamps,
                 std::span<const int64_t> arrivals);
   /// to_arrival(channel, stamp) maps a stamp of the channel's clock onto the recorder's (its clock domain's).
@@ -49,8 +51,13 @@ class TfCheck {
   struct Use {
     int64_t stamp, arrival;
   };
-  std::map<std::string, Edge> edges_;                                     // by child frame
-  std::map<std::pair<std::string, std::string>, std::vector<Use>> uses_;  // (channel, frame) -> messages
+  struct Uses {  // a channel's messages: views of what add_data was given
+    std::span<const int64_t> stamps, arrivals;
+    size_t size() const { return stamps.size(); }
+    Use operator[](size_t i) const { return {stamps[i], arrivals[i]}; }
+  };
+  std::map<std::string, Edge> edges_;                         // by child frame
+  std::map<std::pair<std::string, std::string>, Uses> uses_;  // (channel, frame) -> messages
 };
 
 }  // namespace driftlab::analyzers::internal
