@@ -10,6 +10,7 @@
 #include <cstring>
 #include <deque>
 #include <mutex>
+#include <system_error>
 #include <thread>
 #include <utility>
 #include <vector>
@@ -111,7 +112,11 @@ Result<LogWriter> LogWriter::create(const std::string& path, WriteOptions option
     w.background_ = std::make_unique<Background>();
     for (size_t i = 0; i < kBuffersInFlight; ++i)
       w.background_->free.push_back(std::make_unique<uint8_t[]>(w.buffer_capacity_));
-    w.background_->thread = std::thread([bg = w.background_.get(), fd = w.fd_] { bg->run(fd); });
+    try {
+      w.background_->thread = std::thread([bg = w.background_.get(), fd = w.fd_] { bg->run(fd); });
+    } catch (const std::system_error&) {  // no thread to be had: the writer makes its write(2) calls itself
+      w.background_.reset();
+    }
   }
   return w;
 }

@@ -19,6 +19,7 @@
 #include <memory>
 #include <mutex>
 #include <set>
+#include <system_error>
 #include <thread>
 #include <vector>
 
@@ -282,7 +283,10 @@ class Bytes {
   /// fd: open for reading (closed by ~Bytes), size bytes long.
   Bytes(int fd, uint64_t size) : fd_(fd), size_(size) {
     for (int i = 0; i < kAhead; ++i) ahead_.free.push_back(std::make_unique<uint8_t[]>(kHead + kChunk));
-    ahead_.thread = std::thread([this] { read_ahead(); });
+    try {
+      ahead_.thread = std::thread([this] { read_ahead(); });
+    } catch (const std::system_error&) {  // no thread to be had: want() reads each chunk when it needs it
+    }
   }
   Bytes(const Bytes&) = delete;
   Bytes& operator=(const Bytes&) = delete;
@@ -293,7 +297,7 @@ class Bytes {
       ahead_.stop = true;
     }
     ahead_.changed.notify_all();
-    ahead_.thread.join();
+    if (ahead_.thread.joinable()) ahead_.thread.join();
     ::close(fd_);
   }
 
@@ -308,6 +312,7 @@ class Bytes {
     const uint64_t need = std::min(size_, pos + std::min(n, kRecordReach));
     while (need > end_) {
       // The next chunk, with what is kept of this one ([pos, end_), less than a record's reach) copied before it.
+      if (!ahead_.thread.joinable()) (void)read_chunk(unread_);  // no thread: read here
       Chunk c;
       {
         std::unique_lock lock(ahead_.mutex);
@@ -349,36 +354,43 @@ class Bytes {
   /// The thread: reads the file from its start, chunk after chunk, while buffers are free.
   void read_ahead() {
     for (uint64_t at = 0; at < size_;) {
-      Chunk c;
-      {
-        std::unique_lock lock(ahead_.mutex);
-        ahead_.changed.wait(lock, [&] { return ahead_.stop || !ahead_.free.empty(); });
-        if (ahead_.stop) return;
-        c.data = std::move(ahead_.free.back());
-        ahead_.free.pop_back();
-      }
-      c.start = at;
-      const uint64_t until = std::min(size_, at + kChunk);
-      uint8_t* out = c.data.get() + kHead;
-      uint64_t end = at;
-      while (end < until) {
-        const ssize_t got = ::pread(fd_, out + (end - at), until - end, static_cast<off_t>(end));
-        if (got > 0) {
-          end += static_cast<uint64_t>(got);
-          continue;
-        }
-        if (got < 0 && errno == EINTR) continue;
-        c.error = got < 0 ? std::strerror(errno) : "the file is shorter than when it was opened";
-        std::memset(out + (end - at), 0, until - end);
-        end = until;
-      }
-      at = until;
-      {
-        std::lock_guard lock(ahead_.mutex);
-        ahead_.filled.push_back(std::move(c));
-      }
-      ahead_.changed.notify_all();
+      if (!read_chunk(at)) return;
     }
+  }
+
+  /// Reads the chunk at `at` into a free buffer (waiting for one), queues it and moves `at` past it; false when
+  /// the reader is being destroyed.
+  bool read_chunk(uint64_t& at) {
+    Chunk c;
+    {
+      std::unique_lock lock(ahead_.mutex);
+      ahead_.changed.wait(lock, [&] { return ahead_.stop || !ahead_.free.empty(); });
+      if (ahead_.stop) return false;
+      c.data = std::move(ahead_.free.back());
+      ahead_.free.pop_back();
+    }
+    c.start = at;
+    const uint64_t until = std::min(size_, at + kChunk);
+    uint8_t* out = c.data.get() + kHead;
+    uint64_t end = at;
+    while (end < until) {
+      const ssize_t got = ::pread(fd_, out + (end - at), until - end, static_cast<off_t>(end));
+      if (got > 0) {
+        end += static_cast<uint64_t>(got);
+        continue;
+      }
+      if (got < 0 && errno == EINTR) continue;
+      c.error = got < 0 ? std::strerror(errno) : "the file is shorter than when it was opened";
+      std::memset(out + (end - at), 0, until - end);
+      end = until;
+    }
+    at = until;
+    {
+      std::lock_guard lock(ahead_.mutex);
+      ahead_.filled.push_back(std::move(c));
+    }
+    ahead_.changed.notify_all();
+    return true;
   }
 
   int fd_ = -1;
@@ -387,6 +399,7 @@ class Bytes {
   uint64_t start_ = 0;  // the offset of data_[0]
   uint64_t end_ = 0;    // where what data_ holds ends
   std::unique_ptr<uint8_t[]> current_;  // the buffer data_ points into (a file)
+  uint64_t unread_ = 0;                 // without a thread: where the next chunk to read starts
   std::string error_;
   struct {
     std::mutex mutex;
