@@ -211,6 +211,7 @@ struct Slam2d::Impl {
   std::optional<mrpt::poses::CPose2D> last_odom_at_scan;
   int64_t scans = 0, odometry = 0, undecodable = 0, seq = 0, keyframes = 0, before_odometry = 0;
   int64_t first_scan = -1;  ///< stamp of the first scan [us]
+  int64_t first_odometry = std::numeric_limits<int64_t>::max();  ///< the earliest odometry stamp [us]
   NonFiniteInputs non_finite;
   bool tf_missing_warned = false;
   std::vector<std::string> warnings;
@@ -228,6 +229,12 @@ struct Slam2d::Impl {
 
   /// Matches one scan (method graph) and publishes its pose.
   void process(Bus& bus, int64_t stamp, const mrpt::obs::CObservation2DRangeScan::Ptr& obs) {
+    if (!c.odom_channel.empty() && (odom.empty() || stamp < first_odometry) &&
+        (stamp < first_scan || static_cast<uint64_t>(stamp) - static_cast<uint64_t>(first_scan) < 1000000)) {
+      --scans;  // before the odometry, in the first second: left out (the map starts where the odometry does)
+      ++before_odometry;
+      return;
+    }
     driftlab::pose_t p{};
     p.header.seq = seq++;
     p.header.utime = stamp;
@@ -338,6 +345,7 @@ Status Slam2d::start(Bus& bus) {
       if (!o) return;
       ++impl_->odometry;
       impl_->odom.add(o->first, o->second);
+      impl_->first_odometry = std::min(impl_->first_odometry, o->first);
       if (impl_->graph) {
         impl_->newest_odometry = std::max(impl_->newest_odometry, o->first);
         impl_->drain(bus);
@@ -358,7 +366,9 @@ Status Slam2d::start(Bus& bus) {
     if (d.first_scan < 0) d.first_scan = scan.header.utime;
     const bool first_second = scan.header.utime < d.first_scan ||  // uint64_t: hostile stamps must not overflow
                               static_cast<uint64_t>(scan.header.utime) - static_cast<uint64_t>(d.first_scan) < 1000000;
-    if (!d.c.odom_channel.empty() && d.odom.empty() && first_second) {
+    // (Method graph: the scan waits for the odometry at its stamp like any other, and process() decides: a pose
+    // that rides on its scan, as a CARMEN log's laser lines carry theirs, comes just after it.)
+    if (!d.graph && !d.c.odom_channel.empty() && d.odom.empty() && first_second) {
       ++d.before_odometry;
       return;
     }

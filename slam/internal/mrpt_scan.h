@@ -5,6 +5,7 @@
 #pragma once
 
 #include <mrpt/obs/CObservation2DRangeScan.h>
+#include <mrpt/poses/CPose2D.h>
 
 #include <cmath>
 
@@ -12,6 +13,9 @@
 #include "driftlab/laser_scan_t.hpp"
 
 namespace driftlab::slam::internal {
+
+/// Readings at or above this share of range_max are a scanner's "no return" code, not an echo.
+inline constexpr float kNoReturnShare = 0.99f;
 
 /// Our scan (at least two beams) as an MRPT observation, for a scanner at `sensor_on_base` (x, y, yaw).
 inline mrpt::obs::CObservation2DRangeScan::Ptr to_mrpt(const driftlab::laser_scan_t& scan,
@@ -27,8 +31,10 @@ inline mrpt::obs::CObservation2DRangeScan::Ptr to_mrpt(const driftlab::laser_sca
   for (int i = 0; i < n; ++i) {
     const float r = scan.ranges[static_cast<size_t>(increment > 0 ? i : n - 1 - i)];
     // A reading at range_max is the scanner saying "no return" (a SICK reports its maximum, 50 m or 81.83 m, for
-    // every beam without an echo; ROS bags made from CARMEN logs carry it as range_max): not a point.
-    const bool valid = std::isfinite(r) && r >= scan.range_min && r < scan.range_max;
+    // every beam without an echo; ROS bags made from CARMEN logs carry it as range_max, or a little above the
+    // code: Freiburg's clinic log has range_max 81.9 with 81.83 and 81.91 as its no-echo readings): not a point.
+    // Within 1% of range_max counts as there.
+    const bool valid = std::isfinite(r) && r >= scan.range_min && r < kNoReturnShare * scan.range_max;
     obs->setScanRange(i, valid ? r : scan.range_max);
     obs->setScanRangeValidity(i, valid);
   }

@@ -70,8 +70,8 @@ struct ScanGraphOptions {
   double loop_consistency_yaw = 0.035;  ///< ... and this of where the first one put it
   double loop_max_chi2 = 20;            ///< a loop edge left with a larger error after optimising is taken out
   // Back end.
-  double edge_sigma_xy = 0.05;           ///< standard deviation of an edge's x and y
-  double edge_sigma_yaw = 0.0175;        ///< and of its yaw
+  double edge_sigma_xy = 0.02;           ///< standard deviation of an edge's x and y
+  double edge_sigma_yaw = 0.007;         ///< and of its yaw (0.4 degrees)
   double optimize_threshold_xy = 0.05;   ///< a loop edge off by more than this triggers optimisation ...
   double optimize_threshold_yaw = 0.02;  ///< ... or by more than this
 };
