@@ -65,8 +65,8 @@ std::vector<ArmSeries> arm_series(const std::map<std::string, internal::JointCom
 
 }  // namespace
 
-Result<LogSeries> read_log_series(const std::string& log) {
-  auto reader = LogReader::open(log);
+Result<LogSeries> read_log_series(const std::string& log, const std::string& channels) {
+  auto reader = LogReader::open(log, {.channels = channels});
   if (!reader) return reader.error();
   LogSeries out;
   out.log = log;

@@ -62,7 +62,8 @@ struct LogSeries {
   uint64_t problems = 0;                       ///< corruption met while reading
 };
 
-/// Reads the whole log. Errors name the log (missing, unreadable); corruption is counted, not fatal.
-Result<LogSeries> read_log_series(const std::string& log);
+/// Reads the whole log, or only the channels `channels` names (LogReader's channel filter: comma-separated names
+/// or patterns; empty: all). Errors name the log (missing, unreadable); corruption is counted, not fatal.
+Result<LogSeries> read_log_series(const std::string& log, const std::string& channels = "");
 
 }  // namespace driftlab::analyzers

@@ -13,16 +13,14 @@
 #include <memory>
 
 #include "analyzers/diagnosis_json.h"
+#include "analyzers/log_series.h"
 #include "apps/cli_checks.h"
 #include "apps/cli_util.h"
 #include "apps/commands.h"
 #include "apps/report.h"
 #include "core/install_layout.h"
-#include "core/log_reader.h"
 #include "core/process.h"
 #include "core/wall_clock.h"
-#include "driftlab/estimator_status_t.hpp"
-#include "lcmtypes/validate.h"
 
 namespace driftlab::apps {
 namespace {
@@ -165,16 +163,13 @@ struct ImuRejections {
 };
 ImuRejections imu_rejections(const std::string& log) {
   ImuRejections out;
-  auto reader = LogReader::open(log, {.channels = "ESTIMATOR_STATUS"});
-  if (!reader) return out;
-  Event e;
-  driftlab::estimator_status_t s;
-  while (reader->next(e)) {
-    if (!lcmtypes::decode(e.data, s) || s.ninputs < 1 || s.input[0] != "imu") continue;
-    out.future = s.future[0];
-    out.rejected = s.stale[0] + s.future[0] + s.late[0];
-    out.received = out.rejected + s.fused[0] + s.outliers[0];
-  }
+  auto series = analyzers::read_log_series(log, "ESTIMATOR_STATUS");
+  if (!series || series->estimators.empty()) return out;
+  const analyzers::EstimatorSeries& s = series->estimators.front();
+  if (s.inputs.empty() || s.inputs[0] != "imu" || s.t.empty()) return out;
+  out.future = s.future[0].back();
+  out.rejected = s.stale[0].back() + s.future[0].back() + s.late[0].back();
+  out.received = out.rejected + s.fused[0].back() + s.outliers[0].back();
   return out;
 }
 
