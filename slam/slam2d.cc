@@ -572,6 +572,7 @@ ModuleCounters Slam2d::counters() const {
                                        {"loop_rejected_goodness", static_cast<double>(s.loop_rejected_goodness)},
                                        {"loop_rejected_unique", static_cast<double>(s.loop_rejected_unique)},
                                        {"loop_rejected_chi2", static_cast<double>(s.loop_rejected_chi2)},
+                                       {"loop_undone", static_cast<double>(s.loop_undone)},
                                        {"loop_unconfirmed", static_cast<double>(s.loop_pending)},
                                        {"optimisations", static_cast<double>(s.optimisations)}});
   }

@@ -95,6 +95,24 @@ void PoseGraph2d::optimise(int max_iterations) {
   ceres::Solve(o, &problem_->problem, &summary);
 }
 
+std::vector<size_t> PoseGraph2d::remove_contradicted(const std::vector<size_t>& candidates, double max_chi2,
+                                                     int max_iterations) {
+  std::vector<size_t> removed;
+  while (true) {
+    size_t worst = edges_.size();
+    double worst_chi2 = max_chi2;
+    for (size_t id : candidates) {
+      if (edges_[id]->id == nullptr) continue;
+      const double chi2 = edge_chi2(id);
+      if (chi2 > worst_chi2) worst = id, worst_chi2 = chi2;
+    }
+    if (worst == edges_.size()) return removed;
+    remove_edge(worst);
+    removed.push_back(worst);
+    optimise(max_iterations);
+  }
+}
+
 double PoseGraph2d::edge_chi2(size_t id) const {
   const Edge& e = *edges_[id];
   double r[3];

@@ -378,9 +378,11 @@ bool ScanGraph::add_loops(const std::vector<LoopEdge>& loops) {
       return false;
     }
   }
-  for (const auto& l : loops) {
+  for (size_t i = 0; i < loops.size(); ++i) {
+    const auto& l = loops[i];
     adjacency_[l.j].push_back({static_cast<uint32_t>(l.k), l.measured.norm()});
     adjacency_[l.k].push_back({static_cast<uint32_t>(l.j), l.measured.norm()});
+    closures_.push_back({l.j, l.k, edges[i]});
     ++stats_.loop_closures;
   }
   return true;
@@ -390,6 +392,19 @@ void ScanGraph::finish() {
   if (stats_.loop_closures == 0) return;
   ++stats_.optimisations;
   graph_.optimise(100);
+  // With every closure in, one the rest of the graph contradicts is undone (worst first), as each one was refused
+  // when it came in if the graph of then contradicted it. Only at the end: undoing during the run, when the graph
+  // has fewer closures to judge by, took out right ones (MIT CSAIL went from 0.034 to 0.49 m).
+  std::vector<size_t> edges;
+  for (const auto& c : closures_) edges.push_back(c.edge);
+  for (size_t e : graph_.remove_contradicted(edges, o_.loop_max_chi2, 100)) {
+    const auto& c = *std::find_if(closures_.begin(), closures_.end(), [&](const Closure& x) { return x.edge == e; });
+    std::erase_if(adjacency_[c.j], [&](const auto& n) { return n.first == c.k; });
+    std::erase_if(adjacency_[c.k], [&](const auto& n) { return n.first == c.j; });
+    ++stats_.loop_undone;
+    --stats_.loop_closures;
+    ++stats_.optimisations;
+  }
 }
 
 std::vector<std::pair<int64_t, CPose2D>> ScanGraph::trajectory() const {

@@ -79,7 +79,7 @@ struct ScanGraphOptions {
 struct ScanGraphStats {
   int64_t scans = 0, matched = 0, unmatched = 0, still = 0, keyframes = 0;
   int64_t loop_tests = 0, loop_closures = 0, loop_rejected_goodness = 0, loop_rejected_unique = 0,
-          loop_rejected_chi2 = 0, loop_pending = 0, optimisations = 0;
+          loop_rejected_chi2 = 0, loop_undone = 0, loop_pending = 0, optimisations = 0;
 };
 
 class ScanGraph {
@@ -120,6 +120,9 @@ class ScanGraph {
     mrpt::poses::CPose2D measured;  ///< k seen from j
     PoseGraph2d::Information information;
   };
+  struct Closure {
+    size_t j, k, edge;  ///< old and current keyframe, the edge in the graph
+  };
   void add_keyframe(int64_t stamp, const mrpt::obs::CObservation2DRangeScan::Ptr& scan,
                     const mrpt::maps::CSimplePointsMap& points, const mrpt::poses::CPose2D& pose);
   void rebuild_local_map();
@@ -142,6 +145,7 @@ class ScanGraph {
   mrpt::poses::CPose2D matched_;   ///< ... and its pose in that keyframe's frame
   std::optional<mrpt::poses::CPose2D> last_odometry_;
   std::vector<LoopEdge> pending_;  ///< large corrections waiting for a second match
+  std::vector<Closure> closures_;  ///< every loop edge accepted
   ScanGraphStats stats_;
 };
 
