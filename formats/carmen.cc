@@ -68,7 +68,7 @@ std::string more_than_given(double count, const char* what, size_t numbers) {
 }
 
 quaternion_t yaw_quaternion(double yaw) {
-  quaternion_t q;
+  quaternion_t q{};
   q.w = std::cos(yaw / 2);
   q.x = q.y = 0;
   q.z = std::sin(yaw / 2);
@@ -305,13 +305,13 @@ int64_t CarmenReader::read(const std::function<void(const CarmenMessage&)>& on_m
     ++messages;
   };
   auto write_tf = [&](size_t line, int64_t stamp, int64_t log_utime) {
-    tf_t tf;
+    tf_t tf{};
     tf.header.utime = stamp;
     tf.header.frame_id = "base_link";
     for (const auto& [frame, offset, yaw] :
          {std::tuple{"laser", pre.param("robot_frontlaser_offset").value_or(0), 0.0},
           std::tuple{"rear_laser", pre.param("robot_rearlaser_offset").value_or(0), std::numbers::pi}}) {
-      transform_t x;
+      transform_t x{};
       x.header.utime = stamp;
       x.header.frame_id = "base_link";
       x.child_frame_id = frame;

@@ -82,12 +82,12 @@ class Exporter {
 
   Status event(const Event& e) {
     if (e.channel == "FOREIGN_SCHEMAS") {
-      foreign_schema_t s;
+      foreign_schema_t s{};
       if (lcmtypes::decode(e.data, s)) foreign_[s.channel] = {s.type, s.encoding, s.definition};
       return {};
     }
     if (e.channel == lcmtypes::kChannelSources) {  // an import's word on a channel: kept in its MCAP channel's metadata
-      channel_source_t s;
+      channel_source_t s{};
       if (lcmtypes::decode(e.data, s)) sources_[s.channel] = std::move(s);
       return {};
     }
@@ -116,49 +116,49 @@ class Exporter {
       return write(e, f.type, f.encoding, schema_kind, definition, {f.data.data(), f.data.size()}, log_ns, -1, type);
     };
     if (t == "driftlab.foreign_message_t") {
-      foreign_message_t f;
+      foreign_message_t f{};
       if (!lcmtypes::decode(e.data, f)) return malformed(e);
       return carried(f);
     }
     if (t == "driftlab.stamped_foreign_message_t") {
-      stamped_foreign_message_t f;
+      stamped_foreign_message_t f{};
       if (!lcmtypes::decode(e.data, f)) return malformed(e);
       return carried(f);
     }
     if (t == "driftlab.laser_scan_t") {
-      laser_scan_t m;
+      laser_scan_t m{};
       if (decode(m)) laser_scan(cdr_, m);
     } else if (t == "driftlab.imu_t") {
-      imu_t m;
+      imu_t m{};
       if (decode(m)) imu(cdr_, m);
     } else if (t == "driftlab.odometry_t") {
-      odometry_t m;
+      odometry_t m{};
       if (decode(m)) odometry(cdr_, m);
     } else if (t == "driftlab.pose_t") {
-      pose_t m;
+      pose_t m{};
       if (decode(m)) pose(cdr_, m);
     } else if (t == "driftlab.tf_t") {
-      tf_t m;
+      tf_t m{};
       if (decode(m)) tf(cdr_, m);
     } else if (t == "driftlab.velocity_command_t") {
-      velocity_command_t m;
+      velocity_command_t m{};
       if (decode(m)) twist(cdr_, m);
     } else if (t == "driftlab.joint_state_t") {
-      joint_state_t m;
+      joint_state_t m{};
       if (decode(m)) joint_state(cdr_, m);
     } else if (t == "driftlab.gnss_t") {
-      gnss_t m;
+      gnss_t m{};
       if (decode(m)) nav_sat_fix(cdr_, m);
     } else if (t == "driftlab.magnetometer_t") {
-      magnetometer_t m;
+      magnetometer_t m{};
       if (decode(m)) magnetic_field(cdr_, m);
     } else if (t == "driftlab.barometer_t") {
-      barometer_t m;
+      barometer_t m{};
       if (decode(m)) fluid_pressure(cdr_, m);
     } else if (t == "driftlab.point_cloud_t") {
       return point_cloud_direct(e, log_ns, type);
     } else if (t == "driftlab.image_t") {
-      image_t m;
+      image_t m{};
       if (decode(m)) {
         if (compressed(m)) {
           compressed_image(cdr_, m);
@@ -227,7 +227,7 @@ class Exporter {
       p += 8;
       return __builtin_bswap64(v);
     };
-    header_t h;
+    header_t h{};
     h.seq = static_cast<int64_t>(be64());
     h.utime = static_cast<int64_t>(be64());
     const uint32_t frame_len = be32();  // with its NUL

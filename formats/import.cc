@@ -173,7 +173,7 @@ class Importer {
   /// rosbag2 writes 0 for every message; one whose sequence starts later at 0 and then counts is taken so too).
   bool describe(int64_t utime, std::string_view channel, std::string_view source_type, lcmtypes::SeqOrigin origin) {
     if (!sources_.emplace(channel).second) return status_.ok();
-    channel_source_t s;
+    channel_source_t s{};
     s.channel = lcm_text(channel);
     s.source_type = lcm_text(source_type);
     s.seq_origin = static_cast<int8_t>(origin);
@@ -271,7 +271,7 @@ class Importer {
         return;
       }
     }
-    header_t header;
+    header_t header{};
     bool has_seq = false;
     // A checked message holds its header; read_leading_header cannot fail on one.
     if (st.clock) {
@@ -291,7 +291,7 @@ class Importer {
       return;
     }
     if (!st.schema_written) {
-      foreign_schema_t s;
+      foreign_schema_t s{};
       s.channel = std::string(m.topic);
       s.type = lcm_text(m.type);
       s.encoding = lcm_text(m.encoding);
@@ -301,7 +301,7 @@ class Importer {
     }
     bool written = false;
     if (st.stamped) {
-      stamped_foreign_message_t f;
+      stamped_foreign_message_t f{};
       f.header = std::move(header);
       f.type = lcm_text(m.type);
       f.encoding = lcm_text(m.encoding);
@@ -309,7 +309,7 @@ class Importer {
       f.size = static_cast<int32_t>(f.data.size());
       written = write(m.arrival_us, m.topic, encode(f));
     } else {
-      foreign_message_t f;
+      foreign_message_t f{};
       f.type = lcm_text(m.type);
       f.encoding = lcm_text(m.encoding);
       f.data.assign(payload.begin(), payload.end());
@@ -592,7 +592,7 @@ Status import_ulog(const std::string& path, Importer& out) {
       }
       if (const auto tie = c.converter->gnss_utc(d.payload, d.timestamp)) {
         Channel& u = records[kUlogUtcChannel];
-        timesync_status_t ts;
+        timesync_status_t ts{};
         ts.header.seq = u.count;
         ts.header.utime = tie->boot_us;
         ts.header.frame_id = c.name;
@@ -608,7 +608,7 @@ Status import_ulog(const std::string& path, Importer& out) {
     }
     TopicCount& tc = topic(c, s, "driftlab.foreign_message_t");
     if (!c.schema_written) {
-      foreign_schema_t fs;
+      foreign_schema_t fs{};
       fs.channel = c.name;
       fs.type = s.name;
       fs.encoding = "ulog";
@@ -630,7 +630,7 @@ Status import_ulog(const std::string& path, Importer& out) {
   };
   cb.logged = [&](const UlogLogged& l) {
     Channel& c = records[kUlogLog];
-    log_text_t m;
+    log_text_t m{};
     m.header.seq = c.count;
     m.header.utime = ulog_utime(l.timestamp);
     m.level = l.level >= '0' && l.level <= '9' ? l.level - '0' : l.level;
@@ -644,7 +644,7 @@ Status import_ulog(const std::string& path, Importer& out) {
   cb.value = [&](const UlogValue& v) {
     const char* channel = v.kind == 'I' || v.kind == 'M' ? kUlogInfo : kUlogParams;
     Channel& c = records[channel];
-    parameter_t m;
+    parameter_t m{};
     m.header.seq = c.count;
     m.header.utime = ulog_utime(v.time);
     m.name = std::string(v.key.substr(0, v.key.find('\0')));
@@ -660,7 +660,7 @@ Status import_ulog(const std::string& path, Importer& out) {
   };
   cb.dropout = [&](const UlogDropout& d) {
     Channel& c = records[kUlogDropouts];
-    dropout_t m;
+    dropout_t m{};
     m.header.seq = c.count;
     m.header.utime = ulog_utime(d.timestamp);
     m.duration_us = int64_t{d.duration_ms} * 1000;

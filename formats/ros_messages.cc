@@ -76,7 +76,7 @@ struct Decoded {
 using Convert = std::vector<uint8_t> (*)(Reader&, Serialization, int64_t unstamped, int64_t* stamp, bool* has_seq);
 
 std::vector<uint8_t> laser_scan(Reader& r, Serialization s, int64_t, int64_t* stamp, bool* has_seq) {
-  laser_scan_t m;
+  laser_scan_t m{};
   header(r, s, m.header, has_seq);
   m.angle_min = r.get<float>();
   m.angle_max = r.get<float>();
@@ -96,7 +96,7 @@ std::vector<uint8_t> laser_scan(Reader& r, Serialization s, int64_t, int64_t* st
 }
 
 std::vector<uint8_t> imu(Reader& r, Serialization s, int64_t, int64_t* stamp, bool* has_seq) {
-  imu_t m;
+  imu_t m{};
   header(r, s, m.header, has_seq);
   quaternion(r, m.orientation);
   r.get(m.orientation_covariance, 9);
@@ -109,7 +109,7 @@ std::vector<uint8_t> imu(Reader& r, Serialization s, int64_t, int64_t* stamp, bo
 }
 
 std::vector<uint8_t> odometry(Reader& r, Serialization s, int64_t, int64_t* stamp, bool* has_seq) {
-  odometry_t m;
+  odometry_t m{};
   header(r, s, m.header, has_seq);
   m.child_frame_id = lcm_string(r);
   vector3(r, m.position);
@@ -123,7 +123,7 @@ std::vector<uint8_t> odometry(Reader& r, Serialization s, int64_t, int64_t* stam
 }
 
 pose_t stamped_pose(Reader& r, Serialization s, bool* has_seq) {
-  pose_t m;
+  pose_t m{};
   header(r, s, m.header, has_seq);
   vector3(r, m.position);
   quaternion(r, m.orientation);
@@ -151,7 +151,7 @@ void transform_stamped(Reader& r, Serialization s, transform_t& t, bool* has_seq
 }
 
 std::vector<uint8_t> transform(Reader& r, Serialization s, int64_t, int64_t* stamp, bool* has_seq) {
-  tf_t m;
+  tf_t m{};
   m.ntransforms = 1;
   m.transforms.resize(1);
   transform_stamped(r, s, m.transforms[0], has_seq);
@@ -163,7 +163,7 @@ std::vector<uint8_t> transform(Reader& r, Serialization s, int64_t, int64_t* sta
 /// tf2_msgs/TFMessage: a batch without a header of its own; the batch is stamped with its newest transform
 /// (what a TF listener sees as the batch's time) and numbered by the caller, as no sequence travels with it.
 std::vector<uint8_t> tf_message(Reader& r, Serialization s, int64_t unstamped, int64_t* stamp, bool*) {
-  tf_t m;
+  tf_t m{};
   // Each transform: at least a header (ROS 1: 12 bytes + frame), a child frame and 7 doubles.
   m.ntransforms = static_cast<int32_t>(r.count(64));
   m.transforms.resize(static_cast<size_t>(m.ntransforms));
@@ -181,7 +181,7 @@ std::vector<uint8_t> tf_message(Reader& r, Serialization s, int64_t unstamped, i
 }
 
 std::vector<uint8_t> twist_stamped(Reader& r, Serialization s, int64_t, int64_t* stamp, bool* has_seq) {
-  velocity_command_t m;
+  velocity_command_t m{};
   header(r, s, m.header, has_seq);
   vector3(r, m.linear);
   vector3(r, m.angular);
@@ -191,7 +191,7 @@ std::vector<uint8_t> twist_stamped(Reader& r, Serialization s, int64_t, int64_t*
 
 /// geometry_msgs/Twist carries no stamp: header.utime is its arrival, so its latency reads as zero.
 std::vector<uint8_t> twist(Reader& r, Serialization, int64_t unstamped, int64_t* stamp, bool*) {
-  velocity_command_t m;
+  velocity_command_t m{};
   m.header.seq = r.fallback_seq;
   m.header.utime = unstamped;
   vector3(r, m.linear);
@@ -201,7 +201,7 @@ std::vector<uint8_t> twist(Reader& r, Serialization, int64_t unstamped, int64_t*
 }
 
 std::vector<uint8_t> joint_state(Reader& r, Serialization s, int64_t, int64_t* stamp, bool* has_seq) {
-  joint_state_t m;
+  joint_state_t m{};
   header(r, s, m.header, has_seq);
   const uint32_t n = r.count(4);
   m.name.resize(n);
@@ -266,7 +266,7 @@ void trajectory_body(Reader& r, joint_trajectory_t& m) {
 /// trajectory_msgs/JointTrajectory. A zero stamp tells a controller to start the trajectory when it arrives
 /// (ROS's joint trajectory controllers): header.utime is then its arrival, as driftlab's joint_trajectory_t says.
 std::vector<uint8_t> joint_trajectory(Reader& r, Serialization s, int64_t unstamped, int64_t* stamp, bool* has_seq) {
-  joint_trajectory_t m;
+  joint_trajectory_t m{};
   header(r, s, m.header, has_seq);
   if (m.header.utime == 0) m.header.utime = unstamped;
   trajectory_body(r, m);
@@ -279,7 +279,7 @@ std::vector<uint8_t> joint_trajectory(Reader& r, Serialization s, int64_t unstam
 /// tolerances read past.
 std::vector<uint8_t> follow_joint_trajectory_goal(Reader& r, Serialization s, int64_t unstamped, int64_t* stamp,
                                                   bool* has_seq) {
-  joint_trajectory_t m;
+  joint_trajectory_t m{};
   header(r, s, m.header, has_seq);
   const header_t action = m.header;
   r.time_us();  // goal_id.stamp
@@ -312,7 +312,7 @@ std::vector<uint8_t> follow_joint_trajectory_goal(Reader& r, Serialization s, in
 /// holding its position desires no velocity.
 std::vector<uint8_t> joint_trajectory_controller_state(Reader& r, Serialization s, int64_t, int64_t* stamp,
                                                        bool* has_seq) {
-  joint_trajectory_state_t m;
+  joint_trajectory_state_t m{};
   header(r, s, m.header, has_seq);
   const uint32_t n = r.count(4);
   m.joint_names.resize(n);
@@ -345,7 +345,7 @@ std::vector<uint8_t> joint_trajectory_controller_state(Reader& r, Serialization 
 
 /// mavros_msgs/TimesyncStatus: MAVROS's estimate of the flight controller's clock against the companion's.
 std::vector<uint8_t> timesync_status(Reader& r, Serialization s, int64_t, int64_t* stamp, bool* has_seq) {
-  timesync_status_t m;
+  timesync_status_t m{};
   header(r, s, m.header, has_seq);
   m.remote_utime = static_cast<int64_t>(r.get<uint64_t>() / 1000);
   m.observed_offset_s = static_cast<double>(r.get<int64_t>()) * 1e-9;
@@ -358,7 +358,7 @@ std::vector<uint8_t> timesync_status(Reader& r, Serialization s, int64_t, int64_
 /// sensor_msgs/Image: rows copied without their padding (driftlab images have none). Encodings other than
 /// mono8/rgb8/bgr8 keep ROS's name.
 std::vector<uint8_t> image(Reader& r, Serialization s, int64_t, int64_t* stamp, bool* has_seq) {
-  image_t m;
+  image_t m{};
   header(r, s, m.header, has_seq);
   const uint32_t height = r.get<uint32_t>();
   const uint32_t width = r.get<uint32_t>();
@@ -414,7 +414,7 @@ void image_size(std::span<const uint8_t> d, int32_t* w, int32_t* h) {
 }
 
 std::vector<uint8_t> compressed_image(Reader& r, Serialization s, int64_t, int64_t* stamp, bool* has_seq) {
-  image_t m;
+  image_t m{};
   header(r, s, m.header, has_seq);
   const std::string format = lcm_string(r);
   auto data = r.bytes(r.count(1));
@@ -434,7 +434,7 @@ std::vector<uint8_t> compressed_image(Reader& r, Serialization s, int64_t, int64
 /// it: `time` (float32 seconds after the stamp, Velodyne), `t` (uint32 nanoseconds, Ouster) or `timestamp`
 /// (float64 seconds since the epoch, Hesai and Livox).
 std::vector<uint8_t> point_cloud2(Reader& r, Serialization s, int64_t, int64_t* stamp, bool* has_seq) {
-  point_cloud_t m;
+  point_cloud_t m{};
   header(r, s, m.header, has_seq);
   const uint32_t height = r.get<uint32_t>();
   const uint32_t width = r.get<uint32_t>();
@@ -604,7 +604,7 @@ std::vector<uint8_t> point_cloud2(Reader& r, Serialization s, int64_t, int64_t* 
 /// root mean square of the east and north ones). NavSatFix says nothing of velocity or satellites: the velocity and
 /// its accuracy are NaN (not measured), the satellite count 0 (not given).
 std::vector<uint8_t> nav_sat_fix(Reader& r, Serialization s, int64_t, int64_t* stamp, bool* has_seq) {
-  gnss_t m;
+  gnss_t m{};
   header(r, s, m.header, has_seq);
   const auto status = r.get<int8_t>();
   r.get<uint16_t>();  // service: which constellations
@@ -628,7 +628,7 @@ std::vector<uint8_t> nav_sat_fix(Reader& r, Serialization s, int64_t, int64_t* s
 
 /// sensor_msgs/MagneticField: the same fields as magnetometer_t (tesla, row-major covariance).
 std::vector<uint8_t> magnetic_field(Reader& r, Serialization s, int64_t, int64_t* stamp, bool* has_seq) {
-  magnetometer_t m;
+  magnetometer_t m{};
   header(r, s, m.header, has_seq);
   vector3(r, m.magnetic_field);
   r.get(m.magnetic_field_covariance, 9);
@@ -639,7 +639,7 @@ std::vector<uint8_t> magnetic_field(Reader& r, Serialization s, int64_t, int64_t
 /// sensor_msgs/FluidPressure (a barometer's static pressure, Pa; variance 0: not given). It carries no temperature:
 /// NaN (not measured).
 std::vector<uint8_t> fluid_pressure(Reader& r, Serialization s, int64_t, int64_t* stamp, bool* has_seq) {
-  barometer_t m;
+  barometer_t m{};
   header(r, s, m.header, has_seq);
   m.pressure_pa = r.get<double>();
   m.pressure_variance = r.get<double>();

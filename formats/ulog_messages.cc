@@ -66,7 +66,7 @@ bool has(const Fields& l, const char* name, uint32_t count = 0) {
 /// An imu_t of a PX4 IMU topic: no orientation (PX4's IMU topics carry none), stamped when sampled, in PX4's body
 /// frame (forward, right, down); the caller sets its rates and accelerations.
 imu_t bare_imu(const Fields& l, std::span<const uint8_t> p, uint64_t timestamp, int64_t seq) {
-  imu_t m;
+  imu_t m{};
   m.header.seq = seq;
   m.header.utime = sample_time(l, p, timestamp);
   m.header.frame_id = "body_frd";
@@ -121,7 +121,7 @@ const char* vehicle_imu(const Fields& l, std::span<const uint8_t> p, uint64_t ti
 const char* barometer(const Fields& l, std::span<const uint8_t> p, uint64_t timestamp, int64_t seq,
                       std::vector<uint8_t>* out) {
   if (!has(l, "pressure")) return nullptr;
-  barometer_t m;
+  barometer_t m{};
   m.header.seq = seq;
   m.header.utime = sample_time(l, p, timestamp);
   m.header.frame_id = "baro";
@@ -136,7 +136,7 @@ const char* barometer(const Fields& l, std::span<const uint8_t> p, uint64_t time
 /// tesla are 1e-4 of them.
 const char* magnetometer(const Fields& l, std::span<const uint8_t> p, uint64_t timestamp, int64_t seq,
                          std::vector<uint8_t>* out) {
-  magnetometer_t m;
+  magnetometer_t m{};
   if (has(l, "magnetometer_ga", 3)) {
     m.header.frame_id = "body_frd";
     m.magnetic_field.x = l.number(p, "magnetometer_ga", 0) * 1e-4;
@@ -158,7 +158,7 @@ const char* magnetometer(const Fields& l, std::span<const uint8_t> p, uint64_t t
 
 const char* gnss(const Fields& l, std::span<const uint8_t> p, uint64_t timestamp, int64_t seq,
                  std::vector<uint8_t>* out) {
-  gnss_t m;
+  gnss_t m{};
   if (has(l, "latitude_deg") && has(l, "longitude_deg") && has(l, "altitude_msl_m")) {
     // PX4 1.14 and later: degrees and metres as doubles.
     m.latitude_deg = l.number(p, "latitude_deg");
@@ -197,7 +197,7 @@ const char* local_position(const Fields& l, std::span<const uint8_t> p, uint64_t
   for (const char* f : {"x", "y", "z", "vx", "vy", "vz"})
     if (!has(l, f)) return nullptr;
   if (!heading) return nullptr;
-  odometry_t m;
+  odometry_t m{};
   m.header.seq = seq;
   m.header.utime = sample_time(l, p, timestamp);
   m.header.frame_id = "local_ned";  // PX4's local frame: north, east, down from its origin
@@ -232,7 +232,7 @@ const char* local_position(const Fields& l, std::span<const uint8_t> p, uint64_t
 const char* attitude(const Fields& l, std::span<const uint8_t> p, uint64_t timestamp, int64_t seq,
                      std::vector<uint8_t>* out) {
   if (!has(l, "q", 4)) return nullptr;
-  pose_t m;
+  pose_t m{};
   m.header.seq = seq;
   m.header.utime = sample_time(l, p, timestamp);
   m.header.frame_id = "local_ned";
@@ -282,7 +282,7 @@ const char* odometry(const Fields& l, std::span<const uint8_t> p, uint64_t times
   const bool v1_14 = has(l, "pose_frame");
   if (!v1_14 && !has(l, "local_frame")) return nullptr;
   const double pose_frame = l.number(p, v1_14 ? "pose_frame" : "local_frame");
-  odometry_t m;
+  odometry_t m{};
   m.header.seq = seq;
   m.header.utime = sample_time(l, p, timestamp);
   // Which local frame: north-east-down, or forward-right-down (x along the heading PX4 started with).
@@ -345,7 +345,7 @@ const char* motors(const Fields& l, std::span<const uint8_t> p, uint64_t timesta
                    std::vector<uint8_t>* out) {
   const UlogLayout::Field* f = l.find("control");
   if (!f || f->count == 0 || f->type != UlogType::kFloat) return nullptr;
-  motor_command_t m;
+  motor_command_t m{};
   m.header.seq = seq;
   m.header.utime = sample_time(l, p, timestamp);
   m.header.frame_id = "base_link";
@@ -372,7 +372,7 @@ const char* setpoint(const Fields& l, std::span<const uint8_t> p, uint64_t times
   const auto velocity = vector3(l, p, "velocity", {"vx", "vy", "vz"});
   const auto acceleration = vector3(l, p, "acceleration", {"acc_x", "acc_y", "acc_z"});
   if (!position || !velocity || !acceleration || !has(l, "yaw")) return nullptr;
-  trajectory_setpoint_t m;
+  trajectory_setpoint_t m{};
   m.header.seq = seq;
   m.header.utime = sample_time(l, p, timestamp);
   m.header.frame_id = "local_ned";
@@ -425,7 +425,7 @@ const char* nav_state_name(double s) {
 const char* status(const Fields& l, std::span<const uint8_t> p, uint64_t timestamp, int64_t seq,
                    std::vector<uint8_t>* out) {
   if (!has(l, "arming_state") || !has(l, "nav_state")) return nullptr;
-  vehicle_status_t m;
+  vehicle_status_t m{};
   m.header.seq = seq;
   m.header.utime = sample_time(l, p, timestamp);
   m.header.frame_id = "base_link";
@@ -449,7 +449,7 @@ const char* timesync(const Fields& l, std::span<const uint8_t> p, uint64_t times
                      std::vector<uint8_t>* out) {
   for (const char* f : {"remote_timestamp", "observed_offset", "estimated_offset", "round_trip_time"})
     if (!has(l, f)) return nullptr;
-  timesync_status_t m;
+  timesync_status_t m{};
   m.header.seq = seq;
   m.header.utime = ulog_utime(timestamp);
   m.header.frame_id = "";
