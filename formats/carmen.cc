@@ -30,6 +30,7 @@
 #include "driftlab/tf_t.hpp"
 #include "formats/compression.h"
 #include "lcmtypes/encode.h"
+#include "lcmtypes/planar.h"
 
 namespace driftlab::formats {
 namespace {
@@ -65,14 +66,6 @@ std::string more_than_given(double count, const char* what, size_t numbers) {
   char text[32];
   const auto end = std::to_chars(text, text + sizeof text, count).ptr;
   return std::string(text, end) + " " + what + " announced, " + std::to_string(numbers) + " numbers on the line";
-}
-
-quaternion_t yaw_quaternion(double yaw) {
-  quaternion_t q{};
-  q.w = std::cos(yaw / 2);
-  q.x = q.y = 0;
-  q.z = std::sin(yaw / 2);
-  return q;
 }
 
 /// The largest magnitude of a time in seconds that whole microseconds in int64_t hold.

@@ -227,10 +227,15 @@ struct Slam2d::Impl {
   int64_t reorder = 0;
   bool pose_stream = false;  ///< the odometry came as driftlab.pose_t
 
+  /// Whether a scan stamp is within the first second of the first scan's (or before it).
+  bool in_first_second(int64_t stamp) const {
+    return stamp < first_scan ||  // uint64_t: hostile stamps must not overflow
+           static_cast<uint64_t>(stamp) - static_cast<uint64_t>(first_scan) < 1000000;
+  }
+
   /// Matches one scan (method graph) and publishes its pose.
   void process(Bus& bus, int64_t stamp, const mrpt::obs::CObservation2DRangeScan::Ptr& obs) {
-    if (!c.odom_channel.empty() && (odom.empty() || stamp < first_odometry) &&
-        (stamp < first_scan || static_cast<uint64_t>(stamp) - static_cast<uint64_t>(first_scan) < 1000000)) {
+    if (!c.odom_channel.empty() && (odom.empty() || stamp < first_odometry) && in_first_second(stamp)) {
       --scans;  // before the odometry, in the first second: left out (the map starts where the odometry does)
       ++before_odometry;
       return;
@@ -364,11 +369,9 @@ Status Slam2d::start(Bus& bus) {
     // With odometry configured, the map starts where the odometry does (as icp-slam starts at its first
     // odometry/scan pair): scans in the first second before any odometry are counted and left out.
     if (d.first_scan < 0) d.first_scan = scan.header.utime;
-    const bool first_second = scan.header.utime < d.first_scan ||  // uint64_t: hostile stamps must not overflow
-                              static_cast<uint64_t>(scan.header.utime) - static_cast<uint64_t>(d.first_scan) < 1000000;
     // (Method graph: the scan waits for the odometry at its stamp like any other, and process() decides: a pose
     // that rides on its scan, as a CARMEN log's laser lines carry theirs, comes just after it.)
-    if (!d.graph && !d.c.odom_channel.empty() && d.odom.empty() && first_second) {
+    if (!d.graph && !d.c.odom_channel.empty() && d.odom.empty() && d.in_first_second(scan.header.utime)) {
       ++d.before_odometry;
       return;
     }
