@@ -1,6 +1,8 @@
 #include "analyzers/clock_corrections.h"
 
 #include <cstdio>
+#include <cstdlib>
+#include <optional>
 
 namespace driftlab::analyzers {
 
@@ -60,6 +62,49 @@ std::map<std::string, Duration> command_retiming(const Diagnosis& d, std::vector
     if (notes != nullptr) notes->push_back(buf);
   }
   return out;
+}
+
+Result<CorrectionPlan> plan_corrections(const std::vector<std::string>& logs, bool clocks_from_diagnosis,
+                                        const std::vector<std::string>& retime) {
+  CorrectionPlan plan;
+  std::vector<std::optional<Diagnosis>> diagnoses(logs.size());
+  auto diagnosed = [&](size_t i) -> Result<const Diagnosis*> {
+    if (!diagnoses[i]) {
+      auto d = diagnose(logs[i]);
+      if (!d) return d.error();
+      diagnoses[i] = std::move(*d);
+    }
+    return &*diagnoses[i];
+  };
+  if (clocks_from_diagnosis) {
+    for (size_t i = 0; i < logs.size(); ++i) {
+      auto d = diagnosed(i);
+      if (!d) return d.error();
+      plan.clocks.merge(clock_corrections(**d, &plan.notes));
+    }
+  }
+  for (const std::string& r : retime) {
+    if (r == "auto") {
+      for (size_t i = 0; i < logs.size(); ++i) {
+        auto d = diagnosed(i);
+        if (!d) return d.error();
+        for (const auto& [channel, delay] : command_retiming(**d, &plan.notes)) plan.retime[channel] = delay;
+      }
+      continue;
+    }
+    const auto eq = r.find('=');
+    char* end = nullptr;
+    const double s = eq == std::string::npos ? 0 : std::strtod(r.c_str() + eq + 1, &end);
+    if (eq == std::string::npos || eq == 0 || end == r.c_str() + eq + 1 || *end != '\0' || !(s >= 0 && s <= 3600)) {
+      return Error{"--retime " + r + ": expected auto or CHANNEL=SECONDS (0..3600)"};
+    }
+    plan.retime[r.substr(0, eq)] = Duration::from_seconds_rounded(s);
+    char seconds[32];
+    std::snprintf(seconds, sizeof(seconds), "%g", s);
+    plan.notes.push_back("retime " + r.substr(0, eq) + ": each command starts " + seconds +
+                         " s before it arrived (--retime)");
+  }
+  return plan;
 }
 
 }  // namespace driftlab::analyzers

@@ -8,6 +8,7 @@
 
 #include "analyzers/timing.h"
 #include "core/clock_correction.h"
+#include "core/result.h"
 #include "core/time.h"
 
 namespace driftlab::analyzers {
@@ -34,5 +35,19 @@ std::map<std::string, Duration> command_retiming(const Diagnosis& d, std::vector
 /// from latency in one log and is left alone), each only where its 95% confidence interval leaves out zero.
 /// `notes` receives one line per correction, saying what and why, and one per correction left out.
 ClockCorrections clock_corrections(const Diagnosis& d, std::vector<std::string>* notes = nullptr);
+
+/// The corrections a replay of these logs is asked for: each log diagnosed once, and only when a correction comes
+/// from its diagnosis.
+struct CorrectionPlan {
+  ClockCorrections clocks;                 ///< by clock_corrections, merged over the logs; empty unless asked
+  std::map<std::string, Duration> retime;  ///< per command channel, the delay taken off each command's arrival
+  std::vector<std::string> notes;          ///< one line per correction made or left out, and why
+};
+
+/// Plans a replay's corrections: with `clocks_from_diagnosis`, the clocks the diagnosis says to correct
+/// (`--restamp auto`); and each `retime` item, "auto" (command_retiming) or "CHANNEL=SECONDS" (0..3600, by hand:
+/// `--retime`). An item of neither form is an error naming it, as is a log that cannot be diagnosed.
+Result<CorrectionPlan> plan_corrections(const std::vector<std::string>& logs, bool clocks_from_diagnosis,
+                                        const std::vector<std::string>& retime);
 
 }  // namespace driftlab::analyzers

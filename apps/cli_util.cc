@@ -37,6 +37,10 @@ int fail(std::string_view message, int code) {
   return code;
 }
 
+int exit_code_for_input(const Error& error) {
+  return error.code == ErrorCode::kCannotWrite ? kExitFailure : kExitBadInput;
+}
+
 Status write_atomically(const std::string& path, std::string_view bytes) {
   // Beside the target, renamed when whole: a failure leaves what PATH held and no partial file.
   const std::string partial = path + ".partial";
@@ -130,47 +134,6 @@ bool split_log_channel(const std::string& src, std::string* log, std::string* ch
   *log = whole.substr(0, colon);
   *channel = whole.substr(colon + 1);
   return true;
-}
-
-namespace {
-/// FNV-1a of a channel's whole name, as 16 hex digits.
-std::string name_hash(std::string_view channel) {
-  uint64_t h = 1469598103934665603ull;
-  for (const char c : channel) h = (h ^ static_cast<unsigned char>(c)) * 1099511628211ull;
-  char buf[20];
-  std::snprintf(buf, sizeof(buf), "%016llx", static_cast<unsigned long long>(h));
-  return buf;
-}
-}  // namespace
-
-std::string channel_file_name(std::string_view channel) {
-  size_t from = 0;
-  while (from < channel.size() && channel[from] == '/') ++from;  // ROS's leading '/': "/tf" -> "tf"
-  std::string out;
-  for (size_t i = from; i < channel.size(); ++i) {
-    const auto c = static_cast<unsigned char>(channel[i]);
-    const bool plain = std::isalnum(c) || c == '_' || c == '-' || (c == '.' && !out.empty());
-    out += plain ? static_cast<char>(c) : '_';
-  }
-  if (out.empty()) out = "channel";  // the empty name, or only slashes
-  constexpr size_t kMax = 200;
-  if (out.size() > kMax) out = out.substr(0, kMax - 17) + "~" + name_hash(channel);
-  return out;
-}
-
-std::string unique_channel_file_name(std::string_view channel, std::set<std::string>* taken) {
-  auto key = [](std::string name) {  // case-insensitive file systems (macOS, Windows) fold "Odom" onto "odom"
-    for (auto& c : name) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-    return name;
-  };
-  std::string name = channel_file_name(channel);
-  if (taken->count(key(name))) {
-    const std::string base = name.substr(0, std::min<size_t>(name.size(), 200 - 17));
-    name = base + "~" + name_hash(channel);
-    for (int n = 2; taken->count(key(name)); ++n) name = base + "~" + name_hash(channel) + "-" + std::to_string(n);
-  }
-  taken->insert(key(name));
-  return name;
 }
 
 std::string short_number(double v) {

@@ -24,6 +24,10 @@ inline constexpr int kExitBadInput = 2;
 /// Prints "driftlab: message" as one line on stderr and returns code.
 int fail(std::string_view message, int code = kExitBadInput);
 
+/// The exit code for an error, by its code: kExitFailure (1) when an output could not be written (the
+/// environment), kExitBadInput (2) otherwise (the input).
+int exit_code_for_input(const Error& error);
+
 /// A command run in-process (the Python module, python/): while one lives on a thread, fail() on that thread keeps
 /// the first message in `error` instead of printing it, and write_output("-") appends to `text` instead of writing
 /// to standard output. Not nested.
@@ -64,17 +68,6 @@ Status run_plot_script(const char* script, const std::string& name, const std::s
 /// Splits "LOG:CHANNEL" at its last ':' when the part before it exists (a file, or a folder: a bag); false (log and
 /// channel untouched) otherwise. Channel names may hold ':' only if the log's name has none after its last one.
 bool split_log_channel(const std::string& src, std::string* log, std::string* channel);
-
-/// A file name a person can read for a channel: leading '/'s dropped, bytes other than [A-Za-z0-9_.-] (and a
-/// leading '.') made '_' ("/tf" -> "tf", "/camera/image_raw" -> "camera_image_raw", "" -> "channel"); names longer
-/// than 200 bytes cut and given a hash of the whole name, within the file system's 255-byte limit. Two channels may
-/// map to one name ("/a/b" and "a_b"): unique_channel_file_name tells them apart.
-std::string channel_file_name(std::string_view channel);
-
-/// channel_file_name, unless another channel took it already (compared without case, as macOS and Windows do):
-/// then "NAME~HASH", HASH 16 hex digits of the whole channel name (FNV-1a): deterministic and collision-free in
-/// the order the channels are given. Adds the name to *taken.
-std::string unique_channel_file_name(std::string_view channel, std::set<std::string>* taken);
 
 /// A number as a person writes it: "2", "0.25", "1e+308" (never 309 digits).
 std::string short_number(double v);

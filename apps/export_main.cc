@@ -2,26 +2,18 @@
 // spreadsheets. (export rawlog lives with import rawlog in rawlog_main.cc.)
 #include <CLI/CLI.hpp>
 
-#include <cerrno>
 #include <cstdio>
-#include <cstring>
 #include <filesystem>
-#include <map>
 #include <memory>
-#include <set>
 
 #include "analyzers/trajectory_io.h"
 #include "apps/cli_checks.h"
 #include "apps/cli_util.h"
 #include "apps/commands.h"
 #include "apps/log_input.h"
-#include "core/log_format.h"
-#include "core/log_reader.h"
 #include "core/same_file.h"
 #include "core/time.h"
-#include "lcmtypes/schema.h"
-#include "lcmtypes/type_registry.h"
-#include "lcmtypes/validate.h"
+#include "formats/export_csv.h"
 
 namespace driftlab::apps {
 namespace {
@@ -39,210 +31,25 @@ struct CsvArgs {
   bool bytes = false;
 };
 
-std::string csv_quote(const std::string& s) {
-  if (s.find_first_of(",\"\n\r") == std::string::npos) return s;
-  std::string q = "\"";
-  for (char c : s) q += c == '"' ? std::string("\"\"") : std::string(1, c);
-  return q + "\"";
-}
-
-/// One channel's CSV, written as OUT/CHANNEL.csv.partial and renamed when the log has been read. Its columns are
-/// the union of its messages' fields, in the order they first appear: a later message with more elements (a
-/// second transform, a longer scan) adds columns, and the rows before it are given empty cells for them when the
-/// file is finished (rewritten once, only then).
-struct CsvFile {
-  FILE* f = nullptr;
-  std::string path;
-  std::map<std::string, size_t> column;  // name -> index
-  std::vector<std::string> names;        // by index
-  size_t header_columns = 0;             // columns in the header written first
-  std::vector<std::string> row;
-  int64_t rows = 0;
-  uint64_t last_use = 0;  // when a row was last written, for closing the file unused longest
-};
-
-void write_header(FILE* f, const std::vector<std::string>& names) {
-  std::fprintf(f, "log_time_s");
-  for (const auto& n : names) std::fprintf(f, ",%s", csv_quote(n).c_str());
-  std::fprintf(f, "\n");
-}
-
-/// Rewrites a finished file whose columns grew after its header: the whole header, and every row padded with
-/// empty cells to its width (a row's cells are never more than the columns known when it was written).
-Status widen(const CsvFile& f) {
-  const std::string from = f.path + ".partial", to = f.path + ".partial2";
-  FILE* in = std::fopen(from.c_str(), "r");
-  if (in == nullptr) return Error{from + ": cannot read back: " + std::strerror(errno)};
-  FILE* out = std::fopen(to.c_str(), "w");
-  if (out == nullptr) {
-    std::fclose(in);
-    return Error{to + ": cannot create: " + std::strerror(errno)};
-  }
-  write_header(out, f.names);
-  const size_t width = f.names.size() + 1;
-  bool header = true, quoted = false;
-  size_t cells = 1;
-  for (int c; (c = std::fgetc(in)) != EOF;) {
-    if (c == '"') quoted = !quoted;  // "" inside a quoted cell toggles twice
-    if (!quoted && c == ',') ++cells;
-    if (!quoted && c == '\n') {
-      if (!header) {
-        for (; cells < width; ++cells) std::fputc(',', out);
-        std::fputc('\n', out);
-      }
-      header = false;
-      cells = 1;
-      continue;
-    }
-    if (!header) std::fputc(c, out);
-  }
-  const bool read_ok = !std::ferror(in);
-  std::fclose(in);
-  if (std::fclose(out) != 0 || !read_ok) {
-    std::remove(to.c_str());
-    return Error{to + ": write failed (disk full?)"};
-  }
-  std::error_code ec;
-  fs::rename(to, from, ec);
-  if (ec) return Error{from + ": cannot replace: " + ec.message()};
-  return {};
-}
-
 int run_csv(const CsvArgs& a) {
-  ReadOptions ro;
-  ro.channels = a.channels;
-  auto reader = LogReader::open(a.log, ro);
-  if (!reader) return fail(reader.error().message);
-  std::error_code ec;
-  fs::create_directories(a.out, ec);
-  if (ec) return fail(a.out + ": cannot create: " + ec.message());
-  std::map<std::string, CsvFile, std::less<>> files;
-  std::set<std::string> file_names;        // taken, for channels that map to one name
-  std::map<std::string, int64_t> unknown;  // channel -> messages of a type without a definition here
-  std::map<std::string, std::pair<int64_t, std::string>> malformed;  // channel -> count, the first one's problem
-  lcmtypes::FlattenOptions fo;
-  fo.max_array = a.max_array;
-  fo.bytes = a.bytes;
-  auto close_all = [&](bool keep) {
-    for (auto& [name, f] : files) {
-      if (f.f != nullptr) std::fclose(f.f);
-      f.f = nullptr;
-      if (!keep) fs::remove(f.path + ".partial", ec);
-    }
-  };
-  // One file per channel, but not one open file per channel: a log with more channels than the open-file limit
-  // failed ("cannot create", no reason). When the limit is met the file unused longest is closed, and reopened to
-  // append when its channel comes again.
-  uint64_t clock = 0;
-  auto open_file = [&](CsvFile& f, const char* mode) -> Status {
-    for (;;) {
-      f.f = std::fopen((f.path + ".partial").c_str(), mode);
-      if (f.f != nullptr) return {};
-      const int err = errno;
-      CsvFile* oldest = nullptr;
-      for (auto& [name, g] : files) {
-        if (g.f != nullptr && &g != &f && (oldest == nullptr || g.last_use < oldest->last_use)) oldest = &g;
-      }
-      if ((err != EMFILE && err != ENFILE) || oldest == nullptr) {
-        return Error{f.path + ".partial: cannot " + (*mode == 'w' ? "create" : "reopen") + ": " + std::strerror(err)};
-      }
-      const bool ok = std::fclose(oldest->f) == 0;
-      oldest->f = nullptr;
-      if (!ok) return Error{oldest->path + ".partial: write failed (disk full?)"};
-    }
-  };
-  Event e;
-  std::vector<std::pair<std::string, std::string>> values;
-  while (reader->next(e)) {
-    const char* type = lcmtypes::type_name(logfmt::fingerprint(e.data));
-    const lcmtypes::StructDef* def = type != nullptr ? lcmtypes::find_struct(type) : nullptr;
-    if (def == nullptr) {
-      ++unknown[std::string(e.channel)];
-      continue;
-    }
-    if (auto problem = lcmtypes::layout_problem(e.data)) {  // cut short or lying about a length: no row of it
-      auto& [n, first] = malformed[std::string(e.channel)];
-      if (n++ == 0) first = *problem;
-      continue;
-    }
-    values.clear();
-    lcmtypes::flatten(
-        *def, e.data, [&](const std::string& c, const std::string& v) { values.emplace_back(c, v); }, fo);
-    auto it = files.find(e.channel);
-    if (it == files.end()) {
-      CsvFile f;
-      f.path = (fs::path(a.out) / (unique_channel_file_name(e.channel, &file_names) + ".csv")).string();
-      if (Status st = open_file(f, "w"); !st) {
-        close_all(false);
-        return fail(st.message(), kExitFailure);
-      }
-      for (const auto& [c, v] : values) {
-        if (f.column.emplace(c, f.names.size()).second) f.names.push_back(c);
-      }
-      f.header_columns = f.names.size();
-      write_header(f.f, f.names);
-      it = files.emplace(std::string(e.channel), std::move(f)).first;
-    }
-    CsvFile& f = it->second;
-    f.last_use = ++clock;
-    if (f.f == nullptr) {
-      if (Status st = open_file(f, "a"); !st) {
-        close_all(false);
-        return fail(st.message(), kExitFailure);
-      }
-    }
-    for (auto& cell : f.row) cell.clear();
-    for (const auto& [c, v] : values) {
-      auto [k, added] = f.column.emplace(c, f.names.size());
-      if (added) f.names.push_back(c);
-      if (f.row.size() < f.names.size()) f.row.resize(f.names.size());
-      f.row[k->second] = csv_quote(v);
-    }
-    std::fprintf(f.f, "%.6f", Time::from_us(e.utime).seconds());
-    for (const auto& cell : f.row) {
-      std::fputc(',', f.f);
-      std::fputs(cell.c_str(), f.f);
-    }
-    std::fputc('\n', f.f);
-    ++f.rows;
-    if (std::ferror(f.f)) {
-      close_all(false);
-      return fail(f.path + ".partial: write failed (disk full?)", kExitFailure);
-    }
+  auto done = formats::export_csv(
+      {.log = a.log, .out = a.out, .channels = a.channels, .max_array = a.max_array, .bytes = a.bytes});
+  if (!done) return fail(done.error().message, exit_code_for_input(done.error()));
+  for (const auto& f : done->files) {
+    std::printf("%-24s %10s rows  %s\n", f.channel.c_str(), thousands(f.rows).c_str(), f.path.c_str());
   }
-  for (auto& [name, f] : files) {  // all closed first: widen() needs two files open
-    const bool ok = f.f == nullptr || std::fclose(f.f) == 0;
-    f.f = nullptr;
-    if (!ok) {
-      close_all(false);
-      return fail(f.path + ".partial: write failed (disk full?)", kExitFailure);
-    }
-  }
-  for (auto& [name, f] : files) {
-    if (f.names.size() > f.header_columns) {
-      if (Status st = widen(f); !st) {
-        close_all(false);
-        return fail(st.message(), kExitFailure);
-      }
-    }
-    fs::rename(f.path + ".partial", f.path, ec);
-    if (ec) return fail(f.path + ": cannot rename into place: " + ec.message(), kExitFailure);
-  }
-  for (const auto& [name, f] : files) {
-    std::printf("%-24s %10s rows  %s\n", name.c_str(), thousands(f.rows).c_str(), f.path.c_str());
-  }
-  for (const auto& [name, m] : malformed) {
+  for (const auto& [name, m] : done->malformed) {
     std::printf("%-24s %10s malformed messages skipped (first: %s)\n", name.c_str(), thousands(m.first).c_str(),
                 m.second.c_str());
   }
-  for (const auto& [name, n] : unknown) {
+  for (const auto& [name, n] : done->unknown) {
     std::printf("%-24s %10s messages of a type that is not driftlab's: skipped\n", name.c_str(), thousands(n).c_str());
   }
-  if (reader->problems() > 0) {
+  if (done->problems > 0) {
     std::printf("%s: %llu damaged spots skipped (driftlab info lists them)\n", a.log.c_str(),
-                static_cast<unsigned long long>(reader->problems()));
+                static_cast<unsigned long long>(done->problems));
   }
-  if (files.empty()) return fail(a.log + ": no channel of a driftlab type to export");
+  if (done->files.empty()) return fail(a.log + ": no channel of a driftlab type to export");
   return kExitOk;
 }
 

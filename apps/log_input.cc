@@ -282,10 +282,6 @@ Result<std::string> log_for(const std::vector<std::string>& inputs) {
   return cache;
 }
 
-int exit_code_for_input(const Error& error) {
-  return error.code == ErrorCode::kCannotWrite ? kExitFailure : kExitBadInput;
-}
-
 Result<std::string> event_log_for(const std::vector<std::string>& inputs) {
   auto log = log_for(inputs);
   if (!log) return log;

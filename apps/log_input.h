@@ -21,10 +21,6 @@ namespace driftlab::apps {
 /// read-only folder): "INPUT: cannot write its conversion CACHE: why".
 inline constexpr char kCannotWriteConversion[] = ": cannot write its conversion ";
 
-/// The exit code for an error of log_for(), event_log_for() or log_channel_for(): kExitFailure (1) when writing
-/// the conversion failed (the environment), kExitBadInput (2) otherwise (the recording).
-int exit_code_for_input(const Error& error);
-
 /// The help of a command's log argument.
 inline constexpr char kLogInputHelp[] =
     "LCM log, or another tool's recording (a ROS 1 or ROS 2 bag, a bag folder, an MCAP file, a CARMEN log; the files "

@@ -11,7 +11,6 @@
 #include <set>
 
 #include "analyzers/clock_corrections.h"
-#include "analyzers/timing.h"
 #include "apps/cli_checks.h"
 #include "apps/cli_util.h"
 #include "apps/commands.h"
@@ -22,8 +21,8 @@
 #include "core/time.h"
 #include "core/wall_clock.h"
 #include "modules/registry.h"
-#include "replayer/live_runner.h"
 #include "replayer/replayer.h"
+#include "runtime/live_runner.h"
 #include "sim/simulator.h"
 
 namespace driftlab::apps {
@@ -66,18 +65,7 @@ void print_config_help() {
               replay::restamp_file_table().reference().c_str());
 }
 
-/// Clock corrections from the timing diagnosis of each log (analyzers/clock_corrections.h holds the rule).
-Result<replay::Restamp> restamp_from_diagnosis(const std::vector<std::string>& logs, std::vector<std::string>& notes) {
-  replay::Restamp r;
-  for (const auto& log : logs) {
-    auto d = analyzers::diagnose(log);
-    if (!d) return d.error();
-    r.merge(analyzers::clock_corrections(*d, &notes));
-  }
-  return r;
-}
-
-nlohmann::json modules_json(const std::vector<replay::ModuleReport>& reports) {
+nlohmann::json modules_json(const std::vector<runtime::ModuleReport>& reports) {
   nlohmann::json out = nlohmann::json::array();
   for (const auto& m : reports) {
     out.push_back({{"name", m.name},
@@ -96,7 +84,7 @@ nlohmann::json modules_json(const std::vector<replay::ModuleReport>& reports) {
   return out;
 }
 
-void print_modules(const std::vector<replay::ModuleReport>& reports, bool timing) {
+void print_modules(const std::vector<runtime::ModuleReport>& reports, bool timing) {
   for (const auto& m : reports) {
     std::printf("  %-10s %s inputs (%s late, %s out of order, %s dropped), %s outputs", m.name.c_str(),
                 thousands(m.inputs).c_str(), thousands(m.late).c_str(), thousands(m.out_of_order).c_str(),
@@ -174,43 +162,17 @@ int run_closed_loop(const ReplayArgs& a, const ReplayArgs& defaults) {
   const std::string& log = a.logs[0];
   auto scenario = sim::scenario_of_log(log);
   if (!scenario) return fail(scenario.error().message);
-  std::vector<std::string> notes;
   sim::ReceiveCorrections corrections;
-  std::optional<analyzers::Diagnosis> diagnosis;
-  auto diagnosed = [&]() -> Result<const analyzers::Diagnosis*> {
-    if (!diagnosis) {
-      auto d = analyzers::diagnose(log);
-      if (!d) return d.error();
-      diagnosis = std::move(*d);
-    }
-    return &*diagnosis;
-  };
-  if (a.restamp == "auto") {
-    auto d = diagnosed();
-    if (!d) return fail(d.error().message);
-    corrections.clocks = analyzers::clock_corrections(**d, &notes);
-  } else if (!a.restamp.empty()) {
+  if (!a.restamp.empty() && a.restamp != "auto") {
     auto r = replay::load_restamp(a.restamp);
     if (!r) return fail(r.error().message);
     corrections.clocks = std::move(*r);
   }
-  for (const std::string& r : a.retime) {
-    if (r == "auto") {
-      auto d = diagnosed();
-      if (!d) return fail(d.error().message);
-      for (const auto& [channel, delay] : analyzers::command_retiming(**d, &notes)) corrections.retime[channel] = delay;
-      continue;
-    }
-    const auto eq = r.find('=');
-    char* end = nullptr;
-    const double s = eq == std::string::npos ? 0 : std::strtod(r.c_str() + eq + 1, &end);
-    if (eq == std::string::npos || eq == 0 || end == r.c_str() + eq + 1 || *end != '\0' || !(s >= 0 && s <= 3600)) {
-      return fail("--retime " + r + ": expected auto or CHANNEL=SECONDS (0..3600)");
-    }
-    corrections.retime[r.substr(0, eq)] = Duration::from_seconds_rounded(s);
-    notes.push_back("retime " + r.substr(0, eq) + ": each command starts " + short_number(s) +
-                    " s before it arrived (--retime)");
-  }
+  auto plan = analyzers::plan_corrections({log}, a.restamp == "auto", a.retime);
+  if (!plan) return fail(plan.error().message);
+  if (a.restamp == "auto") corrections.clocks = std::move(plan->clocks);
+  corrections.retime = std::move(plan->retime);
+  std::vector<std::string> notes = std::move(plan->notes);
   auto simulation = sim::Simulation::create(*scenario);
   if (!simulation) return fail(simulation.error().message);
   for (const std::string& channel : (*simulation)->recomputed_channels()) {
@@ -304,9 +266,10 @@ int run_replay(ReplayArgs a) {
   }
   std::vector<std::string> notes;
   if (a.restamp == "auto") {
-    auto r = restamp_from_diagnosis(a.logs, notes);
-    if (!r) return fail(r.error().message);
-    o.restamp = std::move(*r);
+    auto plan = analyzers::plan_corrections(a.logs, true, {});
+    if (!plan) return fail(plan.error().message);
+    o.restamp = std::move(plan->clocks);
+    notes = std::move(plan->notes);
   } else if (!a.restamp.empty()) {
     auto r = replay::load_restamp(a.restamp);
     if (!r) return fail(r.error().message);
@@ -412,7 +375,7 @@ int run_live(const RunArgs& a) {
   if (!modules) return fail(modules.error().message);
   if (modules->empty()) return fail("--modules: name at least one module (" + modules::known_modules() + ")");
   const SystemWallClock clock;
-  replay::LiveRunner runner({.url = a.url, .out = a.out, .duration_s = a.duration}, clock);
+  runtime::LiveRunner runner({.url = a.url, .out = a.out, .duration_s = a.duration}, clock);
   for (auto& m : *modules) runner.add_module(std::move(m));
   if (Status s = runner.open(); !s) return fail(s.message());
   struct sigaction sa {};

@@ -13,7 +13,6 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
-#include <fstream>
 #include <map>
 #include <memory>
 #include <sstream>
@@ -26,8 +25,6 @@
 #include "batch/runner.h"
 #include "batch/store.h"
 #include "core/install_layout.h"
-#include "core/log_writer.h"
-#include "core/process.h"
 #include "core/same_file.h"
 #include "core/text_file.h"
 #include "core/wall_clock.h"
@@ -72,33 +69,6 @@ std::string self_path() {
 }
 
 RunnerOptions runner_options() { return {self_path()}; }
-
-/// Asks the replay program whether it accepts a module config: `driftlab replay` with it of a log holding one event
-/// on a channel no module reads (an empty file is not a log, and would be refused before the config is read). Its
-/// one-line error when it names the config file; "" when it does not complain about the config.
-std::string check_config(const std::string& yaml, const std::string& modules) {
-  char tmpl[] = "/tmp/driftlab-sweep-check-XXXXXX";
-  if (::mkdtemp(tmpl) == nullptr) return "";
-  const fs::path tmp(tmpl);
-  const std::string config = (tmp / "replay.yaml").string(), log = (tmp / "empty.lcm").string();
-  std::ofstream(config) << yaml;
-  if (auto w = LogWriter::create(log); w.ok()) {
-    (void)w->write(0, "DRIFTLAB_CONFIG_CHECK", std::string_view());
-    (void)w->close();
-  }
-  const std::string err = (tmp / "err").string();
-  const int code = run_process({self_path(), "replay", log, "--modules", modules, "--config", config, "-o",
-                                (tmp / "out.lcm").string(), "--no-inputs"},
-                               "/dev/null", err);
-  std::string why = code == 0 ? "" : last_line_of(err);
-  std::error_code ec;
-  fs::remove_all(tmp, ec);
-  if (why.find(config) == std::string::npos) return "";
-  if (why.rfind("driftlab: ", 0) == 0) why = why.substr(10);
-  // The temporary file's name means nothing to the user: the spec check names the spec file and key.
-  if (const size_t at = why.find(config); at != std::string::npos) why.replace(at, config.size(), "settings");
-  return why;
-}
 
 int install_stop_handlers() {
   struct sigaction sa {};
@@ -359,7 +329,7 @@ int run_sweep(const SweepArgs& a) {
   auto spec = load_spec(a.spec);
   if (!spec) return fail(spec.error().message);
   if (spec->has(Stage::kReplay)) {
-    if (Status s = validate_module_settings(*spec, [&](const std::string& y) { return check_config(y, spec->modules); }); !s) {
+    if (Status s = validate_module_settings(*spec); !s) {
       return fail(s.message());
     }
   }

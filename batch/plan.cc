@@ -16,6 +16,7 @@
 #include "core/text_file.h"
 #include "faults/faults.h"
 #include "modules/module_table.h"
+#include "modules/settings.h"
 
 namespace driftlab::batch {
 namespace {
@@ -202,7 +203,7 @@ Status check_parameter(const std::string& file, const YAML::Node& node, const Pa
       return Error{here + ": a module setting is addressed as MODULE.KEY (e.g. estimator.window_s)"};
     }
     if (!s.has(Stage::kReplay)) return Error{here + ": module settings need a replay stage"};
-    return {};  // the replay program checks the key and values (validate_module_settings)
+    return {};  // the modules' tables check the key and values (validate_module_settings)
   }
   return Error{here +
                ": unknown parameter (seed, duration, restamp, faults.CHANNEL.FIELD or MODULE.KEY with "
@@ -611,7 +612,7 @@ std::string restamp_of(const Spec& spec, const Point& point) {
   return v != nullptr ? v->text : spec.restamp;
 }
 
-Status validate_module_settings(const Spec& spec, const ConfigCheck& check) {
+Status validate_module_settings(const Spec& spec) {
   std::vector<const Parameter*> module_params;
   for (const auto& p : spec.vary) {
     const size_t dot = p.key.find('.');
@@ -623,15 +624,18 @@ Status validate_module_settings(const Spec& spec, const ConfigCheck& check) {
   for (size_t i = 0; i < rounds; ++i) {
     Point pt;
     for (const auto* p : module_params) pt.params.emplace_back(p->key, p->values[i % p->values.size()]);
-    const std::string message = check(module_config_yaml(spec, pt));
-    if (message.empty()) continue;
+    auto settings = modules::parse_module_settings(module_config_yaml(spec, pt), "settings");
+    const Status checked =
+        settings ? modules::check_module_settings(*settings, spec.modules) : Status{settings.error()};
+    if (checked) continue;
+    const std::string& message = checked.message();
     // Name the spec's key the program complained about.
     std::string key = "settings";
     for (const auto* p : module_params) {
       const std::string leaf = p->key.substr(p->key.find('.') + 1);
       if (message.find(leaf) != std::string::npos) key = "vary: " + p->key + " = " + pt.get(p->key)->text;
     }
-    return Error{spec.file + ": " + key + ": the replay program refuses it: " + message};
+    return Error{spec.file + ": " + key + ": the modules refuse it: " + message};
   }
   return {};
 }

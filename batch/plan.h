@@ -85,7 +85,7 @@ struct Plan {
 
 /// Reads and checks a sweep spec. Every error is one line naming the spec file and the key ("spec.yaml: vary:
 /// faults.IMU.clock_ofset_s: unknown key ..."): an unknown parameter or setting, an empty grid, a value of the
-/// wrong type or out of range. Module settings are checked by module_check (see validate_module_settings).
+/// wrong type or out of range. Module settings are checked by validate_module_settings.
 Result<Spec> load_spec(const std::string& path);
 
 /// A batch over logs: one point per log (paths made absolute; the same log twice is one point). stage: diagnose,
@@ -113,11 +113,9 @@ std::string faults_yaml(const Spec& spec, const Point& point);
 /// The restamp of a point: the spec's, or its varied value.
 std::string restamp_of(const Spec& spec, const Point& point);
 
-/// Checks the module settings every point can produce, by asking `check` (which runs the replay program on the
-/// config YAML and returns its one-line error, or "" when the program accepts it) with as few configs as cover
-/// every value of every varied module key. Errors name the spec file and the key.
-using ConfigCheck = std::function<std::string(const std::string& config_yaml)>;
-Status validate_module_settings(const Spec& spec, const ConfigCheck& check);
+/// Checks the module settings every point can produce against the modules' tables (modules/settings.h), with as
+/// few configs as cover every value of every varied module key. Errors name the spec file and the key.
+Status validate_module_settings(const Spec& spec);
 
 nlohmann::json to_json(const Plan& plan);
 Result<Plan> plan_from_json(const nlohmann::json& j, const std::string& origin);

@@ -1,6 +1,6 @@
 // 3D point-cloud odometry (slam/slam3d.h) per registration method (scripts/bench slam3d): clouds per second and
 // the real-time factor of the module alone, on a simulated session of the 16 x 1800 lidar (sim/scenarios/
-// indoor_3d.yaml) held in memory and played in arrival order through the module host (replayer/module_host.h,
+// indoor_3d.yaml) held in memory and played in arrival order through the module host (runtime/module_host.h,
 // as on replay: routing, message checks), so log reading is not in the figure. Each run also reports the path's error
 // against ground truth (first pose aligned).
 //   slam3d_bench [--log=SESSION.lcm | --seconds=N] [benchmark flags]
@@ -16,11 +16,11 @@
 #include <vector>
 
 #include "analyzers/trajectory.h"
-#include "core/bus.h"
 #include "core/log_reader.h"
 #include "core/time.h"
 #include "driftlab/pose_t.hpp"
-#include "replayer/module_host.h"
+#include "runtime/bus.h"
+#include "runtime/module_host.h"
 #include "sim/scenario.h"
 #include "sim/simulator.h"
 #include "slam/slam3d.h"
@@ -57,7 +57,7 @@ void BM_Slam3d(benchmark::State& state, const std::string& yaml) {
     auto module = slam::make_slam3d(YAML::Load(yaml), "bench");
     if (!module) return state.SkipWithError(module.error().message.c_str());
     const Module& slam = **module;
-    replay::ModuleHost host({.stats_period_s = 0});
+    runtime::ModuleHost host({.stats_period_s = 0});
     host.add_module(std::move(*module));
     analyzers::Trajectory path;
     host.set_outlet([&path](const BusMessage& m) {

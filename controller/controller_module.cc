@@ -13,7 +13,7 @@
 #include "driftlab/tf_t.hpp"
 #include "driftlab/velocity_command_t.hpp"
 #include "lcmtypes/planar.h"
-#include "lcmtypes/validate.h"
+#include "runtime/module_input.h"
 
 namespace driftlab::controller {
 namespace {

@@ -13,9 +13,9 @@
 #include <vector>
 
 #include "controller/pure_pursuit.h"
-#include "core/bus.h"
 #include "core/result.h"
-#include "lcmtypes/validate.h"
+#include "runtime/bus.h"
+#include "runtime/module_input.h"
 
 namespace driftlab::controller {
 

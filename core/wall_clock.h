@@ -1,7 +1,7 @@
 // The wall clock, pushed in from outside. What needs the time of day (the recorder stamping what the kernel did
 // not, the live runner moving its module host, a sweep point noting when it started) takes a `const WallClock&`
 // from its caller; only programs (apps/) make the system's, so every component can be run on a clock a test sets.
-// Replay, the simulator and the modules never see one: their time is the log's (core/bus.h).
+// Replay, the simulator and the modules never see one: their time is the log's (runtime/bus.h).
 // How long something took is another matter, measured on the steady clock by a Stopwatch (it never steps with the
 // date); such a figure is reported, never written into a replay's output unless asked (--timing).
 // Thread-safety: now() may be called from any thread; a Stopwatch is a value.

@@ -11,7 +11,7 @@
 #include "driftlab/imu_t.hpp"
 #include "driftlab/magnetometer_t.hpp"
 #include "driftlab/odometry_t.hpp"
-#include "lcmtypes/validate.h"
+#include "runtime/module_input.h"
 
 namespace driftlab::estimator {
 namespace {

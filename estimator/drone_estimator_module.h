@@ -15,11 +15,11 @@
 #include <optional>
 #include <string>
 
-#include "core/bus.h"
 #include "core/geo.h"
 #include "core/result.h"
 #include "estimator/drone_ekf.h"
-#include "lcmtypes/validate.h"
+#include "runtime/bus.h"
+#include "runtime/module_input.h"
 
 namespace driftlab::config {
 template <class T>

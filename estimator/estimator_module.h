@@ -10,10 +10,10 @@
 #include <memory>
 #include <string>
 
-#include "core/bus.h"
 #include "core/result.h"
 #include "estimator/ekf.h"
-#include "lcmtypes/validate.h"
+#include "runtime/bus.h"
+#include "runtime/module_input.h"
 
 namespace driftlab::config {
 template <class T>

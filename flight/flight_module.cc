@@ -10,7 +10,7 @@
 #include "driftlab/trajectory_setpoint_t.hpp"
 #include "driftlab/vehicle_command_t.hpp"
 #include "driftlab/vehicle_status_t.hpp"
-#include "lcmtypes/validate.h"
+#include "runtime/module_input.h"
 
 namespace driftlab::flight {
 namespace {

@@ -19,12 +19,12 @@
 #include <string>
 #include <vector>
 
-#include "core/bus.h"
 #include "core/result.h"
 #include "flight/commander.h"
 #include "flight/control.h"
 #include "flight/vehicle.h"
-#include "lcmtypes/validate.h"
+#include "runtime/bus.h"
+#include "runtime/module_input.h"
 
 namespace driftlab::config {
 template <class T>

@@ -9,7 +9,7 @@
 #include "driftlab/vehicle_command_t.hpp"
 #include "driftlab/vehicle_status_t.hpp"
 #include "lcmtypes/planar.h"
-#include "lcmtypes/validate.h"
+#include "runtime/module_input.h"
 
 namespace driftlab::flight {
 namespace {

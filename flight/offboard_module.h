@@ -18,9 +18,9 @@
 #include <string>
 #include <vector>
 
-#include "core/bus.h"
 #include "core/result.h"
-#include "lcmtypes/validate.h"
+#include "runtime/bus.h"
+#include "runtime/module_input.h"
 
 namespace driftlab::config {
 template <class T>

@@ -19,7 +19,6 @@
 #include <vector>
 
 #include "controller/controller_module.h"
-#include "core/bus.h"
 #include "core/log_format.h"
 #include "core/time.h"
 #include "driftlab/barometer_t.hpp"
@@ -42,6 +41,7 @@
 #include "lcmtypes/schema.h"
 #include "lcmtypes/type_registry.h"
 #include "lcmtypes/validate.h"
+#include "runtime/bus.h"
 #include "slam/slam2d.h"
 #include "slam/slam3d.h"
 #include "tests/fakes/fake_bus.h"

@@ -12,8 +12,6 @@
 #include <string>
 #include <string_view>
 
-#include "core/bus.h"
-
 namespace driftlab::lcmtypes {
 
 /// Why an encoded message does not hold a well-formed message of a known driftlab type ("ranges: length -5",
@@ -46,13 +44,6 @@ bool decode(std::span<const uint8_t> data, T& out) {
 
 namespace driftlab {
 
-/// Decodes a bus message as T when it is a well-formed T (lcmtypes::decode); false for other types, short or
-/// malformed bytes. Modules decode every input with it.
-template <typename T>
-bool decode_message(const BusMessage& m, T& out) {
-  return lcmtypes::decode(m.data, out);
-}
-
 /// Positions, speeds and rates beyond this [m, m/s, rad/s] are no robot's (past the Moon's orbit, faster than
 /// light). The modules refuse them as they refuse NaN: below it, their arithmetic cannot overflow.
 inline constexpr double kMaxMagnitude = 1e9;
@@ -65,26 +56,5 @@ inline bool plausible(double v) { return v >= -kMaxMagnitude && v <= kMaxMagnitu
 inline bool unit_norm(double w, double x, double y, double z) {
   return std::abs(std::sqrt(w * w + x * x + y * y + z * z) - 1) <= 0.01;
 }
-
-/// The inputs a module drops because a number in them is NaN, infinite (lcmtypes::non_finite) or out of range (not
-/// plausible, or a value the module derives), counted with the first one named, for the module's statistics. Not
-/// thread-safe (one module).
-class NonFiniteInputs {
- public:
-  /// Whether m's numbers are all finite; counts m (naming the first) when not.
-  bool finite(const BusMessage& m);
-  /// Whether a value the module uses is plausible; counts the input (naming field and value) when not.
-  bool plausible(std::string_view channel, const char* field, double v);
-  /// Counts an input the module found unusable itself: what names the value ("the yaw of orientation = nan").
-  void count(std::string_view channel, const std::string& what);
-  int64_t dropped() const { return dropped_; }
-  /// "N inputs with NaN, infinite or out-of-range numbers dropped (first: ODOM: linear_velocity.x = nan)", prefixed
-  /// with "MODULE: "; nullopt when none were.
-  std::optional<std::string> warning(const std::string& module) const;
-
- private:
-  int64_t dropped_ = 0;
-  std::string first_;
-};
 
 }  // namespace driftlab

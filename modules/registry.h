@@ -8,15 +8,12 @@
 #include <string>
 #include <vector>
 
-#include "core/bus.h"
 #include "core/result.h"
 #include "modules/module_table.h"
+#include "modules/settings.h"
+#include "runtime/bus.h"
 
 namespace driftlab::modules {
-
-/// The reference of the module config: every module's keys with type, unit, default, range and description, as
-/// markdown (from the modules' config tables, core/config.h).
-std::string config_reference();
 
 /// The modules named in `list` (comma-separated) with their settings from the YAML file at `config_path` (empty:
 /// every module with its defaults). `notes` receives what was chosen for the user ("slam: 2d backend"). Errors

@@ -163,8 +163,8 @@ struct Replayer::Prepared {
 
 namespace {
 
-HostOptions host_options(const ReplayOptions& o) {
-  return {.clock = HostClock::kVirtual,
+runtime::HostOptions host_options(const ReplayOptions& o) {
+  return {.clock = runtime::HostClock::kVirtual,
           .loopback = true,
           .out = o.out,
           .timing = o.timing,
@@ -174,7 +174,7 @@ HostOptions host_options(const ReplayOptions& o) {
 
 /// Hands one input to the modules at its time: the timer ticks before it, the statistics, the input itself (to the
 /// output log when it keeps inputs, and to the sink), and everything the modules publish in turn.
-Status deliver(ModuleHost& host, const ReplayOptions& o, ReplayReport& report, const Item& item) {
+Status deliver(runtime::ModuleHost& host, const ReplayOptions& o, ReplayReport& report, const Item& item) {
   if (Status s = host.advance(Time::from_us(item.time)); !s) return s;
   if (report.dispatched == 0) report.start_utime = host.now().us();
   report.end_utime = host.now().us();
@@ -236,7 +236,7 @@ InputChannels delivered_channels(const ReplayOptions& o) {
 }
 
 Replayer::Replayer(ReplayOptions options)
-    : options_(std::move(options)), host_(std::make_unique<ModuleHost>(host_options(options_))) {}
+    : options_(std::move(options)), host_(std::make_unique<runtime::ModuleHost>(host_options(options_))) {}
 Replayer::~Replayer() = default;
 void Replayer::add_module(std::unique_ptr<Module> module) { host_->add_module(std::move(module)); }
 
@@ -258,7 +258,7 @@ Result<ReplayReport> Replayer::run(const Sink& sink, const std::atomic<bool>* st
   if (Status s = open(); !s) return Error{s.message()};
   const ReplayOptions& o = options_;
   auto& merger = prepared_->merger;
-  ModuleHost& host = *host_;
+  runtime::ModuleHost& host = *host_;
   host.set_outlet(sink);
   ReplayReport report;
 

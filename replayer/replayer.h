@@ -17,11 +17,11 @@
 #include <utility>
 #include <vector>
 
-#include "core/bus.h"
 #include "core/clock_correction.h"
 #include "core/result.h"
 #include "faults/faults.h"
-#include "replayer/module_host.h"
+#include "runtime/bus.h"
+#include "runtime/module_host.h"
 
 namespace driftlab::config {
 template <class T>
@@ -77,7 +77,7 @@ struct ReplayReport {
   uint64_t log_problems = 0;               ///< corruption met while reading
   bool interrupted = false;
   std::map<std::string, int64_t> channels;  ///< deliveries per (remapped) input channel
-  std::vector<ModuleReport> modules;
+  std::vector<runtime::ModuleReport> modules;
   std::vector<driftlab::fault_t> injected;  ///< what --inject did
 };
 
@@ -104,7 +104,7 @@ class Replayer {
  private:
   struct Prepared;
   ReplayOptions options_;
-  std::unique_ptr<ModuleHost> host_;
+  std::unique_ptr<runtime::ModuleHost> host_;
   std::unique_ptr<Prepared> prepared_;
 };
 

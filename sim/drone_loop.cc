@@ -44,9 +44,9 @@ flight::VehicleModel vehicle_of(const MultirotorSpec& spec, const MotorModel& mo
   return v;
 }
 
-replay::HostOptions host_options(const DroneConfig& c) {
-  replay::HostOptions o;
-  o.clock = replay::HostClock::kVirtual;
+runtime::HostOptions host_options(const DroneConfig& c) {
+  runtime::HostOptions o;
+  o.clock = runtime::HostClock::kVirtual;
   o.loopback = false;  // what a module publishes goes out through the fault path and comes back as it arrives
   o.stats_period_s = 1;
   o.stats_channel = c.stats_channel;

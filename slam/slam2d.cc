@@ -37,7 +37,7 @@
 #include "driftlab/pose_t.hpp"
 #include "driftlab/tf_t.hpp"
 #include "lcmtypes/planar.h"
-#include "lcmtypes/validate.h"
+#include "runtime/module_input.h"
 #include "slam/internal/mrpt_scan.h"
 #include "slam/internal/odometry_buffer.h"
 #include "slam/internal/point_maps.h"
@@ -116,86 +116,6 @@ std::string ini_text(const Slam2dConfig& c, const std::set<std::string>& given, 
 }
 
 }  // namespace
-
-const config::Table<Slam2dConfig>& slam2d_config_table() {
-  using C = Slam2dConfig;
-  using config::above;
-  using config::between;
-  static const auto t =
-      config::Table<C>()
-          .text("scan_channel", &C::scan_channel, "driftlab.laser_scan_t in", config::Text::kNonEmpty)
-          .text("odom_channel", &C::odom_channel,
-                "driftlab.odometry_t or any pose stream (driftlab.pose_t): the prior; \"\" for none")
-          .text("tf_static_channel", &C::tf_static_channel, "where base_link -> scan frame is read")
-          .text("pose_channel", &C::pose_channel, "driftlab.pose_t out, one per scan")
-          .text("map_channel", &C::map_channel, "driftlab.image_t (PNG) of the occupancy map out, at the end")
-          .text("base_frame", &C::base_frame, "the robot's base frame")
-          .numbers("sensor_pose", &C::sensor_pose, between(-1e3, 1e3), "m, m, rad",
-                   "x, y, yaw of the scanner on the base, when TF has none")
-          .text("ini", &C::ini,
-                "an MRPT icp-slam .ini file (relative to the config file), for method icp-slam: its "
-                "[MappingApplication] and [ICP] replace the defaults; the keys given here override it")
-          // Method and pose graph (method graph); docs/slam.md says why each default is what it is.
-          .choice("method", &C::method, {"graph", "icp-slam"},
-                  "graph: keyframes, loop closures and a pose graph; icp-slam: MRPT's ICP map builder as icp-slam "
-                  "runs it (the default when `ini` is given)")
-          .text("trajectory_channel", &C::trajectory_channel,
-                "graph: driftlab.pose_t out at the end, every scan's pose as last optimised; \"\" for none")
-          .number("odom_wait_s", &C::odom_wait_s, between(0, 60), "s",
-                  "graph: how long (in scan stamps) a scan waits for the odometry at its stamp")
-          .number("keyframe_distance", &C::keyframe_distance, above(0, 1e3), "m",
-                  "graph: travel after which a scan becomes a keyframe (a graph node)")
-          .number("keyframe_angle", &C::keyframe_angle, above(0, 360), "deg", "graph: ... or turn")
-          .integer("local_map_keyframes", &C::local_map_keyframes, between(1, 1000), "",
-                   "graph: the last keyframes each scan is matched against")
-          .flag("loop_closure", &C::loop_closure, "graph: match new keyframes against old places, optimise the graph")
-          .number("loop_min_travel", &C::loop_min_travel, above(0, 1e6), "m",
-                  "graph: path between two keyframes before they may close a loop")
-          .number("loop_radius", &C::loop_radius, above(0, 1e3), "m",
-                  "graph: an old keyframe within this of the estimate is a candidate ...")
-          .number("loop_drift", &C::loop_drift, between(0, 1), "",
-                  "graph: ... plus this share of the graph distance between the two")
-          .number("loop_max_radius", &C::loop_max_radius, above(0, 1e3), "m", "graph: ... at most")
-          .number("loop_min_goodness", &C::loop_min_goodness, between(0, 1), "",
-                  "graph: share of the current points a loop match must put near old ones")
-          .number("insertion_lin_distance", &C::insertion_lin_distance, above(0, 1e3), "m",
-                  "motion after which a scan becomes a keyframe of the map")
-          .number("insertion_ang_distance", &C::insertion_ang_distance, above(0, 360), "deg", "... or rotation")
-          .number("localization_lin_distance", &C::localization_lin_distance, above(0, 1e3), "m",
-                  "motion after which a scan is matched against the map")
-          .number("localization_ang_distance", &C::localization_ang_distance, above(0, 360), "deg", "... or rotation")
-          .number("min_icp_goodness", &C::min_icp_goodness, between(0, 1), "",
-                  "below it, an ICP correction is rejected")
-          .number("min_dist_between_points", &C::min_dist_between_points, above(0, 100), "m", "point-map insertion")
-          .flag("fuse_points", &C::fuse_points,
-                "fuse new points with the map's (icp-slam's demo has false, which makes the map, and every ICP, "
-                "grow with each revisit)")
-          .integer("max_iterations", &C::max_iterations, between(1, 100000), "", "ICP iterations")
-          .number("threshold_dist", &C::threshold_dist, above(0, 100), "m", "ICP: initial pairing distance")
-          .number("threshold_ang", &C::threshold_ang, above(0, 180), "deg", "ICP: initial pairing angle")
-          .number("alfa", &C::alfa, between(0.01, 1), "", "ICP: factor the thresholds shrink by on convergence")
-          .number("smallest_threshold_dist", &C::smallest_threshold_dist, above(0, 100), "m",
-                  "ICP: the pairing distance it stops shrinking at")
-          .integer("decimation", &C::decimation, between(1, 1000), "", "ICP: use one point in this many")
-          .number("map_resolution", &C::map_resolution, between(0.001, 10), "m", "cell of the occupancy image")
-          .check([](const config::Value& v, C& c) -> Status {
-            c.given.clear();
-            for (const auto& kv : v.node()) c.given.insert(kv.first.Scalar());
-            if (!c.ini.empty() && !c.given.count("method")) c.method = "icp-slam";  // an icp-slam .ini asks for it
-            if (!c.ini.empty() && c.method != "icp-slam") {
-              return Error{v["ini"].place() + ": " + v["ini"].key() + ": an icp-slam .ini file is for method icp-slam"};
-            }
-            if (!c.ini.empty()) {
-              if (c.ini[0] != '/' && v.file().find('/') != std::string::npos) {
-                c.ini = v.file().substr(0, v.file().rfind('/') + 1) + c.ini;  // relative to the config file
-              }
-              if (!std::ifstream(c.ini))
-                return Error{v["ini"].place() + ": " + v["ini"].key() + ": cannot open " + c.ini};
-            }
-            return {};
-          });
-  return t;
-}
 
 Result<Slam2dConfig> parse_slam2d_config(const YAML::Node& node, const std::string& origin) {
   return slam2d_config_table().parse(config::Value(node, origin, "slam.2d"));

@@ -15,8 +15,8 @@
 #include <set>
 #include <string>
 
-#include "core/bus.h"
 #include "core/result.h"
+#include "runtime/bus.h"
 
 namespace driftlab::config {
 template <class T>

@@ -25,7 +25,7 @@
 #include "driftlab/pose_t.hpp"
 #include "driftlab/tf_t.hpp"
 #include "lcmtypes/planar.h"
-#include "lcmtypes/validate.h"
+#include "runtime/module_input.h"
 #include "slam/internal/odometry_buffer.h"
 
 namespace driftlab::slam {
@@ -53,41 +53,6 @@ Cloud::Ptr downsample(const Cloud::ConstPtr& in, double leaf) {
 }
 
 }  // namespace
-
-const config::Table<Slam3dConfig>& slam3d_config_table() {
-  using C = Slam3dConfig;
-  using config::above;
-  using config::between;
-  static const auto t =
-      config::Table<C>()
-          .text("cloud_channel", &C::cloud_channel, "driftlab.point_cloud_t in", config::Text::kNonEmpty)
-          .text("odom_channel", &C::odom_channel,
-                "driftlab.odometry_t or pose_t: the guess and the deskewing; \"\" for none")
-          .text("tf_static_channel", &C::tf_static_channel, "where base_link -> cloud frame is read; \"\" for none")
-          .text("pose_channel", &C::pose_channel, "driftlab.pose_t out, one per cloud")
-          .text("base_frame", &C::base_frame, "the robot's base frame")
-          .numbers("sensor_pose", &C::sensor_pose, between(-1e3, 1e3), "m, m, m, rad",
-                   "x, y, z, yaw of the sensor on the base, when TF has none")
-          .flag("deskew", &C::deskew, "undo the motion during a sweep (needs odometry and per-point time_offsets)")
-          .choice("method", &C::method, {"icp", "ndt", "gicp"}, "the registration")
-          .number("min_range", &C::min_range, between(0, 1e6), "m", "returns nearer are the robot itself")
-          .number("max_range", &C::max_range, above(0, 1e6), "m", "returns farther are dropped")
-          .number("voxel", &C::voxel, above(0, 100), "m", "leaf of the downsampled scan and of the local map")
-          .number("max_correspondence", &C::max_correspondence, above(0, 100), "m",
-                  "icp, gicp: largest point pair distance; all: the pairs max_fitness counts")
-          .number("ndt_resolution", &C::ndt_resolution, above(0, 100), "m", "ndt: cell size")
-          .number("ndt_step", &C::ndt_step, above(0, 100), "m", "ndt: More-Thuente line search step")
-          .integer("max_iterations", &C::max_iterations, between(1, 10000), "", "registration iterations")
-          .number("max_fitness", &C::max_fitness, above(0, 1e4), "m^2",
-                  "mean squared distance to the map above which a registration is rejected")
-          .number("keyframe_distance", &C::keyframe_distance, above(0, 1e3), "m",
-                  "a cloud becomes a keyframe after this much motion")
-          .number("keyframe_angle", &C::keyframe_angle, above(0, 360), "deg", "... or this much rotation")
-          .integer("local_map_keyframes", &C::local_map_keyframes, between(1, 10000), "",
-                   "keyframes in the registration target")
-          .number("map_voxel", &C::map_voxel, above(0, 100), "m", "leaf of the final map (PCD)");
-  return t;
-}
 
 Result<Slam3dConfig> parse_slam3d_config(const YAML::Node& node, const std::string& origin) {
   return slam3d_config_table().parse(config::Value(node, origin, "slam.3d"));

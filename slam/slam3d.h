@@ -11,8 +11,8 @@
 #include <memory>
 #include <string>
 
-#include "core/bus.h"
 #include "core/result.h"
+#include "runtime/bus.h"
 
 namespace driftlab::config {
 template <class T>

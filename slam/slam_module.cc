@@ -7,17 +7,6 @@
 
 namespace driftlab::slam {
 
-const config::Table<SlamConfig>& slam_config_table() {
-  static const auto t =
-      config::Table<SlamConfig>()
-          .choice("backend", &SlamConfig::backend, {"auto", "2d", "3d"},
-                  "auto: 2d when the logs have laser scans on the 2D scan channel, else 3d when they have point "
-                  "clouds on the 3D cloud channel, else 2d")
-          .section("2d", &SlamConfig::two_d, slam2d_config_table(), "2D lidar SLAM (MRPT's ICP map builder)")
-          .section("3d", &SlamConfig::three_d, slam3d_config_table(), "3D point-cloud odometry (PCL registration)");
-  return t;
-}
-
 namespace {
 
 /// The type of a delivered channel, "" when it is not delivered.

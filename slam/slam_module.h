@@ -9,8 +9,8 @@
 #include <memory>
 #include <string>
 
-#include "core/bus.h"
 #include "core/result.h"
+#include "runtime/bus.h"
 #include "slam/slam2d.h"
 #include "slam/slam3d.h"
 

@@ -1,5 +1,5 @@
 // The drone in the simulator's loop (a scenario's `drone:`): the flight stack runs on board as modules on a module
-// host (replayer/module_host.h) whose clock is the simulation's; every message they read arrives through the
+// host (runtime/module_host.h) whose clock is the simulation's; every message they read arrives through the
 // output's fault path as the log sees it, and every message they publish goes out the same way. The motor commands
 // that arrive set the rotors' speed setpoints; the motor model spins the rotors, and their thrust and drag torque,
 // the airframe's linear drag and gravity move the Bullet body. A TF broadcaster puts the estimate on TF as
@@ -18,7 +18,7 @@
 #include "core/result.h"
 #include "driftlab/tf_t.hpp"
 #include "flight/vehicle.h"
-#include "replayer/module_host.h"
+#include "runtime/module_host.h"
 #include "sim/internal/output.h"
 #include "sim/robot.h"
 #include "sim/scenario.h"
@@ -68,8 +68,8 @@ class DroneLoop {
   Robot& robot_;
   const MultirotorSpec& spec_;
   flight::VehicleModel vehicle_;
-  replay::ModuleHost host_;       // the flight stack's, on the simulation's clock
-  replay::ModuleHost wall_host_;  // the offboard script's when it is on the wall clock (offboard_clock: wall)
+  runtime::ModuleHost host_;       // the flight stack's, on the simulation's clock
+  runtime::ModuleHost wall_host_;  // the offboard script's when it is on the wall clock (offboard_clock: wall)
   bool offboard_on_wall_ = false;
   std::function<int64_t(int64_t)> wall_clock_;  // the wall time [us] of a simulated time
   int64_t sim_now_ = 0;                         // the simulated time being handled [us]

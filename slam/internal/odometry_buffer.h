@@ -11,7 +11,7 @@
 #include "driftlab/odometry_t.hpp"
 #include "driftlab/pose_t.hpp"
 #include "lcmtypes/planar.h"
-#include "lcmtypes/validate.h"
+#include "runtime/module_input.h"
 
 namespace driftlab::slam::internal {
 

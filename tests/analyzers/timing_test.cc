@@ -7,6 +7,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <nlohmann/json.hpp>
@@ -559,6 +560,46 @@ TEST(ClockCorrections, SayWhichTheyApplyAndWhichTheyLeaveOutAndWhy) {
 
 /// A log made with the fault model the simulator uses, its manifest written to the FAULTS channel; the
 /// diagnosis is scored against that manifest, read back from the log.
+/// `driftlab replay`'s corrections planned: the clocks from each log's diagnosis, merged with the first log's
+/// correction of a channel kept; re-timing by hand needs no diagnosis (a log that cannot be read is not read); a
+/// re-timing of neither form is an error naming it.
+TEST(PlanCorrections, DiagnosesOnlyWhatItNeedsAndNamesABadRetiming) {
+  test::TempDir dir;
+  Faults f;
+  f.odom_drift_ppm = 300;
+  write_log(dir.file("drift.lcm"), f, 4);
+  f.odom_drift_ppm = 1000;
+  write_log(dir.file("more.lcm"), f, 5);
+  auto d = diagnose(dir.file("drift.lcm"));
+  ASSERT_TRUE(d.ok());
+  std::vector<std::string> notes;
+  const ClockCorrections expected = clock_corrections(*d, &notes);
+  ASSERT_EQ(expected.count("ODOM"), 1u);  // 300 ppm is corrected, so the merge below has something to keep
+
+  auto plan = plan_corrections({dir.file("drift.lcm"), dir.file("more.lcm")}, true, {});
+  ASSERT_TRUE(plan.ok()) << plan.error().message;
+  EXPECT_NEAR(plan->clocks.at("ODOM").drift_ppm, expected.at("ODOM").drift_ppm, 1e-9);  // the first log's
+  EXPECT_TRUE(plan->retime.empty());
+  ASSERT_GT(plan->notes.size(), notes.size());  // the second log's notes follow the first's
+  EXPECT_TRUE(std::equal(notes.begin(), notes.end(), plan->notes.begin()));
+
+  auto by_hand = plan_corrections({"/nonexistent/x.lcm"}, false, {"ARM_CMD=0.12"});
+  ASSERT_TRUE(by_hand.ok()) << by_hand.error().message;
+  EXPECT_TRUE(by_hand->clocks.empty());
+  EXPECT_EQ(by_hand->retime.at("ARM_CMD").us(), 120000);
+  EXPECT_EQ(by_hand->notes,
+            std::vector<std::string>{"retime ARM_CMD: each command starts 0.12 s before it arrived (--retime)"});
+
+  for (const char* bad : {"ARM_CMD", "=0.1", "ARM_CMD=", "ARM_CMD=x", "ARM_CMD=0.1s", "ARM_CMD=-1", "ARM_CMD=4000"}) {
+    auto p = plan_corrections({dir.file("drift.lcm")}, false, {bad});
+    ASSERT_FALSE(p.ok()) << bad;
+    EXPECT_EQ(p.error().message, std::string("--retime ") + bad + ": expected auto or CHANNEL=SECONDS (0..3600)");
+  }
+  auto unreadable = plan_corrections({"/nonexistent/x.lcm"}, false, {"auto"});
+  ASSERT_FALSE(unreadable.ok());
+  EXPECT_NE(unreadable.error().message.find("/nonexistent/x.lcm"), std::string::npos);
+}
+
 TEST(Diagnose, ScoredAgainstTheFaultManifest) {
   test::TempDir dir;
   const std::string path = dir.file("faulty.lcm");

@@ -30,8 +30,8 @@ Status MemoryLog::write(int64_t utime, std::string_view channel, std::span<const
 }
 
 FakeBus::FakeBus(const Options& options)
-    : host_(std::make_unique<replay::ModuleHost>(replay::HostOptions{
-          .clock = replay::HostClock::kVirtual,
+    : host_(std::make_unique<runtime::ModuleHost>(runtime::HostOptions{
+          .clock = runtime::HostClock::kVirtual,
           .loopback = true,
           .out = options.artifact_prefix.empty() ? "" : options.artifact_prefix + ".lcm",  // the prefix; no file
           .timing = false,

@@ -1,5 +1,5 @@
 // The fakes module tests use: a log kept in memory, and the bus a module under test sees, which is the real module
-// host (replayer/module_host.h) on its virtual clock, fed by the test. A module tested here meets exactly the
+// host (runtime/module_host.h) on its virtual clock, fed by the test. A module tested here meets exactly the
 // routing, timers, now(), validation and exception handling it meets on replay.
 #pragma once
 
@@ -10,16 +10,16 @@
 #include <string>
 #include <vector>
 
-#include "core/bus.h"
 #include "core/result.h"
 #include "core/time.h"
-#include "replayer/module_host.h"
+#include "runtime/bus.h"
+#include "runtime/module_host.h"
 #include "tests/test_util.h"
 
 namespace driftlab::test {
 
 /// A log in memory: the events a host records, in order (event numbers from 0, offsets 0).
-class MemoryLog final : public replay::LogSink {
+class MemoryLog final : public runtime::LogSink {
  public:
   explicit MemoryLog(std::vector<OwnedEvent>& into) : into_(into) {}
   Status write(int64_t utime, std::string_view channel, std::span<const uint8_t> data) override;
@@ -69,11 +69,11 @@ class FakeBus {
   const std::vector<OwnedEvent>& recorded() const { return recorded_; }
   /// What the modules published on a channel (".*": every output, statistics left out).
   std::vector<OwnedEvent> published(const std::string& channel_regex = ".*") const;
-  std::vector<replay::ModuleReport> reports() const { return host_->reports(); }
+  std::vector<runtime::ModuleReport> reports() const { return host_->reports(); }
 
  private:
   std::vector<OwnedEvent> recorded_;
-  std::unique_ptr<replay::ModuleHost> host_;
+  std::unique_ptr<runtime::ModuleHost> host_;
 };
 
 }  // namespace driftlab::test

@@ -18,7 +18,7 @@
 #include "driftlab/trajectory_setpoint_t.hpp"
 #include "driftlab/vehicle_status_t.hpp"
 #include "flight/offboard_module.h"
-#include "lcmtypes/validate.h"
+#include "runtime/module_input.h"
 #include "tests/fakes/fake_bus.h"
 #include "tests/flight/rigid_body.h"
 

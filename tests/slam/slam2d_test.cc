@@ -183,7 +183,7 @@ TEST(Slam2d, AScannerMountedFarFromTheBaseIsInsideTheMap) {
   EXPECT_GT(image.width, 0);
 }
 
-double metric(const std::vector<replay::ModuleReport>& reports, const std::string& name) {
+double metric(const std::vector<runtime::ModuleReport>& reports, const std::string& name) {
   for (const auto& r : reports) {
     for (const auto& [key, value] : r.metrics) {
       if (key == name) return value;

@@ -12,18 +12,18 @@
 #include <string>
 #include <vector>
 
-#include "core/bus.h"
 #include "core/result.h"
 #include "core/wall_clock.h"
-#include "replayer/module_host.h"
+#include "runtime/bus.h"
+#include "runtime/module_host.h"
 
-namespace driftlab::replay {
+namespace driftlab::runtime {
 
 struct LiveOptions {
-  std::string url;                 ///< LCM URL, e.g. udpm://239.255.76.67:7667?ttl=0
-  std::string out;                 ///< log of the module outputs and statistics; empty: none
-  double duration_s = 0;           ///< stop after this long [s]; 0: until stopped
-  double stats_period_s = 1.0;     ///< [s]
+  std::string url;              ///< LCM URL, e.g. udpm://239.255.76.67:7667?ttl=0
+  std::string out;              ///< log of the module outputs and statistics; empty: none
+  double duration_s = 0;        ///< stop after this long [s]; 0: until stopped
+  double stats_period_s = 1.0;  ///< [s]
   std::string stats_channel = "MODULE_STATS";
 };
 
@@ -50,4 +50,4 @@ class LiveRunner {
   std::unique_ptr<Impl> impl_;
 };
 
-}  // namespace driftlab::replay
+}  // namespace driftlab::runtime

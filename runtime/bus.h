@@ -54,12 +54,11 @@ class Bus {
   }
 };
 
-
 /// What a module counts itself, beyond what the replayer measures around its handlers (processing time, queue
 /// depth, and late or out-of-order inputs read from their header stamps).
 struct ModuleCounters {
-  int64_t dropped = 0;                 ///< inputs rejected or discarded (too late to re-apply, unusable) [count]
-  std::vector<std::string> warnings;   ///< e.g. "no driftlab.laser_scan_t on SCAN: no map built"
+  int64_t dropped = 0;                ///< inputs rejected or discarded (too late to re-apply, unusable) [count]
+  std::vector<std::string> warnings;  ///< e.g. "no driftlab.laser_scan_t on SCAN: no map built"
   std::vector<std::pair<std::string, double>> metrics;  ///< what else the module measured, by name with its unit
 };
 

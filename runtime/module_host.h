@@ -28,12 +28,12 @@
 #include <utility>
 #include <vector>
 
-#include "core/bus.h"
 #include "core/result.h"
 #include "core/string_hash.h"
 #include "core/time.h"
+#include "runtime/bus.h"
 
-namespace driftlab::replay {
+namespace driftlab::runtime {
 
 /// What the host measured about one module, and what the module counted itself.
 struct ModuleReport {
@@ -167,4 +167,4 @@ class ModuleHost {
   Status failure_;
 };
 
-}  // namespace driftlab::replay
+}  // namespace driftlab::runtime

@@ -1,9 +1,9 @@
-// ModuleHost (replayer/module_host.h), the one host of replay, live and module tests: the two clocks (every tick
+// ModuleHost (runtime/module_host.h), the one host of replay, live and module tests: the two clocks (every tick
 // on the virtual one, a late timer once on the wall one, now() the tick time in both), time never going back,
 // outputs looped back in publication order or handed to the outlet, malformed inputs and modules that throw
 // (in a handler or a timer) counted and skipped, statistics every period, the artifact prefix, the atomic output
 // log, starting in two steps; and the fake bus module tests use (tests/fakes/fake_bus.h).
-#include "replayer/module_host.h"
+#include "runtime/module_host.h"
 
 #include <gtest/gtest.h>
 
@@ -16,7 +16,7 @@
 #include "tests/fakes/fake_bus.h"
 #include "tests/test_util.h"
 
-namespace driftlab::replay {
+namespace driftlab::runtime {
 namespace {
 
 constexpr int64_t kT0 = 1763776800000000;  // a whole second
@@ -280,4 +280,4 @@ TEST(ModuleHost, AModuleThatFailsToStartIsNamedAndNoLogIsCreated) {
 }
 
 }  // namespace
-}  // namespace driftlab::replay
+}  // namespace driftlab::runtime

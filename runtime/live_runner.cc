@@ -1,12 +1,12 @@
-#include "replayer/live_runner.h"
+#include "runtime/live_runner.h"
 
 #include <lcm/lcm.h>
 
 #include <algorithm>
 
-#include "replayer/module_host.h"
+#include "runtime/module_host.h"
 
-namespace driftlab::replay {
+namespace driftlab::runtime {
 
 struct LiveRunner::Impl {
   LiveOptions o;
@@ -97,4 +97,4 @@ Result<LiveReport> LiveRunner::run(const std::atomic<bool>* stop) {
   return report;
 }
 
-}  // namespace driftlab::replay
+}  // namespace driftlab::runtime

@@ -12,13 +12,13 @@
 #include <unordered_map>
 #include <vector>
 
-#include "core/bus.h"
 #include "core/quantile.h"
 #include "core/time.h"
 #include "driftlab/module_stats_t.hpp"
-#include "replayer/module_host.h"
+#include "runtime/bus.h"
+#include "runtime/module_host.h"
 
-namespace driftlab::replay::internal {
+namespace driftlab::runtime::internal {
 
 class ModuleTally {
  public:
@@ -73,12 +73,12 @@ class ModuleTally {
     r.warnings = counters.warnings;
     r.metrics = counters.metrics;
     if (malformed_ > 0) {
-      r.warnings.push_back(std::to_string(malformed_) + " malformed messages dropped before delivery (first: " +
-                           first_malformed_ + ")");
+      r.warnings.push_back(std::to_string(malformed_) +
+                           " malformed messages dropped before delivery (first: " + first_malformed_ + ")");
     }
     if (failed_ > 0) {
-      r.warnings.push_back(std::to_string(failed_) + " messages the module failed on and skipped (first: " +
-                           first_failure_ + ")");
+      r.warnings.push_back(std::to_string(failed_) +
+                           " messages the module failed on and skipped (first: " + first_failure_ + ")");
     }
     if (skipped_ticks_ > 0) {
       r.warnings.push_back(std::to_string(skipped_ticks_) +
@@ -150,4 +150,4 @@ inline std::vector<uint8_t> encode_stats(const ModuleReport& r, int64_t seq, int
   return bytes;
 }
 
-}  // namespace driftlab::replay::internal
+}  // namespace driftlab::runtime::internal

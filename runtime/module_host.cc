@@ -1,4 +1,4 @@
-#include "replayer/module_host.h"
+#include "runtime/module_host.h"
 
 #include <algorithm>
 #include <cmath>
@@ -11,9 +11,9 @@
 #include "core/wall_clock.h"
 #include "lcmtypes/stream_header.h"
 #include "lcmtypes/validate.h"
-#include "replayer/internal/module_tally.h"
+#include "runtime/internal/module_tally.h"
 
-namespace driftlab::replay {
+namespace driftlab::runtime {
 namespace {
 
 class FileLog final : public LogSink {
@@ -304,4 +304,4 @@ Status ModuleHost::publish_stats() {
   return {};
 }
 
-}  // namespace driftlab::replay
+}  // namespace driftlab::runtime
