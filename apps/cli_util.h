@@ -10,6 +10,7 @@
 #include <string_view>
 #include <vector>
 
+#include "core/number_text.h"
 #include "core/result.h"
 #include "core/wall_clock.h"
 
@@ -20,6 +21,13 @@ namespace driftlab::apps {
 inline constexpr int kExitOk = 0;
 inline constexpr int kExitFailure = 1;
 inline constexpr int kExitBadInput = 2;
+
+/// The help of a command's log argument.
+inline constexpr char kLogInputHelp[] =
+    "LCM log, or another tool's recording (a ROS 1 or ROS 2 bag, a bag folder, an MCAP file, a CARMEN log; the files "
+    "of "
+    "a split recording; a PX4 flight log beside a bag of the same flight, put on its clock): converted once, kept "
+    "beside it";
 
 /// Prints "driftlab: message" as one line on stderr and returns code.
 int fail(std::string_view message, int code = kExitBadInput);
@@ -68,14 +76,6 @@ Status run_plot_script(const char* script, const std::string& name, const std::s
 /// Splits "LOG:CHANNEL" at its last ':' when the part before it exists (a file, or a folder: a bag); false (log and
 /// channel untouched) otherwise. Channel names may hold ':' only if the log's name has none after its last one.
 bool split_log_channel(const std::string& src, std::string* log, std::string* channel);
-
-/// A number as a person writes it: "2", "0.25", "1e+308" (never 309 digits).
-std::string short_number(double v);
-
-/// 1536 -> "1.5 KiB".
-std::string human_bytes(double bytes);
-/// 1234567 -> "1,234,567".
-std::string thousands(int64_t n);
 
 /// A one-line progress indicator on stderr, drawn only when stderr is a terminal, at most 10 times a second.
 class Progress {

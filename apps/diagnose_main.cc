@@ -2,28 +2,22 @@
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
-#include <algorithm>
-#include <cmath>
 #include <cstdio>
-#include <map>
 #include <memory>
-#include <set>
 
 #include "analyzers/diagnosis_json.h"
-#include "analyzers/flight_log.h"
-#include "analyzers/timing.h"
+#include "analyzers/diagnosis_text.h"
 #include "apps/cli_checks.h"
 #include "apps/cli_util.h"
 #include "apps/commands.h"
-#include "apps/diagnosis_text.h"
-#include "apps/log_input.h"
+#include "apps/diagnose_ranges.h"
 #include "core/same_file.h"
+#include "recordings/log_input.h"
 
 namespace driftlab::apps {
 namespace {
 
 using analyzers::Diagnosis;
-using analyzers::StreamPair;
 
 struct DiagnoseOptions {
   std::vector<std::string> inputs;
@@ -38,269 +32,10 @@ struct DiagnoseOptions {
 /// log as a whole: a TF chain, a flight log's dropouts) makes the command fail, for CI.
 inline constexpr int kExitProblemsFound = 3;
 
-bool fails(const Diagnosis& d, const std::vector<std::string>& problems, const std::string& level) {
+/// Whether `--fail-on LEVEL` fails for what a diagnosis found.
+bool fails(analyzers::Severity worst, const std::string& level) {
   if (level.empty()) return false;
-  const bool any_fault = std::any_of(d.channels.begin(), d.channels.end(),
-                                     [](const analyzers::ChannelTiming& c) { return c.verdict == "fault"; });
-  const bool any_warn = std::any_of(d.channels.begin(), d.channels.end(),
-                                    [](const analyzers::ChannelTiming& c) { return c.verdict != "ok"; });
-  return level == "fault" ? any_fault : any_warn || !problems.empty();
-}
-
-std::string ms(double seconds) {
-  char buf[32];
-  std::snprintf(buf, sizeof(buf), "%.1f", seconds * 1e3);
-  return buf;
-}
-
-/// The TF tree as tf2's view_frames draws it, a line per frame under its parent: who broadcasts each transform,
-/// how often, and how old it is on arrival.
-std::vector<std::string> tf_tree_lines(const analyzers::TfDiagnosis& tf) {
-  std::map<std::string, std::vector<const analyzers::TfEdge*>> children;
-  for (const auto& e : tf.edges) children[e.parent].push_back(&e);
-  std::vector<std::string> out;
-  char buf[512];
-  // Depth first from each root; a frame is drawn once (a frame with two parents under the first).
-  std::set<std::string> drawn;
-  std::vector<std::pair<const analyzers::TfEdge*, std::string>> stack;  // (edge, indent)
-  for (const auto& root : tf.roots) {
-    out.push_back(root);
-    drawn.insert(root);
-    const auto& kids = children[root];
-    for (auto it = kids.rbegin(); it != kids.rend(); ++it) stack.emplace_back(*it, "");
-    while (!stack.empty()) {
-      auto [e, indent] = stack.back();
-      stack.pop_back();
-      if (!drawn.insert(e->child).second) continue;
-      if (e->is_static && children[e->child].empty()) {
-        // A frame's static leaves on one line (a robot's links): the tree stays readable.
-        std::string leaves = e->child;
-        while (!stack.empty() && stack.back().second == indent && stack.back().first->is_static &&
-               stack.back().first->channel == e->channel && children[stack.back().first->child].empty()) {
-          if (drawn.insert(stack.back().first->child).second) leaves += ", " + stack.back().first->child;
-          stack.pop_back();
-        }
-        std::snprintf(buf, sizeof(buf), "%s+- %s  (%s, static)", indent.c_str(), leaves.c_str(), e->channel.c_str());
-      } else if (e->is_static) {
-        std::snprintf(buf, sizeof(buf), "%s+- %s  (%s, static)", indent.c_str(), e->child.c_str(), e->channel.c_str());
-      } else {
-        std::snprintf(buf, sizeof(buf),
-                      "%s+- %s  (%s, %lld at %.1f Hz, %.1f ms old on arrival (p50), %lld "
-                      "reordered)",
-                      indent.c_str(), e->child.c_str(), e->channel.c_str(), static_cast<long long>(e->count),
-                      e->rate_hz, e->age_s.p50 * 1e3, static_cast<long long>(e->out_of_order));
-      }
-      out.push_back(buf);
-      const auto& next = children[e->child];
-      for (auto it = next.rbegin(); it != next.rend(); ++it) stack.emplace_back(*it, indent + "   ");
-    }
-  }
-  return out;
-}
-
-/// The report as lines of text: a row per channel, the pairs, then the problems in words.
-std::vector<std::string> report_lines(const Diagnosis& d, std::vector<std::string>* problems) {
-  std::vector<std::string> lines;
-  char buf[1024];
-  size_t w = 7;
-  for (const auto& c : d.channels) w = std::max(w, c.name.size());
-  // Streams on clocks of their own (simulation time, time since boot): a column says which clock, and their
-  // latency is against the fastest stream on it (docs/diagnosis.md, "Clock domains").
-  const bool foreign = std::any_of(d.domains.begin(), d.domains.end(),
-                                   [](const analyzers::ClockDomain& x) { return x.kind != "recorder"; });
-  auto on_own_clock = [&](const analyzers::ChannelTiming& c) {
-    return c.domain >= 0 && d.domains[static_cast<size_t>(c.domain)].mapped;
-  };
-  std::snprintf(buf, sizeof(buf), "%-*s  %-7s %8s %8s %6s %5s %5s %9s %9s %9s %8s%s", static_cast<int>(w), "channel",
-                "verdict", "count", "rate Hz", "drops", "dups", "reord", "lat p50", "lat p99", "offset", "drift",
-                foreign ? "  clock" : "");
-  lines.push_back(buf);
-  for (const auto& c : d.channels) {
-    const int64_t drops = c.has_header && !c.seq_counted ? c.seq_gaps : c.missing_by_period;
-    const bool offset = c.clock_valid && !on_own_clock(c);  // on a clock of its own, an offset is the domain's
-    std::string clock;
-    if (foreign) clock = "  " + (c.domain < 0 ? std::string("-") : "clock " + std::to_string(c.domain + 1));
-    std::snprintf(
-        buf, sizeof(buf), "%-*s  %-7s %8lld %8.2f %6lld %5lld %5lld %9s %9s %9s %8s%s", static_cast<int>(w),
-        c.name.c_str(), c.verdict.c_str(), static_cast<long long>(c.count), c.rate_hz, static_cast<long long>(drops),
-        static_cast<long long>(c.duplicates), static_cast<long long>(c.out_of_order_stamp),
-        c.latency_valid ? (ms(c.latency_s.p50) + " ms").c_str() : "-",
-        c.latency_valid ? (ms(c.latency_s.p99) + " ms").c_str() : "-",
-        offset ? (ms(c.clock_offset_s) + " ms").c_str() : "-",
-        c.clock_valid ? (std::to_string(static_cast<int>(std::lround(c.clock_drift_ppm))) + " ppm").c_str() : "-",
-        clock.c_str());
-    lines.push_back(buf);
-  }
-  // The problems worst stream first (docs/diagnosis.md, "The headline"), each stream's cause before its symptoms.
-  std::vector<const analyzers::ChannelTiming*> worst_first;
-  for (const auto& c : d.channels) worst_first.push_back(&c);
-  auto rank = [](const analyzers::ChannelTiming* c) {
-    return analyzers::problem_rank(c->verdict, c->causes.empty() ? analyzers::Cause::kSymptom : c->causes[0],
-                                   c->reasons.size());
-  };
-  std::stable_sort(worst_first.begin(), worst_first.end(),
-                   [&](const auto* a, const auto* b) { return rank(a) > rank(b); });
-  for (const auto* c : worst_first) {
-    for (const auto& r : c->reasons) problems->push_back(c->name + ": " + r);
-  }
-  // Streams without a sequence number or a steady period: their drops cannot be told, said once.
-  std::string untold;
-  for (const auto& c : d.channels) {
-    if (c.seq_counted && c.irregular) untold += (untold.empty() ? "" : ", ") + c.name;
-  }
-  if (!untold.empty()) {
-    lines.push_back("");
-    lines.push_back("drops cannot be told (no sequence number travelled, and no steady period): " + untold);
-  }
-  // Results written at once (a SLAM's optimised trajectory at the end): not streams, said once.
-  std::string at_once;
-  for (const auto& c : d.channels) {
-    if (c.written_at_once) at_once += (at_once.empty() ? "" : ", ") + c.name;
-  }
-  if (!at_once.empty()) {
-    lines.push_back("");
-    lines.push_back("written at once, not streamed (results, whose times are not judged): " + at_once);
-  }
-  if (foreign) {
-    lines.push_back("");
-    lines.push_back(
-        "clocks (latency on a clock of another epoch is against the simulator's /clock where recorded, else the "
-        "fastest stream on it):");
-    for (size_t i = 0; i < d.domains.size(); ++i) {
-      const analyzers::ClockDomain& x = d.domains[i];
-      std::string list;
-      for (const auto& ch : x.channels) list += (list.empty() ? "" : ", ") + ch;
-      const std::string against = x.reference.empty() ? "" : " (against " + x.reference + ")";
-      std::snprintf(buf, sizeof(buf), "  clock %zu: %s%s: %s", i + 1, x.description.c_str(), against.c_str(),
-                    list.c_str());
-      lines.push_back(buf);
-    }
-  }
-  // A skew is shown when the streams' motions match and the windows agree on it (docs/diagnosis.md,
-  // "Calibration"); the others stay in --json with their curves.
-  const auto confident =
-      std::count_if(d.pairs.begin(), d.pairs.end(), [](const StreamPair& p) { return p.confident(); });
-  if (!d.pairs.empty()) {
-    lines.push_back("");
-    lines.push_back("skew (how much later b's stamps are than a's, from the yaw rate both observe):");
-    for (const auto& p : d.pairs) {
-      if (!p.confident()) continue;
-      std::snprintf(buf, sizeof(buf), "  %s -> %s: %+.1f ms (95%%: %+.1f to %+.1f; confidence %.2f)", p.a.c_str(),
-                    p.b.c_str(), p.offset_s * 1e3, p.offset_ci_s[0] * 1e3, p.offset_ci_s[1] * 1e3, p.confidence);
-      lines.push_back(buf);
-      if (std::abs(p.offset_s) >= 0.002) {
-        std::snprintf(buf, sizeof(buf), "%s is stamped %.1f ms %s than %s for the same motion", p.b.c_str(),
-                      std::abs(p.offset_s) * 1e3, p.offset_s > 0 ? "later" : "earlier", p.a.c_str());
-        problems->push_back(buf);
-      }
-    }
-    if (static_cast<size_t>(confident) < d.pairs.size()) {
-      std::snprintf(buf, sizeof(buf),
-                    "  %zu pair%s without a clear, consistent lag (confidence below %.1f): not "
-                    "shown (--json has them)",
-                    d.pairs.size() - static_cast<size_t>(confident),
-                    d.pairs.size() - static_cast<size_t>(confident) == 1 ? "" : "s", analyzers::kConfidentCorrelation);
-      lines.push_back(buf);
-    }
-  }
-  if (!d.tf.frames.empty()) {
-    std::string roots;
-    for (const auto& r : d.tf.roots) roots += (roots.empty() ? "" : ", ") + r;
-    lines.push_back("");
-    lines.push_back("TF: " + std::to_string(d.tf.frames.size()) + " frames, root " + roots);
-    for (const auto& l : tf_tree_lines(d.tf)) lines.push_back("  " + l);
-    // Each dynamic transform against the data composed with it: the data in its child frame (odometry in 'odom'
-    // with 'map' -> 'odom'), else the busiest channel.
-    std::map<std::pair<std::string, std::string>, const analyzers::TfStampCheck*> head;
-    for (const auto& c : d.tf.stamps) {
-      if (c.messages == 0) continue;
-      const analyzers::TfStampCheck*& h = head[{c.parent, c.child}];
-      if (h == nullptr || std::pair(c.frame == c.child, c.messages) > std::pair(h->frame == h->child, h->messages))
-        h = &c;
-    }
-    for (const auto& [edge, c] : head) {
-      // Stamped behind the data beyond its period, or (post-dated) ahead of it.
-      std::snprintf(buf, sizeof(buf),
-                    "  '%s' -> '%s' (%s, every %.0f ms) with %s: %.1f ms %s beyond its period; on arrival, "
-                    "%s's stamps are up to %.0f ms past the newest transform",
-                    c->parent.c_str(), c->child.c_str(), c->tf_channel.c_str(), c->period_s * 1e3, c->channel.c_str(),
-                    std::abs(c->offset_s) * 1e3, c->offset_s < 0 ? "ahead of it" : "behind it", c->channel.c_str(),
-                    c->lead_s.max * 1e3);
-      lines.push_back(buf);
-    }
-  }
-  for (const auto& p : d.tf.problems) problems->push_back("TF: " + p);
-  // A simulator slower than real time: below 0.9, what runs on the wall clock sees every stream slowed. First: it
-  // explains the drifting clocks and the slow rates of every stream on the simulation's clock.
-  for (auto p = d.physics.rbegin(); p != d.physics.rend(); ++p) {
-    if (!(p->real_time_factor_mean < 0.9)) continue;
-    std::snprintf(buf, sizeof(buf),
-                  "%s: the simulation ran at %.0f%% of real time (physics updates of %.1f ms of simulated time took "
-                  "up to %.1f ms): streams on the simulation's clock reach the wall clock at %.0f%% of their rate, "
-                  "their stamps falling behind it",
-                  p->channel.c_str(), p->real_time_factor_mean * 100, p->sim_step_s * 1e3, p->wall_step_max_s * 1e3,
-                  p->real_time_factor_mean * 100);
-    problems->insert(problems->begin(), buf);
-  }
-  if (!d.timesync.empty()) {
-    lines.push_back("");
-    lines.push_back("time sync (the offset between two computers' clocks, as the link estimated it):");
-    for (const auto& t : d.timesync) {
-      std::snprintf(buf, sizeof(buf),
-                    "  %s: %lld estimates, round trip %.1f ms (p50; p99 %.1f ms), offset %+.3f s to %+.3f s, %lld "
-                    "restart%s",
-                    t.channel.c_str(), static_cast<long long>(t.messages), t.round_trip_s.p50 * 1e3,
-                    t.round_trip_s.p99 * 1e3, t.offset_min_s, t.offset_max_s, static_cast<long long>(t.resyncs),
-                    t.resyncs == 1 ? "" : "s");
-      lines.push_back(buf);
-    }
-  }
-  bool loops_header = false;
-  for (const auto& l : d.command_loops) {
-    if (l.state_channel.empty() && l.stale == 0) continue;
-    if (!loops_header) {
-      loops_header = true;
-      lines.push_back("");
-      lines.push_back("command loops (the delay from a command to the joints' motion, measured from the motion):");
-    }
-    if (l.delay_valid) {
-      std::snprintf(buf, sizeof(buf), "  %s -> %s: %.1f ms (confidence %.2f), %lld commands every %.0f ms",
-                    l.command_channel.c_str(), l.state_channel.c_str(), l.delay_s * 1e3, l.confidence,
-                    static_cast<long long>(l.commands), l.command_period_s * 1e3);
-    } else {
-      std::snprintf(buf, sizeof(buf),
-                    "  %s -> %s: no delay measured (the joints do not follow the commanded "
-                    "motion clearly: confidence %.2f)",
-                    l.command_channel.c_str(),
-                    l.state_channel.empty() ? "(no joint states of its joints)" : l.state_channel.c_str(),
-                    l.confidence);
-    }
-    lines.push_back(buf);
-  }
-  return lines;
-}
-
-std::string html_page(const Diagnosis& d, const std::vector<std::string>& lines,
-                      const std::vector<std::string>& problems) {
-  auto escape = [](const std::string& s) {
-    std::string out;
-    for (char ch : s) {
-      if (ch == '<') out += "&lt;";
-      else if (ch == '>') out += "&gt;";
-      else if (ch == '&') out += "&amp;";
-      else out += ch;
-    }
-    return out;
-  };
-  std::string page = "<!doctype html><html><head><meta charset=\"utf-8\"><title>driftlab diagnose: " + escape(d.log) +
-                     "</title><style>body{font-family:sans-serif;margin:2em}pre{background:#f6f6f6;padding:1em}"
-                     "li.fault{color:#b00}</style></head><body><h1>Timing diagnosis</h1><p>" +
-                     escape(d.log) + "</p><pre>";
-  for (const auto& l : lines) page += escape(l) + "\n";
-  page += "</pre><h2>Problems</h2><ul>";
-  for (const auto& p : problems) page += "<li class=\"fault\">" + escape(p) + "</li>";
-  if (problems.empty()) page += "<li>none</li>";
-  return page + "</ul></body></html>\n";
+  return worst >= (level == "fault" ? analyzers::Severity::kFault : analyzers::Severity::kWarn);
 }
 
 int run_diagnose(const DiagnoseOptions& o) {
@@ -309,22 +44,15 @@ int run_diagnose(const DiagnoseOptions& o) {
   auto run = analyzers::run_diagnosis(o.log, o.analysis);
   if (!run) return fail(run.error().message);
   const Diagnosis& d = run->diagnosis;
-  std::vector<std::string> problems;
-  auto lines = report_lines(d, &problems);
-  // A PX4 flight log: the flight controller's own account of its timing and its estimator, its problems first (a
-  // logger dropout explains the gaps every channel shows at it).
-  const analyzers::FlightLogDiagnosis& flight = run->flight;
-  if (flight.present) {
-    lines.emplace_back();
-    for (auto& l : flight_log_lines(flight)) lines.push_back(std::move(l));
-    problems.insert(problems.begin(), flight.problems.begin(), flight.problems.end());
-  }
-  if (!o.html.empty() && !write_output(o.html, html_page(d, lines, problems))) return kExitFailure;
+  const analyzers::DiagnosisText text = analyzers::diagnosis_text(*run);
+  const std::vector<std::string>& problems = text.problems;
+  const bool failing = fails(analyzers::worst_severity(d, text), o.fail_on);
+  if (!o.html.empty() && !write_output(o.html, analyzers::diagnosis_html(d, text))) return kExitFailure;
   if (o.json.wanted()) {
     if (!o.json.emit(analyzers::diagnose_json(*run).dump(2) + "\n")) return kExitFailure;
-    if (o.json.print) return fails(d, problems, o.fail_on) ? kExitProblemsFound : kExitOk;
+    if (o.json.print) return failing ? kExitProblemsFound : kExitOk;
   }
-  for (const auto& l : lines) std::printf("%s\n", l.c_str());
+  for (const auto& l : text.lines) std::printf("%s\n", l.c_str());
   std::printf("\n");
   if (problems.empty()) {
     std::printf("no timing problems found\n");
@@ -333,7 +61,7 @@ int run_diagnose(const DiagnoseOptions& o) {
     for (size_t i = 0; i < problems.size() && i < 10; ++i) std::printf("  %s\n", problems[i].c_str());
     if (problems.size() > 10) std::printf("  ... %zu more (--json lists them all)\n", problems.size() - 10);
   }
-  return fails(d, problems, o.fail_on) ? kExitProblemsFound : kExitOk;
+  return failing ? kExitProblemsFound : kExitOk;
 }
 
 }  // namespace
@@ -366,7 +94,7 @@ void add_diagnose_command(CLI::App& app, int* exit_code) {
       *exit_code = fail(checked.message());
       return;
     }
-    auto log = event_log_for(o->inputs);
+    auto log = recordings::event_log_for(o->inputs);
     if (!log) {
       *exit_code = fail(log.error().message, exit_code_for_input(log.error()));
       return;

@@ -13,9 +13,9 @@
 #include "apps/cli_checks.h"
 #include "apps/cli_util.h"
 #include "apps/commands.h"
-#include "apps/log_input.h"
 #include "core/log_reader.h"
 #include "core/same_file.h"
+#include "recordings/log_input.h"
 
 namespace driftlab::apps {
 namespace {
@@ -181,7 +181,7 @@ int run_arm_eval(const EvalOptions& o) {
     return fail("--arm evaluates an arm's tracking in one log: give it without --gt, --est and --relations");
   }
   if (Status s = refuse_same_file(o.json.file, {o.arm}, "--json-out"); !s) return fail(s.message());
-  auto log = event_log_for(o.arm);  // another tool's recording: its cached conversion
+  auto log = recordings::event_log_for(o.arm);  // another tool's recording: its cached conversion
   if (!log) return fail(log.error().message, exit_code_for_input(log.error()));
   ArmTrackingOptions options;
   options.reference = o.arm_reference == "desired" ? ArmReference::kDesired : ArmReference::kCommanded;
@@ -216,9 +216,9 @@ int run_eval(const EvalOptions& o) {
   if (Status s = refuse_same_file(o.json.file, inputs, "--json-out"); !s) return fail(s.message());
   // LOG:CHANNEL of another tool's recording: read from its cached conversion (the output names the source given).
   Result<std::string> gt_src = std::string();
-  if (!o.gt.empty()) gt_src = log_channel_for(o.gt);
+  if (!o.gt.empty()) gt_src = recordings::log_channel_for(o.gt);
   if (!gt_src) return fail(gt_src.error().message, exit_code_for_input(gt_src.error()));
-  auto est_src = log_channel_for(o.est);
+  auto est_src = recordings::log_channel_for(o.est);
   if (!est_src) return fail(est_src.error().message, exit_code_for_input(est_src.error()));
   for (const auto& [src, option] :
        {std::pair{*gt_src, "--gt"}, {*est_src, "--est"}, {o.odometry, "--relations-odometry"}}) {

@@ -10,10 +10,10 @@
 #include "apps/cli_checks.h"
 #include "apps/cli_util.h"
 #include "apps/commands.h"
-#include "apps/log_input.h"
 #include "core/same_file.h"
 #include "core/time.h"
 #include "formats/export_csv.h"
+#include "recordings/log_input.h"
 
 namespace driftlab::apps {
 namespace {
@@ -58,7 +58,7 @@ int run_tum(TumArgs a) {
     return fail(a.log + ": name the channel as LOG:CHANNEL (or with -c CHANNEL)");
   }
   if (Status s = refuse_same_file(a.out, {a.log}); !s) return fail(s.message());
-  auto log = event_log_for(a.log);
+  auto log = recordings::event_log_for(a.log);
   if (!log) return fail(log.error().message, exit_code_for_input(log.error()));
   auto t = analyzers::load_log_channel(*log, a.channel);
   if (!t) return fail(t.error().message);
@@ -120,7 +120,7 @@ void add_export_commands(CLI::App& exp, int* exit_code) {
       *exit_code = fail(s.message());
       return;
     }
-    auto log = event_log_for(csv->inputs);
+    auto log = recordings::event_log_for(csv->inputs);
     if (!log) {
       *exit_code = fail(log.error().message, exit_code_for_input(log.error()));
       return;

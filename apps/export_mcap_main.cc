@@ -9,10 +9,10 @@
 #include "apps/cli_checks.h"
 #include "apps/cli_util.h"
 #include "apps/commands.h"
-#include "apps/log_input.h"
 #include "core/same_file.h"
 #include "core/text_file.h"
 #include "formats/export_mcap.h"
+#include "recordings/log_input.h"
 
 namespace driftlab::apps {
 namespace {
@@ -56,7 +56,7 @@ Result<formats::McapMetadata> diagnosis_metadata(const std::string& path) {
 int run_mcap(const McapArgs& a) {
   if (Status s = refuse_same_file(a.out, a.inputs, "-o", a.folder ? OutputKind::kFolder : OutputKind::kFile); !s)
     return fail(s.message());
-  auto log = event_log_for(a.inputs);
+  auto log = recordings::event_log_for(a.inputs);
   if (!log) return fail(log.error().message, exit_code_for_input(log.error()));
   formats::McapExportOptions o;
   o.compression = a.compression == "zstd"  ? formats::McapCompression::kZstd

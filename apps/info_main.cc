@@ -10,11 +10,10 @@
 #include <optional>
 
 #include "analyzers/diagnosis_json.h"
+#include "analyzers/diagnosis_text.h"
 #include "apps/cli_checks.h"
 #include "apps/cli_util.h"
 #include "apps/commands.h"
-#include "apps/diagnosis_text.h"
-#include "apps/log_input.h"
 #include "core/log_format.h"
 #include "core/log_index.h"
 #include "core/log_reader.h"
@@ -25,6 +24,7 @@
 #include "lcmtypes/seq_origin.h"
 #include "lcmtypes/type_registry.h"
 #include "lcmtypes/validate.h"
+#include "recordings/log_input.h"
 
 namespace driftlab::apps {
 namespace {
@@ -227,7 +227,7 @@ int run_info(const InfoOptions& o) {
   }
   if (!o.json.print) {
     print_table(o.log, s, sources, o.max_problems);
-    if (utc.known) std::printf("\n%s\n", flight_utc_line(utc).c_str());
+    if (utc.known) std::printf("\n%s\n", analyzers::flight_utc_line(utc).c_str());
     if (recorded) {
       const auto& r = *recorded;
       std::printf("\nrecorded by driftlab record: %s messages received from %d sender%s; lost %s (sequence gaps), "
@@ -251,7 +251,7 @@ void add_info_command(CLI::App& app, int* exit_code) {
       ->capture_default_str()
       ->check(in_range(config::between(0, 1e9)));
   cmd->callback([opts, exit_code] {
-    auto log = log_for(opts->inputs);
+    auto log = recordings::log_for(opts->inputs);
     if (!log) {
       *exit_code = fail(log.error().message, exit_code_for_input(log.error()));
       return;

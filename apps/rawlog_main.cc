@@ -6,10 +6,10 @@
 #include <memory>
 
 #include "apps/cli_util.h"
-#include "apps/log_input.h"
 #include "apps/commands.h"
-#include "slam/rawlog.h"
 #include "core/same_file.h"
+#include "recordings/log_input.h"
+#include "slam/rawlog.h"
 
 namespace driftlab::apps {
 namespace {
@@ -69,7 +69,7 @@ void add_rawlog_commands(CLI::App& import, CLI::App& exp, int* exit_code) {
       *exit_code = fail(s.message());
       return;
     }
-    auto log = event_log_for(out->in);  // another tool's recording: its cached conversion
+    auto log = recordings::event_log_for(out->in);  // another tool's recording: its cached conversion
     if (!log) {
       *exit_code = fail(log.error().message, exit_code_for_input(log.error()));
       return;

@@ -14,13 +14,13 @@
 #include "apps/cli_checks.h"
 #include "apps/cli_util.h"
 #include "apps/commands.h"
-#include "apps/log_input.h"
 #include "core/config.h"
 #include "core/log_index.h"
 #include "core/same_file.h"
 #include "core/time.h"
 #include "core/wall_clock.h"
 #include "modules/registry.h"
+#include "recordings/log_input.h"
 #include "replayer/replayer.h"
 #include "runtime/live_runner.h"
 #include "sim/simulator.h"
@@ -231,7 +231,7 @@ int run_replay(ReplayArgs a) {
   if (Status s = refuse_same_file(a.out, a.logs); !s) return fail(s.message());  // the recordings given
   if (Status s = a.json.check(a.logs, {a.out}); !s) return fail(s.message());
   for (auto& log : a.logs) {
-    auto converted = event_log_for(log);  // another tool's recording: its cached conversion
+    auto converted = recordings::event_log_for(log);  // another tool's recording: its cached conversion
     if (!converted) return fail(converted.error().message, exit_code_for_input(converted.error()));
     log = *converted;
   }

@@ -20,10 +20,10 @@
 #include "analyzers/report_data.h"
 #include "apps/cli_util.h"
 #include "apps/commands.h"
-#include "apps/log_input.h"
 #include "apps/report.h"
 #include "core/same_file.h"
 #include "core/text_file.h"
+#include "recordings/log_input.h"
 
 namespace driftlab::apps {
 
@@ -65,7 +65,7 @@ Result<std::string> make_report(const ReportOptions& o) {
     for (size_t i = 1; i < given.size(); ++i) name += " + " + given[i];
     names.push_back(name);
     stage("reading " + name);
-    auto path = event_log_for(given);  // another tool's recording: its cached conversion
+    auto path = recordings::event_log_for(given);  // another tool's recording: its cached conversion
     if (!path) return path.error();
     auto s = read_log_series(*path);
     if (!s) return s.error();

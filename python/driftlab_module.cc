@@ -1,5 +1,5 @@
 // _driftlab: the C++ side of `import driftlab` (python/driftlab/__init__.py is the package users see). Logs are
-// opened as every command opens them (apps/log_input.h: another tool's recording through its cached conversion),
+// opened as every command opens them (recordings/log_input.h: another tool's recording through its cached conversion),
 // channels decoded by plans compiled per type (python/read_channel.h) straight into buffers NumPy takes over (an
 // intact log read through a buffer, a pass per core, each decoding its share of the channels; a damaged one mapped
 // once, at the first read, and kept while the Log lives), and diagnose, eval and import run in-process: diagnose and
@@ -25,13 +25,13 @@
 #include "analyzers/diagnosis_json.h"
 #include "apps/cli_util.h"
 #include "apps/commands.h"
-#include "apps/diagnosis_text.h"
-#include "apps/log_input.h"
+#include "apps/diagnose_ranges.h"
 #include "core/log_index.h"
 #include "core/same_file.h"
 #include "formats/import.h"
 #include "lcmtypes/type_registry.h"
 #include "python/read_channel.h"
+#include "recordings/log_input.h"
 
 namespace py = pybind11;
 
@@ -150,7 +150,7 @@ class Log {
  public:
   explicit Log(std::vector<std::string> inputs) : inputs_(std::move(inputs)) {
     py::gil_scoped_release release;
-    lcm_path_ = value_or_raise(apps::event_log_for(inputs_));
+    lcm_path_ = value_or_raise(recordings::event_log_for(inputs_));
     index_ = std::make_shared<LogIndex>(value_or_raise(LogIndex::load_or_build(lcm_path_)));
   }
 
@@ -288,11 +288,11 @@ std::string diagnose_json(const std::vector<std::string>& inputs, double max_lag
   for (const auto& [option, value, range] :
        {std::tuple{"--max-lag", max_lag_s, apps::kMaxLagRange}, {"--window", window_s, apps::kWindowRange}}) {
     if (std::string why = range.violation(value, "s"); !why.empty()) {
-      throw DriftlabError(std::string(option) + ": " + why + ", got " + apps::short_number(value));
+      throw DriftlabError(std::string(option) + ": " + why + ", got " + short_number(value));
     }
   }
   py::gil_scoped_release release;
-  const std::string log = value_or_raise(apps::event_log_for(inputs));
+  const std::string log = value_or_raise(recordings::event_log_for(inputs));
   analyzers::DiagnoseOptions options;
   options.max_lag_s = max_lag_s;
   options.window_s = window_s;

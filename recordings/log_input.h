@@ -15,18 +15,11 @@
 
 #include "core/result.h"
 
-namespace driftlab::apps {
+namespace driftlab::recordings {
 
 /// In the errors of log_for() and the functions below when the conversion could not be written (a full disk, a
 /// read-only folder): "INPUT: cannot write its conversion CACHE: why".
 inline constexpr char kCannotWriteConversion[] = ": cannot write its conversion ";
-
-/// The help of a command's log argument.
-inline constexpr char kLogInputHelp[] =
-    "LCM log, or another tool's recording (a ROS 1 or ROS 2 bag, a bag folder, an MCAP file, a CARMEN log; the files "
-    "of "
-    "a split recording; a PX4 flight log beside a bag of the same flight, put on its clock): converted once, kept "
-    "beside it";
 
 /// Where the conversion of inputs is kept: beside the (first) file as FILE.dlimport.lcm (FOLDER.dlimport.lcm for a
 /// bag folder, FIRST+N.dlimport.lcm for the N more files of a split recording); a name over 160 bytes is cut to
@@ -52,4 +45,4 @@ inline Result<std::string> event_log_for(const std::string& input) {
 /// replaced by its conversion. Other sources (LCM logs, TUM files) come back unchanged.
 Result<std::string> log_channel_for(const std::string& source);
 
-}  // namespace driftlab::apps
+}  // namespace driftlab::recordings

@@ -1,4 +1,4 @@
-#include "apps/log_input.h"
+#include "recordings/log_input.h"
 #include "analyzers/flight_log_pair.h"
 
 #include <fcntl.h>
@@ -14,11 +14,11 @@
 #include <sstream>
 #include <vector>
 
-#include "apps/cli_util.h"
 #include "core/log_reader.h"
+#include "core/number_text.h"
 #include "formats/import.h"
 
-namespace driftlab::apps {
+namespace driftlab::recordings {
 namespace {
 
 namespace fs = std::filesystem;
@@ -208,7 +208,8 @@ Result<std::string> log_for(const std::vector<std::string>& inputs) {
     }
   }
   const std::string key_path = cache + ".key";
-  const std::string named = inputs[0] + (inputs.size() > 1 ? " (and " + std::to_string(inputs.size() - 1) + " more)" : "");
+  const std::string named =
+      inputs[0] + (inputs.size() > 1 ? " (and " + std::to_string(inputs.size() - 1) + " more)" : "");
   // The key says what recording the conversion was made from and what the conversion itself was when written: a
   // key or a conversion that is a symbolic link, someone else's, or not the file the key recorded (an output
   // written over it, a copy of another log) is not believed, and the recording is converted again.
@@ -228,8 +229,9 @@ Result<std::string> log_for(const std::vector<std::string>& inputs) {
       problems = std::strtoll(old.c_str() + at + 9, nullptr, 10);
     }
     std::fprintf(stderr, "driftlab: %s: reading its conversion %s%s\n", named.c_str(), cache.c_str(),
-                 problems ? (" (" + thousands(problems) + " problems when converted; `driftlab import` lists them)").c_str()
-                          : "");
+                 problems
+                     ? (" (" + thousands(problems) + " problems when converted; `driftlab import` lists them)").c_str()
+                     : "");
     // A flight log beside a bag: how it was put on the bag's clock, said on every use as when converted.
     if (const size_t at = old.find("\nalignment ", key.size() > 0 ? key.size() - 1 : 0); at != std::string::npos) {
       const size_t end = old.find('\n', at + 1);
@@ -264,7 +266,8 @@ Result<std::string> log_for(const std::vector<std::string>& inputs) {
     return summary.error();
   }
   if (problems > kProblemLines) {
-    std::fprintf(stderr, "driftlab: %s: %s more problems\n", named.c_str(), thousands(problems - kProblemLines).c_str());
+    std::fprintf(stderr, "driftlab: %s: %s more problems\n", named.c_str(),
+                 thousands(problems - kProblemLines).c_str());
   }
   std::fprintf(stderr, "driftlab: %s (%s): %s messages converted\n", named.c_str(), summary->format.c_str(),
                thousands(summary->messages).c_str());
@@ -302,4 +305,4 @@ Result<std::string> log_channel_for(const std::string& source) {
   return *converted + source.substr(colon);
 }
 
-}  // namespace driftlab::apps
+}  // namespace driftlab::recordings
