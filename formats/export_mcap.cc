@@ -213,26 +213,17 @@ class Exporter {
   Status point_cloud_direct(const Event& e, uint64_t log_ns, const char* driftlab_type) {
     if (!lcmtypes::well_formed(e.data, point_cloud_t::getHash())) return malformed(e);
     // The layout is checked: every length below is inside the message.
+    const auto header = lcmtypes::read_header(e.data, e.utime);  // the type has one: the registry says so
+    if (!header) return malformed(e);
+    const header_t h{header->seq, header->utime, std::string(header->frame_id)};
     const uint8_t* d = e.data.data();
-    size_t p = 8;
+    size_t p = lcmtypes::kHeaderFrameOffset + 4 + header->frame_id.size() + 1;  // past the frame's NUL
     auto be32 = [&] {
       uint32_t v;
       std::memcpy(&v, d + p, 4);
       p += 4;
       return __builtin_bswap32(v);
     };
-    auto be64 = [&] {
-      uint64_t v;
-      std::memcpy(&v, d + p, 8);
-      p += 8;
-      return __builtin_bswap64(v);
-    };
-    header_t h{};
-    h.seq = static_cast<int64_t>(be64());
-    h.utime = static_cast<int64_t>(be64());
-    const uint32_t frame_len = be32();  // with its NUL
-    h.frame_id.assign(reinterpret_cast<const char*>(d + p), frame_len - 1);
-    p += frame_len;
     const uint32_t height = be32(), width = be32(), npoints = be32();
     const uint8_t* x = d + p;
     const uint8_t* y = x + 4 * size_t{npoints};

@@ -13,7 +13,6 @@
 #include <unordered_map>
 
 #include "core/config.h"
-#include "core/log_format.h"
 #include "core/log_index.h"
 #include "core/log_reader.h"
 #include "core/time.h"
@@ -337,8 +336,8 @@ Result<ReplayReport> Replayer::run(const Sink& sink, const std::atomic<bool>* st
       if (!stamped_msg) item.owned.clear();
     }
     if (auto inj = injectors.find(input); inj != injectors.end()) {
-      const auto stamp = lcmtypes::header_stamp(item.data(), e.utime);
-      int64_t seq = stamp ? static_cast<int64_t>(logfmt::load_be64(item.data().data() + 8)) : unstamped_seq[input]++;
+      const auto header = lcmtypes::read_header(item.data(), e.utime);
+      const int64_t seq = header ? header->seq : unstamped_seq[input]++;
       deliveries.clear();
       inj->second.apply(seq, e.utime, deliveries);
       for (const Delivery& d : deliveries) {
