@@ -4,6 +4,8 @@
 #include <cstdlib>
 #include <optional>
 
+#include "core/number_text.h"
+
 namespace driftlab::analyzers {
 
 ClockCorrections clock_corrections(const Diagnosis& d, std::vector<std::string>* notes) {
@@ -99,9 +101,7 @@ Result<CorrectionPlan> plan_corrections(const std::vector<std::string>& logs, bo
       return Error{"--retime " + r + ": expected auto or CHANNEL=SECONDS (0..3600)"};
     }
     plan.retime[r.substr(0, eq)] = Duration::from_seconds_rounded(s);
-    char seconds[32];
-    std::snprintf(seconds, sizeof(seconds), "%g", s);
-    plan.notes.push_back("retime " + r.substr(0, eq) + ": each command starts " + seconds +
+    plan.notes.push_back("retime " + r.substr(0, eq) + ": each command starts " + short_number(s) +
                          " s before it arrived (--retime)");
   }
   return plan;

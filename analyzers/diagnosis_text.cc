@@ -245,33 +245,6 @@ std::vector<std::string> report_lines(const Diagnosis& d, std::vector<std::strin
   return lines;
 }
 
-std::string html_page(const Diagnosis& d, const std::vector<std::string>& lines,
-                      const std::vector<std::string>& problems) {
-  auto escape = [](const std::string& s) {
-    std::string out;
-    for (char ch : s) {
-      if (ch == '<')
-        out += "&lt;";
-      else if (ch == '>')
-        out += "&gt;";
-      else if (ch == '&')
-        out += "&amp;";
-      else
-        out += ch;
-    }
-    return out;
-  };
-  std::string page = "<!doctype html><html><head><meta charset=\"utf-8\"><title>driftlab diagnose: " + escape(d.log) +
-                     "</title><style>body{font-family:sans-serif;margin:2em}pre{background:#f6f6f6;padding:1em}"
-                     "li.fault{color:#b00}</style></head><body><h1>Timing diagnosis</h1><p>" +
-                     escape(d.log) + "</p><pre>";
-  for (const auto& l : lines) page += escape(l) + "\n";
-  page += "</pre><h2>Problems</h2><ul>";
-  for (const auto& p : problems) page += "<li class=\"fault\">" + escape(p) + "</li>";
-  if (problems.empty()) page += "<li>none</li>";
-  return page + "</ul></body></html>\n";
-}
-
 }  // namespace
 
 std::string flight_utc_line(const FlightUtc& u) {
@@ -408,7 +381,29 @@ DiagnosisText diagnosis_text(const DiagnoseRun& run) {
 }
 
 std::string diagnosis_html(const Diagnosis& d, const DiagnosisText& text) {
-  return html_page(d, text.lines, text.problems);
+  auto escape = [](const std::string& s) {
+    std::string out;
+    for (char ch : s) {
+      if (ch == '<')
+        out += "&lt;";
+      else if (ch == '>')
+        out += "&gt;";
+      else if (ch == '&')
+        out += "&amp;";
+      else
+        out += ch;
+    }
+    return out;
+  };
+  std::string page = "<!doctype html><html><head><meta charset=\"utf-8\"><title>driftlab diagnose: " + escape(d.log) +
+                     "</title><style>body{font-family:sans-serif;margin:2em}pre{background:#f6f6f6;padding:1em}"
+                     "li.fault{color:#b00}</style></head><body><h1>Timing diagnosis</h1><p>" +
+                     escape(d.log) + "</p><pre>";
+  for (const auto& l : text.lines) page += escape(l) + "\n";
+  page += "</pre><h2>Problems</h2><ul>";
+  for (const auto& p : text.problems) page += "<li class=\"fault\">" + escape(p) + "</li>";
+  if (text.problems.empty()) page += "<li>none</li>";
+  return page + "</ul></body></html>\n";
 }
 
 Severity worst_severity(const Diagnosis& d, const DiagnosisText& text) {

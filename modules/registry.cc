@@ -4,7 +4,6 @@
 
 #include <algorithm>
 #include <array>
-#include <sstream>
 
 #include "controller/controller_module.h"
 #include "estimator/drone_estimator_module.h"
@@ -83,13 +82,6 @@ constexpr bool rows_follow_the_table() {
 }
 static_assert(rows_follow_the_table(), "modules/registry.cc: kRows must list modules/module_table.h's modules");
 
-Result<std::unique_ptr<Module>> make_module(const std::string& name, const Making& making) {
-  for (const auto& row : kRows) {
-    if (row.name == name) return row.make(making);
-  }
-  return Error{"--modules: unknown module '" + name + "' (known: " + known_modules() + ")"};
-}
-
 }  // namespace
 
 Result<std::vector<std::unique_ptr<Module>>> load_modules(const std::string& list, const std::string& config_path,
@@ -98,19 +90,15 @@ Result<std::vector<std::unique_ptr<Module>>> load_modules(const std::string& lis
   auto settings = read_module_settings(config_path);
   if (!settings) return settings.error();
   std::vector<std::unique_ptr<Module>> modules;
-  std::stringstream names(list);
-  for (std::string name; std::getline(names, name, ',');) {
-    if (name.empty()) continue;
-    const YAML::Node node = settings->of(name);
-    try {
-      auto m = make_module(name, Making{node, *settings, inputs, notes});
-      if (!m) return m.error();
-      modules.push_back(std::move(*m));
-    } catch (const YAML::Exception& e) {
-      // A value of the wrong kind that a module's reader did not expect: one line, never a crash.
-      return Error{settings->origin + ":" + std::to_string(e.mark.line + 1) + ": " + name + ": " + e.msg};
-    }
-  }
+  const Status made = for_each_module(*settings, list, [&](const std::string& name, const YAML::Node& config) {
+    // Every module has its row (rows_follow_the_table).
+    const auto row = std::find_if(kRows.begin(), kRows.end(), [&](const ModuleRow& r) { return r.name == name; });
+    auto m = row->make(Making{config, *settings, inputs, notes});
+    if (!m) return Status{m.error()};
+    modules.push_back(std::move(*m));
+    return Status{};
+  });
+  if (!made) return made.error();
   return modules;
 }
 

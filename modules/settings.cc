@@ -1,5 +1,6 @@
 #include "modules/settings.h"
 
+#include <algorithm>
 #include <array>
 #include <filesystem>
 #include <sstream>
@@ -19,6 +20,12 @@ std::string line_of(const std::string& file, const YAML::Mark& mark) {
   return file + ":" + std::to_string(mark.line + 1);
 }
 
+/// A parse's outcome without its value.
+template <typename T>
+Status parsed(const Result<T>& r) {
+  return r ? Status{} : Status{r.error()};
+}
+
 /// A controller's settings checked: the route a scenario gives stands in for that scenario's (read when the module
 /// is made).
 Status check_controller(const YAML::Node& config, const ModuleSettings& settings) {
@@ -26,8 +33,7 @@ Status check_controller(const YAML::Node& config, const ModuleSettings& settings
   if (!scenario) return scenario.error();
   controller::ControllerConfig base;
   if (scenario->from_scenario) base.route = {{0, 0}, {1, 0}};
-  auto c = controller::parse_controller_config(config, settings.origin, std::move(base));
-  return c ? Status{} : Status{c.error()};
+  return parsed(controller::parse_controller_config(config, settings.origin, std::move(base)));
 }
 
 /// A row of modules/module_table.h with its settings: their reference (the keys with the module's name in front)
@@ -37,11 +43,6 @@ struct SettingsRow {
   std::string (*reference)(const std::string& prefix);
   Status (*check)(const YAML::Node& config, const ModuleSettings& settings);
 };
-
-template <typename T>
-Status parsed(const Result<T>& r) {
-  return r ? Status{} : Status{r.error()};
-}
 
 constexpr std::array<SettingsRow, kModuleKinds.size()> kRows{{
     {"slam", [](const std::string& p) { return slam::slam_config_table().reference(p); },
@@ -124,23 +125,27 @@ Result<ModuleSettings> parse_module_settings(const std::string& text, const std:
   return checked(std::move(s));
 }
 
-Status check_module_settings(const ModuleSettings& settings, const std::string& modules) {
+Status for_each_module(const ModuleSettings& settings, const std::string& modules,
+                       const std::function<Status(const std::string& name, const YAML::Node& config)>& fn) {
   std::stringstream names(modules);
   for (std::string name; std::getline(names, name, ',');) {
     if (name.empty()) continue;
-    const SettingsRow* row = nullptr;
-    for (const auto& r : kRows) {
-      if (r.name == name) row = &r;
-    }
-    if (row == nullptr) return Error{"--modules: unknown module '" + name + "' (known: " + known_modules() + ")"};
+    if (!is_module(name)) return Error{"--modules: unknown module '" + name + "' (known: " + known_modules() + ")"};
     try {
-      if (Status s = row->check(settings.of(name), settings); !s) return s;
+      if (Status s = fn(name, settings.of(name)); !s) return s;
     } catch (const YAML::Exception& e) {
       // A value of the wrong kind that a module's reader did not expect: one line, never a crash.
       return Error{settings.origin + ":" + std::to_string(e.mark.line + 1) + ": " + name + ": " + e.msg};
     }
   }
   return {};
+}
+
+Status check_module_settings(const ModuleSettings& settings, const std::string& modules) {
+  return for_each_module(settings, modules, [&](const std::string& name, const YAML::Node& config) {
+    const auto row = std::find_if(kRows.begin(), kRows.end(), [&](const SettingsRow& r) { return r.name == name; });
+    return row->check(config, settings);  // every module has its row (rows_follow_the_table)
+  });
 }
 
 std::string config_reference() {

@@ -7,6 +7,7 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include <functional>
 #include <string>
 
 #include "core/result.h"
@@ -35,6 +36,12 @@ Result<ModuleSettings> parse_module_settings(const std::string& text, const std:
 /// file, line and key, as making the module would say it. What a module reads only when it is made (the scenario
 /// a controller takes its route from) is not read.
 Status check_module_settings(const ModuleSettings& settings, const std::string& modules);
+
+/// Calls fn with each module named in `modules` (comma-separated) and its settings, in that order, until one fails.
+/// A name not in module_table.h is an error ("--modules: unknown module ..."), as is a value of a kind a module's
+/// reader did not expect (yaml-cpp throws): one line naming the config, its line and the module.
+Status for_each_module(const ModuleSettings& settings, const std::string& modules,
+                       const std::function<Status(const std::string& name, const YAML::Node& config)>& fn);
 
 /// The reference of the module config: every module's keys with type, unit, default, range and description, as
 /// markdown (from the modules' config tables, core/config.h), in module_table.h's order.
