@@ -7,26 +7,18 @@
 #include <signal.h>
 #include <unistd.h>
 
-#include <algorithm>
 #include <atomic>
-#include <cctype>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
-#include <map>
 #include <memory>
-#include <sstream>
 
 #include "apps/cli_checks.h"
 #include "apps/cli_util.h"
 #include "apps/commands.h"
-#include "batch/executor.h"
-#include "batch/plan.h"
 #include "batch/runner.h"
-#include "batch/store.h"
+#include "batch/session.h"
 #include "core/install_layout.h"
-#include "core/same_file.h"
-#include "core/text_file.h"
 #include "core/wall_clock.h"
 
 namespace driftlab::apps {
@@ -68,120 +60,26 @@ std::string self_path() {
   return p.empty() ? "driftlab" : p.string();
 }
 
-RunnerOptions runner_options() { return {self_path()}; }
-
-int install_stop_handlers() {
-  struct sigaction sa {};
-  sa.sa_handler = on_stop;
-  sigaction(SIGINT, &sa, nullptr);
-  sigaction(SIGTERM, &sa, nullptr);
-  return 0;
-}
-
 /// collect: the merged table (CSV, JSON) and the page with plots. Returns the page's path, or "" with --no-plots.
 Result<std::string> collect(const std::string& dir, const Plan& plan, bool plots) {
-  const Table t = merge_results(dir, plan);
-  nlohmann::json j = {{"name", plan.spec.name}, {"kind", plan.spec.kind}, {"columns", t.columns}, {"rows", t.rows}};
-  j["varied"] = nlohmann::json::array();
-  for (const auto& p : plan.spec.vary) j["varied"].push_back(p.key);
-  j["stages"] = nlohmann::json::array();
-  for (Stage s : plan.spec.stages) j["stages"].push_back(stage_name(s));
-  if (plan.spec.kind == "batch" || !plan.spec.logs.empty()) j["ranked"] = rank_batch(t);
-  const std::string json_path = (fs::path(dir) / "results.json").string();
-  if (Status s = write_atomically((fs::path(dir) / "results.csv").string(), table_csv(t)); !s) return Error{s.message()};
-  if (Status s = write_atomically(json_path, j.dump(1) + "\n"); !s) return Error{s.message()};
+  auto json_path = write_tables(dir, plan);
+  if (!json_path) return json_path.error();
   if (!plots) return std::string();
-  if (Status s = run_plot_script(kSweepPageScript, "sweep_page.py", dir, {json_path, dir}); !s) {
+  if (Status s = run_plot_script(kSweepPageScript, "sweep_page.py", dir, {*json_path, dir}); !s) {
     return Error{"collect " + dir + ": " + s.message()};
   }
   return (fs::path(dir) / "index.html").string();
 }
 
-/// The files a sweep or batch writes at the top of its folder.
-std::vector<std::string> sweep_files(const std::string& dir) {
-  std::vector<std::string> files;
-  for (const char* name : {"plan.json", "results.csv", "results.json", "index.html"}) {
-    files.push_back((fs::path(dir) / name).string());
-  }
-  return files;
-}
-
-/// A sweep's or batch's folder -o DIR, checked before anything is written: DIR is a folder or absent, not an
-/// input and not inside an input folder (a ROS 2 bag); each file written at its top (plan.json, results.csv,
-/// results.json, index.html) is a regular file or absent and not an input; and no input lies in DIR/points,
-/// where the points' folders are made and cleared. `inputs`: the spec, its scenario and its logs.
-Status check_sweep_dir(const std::string& dir, const std::vector<std::string>& inputs) {
-  std::error_code ec;
-  if (fs::exists(fs::symlink_status(dir, ec)) && !fs::is_directory(dir, ec)) {
-    struct stat st {};
-    const char* kind = ::stat(dir.c_str(), &st) == 0 ? internal::node_kind(st) : "a dangling link";
-    return Error{"-o " + dir + ": is " + kind + ", not a folder: give the sweep's folder (made if absent)"};
-  }
-  if (Status s = refuse_same_file(dir, inputs, "-o", OutputKind::kFolder); !s) return s;
-  for (const std::string& file : sweep_files(dir)) {
-    if (Status s = refuse_same_file(file, inputs, "-o " + dir + " writes"); !s) return s;
-  }
-  const fs::path points = internal::resolved((fs::path(dir) / "points").string());
-  for (const auto& in : inputs) {
-    if (in.empty()) continue;
-    if (internal::is_within(internal::resolved(in), points)) {
-      return Error{"-o " + dir + ": the input " + in + " lies in " + (fs::path(dir) / "points").string() +
-                   ", where the points are written: give another folder"};
-    }
-  }
-  return {};
-}
-
-struct Counts {
-  std::map<PointState, size_t> by_state;
-  std::vector<PointStatus> failed;
-};
-
-Counts count_points(const std::string& dir, const Plan& plan) {
-  Counts c;
-  for (const auto& p : plan.points) {
-    PointStatus st = point_status(dir, p.id);
-    ++c.by_state[st.state];
-    if (st.state == PointState::kFailed) c.failed.push_back(std::move(st));
-  }
-  return c;
-}
-
 int run_status(const std::string& dir, const JsonOutput& json) {
   auto plan = load_plan(dir);
   if (!plan) return fail(plan.error().message);
-  const Counts c = count_points(dir, *plan);
-  const auto jobs = slurm_jobs(dir);
-  const auto queue = slurm_queue(jobs);
-  auto n = [&](PointState s) { return c.by_state.count(s) ? c.by_state.at(s) : 0; };
+  const SweepState state = sweep_state(dir, *plan, true);
   if (json.wanted()) {
-    nlohmann::json j = {{"dir", dir}, {"points", plan->points.size()}, {"done", n(PointState::kDone)},
-                        {"running", n(PointState::kRunning)}, {"failed", n(PointState::kFailed)},
-                        {"pending", n(PointState::kPending)}, {"slurm_jobs", jobs}};
-    j["slurm_tasks"] = nlohmann::json::object();
-    for (const auto& [id, state] : queue) j["slurm_tasks"][id] = state;
-    j["failures"] = nlohmann::json::array();
-    for (const auto& f : c.failed) j["failures"].push_back({{"id", f.id}, {"attempts", f.attempts}, {"record", f.record}});
-    if (!json.emit(j.dump(2) + "\n")) return kExitFailure;
+    if (!json.emit(to_json(state, dir).dump(2) + "\n")) return kExitFailure;
     if (json.print) return kExitOk;
   }
-  std::printf("%s: %zu points: %zu done, %zu running, %zu failed, %zu pending\n", dir.c_str(), plan->points.size(),
-              n(PointState::kDone), n(PointState::kRunning), n(PointState::kFailed), n(PointState::kPending));
-  for (const auto& f : c.failed) {
-    std::printf("  failed %s (attempt %d): %s\n", f.id.c_str(), f.attempts,
-                f.record.is_object() ? f.record.value("error", "").c_str() : "");
-  }
-  if (!jobs.empty()) {
-    std::map<std::string, size_t> states;
-    for (const auto& [id, state] : queue) ++states[state];
-    std::string s;
-    for (const auto& [state, k] : states) s += (s.empty() ? "" : ", ") + std::to_string(k) + " " + state;
-    std::printf("slurm jobs %s: %s\n", [&] {
-      std::string l;
-      for (const auto& j : jobs) l += (l.empty() ? "" : ",") + j;
-      return l;
-    }().c_str(), s.empty() ? "none in the queue" : s.c_str());
-  }
+  std::fputs(state_text(state, dir).c_str(), stdout);
   return kExitOk;
 }
 
@@ -193,9 +91,8 @@ int run_collect(const std::string& dir, bool plots) {
   if (Status s = check_sweep_dir(dir, inputs); !s) return fail(s.message());
   auto page = collect(dir, *plan, plots);
   if (!page) return fail(page.error().message, kExitFailure);
-  const Counts c = count_points(dir, *plan);
-  const size_t done = c.by_state.count(PointState::kDone) ? c.by_state.at(PointState::kDone) : 0;
-  std::printf("%zu of %zu points done; table: %s/results.csv%s%s\n", done, plan->points.size(), dir.c_str(),
+  std::printf("%zu of %zu points done; table: %s/results.csv%s%s\n",
+              sweep_state(dir, *plan, false).count(PointState::kDone), plan->points.size(), dir.c_str(),
               page->empty() ? "" : ", page: ", page->c_str());
   return kExitOk;
 }
@@ -204,96 +101,72 @@ int run_point_command(const std::string& dir, const std::string& id) {
   auto plan = load_plan(dir);
   if (!plan) return fail(plan.error().message);
   for (const auto& p : plan->points) {
-    if (p.id == id) return run_point(*plan, p, dir, runner_options(), SystemWallClock());
+    if (p.id == id) return run_point(*plan, p, dir, {self_path()}, SystemWallClock());
   }
   return fail(dir + ": no point " + id + " in plan.json");
 }
 
 /// Runs or submits the points of plan that are not done, then (local) collects.
-int execute(const std::string& dir, Plan plan, const ExecArgs& e, const std::string& point_flag) {
-  std::vector<std::string> pending;
-  for (const auto& p : plan.points) {
-    if (!is_done(dir, p.id)) pending.push_back(p.id);
-  }
+int execute(const std::string& dir, const Plan& plan, const ExecArgs& e, const std::string& point_flag) {
   if (e.dry_run) {
-    for (const auto& p : plan.points) {
-      std::string params;
-      for (const auto& [k, v] : p.params) params += " " + k + "=" + v.text;
-      std::printf("%s %s%s\n", p.id.c_str(), is_done(dir, p.id) ? "done   " : "pending", params.c_str());
-    }
+    std::fputs(dry_run_text(dir, plan).c_str(), stdout);
     return kExitOk;
   }
-  if (Status s = save_plan(dir, plan); !s) return fail(s.message(), kExitFailure);
-  const std::string exe = self_path();
-  const size_t already = plan.points.size() - pending.size();
+  RunOptions o;
+  o.driftlab = self_path();
+  o.point_flag = point_flag;
+  o.jobs = e.jobs;
+  o.retries = e.retries;
+  o.progress = isatty(STDERR_FILENO) == 1 && !e.json.print;
+  o.stop = &g_stop;
+  o.max_parallel = e.max_parallel;
+  o.requeue = e.requeue;
+  o.slurm_options = e.slurm_opts;
+  if (const char* sb = std::getenv("DRIFTLAB_SBATCH"); sb != nullptr && *sb != 0) o.sbatch = sb;
   if (e.executor == "slurm") {
-    SlurmOptions so;
-    so.driftlab = exe;
-    so.point_flag = point_flag;
-    so.job_name = "driftlab-" + plan.spec.name;
-    for (char& c : so.job_name) {
-      if (!std::isalnum(static_cast<unsigned char>(c)) && c != '-' && c != '_') c = '_';
-    }
-    so.max_parallel = e.max_parallel;
-    so.requeue = e.requeue;
-    so.slurm_options = e.slurm_opts;
-    if (const char* sb = std::getenv("DRIFTLAB_SBATCH"); sb != nullptr && *sb != 0) so.sbatch = sb;
-    if (pending.empty()) {
+    auto r = submit_to_slurm(dir, plan, o);
+    if (!r) return fail(r.error().message, kExitFailure);
+    if (r->job_id.empty()) {
       std::printf("all %zu points of %s are done; nothing submitted\n", plan.points.size(), dir.c_str());
       return kExitOk;
     }
-    auto r = make_slurm_executor(so)->execute(dir, pending);
-    if (!r) return fail(r.error().message, kExitFailure);
-    if (e.json.wanted() &&
-        !e.json.emit(
-            nlohmann::json{{"job_id", r->job_id}, {"submitted", pending.size()}, {"done", already}, {"dir", dir}}
-                .dump() +
-            "\n")) {
-      return kExitFailure;
-    }
+    const nlohmann::json j{{"job_id", r->job_id}, {"submitted", r->submitted}, {"done", r->already_done}, {"dir", dir}};
+    if (e.json.wanted() && !e.json.emit(j.dump() + "\n")) return kExitFailure;
     if (!e.json.print) {
-      std::printf("submitted job %s: %zu points as a job array (%zu already done); follow with: driftlab sweep "
-                  "status %s\n",
-                  r->job_id.c_str(), pending.size(), already, dir.c_str());
+      std::printf(
+          "submitted job %s: %zu points as a job array (%zu already done); follow with: driftlab sweep "
+          "status %s\n",
+          r->job_id.c_str(), r->submitted, r->already_done, dir.c_str());
     }
     return kExitOk;
   }
-  LocalOptions lo;
-  lo.jobs = e.jobs;
-  lo.retries = e.retries;
-  lo.progress = isatty(STDERR_FILENO) == 1 && !e.json.print;
-  lo.stop = &g_stop;
-  const std::string abs_dir = fs::absolute(dir).string();
-  std::vector<std::string> flag_words;
-  {
-    std::stringstream ss(point_flag);
-    for (std::string w; ss >> w;) flag_words.push_back(w);
-  }
-  lo.command = [exe, abs_dir, flag_words](const std::string& id) {
-    std::vector<std::string> argv = {exe};
-    argv.insert(argv.end(), flag_words.begin(), flag_words.end());
-    argv.insert(argv.end(), {id, "-o", abs_dir});
-    return argv;
-  };
-  install_stop_handlers();
-  const Stopwatch running;
-  auto r = make_local_executor(lo)->execute(dir, pending);
-  if (!r) return fail(r.error().message, kExitFailure);
-  const double wall = running.seconds();
-  auto page = collect(dir, plan, !r->interrupted);
-  const int code = r->interrupted ? 130 : r->failed > 0 ? kExitFailure : kExitOk;
+  struct sigaction sa {};
+  sa.sa_handler = on_stop;
+  sigaction(SIGINT, &sa, nullptr);
+  sigaction(SIGTERM, &sa, nullptr);
+  auto run = run_locally(dir, plan, o);
+  if (!run) return fail(run.error().message, kExitFailure);
+  const ExecutionSummary& r = run->summary;
+  auto page = collect(dir, plan, !r.interrupted);
+  const int code = r.interrupted ? 130 : r.failed > 0 ? kExitFailure : kExitOk;
   if (e.json.wanted()) {
-    nlohmann::json j = {{"dir", dir}, {"points", plan.points.size()}, {"already_done", already}, {"done", r->done},
-                        {"failed", r->failed}, {"not_started", r->not_started}, {"interrupted", r->interrupted},
-                        {"wall_s", wall}, {"jobs", lo.jobs > 0 ? lo.jobs : usable_cpus()},
+    nlohmann::json j = {{"dir", dir},
+                        {"points", plan.points.size()},
+                        {"already_done", run->already_done},
+                        {"done", r.done},
+                        {"failed", r.failed},
+                        {"not_started", r.not_started},
+                        {"interrupted", r.interrupted},
+                        {"wall_s", run->wall_s},
+                        {"jobs", run->jobs},
                         {"table", (fs::path(dir) / "results.csv").string()}};
     if (page && !page->empty()) j["page"] = *page;
     if (!e.json.emit(j.dump(2) + "\n")) return kExitFailure;
   }
   if (!e.json.print) {
     std::printf("%s %zu points in %.1f s (%zu already done): %zu done, %zu failed%s\n",
-                r->interrupted ? "stopped after" : "ran", r->done + r->failed, wall, already, r->done, r->failed,
-                r->interrupted ? "; finished points are kept, run the same command again to resume" : "");
+                r.interrupted ? "stopped after" : "ran", r.done + r.failed, run->wall_s, run->already_done, r.done,
+                r.failed, r.interrupted ? "; finished points are kept, run the same command again to resume" : "");
     if (page) std::printf("table: %s/results.csv%s%s\n", dir.c_str(), page->empty() ? "" : ", page: ", page->c_str());
   }
   if (!page) return fail(page.error().message, kExitFailure);
@@ -338,54 +211,14 @@ int run_sweep(const SweepArgs& a) {
   if (!spec->scenario.empty()) inputs.push_back(spec->scenario);
   if (Status s = check_sweep_dir(a.out, inputs); !s) return fail(s.message());
   if (Status s = a.exec.json.check(inputs, sweep_files(a.out)); !s) return fail(s.message());
-  Plan plan{*spec, expand(*spec)};
-  return execute(a.out, std::move(plan), a.exec, "sweep --point");
-}
-
-Result<std::vector<std::string>> batch_logs(const BatchArgs& a) {
-  std::vector<std::string> out;
-  auto add = [&](const std::string& item) -> Status {
-    if (is_pattern(item)) {  // a pattern the shell left alone (quoted, or no match)
-      auto found = expand_pattern(item);
-      if (found.empty()) return Error{item + ": matches no file"};
-      out.insert(out.end(), found.begin(), found.end());
-      return {};
-    }
-    out.push_back(item);
-    return {};
-  };
-  std::vector<std::string> items = a.logs;
-  auto read_list = [&](const std::string& path) -> Status {
-    auto text = read_text_file(path, "list of logs");
-    if (!text) return text.error();
-    std::istringstream in(*text);
-    for (std::string line; std::getline(in, line);) {
-      line.erase(0, line.find_first_not_of(" \t"));
-      line.erase(line.find_last_not_of(" \t\r") + 1);
-      if (line.empty() || line[0] == '#') continue;
-      if (fs::path(line).is_relative()) line = (fs::path(path).parent_path() / line).string();
-      if (Status s = add(line); !s) return Error{path + ": " + s.message()};
-    }
-    return {};
-  };
-  if (!a.list.empty()) {
-    if (Status s = read_list(a.list); !s) return Error{s.message()};
-  }
-  for (const auto& item : items) {
-    if (item.size() > 1 && item[0] == '@') {
-      if (Status s = read_list(item.substr(1)); !s) return Error{s.message()};
-    } else if (Status s = add(item); !s) {
-      return Error{s.message()};
-    }
-  }
-  return out;
+  return execute(a.out, Plan{*spec, expand(*spec)}, a.exec, "sweep --point");
 }
 
 int run_batch(const BatchArgs& a) {
   if (a.out.empty()) return fail("batch: -o DIR is required");
   if (!a.item.empty()) return run_point_command(a.out, a.item);
   if (a.command.empty()) return fail("batch: a command is required: diagnose, eval or report (or --item ID)");
-  auto logs = batch_logs(a);
+  auto logs = batch_logs(a.logs, a.list);
   if (!logs) return fail(logs.error().message);
   auto spec = batch_spec(a.command, *logs);
   if (!spec) return fail(spec.error().message);
@@ -394,8 +227,7 @@ int run_batch(const BatchArgs& a) {
   spec->align = a.align;
   if (Status s = check_sweep_dir(a.out, spec->logs); !s) return fail(s.message());
   if (Status s = a.exec.json.check(spec->logs, sweep_files(a.out)); !s) return fail(s.message());
-  Plan plan{*spec, expand(*spec)};
-  return execute(a.out, std::move(plan), a.exec, "batch --item");
+  return execute(a.out, Plan{*spec, expand(*spec)}, a.exec, "batch --item");
 }
 
 }  // namespace
