@@ -185,7 +185,20 @@ nlohmann::json to_json(const Diagnosis& d) {
           {"timesync", timesync}};
 }
 
-nlohmann::json diagnosis_summary(const nlohmann::json& diagnosis) {
+const char* severity_name(Severity s) {
+  switch (s) {
+    case Severity::kWarn: return "warn";
+    case Severity::kFault: return "fault";
+    case Severity::kOk: break;
+  }
+  return "ok";
+}
+
+Severity severity_from_name(std::string_view name) {
+  return name == "fault" ? Severity::kFault : name == "warn" ? Severity::kWarn : Severity::kOk;
+}
+
+Result<DiagnosisSummary> summarize(const nlohmann::json& diagnosis) {
   // A clock of another epoch (simulation time) has no offset of its own: its streams' clocks are against its peers.
   auto on_mapped_clock = [&](const nlohmann::json& c) {
     const auto& domain = c.value("domain", nlohmann::json());
@@ -199,28 +212,45 @@ nlohmann::json diagnosis_summary(const nlohmann::json& diagnosis) {
                         causes.empty() ? Cause::kSymptom : cause_from_name(causes[0].get<std::string>()),
                         c.at("reasons").size());
   };
-  const nlohmann::json* worst = nullptr;
-  nlohmann::json ahead = nlohmann::json::object(), drops = nlohmann::json::object();
-  for (const auto& c : diagnosis.at("channels")) {
-    const std::string name = c.at("name");
-    if (rank(c) > 0 && (worst == nullptr || rank(c) > rank(*worst))) worst = &c;
-    const auto& clock = c.at("clock");
-    if (clock.is_object() && !on_mapped_clock(c) && clock_ahead(clock.at("offset_s").get<double>())) {
-      ahead[name] = clock.at("offset_s");
+  DiagnosisSummary out;
+  try {
+    const nlohmann::json* worst = nullptr;
+    for (const auto& c : diagnosis.at("channels")) {
+      const std::string name = c.at("name");
+      if (rank(c) > 0 && (worst == nullptr || rank(c) > rank(*worst))) worst = &c;
+      const Severity verdict = severity_from_name(c.at("verdict").get<std::string>());
+      out.fault_streams += verdict == Severity::kFault;
+      out.warn_streams += verdict == Severity::kWarn;
+      const auto& clock = c.at("clock");
+      if (clock.is_object() && !on_mapped_clock(c) && clock_ahead(clock.at("offset_s").get<double>())) {
+        out.clocks_ahead_s[name] = clock.at("offset_s").get<double>();
+      }
+      const auto& d = c.at("drops");
+      const int64_t n =
+          d.at("seq_gaps").is_number() ? d.at("seq_gaps").get<int64_t>() : d.at("missing_by_period").get<int64_t>();
+      if (n > 0) out.drops[name] = n;
     }
-    const auto& d = c.at("drops");
-    const int64_t n =
-        d.at("seq_gaps").is_number() ? d.at("seq_gaps").get<int64_t>() : d.at("missing_by_period").get<int64_t>();
-    if (n > 0) drops[name] = n;
+    if (worst != nullptr) {
+      out.worst_stream = DiagnosisSummary::Stream{
+          worst->at("name").get<std::string>(), severity_from_name(worst->at("verdict").get<std::string>()),
+          worst->at("reasons").get<std::vector<std::string>>(),
+          worst->value("causes", nlohmann::json::array()).get<std::vector<std::string>>()};
+    }
+  } catch (const nlohmann::json::exception& e) {
+    return Error{std::string("not a diagnosis (driftlab diagnose --json): ") + e.what()};
   }
-  return {
-      {"worst_stream", worst == nullptr ? nlohmann::json()
-                                        : nlohmann::json{{"name", worst->at("name")},
-                                                         {"verdict", worst->at("verdict")},
-                                                         {"reasons", worst->at("reasons")},
-                                                         {"causes", worst->value("causes", nlohmann::json::array())}}},
-      {"clocks_ahead_s", ahead},
-      {"drops", drops}};
+  return out;
+}
+
+nlohmann::json to_json(const DiagnosisSummary& s) {
+  nlohmann::json worst;
+  if (s.worst_stream) {
+    worst = {{"name", s.worst_stream->name},
+             {"verdict", severity_name(s.worst_stream->verdict)},
+             {"reasons", s.worst_stream->reasons},
+             {"causes", s.worst_stream->causes}};
+  }
+  return {{"worst_stream", worst}, {"clocks_ahead_s", s.clocks_ahead_s}, {"drops", s.drops}};
 }
 
 nlohmann::json flight_log_json(const FlightLogDiagnosis& f) {

@@ -26,7 +26,6 @@ std::string diagnosis_html(const Diagnosis& d, const DiagnosisText& text);
 
 /// The worst a diagnosis found: kFault when a stream's verdict is fault; kWarn when one is warn, or the text lists
 /// a problem of the log as a whole (a TF chain, a flight log's dropouts); kOk otherwise.
-enum class Severity { kOk, kWarn, kFault };
 Severity worst_severity(const Diagnosis& d, const DiagnosisText& text);
 
 /// A flight's UTC line in `info`'s and `diagnose`'s text; empty when the log has no GNSS time.

@@ -253,6 +253,19 @@ nlohmann::json to_json(const Evaluation& ev) {
   return j;
 }
 
+Result<EvaluationHeadline> evaluation_headline(const nlohmann::json& eval) {
+  try {
+    EvaluationHeadline h;
+    eval.at("matched").get_to(h.matched);
+    eval.at("ate").at("rmse").get_to(h.ate_rmse);
+    eval.at("ate").at("max").get_to(h.ate_max);
+    eval.at("rpe").at("trans").at("rmse").get_to(h.rpe_rmse);
+    return h;
+  } catch (const nlohmann::json::exception& e) {
+    return Error{std::string("not an evaluation against a reference (driftlab eval --json): ") + e.what()};
+  }
+}
+
 nlohmann::json to_json(const ArmTracking& a) {
   auto or_null = [](const std::string& s) { return s.empty() ? nlohmann::json() : nlohmann::json(s); };
   nlohmann::json joints = nlohmann::json::array();

@@ -74,6 +74,15 @@ Result<Evaluation> evaluate(const EvaluateOptions& options);
 /// "ate_rot_deg", "rpe", "drift" (with a reference), "relations" (with relations) and "notes".
 nlohmann::json to_json(const Evaluation& ev);
 
+/// The headline of what to_json gave (`driftlab eval --json-out`), for the demo's summary: poses matched, the
+/// ATE's RMSE and maximum and the RPE's translation RMSE [m]. Errors: one line when the JSON is not an evaluation
+/// against a reference trajectory.
+struct EvaluationHeadline {
+  size_t matched = 0;
+  double ate_rmse = 0, ate_max = 0, rpe_rmse = 0;
+};
+Result<EvaluationHeadline> evaluation_headline(const nlohmann::json& eval);
+
 /// What `driftlab eval --arm LOG --json` prints under "arm".
 nlohmann::json to_json(const ArmTracking& a);
 

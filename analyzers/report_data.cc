@@ -149,7 +149,9 @@ Result<nlohmann::json> report_data(const ReportInputs& in) {
       data["streams"].push_back(
           stream_json(s, diagnosed[s.channel], diagnosis.value("clock_domains", nlohmann::json::array()), origin_s));
     }
-    data["summary"] = analyzers::diagnosis_summary(diagnosis);
+    auto summary = analyzers::summarize(diagnosis);
+    if (!summary) return summary.error();
+    data["summary"] = to_json(*summary);
   } catch (const nlohmann::json::exception& e) {
     return Error{std::string("not the JSON of driftlab diagnose --json (") + e.what() + ")"};
   }

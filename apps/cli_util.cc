@@ -1,9 +1,11 @@
 #include "apps/cli_util.h"
 
+#include "core/install_layout.h"
 #include "core/process.h"
 #include "core/time.h"
 
 #include <lcm/lcm.h>
+#include <signal.h>
 #include <sys/mman.h>
 #include <unistd.h>
 
@@ -34,6 +36,24 @@ int fail(std::string_view message, int code) {
   }
   std::fprintf(stderr, "driftlab: %.*s\n", static_cast<int>(message.size()), message.data());
   return code;
+}
+
+namespace {
+std::atomic<bool> g_stop{false};
+void on_stop_signal(int) { g_stop.store(true); }
+}  // namespace
+
+const std::atomic<bool>* stop_on_signals() {
+  struct sigaction sa {};
+  sa.sa_handler = on_stop_signal;
+  sigaction(SIGINT, &sa, nullptr);
+  sigaction(SIGTERM, &sa, nullptr);
+  return &g_stop;
+}
+
+std::string self_path() {
+  const auto p = self_executable();
+  return p.empty() ? "driftlab" : p.string();
 }
 
 int exit_code_for_input(const Error& error) {

@@ -1,6 +1,7 @@
 // Small helpers shared by the subcommands: errors, number formatting, progress on a TTY.
 #pragma once
 
+#include <atomic>
 #include <chrono>
 #include <cstdint>
 #include <memory>
@@ -30,6 +31,13 @@ inline constexpr char kLogInputHelp[] =
 
 /// Prints "driftlab: message" as one line on stderr and returns code.
 int fail(std::string_view message, int code = kExitBadInput);
+
+/// From now on Ctrl-C and SIGTERM set the returned flag, which the long commands watch to stop cleanly (what is
+/// finished is kept, a log is closed whole).
+const std::atomic<bool>* stop_on_signals();
+
+/// This program's path, to run its own subcommands ("driftlab" when it cannot be found).
+std::string self_path();
 
 /// The exit code for an error, by its code: kExitFailure (1) when an output could not be written (the
 /// environment), kExitBadInput (2) otherwise (the input).

@@ -11,8 +11,10 @@
 #include <filesystem>
 #include <fstream>
 #include <memory>
+#include <optional>
 
 #include "analyzers/diagnosis_json.h"
+#include "analyzers/evaluate.h"
 #include "analyzers/log_series.h"
 #include "apps/cli_checks.h"
 #include "apps/cli_util.h"
@@ -21,6 +23,7 @@
 #include "core/install_layout.h"
 #include "core/process.h"
 #include "core/wall_clock.h"
+#include "runtime/module_report.h"
 
 namespace driftlab::apps {
 namespace {
@@ -48,43 +51,51 @@ struct Stage {
   double seconds = 0;
 };
 
-/// The path of this program, to run its subcommands.
-std::string self_path() {
-  const auto p = self_executable();
-  return p.empty() ? "driftlab" : p.string();
-}
-
 std::string join_args(const std::vector<std::string>& args) {
   std::string s = "driftlab";
   for (size_t i = 1; i < args.size(); ++i) s += " " + args[i];
   return s;
 }
 
-nlohmann::json read_json(const std::string& path) {
+/// A stage's JSON, read by the library that wrote it. Errors name the file.
+template <class T>
+Result<T> read_stage(const std::string& path, Result<T> (*read)(const nlohmann::json&)) {
   std::ifstream in(path);
-  return nlohmann::json::parse(in);
+  const nlohmann::json j = nlohmann::json::parse(in, nullptr, false);
+  auto r = j.is_discarded() ? Result<T>(Error{"not JSON"}) : read(j);
+  if (!r) return Error{path + ": " + r.error().message};
+  return r;
+}
+
+/// The first error among results, if any.
+template <class... R>
+std::optional<Error> first_error(const R&... results) {
+  std::optional<Error> e;
+  ((e || results ? void() : void(e = results.error())), ...);
+  return e;
 }
 
 /// Late measurements the estimator dropped, from `driftlab replay --json`.
-int64_t late_rejected(const nlohmann::json& replay) {
-  for (const auto& m : replay["modules"]) {
-    if (m["name"] == "estimator") return static_cast<int64_t>(m["metrics"].value("late_rejected", 0.0));
+Result<int64_t> late_rejected(const std::string& replay_json) {
+  auto reports = read_stage(replay_json, runtime::module_reports_from_json);
+  if (!reports) return reports.error();
+  for (const auto& m : *reports) {
+    if (m.name == "estimator") return static_cast<int64_t>(runtime::metric(m, "late_rejected").value_or(0));
   }
   return 0;
 }
 
 /// The summary's first two lines: the worst stream with its first reason, and the clocks found ahead.
-void print_worst_and_clocks(const nlohmann::json& summary) {
+void print_worst_and_clocks(const analyzers::DiagnosisSummary& summary) {
   std::string worst_text = "none: no stream was flagged";
-  if (const auto& worst = summary["worst_stream"]; worst.is_object()) {
-    worst_text = worst["name"].get<std::string>() + " (" + worst["verdict"].get<std::string>() + ")";
-    if (!worst["reasons"].empty()) worst_text += ": " + worst["reasons"][0].get<std::string>();
+  if (const auto& worst = summary.worst_stream) {
+    worst_text = worst->name + " (" + analyzers::severity_name(worst->verdict) + ")";
+    if (!worst->reasons.empty()) worst_text += ": " + worst->reasons[0];
   }
   std::string offset_text;
   char buf[160];
-  for (const auto& [name, v] : summary["clocks_ahead_s"].items()) {
-    std::snprintf(buf, sizeof(buf), "%s%s %+.1f ms", offset_text.empty() ? "" : ", ", name.c_str(),
-                  v.get<double>() * 1e3);
+  for (const auto& [name, v] : summary.clocks_ahead_s) {
+    std::snprintf(buf, sizeof(buf), "%s%s %+.1f ms", offset_text.empty() ? "" : ", ", name.c_str(), v * 1e3);
     offset_text += buf;
   }
   std::printf("\nworst stream:  %s\n", worst_text.c_str());
@@ -220,16 +231,15 @@ int run_drone_demo(const DemoArgs& a, const fs::path& dir, const std::string& ex
   auto page = draw_report(r, total, a.json.print, stages);
   if (!page) return fail("demo: " + page.error().message, kExitFailure);
 
-  nlohmann::json summary;
+  auto summary = read_stage(r.diagnosis, analyzers::summarize);
+  if (!summary) return fail("demo: " + summary.error().message, kExitFailure);
   std::map<std::string, double> tracking, estimate;
-  try {
-    summary = analyzers::diagnosis_summary(read_json(r.diagnosis));
-    for (const auto& [name, log] : flights) {
-      tracking[name] = read_json(file((std::string("tracking-") + name + ".json").c_str()))["ate"]["rmse"];
-      estimate[name] = read_json(file((std::string("estimate-") + name + ".json").c_str()))["ate"]["rmse"];
+  for (const auto& [name, log] : flights) {
+    for (auto& [kind, into] : {std::pair{"tracking-", &tracking}, std::pair{"estimate-", &estimate}}) {
+      auto eval = read_stage(file((kind + std::string(name) + ".json").c_str()), analyzers::evaluation_headline);
+      if (!eval) return fail("demo: " + eval.error().message, kExitFailure);
+      (*into)[name] = eval->ate_rmse;
     }
-  } catch (const nlohmann::json::exception& e) {
-    return fail("demo: reading the stages' JSON in " + a.out + ": " + e.what(), kExitFailure);
   }
   const ImuRejections before = imu_rejections(sim), after = imu_rejections(restamped);
   auto percent = [](const ImuRejections& r) {
@@ -243,13 +253,14 @@ int run_drone_demo(const DemoArgs& a, const fs::path& dir, const std::string& ex
     j["estimate_ate_m"] = estimate;
     j["imu_rejected"] = {{"logged", before.rejected}, {"restamped", after.rejected}};
     j["imu_received"] = {{"logged", before.received}, {"restamped", after.received}};
-    j["worst_stream"] = summary["worst_stream"];
-    j["clock_offsets_s"] = summary["clocks_ahead_s"];
+    const nlohmann::json headline = to_json(*summary);
+    j["worst_stream"] = headline["worst_stream"];
+    j["clock_offsets_s"] = headline["clocks_ahead_s"];
     j["stages"] = stages_json(stages);
     if (!a.json.emit(j.dump(2) + "\n")) return kExitFailure;
     if (a.json.print) return kExitOk;
   }
-  print_worst_and_clocks(summary);
+  print_worst_and_clocks(*summary);
   std::printf(
       "estimator:     rejected %.0f%% of its IMU samples (%s of %s, %s from the future) as logged, %.0f%% "
       "flown again\n",
@@ -327,44 +338,40 @@ int run_demo(const DemoArgs& a) {
   if (!page) return fail("demo: " + page.error().message, kExitFailure);
 
   // The summary, from the stages' JSON.
-  nlohmann::json summary;
-  double before = 0, after = 0;
-  int64_t rejected_before = 0, rejected_after = 0;
-  try {
-    summary = analyzers::diagnosis_summary(read_json(r.diagnosis));
-    before = read_json(r.evals[0])["ate"]["rmse"].get<double>();
-    after = read_json(r.evals[1])["ate"]["rmse"].get<double>();
-    rejected_before = late_rejected(read_json(file("replay.json")));
-    rejected_after = late_rejected(read_json(file("restamped.json")));
-  } catch (const nlohmann::json::exception& e) {
-    return fail("demo: reading the stages' JSON in " + a.out + ": " + e.what(), kExitFailure);
+  auto summary = read_stage(r.diagnosis, analyzers::summarize);
+  auto before = read_stage(r.evals[0], analyzers::evaluation_headline);
+  auto after = read_stage(r.evals[1], analyzers::evaluation_headline);
+  auto rejected_before = late_rejected(file("replay.json")), rejected_after = late_rejected(file("restamped.json"));
+  if (auto e = first_error(summary, before, after, rejected_before, rejected_after)) {
+    return fail("demo: " + e->message, kExitFailure);
   }
   if (a.json.wanted()) {
     nlohmann::json j;
     j["report"] = *page;
     j["dir"] = a.out;
     j["estimate"] = a.estimate;
-    j["ate_before"] = before;
-    j["ate_after"] = after;
-    j["late_rejected_before"] = rejected_before;
-    j["late_rejected_after"] = rejected_after;
-    j["worst_stream"] = summary["worst_stream"];
-    j["clock_offsets_s"] = summary["clocks_ahead_s"];
-    j["drops"] = summary["drops"];
+    j["ate_before"] = before->ate_rmse;
+    j["ate_after"] = after->ate_rmse;
+    j["late_rejected_before"] = *rejected_before;
+    j["late_rejected_after"] = *rejected_after;
+    const nlohmann::json headline = to_json(*summary);
+    j["worst_stream"] = headline["worst_stream"];
+    j["clock_offsets_s"] = headline["clocks_ahead_s"];
+    j["drops"] = headline["drops"];
     j["stages"] = stages_json(stages);
     if (!a.json.emit(j.dump(2) + "\n")) return kExitFailure;
     if (a.json.print) return kExitOk;
   }
   std::string drop_text;
-  for (const auto& [name, v] : summary["drops"].items()) {
-    drop_text += (drop_text.empty() ? "" : ", ") + name + " " + thousands(v.get<int64_t>());
-  }
-  print_worst_and_clocks(summary);
+  for (const auto& [name, n] : summary->drops) drop_text += (drop_text.empty() ? "" : ", ") + name + " " + thousands(n);
+  print_worst_and_clocks(*summary);
   std::printf("drops:         %s\n", drop_text.empty() ? "none" : drop_text.c_str());
-  std::printf("ATE:           %s %.3f m as logged, %.3f m with corrected clocks (%+.0f%%; late measurements "
-              "dropped: %s, then %s)\n",
-              a.estimate.c_str(), before, after, before > 0 ? (after - before) / before * 100 : 0.0,
-              thousands(rejected_before).c_str(), thousands(rejected_after).c_str());
+  std::printf(
+      "ATE:           %s %.3f m as logged, %.3f m with corrected clocks (%+.0f%%; late measurements "
+      "dropped: %s, then %s)\n",
+      a.estimate.c_str(), before->ate_rmse, after->ate_rmse,
+      before->ate_rmse > 0 ? (after->ate_rmse - before->ate_rmse) / before->ate_rmse * 100 : 0.0,
+      thousands(*rejected_before).c_str(), thousands(*rejected_after).c_str());
   std::printf("report:        %s\n", page->c_str());
   return kExitOk;
 }

@@ -1,21 +1,17 @@
 // driftlab replay: re-feed logs, deterministically, to SLAM, the estimator and the controller on a virtual clock;
 // correct clocks or inject faults first, write what the modules publish, re-publish on LCM.
 #include <CLI/CLI.hpp>
-#include <signal.h>
 
-#include <atomic>
 #include <cstdio>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <regex>
-#include <set>
 
 #include "analyzers/clock_corrections.h"
 #include "apps/cli_checks.h"
 #include "apps/cli_util.h"
 #include "apps/commands.h"
 #include "core/config.h"
-#include "core/log_index.h"
 #include "core/same_file.h"
 #include "core/time.h"
 #include "core/wall_clock.h"
@@ -23,6 +19,7 @@
 #include "recordings/log_input.h"
 #include "replayer/replayer.h"
 #include "runtime/live_runner.h"
+#include "runtime/module_report.h"
 #include "sim/simulator.h"
 
 namespace driftlab::apps {
@@ -50,9 +47,6 @@ struct ReplayArgs {
   JsonOutput json;
 };
 
-std::atomic<bool> g_stop{false};
-void on_signal(int) { g_stop.store(true); }
-
 /// --help-config: the keys of the files replay and run read, from the tables they are read with.
 void print_config_help() {
   std::printf("## Module settings: `driftlab replay|run --config FILE`\n\n"
@@ -63,75 +57,6 @@ void print_config_help() {
               "--help-config`).\n",
               modules::known_modules().c_str(), modules::config_reference().c_str(),
               replay::restamp_file_table().reference().c_str());
-}
-
-nlohmann::json modules_json(const std::vector<runtime::ModuleReport>& reports) {
-  nlohmann::json out = nlohmann::json::array();
-  for (const auto& m : reports) {
-    out.push_back({{"name", m.name},
-                   {"inputs", m.inputs},
-                   {"late", m.late},
-                   {"out_of_order", m.out_of_order},
-                   {"dropped", m.dropped},
-                   {"outputs", m.outputs},
-                   {"proc_mean_s", m.proc_mean_s},
-                   {"proc_p95_s", m.proc_p95_s},
-                   {"proc_max_s", m.proc_max_s},
-                   {"queue_depth_max", m.queue_depth_max},
-                   {"warnings", m.warnings},
-                   {"metrics", nlohmann::json(std::map<std::string, double>(m.metrics.begin(), m.metrics.end()))}});
-  }
-  return out;
-}
-
-void print_modules(const std::vector<runtime::ModuleReport>& reports, bool timing) {
-  for (const auto& m : reports) {
-    std::printf("  %-10s %s inputs (%s late, %s out of order, %s dropped), %s outputs", m.name.c_str(),
-                thousands(m.inputs).c_str(), thousands(m.late).c_str(), thousands(m.out_of_order).c_str(),
-                thousands(m.dropped).c_str(), thousands(m.outputs).c_str());
-    if (timing) {
-      std::printf(", %.3f ms per input (p95 %.3f ms), queue <= %d", m.proc_mean_s * 1e3, m.proc_p95_s * 1e3,
-                  m.queue_depth_max);
-    }
-    std::printf("\n");
-    if (!m.metrics.empty()) {
-      std::printf("            ");
-      for (size_t i = 0; i < m.metrics.size(); ++i) {
-        const double v = m.metrics[i].second;
-        const bool whole = v == std::floor(v) && std::abs(v) < 1e15;
-        std::printf(whole ? "%s%s %.0f" : "%s%s %.4g", i > 0 ? ", " : "", m.metrics[i].first.c_str(), v);
-      }
-      std::printf("\n");
-    }
-    for (const auto& w : m.warnings) std::printf("  warning: %s\n", w.c_str());
-  }
-}
-
-/// Refuses a --restamp or --inject FILE that names a channel none of the logs has: it would change nothing, and
-/// the replay would report success as if it had (a misspelt channel, or a file written for another log).
-Status refuse_absent_channels(const std::string& option, const std::string& file,
-                              const std::vector<std::string>& channels, const std::vector<std::string>& logs) {
-  if (channels.empty()) return {};
-  std::set<std::string> present;
-  for (const auto& log : logs) {
-    auto index = LogIndex::load_or_build(log);
-    if (!index) return index.error();
-    for (const auto& c : index->summary().channels) present.insert(c.name);
-  }
-  for (const auto& channel : channels) {
-    if (present.count(channel) != 0) continue;
-    std::string known;
-    int listed = 0;
-    for (const auto& p : present) {
-      if (listed++ == 8) {
-        known += ", ...";
-        break;
-      }
-      known += (known.empty() ? "" : ", ") + p;
-    }
-    return Error{option + " " + file + ": no channel '" + channel + "' in the logs given (they have: " + known + ")"};
-  }
-  return {};
 }
 
 /// --closed-loop: the simulation that made the log, run again with the corrections applied where its messages are
@@ -184,11 +109,7 @@ int run_closed_loop(const ReplayArgs& a, const ReplayArgs& defaults) {
   o.out = a.out;
   o.version = DRIFTLAB_VERSION;
   o.corrections = corrections;
-  o.stop = &g_stop;
-  struct sigaction sa {};
-  sa.sa_handler = on_signal;
-  sigaction(SIGINT, &sa, nullptr);
-  sigaction(SIGTERM, &sa, nullptr);
+  o.stop = stop_on_signals();
   const Stopwatch running;
   auto report = (*simulation)->run(o);
   const double wall = running.seconds();
@@ -246,11 +167,9 @@ int run_replay(ReplayArgs a) {
   o.start_s = a.start;
   if (a.end > 0) o.end_s = a.end;
   for (const auto& m : a.remap) {
-    const auto eq = m.find('=');
-    if (eq == std::string::npos || eq == 0 || eq + 1 == m.size()) {
-      return fail("--remap " + m + ": expected FROM=TO (channel names)");
-    }
-    o.remap.emplace_back(m.substr(0, eq), m.substr(eq + 1));
+    auto r = replay::parse_remap(m);
+    if (!r) return fail(r.error().message);
+    o.remap.push_back(std::move(*r));
   }
   if (Status s = refuse_same_file(a.out, a.logs); !s) return fail(s.message());  // and their conversions
   if (Status s = a.json.check(a.logs, {a.out}); !s) return fail(s.message());
@@ -283,12 +202,13 @@ int run_replay(ReplayArgs a) {
   if (!a.restamp.empty() && a.restamp != "auto") {
     std::vector<std::string> named;
     for (const auto& [channel, c] : o.restamp) named.push_back(channel);
-    if (Status s = refuse_absent_channels("--restamp", a.restamp, named, a.logs); !s) return fail(s.message());
+    if (Status s = replay::refuse_absent_channels("--restamp " + a.restamp, named, a.logs); !s)
+      return fail(s.message());
   }
   if (o.inject) {
     std::vector<std::string> named;
     for (const auto& [channel, f] : o.inject->streams) named.push_back(channel);
-    if (Status s = refuse_absent_channels("--inject", a.inject, named, a.logs); !s) return fail(s.message());
+    if (Status s = replay::refuse_absent_channels("--inject " + a.inject, named, a.logs); !s) return fail(s.message());
   }
 
   // The slam module's `auto` backend and its unset input channels look at what the replay delivers (after the filter
@@ -311,12 +231,8 @@ int run_replay(ReplayArgs a) {
   if (live) sink = [&live](const BusMessage& m) { live->publish(m.channel, m.time.us(), m.data); };
 
   if (Status s = replayer.open(); !s) return fail(s.message());
-  struct sigaction sa {};
-  sa.sa_handler = on_signal;
-  sigaction(SIGINT, &sa, nullptr);
-  sigaction(SIGTERM, &sa, nullptr);
   const Stopwatch running;
-  auto report = replayer.run(sink, &g_stop);
+  auto report = replayer.run(sink, stop_on_signals());
   progress.finish();
   const double wall = running.seconds();
   if (!report) return fail(report.error().message, kExitFailure);
@@ -344,7 +260,7 @@ int run_replay(ReplayArgs a) {
     for (const auto& [channel, c] : o.restamp) {
       j["restamp"][channel] = {{"offset_s", c.offset_s}, {"drift_ppm", c.drift_ppm}};
     }
-    j["modules"] = modules_json(r.modules);
+    j["modules"] = runtime::to_json(r.modules);
     j["injected_faults"] = r.injected.size();
     if (!a.json.emit(j.dump(2) + "\n")) return kExitFailure;
     if (a.json.print) return kExitOk;
@@ -358,7 +274,7 @@ int run_replay(ReplayArgs a) {
                                       static_cast<unsigned long long>(r.log_problems));
   if (!r.injected.empty()) std::printf("  injected %zu faults (manifest on %s)\n", r.injected.size(),
                                        o.faults_channel.c_str());
-  print_modules(r.modules, a.timing);
+  std::fputs(runtime::module_report_text(r.modules, a.timing).c_str(), stdout);
   return kExitOk;
 }
 
@@ -378,11 +294,7 @@ int run_live(const RunArgs& a) {
   runtime::LiveRunner runner({.url = a.url, .out = a.out, .duration_s = a.duration}, clock);
   for (auto& m : *modules) runner.add_module(std::move(m));
   if (Status s = runner.open(); !s) return fail(s.message());
-  struct sigaction sa {};
-  sa.sa_handler = on_signal;
-  sigaction(SIGINT, &sa, nullptr);
-  sigaction(SIGTERM, &sa, nullptr);
-  auto report = runner.run(&g_stop);
+  auto report = runner.run(stop_on_signals());
   if (!report) return fail(report.error().message, kExitFailure);
   if (a.json.wanted()) {
     nlohmann::json j;
@@ -392,7 +304,7 @@ int run_live(const RunArgs& a) {
     j["outputs"] = report->outputs;
     j["wall_s"] = report->wall_s;
     j["notes"] = notes;
-    j["modules"] = modules_json(report->modules);
+    j["modules"] = runtime::to_json(report->modules);
     if (!a.json.emit(j.dump(2) + "\n")) return kExitFailure;
     if (a.json.print) return kExitOk;
   }
@@ -400,7 +312,7 @@ int run_live(const RunArgs& a) {
   std::printf("ran %.1f s on %s: %s messages handled, %s module outputs%s%s\n", report->wall_s, a.url.c_str(),
               thousands(report->received).c_str(), thousands(report->outputs).c_str(), a.out.empty() ? "" : " -> ",
               a.out.c_str());
-  print_modules(report->modules, true);
+  std::fputs(runtime::module_report_text(report->modules, true).c_str(), stdout);
   return kExitOk;
 }
 

@@ -1,10 +1,8 @@
 // driftlab sim: simulate a robot in a Bullet world from a scenario and write every stream to an LCM log, with
 // ground truth and the injected faults.
-#include <CLI/CLI.hpp>
-#include <signal.h>
 #include <unistd.h>
+#include <CLI/CLI.hpp>
 
-#include <atomic>
 #include <cstdio>
 #include <memory>
 #include <nlohmann/json.hpp>
@@ -34,9 +32,6 @@ struct SimArgs {
   std::string rays = "grid";
   JsonOutput json;
 };
-
-std::atomic<bool> g_stop{false};
-void on_signal(int) { g_stop.store(true); }
 
 /// --help-config: the keys of a scenario and of a fault description, from the tables they are read with.
 void print_config_help() {
@@ -84,7 +79,7 @@ int run_sim(const SimArgs& a) {
   sim::SimOptions o;
   o.out = a.out;
   o.version = DRIFTLAB_VERSION;
-  o.stop = &g_stop;
+  o.stop = stop_on_signals();
   if (live) {
     o.on_message = [&live](const std::string& c, int64_t t, std::span<const uint8_t> b) { live->publish(c, t, b); };
   }
@@ -92,10 +87,6 @@ int run_sim(const SimArgs& a) {
   o.progress = [&progress](double done, double total) {
     progress.update(static_cast<uint64_t>(done * 1000), static_cast<uint64_t>(total * 1000));
   };
-  struct sigaction sa {};
-  sa.sa_handler = on_signal;
-  sigaction(SIGINT, &sa, nullptr);
-  sigaction(SIGTERM, &sa, nullptr);
   const Stopwatch running;
   auto report = (*simulation)->run(o);
   const double wall = running.seconds();

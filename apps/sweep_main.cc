@@ -2,12 +2,10 @@
 // commands, on a local process pool or as one Slurm job array (docs/batch.md). This file is the command line; the
 // specs, points, markers, runner and executors are in batch/. Each point is this program run again with
 // `sweep --point ID` (or `batch --item ID`), so a point runs the same way on a laptop and on a cluster node.
+#include <unistd.h>
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
-#include <signal.h>
-#include <unistd.h>
 
-#include <atomic>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -18,7 +16,6 @@
 #include "apps/commands.h"
 #include "batch/runner.h"
 #include "batch/session.h"
-#include "core/install_layout.h"
 #include "core/wall_clock.h"
 
 namespace driftlab::apps {
@@ -51,14 +48,6 @@ struct BatchArgs {
   std::vector<std::string> logs;
   ExecArgs exec;
 };
-
-std::atomic<bool> g_stop{false};
-void on_stop(int) { g_stop = true; }
-
-std::string self_path() {
-  const auto p = self_executable();
-  return p.empty() ? "driftlab" : p.string();
-}
 
 /// collect: the merged table (CSV, JSON) and the page with plots. Returns the page's path, or "" with --no-plots.
 Result<std::string> collect(const std::string& dir, const Plan& plan, bool plots) {
@@ -118,7 +107,6 @@ int execute(const std::string& dir, const Plan& plan, const ExecArgs& e, const s
   o.jobs = e.jobs;
   o.retries = e.retries;
   o.progress = isatty(STDERR_FILENO) == 1 && !e.json.print;
-  o.stop = &g_stop;
   o.max_parallel = e.max_parallel;
   o.requeue = e.requeue;
   o.slurm_options = e.slurm_opts;
@@ -140,10 +128,7 @@ int execute(const std::string& dir, const Plan& plan, const ExecArgs& e, const s
     }
     return kExitOk;
   }
-  struct sigaction sa {};
-  sa.sa_handler = on_stop;
-  sigaction(SIGINT, &sa, nullptr);
-  sigaction(SIGTERM, &sa, nullptr);
+  o.stop = stop_on_signals();
   auto run = run_locally(dir, plan, o);
   if (!run) return fail(run.error().message, kExitFailure);
   const ExecutionSummary& r = run->summary;

@@ -12,6 +12,7 @@
 #include "batch/store.h"
 #include "core/process.h"
 #include "core/wall_clock.h"
+#include "runtime/module_report.h"
 
 namespace driftlab::batch {
 namespace {
@@ -49,35 +50,30 @@ nlohmann::json point_metrics(const Plan& plan, const std::string& pdir) {
   }
   if (s.has(Stage::kDiagnose)) {
     if (auto dj = read_json_file((d / "diagnosis.json").string())) {
-      const nlohmann::json sum = analyzers::diagnosis_summary(*dj);
-      int64_t drops = 0;
-      for (const auto& [ch, n] : sum.at("drops").items()) {
-        m["drops." + ch] = n;
-        drops += n.get<int64_t>();
+      if (auto sum = analyzers::summarize(*dj)) {
+        int64_t drops = 0;
+        for (const auto& [ch, n] : sum->drops) {
+          m["drops." + ch] = n;
+          drops += n;
+        }
+        m["drops"] = drops;
+        for (const auto& [ch, v] : sum->clocks_ahead_s) m["offset_s." + ch] = v;
+        const auto& worst = sum->worst_stream;
+        m["worst_stream"] = worst ? worst->name : "";
+        m["worst_verdict"] = analyzers::severity_name(worst ? worst->verdict : analyzers::Severity::kOk);
+        m["worst_reason"] = worst && !worst->reasons.empty() ? worst->reasons[0] : "";
+        m["fault_streams"] = sum->fault_streams;
+        m["warn_streams"] = sum->warn_streams;
       }
-      m["drops"] = drops;
-      for (const auto& [ch, v] : sum.at("clocks_ahead_s").items()) m["offset_s." + ch] = v;
-      const auto& worst = sum.at("worst_stream");
-      m["worst_stream"] = worst.is_object() ? worst.at("name").get<std::string>() : "";
-      m["worst_verdict"] = worst.is_object() ? worst.at("verdict").get<std::string>() : "ok";
-      m["worst_reason"] = worst.is_object() && !worst.at("reasons").empty() ? worst.at("reasons")[0].get<std::string>() : "";
-      int faults = 0, warns = 0;
-      for (const auto& c : (*dj).at("channels")) {
-        const std::string v = c.at("verdict");
-        faults += v == "fault";
-        warns += v == "warn";
-      }
-      m["fault_streams"] = faults;
-      m["warn_streams"] = warns;
     }
   }
   if (s.has(Stage::kReplay)) {
-    if (auto r = read_json_file((d / "replay.json").string())) {
-      for (const auto& mod : (*r).at("modules")) {
-        if (mod.at("name") != "estimator") continue;
-        for (const char* k : {"late_rejected", "late_reapplied"}) {
-          if (mod.at("metrics").contains(k)) m[std::string("estimator.") + k] = mod.at("metrics").at(k);
-        }
+    auto r = read_json_file((d / "replay.json").string());
+    auto reports = r ? runtime::module_reports_from_json(*r) : Result<std::vector<runtime::ModuleReport>>(r.error());
+    for (const auto& mod : reports ? *reports : std::vector<runtime::ModuleReport>{}) {
+      if (mod.name != "estimator") continue;
+      for (const char* k : {"late_rejected", "late_reapplied"}) {
+        if (auto v = runtime::metric(mod, k)) m[std::string("estimator.") + k] = *v;
       }
     }
   }

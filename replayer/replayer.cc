@@ -9,6 +9,7 @@
 #include <optional>
 #include <queue>
 #include <regex>
+#include <set>
 #include <sstream>
 #include <unordered_map>
 
@@ -197,6 +198,39 @@ std::vector<uint8_t> encode_manifest(const ReplayOptions& o, int64_t utime, cons
 }
 
 }  // namespace
+
+Result<std::pair<std::string, std::string>> parse_remap(const std::string& item) {
+  const auto eq = item.find('=');
+  if (eq == std::string::npos || eq == 0 || eq + 1 == item.size()) {
+    return Error{"--remap " + item + ": expected FROM=TO (channel names)"};
+  }
+  return std::pair{item.substr(0, eq), item.substr(eq + 1)};
+}
+
+Status refuse_absent_channels(const std::string& what, const std::vector<std::string>& channels,
+                              const std::vector<std::string>& logs) {
+  if (channels.empty()) return {};
+  std::set<std::string> present;
+  for (const auto& log : logs) {
+    auto index = LogIndex::load_or_build(log);
+    if (!index) return index.error();
+    for (const auto& c : index->summary().channels) present.insert(c.name);
+  }
+  for (const auto& channel : channels) {
+    if (present.count(channel) != 0) continue;
+    std::string known;
+    int listed = 0;
+    for (const auto& p : present) {
+      if (listed++ == 8) {
+        known += ", ...";
+        break;
+      }
+      known += (known.empty() ? "" : ", ") + p;
+    }
+    return Error{what + ": no channel '" + channel + "' in the logs given (they have: " + known + ")"};
+  }
+  return {};
+}
 
 InputChannels delivered_channels(const ReplayOptions& o) {
   // The first rule naming an input applies, as in run().

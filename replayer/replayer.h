@@ -88,6 +88,15 @@ using Sink = std::function<void(const BusMessage&)>;
 /// the type of each one's first message and its count, sorted by name; from the logs' indexes.
 InputChannels delivered_channels(const ReplayOptions& options);
 
+/// `--remap FROM=TO`: channel FROM delivered as TO. Errors name the item.
+Result<std::pair<std::string, std::string>> parse_remap(const std::string& item);
+
+/// Refuses corrections or faults (`what`: "--restamp FILE", "--inject FILE") naming a channel none of the logs
+/// has: they would change nothing, and the replay would report success as if they had (a misspelt channel, or a
+/// file written for another log). The error lists up to 8 of the logs' channels.
+Status refuse_absent_channels(const std::string& what, const std::vector<std::string>& channels,
+                              const std::vector<std::string>& logs);
+
 class Replayer {
  public:
   explicit Replayer(ReplayOptions options);

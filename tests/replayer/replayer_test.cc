@@ -142,6 +142,27 @@ TEST(Replayer, FiltersRemapsAndCutsByStartAndEnd) {
   EXPECT_EQ(report->channels.count("OTHER"), 0u);
 }
 
+TEST(Replayer, RemapItemsAndCorrectionsForAbsentChannelsAreRefused) {
+  auto remap = parse_remap("IMU=IMU2");
+  ASSERT_TRUE(remap);
+  EXPECT_EQ(*remap, (std::pair<std::string, std::string>{"IMU", "IMU2"}));
+  for (const char* bad : {"IMU", "=IMU2", "IMU="}) {
+    auto r = parse_remap(bad);
+    ASSERT_FALSE(r) << bad;
+    EXPECT_EQ(r.error().message, std::string("--remap ") + bad + ": expected FROM=TO (channel names)");
+  }
+  TempDir dir;
+  write_imu_log(dir.file("a.lcm"), "IMU", 10, kT0, 10000);
+  write_imu_log(dir.file("b.lcm"), "ODOM", 10, kT0, 10000);
+  const std::vector<std::string> logs = {dir.file("a.lcm"), dir.file("b.lcm")};
+  EXPECT_TRUE(refuse_absent_channels("--restamp fix.yaml", {"IMU", "ODOM"}, logs));
+  EXPECT_TRUE(refuse_absent_channels("--restamp fix.yaml", {}, logs));
+  // A misspelt channel would change nothing: refused, with the channels the logs have.
+  const Status s = refuse_absent_channels("--inject faults.yaml", {"IMU", "IMMU"}, logs);
+  ASSERT_FALSE(s);
+  EXPECT_EQ(s.message(), "--inject faults.yaml: no channel 'IMMU' in the logs given (they have: IMU, ODOM)");
+}
+
 TEST(Replayer, TimersTickAtMultiplesOfTheirPeriodBeforeLaterMessages) {
   TempDir dir;
   write_imu_log(dir.file("a.lcm"), "IMU", 10, kT0 + 3000, 7000);  // 3 ms .. 66 ms
