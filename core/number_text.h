@@ -15,4 +15,7 @@ std::string human_bytes(double bytes);
 /// 1234567 -> "1,234,567".
 std::string thousands(int64_t n);
 
+/// printf onto the end of out (a table's rows built as text).
+__attribute__((format(printf, 2, 3))) void appendf(std::string& out, const char* format, ...);
+
 }  // namespace driftlab

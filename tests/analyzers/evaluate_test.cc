@@ -3,6 +3,7 @@
 // ones said in a note), and bad input refused with one line and ErrorCode::kBadInput. tests/apps/eval_test.cc tests
 // the command's options, text and exit codes on top of it.
 #include "analyzers/evaluate.h"
+#include "analyzers/evaluate_text.h"
 
 #include <gtest/gtest.h>
 
@@ -182,6 +183,12 @@ TEST(Evaluate, TheHeadlineReadBackFromTheJson) {
   EXPECT_NEAR(h->ate_rmse, 0.05, 1e-9);
   EXPECT_NEAR(h->ate_max, 0.05, 1e-9);
   EXPECT_NEAR(h->rpe_rmse, 0, 1e-9);
+  // The text `driftlab eval` prints: the matching, then the ATE row (rmse, mean, median, std, min, max).
+  const std::string text = evaluation_text(*ev);
+  EXPECT_EQ(text.rfind("matched 100 of 100 estimated poses with 100 reference poses (nearest stamp", 0), 0u) << text;
+  EXPECT_NE(text.find("ATE [m]            0.050000   0.050000   0.050000   0.000000   0.050000   0.050000\n"),
+            std::string::npos)
+      << text;
 }
 
 }  // namespace
