@@ -228,6 +228,7 @@ void add_sweep_command(CLI::App& app, int* exit_code) {
       "or by `sweep collect DIR`. --executor slurm submits one job array and returns its job id at once; `sweep\n"
       "status DIR` and `sweep collect DIR` work from any node that sees DIR (a shared filesystem).");
   cmd->add_option("spec", a->spec, "Sweep spec (YAML)");
+  add_config_help(*cmd, [] { std::printf("## Sweep spec: `driftlab sweep SPEC`\n\n%s", spec_reference().c_str()); });
   cmd->add_option("-o,--out", a->out, "Folder of the sweep (points, table, page)");
   cmd->add_option("--point", a->point, "Run one point of the sweep in DIR (what each task runs)");
   add_exec_options(cmd, a->exec);

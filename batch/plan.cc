@@ -9,9 +9,11 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 #include <set>
 #include <sstream>
 
+#include "core/config.h"
 #include "core/install_layout.h"
 #include "core/text_file.h"
 #include "faults/faults.h"
@@ -22,9 +24,6 @@ namespace driftlab::batch {
 namespace {
 
 namespace fs = std::filesystem;
-
-constexpr const char* kTopKeys =
-    "name, scenario, logs, duration, seed, faults, modules, settings, restamp, eval, keep_logs, pipeline, vary";
 
 using modules::is_module;
 using modules::known_modules;
@@ -294,201 +293,191 @@ const Value* Point::get(const std::string& key) const {
   return nullptr;
 }
 
-Result<Spec> load_spec(const std::string& path) {
-  Spec s;
-  s.file = path;
-  auto text = read_text_file(path, "sweep spec");
-  if (!text) return text.error();
-  YAML::Node root;
-  try {
-    root = YAML::Load(*text);
-  } catch (const YAML::Exception& e) {
-    return Error{path + ":" + std::to_string(e.mark.line + 1) + ": " + e.msg};
-  }
-  if (!root.IsMap()) return Error{path + ": a sweep spec is a map (" + std::string(kTopKeys) + ")"};
-  const fs::path base = fs::absolute(fs::path(path)).parent_path();
-  s.name = fs::path(path).stem().string();
-  YAML::Node vary, pipeline;
-  try {
-    for (const auto& kv : root) {
-      const std::string key = kv.first.Scalar();
-      const YAML::Node& v = kv.second;
-      const std::string here = where(path, v, key);
-      auto scalar = [&]() -> Result<Value> {
-        if (!v.IsScalar()) return Error{here + ": expected a single value"};
-        return scalar_value(v);
-      };
-      if (key == "name") {
-        auto x = scalar();
-        if (!x) return x.error();
-        s.name = x->text;
-      } else if (key == "scenario") {
-        auto x = scalar();
-        if (!x) return x.error();
-        s.scenario = absolute(x->text, base);
-        if (!fs::is_regular_file(s.scenario)) return Error{here + ": no such scenario file: " + s.scenario};
-      } else if (key == "logs") {
-        if (!v.IsSequence() && !v.IsScalar()) return Error{here + ": a list of logs (paths or globs)"};
-        std::vector<std::string> items;
-        if (v.IsScalar()) items.push_back(v.Scalar());
-        for (const auto& x : v) {
-          if (!x.IsScalar()) return Error{here + ": a list of logs (paths or globs)"};
-          items.push_back(x.Scalar());
-        }
-        for (const auto& item : items) {
-          const std::string p = absolute(item, base);
-          if (is_pattern(p)) {
-            auto files = expand_pattern(p);
-            if (files.empty()) return Error{here + ": " + item + " matches no file"};
-            s.logs.insert(s.logs.end(), files.begin(), files.end());
-          } else {
-            if (!fs::is_regular_file(p)) return Error{here + ": no such log: " + item};
-            s.logs.push_back(p);
-          }
-        }
-      } else if (key == "duration") {
-        auto x = scalar();
-        if (!x) return x.error();
-        if (x->kind != Value::Kind::kNumber || !(x->number > 0)) return Error{here + ": must be a positive number [s]"};
-        s.duration = x->number;
-      } else if (key == "seed") {
-        auto x = scalar();
-        if (!x) return x.error();
-        if (x->kind != Value::Kind::kNumber || x->number < 0 || x->number != std::floor(x->number)) {
-          return Error{here + ": must be a non-negative whole number"};
-        }
-        s.seed = static_cast<int64_t>(x->number);
-      } else if (key == "faults") {
-        // The scenario's `faults:` form (docs/faults.md), checked by the fault model's parser.
-        YAML::Emitter e;
-        e << v;
-        if (auto f = parse_faults(std::string(e.c_str()), path + " (faults)"); !f) return Error{here + ": " + f.error().message};
-        s.faults_given = true;
-        for (const auto& stream : v["streams"]) {
-          for (const auto& f : stream.second) s.faults[stream.first.Scalar()][f.first.Scalar()] = f.second.as<double>();
-        }
-      } else if (key == "modules") {
-        std::vector<std::string> names;
-        if (v.IsScalar()) {
-          std::stringstream ss(v.Scalar());
-          for (std::string m; std::getline(ss, m, ',');) {
-            m.erase(0, m.find_first_not_of(' '));
-            m.erase(m.find_last_not_of(' ') + 1);
-            names.push_back(m);
-          }
-        } else if (v.IsSequence()) {
-          for (const auto& m : v) names.push_back(m.Scalar());
-        } else {
-          return Error{here + ": a list of modules (" + known_modules() + ")"};
-        }
-        for (const auto& m : names) {
-          if (!is_module(m)) return Error{here + ": unknown module '" + m + "' (" + known_modules() + ")"};
-          s.modules += (s.modules.empty() ? "" : ",") + m;
-        }
-      } else if (key == "settings") {
-        if (!v.IsMap()) return Error{here + ": one map of settings per module (estimator: {window_s: 0.5})"};
-        for (const auto& m : v) {
-          const std::string module = m.first.Scalar();
-          if (!is_module(module))
-            return Error{where(path, m.first, "settings: " + module) + ": unknown module (" + known_modules() + ")"};
-          if (!m.second.IsMap()) return Error{where(path, m.second, "settings: " + module) + ": a map of key: value"};
-          for (const auto& kv2 : m.second) {
-            if (!kv2.second.IsScalar()) {
-              return Error{where(path, kv2.second, "settings: " + module + "." + kv2.first.Scalar()) + ": expected a single value"};
-            }
-            s.settings[module][kv2.first.Scalar()] = scalar_value(kv2.second);
-          }
-        }
-      } else if (key == "restamp") {
-        auto x = scalar();
-        if (!x) return x.error();
-        if (x->text != "none" && x->text != "auto") return Error{here + ": none or auto"};
-        s.restamp = x->text;
-      } else if (key == "eval") {
-        if (!v.IsMap()) return Error{here + ": {gt: CHANNEL, est: CHANNEL, align: none|se3|sim3|posyaw}"};
-        for (const auto& kv2 : v) {
-          const std::string k = kv2.first.Scalar();
-          const std::string x = kv2.second.Scalar();
-          if (k == "gt") s.gt_channel = x;
-          else if (k == "est") s.est_channel = x;
-          else if (k == "align") {
-            if (x != "none" && x != "se3" && x != "sim3" && x != "posyaw") return Error{where(path, kv2.second, "eval: align") + ": none, se3, sim3 or posyaw"};
-            s.align = x;
-          } else {
-            return Error{where(path, kv2.first, "eval: " + k) + ": unknown key (gt, est, align)"};
-          }
-        }
-      } else if (key == "keep_logs") {
-        auto x = scalar();
-        if (!x) return x.error();
-        if (x->kind != Value::Kind::kBool) return Error{here + ": true or false"};
-        s.keep_logs = x->text == "true";
-      } else if (key == "pipeline") {
-        pipeline = v;
-      } else if (key == "vary") {
-        vary = v;
-      } else {
-        return Error{where(path, kv.first, key) + ": unknown key (" + std::string(kTopKeys) + ")"};
-      }
-    }
-  } catch (const YAML::Exception& e) {
-    return Error{path + ":" + std::to_string(e.mark.line + 1) + ": " + e.msg};
-  }
+namespace {
 
-  // The pipeline: given, or what the spec implies.
-  if (pipeline && !pipeline.IsNull()) {
-    if (!pipeline.IsSequence()) return Error{where(path, pipeline, "pipeline") + ": a list of stages (sim, replay, diagnose, eval)"};
-    std::set<Stage> seen;
-    for (const auto& st : pipeline) {
-      const std::string n = st.Scalar();
-      Stage stage;
-      if (n == "sim") stage = Stage::kSim;
-      else if (n == "replay") stage = Stage::kReplay;
-      else if (n == "diagnose") stage = Stage::kDiagnose;
-      else if (n == "eval") stage = Stage::kEval;
-      else return Error{where(path, st, "pipeline") + ": unknown stage '" + n + "' (sim, replay, diagnose, eval)"};
-      seen.insert(stage);
+/// "FILE:LINE: KEY: what", as the spec's other messages are.
+Error at(const config::Value& v, const std::string& what) { return Error{v.place() + ": " + v.key() + ": " + what}; }
+
+/// A spec file as read: the spec, and the keys whose meaning depends on the others, kept to be read once all are
+/// known (a scenario and logs resolved against the spec's folder; the pipeline defaults from the logs and modules;
+/// what a parameter may be depends on the stages and the scenario's channels).
+struct SpecFile {
+  Spec spec;
+  std::optional<config::Value> scenario, logs, pipeline, vary;
+};
+
+/// A key kept as given, for the spec file's check.
+config::Table<SpecFile>& keep(config::Table<SpecFile>& t, const char* key, std::optional<config::Value> SpecFile::*m,
+                              const char* type, const char* doc) {
+  return t.custom<std::optional<config::Value>>(
+      key, m, type, "", "", doc,
+      [](const config::Value& v, std::optional<config::Value>& out) -> Status {
+        out = v;
+        return {};
+      },
+      [](const std::optional<config::Value>&) { return std::string(); });
+}
+
+Status read_modules(const config::Value& v, std::string& out) {
+  std::vector<std::string> names;
+  const YAML::Node& n = v.node();
+  if (n.IsScalar()) {
+    std::stringstream ss(n.Scalar());
+    for (std::string m; std::getline(ss, m, ',');) {
+      m.erase(0, m.find_first_not_of(' '));
+      m.erase(m.find_last_not_of(' ') + 1);
+      names.push_back(m);
     }
-    for (Stage st : {Stage::kSim, Stage::kReplay, Stage::kDiagnose, Stage::kEval}) {
-      if (seen.count(st)) s.stages.push_back(st);
+  } else if (n.IsSequence()) {
+    for (const auto& m : n) {
+      if (!m.IsScalar()) return at(v, "a list of modules (" + known_modules() + ")");
+      names.push_back(m.Scalar());
     }
+  } else {
+    return at(v, "a list of modules (" + known_modules() + ")");
+  }
+  out.clear();
+  for (const auto& m : names) {
+    if (!is_module(m)) return at(v, "unknown module '" + m + "' (" + known_modules() + ")");
+    out += (out.empty() ? "" : ",") + m;
+  }
+  return {};
+}
+
+Status read_settings(const config::Value& v, std::map<std::string, std::map<std::string, Value>>& out) {
+  if (!v.node().IsMap()) return at(v, "one map of settings per module (estimator: {window_s: 0.5})");
+  return v.entries([&](const std::string& module, const config::Value& m, const config::Value& key) -> Status {
+    if (!is_module(module))
+      return Error{key.place() + ": settings: " + module + ": unknown module (" + known_modules() + ")"};
+    if (!m.node().IsMap()) return Error{m.place() + ": settings: " + module + ": a map of key: value"};
+    return m.entries([&](const std::string& name, const config::Value& x, const config::Value&) -> Status {
+      if (!x.node().IsScalar())
+        return Error{x.place() + ": settings: " + module + "." + name + ": expected a single value"};
+      out[module][name] = scalar_value(x.node());
+      return {};
+    });
+  });
+}
+
+/// The scenario's `faults:` form (docs/faults.md), checked by the fault model's parser.
+Status read_faults(const config::Value& v, std::map<std::string, std::map<std::string, double>>& out) {
+  YAML::Emitter e;
+  e << v.node();
+  if (auto f = parse_faults(std::string(e.c_str()), v.file() + " (faults)"); !f) return at(v, f.error().message);
+  for (const auto& stream : v.node()["streams"]) {
+    for (const auto& f : stream.second) out[stream.first.Scalar()][f.first.Scalar()] = f.second.as<double>();
+  }
+  return {};
+}
+
+Result<std::vector<Stage>> read_pipeline(const config::Value& v) {
+  if (!v.node().IsSequence()) return at(v, "a list of stages (sim, replay, diagnose, eval)");
+  std::set<Stage> seen;
+  for (const auto& st : v.node()) {
+    const std::string n = st.IsScalar() ? st.Scalar() : "";
+    const Stage stage = n == "sim"        ? Stage::kSim
+                        : n == "replay"   ? Stage::kReplay
+                        : n == "diagnose" ? Stage::kDiagnose
+                        : n == "eval"     ? Stage::kEval
+                                          : Stage::kReport;
+    if (stage == Stage::kReport)
+      return Error{where(v.file(), st, "pipeline") + ": unknown stage '" + n + "' (sim, replay, diagnose, eval)"};
+    seen.insert(stage);
+  }
+  std::vector<Stage> out;
+  for (Stage st : {Stage::kSim, Stage::kReplay, Stage::kDiagnose, Stage::kEval}) {
+    if (seen.count(st)) out.push_back(st);
+  }
+  return out;
+}
+
+/// The logs: paths and patterns, relative to the spec's folder.
+Status read_logs(const config::Value& v, const fs::path& base, std::vector<std::string>& out) {
+  const YAML::Node& n = v.node();
+  std::vector<std::string> items;
+  if (n.IsScalar()) items.push_back(n.Scalar());
+  for (const auto& x : n) {
+    if (!x.IsScalar()) return at(v, "a list of logs (paths or globs)");
+    items.push_back(x.Scalar());
+  }
+  if (!n.IsScalar() && !n.IsSequence()) return at(v, "a list of logs (paths or globs)");
+  for (const auto& item : items) {
+    const std::string p = absolute(item, base);
+    if (!is_pattern(p)) {
+      if (!fs::is_regular_file(p)) return at(v, "no such log: " + item);
+      out.push_back(p);
+      continue;
+    }
+    auto files = expand_pattern(p);
+    if (files.empty()) return at(v, item + " matches no file");
+    out.insert(out.end(), files.begin(), files.end());
+  }
+  return {};
+}
+
+/// The varied parameters, checked against the stages and the scenario's channels, and their product bounded.
+Status read_vary(const config::Value& v, Spec& s) {
+  const std::string& path = v.file();
+  const std::set<std::string> channels = s.has(Stage::kSim) ? scenario_channels(s.scenario) : std::set<std::string>{};
+  if (!v.node().IsMap()) return at(v, "a map of PARAMETER: [values] or {from, to, step}");
+  for (const auto& kv : v.node()) {
+    const std::string key = kv.first.Scalar();
+    for (const auto& p : s.vary) {
+      if (p.key == key) return Error{where(path, kv.first, "vary: " + key) + ": given twice"};
+    }
+    auto p = read_parameter(path, key, kv.second);
+    if (!p) return p.error();
+    if (auto st = check_parameter(path, kv.first, *p, s, channels); !st) return st;
+    s.vary.push_back(std::move(*p));
+  }
+  // Each grid may hold 10,000 values, and their product is the sweep: two such grids were 10^8 points, all
+  // expanded in memory before anything ran.
+  uint64_t points = std::max<uint64_t>(1, s.logs.size());
+  std::string product = s.logs.empty() ? "" : std::to_string(s.logs.size()) + " logs";
+  for (const auto& p : s.vary) {
+    points = std::min<uint64_t>(points * p.values.size(), uint64_t{1} << 40);  // each factor is 10,000 at most
+    product += (product.empty() ? "" : " x ") + std::to_string(p.values.size());
+  }
+  if (points > kMaxPoints) {
+    return at(v, product + " = " +
+                     (points >= (uint64_t{1} << 40) ? std::string("over 10^12") : std::to_string(points)) +
+                     " points, more than the " + std::to_string(kMaxPoints) +
+                     " a sweep may have: vary fewer values, or split it into several sweeps");
+  }
+  return {};
+}
+
+/// What the spec file's keys mean together: paths resolved, the pipeline given or implied, its stages checked,
+/// the parameters read, and the scenario's faults the base of a varied fault.
+Status resolve(const config::Value& map, SpecFile& f) {
+  Spec& s = f.spec;
+  const fs::path base = fs::absolute(fs::path(map.file())).parent_path();
+  if (f.scenario) {
+    auto text = f.scenario->text();
+    if (!text) return text.error();
+    s.scenario = absolute(*text, base);
+    if (!fs::is_regular_file(s.scenario)) return at(*f.scenario, "no such scenario file: " + s.scenario);
+  }
+  if (f.logs) {
+    if (Status st = read_logs(*f.logs, base, s.logs); !st) return st;
+  }
+  s.faults_given = map["faults"].given();
+  if (f.pipeline && f.pipeline->given()) {
+    auto stages = read_pipeline(*f.pipeline);
+    if (!stages) return stages.error();
+    s.stages = std::move(*stages);
   } else {
     if (s.logs.empty()) s.stages.push_back(Stage::kSim);
     if (!s.modules.empty()) s.stages.push_back(Stage::kReplay);
     s.stages.push_back(Stage::kDiagnose);
     if (!s.modules.empty()) s.stages.push_back(Stage::kEval);
   }
-  if (auto st = check_stage_order(s, path + ": pipeline " + stage_list(s)); !st) return Error{st.message()};
+  const std::string& path = map.file();
+  if (auto st = check_stage_order(s, path + ": pipeline " + stage_list(s)); !st) return st;
   if (!s.has(Stage::kSim) && s.duration > 0) return Error{path + ": duration: only a simulation has one"};
-
   if (s.has(Stage::kSim) && s.scenario.empty()) s.scenario = data_path("scenarios/indoor.yaml").string();
-  const std::set<std::string> channels = s.has(Stage::kSim) ? scenario_channels(s.scenario) : std::set<std::string>{};
-  if (vary && !vary.IsNull()) {
-    if (!vary.IsMap()) return Error{where(path, vary, "vary") + ": a map of PARAMETER: [values] or {from, to, step}"};
-    for (const auto& kv : vary) {
-      const std::string key = kv.first.Scalar();
-      for (const auto& p : s.vary) {
-        if (p.key == key) return Error{where(path, kv.first, "vary: " + key) + ": given twice"};
-      }
-      auto p = read_parameter(path, key, kv.second);
-      if (!p) return p.error();
-      if (auto st = check_parameter(path, kv.first, *p, s, channels); !st) return Error{st.message()};
-      s.vary.push_back(std::move(*p));
-    }
-    // Each grid may hold 10,000 values, and their product is the sweep: two such grids were 10^8 points, all
-    // expanded in memory before anything ran.
-    uint64_t points = std::max<uint64_t>(1, s.logs.size());
-    std::string product = s.logs.empty() ? "" : std::to_string(s.logs.size()) + " logs";
-    for (const auto& p : s.vary) {
-      points = std::min<uint64_t>(points * p.values.size(), uint64_t{1} << 40);  // each factor is 10,000 at most
-      product += (product.empty() ? "" : " x ") + std::to_string(p.values.size());
-    }
-    if (points > kMaxPoints) {
-      return Error{where(path, vary, "vary") + ": " + product + " = " +
-                   (points >= (uint64_t{1} << 40) ? std::string("over 10^12") : std::to_string(points)) +
-                   " points, more than the " + std::to_string(kMaxPoints) +
-                   " a sweep may have: vary fewer values, or split it into several sweeps"};
-    }
+  if (f.vary && f.vary->given()) {
+    if (Status st = read_vary(*f.vary, s); !st) return st;
   }
   // A faults field varied without `faults:` in the spec starts from the scenario's own faults (sweeps of a
   // scenario), so the other streams keep theirs.
@@ -496,7 +485,72 @@ Result<Spec> load_spec(const std::string& path) {
       std::any_of(s.vary.begin(), s.vary.end(), [](const Parameter& p) { return p.key.rfind("faults.", 0) == 0; })) {
     s.faults = scenario_faults(s.scenario);
   }
-  return s;
+  return {};
+}
+
+const config::Table<SpecFile>& spec_table() {
+  static const auto table = [] {
+    using config::Table;
+    Table<Spec> keys;
+    keys.text("name", &Spec::name, "the sweep's name")
+        .shown_default("the spec file's")
+        .number("duration", &Spec::duration, config::above(0), "s", "of each simulation")
+        .shown_default("the scenario's")
+        .integer("seed", &Spec::seed, config::between(0, 9e15), "", "of each simulation")
+        .shown_default("the scenario's")
+        .custom<std::map<std::string, std::map<std::string, double>>>(
+            "faults", &Spec::faults, "map", "", "", "the faults of each point (the scenario's `faults:` form)",
+            read_faults, [](const auto&) { return std::string(); })
+        .shown_default("the scenario's")
+        .custom<std::string>("modules", &Spec::modules, "list", "", "",
+                             "the modules replay hosts (a list, or comma-separated)", read_modules,
+                             [](const std::string&) { return std::string(); })
+        .shown_default("none")
+        .custom<std::map<std::string, std::map<std::string, Value>>>(
+            "settings", &Spec::settings, "map", "", "", "module -> key -> value, as replay's --config", read_settings,
+            [](const auto&) { return std::string(); })
+        .shown_default("the modules' own")
+        .choice("restamp", &Spec::restamp, {"none", "auto"}, "replay's --restamp")
+        .flag("keep_logs", &Spec::keep_logs, "keep each finished point's sim.lcm and replay.lcm");
+    Table<Spec> eval;
+    eval.text("gt", &Spec::gt_channel, "the ground-truth channel", config::Text::kNonEmpty)
+        .text("est", &Spec::est_channel, "the estimate's channel", config::Text::kNonEmpty)
+        .choice("align", &Spec::align, {"none", "se3", "sim3", "posyaw"}, "eval's --align");
+    keys.section("eval", eval, "what eval scores");
+    Table<SpecFile> t;
+    t.describe(
+        "A sweep runs a scenario or logs through a pipeline once per point: the product of the values of every "
+        "varied parameter (and of the logs). What may be varied: docs/batch.md.");
+    keep(t, "scenario", &SpecFile::scenario, "path", "the scenario each point simulates (relative to the spec)")
+        .shown_default("the default scenario");
+    keep(t, "logs", &SpecFile::logs, "list", "logs, paths or patterns (relative to the spec): a point per log")
+        .shown_default("none");
+    t.include(&SpecFile::spec, keys);
+    keep(t, "pipeline", &SpecFile::pipeline, "list", "the stages: sim, replay, diagnose, eval")
+        .shown_default("sim (no logs), replay, diagnose, eval (replay and eval with modules)");
+    keep(t, "vary", &SpecFile::vary, "map", "PARAMETER: [values] or {from, to, step} (docs/batch.md)")
+        .shown_default("none");
+    t.check(resolve);
+    return t;
+  }();
+  return table;
+}
+
+}  // namespace
+
+std::string spec_reference() { return spec_table().reference(); }
+
+Result<Spec> load_spec(const std::string& path) {
+  auto root = config::load_yaml(path, "sweep spec");
+  if (!root) return root.error();
+  const config::Value doc(*root, path);
+  if (!doc.given() || !root->IsMap())
+    return Error{path + ": a sweep spec is a map (" + spec_table().known_keys() + ")"};
+  SpecFile f;
+  f.spec.file = path;
+  f.spec.name = fs::path(path).stem().string();
+  if (Status st = spec_table().read(doc, f); !st) return st.error();
+  return f.spec;
 }
 
 Result<Spec> batch_spec(const std::string& command, const std::vector<std::string>& logs) {

@@ -87,6 +87,8 @@ struct Plan {
 /// faults.IMU.clock_ofset_s: unknown key ..."): an unknown parameter or setting, an empty grid, a value of the
 /// wrong type or out of range. Module settings are checked by validate_module_settings.
 Result<Spec> load_spec(const std::string& path);
+/// The keys of a sweep spec, from the table load_spec reads it with (`driftlab sweep --help-config`).
+std::string spec_reference();
 
 /// A batch over logs: one point per log (paths made absolute; the same log twice is one point). stage: diagnose,
 /// eval or report. Errors name the log.

@@ -104,8 +104,14 @@ TEST(SweepSpec, BadSpecsNameTheFileAndTheKey) {
   // Module settings need a replay; unknown top-level keys and modules.
   EXPECT_NE(spec_error("vary:\n  estimator.window_s: [0, 0.5]\n").find("need a replay stage"), std::string::npos);
   EXPECT_NE(spec_error("modules: [estimator, planner]\n").find("modules: unknown module 'planner'"), std::string::npos);
-  EXPECT_NE(spec_error("grid:\n  seed: [1]\n").find("grid: unknown key"), std::string::npos);
-  EXPECT_NE(spec_error("duration: -1\n").find("duration: must be a positive number"), std::string::npos);
+  EXPECT_NE(spec_error("grid:\n  seed: [1]\n").find(":2: unknown key 'grid' (known: scenario, logs, name,"),
+            std::string::npos);
+  EXPECT_NE(spec_error("duration: -1\n").find(":2: duration = -1 must be > 0"), std::string::npos);
+  EXPECT_NE(spec_error("seed: 2.5\n").find(":2: seed "), std::string::npos);
+  EXPECT_NE(spec_error("eval: {align: wobbly}\n").find(":2: eval.align = wobbly must be none, se3, sim3 or posyaw"),
+            std::string::npos);
+  EXPECT_NE(spec_error("keep_logs: maybe\n").find(":2: keep_logs = maybe must be true or false"), std::string::npos);
+  EXPECT_NE(spec_error("pipeline: [sim, fly]\n").find(":2: pipeline: unknown stage 'fly'"), std::string::npos);
   EXPECT_NE(spec_error("faults:\n  streams:\n    IMU: {clock_offset_s: x}\n").find("must be a number"),
             std::string::npos);
   // Bad YAML.
