@@ -17,6 +17,7 @@
 #include "core/wall_clock.h"
 #include "sim/scenario.h"
 #include "sim/simulator.h"
+#include "sim/world.h"
 
 namespace driftlab::apps {
 namespace {
@@ -33,12 +34,14 @@ struct SimArgs {
   JsonOutput json;
 };
 
-/// --help-config: the keys of a scenario and of a fault description, from the tables they are read with.
+/// --help-config: the keys of a scenario, its world and a fault description, from the tables they are read with.
 void print_config_help() {
-  std::printf("## Scenario: `driftlab sim SCENARIO`\n\n%s\n"
-              "## Fault description: `driftlab sim --faults FILE`, a scenario's `faults:`, `driftlab replay --inject "
-              "FILE`\n\n%s",
-              sim::scenario_reference().c_str(), fault_config_table().reference().c_str());
+  std::printf(
+      "## Scenario: `driftlab sim SCENARIO`\n\n%s\n"
+      "## World file: a scenario's `world:`\n\n%s\n"
+      "## Fault description: `driftlab sim --faults FILE`, a scenario's `faults:`, `driftlab replay --inject "
+      "FILE`\n\n%s",
+      sim::scenario_reference().c_str(), sim::world_reference().c_str(), fault_config_table().reference().c_str());
 }
 
 int run_sim(const SimArgs& a) {

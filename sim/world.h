@@ -45,6 +45,8 @@ struct World {
 /// Parses a world description. `origin` names the text in errors ("FILE:LINE: ..."); relative image paths are
 /// resolved against `base_dir`. Never throws.
 Result<World> parse_world(const std::string& yaml_text, const std::string& origin, const std::string& base_dir);
+/// The keys of a world file, from the table parse_world reads it with (`driftlab sim --help-config`).
+std::string world_reference();
 
 /// Reads and parses a world file; images are resolved relative to the file's folder.
 Result<World> load_world(const std::string& path);

@@ -171,7 +171,7 @@ TEST(ParseWorld, ErrorsNameFileLineAndKey) {
 
   std::string e = error_of("friction: 0.5\nboxes:\n  - {center: [1, 2], size: [1, 1, 1], colour: [1, 2, 3]}\n");
   EXPECT_EQ(e.rfind("w.yaml:3: ", 0), 0u) << e;
-  EXPECT_NE(e.find("'colour'"), std::string::npos) << e;
+  EXPECT_NE(e.find("unknown key 'boxes[0].colour' (known: name, center, size, yaw, color)"), std::string::npos) << e;
 
   e = error_of("friction: 0.5\nfloor: 1\n");
   EXPECT_EQ(e.rfind("w.yaml:2: ", 0), 0u) << e;
@@ -185,9 +185,14 @@ TEST(ParseWorld, ErrorsNameFileLineAndKey) {
   EXPECT_EQ(e.rfind("w.yaml:2: ", 0), 0u) << e;
   EXPECT_NE(e.find("cylinders[0].radius"), std::string::npos) << e;
 
+  e = error_of("walls:\n  - {from: [1, 1], to: [1, 1]}\n");
+  EXPECT_NE(e.find("w.yaml:2: walls[0] has 'from' equal to 'to'"), std::string::npos) << e;
+  e = error_of("boxes:\n  - {center: [0, 0], size: [1, 1, 1], color: [0, 300, 0]}\n");
+  EXPECT_NE(e.find("boxes[0].color must be [r, g, b] with each in 0..255"), std::string::npos) << e;
+
   e = error_of("walls:\n  - {from: [0, 0], to: [1, 0], height: abc}\n");
   EXPECT_EQ(e.rfind("w.yaml:2: ", 0), 0u) << e;
-  EXPECT_NE(e.find("walls[0].height must be a number"), std::string::npos) << e;
+  EXPECT_NE(e.find("walls[0].height = abc must be a number"), std::string::npos) << e;
 
   e = error_of("boxes:\n  - {center: [1, 2, 3, 4], size: [1, 1, 1]}\n");
   EXPECT_NE(e.find("boxes[0].center must be a list of 2 or 3 numbers"), std::string::npos) << e;
@@ -196,7 +201,19 @@ TEST(ParseWorld, ErrorsNameFileLineAndKey) {
   EXPECT_EQ(e.rfind("w.yaml:2: ", 0), 0u) << e;
 
   e = error_of("boxes:\n  - {size: [1, 1, 1]}\n");
-  EXPECT_NE(e.find("needs 'center'"), std::string::npos) << e;
+  EXPECT_NE(e.find("missing key 'boxes[0].center'"), std::string::npos) << e;
+}
+
+// The obstacles are made in the order the file gives its keys: the order of the Bullet objects and of the
+// default names, so a world file reads as the same world (and a simulation of it runs the same) whatever it holds.
+TEST(ParseWorld, ObstaclesFollowTheOrderOfTheKeys) {
+  auto w = parse_world("boxes:\n  - {center: [3, 0], size: [1, 1, 1]}\nwalls:\n  - {from: [0, 0], to: [2, 0]}\n",
+                       "w.yaml", "");
+  ASSERT_TRUE(w) << w.error().message;
+  ASSERT_EQ(w->boxes.size(), 2u);
+  EXPECT_EQ(w->boxes[0].name, "box_0");
+  EXPECT_EQ(w->boxes[1].name, "wall_1");
+  EXPECT_TRUE(w->boxes[1].size.isApprox(Eigen::Vector3d(2.1, 0.1, 2.5)));  // extended by half its thickness each end
 }
 
 TEST(ParseWorld, ImageErrorsNameTheImage) {
@@ -211,7 +228,7 @@ TEST(ParseWorld, ImageErrorsNameTheImage) {
   EXPECT_NE(e.find("cannot read " + dir.file("broken.png")), std::string::npos) << e;
 
   e = error_of("images:\n  - {file: broken.png, resolution: 0}\n", dir.path());
-  EXPECT_NE(e.find("images[0].resolution must be > 0"), std::string::npos) << e;
+  EXPECT_NE(e.find("images[0].resolution = 0 must be > 0"), std::string::npos) << e;
 }
 
 }  // namespace
