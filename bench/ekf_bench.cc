@@ -8,6 +8,7 @@
 
 namespace {
 
+using driftlab::Time;
 using driftlab::estimator::DelayedEkf;
 using driftlab::estimator::Ekf;
 using driftlab::estimator::EkfNoise;
@@ -21,7 +22,7 @@ constexpr int64_t kT0 = 1763776800000000;
 /// One cycle: predict 5 ms ahead, then one update of the given kind.
 void BM_Ekf_Cycle(benchmark::State& state) {
   Ekf ekf{EkfNoise{}};
-  ekf.init(kT0, {}, 0.5, 0.1);
+  ekf.init(Time::from_us(kT0), {}, 0.5, 0.1);
   int64_t t = kT0;
   int i = 0;
   const auto kind = state.range(0);
@@ -31,7 +32,7 @@ void BM_Ekf_Cycle(benchmark::State& state) {
     Measurement m = kind == 0   ? Measurement{GyroZ{w, 0}}
                     : kind == 1 ? Measurement{Twist{0.5, w, 0, 0}}
                                 : Measurement{PoseFix{{0.0025 * i, 0, 0}, 0, 0}};
-    ekf.update(t, m);
+    ekf.update(Time::from_us(t), m);
     benchmark::DoNotOptimize(ekf.state());
   }
   state.SetItemsProcessed(state.iterations());
@@ -43,17 +44,17 @@ BENCHMARK(BM_Ekf_Cycle)->Arg(0)->Arg(1)->Arg(2);
 /// 30 ms late and is inserted into the past, re-applying the gyro samples after it.
 void BM_DelayedEkf_Mix(benchmark::State& state) {
   DelayedEkf ekf(EkfNoise{}, 0.5);
-  ekf.init(kT0, {}, 0.5, 0.1);
+  ekf.init(Time::from_us(kT0), {}, 0.5, 0.1);
   const bool late = state.range(0) == 1;
   int64_t i = 0;
   for (auto _ : state) {
     ++i;
     const int64_t t = kT0 + i * 5000;
     const double w = 0.3 * std::sin(static_cast<double>(i) * 0.01);
-    ekf.add(t, GyroZ{w, 0});
+    ekf.add(Time::from_us(t), GyroZ{w, 0});
     if (i % 4 == 0) {
       const int64_t stamp = late ? t - 30000 : t;
-      ekf.add(stamp, Twist{0.5, w, 0, 0});
+      ekf.add(Time::from_us(stamp), Twist{0.5, w, 0, 0});
     }
   }
   state.SetItemsProcessed(state.iterations() + state.iterations() / 4);

@@ -202,9 +202,7 @@ std::optional<driftlab::joint_trajectory_result_t> JointTrajectoryController::up
       out = result(*active_, now, "succeeded", "", error[worst], "succeeded");
       ++counts_.succeeded;
       active_.reset();
-    } else if (now > end &&
-               static_cast<uint64_t>(now) - static_cast<uint64_t>(end) >  // exact, where now - end may overflow
-                   static_cast<uint64_t>(Duration::from_seconds_rounded(o_.goal_time).us())) {
+    } else if (us_after(end, now) > static_cast<uint64_t>(Duration::from_seconds_rounded(o_.goal_time).us())) {
       std::snprintf(why, sizeof(why),
                     "aborted: joint %s is %.4f rad from its goal %.3f s after the end (tolerance %.4f)", joint.c_str(),
                     error[worst], o_.goal_time, o_.goal_tolerance);

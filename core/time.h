@@ -58,6 +58,13 @@ class Duration {
   int64_t us_ = 0;
 };
 
+/// The microseconds from `earlier` to `later`, 0 when later is not after earlier: exact for any two int64_t, whose
+/// gap fits in uint64_t where later - earlier may overflow (hostile stamps). The one checked difference of raw
+/// counts; Time::us_past is the same on Times.
+constexpr uint64_t us_after(int64_t earlier, int64_t later) {
+  return later > earlier ? static_cast<uint64_t>(later) - static_cast<uint64_t>(earlier) : 0;
+}
+
 /// An instant on some clock [us since its zero]: the Unix epoch for wall time and for the simulator's true time,
 /// whatever a source counts from for its stamps.
 class Time {
@@ -76,6 +83,9 @@ class Time {
   constexpr double seconds_since(Time earlier) const {
     return (static_cast<double>(us_) - static_cast<double>(earlier.us_)) * 1e-6;
   }
+
+  /// How far this is past `earlier` [us], 0 when it is not after it: us_after, exact for any two times.
+  constexpr uint64_t us_past(Time earlier) const { return us_after(earlier.us_, us_); }
 
   constexpr Time& operator+=(Duration d) {
     us_ += d.us();

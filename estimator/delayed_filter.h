@@ -3,8 +3,8 @@
 // everything after it is re-applied in stamp order (the result equals in-order processing); older ones are rejected
 // and counted. The planar EKF (ekf.h) and the drone's 3D EKF (drone_ekf.h) share it.
 //
-// Filter: copyable, with `int64_t time() const` [us] and `bool update(int64_t utime, const M&)`, which predicts to
-// utime (a no-op for earlier times) and applies the measurement, or refuses it (false) and stays as it was.
+// Filter: copyable, with `Time time() const` and `bool update(Time at, const M&)`, which predicts to `at` (a no-op
+// for earlier times) and applies the measurement, or refuses it (false) and stays as it was.
 // Rank: orders measurements of the same stamp (lower first), so that the result does not depend on which of them
 // arrived first: the drone's IMU sample, which carries the filter to its stamp, before the corrections at it.
 // Thread-safety: plain values; one thread.
@@ -40,7 +40,7 @@ class DelayedFilter {
   };
 
   DelayedFilter(Filter filter, double window_s)
-      : filter_(std::move(filter)), window_(Duration::from_seconds_truncated(window_s).us()), base_(filter_) {}
+      : filter_(std::move(filter)), window_(Duration::from_seconds_truncated(window_s)), base_(filter_) {}
 
   /// Starts again from `filter` (a freshly initialised one): the history is forgotten.
   void reset(const Filter& filter) {
@@ -49,47 +49,47 @@ class DelayedFilter {
     history_.clear();
   }
 
-  /// Applies a measurement stamped utime [us]; false when it was older than the window and rejected, or refused
-  /// by the filter.
-  bool add(int64_t utime, const M& m) {
+  /// Applies a measurement stamped `at`; false when it was older than the window and rejected, or refused by the
+  /// filter.
+  bool add(Time at, const M& m) {
     const int rank = Rank()(m);
     const bool in_order =
-        utime > filter_.time() || (utime == filter_.time() &&
-                                   (history_.empty() || history_.back().utime < utime || history_.back().rank <= rank));
+        at > filter_.time() ||
+        (at == filter_.time() && (history_.empty() || history_.back().at < at || history_.back().rank <= rank));
     if (in_order) {  // the common case
-      if (!filter_.update(utime, m)) {
+      if (!filter_.update(at, m)) {
         ++counters_.refused;
         return false;
       }
-      history_.push_back({utime, rank, m, filter_});
+      history_.push_back({at, rank, m, filter_});
       ++counters_.applied;
     } else {
-      if (older_than_window(utime) || utime < base_.time()) {
+      if (older_than_window(at) || at < base_.time()) {
         ++counters_.rejected;
         return false;
       }
       // Rewind to the state before the first entry after this one (by stamp, then rank), insert it, and re-apply
       // the rest.
-      auto pos = std::upper_bound(history_.begin(), history_.end(), std::pair{utime, rank},
-                                  [](const std::pair<int64_t, int>& k, const Entry& e) {
-                                    return k.first < e.utime || (k.first == e.utime && k.second < e.rank);
+      auto pos = std::upper_bound(history_.begin(), history_.end(), std::pair{at, rank},
+                                  [](const std::pair<Time, int>& k, const Entry& e) {
+                                    return k.first < e.at || (k.first == e.at && k.second < e.rank);
                                   });
       Filter before = pos == history_.begin() ? base_ : std::prev(pos)->after;
-      if (!before.update(utime, m)) {  // the filter as it was stays
+      if (!before.update(at, m)) {  // the filter as it was stays
         ++counters_.refused;
         return false;
       }
       filter_ = before;
-      pos = history_.insert(pos, {utime, rank, m, filter_});
+      pos = history_.insert(pos, {at, rank, m, filter_});
       for (auto it = std::next(pos); it != history_.end(); ++it) {
-        filter_.update(it->utime, it->m);  // one refused now leaves the state as it was before it
+        filter_.update(it->at, it->m);  // one refused now leaves the state as it was before it
         it->after = filter_;
       }
       counters_.replays += static_cast<int64_t>(std::distance(pos, history_.end())) - 1;
       ++counters_.reapplied;
     }
     // Forget what is older than the window; the last forgotten state becomes the base.
-    while (!history_.empty() && older_than_window(history_.front().utime)) {
+    while (!history_.empty() && older_than_window(history_.front().at)) {
       base_ = history_.front().after;
       history_.pop_front();
     }
@@ -100,19 +100,18 @@ class DelayedFilter {
   const Counters& counters() const { return counters_; }
 
  private:
-  bool older_than_window(int64_t utime) const {
-    // The difference in uint64_t: exact whatever the stamps, where int64_t arithmetic could overflow.
-    const int64_t now = filter_.time();
-    return utime<now&& static_cast<uint64_t>(now) - static_cast<uint64_t>(utime)> static_cast<uint64_t>(window_);
+  bool older_than_window(Time at) const {
+    // Exact whatever the stamps, where their difference in int64_t could overflow.
+    return filter_.time().us_past(at) > static_cast<uint64_t>(window_.us());
   }
   struct Entry {
-    int64_t utime;
+    Time at;
     int rank;
     M m;
     Filter after;  ///< the filter after applying m
   };
   Filter filter_;
-  int64_t window_;
+  Duration window_;
   Filter base_;                ///< the filter before the first entry in the history
   std::deque<Entry> history_;  ///< applied measurements within the window, by stamp
   Counters counters_;

@@ -49,11 +49,10 @@ Eigen::Quaterniond align(const Eigen::Vector3d& accel, const Eigen::Vector3d& fi
   return (Eigen::AngleAxisd(heading, Eigen::Vector3d::UnitZ()) * tilt).normalized();
 }
 
-void DroneEkf::init(int64_t utime, const ImuSample& imu, const MagField& mag, const GnssFix& gnss,
-                    const BaroAltitude& baro) {
+void DroneEkf::init(Time at, const ImuSample& imu, const MagField& mag, const GnssFix& gnss, const BaroAltitude& baro) {
   initialized_ = true;
-  t_ = utime;
-  last_fix_ = last_baro_ = utime;
+  t_ = at;
+  last_fix_ = last_baro_ = at;
   last_ = imu;
   q_ = align(imu.accel, mag.field, declination_);
   p_ = gnss.position;
@@ -99,10 +98,10 @@ void DroneEkf::propagate(const ImuSample& s, double dt) {
   P_ = 0.5 * (P_ + P_.transpose()).eval();
 }
 
-void DroneEkf::predict(int64_t utime) {
-  if (!initialized_ || utime <= t_) return;
-  propagate(last_, seconds_between(t_, utime));
-  t_ = utime;
+void DroneEkf::predict(Time at) {
+  if (!initialized_ || at <= t_) return;
+  propagate(last_, at.seconds_since(t_));
+  t_ = at;
 }
 
 template <int N>
@@ -133,7 +132,7 @@ bool DroneEkf::correct(const Eigen::Matrix<double, N, 1>& innovation, const Eige
   return true;
 }
 
-bool DroneEkf::update(int64_t utime, const DroneMeasurement& m) {
+bool DroneEkf::update(Time at, const DroneMeasurement& m) {
   const bool finite = std::visit(
       [](const auto& x) {
         using T = std::decay_t<decltype(x)>;
@@ -148,15 +147,15 @@ bool DroneEkf::update(int64_t utime, const DroneMeasurement& m) {
       m);
   if (!initialized_ || !finite) return false;
   if (const auto* imu = std::get_if<ImuSample>(&m)) {
-    if (utime > t_) {
-      propagate(*imu, seconds_between(t_, utime));
-      t_ = utime;
+    if (at > t_) {
+      propagate(*imu, at.seconds_since(t_));
+      t_ = at;
     }
     last_ = *imu;
     ++counts_.fused[0];
     return true;
   }
-  predict(utime);
+  predict(at);
   if (const auto* g = std::get_if<GnssFix>(&m)) {
     const double eph = g->eph > 0 ? g->eph : noise_.gnss_position;
     const double epv = g->epv > 0 ? g->epv : noise_.gnss_height;
@@ -169,15 +168,15 @@ bool DroneEkf::update(int64_t utime, const DroneMeasurement& m) {
     Eigen::Matrix<double, 6, 6> R = Eigen::Matrix<double, 6, 6>::Zero();
     R.diagonal() << eph * eph, eph * eph, epv * epv, sv * sv, sv * sv, sv * sv;
     if (correct<6>(y, H, R, 1)) {
-      last_fix_ = utime;
-    } else if (seconds_between(last_fix_, utime) > noise_.reset_s) {
+      last_fix_ = at;
+    } else if (at.seconds_since(last_fix_) > noise_.reset_s) {
       // Every fix an outlier for reset_s: the estimate has left the GNSS behind; start from the fix again.
       p_ = g->position;
       v_ = g->velocity;
       P_.block<6, kN>(kP, 0).setZero();
       P_.block<kN, 6>(0, kP).setZero();
       P_.diagonal().segment<6>(kP) << eph * eph, eph * eph, epv * epv, sv * sv, sv * sv, sv * sv;
-      last_fix_ = utime;
+      last_fix_ = at;
       ++counts_.resets[1];
     }
   } else if (const auto* b = std::get_if<BaroAltitude>(&m)) {
@@ -187,13 +186,13 @@ bool DroneEkf::update(int64_t utime, const DroneMeasurement& m) {
     H(0, kBaro) = 1;
     const Eigen::Matrix<double, 1, 1> y(b->altitude - (origin_alt_ + p_.z() + baro_));
     if (correct<1>(y, H, Eigen::Matrix<double, 1, 1>(s * s), 2)) {
-      last_baro_ = utime;
-    } else if (seconds_between(last_baro_, utime) > noise_.reset_s) {
+      last_baro_ = at;
+    } else if (at.seconds_since(last_baro_) > noise_.reset_s) {
       baro_ = b->altitude - origin_alt_ - p_.z();  // the barometer's offset from the height, as at the start
       P_.row(kBaro).setZero();
       P_.col(kBaro).setZero();
       P_(kBaro, kBaro) = s * s + P_(kP + 2, kP + 2);
-      last_baro_ = utime;
+      last_baro_ = at;
       ++counts_.resets[2];
     }
   } else if (const auto* mag = std::get_if<MagField>(&m)) {

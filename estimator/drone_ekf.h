@@ -15,6 +15,7 @@
 #include <variant>
 
 #include "core/geo.h"
+#include "core/time.h"
 #include "estimator/delayed_filter.h"
 
 namespace driftlab::estimator {
@@ -82,18 +83,18 @@ class DroneEkf {
   DroneEkf(const DroneEkfNoise& noise, double declination, double origin_altitude)
       : noise_(noise), declination_(declination), origin_alt_(origin_altitude) {}
 
-  /// Starts at utime [us]: tilt from the accelerometer at rest, heading from the magnetometer, position from GNSS,
+  /// Starts at `at`: tilt from the accelerometer at rest, heading from the magnetometer, position from GNSS,
   /// velocity zero; the barometer's offset is what the barometer reads above the GNSS height.
-  void init(int64_t utime, const ImuSample& imu, const MagField& mag, const GnssFix& gnss, const BaroAltitude& baro);
+  void init(Time at, const ImuSample& imu, const MagField& mag, const GnssFix& gnss, const BaroAltitude& baro);
   bool initialized() const { return initialized_; }
 
-  /// Moves the state to utime with the last IMU sample's rates (no-op for earlier times).
-  void predict(int64_t utime);
-  /// Predicts to utime and applies a measurement (an IMU sample: predicts with its rates instead, then holds them).
+  /// Moves the state to `at` with the last IMU sample's rates (no-op for earlier times).
+  void predict(Time at);
+  /// Predicts to `at` and applies a measurement (an IMU sample: predicts with its rates instead, then holds them).
   /// A measurement with a NaN or infinite value, or one before init, is refused: false, and nothing changes.
-  bool update(int64_t utime, const DroneMeasurement& m);
+  bool update(Time at, const DroneMeasurement& m);
 
-  int64_t time() const { return t_; }
+  Time time() const { return t_; }
   const Eigen::Vector3d& position() const { return p_; }
   const Eigen::Vector3d& velocity() const { return v_; }     ///< in the local frame [m/s]
   const Eigen::Quaterniond& attitude() const { return q_; }  ///< body to local
@@ -104,8 +105,8 @@ class DroneEkf {
   Eigen::Vector3d angular_velocity() const { return last_.gyro - bg_; }
   const Cov& covariance() const { return P_; }
   const FusionCounts& counts() const { return counts_; }
-  /// When a GNSS position was last fused [us]; 0: never.
-  int64_t last_position_fix() const { return last_fix_; }
+  /// When a GNSS position was last fused (at init: the start).
+  Time last_position_fix() const { return last_fix_; }
 
  private:
   template <int N>
@@ -115,7 +116,7 @@ class DroneEkf {
   DroneEkfNoise noise_;
   double declination_ = 0, origin_alt_ = 0;
   bool initialized_ = false;
-  int64_t t_ = 0, last_fix_ = 0, last_baro_ = 0;
+  Time t_, last_fix_, last_baro_;
   Eigen::Vector3d p_ = Eigen::Vector3d::Zero(), v_ = Eigen::Vector3d::Zero();
   Eigen::Quaterniond q_ = Eigen::Quaterniond::Identity();
   Eigen::Vector3d bg_ = Eigen::Vector3d::Zero(), ba_ = Eigen::Vector3d::Zero();

@@ -83,7 +83,7 @@ Status DroneEstimatorModule::start(Bus& bus) {
     ImuSample x;
     x.gyro = Eigen::Vector3d(s.angular_velocity.x, s.angular_velocity.y, s.angular_velocity.z);
     x.accel = Eigen::Vector3d(s.linear_acceleration.x, s.linear_acceleration.y, s.linear_acceleration.z);
-    add(bus, kImu, s.header.utime, x);
+    add(bus, kImu, Time::from_us(s.header.utime), x);
   });
   bus.subscribe(c_.gnss_channel, [this, &bus](const BusMessage& m) {
     driftlab::gnss_t g;
@@ -104,7 +104,7 @@ Status DroneEstimatorModule::start(Bus& bus) {
     f.eph = g.eph_m;
     f.epv = g.epv_m;
     f.speed_accuracy = g.speed_accuracy_m_s;
-    add(bus, kGnss, g.header.utime, f);
+    add(bus, kGnss, Time::from_us(g.header.utime), f);
   });
   bus.subscribe(c_.baro_channel, [this, &bus](const BusMessage& m) {
     driftlab::barometer_t b;
@@ -117,22 +117,22 @@ Status DroneEstimatorModule::start(Bus& bus) {
       a.std = std::sqrt(b.pressure_variance) *
               std::abs(geo::altitude_of(b.pressure_pa - 0.5) - geo::altitude_of(b.pressure_pa + 0.5));
     }
-    add(bus, kBaro, b.header.utime, a);
+    add(bus, kBaro, Time::from_us(b.header.utime), a);
   });
   bus.subscribe(c_.mag_channel, [this, &bus](const BusMessage& m) {
     driftlab::magnetometer_t s;
     if (!decode_message(m, s)) return void(++undecodable_);
     if (!non_finite_.finite(m)) return;
-    add(bus, kMag, s.header.utime,
+    add(bus, kMag, Time::from_us(s.header.utime),
         MagField{Eigen::Vector3d(s.magnetic_field.x, s.magnetic_field.y, s.magnetic_field.z)});
   });
   bus.every(Duration::periods_rounded(c_.status_rate), [this, &bus] { publish_status(bus); });
   return {};
 }
 
-void DroneEstimatorModule::try_init(int64_t stamp) {
+void DroneEstimatorModule::try_init(Time stamp) {
   const Alignment& a = align_;
-  if (a.imu == 0 || a.mag == 0 || seconds_between(a.first, a.last) < c_.align_s) return;
+  if (a.imu == 0 || a.mag == 0 || a.last.seconds_since(a.first) < c_.align_s) return;
   if (!last_fix_ || !last_baro_ || !frame_) return;
   ImuSample imu;
   imu.accel = a.accel / static_cast<double>(a.imu);
@@ -142,11 +142,11 @@ void DroneEstimatorModule::try_init(int64_t stamp) {
   ekf_.reset(e);
 }
 
-void DroneEstimatorModule::add(Bus& bus, Input kind, int64_t stamp, const DroneMeasurement& m) {
+void DroneEstimatorModule::add(Bus& bus, Input kind, Time stamp, const DroneMeasurement& m) {
   InputCounts& n = inputs_[kind];
   ++n.received;
   // In doubles: a hostile stamp at either end of int64_t must not overflow the difference.
-  const double age = bus.now().seconds_since(Time::from_us(stamp));
+  const double age = bus.now().seconds_since(stamp);
   if (age > c_.max_age_s) return void(++n.stale);
   if (-age > c_.max_future_s) return void(++n.future);
   if (!ekf_.filter().initialized()) {
@@ -176,7 +176,7 @@ void DroneEstimatorModule::add(Bus& bus, Input kind, int64_t stamp, const DroneM
     try_init(stamp);
     return;
   }
-  const int64_t before = ekf_.filter().time();
+  const Time before = ekf_.filter().time();
   if (!ekf_.add(stamp, m)) return void(++n.late);
   if (kind == kImu && ekf_.filter().time() > before) publish_estimate(bus);
 }
@@ -185,7 +185,7 @@ void DroneEstimatorModule::publish_estimate(Bus& bus) {
   const DroneEkf& f = ekf_.filter();
   driftlab::odometry_t o{};
   o.header.seq = odom_seq_++;
-  o.header.utime = f.time();
+  o.header.utime = f.time().us();
   o.header.frame_id = "odom";
   o.child_frame_id = "base_link";
   o.position = {f.position().x(), f.position().y(), f.position().z()};
@@ -212,11 +212,11 @@ void DroneEstimatorModule::publish_status(Bus& bus) {
   s.header.utime = bus.now().us();
   s.header.frame_id = "";
   s.attitude_valid = f.initialized();
-  s.position_valid = f.initialized() && seconds_between(f.last_position_fix(), f.time()) < 1.0;
+  s.position_valid = f.initialized() && f.time().seconds_since(f.last_position_fix()) < 1.0;
   const DroneEkf::Cov& P = f.covariance();
   s.position_std_m = f.initialized() ? std::sqrt(std::max(P(0, 0), P(1, 1))) : 0;
   s.attitude_std_rad = f.initialized() ? std::sqrt(P.diagonal().segment<3>(DroneEkf::kTheta).maxCoeff()) : 0;
-  s.filter_lag_s = f.initialized() ? bus.now().seconds_since(Time::from_us(f.time())) : 0;
+  s.filter_lag_s = f.initialized() ? bus.now().seconds_since(f.time()) : 0;
   s.ninputs = 4;
   for (int i = 0; i < 4; ++i) {
     s.input.push_back(kInputNames[i]);

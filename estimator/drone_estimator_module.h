@@ -66,8 +66,8 @@ class DroneEstimatorModule final : public Module {
   const InputCounts& input(Input i) const { return inputs_[i]; }
 
  private:
-  void add(Bus& bus, Input kind, int64_t stamp, const DroneMeasurement& m);
-  void try_init(int64_t stamp);
+  void add(Bus& bus, Input kind, Time stamp, const DroneMeasurement& m);
+  void try_init(Time stamp);
   void publish_estimate(Bus& bus);
   void publish_status(Bus& bus);
 
@@ -76,7 +76,7 @@ class DroneEstimatorModule final : public Module {
   std::optional<geo::LocalFrame> frame_;
   // Before the start: the IMU and magnetometer averaged while the vehicle is still.
   struct Alignment {
-    int64_t first = 0, last = 0;  ///< stamps of the IMU samples averaged [us]
+    Time first, last;  ///< stamps of the IMU samples averaged
     Eigen::Vector3d accel = Eigen::Vector3d::Zero(), gyro = Eigen::Vector3d::Zero(), field = Eigen::Vector3d::Zero();
     int64_t imu = 0, mag = 0;
   } align_;

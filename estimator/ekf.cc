@@ -25,10 +25,10 @@ bool usable(const Measurement& m) {
 
 }  // namespace
 
-bool Ekf::init(int64_t utime, const PoseFix& fix, double v, double w) {
+bool Ekf::init(Time at, const PoseFix& fix, double v, double w) {
   if (!usable(Measurement(fix)) || !plausible(v) || !plausible(w)) return false;
   initialized_ = true;
-  t_ = utime;
+  t_ = at;
   x_ << fix.pose.x, fix.pose.y, wrap_angle(fix.pose.yaw), v, w, 0;
   P_.setZero();
   P_(kX, kX) = P_(kY, kY) = fix.var_xy > 0 ? fix.var_xy : noise_.pose_xy * noise_.pose_xy;
@@ -38,11 +38,11 @@ bool Ekf::init(int64_t utime, const PoseFix& fix, double v, double w) {
   return true;
 }
 
-void Ekf::predict(int64_t utime) {
-  if (utime <= t_) return;
+void Ekf::predict(Time at) {
+  if (at <= t_) return;
   // In doubles: hostile stamps far apart would overflow int64_t (exact for stamps below 2^53 us, 285 years).
-  const double dt = Time::from_us(utime).seconds_since(Time::from_us(t_));
-  t_ = utime;
+  const double dt = at.seconds_since(t_);
+  t_ = at;
   const double v = x_(kV), w = x_(kW);
   const double heading = x_(kYaw) + 0.5 * w * dt;  // midpoint heading
   const double c = std::cos(heading), s = std::sin(heading);
@@ -78,14 +78,14 @@ void Ekf::correct(const Eigen::Matrix<double, N, 1>& innovation, const Eigen::Ma
   P_ = (P_.array().abs() < 1e-150).select(0.0, P_);
 }
 
-bool Ekf::update(int64_t utime, const Measurement& m) {
+bool Ekf::update(Time at, const Measurement& m) {
   if (!usable(m)) return false;
   // Whatever slips past the bounds (an innovation that overflows, a variance of 1e308): the state before is kept
   // and restored unless every number stays finite, so no NaN ever enters the filter.
-  const int64_t t = t_;
+  const Time t = t_;
   const State x = x_;
   const Cov P = P_;
-  apply(utime, m);
+  apply(at, m);
   if (x_.allFinite() && P_.allFinite()) return true;
   t_ = t;
   x_ = x;
@@ -93,8 +93,8 @@ bool Ekf::update(int64_t utime, const Measurement& m) {
   return false;
 }
 
-void Ekf::apply(int64_t utime, const Measurement& m) {
-  predict(utime);
+void Ekf::apply(Time at, const Measurement& m) {
+  predict(at);
   if (const auto* g = std::get_if<GyroZ>(&m)) {
     Eigen::Matrix<double, 1, 6> H = Eigen::Matrix<double, 1, 6>::Zero();
     H(0, kW) = 1;

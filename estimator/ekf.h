@@ -11,6 +11,7 @@
 #include <cstdint>
 #include <variant>
 
+#include "core/time.h"
 #include "estimator/delayed_filter.h"
 #include "lcmtypes/planar.h"
 
@@ -52,30 +53,30 @@ class Ekf {
 
   explicit Ekf(const EkfNoise& noise = {}) : noise_(noise) {}
 
-  /// Starts at a pose and velocity, at time utime [us]; false (and not initialised) when a value is NaN,
+  /// Starts at a pose and velocity, at time `at`; false (and not initialised) when a value is NaN,
   /// infinite or beyond any robot's (over 1e9 m, m/s or rad/s).
-  bool init(int64_t utime, const PoseFix& fix, double v, double w);
+  bool init(Time at, const PoseFix& fix, double v, double w);
   bool initialized() const { return initialized_; }
 
-  /// Moves the state to utime (no-op for earlier times).
-  void predict(int64_t utime);
-  /// Predicts to utime and applies a measurement. A measurement with a NaN or infinite value, a value beyond any
+  /// Moves the state to `at` (no-op for earlier times).
+  void predict(Time at);
+  /// Predicts to `at` and applies a measurement. A measurement with a NaN or infinite value, a value beyond any
   /// robot's (over 1e9 m, m/s or rad/s), or one that would leave a NaN or infinite number in the state or
   /// covariance is refused: false, and the filter stays as it was. The state is always finite.
-  bool update(int64_t utime, const Measurement& m);
+  bool update(Time at, const Measurement& m);
 
-  int64_t time() const { return t_; }
+  Time time() const { return t_; }
   const State& state() const { return x_; }
   const Cov& covariance() const { return P_; }
 
  private:
-  void apply(int64_t utime, const Measurement& m);
+  void apply(Time at, const Measurement& m);
   template <int N>
   void correct(const Eigen::Matrix<double, N, 1>& innovation, const Eigen::Matrix<double, N, 6>& H,
                const Eigen::Matrix<double, N, N>& R);
   EkfNoise noise_;
   bool initialized_ = false;
-  int64_t t_ = 0;
+  Time t_;
   State x_ = State::Zero();
   Cov P_ = Cov::Identity();
 };
@@ -86,9 +87,9 @@ class DelayedEkf : public DelayedFilter<Ekf, Measurement> {
   DelayedEkf(const EkfNoise& noise, double window_s) : DelayedFilter(Ekf(noise), window_s), noise_(noise) {}
 
   /// Starts from a first fix; false (and nothing changes) when the filter refuses it (Ekf::init).
-  bool init(int64_t utime, const PoseFix& fix, double v, double w) {
+  bool init(Time at, const PoseFix& fix, double v, double w) {
     Ekf e(noise_);
-    if (!e.init(utime, fix, v, w)) return false;
+    if (!e.init(at, fix, v, w)) return false;
     reset(e);
     return true;
   }

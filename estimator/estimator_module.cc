@@ -79,7 +79,7 @@ Status EstimatorModule::start(Bus& bus) {
       if (!non_finite_.finite(m)) return;
       ++imu_;
       const double var = imu.angular_velocity_covariance[0] > 0 ? imu.angular_velocity_covariance[8] : 0;
-      add(bus, imu.header.utime, GyroZ{imu.angular_velocity.z, var});
+      add(bus, Time::from_us(imu.header.utime), GyroZ{imu.angular_velocity.z, var});
     });
   }
   if (!c_.odom_channel.empty()) {
@@ -89,15 +89,15 @@ Status EstimatorModule::start(Bus& bus) {
       if (!non_finite_.finite(m)) return;
       ++odom_;
       if (!ekf_.initialized() && (c_.pose_channel.empty() || poses_ == 0)) {
-        if (!ekf_.init(o.header.utime, {{o.position.x, o.position.y, yaw_of(o.orientation)}}, o.linear_velocity.x,
-                       o.angular_velocity.z)) {
+        if (!ekf_.init(Time::from_us(o.header.utime), {{o.position.x, o.position.y, yaw_of(o.orientation)}},
+                       o.linear_velocity.x, o.angular_velocity.z)) {
           return void(++refused_init_);
         }
         if (frame_.empty()) frame_ = c_.frame_id.empty() ? o.header.frame_id : c_.frame_id;
         return;
       }
       // Twist covariance over (vx, vy, vz, wx, wy, wz): vx is [0], wz is [35]; 0 or -1: not given.
-      add(bus, o.header.utime,
+      add(bus, Time::from_us(o.header.utime),
           Twist{o.linear_velocity.x, o.angular_velocity.z, o.twist_covariance[0], o.twist_covariance[35]});
     });
   }
@@ -111,31 +111,31 @@ Status EstimatorModule::start(Bus& bus) {
                          std::max(p.covariance[0], p.covariance[7]),
                          p.covariance[35]};
       if (!ekf_.initialized()) {
-        if (!ekf_.init(p.header.utime, pose, 0, 0)) return void(++refused_init_);
+        if (!ekf_.init(Time::from_us(p.header.utime), pose, 0, 0)) return void(++refused_init_);
         frame_ = c_.frame_id.empty() ? p.header.frame_id : c_.frame_id;
         return;
       }
       if (frame_ != p.header.frame_id && c_.frame_id.empty()) frame_ = p.header.frame_id;
-      add(bus, p.header.utime, pose);
+      add(bus, Time::from_us(p.header.utime), pose);
     });
   }
   return {};
 }
 
-void EstimatorModule::add(Bus& bus, int64_t stamp, const Measurement& m) {
+void EstimatorModule::add(Bus& bus, Time stamp, const Measurement& m) {
   if (!ekf_.initialized()) {
     ++before_init_;
     return;
   }
   ekf_.add(stamp, m);
-  const int64_t t = ekf_.filter().time();
+  const int64_t t = ekf_.filter().time().us();
   if (next_publish_ == 0) next_publish_ = t;
   if (t >= next_publish_) {
     publish(bus);
     // The first multiple of the period after t, computed rather than stepped to (a stamp years ahead would take
     // billions of steps) and saturated at the end of int64_t (a hostile stamp must not overflow).
     const auto period = static_cast<uint64_t>(Duration::periods_rounded(c_.publish_rate).us());
-    const uint64_t steps = (static_cast<uint64_t>(t) - static_cast<uint64_t>(next_publish_)) / period + 1;
+    const uint64_t steps = us_after(next_publish_, t) / period + 1;
     int64_t next = 0;
     if (steps > static_cast<uint64_t>(INT64_MAX) / period ||
         __builtin_add_overflow(next_publish_, static_cast<int64_t>(steps * period), &next)) {
@@ -151,7 +151,7 @@ void EstimatorModule::publish(Bus& bus) {
   const Ekf::Cov& P = f.covariance();
   driftlab::odometry_t o{};
   o.header.seq = seq_++;
-  o.header.utime = f.time();
+  o.header.utime = f.time().us();
   o.header.frame_id = frame_;
   o.child_frame_id = c_.child_frame_id;
   o.position = {x(Ekf::kX), x(Ekf::kY), 0};

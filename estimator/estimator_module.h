@@ -50,7 +50,7 @@ class EstimatorModule final : public Module {
   const DelayedEkf& filter() const { return ekf_; }
 
  private:
-  void add(Bus& bus, int64_t stamp, const Measurement& m);
+  void add(Bus& bus, Time stamp, const Measurement& m);
   void publish(Bus& bus);
   EstimatorConfig c_;
   DelayedEkf ekf_;

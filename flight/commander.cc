@@ -16,8 +16,8 @@ std::string seconds(double s) {
 }
 
 /// Drops the arrivals more than a second before now.
-void forget_older_than_a_second(std::deque<int64_t>& arrivals, int64_t now) {
-  while (!arrivals.empty() && seconds_between(arrivals.front(), now) > 1.0) arrivals.pop_front();
+void forget_older_than_a_second(std::deque<Time>& arrivals, Time now) {
+  while (!arrivals.empty() && now.seconds_since(arrivals.front()) > 1.0) arrivals.pop_front();
 }
 
 }  // namespace
@@ -55,24 +55,22 @@ const char* mode_name(Mode m) {
   return "?";
 }
 
-void Commander::set(Mode m, const std::string& why, int64_t now) {
+void Commander::set(Mode m, const std::string& why, Time now) {
   mode_ = m;
   mode_since_ = now;
   reason_ = why;
   ++events_;
 }
 
-void Commander::on_setpoint(int64_t now) {
+void Commander::on_setpoint(Time now) {
   last_setpoint_ = now;
   setpoints_.push_back(now);
   forget_older_than_a_second(setpoints_, now);
 }
 
-double Commander::setpoint_age(int64_t now) const {
-  return last_setpoint_ ? seconds_between(*last_setpoint_, now) : -1.0;
-}
+double Commander::setpoint_age(Time now) const { return last_setpoint_ ? now.seconds_since(*last_setpoint_) : -1.0; }
 
-bool Commander::command(const std::string& c, int64_t now, bool estimate_ok) {
+bool Commander::command(const std::string& c, Time now, bool estimate_ok) {
   auto refuse = [&](const std::string& why) {
     reason_ = c + " refused: " + why;
     ++events_;
@@ -122,7 +120,7 @@ bool Commander::command(const std::string& c, int64_t now, bool estimate_ok) {
   return refuse("unknown command");
 }
 
-void Commander::update(int64_t now, double thrust_ratio, double vertical_speed, double horizontal_speed) {
+void Commander::update(Time now, double thrust_ratio, double vertical_speed, double horizontal_speed) {
   // Offboard loss.
   if (mode_ == Mode::kOffboard && armed_) {
     const double age = setpoint_age(now);
@@ -136,7 +134,7 @@ void Commander::update(int64_t now, double thrust_ratio, double vertical_speed, 
     }
   }
   if (failsafe_ && mode_ == Mode::kHold && o_.failsafe_land_after_s > 0 &&
-      seconds_between(mode_since_, now) > o_.failsafe_land_after_s) {
+      now.seconds_since(mode_since_) > o_.failsafe_land_after_s) {
     set(Mode::kLand, "failsafe: held " + seconds(o_.failsafe_land_after_s) + " without offboard: land", now);
   }
 
@@ -156,7 +154,7 @@ void Commander::update(int64_t now, double thrust_ratio, double vertical_speed, 
     const bool still = std::abs(vertical_speed) < 0.2 && horizontal_speed < 0.5;
     if (thrust_ratio < 0.7 && still) {
       if (!low_since_) low_since_ = now;
-      if (seconds_between(*low_since_, now) >= o_.land_detect_s) {
+      if (now.seconds_since(*low_since_) >= o_.land_detect_s) {
         landed_ = true;
         landed_since_ = now;
         ++events_;
@@ -167,7 +165,7 @@ void Commander::update(int64_t now, double thrust_ratio, double vertical_speed, 
   }
   // Auto-disarm once landed after a flight (or in land mode).
   if (landed_ && (flew_ || mode_ == Mode::kLand) && o_.disarm_after_landing_s > 0 &&
-      seconds_between(landed_since_, now) >= o_.disarm_after_landing_s) {
+      now.seconds_since(landed_since_) >= o_.disarm_after_landing_s) {
     armed_ = false;
     reason_ = "disarmed: landed";
     ++events_;

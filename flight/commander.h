@@ -9,7 +9,7 @@
 //   - the land detector: landed after `land_detect_s` of thrust below 70% of hover with the vehicle still; airborne
 //     once the controllers ask for more than hover thrust; landed after flying (or in land mode) for
 //     `disarm_after_landing_s` disarms (COM_DISARM_LAND).
-// Times are the flight stack's clock [us], any int64_t (differences are taken in doubles). Thread-safety: plain values;
+// Times are the flight stack's clock, any Time (differences are taken in doubles). Thread-safety: plain values;
 // one thread.
 #pragma once
 
@@ -17,6 +17,8 @@
 #include <deque>
 #include <optional>
 #include <string>
+
+#include "core/time.h"
 
 namespace driftlab::config {
 template <class T>
@@ -46,14 +48,14 @@ class Commander {
  public:
   explicit Commander(const CommanderOptions& o) : o_(o) {}
 
-  /// A setpoint arrived at now [us].
-  void on_setpoint(int64_t now);
+  /// A setpoint arrived at now.
+  void on_setpoint(Time now);
   /// A command ("arm", "disarm", "offboard", "land", "hold"); estimate_ok: a fresh estimate exists. False, with
   /// reason() saying why, when refused.
-  bool command(const std::string& command, int64_t now, bool estimate_ok);
-  /// The periodic check at now [us]: offboard loss, failsafe landing, the land detector, auto-disarm.
+  bool command(const std::string& command, Time now, bool estimate_ok);
+  /// The periodic check at now: offboard loss, failsafe landing, the land detector, auto-disarm.
   /// thrust_ratio: the collective thrust demanded over hover thrust; speed: the estimate's [m/s].
-  void update(int64_t now, double thrust_ratio, double vertical_speed, double horizontal_speed);
+  void update(Time now, double thrust_ratio, double vertical_speed, double horizontal_speed);
 
   bool armed() const { return armed_; }
   bool landed() const { return landed_; }
@@ -61,20 +63,20 @@ class Commander {
   const std::string& reason() const { return reason_; }
   int offboard_losses() const { return losses_; }
   /// Time since the last setpoint [s]; -1 when none came.
-  double setpoint_age(int64_t now) const;
+  double setpoint_age(Time now) const;
   /// Counts mode and arming changes and refusals, so the caller knows when to say so (and to latch a hold point).
   int64_t events() const { return events_; }
 
  private:
-  void set(Mode m, const std::string& why, int64_t now);
+  void set(Mode m, const std::string& why, Time now);
   CommanderOptions o_;
   bool armed_ = false, landed_ = true, flew_ = false;
   Mode mode_ = Mode::kHold;
   bool failsafe_ = false;
-  int64_t mode_since_ = 0, landed_since_ = 0;
-  std::optional<int64_t> low_since_;  ///< since when thrust has been low with the vehicle still
-  std::deque<int64_t> setpoints_;     ///< arrivals within the last second
-  std::optional<int64_t> last_setpoint_;
+  Time mode_since_, landed_since_;
+  std::optional<Time> low_since_;  ///< since when thrust has been low with the vehicle still
+  std::deque<Time> setpoints_;     ///< arrivals within the last second
+  std::optional<Time> last_setpoint_;
   std::string reason_;
   int losses_ = 0;
   int64_t events_ = 0;

@@ -118,12 +118,12 @@ Status FlightModule::start(Bus& bus) {
     setpoint_ = Setpoint{Eigen::Vector3d(s.position.x, s.position.y, s.position.z),
                          Eigen::Vector3d(s.velocity.x, s.velocity.y, s.velocity.z),
                          Eigen::Vector3d(s.acceleration.x, s.acceleration.y, s.acceleration.z), s.yaw};
-    commander_.on_setpoint(bus.now().us());
+    commander_.on_setpoint(bus.now());
   });
   bus.subscribe(c_.command_channel, [this, &bus](const BusMessage& m) {
     driftlab::vehicle_command_t c;
     if (!decode_message(m, c)) return void(++undecodable_);
-    commander_.command(c.command, bus.now().us(), estimate_fresh(bus.now().us()));
+    commander_.command(c.command, bus.now(), estimate_fresh(bus.now().us()));
     position_tick(bus);  // act on it (and say so) now, not at the next tick
   });
   if (!c_.logged_motor_channel.empty()) {
@@ -150,7 +150,7 @@ void FlightModule::position_tick(Bus& bus) {
   last_position_tick_ = now;
   const bool fresh = estimate_fresh(now);
   const Eigen::Vector3d v = fresh ? estimate_->velocity : Eigen::Vector3d::Zero();
-  commander_.update(now, thrust_ratio_, v.z(), v.head<2>().norm());
+  commander_.update(Time::from_us(now), thrust_ratio_, v.z(), v.head<2>().norm());
   const bool changed = commander_.events() != seen_events_;
   if (changed && fresh) {  // a new mode holds (or lands from) where the vehicle is now
     hold_ = estimate_->position;
@@ -225,7 +225,7 @@ void FlightModule::publish_status(Bus& bus) {
   s.mode = mode_name(commander_.mode());
   s.reason = commander_.reason();
   s.offboard_losses = commander_.offboard_losses();
-  s.setpoint_age_s = commander_.setpoint_age(now);
+  s.setpoint_age_s = commander_.setpoint_age(Time::from_us(now));
   bus.publish_message(c_.status_channel, s);
 }
 

@@ -1,5 +1,6 @@
 #include "lcmtypes/stream_header.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 
@@ -105,11 +106,9 @@ bool looks_like_header(std::span<const uint8_t> data, int64_t arrival_utime) {
   const auto stamp = static_cast<int64_t>(be64(data.data() + kHeaderStampOffset));
   const uint32_t len = be32(data.data() + kHeaderFrameOffset);  // with the NUL
   constexpr int64_t kDay = 86400LL * 1000000;
-  // Compared without subtracting: stamp - arrival overflows for arbitrary bytes.
-  const bool near = stamp >= arrival_utime ? static_cast<uint64_t>(stamp) - static_cast<uint64_t>(arrival_utime) <
-                                                 static_cast<uint64_t>(kDay)
-                                           : static_cast<uint64_t>(arrival_utime) - static_cast<uint64_t>(stamp) <
-                                                 static_cast<uint64_t>(kDay);
+  // Compared without subtracting in int64_t: stamp - arrival overflows for arbitrary bytes.
+  const bool near =
+      std::max(us_after(arrival_utime, stamp), us_after(stamp, arrival_utime)) < static_cast<uint64_t>(kDay);
   return seq >= 0 && seq < (int64_t{1} << 48) && near && len >= 1 && len <= 256 &&
          kHeaderFrameOffset + 4 + static_cast<size_t>(len) <= data.size() &&
          data[kHeaderFrameOffset + 4 + len - 1] == 0;

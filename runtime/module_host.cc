@@ -196,9 +196,8 @@ Status ModuleHost::fire_timers(int64_t t) {
       if (timer.next <= t && (due == nullptr || timer.next < due->next)) due = &timer;
     }
     if (due == nullptr) return {};
-    // t >= next: the difference in uint64_t is exact whatever the two are.
-    const uint64_t behind =
-        (static_cast<uint64_t>(t) - static_cast<uint64_t>(due->next)) / static_cast<uint64_t>(due->period);
+    // t >= next: exact whatever the two are.
+    const uint64_t behind = us_after(due->next, t) / static_cast<uint64_t>(due->period);
     // The last tick at or before t, in uint64_t: behind * period can pass INT64_MAX (a tick far in the past and t
     // far ahead), while the sum, at most t, cannot; unsigned arithmetic wraps to it exactly.
     const auto last_tick = [&] {

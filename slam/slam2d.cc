@@ -148,10 +148,7 @@ struct Slam2d::Impl {
   bool pose_stream = false;  ///< the odometry came as driftlab.pose_t
 
   /// Whether a scan stamp is within the first second of the first scan's (or before it).
-  bool in_first_second(int64_t stamp) const {
-    return stamp < first_scan ||  // uint64_t: hostile stamps must not overflow
-           static_cast<uint64_t>(stamp) - static_cast<uint64_t>(first_scan) < 1000000;
-  }
+  bool in_first_second(int64_t stamp) const { return stamp < first_scan || us_after(first_scan, stamp) < 1000000; }
 
   /// Matches one scan (method graph) and publishes its pose.
   void process(Bus& bus, int64_t stamp, const mrpt::obs::CObservation2DRangeScan::Ptr& obs) {
@@ -186,8 +183,8 @@ struct Slam2d::Impl {
     while (!waiting.empty()) {
       const auto it = waiting.begin();
       const bool covered = it->first <= newest_odometry || c.odom_channel.empty();
-      // newest_scan is the largest stamp waiting or gone, so this is >= 0; unsigned, as hostile stamps may be far apart
-      const uint64_t behind = static_cast<uint64_t>(newest_scan) - static_cast<uint64_t>(it->first);
+      // newest_scan is the largest stamp waiting or gone; unsigned, as hostile stamps may be far apart
+      const uint64_t behind = us_after(it->first, newest_scan);
       const bool in_order = !pose_stream || behind >= static_cast<uint64_t>(reorder);
       if (!all && ((!covered && behind < static_cast<uint64_t>(wait)) || !in_order)) break;
       if (!covered) ++waited_out;
@@ -310,7 +307,7 @@ Status Slam2d::start(Bus& bus) {
     if (d.graph) {
       d.waiting.emplace(scan.header.utime, obs);
       if (scan.header.utime < d.newest_scan) {
-        const uint64_t back = static_cast<uint64_t>(d.newest_scan) - static_cast<uint64_t>(scan.header.utime);
+        const uint64_t back = us_after(scan.header.utime, d.newest_scan);
         const auto wait = static_cast<uint64_t>(Duration::from_seconds_truncated(d.c.odom_wait_s).us());
         d.reorder = std::max(d.reorder, static_cast<int64_t>(std::min(back, wait)));
       }

@@ -8,6 +8,7 @@
 #include <optional>
 #include <utility>
 
+#include "core/time.h"
 #include "driftlab/odometry_t.hpp"
 #include "driftlab/pose_t.hpp"
 #include "lcmtypes/planar.h"
@@ -21,7 +22,8 @@ class OdometryBuffer {
   void add(int64_t stamp, const Pose2& pose, int64_t depth_us = 5000000) {
     auto at = std::upper_bound(q_.begin(), q_.end(), stamp, [](int64_t t, const Sample& s) { return t < s.stamp; });
     q_.insert(at, {stamp, pose});
-    while (q_.size() > 2 && span(q_.front().stamp, q_.back().stamp) > static_cast<uint64_t>(depth_us)) q_.pop_front();
+    while (q_.size() > 2 && us_after(q_.front().stamp, q_.back().stamp) > static_cast<uint64_t>(depth_us))
+      q_.pop_front();
   }
   bool empty() const { return q_.empty(); }
 
@@ -33,15 +35,14 @@ class OdometryBuffer {
     if (stamp >= q_.back().stamp) return q_.back().pose;
     auto hi = std::lower_bound(q_.begin(), q_.end(), stamp, [](const Sample& s, int64_t t) { return s.stamp < t; });
     auto lo = std::prev(hi);
-    const double f = static_cast<double>(span(lo->stamp, stamp)) / static_cast<double>(span(lo->stamp, hi->stamp));
+    const double f =
+        static_cast<double>(us_after(lo->stamp, stamp)) / static_cast<double>(us_after(lo->stamp, hi->stamp));
     const double dyaw = wrap_angle(hi->pose.yaw - lo->pose.yaw);
     return Pose2{lo->pose.x + f * (hi->pose.x - lo->pose.x), lo->pose.y + f * (hi->pose.y - lo->pose.y),
                  lo->pose.yaw + f * dyaw};
   }
 
  private:
-  /// b - a for a <= b, exact whatever the stamps (int64_t arithmetic could overflow on hostile ones).
-  static uint64_t span(int64_t a, int64_t b) { return static_cast<uint64_t>(b) - static_cast<uint64_t>(a); }
   struct Sample {
     int64_t stamp;
     Pose2 pose;

@@ -26,7 +26,7 @@ DroneEkf started() {
   imu.accel = truth.attitude(0).inverse() * (truth.acceleration(0) + Eigen::Vector3d(0, 0, kG));
   GnssFix g;
   g.position = truth.position(0);
-  e.init(kT0, imu, MagField{truth.attitude(0).inverse() * field_world()}, g,
+  e.init(Time::from_us(kT0), imu, MagField{truth.attitude(0).inverse() * field_world()}, g,
          BaroAltitude{kOriginAlt + truth.position(0).z() + kBaroOffset, 0.1});
   return e;
 }
@@ -52,7 +52,7 @@ TEST(DroneEkf, TracksAFlightAndEstimatesTheGyroBias) {
   const auto data = flight(1);
   double worst_position = 0, worst_attitude = 0;
   for (const auto& s : data) {
-    ASSERT_TRUE(ekf.add(s.utime, s.m));
+    ASSERT_TRUE(ekf.add(Time::from_us(s.utime), s.m));
     const double t = static_cast<double>(s.utime - kT0) * 1e-6;
     if (t < 10) continue;  // converging: biases and baro offset
     worst_position = std::max(worst_position, (ekf.filter().position() - truth.position(t)).norm());
@@ -79,10 +79,10 @@ TEST(DroneEkf, AGnssFixFarOutsideItsAccuracyIsAnOutlier) {
   const Truth truth;
   DelayedDroneEkf ekf(started(), 0.3);
   const auto data = flight(2);
-  for (std::size_t i = 0; i < data.size() / 2; ++i) ekf.add(data[i].utime, data[i].m);
+  for (std::size_t i = 0; i < data.size() / 2; ++i) ekf.add(Time::from_us(data[i].utime), data[i].m);
   const DroneEkf before = ekf.filter();
   GnssFix jump;
-  const double t = static_cast<double>(before.time() - kT0) * 1e-6;
+  const double t = static_cast<double>(before.time().us() - kT0) * 1e-6;
   jump.position = truth.position(t) + Eigen::Vector3d(20, 0, 0);  // a multipath jump of 20 m at eph 0.3 m
   jump.velocity = truth.velocity(t);
   jump.eph = 0.3;
@@ -104,14 +104,14 @@ TEST(DroneEkf, FixesThatAreAllOutliersForFiveSecondsResetThePosition) {
     DroneMeasurement m = s.m;
     const bool shifted = s.utime - kT0 > 30000000;
     if (auto* g = std::get_if<GnssFix>(&m); g != nullptr && shifted) g->position.x() += 20;
-    ekf.update(s.utime, m);
+    ekf.update(Time::from_us(s.utime), m);
     if (reset_at == 0 && ekf.counts().resets[1] > 0) reset_at = s.utime;
   }
   ASSERT_GT(reset_at, 0);
   // The first shifted fix at 30.2 s; outliers for more than 5 s: the reset with the first fix after 35.2 s.
   EXPECT_NEAR(static_cast<double>(reset_at - kT0) * 1e-6, 35.4, 0.25);
   EXPECT_EQ(ekf.counts().resets[1], 1);
-  const double t = static_cast<double>(ekf.time() - kT0) * 1e-6;
+  const double t = static_cast<double>(ekf.time().us() - kT0) * 1e-6;
   EXPECT_LT((ekf.position() - truth.position(t) - Eigen::Vector3d(20, 0, 0)).norm(), 1.0);
 }
 
@@ -123,8 +123,8 @@ TEST(DelayedDroneEkf, LateGnssFixesWithinTheWindowGiveTheInOrderResult) {
   for (const auto& s : in_order) arrivals.push_back({s.utime + (std::holds_alternative<GnssFix>(s.m) ? 120000 : 0), s});
   std::stable_sort(arrivals.begin(), arrivals.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
   DelayedDroneEkf a(started(), 0.3), b(started(), 0.3);
-  for (const auto& s : in_order) a.add(s.utime, s.m);
-  for (const auto& [arrival, s] : arrivals) ASSERT_TRUE(b.add(s.utime, s.m));
+  for (const auto& s : in_order) a.add(Time::from_us(s.utime), s.m);
+  for (const auto& [arrival, s] : arrivals) ASSERT_TRUE(b.add(Time::from_us(s.utime), s.m));
   EXPECT_EQ(b.counters().rejected, 0);
   EXPECT_GE(b.counters().reapplied, 299);  // all but the fixes after the last IMU sample
   EXPECT_LT((a.filter().position() - b.filter().position()).cwiseAbs().maxCoeff(), 1e-6);
@@ -145,11 +145,11 @@ TEST(DelayedDroneEkf, ImuSamplesReorderedByJitterGiveTheInOrderResult) {
   }
   std::stable_sort(arrivals.begin(), arrivals.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
   DelayedDroneEkf a(started(), 0.3), b(started(), 0.3);
-  for (const auto& s : in_order) a.add(s.utime, s.m);
+  for (const auto& s : in_order) a.add(Time::from_us(s.utime), s.m);
   for (const auto& [arrival, s] : arrivals) {
-    ASSERT_TRUE(b.add(s.utime, s.m)) << "stamp " << s.utime - kT0 << " arrival " << arrival - kT0 << " filter "
-                                     << b.filter().time() - kT0 << " rejected " << b.counters().rejected << " refused "
-                                     << b.counters().refused;
+    ASSERT_TRUE(b.add(Time::from_us(s.utime), s.m))
+        << "stamp " << s.utime - kT0 << " arrival " << arrival - kT0 << " filter " << b.filter().time().us() - kT0
+        << " rejected " << b.counters().rejected << " refused " << b.counters().refused;
   }
   EXPECT_EQ(b.counters().rejected, 0);
   EXPECT_GT(b.counters().reapplied, 1000);
@@ -166,7 +166,7 @@ TEST(DelayedDroneEkf, ImuSamplesOlderThanTheWindowAreRejectedAndCounted) {
   for (const auto& s : data) {
     const bool is_imu = std::holds_alternative<ImuSample>(s.m);
     imu += is_imu;
-    ekf.add(is_imu ? s.utime - 500000 : s.utime, s.m);
+    ekf.add(Time::from_us(is_imu ? s.utime - 500000 : s.utime), s.m);
   }
   EXPECT_EQ(imu, 15000);
   // All but those stamped before the first other measurement's time minus the window.

@@ -51,8 +51,8 @@ std::vector<Stamped> measurements(uint64_t seed) {
 
 TEST(Ekf, TracksACircleAndEstimatesTheGyroBias) {
   DelayedEkf ekf(EkfNoise{}, 0.5);
-  ekf.init(kT0, {}, 0.5, 0.25);
-  for (const auto& s : measurements(1)) ASSERT_TRUE(ekf.add(s.utime, s.m));
+  ekf.init(Time::from_us(kT0), {}, 0.5, 0.25);
+  for (const auto& s : measurements(1)) ASSERT_TRUE(ekf.add(Time::from_us(s.utime), s.m));
   const auto& x = ekf.filter().state();
   const Pose2 truth = Truth().at(20.0);
   EXPECT_NEAR(x(Ekf::kX), truth.x, 0.1);
@@ -78,10 +78,10 @@ TEST(DelayedEkf, LateMeasurementsWithinTheWindowGiveTheInOrderResult) {
   }
   std::stable_sort(arrivals.begin(), arrivals.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
   DelayedEkf a(EkfNoise{}, 0.5), b(EkfNoise{}, 0.5);
-  a.init(kT0, {}, 0.5, 0.25);
-  b.init(kT0, {}, 0.5, 0.25);
-  for (const auto& s : in_order) a.add(s.utime, s.m);
-  for (const auto& [arrival, s] : arrivals) ASSERT_TRUE(b.add(s.utime, s.m));
+  a.init(Time::from_us(kT0), {}, 0.5, 0.25);
+  b.init(Time::from_us(kT0), {}, 0.5, 0.25);
+  for (const auto& s : in_order) a.add(Time::from_us(s.utime), s.m);
+  for (const auto& [arrival, s] : arrivals) ASSERT_TRUE(b.add(Time::from_us(s.utime), s.m));
   EXPECT_EQ(b.counters().reapplied, 999);  // all but the last, which comes after the last gyro sample
   EXPECT_EQ(b.counters().rejected, 0);
   EXPECT_GE(b.counters().replays, 999 * 5);  // each late twist re-applies the 5 gyro samples stamped after it
@@ -92,32 +92,32 @@ TEST(DelayedEkf, LateMeasurementsWithinTheWindowGiveTheInOrderResult) {
 
 TEST(DelayedEkf, MeasurementsOlderThanTheWindowAreRejectedAndCounted) {
   DelayedEkf ekf(EkfNoise{}, 0.1);
-  ekf.init(kT0, {}, 0, 0);
-  for (int i = 1; i <= 100; ++i) ASSERT_TRUE(ekf.add(kT0 + i * 5000, GyroZ{0, 0}));
+  ekf.init(Time::from_us(kT0), {}, 0, 0);
+  for (int i = 1; i <= 100; ++i) ASSERT_TRUE(ekf.add(Time::from_us(kT0 + int64_t{i} * 5000), GyroZ{0, 0}));
   const Ekf before = ekf.filter();
-  EXPECT_FALSE(ekf.add(kT0 + 500000 - 150000, Twist{1, 1, 0, 0}));  // 150 ms old, window 100 ms
+  EXPECT_FALSE(ekf.add(Time::from_us(kT0 + 500000 - 150000), Twist{1, 1, 0, 0}));  // 150 ms old, window 100 ms
   EXPECT_EQ(ekf.counters().rejected, 1);
   EXPECT_EQ(ekf.filter().state(), before.state());
-  EXPECT_TRUE(ekf.add(kT0 + 500000 - 50000, Twist{0, 0, 0, 0}));    // 50 ms old: re-applied
+  EXPECT_TRUE(ekf.add(Time::from_us(kT0 + 500000 - 50000), Twist{0, 0, 0, 0}));  // 50 ms old: re-applied
   EXPECT_EQ(ekf.counters().reapplied, 1);
   // A zero window is the "reject every late measurement" policy.
   DelayedEkf strict(EkfNoise{}, 0);
-  strict.init(kT0, {}, 0, 0);
-  ASSERT_TRUE(strict.add(kT0 + 10000, GyroZ{0, 0}));
-  EXPECT_FALSE(strict.add(kT0 + 5000, GyroZ{0, 0}));
+  strict.init(Time::from_us(kT0), {}, 0, 0);
+  ASSERT_TRUE(strict.add(Time::from_us(kT0 + 10000), GyroZ{0, 0}));
+  EXPECT_FALSE(strict.add(Time::from_us(kT0 + 5000), GyroZ{0, 0}));
 }
 
 TEST(Ekf, NeverLetsANonFiniteNumberIntoItsState) {
   // NaN in 5% of the odometry twists used to make nearly every later estimate NaN, for the rest of the run.
   DelayedEkf ekf(EkfNoise{}, 0.5);
-  ASSERT_TRUE(ekf.init(kT0, {}, 0.5, 0.25));
+  ASSERT_TRUE(ekf.init(Time::from_us(kT0), {}, 0.5, 0.25));
   int refused = 0, n = 0;
   for (auto s : measurements(4)) {
     if (auto* t = std::get_if<Twist>(&s.m); t != nullptr && ++n % 20 == 0) {
       t->v = NAN;
       ++refused;
     }
-    ekf.add(s.utime, s.m);
+    ekf.add(Time::from_us(s.utime), s.m);
     ASSERT_TRUE(ekf.filter().state().allFinite()) << s.utime;
     ASSERT_TRUE(ekf.filter().covariance().allFinite()) << s.utime;
   }
@@ -129,25 +129,25 @@ TEST(Ekf, NeverLetsANonFiniteNumberIntoItsState) {
   for (const Measurement& m :
        {Measurement(Twist{1e300, 0, 0, 0}), Measurement(PoseFix{{1e308, -1e308, 0}}), Measurement(GyroZ{2e9, 0}),
         Measurement(GyroZ{0.1, INFINITY}), Measurement(Twist{0.5, 0.25, 0, -INFINITY})}) {
-    EXPECT_FALSE(ekf.add(kT0 + 20'000'000, m));
+    EXPECT_FALSE(ekf.add(Time::from_us(kT0 + 20'000'000), m));
   }
   EXPECT_EQ(ekf.filter().state(), x);
   EXPECT_EQ(ekf.counters().refused, refused + 5);
   // A late measurement that would poison it is refused too, and the filter stays as it was.
-  EXPECT_FALSE(ekf.add(kT0 + 19'900'000, PoseFix{{NAN, 0, 0}}));
-  EXPECT_FALSE(ekf.add(kT0 + 19'900'000, Twist{1e300, 0, 0, 0}));
+  EXPECT_FALSE(ekf.add(Time::from_us(kT0 + 19'900'000), PoseFix{{NAN, 0, 0}}));
+  EXPECT_FALSE(ekf.add(Time::from_us(kT0 + 19'900'000), Twist{1e300, 0, 0, 0}));
   EXPECT_EQ(ekf.filter().state(), x);
   // Stamps at the ends of int64_t: no overflow (UBSan), old ones rejected.
-  EXPECT_FALSE(ekf.add(std::numeric_limits<int64_t>::min(), Twist{0.5, 0.25, 0, 0}));
+  EXPECT_FALSE(ekf.add(Time::from_us(std::numeric_limits<int64_t>::min()), Twist{0.5, 0.25, 0, 0}));
   EXPECT_EQ(ekf.counters().rejected, 1);
 }
 
 TEST(Ekf, StartsOnlyFromFiniteValues) {
   Ekf ekf;
-  EXPECT_FALSE(ekf.init(kT0, {{NAN, 0, 0}}, 0, 0));
-  EXPECT_FALSE(ekf.init(kT0, {}, INFINITY, 0));
+  EXPECT_FALSE(ekf.init(Time::from_us(kT0), {{NAN, 0, 0}}, 0, 0));
+  EXPECT_FALSE(ekf.init(Time::from_us(kT0), {}, INFINITY, 0));
   EXPECT_FALSE(ekf.initialized());
-  EXPECT_TRUE(ekf.init(kT0, {}, 0, 0));
+  EXPECT_TRUE(ekf.init(Time::from_us(kT0), {}, 0, 0));
 }
 
 }  // namespace
