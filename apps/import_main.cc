@@ -2,6 +2,7 @@
 #include <CLI/CLI.hpp>
 
 #include <cstdio>
+#include <functional>
 #include <memory>
 
 #include "analyzers/flight_log_pair.h"
@@ -9,6 +10,7 @@
 #include "apps/commands.h"
 #include "core/same_file.h"
 #include "formats/import.h"
+#include "recordings/log_input.h"
 
 namespace driftlab::apps {
 namespace {
@@ -17,8 +19,6 @@ struct ImportArgs {
   std::vector<std::string> in;
   std::string out;
 };
-
-constexpr int kProblemLines = 20;  // problems printed one by one; the rest counted
 
 void print_summary(const formats::ImportSummary& s, std::string from, const std::string& to) {
   std::printf("%s (%s) -> %s: %s messages\n", from.c_str(), s.format.c_str(), to.c_str(),
@@ -79,22 +79,14 @@ void add_import_file_command(CLI::App& import, int* exit_code) {
       }
       return;
     }
-    int printed = 0;
-    int64_t problems = 0;
-    const auto on_problem = [&](const std::string& line) {
-      ++problems;
-      if (printed++ < kProblemLines) std::fprintf(stderr, "driftlab: %s\n", line.c_str());
-    };
+    recordings::ProblemLines problems(args->in[0]);
     std::string alignment;
-    auto r = analyzers::import_recording(args->in, args->out, on_problem, &alignment);
+    auto r = analyzers::import_recording(args->in, args->out, std::ref(problems), &alignment);
     if (!r) {
       *exit_code = fail(r.error().message, exit_code_for(r.error(), args->out));
       return;
     }
-    if (problems > kProblemLines) {
-      std::fprintf(stderr, "driftlab: %s: %s more problems\n", args->in[0].c_str(),
-                   thousands(problems - kProblemLines).c_str());
-    }
+    problems.finish();
     std::string from = args->in[0];
     if (args->in.size() > 1) from += " and " + std::to_string(args->in.size() - 1) + " more";
     print_summary(*r, from, args->out);

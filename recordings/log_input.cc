@@ -11,6 +11,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <sstream>
 #include <vector>
 
@@ -245,14 +246,9 @@ Result<std::string> log_for(const std::vector<std::string>& inputs) {
                  !cache_doubt.empty() ? cache_doubt.c_str() : "not the file made then (replaced or changed since)");
   }
   std::fprintf(stderr, "driftlab: %s: converting it to %s (kept for later runs)\n", named.c_str(), cache.c_str());
-  int printed = 0;
-  int64_t problems = 0;
-  const auto on_problem = [&](const std::string& line) {
-    ++problems;
-    if (printed++ < kProblemLines) std::fprintf(stderr, "driftlab: %s\n", line.c_str());
-  };
+  ProblemLines problems(named);
   std::string alignment;
-  auto summary = analyzers::import_recording(inputs, cache, on_problem, &alignment);
+  auto summary = analyzers::import_recording(inputs, cache, std::ref(problems), &alignment);
   if (!summary) {
     // Writing the conversion failed (a full disk): an I/O failure, named by the input and the cache, not by the
     // partial file, which is gone. Anything else is the recording's.
@@ -265,10 +261,7 @@ Result<std::string> log_for(const std::vector<std::string>& inputs) {
     }
     return summary.error();
   }
-  if (problems > kProblemLines) {
-    std::fprintf(stderr, "driftlab: %s: %s more problems\n", named.c_str(),
-                 thousands(problems - kProblemLines).c_str());
-  }
+  problems.finish();
   std::fprintf(stderr, "driftlab: %s (%s): %s messages converted\n", named.c_str(), summary->format.c_str(),
                thousands(summary->messages).c_str());
   if (!alignment.empty()) std::fprintf(stderr, "driftlab: %s\n", alignment.c_str());
@@ -277,7 +270,7 @@ Result<std::string> log_for(const std::vector<std::string>& inputs) {
   const std::string made = file_identity(cache, true);
   if (made.empty())
     return Error(named + kCannotWriteConversion + cache + ": cannot read it back", ErrorCode::kCannotWrite);
-  if (Status s = write_key(key_path, key + "cache " + made + "\nproblems " + std::to_string(problems) + "\n" +
+  if (Status s = write_key(key_path, key + "cache " + made + "\nproblems " + std::to_string(problems.count()) + "\n" +
                                          (alignment.empty() ? std::string() : "alignment " + alignment + "\n"));
       !s) {
     return Error(named + kCannotWriteConversion + cache + ": " + s.message(), ErrorCode::kCannotWrite);
@@ -303,6 +296,16 @@ Result<std::string> log_channel_for(const std::string& source) {
   auto converted = log_for(log);
   if (!converted) return converted.error();
   return *converted + source.substr(colon);
+}
+
+void ProblemLines::operator()(const std::string& line) {
+  if (count_++ < kProblemLines) std::fprintf(stderr, "driftlab: %s\n", line.c_str());
+}
+
+void ProblemLines::finish() const {
+  if (count_ > kProblemLines) {
+    std::fprintf(stderr, "driftlab: %s: %s more problems\n", named_.c_str(), thousands(count_ - kProblemLines).c_str());
+  }
 }
 
 }  // namespace driftlab::recordings

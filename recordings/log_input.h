@@ -10,6 +10,7 @@
 // file (a name of its own, created exclusively) and the last rename wins (both hold the same log).
 #pragma once
 
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -44,5 +45,19 @@ inline Result<std::string> event_log_for(const std::string& input) {
 /// A LOG:CHANNEL source (eval, export tum) whose LOG is another tool's recording: the same source with LOG
 /// replaced by its conversion. Other sources (LCM logs, TUM files) come back unchanged.
 Result<std::string> log_channel_for(const std::string& source);
+
+/// A conversion's problems on stderr as they come: the first 20 a line each ("driftlab: LINE"), the rest counted and
+/// said once by finish() ("driftlab: NAMED: N more problems").
+class ProblemLines {
+ public:
+  explicit ProblemLines(std::string named) : named_(std::move(named)) {}
+  void operator()(const std::string& line);
+  void finish() const;
+  int64_t count() const { return count_; }
+
+ private:
+  std::string named_;
+  int64_t count_ = 0;
+};
 
 }  // namespace driftlab::recordings
