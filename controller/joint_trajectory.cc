@@ -72,7 +72,8 @@ driftlab::joint_trajectory_result_t JointTrajectoryController::result(const Acti
 }
 
 std::optional<driftlab::joint_trajectory_result_t> JointTrajectoryController::receive(
-    const driftlab::joint_trajectory_t& msg, int64_t now) {
+    const driftlab::joint_trajectory_t& msg, Time at) {
+  const int64_t now = at.us();  // the points' times are summed with overflow checks, on the counts
   ++counts_.received;
   Active a;
   a.seq = msg.header.seq;
@@ -167,9 +168,10 @@ void JointTrajectoryController::sample(int64_t now) {
   }
 }
 
-std::optional<driftlab::joint_trajectory_result_t> JointTrajectoryController::update(int64_t now,
+std::optional<driftlab::joint_trajectory_result_t> JointTrajectoryController::update(Time at,
                                                                                      const Eigen::VectorXd& position,
                                                                                      Eigen::VectorXd& command) {
+  const int64_t now = at.us();
   std::optional<driftlab::joint_trajectory_result_t> out;
   const double dt = initialised_ ? seconds_between(last_update_, now) : 0;
   if (!initialised_) {  // hold where the joints are

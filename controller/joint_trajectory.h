@@ -18,6 +18,7 @@
 #include <string>
 #include <vector>
 
+#include "core/time.h"
 #include "driftlab/joint_trajectory_result_t.hpp"
 #include "driftlab/joint_trajectory_t.hpp"
 #include "kinematics/robot_model.h"
@@ -53,11 +54,11 @@ class JointTrajectoryController {
   JointTrajectoryController(std::vector<std::string> joints, std::vector<kinematics::JointLimits> limits,
                             JointTrajectoryOptions options);
 
-  /// A trajectory arrives at now [us, the controller's clock]. Returns the result when it is rejected.
-  std::optional<driftlab::joint_trajectory_result_t> receive(const driftlab::joint_trajectory_t& msg, int64_t now);
-  /// One control update at now [us] with the measured positions [rad]: the velocity command of each joint [rad/s]
+  /// A trajectory arrives at `at` (the controller's clock). Returns the result when it is rejected.
+  std::optional<driftlab::joint_trajectory_result_t> receive(const driftlab::joint_trajectory_t& msg, Time at);
+  /// One control update at `at` with the measured positions [rad]: the velocity command of each joint [rad/s]
   /// in `command`. Returns a result when the trajectory ends in this update.
-  std::optional<driftlab::joint_trajectory_result_t> update(int64_t now, const Eigen::VectorXd& position,
+  std::optional<driftlab::joint_trajectory_result_t> update(Time at, const Eigen::VectorXd& position,
                                                             Eigen::VectorXd& command);
 
   const std::vector<std::string>& joints() const { return joints_; }

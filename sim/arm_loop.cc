@@ -168,12 +168,12 @@ void ArmLoop::control(int64_t now, double dt) {
     if (lcmtypes::decode(commands_.front().bytes, m)) {
       if (command_clock_) m.header.utime = corrected_stamp(*command_clock_, m.header.utime, start_utime_);
       if (retime_us_) m.header.utime = arrival - *retime_us_;
-      if (auto r = jtc_.receive(m, arrival)) out_->publish(result_stream_, *r, now, now);
+      if (auto r = jtc_.receive(m, Time::from_us(arrival))) out_->publish(result_stream_, *r, now, now);
     }
     commands_.pop_front();
   }
   const Eigen::VectorXd q = measured();
-  if (auto r = jtc_.update(now, q, command_)) out_->publish(result_stream_, *r, now, now);
+  if (auto r = jtc_.update(Time::from_us(now), q, command_)) out_->publish(result_stream_, *r, now, now);
   const std::vector<kinematics::JointLimits>& limits = commander_.chain().limits();
   for (size_t i = 0; i < index_.size(); ++i) {
     robot_.set_joint_rate(index_[i], command_[static_cast<Eigen::Index>(i)], limits[i].effort, dt);

@@ -49,7 +49,7 @@ std::vector<driftlab::joint_trajectory_result_t> run(JointTrajectoryController& 
   std::vector<driftlab::joint_trajectory_result_t> out;
   Eigen::VectorXd cmd(2);
   for (int64_t end = now + us; now < end; now += kDtUs) {
-    if (auto r = c.update(now, q, cmd)) out.push_back(*r);
+    if (auto r = c.update(Time::from_us(now), q, cmd)) out.push_back(*r);
     if (max_error_seen != nullptr && c.following()) {
       for (int j = 0; j < 2; ++j) {
         max_error_seen[j] = std::max(max_error_seen[j], std::abs(c.desired_position()[j] - q[j]));
@@ -68,7 +68,7 @@ TEST(JointTrajectory, FollowsASplineAndSucceedsAtTheGoal) {
   // Joint names in another order than the controller's: b is the first column.
   auto m = trajectory(0, {{500'000, {0.2, 0.5}}, {1'000'000, {0.4, 1.0}}}, true);
   m.joint_names = {"b", "a"};
-  ASSERT_FALSE(c.receive(m, now).has_value());
+  ASSERT_FALSE(c.receive(m, Time::from_us(now)).has_value());
   double worst[2] = {0, 0};
   const auto results = run(c, q, now, 1'500'000, worst);
   ASSERT_EQ(results.size(), 1u);
@@ -89,7 +89,7 @@ TEST(JointTrajectory, LinearBetweenPointsWithoutVelocitiesAndClampsToLimits) {
   int64_t now = 0;
   run(c, q, now, 1000);
   // b's target is past its upper limit (2 rad): the controller stops at the limit.
-  ASSERT_FALSE(c.receive(trajectory(0, {{1'000'000, {1.0, 3.0}}}, false), now).has_value());
+  ASSERT_FALSE(c.receive(trajectory(0, {{1'000'000, {1.0, 3.0}}}, false), Time::from_us(now)).has_value());
   run(c, q, now, 500'000);
   EXPECT_NEAR(c.desired_position()[0], 0.5, 0.01);  // half way, linearly
   EXPECT_NEAR(c.desired_velocity()[0], 1.0, 1e-9);
@@ -103,24 +103,25 @@ TEST(JointTrajectory, RejectsStaleAndInvalidTrajectories) {
   o.start = "stamp";
   JointTrajectoryController c({"a", "b"}, limits(), o);
   // Stamped 0.8 s before it arrives and lasting 0.5 s: it ended 0.3 s before it arrived.
-  auto r = c.receive(trajectory(1'000'000, {{500'000, {0.1, 0.1}}}, false), 1'800'000);
+  auto r = c.receive(trajectory(1'000'000, {{500'000, {0.1, 0.1}}}, false), Time::from_us(1'800'000));
   ASSERT_TRUE(r.has_value());
   EXPECT_EQ(r->status, "stale");
   EXPECT_NEAR(r->error, 0.3, 1e-9);
   auto bad = trajectory(1'800'000, {{500'000, {0.1, 0.1}}}, false);
   bad.joint_names[1] = "c";
-  r = c.receive(bad, 1'800'000);
+  r = c.receive(bad, Time::from_us(1'800'000));
   ASSERT_TRUE(r.has_value());
   EXPECT_EQ(r->status, "invalid");
   EXPECT_NE(r->message.find("'c'"), std::string::npos);
-  r = c.receive(trajectory(1'800'000, {{500'000, {0.1, 0.1}}, {400'000, {0.2, 0.2}}}, false), 1'800'000);
+  r = c.receive(trajectory(1'800'000, {{500'000, {0.1, 0.1}}, {400'000, {0.2, 0.2}}}, false), Time::from_us(1'800'000));
   ASSERT_TRUE(r.has_value());
   EXPECT_EQ(r->status, "invalid");
   EXPECT_EQ(c.counts().stale, 1);
   EXPECT_EQ(c.counts().invalid, 2);
   // The same trajectory on arrival time is followed.
   JointTrajectoryController on_arrival({"a", "b"}, limits(), {});
-  EXPECT_FALSE(on_arrival.receive(trajectory(1'000'000, {{500'000, {0.1, 0.1}}}, false), 1'800'000).has_value());
+  EXPECT_FALSE(
+      on_arrival.receive(trajectory(1'000'000, {{500'000, {0.1, 0.1}}}, false), Time::from_us(1'800'000)).has_value());
 }
 
 // Stamps are a peer's clock (start: stamp), and a clock gone wrong reaches the ends of int64_t: a point past the
@@ -131,11 +132,11 @@ TEST(JointTrajectory, StampsAtTheEndsOfTheClock) {
   o.start = "stamp";
   JointTrajectoryController c({"a", "b"}, limits(), o);
   const int64_t now = 1'000'000'000;  // 1000 s
-  auto r = c.receive(trajectory(INT64_MAX - 10, {{500'000, {0.1, 0.1}}}, false), now);
+  auto r = c.receive(trajectory(INT64_MAX - 10, {{500'000, {0.1, 0.1}}}, false), Time::from_us(now));
   ASSERT_TRUE(r.has_value());
   EXPECT_EQ(r->status, "invalid");
   EXPECT_EQ(r->message, "a point's time is past the clock's end");
-  r = c.receive(trajectory(INT64_MIN, {{0, {0.1, 0.1}}, {500'000, {0.2, 0.2}}}, false), now);
+  r = c.receive(trajectory(INT64_MIN, {{0, {0.1, 0.1}}, {500'000, {0.2, 0.2}}}, false), Time::from_us(now));
   ASSERT_TRUE(r.has_value());
   EXPECT_EQ(r->status, "stale");
   // 2^63 us before zero, plus the 1000 s of now, minus the 0.5 s the trajectory lasts; within 0.01 s, since a double
@@ -151,11 +152,11 @@ TEST(JointTrajectory, AbortsNamingTheJointOffItsPath) {
   JointTrajectoryController c({"a", "b"}, limits(), o);
   Eigen::VectorXd q = Eigen::VectorXd::Zero(2), cmd(2);
   int64_t now = 0;
-  c.update(now, q, cmd);
-  ASSERT_FALSE(c.receive(trajectory(0, {{1'000'000, {0.0, 1.0}}}, false), now).has_value());
+  c.update(Time::from_us(now), q, cmd);
+  ASSERT_FALSE(c.receive(trajectory(0, {{1'000'000, {0.0, 1.0}}}, false), Time::from_us(now)).has_value());
   // Joint b is blocked: it never moves.
   std::optional<driftlab::joint_trajectory_result_t> r;
-  for (now = kDtUs; now < 1'000'000 && !r; now += kDtUs) r = c.update(now, q, cmd);
+  for (now = kDtUs; now < 1'000'000 && !r; now += kDtUs) r = c.update(Time::from_us(now), q, cmd);
   ASSERT_TRUE(r.has_value());
   EXPECT_EQ(r->status, "path_tolerance_violated");
   EXPECT_EQ(r->joint, "b");
@@ -172,10 +173,10 @@ TEST(JointTrajectory, GoalToleranceAfterTheGoalTime) {
   JointTrajectoryController c({"a", "b"}, limits(), o);
   Eigen::VectorXd q = Eigen::VectorXd::Zero(2), cmd(2);
   int64_t now = 0;
-  c.update(now, q, cmd);
-  ASSERT_FALSE(c.receive(trajectory(0, {{100'000, {0.5, 0.0}}}, false), now).has_value());
+  c.update(Time::from_us(now), q, cmd);
+  ASSERT_FALSE(c.receive(trajectory(0, {{100'000, {0.5, 0.0}}}, false), Time::from_us(now)).has_value());
   std::optional<driftlab::joint_trajectory_result_t> r;
-  for (now = kDtUs; now < 1'000'000 && !r; now += kDtUs) r = c.update(now, q, cmd);  // a never moves
+  for (now = kDtUs; now < 1'000'000 && !r; now += kDtUs) r = c.update(Time::from_us(now), q, cmd);  // a never moves
   ASSERT_TRUE(r.has_value());
   EXPECT_EQ(r->status, "goal_tolerance_violated");
   EXPECT_EQ(r->joint, "a");
@@ -186,11 +187,11 @@ TEST(JointTrajectory, GoalToleranceAfterTheGoalTime) {
 TEST(JointTrajectory, VelocityCommandsRespectTheLimit) {
   JointTrajectoryController c({"a", "b"}, limits(), {});
   Eigen::VectorXd q = Eigen::VectorXd::Zero(2), cmd(2);
-  c.update(0, q, cmd);
+  c.update(Time::from_us(0), q, cmd);
   // A jump far beyond what the joint can do in 0.1 s.
-  ASSERT_FALSE(c.receive(trajectory(0, {{100'000, {1.9, -1.9}}}, false), 0).has_value());
+  ASSERT_FALSE(c.receive(trajectory(0, {{100'000, {1.9, -1.9}}}, false), Time::from_us(0)).has_value());
   for (int64_t now = kDtUs; now < 500'000; now += kDtUs) {
-    c.update(now, q, cmd);
+    c.update(Time::from_us(now), q, cmd);
     EXPECT_LE(cmd.cwiseAbs().maxCoeff(), 2.0 + 1e-12);
     q += cmd * 1e-3;
   }
