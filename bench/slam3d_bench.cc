@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "analyzers/trajectory.h"
+#include "core/install_layout.h"
 #include "core/log_reader.h"
 #include "core/time.h"
 #include "driftlab/pose_t.hpp"
@@ -140,7 +141,7 @@ int main(int argc, char** argv) {
   if (log.empty()) {
     const char* dir = std::getenv("DRIFTLAB_BENCH_DIR");
     made = std::string(dir != nullptr ? dir : "/dev/shm") + "/slam3d_bench." + std::to_string(getpid()) + ".lcm";
-    auto scenario = sim::load_scenario(std::string(DRIFTLAB_SOURCE_DIR) + "/sim/scenarios/indoor_3d.yaml");
+    auto scenario = sim::load_scenario(data_path("scenarios/indoor_3d.yaml").string());
     if (!scenario) return std::fprintf(stderr, "slam3d_bench: %s\n", scenario.error().message.c_str()), 2;
     scenario->duration = seconds;
     auto simulation = sim::Simulation::create(*scenario);
