@@ -15,7 +15,6 @@
 
 #include "core/config.h"
 #include "core/install_layout.h"
-#include "core/text_file.h"
 #include "faults/faults.h"
 #include "modules/module_table.h"
 #include "modules/settings.h"

@@ -223,16 +223,7 @@ const config::Table<CylinderEntry>& cylinder_table() {
 const config::Table<ImageEntry>& image_table() {
   static const auto table = [] {
     config::Table<ImageEntry> image;
-    image
-        .custom<std::string>(
-            "file", &ImageEntry::file, "path", "", "", "an occupancy image (relative to the world file)",
-            [](const Value& v, std::string& out) -> Status {
-              auto t = v.text();
-              if (!t) return t.error();
-              out = *t;
-              return {};
-            },
-            [](const std::string&) { return std::string(); })
+    image.text("file", &ImageEntry::file, "an occupancy image (relative to the world file)", config::Text::kNonEmpty)
         .required()
         .number("resolution", &ImageEntry::resolution, config::above(0), "m", "the side of a pixel")
         .required()
