@@ -2,19 +2,14 @@
 #pragma once
 
 #include <atomic>
-#include <chrono>
 #include <cstdint>
 #include <memory>
-#include <span>
 #include <string>
 #include <string_view>
 #include <vector>
 
 #include "core/number_text.h"
 #include "core/result.h"
-#include "core/wall_clock.h"
-
-struct _lcm_t;
 
 namespace driftlab::apps {
 
@@ -83,60 +78,5 @@ Status run_plot_script(const char* script, const std::string& name, const std::s
 /// Splits "LOG:CHANNEL" at its last ':' when the part before it exists (a file, or a folder: a bag); false (log and
 /// channel untouched) otherwise. Channel names may hold ':' only if the log's name has none after its last one.
 bool split_log_channel(const std::string& src, std::string* log, std::string* channel);
-
-/// A one-line progress indicator on stderr, drawn only when stderr is a terminal, at most 10 times a second.
-class Progress {
- public:
-  /// unit: what update() counts, shown as "done of total": bytes, or milliseconds shown as seconds.
-  enum class Unit { kBytes, kMilliseconds };
-  explicit Progress(std::string label, Unit unit = Unit::kBytes);
-  ~Progress();
-  void update(uint64_t done, uint64_t total);
-  /// Clears the line, so what follows starts on a clean one.
-  void finish();
-
- private:
-  std::string label_;
-  Unit unit_;
-  bool enabled_;
-  bool drawn_ = false;
-  Stopwatch running_, since_drawn_;
-};
-
-/// "reading the logs ... 4.2 s", redrawn twice a second on stderr while a stage runs, when stderr is a terminal.
-class StageLine {
- public:
-  explicit StageLine(std::string what);
-  ~StageLine();
-  StageLine(const StageLine&) = delete;
-  StageLine& operator=(const StageLine&) = delete;
-  /// What the line says from now on (the time keeps running).
-  void set(std::string what);
-  /// Stops the line and clears it.
-  void finish();
-
- private:
-  struct State;
-  std::unique_ptr<State> state_;
-};
-
-/// Publishes messages on LCM, paced against the wall clock at `rate` x the messages' own time (0: as fast as
-/// possible), as lcm-logplayer does.
-class LivePublisher {
- public:
-  /// Errors name the URL and the option it came from.
-  static Result<std::unique_ptr<LivePublisher>> open(const std::string& url, double rate, const std::string& option);
-  ~LivePublisher();
-  /// Sleeps until the message is due, then publishes it.
-  void publish(std::string_view channel, int64_t utime, std::span<const uint8_t> bytes);
-
- private:
-  LivePublisher(_lcm_t* lcm, double rate) : lcm_(lcm), rate_(rate) {}
-  _lcm_t* lcm_;
-  double rate_;
-  int64_t first_ = -1;
-  std::chrono::steady_clock::time_point start_;
-  std::string channel_;
-};
 
 }  // namespace driftlab::apps

@@ -16,6 +16,7 @@
 #include "apps/report.h"
 #include "batch/demo.h"
 #include "core/process.h"
+#include "core/progress_line.h"
 #include "core/wall_clock.h"
 
 namespace driftlab::apps {

@@ -12,6 +12,7 @@
 #include "apps/commands.h"
 #include "core/same_file.h"
 #include "core/time.h"
+#include "core/wall_clock.h"
 #include "formats/export_csv.h"
 #include "recordings/log_input.h"
 

@@ -9,6 +9,7 @@
 #include "apps/cli_checks.h"
 #include "apps/cli_util.h"
 #include "apps/commands.h"
+#include "core/progress_line.h"
 #include "recordings/log_input.h"
 
 namespace driftlab::apps {

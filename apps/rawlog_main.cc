@@ -8,6 +8,7 @@
 #include "apps/cli_util.h"
 #include "apps/commands.h"
 #include "core/same_file.h"
+#include "core/wall_clock.h"
 #include "recordings/log_input.h"
 #include "slam/rawlog.h"
 

@@ -16,6 +16,7 @@
 #include "core/log_index.h"
 #include "core/log_reader.h"
 #include "core/log_writer.h"
+#include "core/progress_line.h"
 #include "core/same_file.h"
 #include "lcmtypes/validate.h"
 

@@ -12,12 +12,14 @@
 #include "apps/cli_util.h"
 #include "apps/commands.h"
 #include "core/config.h"
+#include "core/progress_line.h"
 #include "core/same_file.h"
 #include "core/time.h"
 #include "core/wall_clock.h"
 #include "modules/registry.h"
 #include "recordings/log_input.h"
 #include "replayer/replayer.h"
+#include "runtime/live_publisher.h"
 #include "runtime/live_runner.h"
 #include "runtime/module_report.h"
 #include "sim/simulator.h"
@@ -221,14 +223,14 @@ int run_replay(ReplayArgs a) {
   replay::Replayer replayer(o);
   for (auto& m : *modules) replayer.add_module(std::move(m));
 
-  std::unique_ptr<LivePublisher> live;
+  std::unique_ptr<runtime::LivePublisher> live;
   if (!a.publish.empty()) {
-    auto p = LivePublisher::open(a.publish, a.fast ? 0.0 : a.rate, "--publish");
+    auto p = runtime::LivePublisher::open(a.publish, a.fast ? 0.0 : a.rate, "--publish");
     if (!p) return fail(p.error().message);
     live = std::move(*p);
   }
   replay::Sink sink;
-  if (live) sink = [&live](const BusMessage& m) { live->publish(m.channel, m.time.us(), m.data); };
+  if (live) sink = [&live](const BusMessage& m) { live->publish(m.channel, m.time, m.data); };
 
   if (Status s = replayer.open(); !s) return fail(s.message());
   const Stopwatch running;

@@ -21,6 +21,7 @@
 #include "apps/cli_util.h"
 #include "apps/commands.h"
 #include "apps/report.h"
+#include "core/progress_line.h"
 #include "core/same_file.h"
 #include "core/text_file.h"
 #include "recordings/log_input.h"

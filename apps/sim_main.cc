@@ -12,9 +12,11 @@
 #include "apps/cli_util.h"
 #include "apps/commands.h"
 #include "core/config.h"
+#include "core/progress_line.h"
 #include "core/same_file.h"
 #include "core/text_file.h"
 #include "core/wall_clock.h"
+#include "runtime/live_publisher.h"
 #include "sim/scenario.h"
 #include "sim/simulator.h"
 #include "sim/world.h"
@@ -73,9 +75,9 @@ int run_sim(const SimArgs& a) {
   auto simulation = sim::Simulation::create(*scenario, a.rays == "bullet" ? sim::RayBackend::kBullet : sim::RayBackend::kGrid);
   if (!simulation) return fail(simulation.error().message);
 
-  std::unique_ptr<LivePublisher> live;
+  std::unique_ptr<runtime::LivePublisher> live;
   if (!a.live_url.empty()) {
-    auto p = LivePublisher::open(a.live_url, a.live_rate, "--live");
+    auto p = runtime::LivePublisher::open(a.live_url, a.live_rate, "--live");
     if (!p) return fail(p.error().message);
     live = std::move(*p);
   }
@@ -84,7 +86,9 @@ int run_sim(const SimArgs& a) {
   o.version = DRIFTLAB_VERSION;
   o.stop = stop_on_signals();
   if (live) {
-    o.on_message = [&live](const std::string& c, int64_t t, std::span<const uint8_t> b) { live->publish(c, t, b); };
+    o.on_message = [&live](const std::string& c, int64_t t, std::span<const uint8_t> b) {
+      live->publish(c, Time::from_us(t), b);
+    };
   }
   Progress progress("simulating", Progress::Unit::kMilliseconds);
   o.progress = [&progress](double done, double total) {
