@@ -18,10 +18,12 @@
 #include "core/wall_clock.h"
 #include "modules/registry.h"
 #include "recordings/log_input.h"
+#include "replayer/replay_summary.h"
 #include "replayer/replayer.h"
 #include "runtime/live_publisher.h"
 #include "runtime/live_runner.h"
 #include "runtime/module_report.h"
+#include "sim/run_summary.h"
 #include "sim/simulator.h"
 
 namespace driftlab::apps {
@@ -116,35 +118,16 @@ int run_closed_loop(const ReplayArgs& a, const ReplayArgs& defaults) {
   auto report = (*simulation)->run(o);
   const double wall = running.seconds();
   if (!report) return fail(report.error().message, kExitFailure);
-  int64_t total = 0;
-  for (const auto& [channel, n] : report->messages) total += n;
+  const sim::ClosedLoopRun run{
+      log,
+      {scenario->path, scenario->name, !scenario->drone.enabled, a.out, std::move(*report), wall},
+      corrections,
+      notes};
   if (a.json.wanted()) {
-    nlohmann::json j;
-    j["log"] = log;
-    j["out"] = a.out;
-    j["scenario"] = scenario->path;
-    j["simulated_s"] = report->simulated_s;
-    j["wall_s"] = wall;
-    j["notes"] = notes;
-    j["restamp"] = nlohmann::json::object();
-    for (const auto& [channel, c] : corrections.clocks) {
-      j["restamp"][channel] = {{"offset_s", c.offset_s}, {"drift_ppm", c.drift_ppm}};
-    }
-    j["retime"] = nlohmann::json::object();
-    for (const auto& [channel, d] : corrections.retime) j["retime"][channel] = d.seconds();
-    j["messages"] = report->messages;
-    j["run"] = report->notes;
-    if (!a.json.emit(j.dump(2) + "\n")) return kExitFailure;
+    if (!a.json.emit(to_json(run).dump(2) + "\n")) return kExitFailure;
     if (a.json.print) return kExitOk;
   }
-  for (const auto& n : notes) std::printf("%s\n", n.c_str());
-  if (corrections.clocks.empty() && corrections.retime.empty()) {
-    std::printf("no corrections: the run is the log's simulation again\n");
-  }
-  std::printf("%s %.1f s of %s in closed loop in %.2f s: %s messages -> %s\n",
-              report->interrupted ? "interrupted after" : "ran", report->simulated_s, scenario->name.c_str(), wall,
-              thousands(total).c_str(), a.out.c_str());
-  for (const auto& n : report->notes) std::printf("%s\n", n.c_str());
+  std::fputs(sim::closed_loop_text(run).c_str(), stdout);
   return kExitOk;
 }
 
@@ -238,45 +221,15 @@ int run_replay(ReplayArgs a) {
   progress.finish();
   const double wall = running.seconds();
   if (!report) return fail(report.error().message, kExitFailure);
-  const auto& r = *report;
-  if (r.read == 0 && a.start > 0) {
+  if (report->read == 0 && a.start > 0) {
     return fail("--start " + short_number(a.start) + ": nothing to replay after it (past the end of the logs)");
   }
-  const double span = seconds_between(r.start_utime, r.end_utime);
-
+  const replay::ReplaySummary summary{a.logs, a.out, std::move(*report), wall, notes, o.restamp, o.faults_channel};
   if (a.json.wanted()) {
-    nlohmann::json j;
-    j["logs"] = a.logs;
-    j["out"] = a.out;
-    j["read"] = r.read;
-    j["dispatched"] = r.dispatched;
-    j["outputs"] = r.outputs;
-    j["replayed_s"] = span;
-    j["wall_s"] = wall;
-    j["real_time_factor"] = wall > 0 ? span / wall : 0;
-    j["interrupted"] = r.interrupted;
-    j["log_problems"] = r.log_problems;
-    j["channels"] = r.channels;
-    j["notes"] = notes;
-    j["restamp"] = nlohmann::json::object();
-    for (const auto& [channel, c] : o.restamp) {
-      j["restamp"][channel] = {{"offset_s", c.offset_s}, {"drift_ppm", c.drift_ppm}};
-    }
-    j["modules"] = runtime::to_json(r.modules);
-    j["injected_faults"] = r.injected.size();
-    if (!a.json.emit(j.dump(2) + "\n")) return kExitFailure;
+    if (!a.json.emit(to_json(summary).dump(2) + "\n")) return kExitFailure;
     if (a.json.print) return kExitOk;
   }
-  for (const auto& n : notes) std::printf("%s\n", n.c_str());
-  std::printf("%s %.1f s of log in %.2f s (%.0fx real time): %s events in, %s module outputs%s%s\n",
-              r.interrupted ? "interrupted after" : "replayed", span, wall, wall > 0 ? span / wall : 0.0,
-              thousands(r.dispatched).c_str(), thousands(r.outputs).c_str(), a.out.empty() ? "" : " -> ",
-              a.out.c_str());
-  if (r.log_problems > 0) std::printf("  %llu problems in the logs (see driftlab info)\n",
-                                      static_cast<unsigned long long>(r.log_problems));
-  if (!r.injected.empty()) std::printf("  injected %zu faults (manifest on %s)\n", r.injected.size(),
-                                       o.faults_channel.c_str());
-  std::fputs(runtime::module_report_text(r.modules, a.timing).c_str(), stdout);
+  std::fputs(replay::replay_text(summary, a.timing).c_str(), stdout);
   return kExitOk;
 }
 

@@ -5,7 +5,6 @@
 
 #include <cstdio>
 #include <memory>
-#include <nlohmann/json.hpp>
 #include <thread>
 
 #include "apps/cli_checks.h"
@@ -14,9 +13,9 @@
 #include "core/config.h"
 #include "core/progress_line.h"
 #include "core/same_file.h"
-#include "core/text_file.h"
 #include "core/wall_clock.h"
 #include "runtime/live_publisher.h"
+#include "sim/run_summary.h"
 #include "sim/scenario.h"
 #include "sim/simulator.h"
 #include "sim/world.h"
@@ -56,22 +55,7 @@ int run_sim(const SimArgs& a) {
   if (Status s = a.json.check({path}, {a.out, manifest}); !s) return fail(s.message());
   auto scenario = sim::load_scenario(path);
   if (!scenario) return fail(scenario.error().message);
-  if (a.duration > 0) scenario->duration = a.duration;
-  if (a.seed >= 0) {
-    scenario->seed = static_cast<uint64_t>(a.seed);
-    scenario->faults.seed = static_cast<uint64_t>(a.seed);
-  }
-  if (!a.faults.empty()) {
-    auto text = read_text_file(a.faults, "fault description");
-    if (!text) return fail(text.error().message);
-    auto faults = parse_faults(*text, a.faults);
-    if (!faults) return fail(faults.error().message);
-    scenario->faults_path = a.faults;
-    scenario->faults_text = *text;
-    const bool own_seed = faults->seed != 0;
-    scenario->faults = std::move(*faults);
-    if (!own_seed) scenario->faults.seed = scenario->seed;
-  }
+  if (Status st = sim::apply_overrides(*scenario, {a.duration, a.seed, a.faults}); !st) return fail(st.message());
   auto simulation = sim::Simulation::create(*scenario, a.rays == "bullet" ? sim::RayBackend::kBullet : sim::RayBackend::kGrid);
   if (!simulation) return fail(simulation.error().message);
 
@@ -99,36 +83,12 @@ int run_sim(const SimArgs& a) {
   const double wall = running.seconds();
   progress.finish();
   if (!report) return fail(report.error().message, kExitFailure);
-  const auto& r = *report;
-  int64_t total = 0;
-  for (const auto& [channel, n] : r.messages) total += n;
+  const sim::SimRun run{path, scenario->name, !scenario->drone.enabled, a.out, std::move(*report), wall};
   if (a.json.wanted()) {
-    nlohmann::json j;
-    j["log"] = a.out;
-    j["faults"] = r.faults_json;
-    j["scenario"] = path;
-    j["simulated_s"] = r.simulated_s;
-    j["wall_s"] = wall;
-    j["real_time_factor"] = wall > 0 ? r.simulated_s / wall : 0;
-    j["interrupted"] = r.interrupted;
-    j["messages"] = r.messages;
-    j["distance_m"] = r.distance_m;
-    j["laps"] = r.laps;
-    j["odometry_error_m"] = r.odometry_error_m;
-    j["notes"] = r.notes;
-    if (!a.json.emit(j.dump(2) + "\n")) return kExitFailure;
+    if (!a.json.emit(to_json(run).dump(2) + "\n")) return kExitFailure;
     if (a.json.print) return kExitOk;
   }
-  std::printf("%s %.1f s of %s in %.2f s (%.0fx real time): %s messages to %s\n",
-              r.interrupted ? "interrupted after" : "simulated", r.simulated_s, scenario->name.c_str(), wall,
-              wall > 0 ? r.simulated_s / wall : 0.0, thousands(total).c_str(), a.out.c_str());
-  for (const auto& [channel, n] : r.messages) std::printf("  %-20s %s\n", channel.c_str(), thousands(n).c_str());
-  if (!scenario->drone.enabled) {
-    std::printf("drove %.1f m (%zu laps); odometry is %.2f m off the truth at the end\n", r.distance_m, r.laps,
-                r.odometry_error_m);
-  }
-  for (const std::string& note : r.notes) std::printf("%s\n", note.c_str());
-  std::printf("injected faults: %s\n", r.faults_json.c_str());
+  std::fputs(sim::sim_run_text(run).c_str(), stdout);
   return kExitOk;
 }
 

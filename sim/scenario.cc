@@ -428,6 +428,25 @@ Result<Scenario> load_scenario(const std::string& path) {
   return parse_scenario(*text, path, std::filesystem::path(path).parent_path().string());
 }
 
+Status apply_overrides(Scenario& scenario, const ScenarioOverrides& o) {
+  if (o.duration > 0) scenario.duration = o.duration;
+  if (o.seed >= 0) {
+    scenario.seed = static_cast<uint64_t>(o.seed);
+    scenario.faults.seed = static_cast<uint64_t>(o.seed);
+  }
+  if (o.faults_path.empty()) return {};
+  auto text = read_text_file(o.faults_path, "fault description");
+  if (!text) return text.error();
+  auto faults = parse_faults(*text, o.faults_path);
+  if (!faults) return faults.error();
+  scenario.faults_path = o.faults_path;
+  scenario.faults_text = std::move(*text);
+  const bool own_seed = faults->seed != 0;
+  scenario.faults = std::move(*faults);
+  if (!own_seed) scenario.faults.seed = scenario.seed;
+  return {};
+}
+
 std::string default_scenario_path() { return data_path("scenarios/indoor.yaml").string(); }
 
 }  // namespace driftlab::sim

@@ -192,6 +192,16 @@ std::string scenario_reference();
 Result<Scenario> parse_scenario(const std::string& yaml_text, const std::string& origin, const std::string& base_dir);
 Result<Scenario> load_scenario(const std::string& path);
 
+/// What `driftlab sim`'s options change of a scenario.
+struct ScenarioOverrides {
+  double duration = 0;      ///< [s]; 0 keeps the scenario's
+  int64_t seed = -1;        ///< -1 keeps the scenario's
+  std::string faults_path;  ///< a fault description replacing the scenario's `faults:`; empty keeps them
+};
+/// Applies them: a seed seeds the faults too; a fault description is kept (its path and text, for the log's
+/// SIMULATION message) and seeded with the scenario's seed unless it gives its own. Errors: the fault file's.
+Status apply_overrides(Scenario& scenario, const ScenarioOverrides& overrides);
+
 /// The scenario used when none is given: scenarios/indoor.yaml in the data folder (core/install_layout.h).
 std::string default_scenario_path();
 

@@ -3,6 +3,10 @@
 
 #include <gtest/gtest.h>
 
+#include <fstream>
+
+#include "tests/test_util.h"
+
 namespace driftlab::sim {
 namespace {
 
@@ -83,6 +87,37 @@ TEST(Scenario, ErrorsNameTheLineAndTheKey) {
   EXPECT_EQ(err("- 1\n"), "s.yaml:1: a scenario must be a map (name, world, robot, sensors, ...)");
   EXPECT_EQ(err(base("  - {type: imu, channel: I}", "physics_step: 0.5\n")),
             "s.yaml:4: physics_step = 0.5 is outside 1e-05..0.02 s");
+}
+
+TEST(Scenario, OverridesFromTheCommandLine) {
+  test::TempDir dir;
+  auto sc = load_scenario(default_scenario_path());
+  ASSERT_TRUE(sc.ok());
+  // A seed seeds the faults too; a duration replaces the scenario's.
+  ASSERT_TRUE(apply_overrides(*sc, {.duration = 30, .seed = 9}).ok());
+  EXPECT_DOUBLE_EQ(sc->duration, 30);
+  EXPECT_EQ(sc->seed, 9u);
+  EXPECT_EQ(sc->faults.seed, 9u);
+  // A fault description replaces `faults:`, is kept for the log's SIMULATION message, and takes the run's seed
+  // unless it gives its own.
+  const std::string path = dir.file("faults.yaml");
+  std::ofstream(path) << "streams:\n  SCAN: {latency_s: 0.05}\n";
+  ASSERT_TRUE(apply_overrides(*sc, {.faults_path = path}).ok());
+  EXPECT_EQ(sc->faults_path, path);
+  EXPECT_EQ(sc->faults_text, "streams:\n  SCAN: {latency_s: 0.05}\n");
+  EXPECT_EQ(sc->faults.streams.count("IMU"), 0u);
+  EXPECT_DOUBLE_EQ(sc->faults.streams.at("SCAN").latency_s, 0.05);
+  EXPECT_EQ(sc->faults.seed, 9u);
+  std::ofstream(path) << "seed: 3\nstreams:\n  SCAN: {latency_s: 0.05}\n";
+  ASSERT_TRUE(apply_overrides(*sc, {.faults_path = path}).ok());
+  EXPECT_EQ(sc->faults.seed, 3u);
+  // A fault file that is not one: its own error, naming it; the scenario keeps what it had.
+  std::ofstream(path) << "streams:\n  SCAN: {latency_s: -1}\n";
+  Status bad = apply_overrides(*sc, {.faults_path = path});
+  ASSERT_FALSE(bad.ok());
+  EXPECT_EQ(bad.message().rfind(path + ":", 0), 0u) << bad.message();
+  EXPECT_EQ(sc->faults.seed, 3u);
+  EXPECT_FALSE(apply_overrides(*sc, {.faults_path = dir.file("absent.yaml")}).ok());
 }
 
 }  // namespace
