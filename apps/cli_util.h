@@ -50,9 +50,6 @@ struct OutputCapture {
   OutputCapture& operator=(const OutputCapture&) = delete;
 };
 
-/// Writes bytes to path+".partial" and renames it to path when whole; on failure removes the partial file, leaves
-/// path as it was and returns an error naming path.
-Status write_atomically(const std::string& path, std::string_view bytes);
 /// The exit code for an error of a command that writes `out` (a file or a folder): kExitFailure (the environment:
 /// a full disk, no permission) when the error names the output (out, its .partial or a file in it: errors name
 /// their file first), else kExitBadInput.
@@ -61,19 +58,6 @@ int exit_code_for(const Error& error, std::string out);
 /// Writes text to path, or to standard output when path is "-". On failure prints one line naming the file and
 /// returns false.
 bool write_output(const std::string& path, const std::string& text);
-
-/// Runs argv[0] (looked up in PATH) with argv, waits for it and returns its exit code: 128 + N when signal N ended
-/// it, 127 when it could not be started. Its standard output and error go to the files given (truncated), else to
-/// ours.
-int run_program(const std::vector<std::string>& argv, const std::string& stdout_path,
-                const std::string& stderr_path = "");
-
-/// Runs a plotting script (Python source compiled into the program) as `python3 SCRIPT ARGS...`: written to
-/// DIR/.NAME, run with the first Python that has matplotlib ($DRIFTLAB_PYTHON, python3 on PATH, Debian's
-/// /usr/bin/python3: the script exits 3 without matplotlib), then removed. Errors: no such Python, or the script's
-/// exit code.
-Status run_plot_script(const char* script, const std::string& name, const std::string& dir,
-                       const std::vector<std::string>& args);
 
 /// Splits "LOG:CHANNEL" at its last ':' when the part before it exists (a file, or a folder: a bag); false (log and
 /// channel untouched) otherwise. Channel names may hold ':' only if the log's name has none after its last one.

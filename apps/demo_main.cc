@@ -13,11 +13,11 @@
 #include "apps/cli_checks.h"
 #include "apps/cli_util.h"
 #include "apps/commands.h"
-#include "apps/report.h"
 #include "batch/demo.h"
 #include "core/process.h"
 #include "core/progress_line.h"
 #include "core/wall_clock.h"
+#include "report/report.h"
 
 namespace driftlab::apps {
 namespace {
@@ -69,7 +69,7 @@ int run_steps(const std::vector<batch::DemoStage>& steps, int total, bool json, 
     {
       StageLine line(stage_label(static_cast<int>(i) + 1, total, s.what));
       // The stage's errors go to a file (its progress would fight with ours): the last line is the one to show.
-      code = run_program(s.args, s.stdout_file, errors);
+      code = run_process(s.args, s.stdout_file, errors);
     }
     stages.push_back({s.args[1], stage.seconds()});
     if (code != 0) {
@@ -87,7 +87,7 @@ int run_steps(const std::vector<batch::DemoStage>& steps, int total, bool json, 
 }
 
 /// Draws the report as the demo's last stage.
-Result<std::string> draw_report(const ReportOptions& r, int total, bool json, std::vector<Stage>& stages) {
+Result<std::string> draw_report(const report::ReportOptions& r, int total, bool json, std::vector<Stage>& stages) {
   if (!json) {
     std::printf("== driftlab report");
     for (const auto& log : r.logs) std::printf(" %s", log.c_str());
@@ -100,7 +100,7 @@ Result<std::string> draw_report(const ReportOptions& r, int total, bool json, st
   Result<std::string> page = Error{""};
   {
     StageLine line(stage_label(total, total, "drawing the report"));
-    page = make_report(r);
+    page = report::make_report(r);
   }
   if (page) stages.push_back({"report", drawing.seconds()});
   return page;
@@ -116,7 +116,7 @@ int run_demo(const batch::DemoSettings& a, const JsonOutput& json) {
   std::vector<Stage> stages;
   if (int code = run_steps(plan->stages, total, json.print, a.out, stages); code != kExitOk) return code;
 
-  ReportOptions r;
+  report::ReportOptions r;
   r.logs = plan->report_logs;
   r.out = plan->report_dir;
   r.diagnosis = plan->diagnosis;

@@ -16,6 +16,7 @@
 #include "apps/commands.h"
 #include "batch/runner.h"
 #include "batch/session.h"
+#include "core/process.h"
 #include "core/wall_clock.h"
 
 namespace driftlab::apps {

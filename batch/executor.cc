@@ -16,6 +16,7 @@
 
 #include "batch/store.h"
 #include "core/process.h"
+#include "core/text_file.h"
 #include "core/wall_clock.h"
 
 namespace driftlab::batch {
@@ -145,7 +146,7 @@ class SlurmExecutor : public Executor {
     const std::string stem = "array-" + std::to_string(k);
     std::string list;
     for (const auto& id : ids) list += id + "\n";
-    if (Status s = write_atomically((slurm / (stem + ".txt")).string(), list); !s) return Error{s.message()};
+    if (Status s = write_file_atomically((slurm / (stem + ".txt")).string(), list); !s) return Error{s.message()};
 
     const std::string script = (slurm / (stem + ".sh")).string();
     std::ostringstream sh;
@@ -164,7 +165,7 @@ class SlurmExecutor : public Executor {
        << "  scontrol requeue \"${SLURM_ARRAY_JOB_ID}_${SLURM_ARRAY_TASK_ID}\"\n"
        << "fi\n"
        << "exit \"$rc\"\n";
-    if (Status s = write_atomically(script, sh.str()); !s) return Error{s.message()};
+    if (Status s = write_file_atomically(script, sh.str()); !s) return Error{s.message()};
     fs::permissions(script, fs::perms::owner_exec | fs::perms::group_exec, fs::perm_options::add, ec);
 
     std::string array = "--array=0-" + std::to_string(ids.size() - 1);
@@ -178,7 +179,7 @@ class SlurmExecutor : public Executor {
     // be read and run again by hand.
     std::string command;
     for (const auto& a : argv) command += (command.empty() ? "" : " ") + sh_quote(a);
-    if (Status s = write_atomically((slurm / (stem + ".sbatch.cmd")).string(), command + "\n"); !s) {
+    if (Status s = write_file_atomically((slurm / (stem + ".sbatch.cmd")).string(), command + "\n"); !s) {
       return Error{s.message()};
     }
     const std::string out = (slurm / (stem + ".sbatch.out")).string(), err = (slurm / (stem + ".sbatch.err")).string();

@@ -88,8 +88,8 @@ Result<std::string> write_tables(const std::string& dir, const Plan& plan) {
   for (Stage s : plan.spec.stages) j["stages"].push_back(stage_name(s));
   if (plan.spec.kind == "batch" || !plan.spec.logs.empty()) j["ranked"] = rank_batch(t);
   const std::string json_path = (fs::path(dir) / "results.json").string();
-  if (Status s = write_atomically((fs::path(dir) / "results.csv").string(), table_csv(t)); !s) return s.error();
-  if (Status s = write_atomically(json_path, j.dump(1) + "\n"); !s) return s.error();
+  if (Status s = write_file_atomically((fs::path(dir) / "results.csv").string(), table_csv(t)); !s) return s.error();
+  if (Status s = write_file_atomically(json_path, j.dump(1) + "\n"); !s) return s.error();
   return json_path;
 }
 

@@ -1,4 +1,5 @@
 #include "batch/store.h"
+#include "core/text_file.h"
 
 #include <fcntl.h>
 #include <signal.h>
@@ -45,32 +46,6 @@ std::string host_name() {
   return buf;
 }
 
-Status write_atomically(const std::string& path, const std::string& text) {
-  const std::string partial = path + ".partial";
-  const int fd = ::open(partial.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-  if (fd < 0) return Error{path + ": cannot write: " + std::strerror(errno)};
-  size_t done = 0;
-  bool ok = true;
-  while (done < text.size()) {
-    const ssize_t n = ::write(fd, text.data() + done, text.size() - done);
-    if (n < 0 && errno == EINTR) continue;
-    if (n <= 0) {
-      ok = false;
-      break;
-    }
-    done += static_cast<size_t>(n);
-  }
-  const int err = errno;
-  if (ok && ::fsync(fd) != 0) ok = false;
-  if (::close(fd) != 0) ok = false;
-  if (ok && std::rename(partial.c_str(), path.c_str()) != 0) ok = false;
-  if (!ok) {
-    std::remove(partial.c_str());
-    return Error{path + ": cannot write: " + std::strerror(err != 0 ? err : errno)};
-  }
-  return {};
-}
-
 Result<nlohmann::json> read_json_file(const std::string& path) {
   std::ifstream in(path);
   if (!in) return Error{path + ": cannot open"};
@@ -91,7 +66,7 @@ Status save_plan(const std::string& dir, const Plan& plan) {
   std::error_code ec;
   fs::create_directories(fs::path(dir) / "points", ec);
   if (ec) return Error{dir + ": cannot create the sweep folder: " + ec.message()};
-  return write_atomically(plan_path(dir), to_json(plan).dump(1) + "\n");
+  return write_file_atomically(plan_path(dir), to_json(plan).dump(1) + "\n");
 }
 
 Result<Plan> load_plan(const std::string& dir) {
@@ -147,7 +122,7 @@ int count_attempt(const std::string& dir, const std::string& id) {
     a >> n;
   }
   ++n;
-  (void)write_atomically(f.string(), std::to_string(n) + "\n");
+  (void)write_file_atomically(f.string(), std::to_string(n) + "\n");
   return n;
 }
 

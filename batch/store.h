@@ -22,8 +22,6 @@ namespace driftlab::batch {
 /// This machine's host name (as running.json records it).
 std::string host_name();
 
-/// Writes text to path through path.partial, fsync and rename; the error names the file.
-Status write_atomically(const std::string& path, const std::string& text);
 /// Reads a JSON file; the error names it.
 Result<nlohmann::json> read_json_file(const std::string& path);
 

@@ -5,6 +5,7 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <cstdio>
 #include <cstring>
 
 namespace driftlab {
@@ -37,6 +38,31 @@ Result<std::string> read_text_file(const std::string& path, const std::string& w
   ::close(fd);
   if (!problem.empty()) return Error{path + ": the " + what + ": " + problem};
   return text;
+}
+
+Status write_file_atomically(const std::string& path, std::string_view bytes) {
+  const std::string partial = path + ".partial";
+  const int fd = ::open(partial.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd < 0) return Error{path + ": cannot write: " + std::strerror(errno), ErrorCode::kCannotWrite};
+  size_t done = 0;
+  bool ok = true;
+  while (done < bytes.size()) {
+    const ssize_t n = ::write(fd, bytes.data() + done, bytes.size() - done);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) {
+      ok = false;
+      break;
+    }
+    done += static_cast<size_t>(n);
+  }
+  const int err = errno;
+  if (ok && ::fsync(fd) != 0) ok = false;
+  if (::close(fd) != 0) ok = false;
+  if (ok && std::rename(partial.c_str(), path.c_str()) != 0) ok = false;
+  if (ok) return {};
+  const int last = errno;
+  std::remove(partial.c_str());
+  return Error{path + ": cannot write: " + std::strerror(err != 0 ? err : last), ErrorCode::kCannotWrite};
 }
 
 }  // namespace driftlab

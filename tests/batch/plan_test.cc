@@ -11,6 +11,7 @@
 
 #include "batch/plan.h"
 #include "batch/store.h"
+#include "core/text_file.h"
 #include "faults/faults.h"
 #include "modules/module_table.h"
 #include "tests/test_util.h"
@@ -231,10 +232,12 @@ TEST(SweepStore, AtomicFilesAndTheMergedTable) {
   const std::string d = dir.file("d");
   std::filesystem::create_directories(point_dir(d, plan.points[0].id));
   std::filesystem::create_directories(point_dir(d, plan.points[1].id));
-  ASSERT_TRUE(write_atomically(result_path(d, plan.points[0].id),
-                               R"({"metrics": {"ate_rmse": 0.25, "worst_stream": "IMU, late"}, "seconds": {"sim": 1.5}})"));
+  ASSERT_TRUE(write_file_atomically(
+      result_path(d, plan.points[0].id),
+      R"({"metrics": {"ate_rmse": 0.25, "worst_stream": "IMU, late"}, "seconds": {"sim": 1.5}})"));
   EXPECT_FALSE(std::filesystem::exists(result_path(d, plan.points[0].id) + ".partial"));
-  ASSERT_TRUE(write_atomically(point_dir(d, plan.points[1].id) + "/failed.json", R"({"error": "sim exited with 1"})"));
+  ASSERT_TRUE(
+      write_file_atomically(point_dir(d, plan.points[1].id) + "/failed.json", R"({"error": "sim exited with 1"})"));
   EXPECT_EQ(count_attempt(d, plan.points[1].id), 1);
   EXPECT_EQ(count_attempt(d, plan.points[1].id), 2);
   EXPECT_EQ(point_status(d, plan.points[0].id).state, PointState::kDone);
@@ -246,11 +249,11 @@ TEST(SweepStore, AtomicFilesAndTheMergedTable) {
   if (gone == 0) _exit(0);
   waitpid(gone, nullptr, 0);
   std::filesystem::create_directories(point_dir(d, "stale"));
-  ASSERT_TRUE(write_atomically(point_dir(d, "stale") + "/running.json",
-                               nlohmann::json{{"host", host_name()}, {"pid", gone}}.dump()));
+  ASSERT_TRUE(write_file_atomically(point_dir(d, "stale") + "/running.json",
+                                    nlohmann::json{{"host", host_name()}, {"pid", gone}}.dump()));
   EXPECT_EQ(point_status(d, "stale").state, PointState::kFailed);
-  ASSERT_TRUE(write_atomically(point_dir(d, "stale") + "/running.json",
-                               nlohmann::json{{"host", host_name()}, {"pid", getpid()}}.dump()));
+  ASSERT_TRUE(write_file_atomically(point_dir(d, "stale") + "/running.json",
+                                    nlohmann::json{{"host", host_name()}, {"pid", getpid()}}.dump()));
   EXPECT_EQ(point_status(d, "stale").state, PointState::kRunning);
 
   const Table t = merge_results(d, plan);

@@ -1,4 +1,8 @@
-// `driftlab report`: the HTML page with plots, also made by `driftlab demo`.
+// `driftlab report`'s page, also drawn by `driftlab demo`: the logs read (another tool's recording through its
+// conversion, a PX4 flight log beside a bag on the bag's clock), the first diagnosed unless a diagnosis is given,
+// the data the page plots (analyzers/report_data.h) written to DIR/report.json, and matplotlib drawing it
+// (analyzers/report_page.py, compiled into the library), since a maintained plotting library draws better plots
+// than we would by hand.
 #pragma once
 
 #include <functional>
@@ -7,7 +11,7 @@
 
 #include "core/result.h"
 
-namespace driftlab::apps {
+namespace driftlab::report {
 
 struct ReportOptions {
   std::vector<std::string> logs;   ///< the recording first, then replays of it
@@ -25,4 +29,4 @@ struct ReportOptions {
 /// script (python3 with matplotlib) is reported with its exit code.
 Result<std::string> make_report(const ReportOptions& options);
 
-}  // namespace driftlab::apps
+}  // namespace driftlab::report
