@@ -16,12 +16,9 @@
 #include "apps/commands.h"
 #include "batch/runner.h"
 #include "batch/session.h"
-#include "core/process.h"
 #include "core/wall_clock.h"
 
 namespace driftlab::apps {
-
-extern const char kSweepPageScript[];  // batch/sweep_page.py, generated into sweep_page_script.cc
 
 namespace {
 
@@ -30,11 +27,7 @@ using namespace batch;
 
 struct ExecArgs {
   std::string executor = "local";
-  int jobs = 0;
-  int retries = 0;
-  int requeue = 2;
-  int max_parallel = 0;
-  std::vector<std::string> slurm_opts;
+  RunOptions run;
   bool dry_run = false;
   JsonOutput json;
 };
@@ -49,17 +42,6 @@ struct BatchArgs {
   std::vector<std::string> logs;
   ExecArgs exec;
 };
-
-/// collect: the merged table (CSV, JSON) and the page with plots. Returns the page's path, or "" with --no-plots.
-Result<std::string> collect(const std::string& dir, const Plan& plan, bool plots) {
-  auto json_path = write_tables(dir, plan);
-  if (!json_path) return json_path.error();
-  if (!plots) return std::string();
-  if (Status s = run_plot_script(kSweepPageScript, "sweep_page.py", dir, {*json_path, dir}); !s) {
-    return Error{"collect " + dir + ": " + s.message()};
-  }
-  return (fs::path(dir) / "index.html").string();
-}
 
 int run_status(const std::string& dir, const JsonOutput& json) {
   auto plan = load_plan(dir);
@@ -102,83 +84,71 @@ int execute(const std::string& dir, const Plan& plan, const ExecArgs& e, const s
     std::fputs(dry_run_text(dir, plan).c_str(), stdout);
     return kExitOk;
   }
-  RunOptions o;
+  RunOptions o = e.run;
   o.driftlab = self_path();
   o.point_flag = point_flag;
-  o.jobs = e.jobs;
-  o.retries = e.retries;
   o.progress = isatty(STDERR_FILENO) == 1 && !e.json.print;
-  o.max_parallel = e.max_parallel;
-  o.requeue = e.requeue;
-  o.slurm_options = e.slurm_opts;
   if (const char* sb = std::getenv("DRIFTLAB_SBATCH"); sb != nullptr && *sb != 0) o.sbatch = sb;
   if (e.executor == "slurm") {
     auto r = submit_to_slurm(dir, plan, o);
     if (!r) return fail(r.error().message, kExitFailure);
-    if (r->job_id.empty()) {
-      std::printf("all %zu points of %s are done; nothing submitted\n", plan.points.size(), dir.c_str());
-      return kExitOk;
-    }
     const nlohmann::json j{{"job_id", r->job_id}, {"submitted", r->submitted}, {"done", r->already_done}, {"dir", dir}};
-    if (e.json.wanted() && !e.json.emit(j.dump() + "\n")) return kExitFailure;
-    if (!e.json.print) {
-      std::printf(
-          "submitted job %s: %zu points as a job array (%zu already done); follow with: driftlab sweep "
-          "status %s\n",
-          r->job_id.c_str(), r->submitted, r->already_done, dir.c_str());
-    }
+    if (!r->job_id.empty() && e.json.wanted() && !e.json.emit(j.dump() + "\n")) return kExitFailure;
+    if (r->job_id.empty() || !e.json.print) std::fputs(submission_text(*r, dir, plan).c_str(), stdout);
     return kExitOk;
   }
   o.stop = stop_on_signals();
   auto run = run_locally(dir, plan, o);
   if (!run) return fail(run.error().message, kExitFailure);
-  const ExecutionSummary& r = run->summary;
-  auto page = collect(dir, plan, !r.interrupted);
-  const int code = r.interrupted ? 130 : r.failed > 0 ? kExitFailure : kExitOk;
-  if (e.json.wanted()) {
-    nlohmann::json j = {{"dir", dir},
-                        {"points", plan.points.size()},
-                        {"already_done", run->already_done},
-                        {"done", r.done},
-                        {"failed", r.failed},
-                        {"not_started", r.not_started},
-                        {"interrupted", r.interrupted},
-                        {"wall_s", run->wall_s},
-                        {"jobs", run->jobs},
-                        {"table", (fs::path(dir) / "results.csv").string()}};
-    if (page && !page->empty()) j["page"] = *page;
-    if (!e.json.emit(j.dump(2) + "\n")) return kExitFailure;
-  }
+  auto page = collect(dir, plan, !run->summary.interrupted);
+  if (e.json.wanted() && !e.json.emit(to_json(*run, dir, plan, page ? *page : "").dump(2) + "\n")) return kExitFailure;
   if (!e.json.print) {
-    std::printf("%s %zu points in %.1f s (%zu already done): %zu done, %zu failed%s\n",
-                r.interrupted ? "stopped after" : "ran", r.done + r.failed, run->wall_s, run->already_done, r.done,
-                r.failed, r.interrupted ? "; finished points are kept, run the same command again to resume" : "");
-    if (page) std::printf("table: %s/results.csv%s%s\n", dir.c_str(), page->empty() ? "" : ", page: ", page->c_str());
+    std::fputs(local_run_text(*run, dir, page ? std::optional(*page) : std::nullopt).c_str(), stdout);
   }
   if (!page) return fail(page.error().message, kExitFailure);
-  return code;
+  return run->summary.interrupted ? 130 : run->summary.failed > 0 ? kExitFailure : kExitOk;
 }
 
 void add_exec_options(CLI::App* cmd, ExecArgs& e) {
   cmd->add_option("--executor", e.executor, "Where the points run: local (a process pool here) or slurm (a job array)")
       ->capture_default_str()
       ->check(CLI::IsMember({"local", "slurm"}));
-  cmd->add_option("-j,--jobs", e.jobs, "local: points at once (0: one per usable core)")
+  cmd->add_option("-j,--jobs", e.run.jobs, "local: points at once (0: one per usable core)")
       ->capture_default_str()
       ->check(in_range(config::between(0, 4096)));
-  cmd->add_option("--retries", e.retries, "local: run a failed point again up to N times")
+  cmd->add_option("--retries", e.run.retries, "local: run a failed point again up to N times")
       ->capture_default_str()
       ->check(in_range(config::between(0, 100)));
-  cmd->add_option("--max-parallel", e.max_parallel, "slurm: tasks of the array running at once (0: no limit)")
+  cmd->add_option("--max-parallel", e.run.max_parallel, "slurm: tasks of the array running at once (0: no limit)")
       ->capture_default_str()
       ->check(in_range(config::between(0, 1e6)));
-  cmd->add_option("--requeue", e.requeue, "slurm: a failed task requeues itself up to N times")
+  cmd->add_option("--requeue", e.run.requeue, "slurm: a failed task requeues itself up to N times")
       ->capture_default_str()
       ->check(in_range(config::between(0, 100)));
-  cmd->add_option("--slurm-opt", e.slurm_opts, "slurm: an sbatch option, passed as it is (repeatable): --partition=P, --time=1:00:00, --mem=4G, --account=A")
+  cmd->add_option(
+         "--slurm-opt", e.run.slurm_options,
+         "slurm: an sbatch option, passed as it is (repeatable): --partition=P, --time=1:00:00, --mem=4G, --account=A")
       ->allow_extra_args(false);
   cmd->add_flag("--dry-run", e.dry_run, "List the points (id, done or pending, values) and run nothing");
   add_json_options(cmd, &e.json, "a summary");
+}
+
+/// `status DIR` and `collect DIR` under cmd; `what` the sweep's items ("points", "logs").
+void add_status_and_collect(CLI::App* cmd, const std::string& what, const std::string& collect_help, int* exit_code) {
+  auto dir = std::make_shared<std::string>();
+  auto json = std::make_shared<JsonOutput>();
+  CLI::App* status =
+      cmd->add_subcommand("status", (what == "points" ? "Points" : "Logs") +
+                                        std::string(" done, running, failed and pending, and the Slurm jobs' states."));
+  status->add_option("dir", *dir, "Folder of the " + std::string(cmd->get_name()))->required();
+  add_json_options(status, json.get(), "the counts");
+  status->callback([dir, json, exit_code] { *exit_code = run_status(*dir, *json); });
+  auto cdir = std::make_shared<std::string>();
+  auto no_plots = std::make_shared<bool>(false);
+  CLI::App* coll = cmd->add_subcommand("collect", collect_help);
+  coll->add_option("dir", *cdir, "Folder of the " + std::string(cmd->get_name()))->required();
+  coll->add_flag("--no-plots", *no_plots, "Only the tables");
+  coll->callback([cdir, no_plots, exit_code] { *exit_code = run_collect(*cdir, !*no_plots); });
 }
 
 int run_sweep(const SweepArgs& a) {
@@ -233,18 +203,8 @@ void add_sweep_command(CLI::App& app, int* exit_code) {
   cmd->add_option("-o,--out", a->out, "Folder of the sweep (points, table, page)");
   cmd->add_option("--point", a->point, "Run one point of the sweep in DIR (what each task runs)");
   add_exec_options(cmd, a->exec);
-  auto status_dir = std::make_shared<std::string>();
-  auto status_json = std::make_shared<JsonOutput>();
-  CLI::App* status = cmd->add_subcommand("status", "Points done, running, failed and pending, and the Slurm jobs' states.");
-  status->add_option("dir", *status_dir, "Folder of the sweep")->required();
-  add_json_options(status, status_json.get(), "the counts");
-  status->callback([status_dir, status_json, exit_code] { *exit_code = run_status(*status_dir, *status_json); });
-  auto collect_dir = std::make_shared<std::string>();
-  auto no_plots = std::make_shared<bool>(false);
-  CLI::App* coll = cmd->add_subcommand("collect", "Merge the finished points into one table (CSV, JSON) and a page of plots.");
-  coll->add_option("dir", *collect_dir, "Folder of the sweep")->required();
-  coll->add_flag("--no-plots", *no_plots, "Only the tables");
-  coll->callback([collect_dir, no_plots, exit_code] { *exit_code = run_collect(*collect_dir, !*no_plots); });
+  add_status_and_collect(cmd, "points", "Merge the finished points into one table (CSV, JSON) and a page of plots.",
+                         exit_code);
   cmd->callback([a, cmd, exit_code] {
     if (!cmd->get_subcommands().empty()) return;
     *exit_code = run_sweep(*a);
@@ -278,18 +238,7 @@ void add_batch_command(CLI::App& app, int* exit_code) {
       *exit_code = run_batch(*a);
     });
   }
-  auto dir = std::make_shared<std::string>();
-  auto json = std::make_shared<JsonOutput>();
-  CLI::App* status = cmd->add_subcommand("status", "Logs done, running, failed and pending, and the Slurm jobs' states.");
-  status->add_option("dir", *dir, "Folder of the batch")->required();
-  add_json_options(status, json.get(), "the counts");
-  status->callback([dir, json, exit_code] { *exit_code = run_status(*dir, *json); });
-  auto cdir = std::make_shared<std::string>();
-  auto no_plots = std::make_shared<bool>(false);
-  CLI::App* coll = cmd->add_subcommand("collect", "Merge the finished logs into one ranked table and page.");
-  coll->add_option("dir", *cdir, "Folder of the batch")->required();
-  coll->add_flag("--no-plots", *no_plots, "Only the tables");
-  coll->callback([cdir, no_plots, exit_code] { *exit_code = run_collect(*cdir, !*no_plots); });
+  add_status_and_collect(cmd, "logs", "Merge the finished logs into one ranked table and page.", exit_code);
   cmd->callback([a, cmd, exit_code] {
     if (!cmd->get_subcommands().empty()) return;
     *exit_code = run_batch(*a);

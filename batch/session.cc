@@ -6,6 +6,8 @@
 #include <filesystem>
 #include <sstream>
 
+#include "core/number_text.h"
+#include "core/process.h"
 #include "core/same_file.h"
 #include "core/text_file.h"
 #include "core/wall_clock.h"
@@ -206,6 +208,56 @@ Result<Submission> submit_to_slurm(const std::string& dir, const Plan& plan, con
   if (!r) return r.error();
   out.job_id = r->job_id;
   out.submitted = pending.size();
+  return out;
+}
+
+extern const char kSweepPageScript[];  // sweep_page.py, generated into sweep_page_script.cc
+
+Result<std::string> collect(const std::string& dir, const Plan& plan, bool plots) {
+  auto json_path = write_tables(dir, plan);
+  if (!json_path) return json_path.error();
+  if (!plots) return std::string();
+  if (Status s = run_plot_script(kSweepPageScript, "sweep_page.py", dir, {*json_path, dir}); !s) {
+    return Error{"collect " + dir + ": " + s.message()};
+  }
+  return (fs::path(dir) / "index.html").string();
+}
+
+nlohmann::json to_json(const LocalRun& run, const std::string& dir, const Plan& plan, const std::string& page) {
+  const ExecutionSummary& r = run.summary;
+  nlohmann::json j = {{"dir", dir},
+                      {"points", plan.points.size()},
+                      {"already_done", run.already_done},
+                      {"done", r.done},
+                      {"failed", r.failed},
+                      {"not_started", r.not_started},
+                      {"interrupted", r.interrupted},
+                      {"wall_s", run.wall_s},
+                      {"jobs", run.jobs},
+                      {"table", (fs::path(dir) / "results.csv").string()}};
+  if (!page.empty()) j["page"] = page;
+  return j;
+}
+
+std::string local_run_text(const LocalRun& run, const std::string& dir, const std::optional<std::string>& page) {
+  const ExecutionSummary& r = run.summary;
+  std::string out;
+  appendf(out, "%s %zu points in %.1f s (%zu already done): %zu done, %zu failed%s\n",
+          r.interrupted ? "stopped after" : "ran", r.done + r.failed, run.wall_s, run.already_done, r.done, r.failed,
+          r.interrupted ? "; finished points are kept, run the same command again to resume" : "");
+  if (page) appendf(out, "table: %s/results.csv%s%s\n", dir.c_str(), page->empty() ? "" : ", page: ", page->c_str());
+  return out;
+}
+
+std::string submission_text(const Submission& s, const std::string& dir, const Plan& plan) {
+  std::string out;
+  if (s.job_id.empty()) {
+    appendf(out, "all %zu points of %s are done; nothing submitted\n", plan.points.size(), dir.c_str());
+  } else {
+    appendf(out,
+            "submitted job %s: %zu points as a job array (%zu already done); follow with: driftlab sweep status %s\n",
+            s.job_id.c_str(), s.submitted, s.already_done, dir.c_str());
+  }
   return out;
 }
 

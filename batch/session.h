@@ -6,6 +6,7 @@
 
 #include <atomic>
 #include <map>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -36,6 +37,10 @@ Result<std::vector<std::string>> batch_logs(const std::vector<std::string>& item
 /// Writes DIR/results.csv and DIR/results.json (the merged table, the varied keys, the stages and, for logs, the
 /// ranking worst first). Returns results.json's path.
 Result<std::string> write_tables(const std::string& dir, const Plan& plan);
+
+/// `sweep collect`: the tables (write_tables) and, with `plots`, the page drawn by sweep_page.py (matplotlib).
+/// Returns the page's path, or "" without plots.
+Result<std::string> collect(const std::string& dir, const Plan& plan, bool plots);
 
 /// Where the points of a sweep stand, and its Slurm jobs'.
 struct SweepState {
@@ -79,6 +84,11 @@ struct LocalRun {
   int jobs = 0;
 };
 Result<LocalRun> run_locally(const std::string& dir, const Plan& plan, const RunOptions& o);
+/// What a local run prints with --json: the counts, the time, the table and the page (when drawn: `page`).
+nlohmann::json to_json(const LocalRun& run, const std::string& dir, const Plan& plan, const std::string& page);
+/// Its lines: what ran, how long, what failed (and how to resume when interrupted), and where the table and the
+/// page ("": not drawn) are, unless `page` is absent (collecting failed).
+std::string local_run_text(const LocalRun& run, const std::string& dir, const std::optional<std::string>& page);
 
 /// The points of plan not done, submitted as one Slurm job array after saving the plan; job_id is empty when
 /// every point was done (nothing submitted). The job's name is driftlab-NAME with what Slurm would not take as _.
@@ -87,5 +97,7 @@ struct Submission {
   size_t submitted = 0, already_done = 0;
 };
 Result<Submission> submit_to_slurm(const std::string& dir, const Plan& plan, const RunOptions& o);
+/// Its line: the job's id and how to follow it, or that nothing was left to submit.
+std::string submission_text(const Submission& s, const std::string& dir, const Plan& plan);
 
 }  // namespace driftlab::batch

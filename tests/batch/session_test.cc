@@ -107,6 +107,18 @@ TEST(RunLocally, PendingPointsRunFailuresAreCountedAndARunResumes) {
   EXPECT_EQ(run->already_done, 0u);
   EXPECT_EQ(run->jobs, 2);
   EXPECT_TRUE(fs::exists(plan_path(out)));  // saved before anything ran, so status and collect can read it
+  // What the command prints of the run: with the page drawn, without it, and when collecting failed.
+  const std::string ran = local_run_text(*run, out, out + "/index.html");
+  EXPECT_EQ(ran.substr(ran.find(':')),
+            ": 2 done, 1 failed\ntable: " + out + "/results.csv, page: " + out + "/index.html\n");
+  EXPECT_EQ(ran.rfind("ran 3 points in ", 0), 0u) << ran;
+  EXPECT_EQ(local_run_text(*run, out, "").substr(ran.find(':')),
+            ": 2 done, 1 failed\ntable: " + out + "/results.csv\n");
+  EXPECT_EQ(local_run_text(*run, out, std::nullopt).find("table:"), std::string::npos);
+  const nlohmann::json summary = to_json(*run, out, plan, "");
+  EXPECT_EQ(summary["points"], 3);
+  EXPECT_EQ(summary["failed"], 1);
+  EXPECT_FALSE(summary.contains("page"));
 
   const SweepState state = sweep_state(out, plan, false);
   EXPECT_EQ(state.count(PointState::kDone), 2u);
@@ -151,6 +163,10 @@ TEST(SubmitToSlurm, NothingIsSubmittedWhenEveryPointIsDone) {
   EXPECT_TRUE(r->job_id.empty());
   EXPECT_EQ(r->already_done, 1u);
   EXPECT_EQ(r->submitted, 0u);
+  EXPECT_EQ(submission_text(*r, out, plan), "all 1 points of " + out + " are done; nothing submitted\n");
+  EXPECT_EQ(
+      submission_text({.job_id = "42", .submitted = 3, .already_done = 1}, out, plan),
+      "submitted job 42: 3 points as a job array (1 already done); follow with: driftlab sweep status " + out + "\n");
 }
 
 }  // namespace
