@@ -215,10 +215,16 @@ Result<DiagnosisSummary> summarize(const nlohmann::json& diagnosis) {
   DiagnosisSummary out;
   try {
     const nlohmann::json* worst = nullptr;
+    size_t worst_index = 0;
     for (const auto& c : diagnosis.at("channels")) {
       const std::string name = c.at("name");
-      if (rank(c) > 0 && (worst == nullptr || rank(c) > rank(*worst))) worst = &c;
+      if (rank(c) > 0 && (worst == nullptr || rank(c) > rank(*worst))) {
+        worst = &c;
+        worst_index = out.streams.size();
+      }
       const Severity verdict = severity_from_name(c.at("verdict").get<std::string>());
+      out.streams.push_back({name, verdict, c.at("reasons").get<std::vector<std::string>>(),
+                             c.value("causes", nlohmann::json::array()).get<std::vector<std::string>>()});
       out.fault_streams += verdict == Severity::kFault;
       out.warn_streams += verdict == Severity::kWarn;
       const auto& clock = c.at("clock");
@@ -230,12 +236,7 @@ Result<DiagnosisSummary> summarize(const nlohmann::json& diagnosis) {
           d.at("seq_gaps").is_number() ? d.at("seq_gaps").get<int64_t>() : d.at("missing_by_period").get<int64_t>();
       if (n > 0) out.drops[name] = n;
     }
-    if (worst != nullptr) {
-      out.worst_stream = DiagnosisSummary::Stream{
-          worst->at("name").get<std::string>(), severity_from_name(worst->at("verdict").get<std::string>()),
-          worst->at("reasons").get<std::vector<std::string>>(),
-          worst->value("causes", nlohmann::json::array()).get<std::vector<std::string>>()};
-    }
+    if (worst != nullptr) out.worst_stream = out.streams[worst_index];
   } catch (const nlohmann::json::exception& e) {
     return Error{std::string("not a diagnosis (driftlab diagnose --json): ") + e.what()};
   }

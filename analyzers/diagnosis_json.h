@@ -53,6 +53,7 @@ struct DiagnosisSummary {
   /// Faults before warnings, among them the deepest first cause (a clock, then a late stream or loop, loss,
   /// undecodable data, a symptom), then the most reasons; none when nothing was flagged.
   std::optional<Stream> worst_stream;
+  std::vector<Stream> streams;  ///< every channel diagnosed, in the diagnosis's order
   /// Clocks ahead by 1 ms or more (one behind cannot be told from latency in one log), not those of a clock of
   /// another epoch (simulation time), whose offset is against its peers.
   std::map<std::string, double> clocks_ahead_s;

@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "core/number_text.h"
 #include "core/wall_clock.h"
 
 namespace driftlab::analyzers {
@@ -413,6 +414,16 @@ Severity worst_severity(const Diagnosis& d, const DiagnosisText& text) {
   const bool warn =
       std::any_of(d.channels.begin(), d.channels.end(), [](const ChannelTiming& c) { return c.verdict != "ok"; });
   return warn || !text.problems.empty() ? Severity::kWarn : Severity::kOk;
+}
+
+std::string to_text(const DiagnosisText& text) {
+  std::string out;
+  for (const auto& l : text.lines) out += l + "\n";
+  if (text.problems.empty()) return out + "\nno timing problems found\n";
+  out += "\nproblems:\n";
+  for (size_t i = 0; i < text.problems.size() && i < 10; ++i) out += "  " + text.problems[i] + "\n";
+  if (text.problems.size() > 10) appendf(out, "  ... %zu more (--json lists them all)\n", text.problems.size() - 10);
+  return out;
 }
 
 }  // namespace driftlab::analyzers

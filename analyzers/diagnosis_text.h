@@ -21,6 +21,10 @@ struct DiagnosisText {
 /// The text of a diagnosis, as `driftlab diagnose` prints it.
 DiagnosisText diagnosis_text(const DiagnoseRun& run);
 
+/// The text as `driftlab diagnose` prints it: the lines, then the problems (up to 10, the rest counted) or that
+/// none was found.
+std::string to_text(const DiagnosisText& text);
+
 /// The text as one HTML page (`driftlab diagnose --html`).
 std::string diagnosis_html(const Diagnosis& d, const DiagnosisText& text);
 

@@ -13,6 +13,8 @@
 #include "core/log_index.h"
 #include "core/log_reader.h"
 #include "core/mapped_file.h"
+#include "core/number_text.h"
+#include "core/text_file.h"
 #include "core/time.h"
 #include "driftlab/odometry_t.hpp"
 #include "driftlab/pose_t.hpp"
@@ -286,16 +288,14 @@ Result<Trajectory> load_trajectory(const std::string& src, TrajectoryFormat form
 }
 
 Status write_tum(const std::string& path, const Trajectory& t) {
-  FILE* f = std::fopen(path.c_str(), "w");
-  if (f == nullptr) return Error{path + ": cannot create: " + std::strerror(errno)};
+  std::string text;
   for (size_t i = 0; i < t.size(); ++i) {
     const auto& p = t.positions[i];
     const auto& q = t.orientations[i];
-    std::fprintf(f, "%.6f %.17g %.17g %.17g %.17g %.17g %.17g %.17g\n", t.stamps[i], p.x(), p.y(), p.z(), q.x(), q.y(), q.z(),
-                 q.w());
+    appendf(text, "%.6f %.17g %.17g %.17g %.17g %.17g %.17g %.17g\n", t.stamps[i], p.x(), p.y(), p.z(), q.x(), q.y(),
+            q.z(), q.w());
   }
-  if (std::fclose(f) != 0) return Error{path + ": write failed: " + std::strerror(errno)};
-  return {};
+  return write_file_atomically(path, text);
 }
 
 }  // namespace driftlab::analyzers

@@ -52,7 +52,8 @@ bool append_pose(std::span<const uint8_t> data, Trajectory& t, std::string* why 
 /// byte of the event.
 Result<Trajectory> load_log_channel(const std::string& log, const std::string& channel);
 
-/// Writes a TUM file: stamps to the microsecond, the rest with every digit a double has (it reads back exactly).
+/// Writes a TUM file, whole or not at all (core/text_file.h): stamps to the microsecond, the rest with every digit a
+/// double has (it reads back exactly).
 Status write_tum(const std::string& path, const Trajectory& t);
 
 }  // namespace driftlab::analyzers

@@ -31,6 +31,24 @@ inline constexpr config::Range kSeed = config::between(0, 9007199254740991.0);
 /// Pacing against the wall clock, as a multiple of real time.
 inline constexpr config::Range kPaceRate = config::above(0, 1e6);
 
+/// An option whose words name an enum's values, each value's word being its to_string ("--align posyaw" sets
+/// *target to AlignmentType::kPosYaw): the library's option declared once, its words and default shown by --help as
+/// a CLI::IsMember option shows them ("TEXT:{none,se3,...} [none]").
+template <class E>
+CLI::Option* add_choice(CLI::App* cmd, const std::string& name, E* target, std::initializer_list<E> values,
+                        const std::string& help) {
+  std::vector<std::string> words;
+  for (E v : values) words.emplace_back(to_string(v));
+  auto set = [target, all = std::vector<E>(values)](const std::string& word) {
+    for (E v : all) {
+      if (word == to_string(v)) *target = v;
+    }
+  };
+  return cmd->add_option_function<std::string>(name, set, help)
+      ->default_str(to_string(*target))
+      ->check(CLI::IsMember(words));
+}
+
 /// `--json` and `--json-out FILE`, meaning the same in every command: --json prints one JSON object on standard
 /// output instead of the text; --json-out writes it to FILE as well (the text still printed, unless --json).
 struct JsonOutput {

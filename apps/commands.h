@@ -60,10 +60,6 @@ const ToolCommand* find_tool(int argc, char** argv);
 /// it cannot be started (one line on stderr, exit code 1).
 int exec_tool(const ToolCommand& tool, char** argv);
 
-/// The number of single-character edits (insert, delete, replace, swap two neighbours) from a to b.
-size_t edit_distance(std::string_view a, std::string_view b);
-/// The name of names a mistyped word most likely meant (a few edits away, or the one name it begins), or "".
-std::string closest_name(std::string_view word, const std::vector<std::string>& names);
 /// CLI11's message for a usage error, with a guess at a mistyped command or option ("did you mean 'diagnose'?")
 /// and the --help of the command it was given to.
 std::string usage_error_line(CLI::App& app, const std::string& what, int argc, char** argv);

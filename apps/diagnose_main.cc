@@ -45,22 +45,13 @@ int run_diagnose(const DiagnoseOptions& o) {
   if (!run) return fail(run.error().message);
   const Diagnosis& d = run->diagnosis;
   const analyzers::DiagnosisText text = analyzers::diagnosis_text(*run);
-  const std::vector<std::string>& problems = text.problems;
   const bool failing = fails(analyzers::worst_severity(d, text), o.fail_on);
   if (!o.html.empty() && !write_output(o.html, analyzers::diagnosis_html(d, text))) return kExitFailure;
   if (o.json.wanted()) {
     if (!o.json.emit(analyzers::diagnose_json(*run).dump(2) + "\n")) return kExitFailure;
     if (o.json.print) return failing ? kExitProblemsFound : kExitOk;
   }
-  for (const auto& l : text.lines) std::printf("%s\n", l.c_str());
-  std::printf("\n");
-  if (problems.empty()) {
-    std::printf("no timing problems found\n");
-  } else {
-    std::printf("problems:\n");
-    for (size_t i = 0; i < problems.size() && i < 10; ++i) std::printf("  %s\n", problems[i].c_str());
-    if (problems.size() > 10) std::printf("  ... %zu more (--json lists them all)\n", problems.size() - 10);
-  }
+  std::fputs(analyzers::to_text(text).c_str(), stdout);
   return failing ? kExitProblemsFound : kExitOk;
 }
 

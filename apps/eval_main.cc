@@ -27,37 +27,12 @@ using namespace analyzers;
 constexpr config::Range kOffsetRange = config::between(-1e10, 1e10);
 
 struct EvalOptions {
-  std::string gt, est;
-  std::string gt_format = "auto", est_format = "auto";
-  std::string gt_times, est_times;
-  std::string align = "none";
-  double max_dt = 0.01;
+  EvaluateOptions options;   ///< gt and est as given: read from their conversions when another tool's recordings
   std::string offset = "0";  // seconds, or "auto"
-  bool interpolate = false;
-  double max_gap = 0.1;
-  double delta = 1;
-  std::string delta_unit = "frames";
-  bool all_pairs = false;
-  bool pairs_from_reference = false;
-  double delta_tol = 0.1;
-  std::vector<double> segments;
-  int segment_step = 10;
-  std::string relations;
-  double relations_max_dt = 1e-4;
-  std::string odometry;
   std::string arm;
-  std::string arm_reference = "commanded";
-  std::string arm_command, arm_ee, arm_base;
-  double arm_cutoff = 5.0;
+  ArmTrackingOptions arm_options;
   JsonOutput json;
 };
-
-TrajectoryFormat format_of(const std::string& name) {
-  return name == "tum"     ? TrajectoryFormat::kTum
-         : name == "kitti" ? TrajectoryFormat::kKitti
-         : name == "euroc" ? TrajectoryFormat::kEuroc
-                           : TrajectoryFormat::kAuto;
-}
 
 /// A source (LOG:CHANNEL, or a trajectory file) checked: a log must hold events, and a log given without its
 /// channel is named as such (rather than read as a TUM file that is "not a number" on line 1).
@@ -72,19 +47,13 @@ Status check_source(const std::string& src, const char* option) {
 
 /// driftlab eval --arm LOG: the arm's tracking error.
 int run_arm_eval(const EvalOptions& o) {
-  if (!o.gt.empty() || !o.est.empty() || !o.relations.empty()) {
+  if (!o.options.gt.empty() || !o.options.est.empty() || !o.options.relations.empty()) {
     return fail("--arm evaluates an arm's tracking in one log: give it without --gt, --est and --relations");
   }
   if (Status s = refuse_same_file(o.json.file, {o.arm}, "--json-out"); !s) return fail(s.message());
   auto log = recordings::event_log_for(o.arm);  // another tool's recording: its cached conversion
   if (!log) return fail(log.error().message, exit_code_for_input(log.error()));
-  ArmTrackingOptions options;
-  options.reference = o.arm_reference == "desired" ? ArmReference::kDesired : ArmReference::kCommanded;
-  options.command_channel = o.arm_command;
-  options.ee_channel = o.arm_ee;
-  options.base_channel = o.arm_base;
-  options.oscillation_cutoff_hz = o.arm_cutoff;
-  auto a = evaluate_arm(*log, options);
+  auto a = evaluate_arm(*log, o.arm_options);
   if (!a) return fail(a.error().message);
   a->log = o.arm;
   if (!o.json.print) std::fputs(arm_tracking_text(*a).c_str(), stdout);
@@ -93,8 +62,9 @@ int run_arm_eval(const EvalOptions& o) {
   return kExitOk;
 }
 
-int run_eval(const EvalOptions& o) {
-  if (!o.arm.empty()) return run_arm_eval(o);
+int run_eval(const EvalOptions& e) {
+  if (!e.arm.empty()) return run_arm_eval(e);
+  const EvaluateOptions& o = e.options;
   if (o.gt.empty() && o.relations.empty()) {
     return fail(
         "eval needs --gt (ATE, RPE and drift against a reference), --relations (the SLAM benchmark's relation "
@@ -108,55 +78,28 @@ int run_eval(const EvalOptions& o) {
     inputs.push_back(split_log_channel(*src, &log, &channel) ? log : *src);
   }
   for (const auto* file : {&o.relations, &o.gt_times, &o.est_times}) inputs.push_back(*file);
-  if (Status s = refuse_same_file(o.json.file, inputs, "--json-out"); !s) return fail(s.message());
+  if (Status s = refuse_same_file(e.json.file, inputs, "--json-out"); !s) return fail(s.message());
   // LOG:CHANNEL of another tool's recording: read from its cached conversion (the output names the source given).
-  Result<std::string> gt_src = std::string();
-  if (!o.gt.empty()) gt_src = recordings::log_channel_for(o.gt);
-  if (!gt_src) return fail(gt_src.error().message, exit_code_for_input(gt_src.error()));
-  auto est_src = recordings::log_channel_for(o.est);
-  if (!est_src) return fail(est_src.error().message, exit_code_for_input(est_src.error()));
+  EvaluateOptions options = o;
+  options.gt_name = o.gt;
+  options.est_name = o.est;
+  for (std::string* src : {&options.gt, &options.est}) {
+    if (src->empty()) continue;
+    auto converted = recordings::log_channel_for(*src);
+    if (!converted) return fail(converted.error().message, exit_code_for_input(converted.error()));
+    *src = *converted;
+  }
   for (const auto& [src, option] :
-       {std::pair{*gt_src, "--gt"}, {*est_src, "--est"}, {o.odometry, "--relations-odometry"}}) {
+       {std::pair{options.gt, "--gt"}, {options.est, "--est"}, {options.odometry, "--relations-odometry"}}) {
     if (src.empty()) continue;
     if (Status s = check_source(src, option); !s) return fail(s.message());
   }
-  EvaluateOptions options;
-  options.gt = *gt_src;
-  options.est = *est_src;
-  options.gt_name = o.gt;
-  options.est_name = o.est;
-  options.gt_format = format_of(o.gt_format);
-  options.est_format = format_of(o.est_format);
-  options.gt_times = o.gt_times;
-  options.est_times = o.est_times;
-  options.max_dt = o.max_dt;
-  options.offset = o.offset == "auto" ? std::nullopt : std::optional(std::strtod(o.offset.c_str(), nullptr));
-  options.interpolate = o.interpolate;
-  options.max_gap = o.max_gap;
-  options.align = o.align == "se3"      ? AlignmentType::kSe3
-                  : o.align == "sim3"   ? AlignmentType::kSim3
-                  : o.align == "posyaw" ? AlignmentType::kPosYaw
-                  : o.align == "origin" ? AlignmentType::kOrigin
-                                        : AlignmentType::kNone;
-  options.rpe.delta = o.delta;
-  options.rpe.unit = o.delta_unit == "m"     ? DeltaUnit::kMeters
-                     : o.delta_unit == "s"   ? DeltaUnit::kSeconds
-                     : o.delta_unit == "deg" ? DeltaUnit::kDegrees
-                     : o.delta_unit == "rad" ? DeltaUnit::kRadians
-                                             : DeltaUnit::kFrames;
-  options.rpe.all_pairs = o.all_pairs;
-  options.rpe.pairs_from_reference = o.pairs_from_reference;
-  options.rpe.delta_tol = o.delta_tol;
-  options.segments = o.segments;
-  options.segment_step = static_cast<size_t>(o.segment_step);
-  options.relations = o.relations;
-  options.relations_max_dt = o.relations_max_dt;
-  options.odometry = o.odometry;
+  options.offset = e.offset == "auto" ? std::nullopt : std::optional(std::strtod(e.offset.c_str(), nullptr));
   options.on_note = [](const std::string& note) { std::fprintf(stderr, "driftlab: note: %s\n", note.c_str()); };
   auto ev = evaluate(options);
   if (!ev) return fail(ev.error().message);
-  if (!o.json.print) std::fputs(evaluation_text(*ev).c_str(), stdout);
-  if (o.json.wanted() && !o.json.emit(to_json(*ev).dump(2) + "\n")) return kExitFailure;
+  if (!e.json.print) std::fputs(evaluation_text(*ev).c_str(), stdout);
+  if (e.json.wanted() && !e.json.emit(to_json(*ev).dump(2) + "\n")) return kExitFailure;
   return kExitOk;
 }
 
@@ -187,19 +130,21 @@ void add_eval_command(CLI::App& app, int* exit_code) {
       "effector's position and angle error: FK (the URDF the log carries) of the reference joints against its\n"
       "ground truth, in the arm base's frame; its true motion above --arm-cutoff is reported as oscillation. See\n"
       "docs/trajectory-evaluation.md.");
-  const auto formats = CLI::IsMember({"auto", "tum", "kitti", "euroc"});
-  cmd->add_option("--gt", o->gt, "Reference (ground truth): LOG:CHANNEL or a TUM, KITTI or EuRoC file");
-  cmd->add_option("--est", o->est, "Estimate: LOG:CHANNEL or a TUM, KITTI or EuRoC file");
-  cmd->add_option("--gt-format", o->gt_format, "Format of a --gt file")->capture_default_str()->check(formats);
-  cmd->add_option("--est-format", o->est_format, "Format of an --est file")->capture_default_str()->check(formats);
-  cmd->add_option("--gt-times", o->gt_times, "With KITTI --gt: its stamps, one a line [s]");
-  cmd->add_option("--est-times", o->est_times, "With KITTI --est: its stamps, one a line [s]");
-  cmd->add_option("--align", o->align,
-                  "Alignment of the estimate onto the reference (Umeyama; posyaw: x, y, z, yaw; origin: the first "
-                  "matched poses made equal, evo's --align_origin)")
-      ->capture_default_str()
-      ->check(CLI::IsMember({"none", "se3", "sim3", "posyaw", "origin"}));
-  cmd->add_option("--max-dt", o->max_dt, "Largest stamp difference of a matched pair [s]")
+  EvaluateOptions& ev = o->options;
+  const auto formats = {TrajectoryFormat::kAuto, TrajectoryFormat::kTum, TrajectoryFormat::kKitti,
+                        TrajectoryFormat::kEuroc};
+  cmd->add_option("--gt", ev.gt, "Reference (ground truth): LOG:CHANNEL or a TUM, KITTI or EuRoC file");
+  cmd->add_option("--est", ev.est, "Estimate: LOG:CHANNEL or a TUM, KITTI or EuRoC file");
+  add_choice(cmd, "--gt-format", &ev.gt_format, formats, "Format of a --gt file");
+  add_choice(cmd, "--est-format", &ev.est_format, formats, "Format of an --est file");
+  cmd->add_option("--gt-times", ev.gt_times, "With KITTI --gt: its stamps, one a line [s]");
+  cmd->add_option("--est-times", ev.est_times, "With KITTI --est: its stamps, one a line [s]");
+  add_choice(
+      cmd, "--align", &ev.align,
+      {AlignmentType::kNone, AlignmentType::kSe3, AlignmentType::kSim3, AlignmentType::kPosYaw, AlignmentType::kOrigin},
+      "Alignment of the estimate onto the reference (Umeyama; posyaw: x, y, z, yaw; origin: the first "
+      "matched poses made equal, evo's --align_origin)");
+  cmd->add_option("--max-dt", ev.max_dt, "Largest stamp difference of a matched pair [s]")
       ->capture_default_str()
       ->check(in_range(config::between(0, 86400), "s"));
   cmd->add_option("--offset", o->offset, "Added to the estimate's stamps before matching [s], or auto: from the motion")
@@ -213,63 +158,65 @@ void add_eval_command(CLI::App& app, int* exit_code) {
             return seconds(v);
           },
           interval(kOffsetRange) + "|auto", kRangeCheck));
-  cmd->add_flag("--interpolate", o->interpolate, "Interpolate the reference at the estimate's stamps");
-  cmd->add_option("--max-gap", o->max_gap,
+  cmd->add_flag("--interpolate", ev.interpolate, "Interpolate the reference at the estimate's stamps");
+  cmd->add_option("--max-gap", ev.max_gap,
                   "With --interpolate: largest gap between reference poses to interpolate across [s]")
       ->capture_default_str()
       ->check(in_range(config::above(0, 86400), "s"));
-  cmd->add_option("--delta", o->delta, "RPE: distance between the poses of a pair")
+  cmd->add_option("--delta", ev.rpe.delta, "RPE: distance between the poses of a pair")
       ->capture_default_str()
       ->check(in_range(config::above(0, 1e9)));
-  cmd->add_option("--delta-unit", o->delta_unit, "RPE: unit of --delta (s: elapsed time, not in evo)")
-      ->capture_default_str()
-      ->check(CLI::IsMember({"frames", "m", "s", "deg", "rad"}));
-  cmd->add_flag("--all-pairs", o->all_pairs, "RPE: every pair --delta apart, not consecutive ones");
-  cmd->add_flag("--pairs-from-reference", o->pairs_from_reference,
+  add_choice(cmd, "--delta-unit", &ev.rpe.unit,
+             {DeltaUnit::kFrames, DeltaUnit::kMeters, DeltaUnit::kSeconds, DeltaUnit::kDegrees, DeltaUnit::kRadians},
+             "RPE: unit of --delta (s: elapsed time, not in evo)");
+  cmd->add_flag("--all-pairs", ev.rpe.all_pairs, "RPE: every pair --delta apart, not consecutive ones");
+  cmd->add_flag("--pairs-from-reference", ev.rpe.pairs_from_reference,
                 "RPE: choose the pairs along the reference, not the estimate (evo's --pairs_from_reference)");
-  cmd->add_option("--delta-tol", o->delta_tol,
+  cmd->add_option("--delta-tol", ev.rpe.delta_tol,
                   "RPE with --all-pairs in m, s, deg or rad: accepted miss of --delta, relative (evo's rel_delta_tol)")
       ->capture_default_str()
       ->check(in_range(config::between(0, 1)));
-  cmd->add_option("--segments", o->segments,
+  cmd->add_option("--segments", ev.segments,
                   "Drift: segment lengths [m], comma separated (default: 10..50% of the reference path)")
       ->delimiter(',')
       ->check(in_range(config::above(0, 1e7), "m"));
-  cmd->add_option("--segment-step", o->segment_step, "Drift: a segment starts at every N-th matched pose")
+  cmd->add_option("--segment-step", ev.segment_step, "Drift: a segment starts at every N-th matched pose")
       ->capture_default_str()
       ->check(in_range(config::between(1, 1e6)));
-  cmd->add_option("--relations", o->relations,
+  cmd->add_option("--relations", ev.relations,
                   "Relations file (t1 t2 x y z roll pitch yaw a line): the SLAM benchmark's relation error");
-  cmd->add_option("--relations-max-dt", o->relations_max_dt,
+  cmd->add_option("--relations-max-dt", ev.relations_max_dt,
                   "With --relations: largest stamp difference of a relation and the pose it takes [s]")
       ->capture_default_str()
       ->check(in_range(config::between(0, 86400), "s"));
-  cmd->add_option("--relations-odometry", o->odometry,
+  cmd->add_option("--relations-odometry", ev.odometry,
                   "With --relations: raw odometry (LOG:CHANNEL or TUM file) to carry poses to stamps without one");
   cmd->add_option("--arm", o->arm,
                   "An arm's tracking error in LOG: per joint and at the end effector against ground truth");
-  cmd->add_option("--arm-reference", o->arm_reference,
-                  "With --arm: compare the joints with the commands' plans or the controller's desired state")
-      ->capture_default_str()
-      ->check(CLI::IsMember({"commanded", "desired"}));
-  cmd->add_option("--arm-command", o->arm_command,
+  add_choice(cmd, "--arm-reference", &o->arm_options.reference, {ArmReference::kCommanded, ArmReference::kDesired},
+             "With --arm: compare the joints with the commands' plans or the controller's desired state");
+  cmd->add_option("--arm-command", o->arm_options.command_channel,
                   "With --arm: the channel of joint trajectory commands (default: the one with the most)");
-  cmd->add_option("--arm-ee", o->arm_ee, "With --arm: the end effector's ground truth channel (default: found)");
-  cmd->add_option("--arm-base", o->arm_base, "With --arm: the arm base's ground truth channel (default: found)");
-  cmd->add_option("--arm-cutoff", o->arm_cutoff,
+  cmd->add_option("--arm-ee", o->arm_options.ee_channel,
+                  "With --arm: the end effector's ground truth channel (default: found)");
+  cmd->add_option("--arm-base", o->arm_options.base_channel,
+                  "With --arm: the arm base's ground truth channel (default: found)");
+  cmd->add_option("--arm-cutoff", o->arm_options.oscillation_cutoff_hz,
                   "With --arm: the end effector's motion above this frequency is reported as oscillation [Hz]")
       ->capture_default_str()
       ->check(in_range(config::above(0, 50), "Hz"));
   add_json_options(cmd, &o->json, "the results");
   cmd->callback([o, exit_code] {
-    if (o->delta_unit == "frames" && std::floor(o->delta) != o->delta) {
-      *exit_code = fail("--delta must be a whole number of frames, got " + short_number(o->delta));
+    const RpeOptions& rpe = o->options.rpe;
+    if (rpe.unit == DeltaUnit::kFrames && std::floor(rpe.delta) != rpe.delta) {
+      *exit_code = fail("--delta must be a whole number of frames, got " + short_number(rpe.delta));
       return;
     }
     // An angle between two rotations lies in [0, 180] degrees (evo refuses other deltas too).
-    if ((o->delta_unit == "deg" && o->delta > 180) || (o->delta_unit == "rad" && o->delta > M_PI)) {
-      *exit_code = fail("--delta in " + o->delta_unit + " must be at most " + (o->delta_unit == "deg" ? "180" : "pi") +
-                        " (the largest angle between two rotations), got " + short_number(o->delta));
+    const bool deg = rpe.unit == DeltaUnit::kDegrees;
+    if ((deg && rpe.delta > 180) || (rpe.unit == DeltaUnit::kRadians && rpe.delta > M_PI)) {
+      *exit_code = fail(std::string("--delta in ") + to_string(rpe.unit) + " must be at most " + (deg ? "180" : "pi") +
+                        " (the largest angle between two rotations), got " + short_number(rpe.delta));
       return;
     }
     *exit_code = run_eval(*o);

@@ -36,20 +36,7 @@ int run_csv(const CsvArgs& a) {
   auto done = formats::export_csv(
       {.log = a.log, .out = a.out, .channels = a.channels, .max_array = a.max_array, .bytes = a.bytes});
   if (!done) return fail(done.error().message, exit_code_for_input(done.error()));
-  for (const auto& f : done->files) {
-    std::printf("%-24s %10s rows  %s\n", f.channel.c_str(), thousands(f.rows).c_str(), f.path.c_str());
-  }
-  for (const auto& [name, m] : done->malformed) {
-    std::printf("%-24s %10s malformed messages skipped (first: %s)\n", name.c_str(), thousands(m.first).c_str(),
-                m.second.c_str());
-  }
-  for (const auto& [name, n] : done->unknown) {
-    std::printf("%-24s %10s messages of a type that is not driftlab's: skipped\n", name.c_str(), thousands(n).c_str());
-  }
-  if (done->problems > 0) {
-    std::printf("%s: %llu damaged spots skipped (driftlab info lists them)\n", a.log.c_str(),
-                static_cast<unsigned long long>(done->problems));
-  }
+  std::fputs(formats::export_text(*done, a.log).c_str(), stdout);
   if (done->files.empty()) return fail(a.log + ": no channel of a driftlab type to export");
   return kExitOk;
 }
@@ -66,15 +53,7 @@ int run_tum(TumArgs a) {
   // In stamp order, as evo and every TUM reader expect (a log holds poses in arrival order: a late or reordered
   // message arrives after a newer one); said when it changed anything.
   const analyzers::StampOrder order = analyzers::sort_by_stamp(*t);
-  const std::string partial = a.out + ".partial";
-  if (auto s = analyzers::write_tum(partial, *t); !s) {
-    std::error_code ec;
-    fs::remove(partial, ec);
-    return fail(s.message(), kExitFailure);
-  }
-  std::error_code ec;
-  fs::rename(partial, a.out, ec);
-  if (ec) return fail(a.out + ": cannot rename into place: " + ec.message(), kExitFailure);
+  if (auto s = analyzers::write_tum(a.out, *t); !s) return fail(s.message(), kExitFailure);
   std::printf("%s:%s -> %s: %s poses", a.log.c_str(), a.channel.c_str(), a.out.c_str(),
               thousands(static_cast<int64_t>(t->size())).c_str());
   if (order.out_of_order > 0) {

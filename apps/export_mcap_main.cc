@@ -6,6 +6,7 @@
 #include <memory>
 #include <nlohmann/json.hpp>
 
+#include "analyzers/diagnosis_json.h"
 #include "apps/cli_checks.h"
 #include "apps/cli_util.h"
 #include "apps/commands.h"
@@ -25,30 +26,18 @@ struct McapArgs {
   bool folder = false;  // export rosbag2
 };
 
-constexpr int kProblemLines = 20;
-
 /// The findings of `driftlab diagnose --json` as one Metadata record: per channel its verdict and reasons.
 Result<formats::McapMetadata> diagnosis_metadata(const std::string& path) {
   auto text = read_text_file(path, "diagnosis");
   if (!text) return text.error();
-  nlohmann::json j;
-  try {
-    j = nlohmann::json::parse(*text);
-  } catch (const nlohmann::json::exception& e) {
-    return Error(path + ": not JSON: " + e.what());
-  }
-  if (!j.is_object() || !j.contains("channels") || !j["channels"].is_array()) {
-    return Error(path + ": not a diagnosis (driftlab diagnose --json writes one)");
-  }
+  const nlohmann::json j = nlohmann::json::parse(*text, nullptr, false);
+  auto summary = j.is_discarded() ? Result<analyzers::DiagnosisSummary>(Error{"not JSON"}) : analyzers::summarize(j);
+  if (!summary) return Error{path + ": " + summary.error().message};
   formats::McapMetadata m{"driftlab.diagnosis", {}};
-  for (const auto& c : j["channels"]) {
-    if (!c.is_object() || !c.contains("name") || !c["name"].is_string()) continue;
-    std::string text = c.value("verdict", std::string("ok"));
-    if (c.contains("reasons") && c["reasons"].is_array()) {
-      for (const auto& r : c["reasons"])
-        if (r.is_string()) text += "; " + r.get<std::string>();
-    }
-    m.entries.emplace_back(c["name"].get<std::string>(), text);
+  for (const auto& stream : summary->streams) {
+    std::string said = analyzers::severity_name(stream.verdict);
+    for (const auto& r : stream.reasons) said += "; " + r;
+    m.entries.emplace_back(stream.name, said);
   }
   return m;
 }
@@ -70,29 +59,13 @@ int run_mcap(const McapArgs& a) {
     if (!m) return fail(m.error().message);
     o.metadata.push_back(std::move(*m));
   }
-  int printed = 0;
-  int64_t problems = 0;
-  auto on_problem = [&](const std::string& line) {
-    ++problems;
-    if (printed++ < kProblemLines) std::fprintf(stderr, "driftlab: %s\n", line.c_str());
-  };
-  auto r = a.folder ? formats::export_rosbag2(*log, a.out, o, on_problem)
-                    : formats::export_mcap(*log, a.out, o, on_problem);
+  recordings::ProblemLines problems(a.inputs[0]);
+  auto r = a.folder ? formats::export_rosbag2(*log, a.out, o, std::ref(problems))
+                    : formats::export_mcap(*log, a.out, o, std::ref(problems));
   if (!r) return fail(r.error().message, kExitFailure);
-  if (problems > kProblemLines) std::fprintf(stderr, "driftlab: %s more problems\n", thousands(problems - kProblemLines).c_str());
-  std::printf("%s -> %s: %s messages, %s\n", a.inputs[0].c_str(), a.out.c_str(), thousands(r->messages).c_str(),
-              human_bytes(static_cast<double>(r->bytes)).c_str());
-  size_t width = 8;
-  for (const auto& t : r->topics) width = std::max(width, t.topic.size());
-  for (const auto& t : r->topics) {
-    std::printf("  %-*s %-28s -> %-42s %10s%s\n", static_cast<int>(width), t.topic.c_str(), t.driftlab_type.c_str(),
-                (t.ros_type + (t.encoding == "cdr" ? "" : " (" + t.encoding + ")")).c_str(),
-                thousands(t.messages).c_str(), t.topic == t.channel ? "" : ("  (channel " + t.channel + ")").c_str());
-  }
-  for (const auto& [c, n] : r->skipped) {
-    std::printf("  skipped %s: %s messages of a type driftlab does not know\n", c.c_str(), thousands(n).c_str());
-  }
-  return problems > 0 ? kExitBadInput : kExitOk;
+  problems.finish();
+  std::fputs(formats::export_text(*r, a.inputs[0], a.out).c_str(), stdout);
+  return problems.count() > 0 ? kExitBadInput : kExitOk;
 }
 
 }  // namespace

@@ -20,26 +20,6 @@ struct ImportArgs {
   std::string out;
 };
 
-void print_summary(const formats::ImportSummary& s, std::string from, const std::string& to) {
-  std::printf("%s (%s) -> %s: %s messages\n", from.c_str(), s.format.c_str(), to.c_str(),
-              thousands(s.messages).c_str());
-  size_t width = 8;
-  for (const auto& t : s.topics) width = std::max(width, t.channel.size());
-  for (const auto& t : s.topics) {
-    std::printf("  %-*s %-34s -> %-28s %10s", static_cast<int>(width), t.channel.c_str(), t.source_type.c_str(),
-                t.driftlab_type.c_str(), thousands(t.messages).c_str());
-    if (t.malformed) std::printf("  (%s malformed, left out)", thousands(t.malformed).c_str());
-    if (t.driftlab_type == "driftlab.foreign_message_t") std::printf("  (no mapping: carried as recorded)");
-    if (t.driftlab_type == "driftlab.stamped_foreign_message_t") {
-      std::printf("  (no mapping: carried as recorded, its header read)");
-    }
-    std::printf("\n");
-  }
-  for (const auto& [name, n] : s.skipped) {
-    std::printf("  skipped %-20s %s lines (no driftlab type)\n", name.c_str(), thousands(n).c_str());
-  }
-}
-
 }  // namespace
 
 void add_import_file_command(CLI::App& import, int* exit_code) {
@@ -89,7 +69,7 @@ void add_import_file_command(CLI::App& import, int* exit_code) {
     problems.finish();
     std::string from = args->in[0];
     if (args->in.size() > 1) from += " and " + std::to_string(args->in.size() - 1) + " more";
-    print_summary(*r, from, args->out);
+    std::fputs(formats::import_text(*r, from, args->out).c_str(), stdout);
     if (!alignment.empty()) std::printf("%s\n", alignment.c_str());
     // Everything intact is in the log; the exit code still says that not all of the file was.
     if (r->problems > 0) *exit_code = kExitBadInput;

@@ -42,14 +42,7 @@ int run_record(recorder::RecordOptions o) {
   const bool tty = isatty(STDERR_FILENO) == 1;
   if (tty) o.on_status = [](const std::string& line) { std::fprintf(stderr, "\r\033[K%s", line.c_str()); };
   // What it listens to, once it does: on stderr, so standard output keeps only the summary.
-  o.on_listening = [&o] {
-    std::string what = o.channels == ".*" ? "every channel" : "channels matching '" + o.channels + "'";
-    if (!o.exclude.empty()) what += " except '" + o.exclude + "'";
-    std::string until = o.duration_s > 0 ? "for " + short_number(o.duration_s) + " s or until Ctrl-C" : "until Ctrl-C";
-    std::fprintf(stderr, "recording %s on %s to %s, %s\n", what.c_str(), o.url.c_str(),
-                 o.split_mb > 0 || o.split_s > 0 ? (o.out + " (in numbered parts)").c_str() : o.out.c_str(),
-                 until.c_str());
-  };
+  o.on_listening = [&o] { std::fputs(recorder::listening_line(o).c_str(), stderr); };
   recorder::Recorder rec(o, clock);
   g_recorder.store(&rec);
   struct sigaction sa {};
@@ -61,18 +54,7 @@ int run_record(recorder::RecordOptions o) {
   g_recorder.store(nullptr);
   if (tty) std::fprintf(stderr, "\r\033[K");
   if (!result) return fail(result.error().message, kExitFailure);
-  const auto& s = *result;
-  std::string files = s.files.front();
-  if (s.files.size() > 1) files += " ... " + s.files.back() + " (" + std::to_string(s.files.size()) + " files)";
-  std::printf("recorded %s messages (%s) to %s in %.1f s\n", thousands(s.written).c_str(),
-              human_bytes(static_cast<double>(s.bytes_written)).c_str(), files.c_str(), s.seconds);
-  std::printf("received %s from %lld sender%s, %s left out by channel filters\n", thousands(s.received).c_str(),
-              static_cast<long long>(s.senders), s.senders == 1 ? "" : "s", thousands(s.filtered).c_str());
-  std::printf("lost: %s in %s sequence gaps, %s dropped by the kernel, %s by the recorder's queue, "
-              "%s fragmented messages incomplete; %s garbage datagrams\n",
-              thousands(s.lost).c_str(), thousands(s.gaps).c_str(), thousands(s.kernel_dropped).c_str(),
-              thousands(s.queue_dropped).c_str(), thousands(s.fragments_incomplete).c_str(),
-              thousands(s.garbage).c_str());
+  std::fputs(recorder::record_text(*result).c_str(), stdout);
   return kExitOk;
 }
 

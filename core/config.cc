@@ -1,5 +1,7 @@
 #include "core/config.h"
 
+#include "core/closest_name.h"
+
 #include <algorithm>
 #include <cerrno>
 #include <charconv>
@@ -303,7 +305,11 @@ Status Schema::read(const Value& v, void* obj) const {
           seen[i] = true;
           return fields[i].read(value, obj);
         }
-        return Error{key.place() + ": unknown key '" + value.key() + "' (known: " + known() + ")"};
+        std::vector<std::string> keys;
+        for (const auto& f : fields) keys.push_back(f.key);
+        const std::string guess = closest_name(name, keys);
+        return Error{key.place() + ": unknown key '" + value.key() + "'" +
+                     (guess.empty() ? "" : ": did you mean '" + guess + "'?") + " (known: " + known() + ")"};
       });
       if (!s) return s;
     }

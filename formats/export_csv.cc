@@ -10,6 +10,7 @@
 
 #include "core/log_format.h"
 #include "core/log_reader.h"
+#include "core/number_text.h"
 #include "core/time.h"
 #include "lcmtypes/schema.h"
 #include "lcmtypes/type_registry.h"
@@ -253,6 +254,24 @@ Result<CsvExport> export_csv(const CsvExportOptions& a) {
   for (const auto& [name, f] : files) done.files.push_back({name, f.path, f.rows});
   done.problems = reader->problems();
   return done;
+}
+
+std::string export_text(const CsvExport& e, const std::string& log) {
+  std::string out;
+  for (const auto& f : e.files)
+    appendf(out, "%-24s %10s rows  %s\n", f.channel.c_str(), thousands(f.rows).c_str(), f.path.c_str());
+  for (const auto& [name, m] : e.malformed) {
+    appendf(out, "%-24s %10s malformed messages skipped (first: %s)\n", name.c_str(), thousands(m.first).c_str(),
+            m.second.c_str());
+  }
+  for (const auto& [name, n] : e.unknown) {
+    appendf(out, "%-24s %10s messages of a type that is not driftlab's: skipped\n", name.c_str(), thousands(n).c_str());
+  }
+  if (e.problems > 0) {
+    appendf(out, "%s: %llu damaged spots skipped (driftlab info lists them)\n", log.c_str(),
+            static_cast<unsigned long long>(e.problems));
+  }
+  return out;
 }
 
 }  // namespace driftlab::formats

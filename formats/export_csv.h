@@ -38,6 +38,9 @@ struct CsvExport {
 /// the log has been read; on an error no .partial is left. Its columns are the union of its messages' fields, in
 /// the order they first appear. Errors: the log (kBadInput), a file that cannot be written (kCannotWrite).
 Result<CsvExport> export_csv(const CsvExportOptions& a);
+/// What `driftlab export csv` prints of it: a line per file (channel, rows, path), per channel skipped (malformed
+/// messages, with the first's problem; a type that is not driftlab's) and the log's damaged spots skipped.
+std::string export_text(const CsvExport& e, const std::string& log);
 
 /// A file name a person can read for a channel: leading '/'s dropped, bytes other than [A-Za-z0-9_.-] (and a
 /// leading '.') made '_' ("/tf" -> "tf", "/camera/image_raw" -> "camera_image_raw", "" -> "channel"); names longer

@@ -8,6 +8,7 @@
 #include <map>
 
 #include "core/log_reader.h"
+#include "core/number_text.h"
 #include "driftlab/barometer_t.hpp"
 #include "driftlab/channel_source_t.hpp"
 #include "driftlab/foreign_message_t.hpp"
@@ -429,6 +430,23 @@ Result<McapExportSummary> export_rosbag2(const std::string& log, const std::stri
     return Error(dir + ": cannot rename " + partial + " into place");
   }
   return summary;
+}
+
+std::string export_text(const McapExportSummary& s, const std::string& log, const std::string& out) {
+  std::string text;
+  appendf(text, "%s -> %s: %s messages, %s\n", log.c_str(), out.c_str(), thousands(s.messages).c_str(),
+          human_bytes(static_cast<double>(s.bytes)).c_str());
+  size_t width = 8;
+  for (const auto& t : s.topics) width = std::max(width, t.topic.size());
+  for (const auto& t : s.topics) {
+    appendf(text, "  %-*s %-28s -> %-42s %10s%s\n", static_cast<int>(width), t.topic.c_str(), t.driftlab_type.c_str(),
+            (t.ros_type + (t.encoding == "cdr" ? "" : " (" + t.encoding + ")")).c_str(), thousands(t.messages).c_str(),
+            t.topic == t.channel ? "" : ("  (channel " + t.channel + ")").c_str());
+  }
+  for (const auto& [c, n] : s.skipped) {
+    appendf(text, "  skipped %s: %s messages of a type driftlab does not know\n", c.c_str(), thousands(n).c_str());
+  }
+  return text;
 }
 
 }  // namespace driftlab::formats

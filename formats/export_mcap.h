@@ -51,6 +51,10 @@ struct McapExportSummary {
 Result<McapExportSummary> export_mcap(const std::string& log, const std::string& out, const McapExportOptions& options,
                                       const std::function<void(const std::string&)>& on_problem);
 
+/// What `driftlab export mcap|rosbag2` prints of an export: the messages and bytes written, a line per topic (its
+/// driftlab and ROS types, its count, the channel it came from when renamed), the channels skipped.
+std::string export_text(const McapExportSummary& s, const std::string& log, const std::string& out);
+
 /// Writes log as a rosbag2 folder: folder/metadata.yaml and folder/NAME_0.mcap (NAME: the folder's name). The
 /// folder must not exist yet or be empty; it is made beside as FOLDER.partial and renamed when whole.
 Result<McapExportSummary> export_rosbag2(const std::string& log, const std::string& folder,

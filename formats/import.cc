@@ -20,6 +20,7 @@
 #include <memory>
 
 #include "core/log_writer.h"
+#include "core/number_text.h"
 #include "driftlab/channel_source_t.hpp"
 #include "driftlab/dropout_t.hpp"
 #include "driftlab/foreign_message_t.hpp"
@@ -1001,6 +1002,27 @@ Result<ImportSummary> import_log(const std::vector<std::string>& inputs, const s
   }
   partial.path.clear();  // in place: nothing to remove
   return out.summary;
+}
+
+std::string import_text(const ImportSummary& s, const std::string& from, const std::string& to) {
+  std::string out;
+  appendf(out, "%s (%s) -> %s: %s messages\n", from.c_str(), s.format.c_str(), to.c_str(),
+          thousands(s.messages).c_str());
+  size_t width = 8;
+  for (const auto& t : s.topics) width = std::max(width, t.channel.size());
+  for (const auto& t : s.topics) {
+    appendf(out, "  %-*s %-34s -> %-28s %10s", static_cast<int>(width), t.channel.c_str(), t.source_type.c_str(),
+            t.driftlab_type.c_str(), thousands(t.messages).c_str());
+    if (t.malformed) appendf(out, "  (%s malformed, left out)", thousands(t.malformed).c_str());
+    if (t.driftlab_type == "driftlab.foreign_message_t") out += "  (no mapping: carried as recorded)";
+    if (t.driftlab_type == "driftlab.stamped_foreign_message_t")
+      out += "  (no mapping: carried as recorded, its header read)";
+    out += "\n";
+  }
+  for (const auto& [name, n] : s.skipped) {
+    appendf(out, "  skipped %-20s %s lines (no driftlab type)\n", name.c_str(), thousands(n).c_str());
+  }
+  return out;
 }
 
 }  // namespace driftlab::formats

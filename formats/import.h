@@ -70,6 +70,10 @@ Result<ImportSummary> import_log(const std::string& in, const std::string& out,
 Result<ImportSummary> import_log(const std::vector<std::string>& inputs, const std::string& out,
                                  const std::function<void(const std::string&)>& on_problem);
 
+/// What `driftlab import` prints of a conversion: the messages written, a line per channel (its source type, its
+/// driftlab type, its count, malformed messages left out, a type carried as recorded), the lines skipped.
+std::string import_text(const ImportSummary& s, const std::string& from, const std::string& to);
+
 /// The files of a recording given as inputs, in reading order: a ROS 2 bag folder gives its storage files (from
 /// metadata.yaml, else the .mcap and .db3 files in it), files are sorted naturally. For cache keys.
 std::vector<std::string> recording_files(const std::vector<std::string>& inputs);

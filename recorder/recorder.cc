@@ -17,6 +17,7 @@
 #include <unordered_map>
 
 #include "core/log_writer.h"
+#include "core/number_text.h"
 #include "core/string_hash.h"
 #include "driftlab/recorder_stats_t.hpp"
 #include "recorder/lcm_udpm.h"
@@ -489,6 +490,31 @@ Result<RecordSummary> Recorder::run() {
   }
   ::close(*fd);
   return result;
+}
+
+std::string listening_line(const RecordOptions& o) {
+  std::string what = o.channels == ".*" ? "every channel" : "channels matching '" + o.channels + "'";
+  if (!o.exclude.empty()) what += " except '" + o.exclude + "'";
+  const std::string until =
+      o.duration_s > 0 ? "for " + short_number(o.duration_s) + " s or until Ctrl-C" : "until Ctrl-C";
+  return "recording " + what + " on " + o.url + " to " +
+         (o.split_mb > 0 || o.split_s > 0 ? o.out + " (in numbered parts)" : o.out) + ", " + until + "\n";
+}
+
+std::string record_text(const RecordSummary& s) {
+  std::string files = s.files.front();
+  if (s.files.size() > 1) files += " ... " + s.files.back() + " (" + std::to_string(s.files.size()) + " files)";
+  std::string out;
+  appendf(out, "recorded %s messages (%s) to %s in %.1f s\n", thousands(s.written).c_str(),
+          human_bytes(static_cast<double>(s.bytes_written)).c_str(), files.c_str(), s.seconds);
+  appendf(out, "received %s from %lld sender%s, %s left out by channel filters\n", thousands(s.received).c_str(),
+          static_cast<long long>(s.senders), s.senders == 1 ? "" : "s", thousands(s.filtered).c_str());
+  appendf(out,
+          "lost: %s in %s sequence gaps, %s dropped by the kernel, %s by the recorder's queue, %s fragmented "
+          "messages incomplete; %s garbage datagrams\n",
+          thousands(s.lost).c_str(), thousands(s.gaps).c_str(), thousands(s.kernel_dropped).c_str(),
+          thousands(s.queue_dropped).c_str(), thousands(s.fragments_incomplete).c_str(), thousands(s.garbage).c_str());
+  return out;
 }
 
 }  // namespace driftlab::recorder

@@ -48,6 +48,11 @@ struct RecordSummary {
   double seconds = 0;
 };
 
+/// What the recorder says once it listens: what, on which URL, into which file, until when.
+std::string listening_line(const RecordOptions& options);
+/// What `driftlab record` prints at the end: what was written where, what was received, what was lost and how.
+std::string record_text(const RecordSummary& s);
+
 class Recorder {
  public:
   /// `clock` (borrowed: it must outlive the recorder) stamps what the kernel did not (a message without a receive

@@ -182,7 +182,8 @@ TEST(ConfigTable, RefusesEveryBadValueInOneExactLine) {
       {"rate: -.Inf", "f.yaml:1: opts.rate = -.Inf must be a finite number"},
       {"rate: nan", "f.yaml:1: opts.rate = nan must be a finite number"},
       {"rate: 1e309", "f.yaml:1: opts.rate = 1e309 is too large for a number"},
-      {"rate: 1" + std::string(309, '0'), "f.yaml:1: opts.rate = 1000000000000000... (310 characters) is too large for a number"},
+      {"rate: 1" + std::string(309, '0'),
+       "f.yaml:1: opts.rate = 1000000000000000... (310 characters) is too large for a number"},
       {"rate: 1" + std::string(308, '0'), "f.yaml:1: opts.rate = 1e+308 is outside 0.1..1000 Hz"},
       {"rate: fast", "f.yaml:1: opts.rate = fast must be a number"},
       {"rate: 0x10", "f.yaml:1: opts.rate = 0x10 must be a number"},
@@ -214,7 +215,8 @@ TEST(ConfigTable, RefusesEveryBadValueInOneExactLine) {
       {"start: [1, x]", "f.yaml:1: opts.start[1] = x must be a number"},
       // Maps: the dotted key, on the line of the value.
       {"inner: 3", "f.yaml:1: opts.inner must be a map of key: value"},
-      {"inner:\n  gain: 1\n  gian: 2", "f.yaml:3: unknown key 'opts.inner.gian' (known: gain, on)"},
+      {"inner:\n  gain: 1\n  gian: 2",
+       "f.yaml:3: unknown key 'opts.inner.gian': did you mean 'gain'? (known: gain, on)"},
       {"streams:\n  IMU:\n    gain: -1", "f.yaml:3: opts.streams.IMU.gain = -1 must be > 0"},
       {"streams: [IMU]", "f.yaml:1: opts.streams must be a map of CHANNEL: {gain, on}"},
       {"gain2: 0\non2: true", "f.yaml:1: opts.gain2 must be > 0 when on2"},
@@ -222,9 +224,13 @@ TEST(ConfigTable, RefusesEveryBadValueInOneExactLine) {
       // Keys.
       {"rate: 1\nrate: 2", "f.yaml:2: opts.rate is given twice (also on line 1)"},
       {"[a]: 1", "f.yaml:1: opts: a key must be a name, not a list"},
+      // A key a few edits from a known one is guessed (core/closest_name.h); one far from all is not.
       {"rat: 1",
-       "f.yaml:1: unknown key 'opts.rat' (known: rate, beams, stamp, seed, loop, channel, method, shape, pose, start, "
-       "inner, gain2, on2, streams, odd, meta)"},
+       "f.yaml:1: unknown key 'opts.rat': did you mean 'rate'? (known: rate, beams, stamp, seed, loop, channel, "
+       "method, shape, pose, start, inner, gain2, on2, streams, odd, meta)"},
+      {"frequency: 1",
+       "f.yaml:1: unknown key 'opts.frequency' (known: rate, beams, stamp, seed, loop, channel, method, shape, pose, "
+       "start, inner, gain2, on2, streams, odd, meta)"},
   };
   for (const auto& [yaml, expected] : cases) EXPECT_EQ(error(yaml + m), expected) << yaml;
   // The document itself.

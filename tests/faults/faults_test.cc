@@ -29,7 +29,8 @@ streams:
 TEST(ParseFaults, ErrorsNameTheFileLineAndKey) {
   const std::pair<const char*, const char*> cases[] = {
       {"streams:\n  IMU:\n    clock_ofset_s: 1\n",
-       "faults.yaml:3: unknown key 'streams.IMU.clock_ofset_s' (known: clock_offset_s, clock_drift_ppm, "},
+       "faults.yaml:3: unknown key 'streams.IMU.clock_ofset_s': did you mean 'clock_offset_s'? (known: clock_offset_s, "
+       "clock_drift_ppm, "},
       {"streams:\n  IMU:\n    drop_probability: 1.5\n",
        "faults.yaml:3: streams.IMU.drop_probability = 1.5 is outside 0..1"},
       {"streams:\n  IMU:\n    jitter_s: fast\n", "faults.yaml:3: streams.IMU.jitter_s = fast must be a number"},

@@ -352,8 +352,10 @@ TEST(Replayer, MissingLogAndBadRestampFileNameTheFile) {
   std::ofstream(dir.file("r.yaml")) << "channels:\n  IMU: {offset: 0.015}\n";
   auto r = load_restamp(dir.file("r.yaml"));
   ASSERT_FALSE(r);
-  EXPECT_EQ(r.error().message, dir.file("r.yaml") + ":2: unknown key 'channels.IMU.offset' (known: offset_s, drift_ppm, "
-                                                    "reference_utime)");
+  EXPECT_EQ(r.error().message,
+            dir.file("r.yaml") +
+                ":2: unknown key 'channels.IMU.offset': did you mean 'offset_s'? (known: offset_s, drift_ppm, "
+                "reference_utime)");
 }
 
 TEST(Replayer, TheSameInputsGiveAByteIdenticalOutputLog) {

@@ -171,7 +171,9 @@ TEST(ParseWorld, ErrorsNameFileLineAndKey) {
 
   std::string e = error_of("friction: 0.5\nboxes:\n  - {center: [1, 2], size: [1, 1, 1], colour: [1, 2, 3]}\n");
   EXPECT_EQ(e.rfind("w.yaml:3: ", 0), 0u) << e;
-  EXPECT_NE(e.find("unknown key 'boxes[0].colour' (known: name, center, size, yaw, color)"), std::string::npos) << e;
+  EXPECT_NE(e.find("unknown key 'boxes[0].colour': did you mean 'color'? (known: name, center, size, yaw, color)"),
+            std::string::npos)
+      << e;
 
   e = error_of("friction: 0.5\nfloor: 1\n");
   EXPECT_EQ(e.rfind("w.yaml:2: ", 0), 0u) << e;

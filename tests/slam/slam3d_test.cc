@@ -310,7 +310,9 @@ TEST_F(Slam3dSession, WarnsWhenTheSensorPoseIsNotInTf) {
 TEST(Slam3dConfig, BadSettingsAreOneLineNamingTheFileLineAndKey) {
   auto key = make_slam3d(YAML::Load("method: ndt\nvoxle: 0.3\n"), "slam.yaml");
   ASSERT_FALSE(key);
-  EXPECT_EQ(key.error().message.rfind("slam.yaml:2: unknown key 'slam.3d.voxle' (known: cloud_channel, ", 0), 0u)
+  EXPECT_EQ(key.error().message.rfind(
+                "slam.yaml:2: unknown key 'slam.3d.voxle': did you mean 'voxel'? (known: cloud_channel, ", 0),
+            0u)
       << key.error().message;
   EXPECT_EQ(key.error().message.find('\n'), std::string::npos);
 
