@@ -1,12 +1,11 @@
 #include "analyzers/trajectory_io.h"
 
-#include <sys/stat.h>
-
 #include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 
 #include "analyzers/internal/number_lines.h"
 #include "core/log_format.h"
@@ -23,11 +22,6 @@
 
 namespace driftlab::analyzers {
 namespace {
-
-bool is_file(const std::string& path) {
-  struct stat st {};
-  return stat(path.c_str(), &st) == 0 && S_ISREG(st.st_mode);
-}
 
 std::string_view text_of(const MappedFile& f) {
   const auto bytes = f.bytes();
@@ -265,11 +259,21 @@ Result<Trajectory> load_log_channel(const std::string& log, const std::string& c
   return t;
 }
 
-Result<Trajectory> load_trajectory(const std::string& src, TrajectoryFormat format, const std::string& times) {
+bool split_log_channel(const std::string& src, std::string* log, std::string* channel) {
   const size_t colon = src.rfind(':');
-  if (colon != std::string::npos && colon > 0 && colon + 1 < src.size() && is_file(src.substr(0, colon))) {
-    return load_log_channel(src.substr(0, colon), src.substr(colon + 1));
-  }
+  if (colon == std::string::npos || colon == 0 || colon + 1 == src.size()) return false;
+  std::error_code ec;
+  const std::string log_part = src.substr(0, colon);
+  // Any file or folder (a bag) that exists: a FIFO or device is split too, so the command can refuse it by name.
+  if (!std::filesystem::exists(log_part, ec)) return false;
+  std::string channel_part = src.substr(colon + 1);  // before *log is written: log or channel may alias src
+  *log = log_part;
+  *channel = std::move(channel_part);
+  return true;
+}
+
+Result<Trajectory> load_trajectory(const std::string& src, TrajectoryFormat format, const std::string& times) {
+  if (std::string log, channel; split_log_channel(src, &log, &channel)) return load_log_channel(log, channel);
   if (format == TrajectoryFormat::kAuto) {
     std::string why;
     format = detect(src, why);

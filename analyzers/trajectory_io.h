@@ -16,6 +16,11 @@ namespace driftlab::analyzers {
 enum class TrajectoryFormat { kAuto, kTum, kKitti, kEuroc };
 const char* to_string(TrajectoryFormat format);
 
+/// Splits "LOG:CHANNEL" at its last ':' when the part before it exists (a file, or a folder: a bag); false (log and
+/// channel untouched) otherwise. So a log's name may hold ':' and a channel's may not (ROS names hold none). The
+/// outputs may alias src.
+bool split_log_channel(const std::string& src, std::string* log, std::string* channel);
+
 /// SRC is "LOG:CHANNEL" (a driftlab.pose_t, odometry_t or trajectory_setpoint_t channel, stamped with header.utime;
 /// a setpoint is the pose it asks for: its position, level, turned by its yaw) when the
 /// part before the last ':' is an existing file, else a text file in `format`. kAuto tells the text formats apart

@@ -82,17 +82,4 @@ int exit_code_for(const Error& error, std::string out) {
   return next == ':' || next == '/' || m.compare(out.size(), 8, ".partial") == 0 ? kExitFailure : kExitBadInput;
 }
 
-bool split_log_channel(const std::string& src, std::string* log, std::string* channel) {
-  const size_t colon = src.rfind(':');
-  if (colon == std::string::npos || colon == 0 || colon + 1 == src.size()) return false;
-  std::error_code ec;
-  const std::string log_part = src.substr(0, colon);
-  // Any file or folder (a bag) that exists: a FIFO or device is split too, so the command can refuse it by name.
-  if (!std::filesystem::exists(log_part, ec)) return false;
-  std::string whole = src;  // log or channel may alias src
-  *log = whole.substr(0, colon);
-  *channel = whole.substr(colon + 1);
-  return true;
-}
-
 }  // namespace driftlab::apps

@@ -59,8 +59,4 @@ int exit_code_for(const Error& error, std::string out);
 /// returns false.
 bool write_output(const std::string& path, const std::string& text);
 
-/// Splits "LOG:CHANNEL" at its last ':' when the part before it exists (a file, or a folder: a bag); false (log and
-/// channel untouched) otherwise. Channel names may hold ':' only if the log's name has none after its last one.
-bool split_log_channel(const std::string& src, std::string* log, std::string* channel);
-
 }  // namespace driftlab::apps

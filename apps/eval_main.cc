@@ -11,6 +11,7 @@
 #include "analyzers/arm_tracking.h"
 #include "analyzers/evaluate.h"
 #include "analyzers/evaluate_text.h"
+#include "analyzers/trajectory_io.h"
 #include "apps/cli_checks.h"
 #include "apps/cli_util.h"
 #include "apps/commands.h"

@@ -42,7 +42,7 @@ int run_csv(const CsvArgs& a) {
 }
 
 int run_tum(TumArgs a) {
-  if (a.channel.empty() && !split_log_channel(a.log, &a.log, &a.channel)) {
+  if (a.channel.empty() && !analyzers::split_log_channel(a.log, &a.log, &a.channel)) {
     return fail(a.log + ": name the channel as LOG:CHANNEL (or with -c CHANNEL)");
   }
   if (Status s = refuse_same_file(a.out, {a.log}); !s) return fail(s.message());

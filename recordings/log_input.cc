@@ -1,5 +1,6 @@
 #include "recordings/log_input.h"
 #include "analyzers/flight_log_pair.h"
+#include "analyzers/trajectory_io.h"
 
 #include <fcntl.h>
 #include <sys/stat.h>
@@ -286,16 +287,12 @@ Result<std::string> event_log_for(const std::vector<std::string>& inputs) {
 }
 
 Result<std::string> log_channel_for(const std::string& source) {
-  const size_t colon = source.rfind(':');
-  if (colon == std::string::npos || colon == 0 || colon + 1 == source.size()) return source;
-  const std::string log = source.substr(0, colon);
-  std::error_code ec;
-  if (!fs::exists(log, ec)) return source;
-  const formats::Detected d = formats::detect_format(log);
-  if (!formats::is_importable(d.format)) return source;
+  std::string log, channel;
+  if (!analyzers::split_log_channel(source, &log, &channel)) return source;
+  if (!formats::is_importable(formats::detect_format(log).format)) return source;
   auto converted = log_for(log);
   if (!converted) return converted.error();
-  return *converted + source.substr(colon);
+  return *converted + ":" + channel;
 }
 
 void ProblemLines::operator()(const std::string& line) {

@@ -4,6 +4,8 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <filesystem>
+#include <fstream>
 
 #include "analyzers/trajectory_io.h"
 #include "tests/test_util.h"
@@ -388,6 +390,31 @@ TEST(WriteTum, RoundTripsExactly) {
     EXPECT_EQ(back->positions[i], t.positions[i]);
     EXPECT_EQ(back->orientations[i].coeffs(), t.orientations[i].coeffs());
   }
+}
+
+TEST(SplitLogChannel, SplitsAtTheLastColonWhenTheLogExists) {
+  test::TempDir dir;
+  std::ofstream(dir.file("a.lcm")) << "x";
+  std::filesystem::create_directories(dir.file("bag"));
+  std::string log = "unchanged", channel = "unchanged";
+  ASSERT_TRUE(split_log_channel(dir.file("a.lcm") + ":/tf", &log, &channel));
+  EXPECT_EQ(log, dir.file("a.lcm"));
+  EXPECT_EQ(channel, "/tf");
+  // A bag folder is a log; the last ':' splits, so a log's name may hold ':' and a channel's may not.
+  ASSERT_TRUE(split_log_channel(dir.file("bag") + ":odom", &log, &channel));
+  EXPECT_EQ(channel, "odom");
+  log = channel = "unchanged";
+  EXPECT_FALSE(split_log_channel(dir.file("bag") + ":ns:odom", &log, &channel));
+  // A source whose part before the last ':' is no file is not split (a TUM file named with a ':').
+  EXPECT_FALSE(split_log_channel(dir.file("absent.lcm") + ":IMU", &log, &channel));
+  EXPECT_FALSE(split_log_channel(dir.file("a.lcm") + ":", &log, &channel));
+  EXPECT_FALSE(split_log_channel(":IMU", &log, &channel));
+  EXPECT_EQ(log, "unchanged");
+  // The output may alias the input.
+  std::string src = dir.file("a.lcm") + ":SCAN";
+  ASSERT_TRUE(split_log_channel(src, &src, &channel));
+  EXPECT_EQ(src, dir.file("a.lcm"));
+  EXPECT_EQ(channel, "SCAN");
 }
 
 }  // namespace
