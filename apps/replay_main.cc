@@ -234,40 +234,28 @@ int run_replay(ReplayArgs a) {
 }
 
 struct RunArgs {
-  std::string modules, config, url, out;
-  double duration = 0;
+  std::string modules, config;
+  runtime::LiveOptions live;
   JsonOutput json;
 };
 
 int run_live(const RunArgs& a) {
-  if (Status s = a.json.check({a.config}, {a.out}); !s) return fail(s.message());
+  if (Status s = a.json.check({a.config}, {a.live.out}); !s) return fail(s.message());
   std::vector<std::string> notes;
   auto modules = modules::load_modules(a.modules, a.config, {}, notes);
   if (!modules) return fail(modules.error().message);
   if (modules->empty()) return fail("--modules: name at least one module (" + modules::known_modules() + ")");
   const SystemWallClock clock;
-  runtime::LiveRunner runner({.url = a.url, .out = a.out, .duration_s = a.duration}, clock);
+  runtime::LiveRunner runner(a.live, clock);
   for (auto& m : *modules) runner.add_module(std::move(m));
   if (Status s = runner.open(); !s) return fail(s.message());
   auto report = runner.run(stop_on_signals());
   if (!report) return fail(report.error().message, kExitFailure);
   if (a.json.wanted()) {
-    nlohmann::json j;
-    j["url"] = a.url;
-    j["out"] = a.out;
-    j["received"] = report->received;
-    j["outputs"] = report->outputs;
-    j["wall_s"] = report->wall_s;
-    j["notes"] = notes;
-    j["modules"] = runtime::to_json(report->modules);
-    if (!a.json.emit(j.dump(2) + "\n")) return kExitFailure;
+    if (!a.json.emit(to_json(a.live, *report, notes).dump(2) + "\n")) return kExitFailure;
     if (a.json.print) return kExitOk;
   }
-  for (const auto& n : notes) std::printf("%s\n", n.c_str());
-  std::printf("ran %.1f s on %s: %s messages handled, %s module outputs%s%s\n", report->wall_s, a.url.c_str(),
-              thousands(report->received).c_str(), thousands(report->outputs).c_str(), a.out.empty() ? "" : " -> ",
-              a.out.c_str());
-  std::fputs(runtime::module_report_text(report->modules, true).c_str(), stdout);
+  std::fputs(runtime::live_text(a.live, *report, notes).c_str(), stdout);
   return kExitOk;
 }
 
@@ -284,9 +272,9 @@ void add_run_command(CLI::App& app, int* exit_code) {
   cmd->add_option("--modules", a->modules, "Modules to run, comma-separated (" + modules::known_modules() + ")")->required();
   cmd->add_option("--config", a->config, "Module settings (YAML: one map per module name)");
   add_config_help(*cmd, print_config_help);
-  cmd->add_option("--url", a->url, "LCM URL")->required();
-  cmd->add_option("-o,--out", a->out, "Log of the module outputs and statistics");
-  cmd->add_option("--duration", a->duration, "Stop after this many seconds (0: at Ctrl-C)")
+  cmd->add_option("--url", a->live.url, "LCM URL")->required();
+  cmd->add_option("-o,--out", a->live.out, "Log of the module outputs and statistics");
+  cmd->add_option("--duration", a->live.duration_s, "Stop after this many seconds (0: at Ctrl-C)")
       ->capture_default_str()
       ->check(in_range(config::between(0, 1e7), "s"));
   add_json_options(cmd, &a->json, "a summary");

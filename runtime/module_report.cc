@@ -89,4 +89,19 @@ std::string module_report_text(const std::vector<ModuleReport>& reports, bool ti
   return out;
 }
 
+nlohmann::json to_json(const LiveOptions& options, const LiveReport& report, const std::vector<std::string>& notes) {
+  return {
+      {"url", options.url},      {"out", options.out}, {"received", report.received},       {"outputs", report.outputs},
+      {"wall_s", report.wall_s}, {"notes", notes},     {"modules", to_json(report.modules)}};
+}
+
+std::string live_text(const LiveOptions& options, const LiveReport& report, const std::vector<std::string>& notes) {
+  std::string out;
+  for (const auto& n : notes) out += n + "\n";
+  appendf(out, "ran %.1f s on %s: %s messages handled, %s module outputs%s%s\n", report.wall_s, options.url.c_str(),
+          thousands(report.received).c_str(), thousands(report.outputs).c_str(), options.out.empty() ? "" : " -> ",
+          options.out.c_str());
+  return out + module_report_text(report.modules, true);
+}
+
 }  // namespace driftlab::runtime

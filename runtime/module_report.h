@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "core/result.h"
+#include "runtime/live_runner.h"
 #include "runtime/module_host.h"
 
 namespace driftlab::runtime {
@@ -24,5 +25,10 @@ std::optional<double> metric(const ModuleReport& report, std::string_view name);
 /// The text summary's lines of each module: its counts (with processing times when `timing`), its metrics, its
 /// warnings.
 std::string module_report_text(const std::vector<ModuleReport>& reports, bool timing);
+
+/// `driftlab run --json`: the URL, the output log, the counts, the notes and the module reports.
+nlohmann::json to_json(const LiveOptions& options, const LiveReport& report, const std::vector<std::string>& notes);
+/// The lines of `driftlab run`: the notes, how long it ran on which URL and what it handled, the module reports.
+std::string live_text(const LiveOptions& options, const LiveReport& report, const std::vector<std::string>& notes);
 
 }  // namespace driftlab::runtime

@@ -53,5 +53,23 @@ TEST(ModuleReport, TheJsonReadsBackAndTheTextSaysWhatItHas) {
   EXPECT_FALSE(module_reports_from_json(nlohmann::json::object()));
 }
 
+TEST(LiveReport, WhatRunPrints) {
+  const LiveOptions options{.url = "udpm://239.255.76.67:7667?ttl=0", .out = "out.lcm"};
+  const LiveReport report{.received = 4200, .outputs = 310, .wall_s = 12.5, .modules = reports()};
+  const std::string text = live_text(options, report, {"slam: auto backend: 2d"});
+  EXPECT_EQ(text.rfind("slam: auto backend: 2d\nran 12.5 s on udpm://239.255.76.67:7667?ttl=0: 4,200 messages handled, "
+                       "310 module outputs -> out.lcm\n  estimator  12,345 inputs",
+                       0),
+            0u)
+      << text;
+  EXPECT_NE(text.find("0.120 ms per input"), std::string::npos);  // live, processing time is always measured
+  const nlohmann::json j = to_json(options, report, {});
+  EXPECT_EQ(j["received"], 4200);
+  EXPECT_EQ(j["out"], "out.lcm");
+  auto back = module_reports_from_json(j);  // the demo and the batches read a run's reports as a replay's
+  ASSERT_TRUE(back);
+  EXPECT_EQ(back->size(), 2u);
+}
+
 }  // namespace
 }  // namespace driftlab::runtime
