@@ -7,7 +7,6 @@
 // runs git-* programs: `driftlab replay ...` is `driftlab-replay replay ...`. kTools lists them; architecture.md: why.
 #pragma once
 
-#include <span>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -49,7 +48,6 @@ struct ToolCommand {
   const char* program;
   const char* description;
 };
-std::span<const ToolCommand> tool_commands();
 /// The description of a tool command, for its own --help and for the dispatcher's.
 const char* tool_description(const char* word, const char* sub = nullptr);
 
@@ -59,10 +57,6 @@ const ToolCommand* find_tool(int argc, char** argv);
 /// (core/install_layout.h), else from PATH. Returns only when
 /// it cannot be started (one line on stderr, exit code 1).
 int exec_tool(const ToolCommand& tool, char** argv);
-
-/// CLI11's message for a usage error, with a guess at a mistyped command or option ("did you mean 'diagnose'?")
-/// and the --help of the command it was given to.
-std::string usage_error_line(CLI::App& app, const std::string& what, int argc, char** argv);
 
 /// Parses argv with app and returns the exit code: the command's, or CLI11's for --help/--version, or 2 (one
 /// line) for a usage error.

@@ -30,23 +30,18 @@ namespace driftlab::apps {
 namespace {
 
 struct ReplayArgs {
-  std::vector<std::string> logs;
+  replay::ReplayOptions o;  ///< logs, channels, out, order, reorder_window_s, start_s, timing: as given
   std::string modules;
   std::string config;
-  std::string out;
   double rate = 1.0;
   bool fast = false;
-  double start = 0, end = 0;
-  std::string channels;
+  double end = 0;
   std::vector<std::string> remap;
-  std::string order = "received";
-  double reorder_window = 0.5;
   std::string restamp;
   std::vector<std::string> retime;
   bool closed_loop = false;
   std::string inject;
   std::string publish;
-  bool timing = false;
   bool no_inputs = false;
   JsonOutput json;
 };
@@ -67,28 +62,28 @@ void print_config_help() {
 /// received on board. A log has no physics to re-run open loop: a drone or an arm moves as its controllers, fed
 /// by what they receive, make it move.
 int run_closed_loop(const ReplayArgs& a, const ReplayArgs& defaults) {
-  if (a.logs.size() != 1) return fail("--closed-loop: give one log, the one the simulation wrote");
-  if (a.out.empty()) return fail("--closed-loop: give -o OUT for the log of the new run");
+  if (a.o.logs.size() != 1) return fail("--closed-loop: give one log, the one the simulation wrote");
+  if (a.o.out.empty()) return fail("--closed-loop: give -o OUT for the log of the new run");
   const std::pair<const char*, bool> unused[] = {{"--modules", !a.modules.empty()},
                                                  {"--config", !a.config.empty()},
                                                  {"--inject", !a.inject.empty()},
-                                                 {"--channels", !a.channels.empty()},
+                                                 {"--channels", !a.o.channels.empty()},
                                                  {"--remap", !a.remap.empty()},
-                                                 {"--order", a.order != defaults.order},
-                                                 {"--start", a.start != defaults.start},
+                                                 {"--order", a.o.order != defaults.o.order},
+                                                 {"--start", a.o.start_s != defaults.o.start_s},
                                                  {"--end", a.end != defaults.end},
                                                  {"--publish", !a.publish.empty()},
                                                  {"--no-inputs", a.no_inputs},
-                                                 {"--timing", a.timing}};
+                                                 {"--timing", a.o.timing}};
   for (const auto& [option, given] : unused) {
     if (given) {
       return fail(std::string("--closed-loop runs the simulation's own modules on board: ") + option +
                   " does not apply");
     }
   }
-  if (Status s = refuse_same_file(a.out, a.logs); !s) return fail(s.message());
-  if (Status s = a.json.check(a.logs, {a.out}); !s) return fail(s.message());
-  const std::string& log = a.logs[0];
+  if (Status s = refuse_same_file(a.o.out, a.o.logs); !s) return fail(s.message());
+  if (Status s = a.json.check(a.o.logs, {a.o.out}); !s) return fail(s.message());
+  const std::string& log = a.o.logs[0];
   auto scenario = sim::scenario_of_log(log);
   if (!scenario) return fail(scenario.error().message);
   sim::ReceiveCorrections corrections;
@@ -110,7 +105,7 @@ int run_closed_loop(const ReplayArgs& a, const ReplayArgs& defaults) {
     }
   }
   sim::SimOptions o;
-  o.out = a.out;
+  o.out = a.o.out;
   o.version = DRIFTLAB_VERSION;
   o.corrections = corrections;
   o.stop = stop_on_signals();
@@ -120,7 +115,7 @@ int run_closed_loop(const ReplayArgs& a, const ReplayArgs& defaults) {
   if (!report) return fail(report.error().message, kExitFailure);
   const sim::ClosedLoopRun run{
       log,
-      {scenario->path, scenario->name, !scenario->drone.enabled, a.out, std::move(*report), wall},
+      {scenario->path, scenario->name, !scenario->drone.enabled, a.o.out, std::move(*report), wall},
       corrections,
       notes};
   if (a.json.wanted()) {
@@ -134,43 +129,36 @@ int run_closed_loop(const ReplayArgs& a, const ReplayArgs& defaults) {
 int run_replay(ReplayArgs a) {
   if (a.closed_loop) return run_closed_loop(a, ReplayArgs{});
   if (!a.retime.empty()) return fail("--retime applies to --closed-loop (commands re-timed as the arm receives them)");
-  if (Status s = refuse_same_file(a.out, a.logs); !s) return fail(s.message());  // the recordings given
-  if (Status s = a.json.check(a.logs, {a.out}); !s) return fail(s.message());
-  for (auto& log : a.logs) {
+  if (Status s = refuse_same_file(a.o.out, a.o.logs); !s) return fail(s.message());  // the recordings given
+  if (Status s = a.json.check(a.o.logs, {a.o.out}); !s) return fail(s.message());
+  for (auto& log : a.o.logs) {
     auto converted = recordings::event_log_for(log);  // another tool's recording: its cached conversion
     if (!converted) return fail(converted.error().message, exit_code_for_input(converted.error()));
     log = *converted;
   }
-  replay::ReplayOptions o;
-  o.logs = a.logs;
-  o.channels = a.channels;
-  o.out = a.out;
-  o.timing = a.timing;
+  replay::ReplayOptions o = a.o;
   o.write_inputs = !a.no_inputs;
-  o.order = a.order == "stamp" ? replay::Order::kStamp : replay::Order::kReceived;
-  o.reorder_window_s = a.reorder_window;
-  o.start_s = a.start;
   if (a.end > 0) o.end_s = a.end;
   for (const auto& m : a.remap) {
     auto r = replay::parse_remap(m);
     if (!r) return fail(r.error().message);
     o.remap.push_back(std::move(*r));
   }
-  if (Status s = refuse_same_file(a.out, a.logs); !s) return fail(s.message());  // and their conversions
-  if (Status s = a.json.check(a.logs, {a.out}); !s) return fail(s.message());
-  if (a.end > 0 && a.end <= a.start) {
-    return fail("--end " + short_number(a.end) + " must be after --start " + short_number(a.start) +
+  if (Status s = refuse_same_file(a.o.out, a.o.logs); !s) return fail(s.message());  // and their conversions
+  if (Status s = a.json.check(a.o.logs, {a.o.out}); !s) return fail(s.message());
+  if (a.end > 0 && a.end <= a.o.start_s) {
+    return fail("--end " + short_number(a.end) + " must be after --start " + short_number(a.o.start_s) +
                 " (both in seconds from the start of the logs)");
   }
   if (a.fast && a.rate != 1.0) std::fprintf(stderr, "driftlab: warning: --fast ignores --rate\n");
   try {
-    std::regex check(a.channels);
+    std::regex check(a.o.channels);
   } catch (const std::regex_error& e) {
-    return fail("invalid channel regex '" + a.channels + "': " + e.what());
+    return fail("invalid channel regex '" + a.o.channels + "': " + e.what());
   }
   std::vector<std::string> notes;
   if (a.restamp == "auto") {
-    auto plan = analyzers::plan_corrections(a.logs, true, {});
+    auto plan = analyzers::plan_corrections(a.o.logs, true, {});
     if (!plan) return fail(plan.error().message);
     o.restamp = std::move(plan->clocks);
     notes = std::move(plan->notes);
@@ -187,13 +175,14 @@ int run_replay(ReplayArgs a) {
   if (!a.restamp.empty() && a.restamp != "auto") {
     std::vector<std::string> named;
     for (const auto& [channel, c] : o.restamp) named.push_back(channel);
-    if (Status s = replay::refuse_absent_channels("--restamp " + a.restamp, named, a.logs); !s)
+    if (Status s = replay::refuse_absent_channels("--restamp " + a.restamp, named, a.o.logs); !s)
       return fail(s.message());
   }
   if (o.inject) {
     std::vector<std::string> named;
     for (const auto& [channel, f] : o.inject->streams) named.push_back(channel);
-    if (Status s = replay::refuse_absent_channels("--inject " + a.inject, named, a.logs); !s) return fail(s.message());
+    if (Status s = replay::refuse_absent_channels("--inject " + a.inject, named, a.o.logs); !s)
+      return fail(s.message());
   }
 
   // The slam module's `auto` backend and its unset input channels look at what the replay delivers (after the filter
@@ -221,15 +210,15 @@ int run_replay(ReplayArgs a) {
   progress.finish();
   const double wall = running.seconds();
   if (!report) return fail(report.error().message, kExitFailure);
-  if (report->read == 0 && a.start > 0) {
-    return fail("--start " + short_number(a.start) + ": nothing to replay after it (past the end of the logs)");
+  if (report->read == 0 && a.o.start_s > 0) {
+    return fail("--start " + short_number(a.o.start_s) + ": nothing to replay after it (past the end of the logs)");
   }
-  const replay::ReplaySummary summary{a.logs, a.out, std::move(*report), wall, notes, o.restamp, o.faults_channel};
+  const replay::ReplaySummary summary{a.o.logs, a.o.out, std::move(*report), wall, notes, o.restamp, o.faults_channel};
   if (a.json.wanted()) {
     if (!a.json.emit(to_json(summary).dump(2) + "\n")) return kExitFailure;
     if (a.json.print) return kExitOk;
   }
-  std::fputs(replay::replay_text(summary, a.timing).c_str(), stdout);
+  std::fputs(replay::replay_text(summary, a.o.timing).c_str(), stdout);
   return kExitOk;
 }
 
@@ -293,27 +282,26 @@ void add_replay_command(CLI::App& app, int* exit_code) {
       "again the simulation that wrote the log (its scenario is in the log), the corrections applied where its\n"
       "modules receive their messages: a drone or an arm moves as its controllers make it, which no log can replay\n"
       "open loop.");
-  cmd->add_option("logs", a->logs, "Logs to replay")->required();
+  cmd->add_option("logs", a->o.logs, "Logs to replay")->required();
   cmd->add_option("--modules", a->modules, "Modules to run, comma-separated (" + modules::known_modules() + ")");
   cmd->add_option("--config", a->config, "Module settings (YAML: one map per module name)");
   add_config_help(*cmd, print_config_help);
-  cmd->add_option("-o,--out", a->out, "Output log: the inputs as dispatched, the module outputs and statistics");
+  cmd->add_option("-o,--out", a->o.out, "Output log: the inputs as dispatched, the module outputs and statistics");
   cmd->add_option("--rate", a->rate, "With --publish: pace at this multiple of real time")
       ->capture_default_str()
       ->check(in_range(kPaceRate));
   cmd->add_flag("--fast", a->fast, "With --publish: as fast as possible");
-  cmd->add_option("--start", a->start, "Skip this many seconds from the start of the logs")
+  cmd->add_option("--start", a->o.start_s, "Skip this many seconds from the start of the logs")
       ->capture_default_str()
       ->check(in_range(config::between(0, 1e9), "s"));
   cmd->add_option("--end", a->end, "Stop this many seconds after the start of the logs (0: at the end)")
       ->capture_default_str()
       ->check(in_range(config::between(0, 1e9), "s"));
-  cmd->add_option("-c,--channels", a->channels, "Only channels fully matching this regex (ECMAScript)");
+  cmd->add_option("-c,--channels", a->o.channels, "Only channels fully matching this regex (ECMAScript)");
   cmd->add_option("--remap", a->remap, "Deliver channel FROM as TO (FROM=TO, repeatable)");
-  cmd->add_option("--order", a->order, "Dispatch order: received (log time) or stamp (header stamps)")
-      ->capture_default_str()
-      ->check(CLI::IsMember({"received", "stamp"}));
-  cmd->add_option("--reorder-window", a->reorder_window, "With --order stamp: wait this long for stragglers [s]")
+  add_choice(cmd, "--order", &a->o.order, {replay::Order::kReceived, replay::Order::kStamp},
+             "Dispatch order: received (log time) or stamp (header stamps)");
+  cmd->add_option("--reorder-window", a->o.reorder_window_s, "With --order stamp: wait this long for stragglers [s]")
       ->capture_default_str()
       ->check(in_range(config::between(0, 3600), "s"));
   cmd->add_option("--restamp", a->restamp, "Clock corrections before dispatch: FILE or auto");
@@ -325,7 +313,7 @@ void add_replay_command(CLI::App& app, int* exit_code) {
                   "honours stamps (CHANNEL=SECONDS, or auto: the command-to-motion delay diagnose measures)");
   cmd->add_option("--inject", a->inject, "Faults to add before dispatch (YAML, as the simulator's --faults)");
   cmd->add_option("--publish", a->publish, "Re-publish inputs and outputs on this LCM URL, paced by --rate");
-  cmd->add_flag("--timing", a->timing, "Measure processing time per input and the queues it implies");
+  cmd->add_flag("--timing", a->o.timing, "Measure processing time per input and the queues it implies");
   cmd->add_flag("--no-inputs", a->no_inputs, "Write only the module outputs and statistics to OUT");
   add_json_options(cmd, &a->json, "a summary");
   cmd->callback([a, exit_code] { *exit_code = run_replay(*a); });

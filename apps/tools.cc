@@ -35,8 +35,6 @@ constexpr std::array<ToolCommand, 5> kTools = {{
 
 }  // namespace
 
-std::span<const ToolCommand> tool_commands() { return kTools; }
-
 const char* tool_description(const char* word, const char* sub) {
   for (const auto& t : kTools) {
     if (std::strcmp(t.word, word) == 0 && (t.sub == nullptr) == (sub == nullptr) &&
@@ -174,8 +172,8 @@ std::vector<std::string> unknown_words(CLI::App& cmd, int argc, char** argv, boo
   return {};
 }
 
-}  // namespace
-
+/// CLI11's message for a usage error, with a guess at a mistyped command or option ("did you mean 'diagnose'?")
+/// and the --help of the command it was given to.
 std::string usage_error_line(CLI::App& app, const std::string& what, int argc, char** argv) {
   CLI::App* cmd = deepest_command(app);
   const std::string path = command_path(*cmd);
@@ -197,6 +195,8 @@ std::string usage_error_line(CLI::App& app, const std::string& what, int argc, c
   }
   return line + " (see '" + path + " --help')";
 }
+
+}  // namespace
 
 int parse_and_run(CLI::App& app, int argc, char** argv, const int& exit_code) {
   // A file-size limit (ulimit -f) then shows as a write error (EFBIG), like a full disk, so every command cleans

@@ -232,6 +232,8 @@ Status refuse_absent_channels(const std::string& what, const std::vector<std::st
   return {};
 }
 
+const char* to_string(Order order) { return order == Order::kStamp ? "stamp" : "received"; }
+
 InputChannels delivered_channels(const ReplayOptions& o) {
   // The first rule naming an input applies, as in run().
   auto delivered_as = [&o](const std::string& input) {

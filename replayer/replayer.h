@@ -48,6 +48,8 @@ enum class Order {
   kReceived,  ///< by log time (arrival at the recorder), as the robot's software saw them
   kStamp,     ///< by header stamp, re-sorted within a window; later stragglers are delivered late
 };
+/// "received", "stamp": as `--order` takes them.
+const char* to_string(Order order);
 
 struct ReplayOptions {
   std::vector<std::string> logs;
