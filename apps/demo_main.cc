@@ -14,7 +14,6 @@
 #include "apps/cli_util.h"
 #include "apps/commands.h"
 #include "batch/demo.h"
-#include "core/process.h"
 #include "core/progress_line.h"
 #include "core/wall_clock.h"
 #include "report/report.h"
@@ -25,8 +24,7 @@ namespace {
 namespace fs = std::filesystem;
 
 struct DemoArgs {
-  batch::DemoSettings
-      settings;  ///< out: default logs/demo, or logs/demo-drone with --drone (one story's files never over the other's)
+  batch::DemoSettings settings;  ///< out: default logs/demo, or logs/demo-drone with --drone (never over another's)
   JsonOutput json;
 };
 
@@ -35,102 +33,52 @@ std::string stage_label(int index, int total, const std::string& what) {
   return "[" + std::to_string(index) + "/" + std::to_string(total) + "] " + what;
 }
 
-struct Stage {
-  std::string name;
-  double seconds = 0;
-};
-
-std::string join_args(const std::vector<std::string>& args) {
-  std::string s = "driftlab";
-  for (size_t i = 1; i < args.size(); ++i) s += " " + args[i];
-  return s;
-}
-
-/// The stages' names and times, for --json.
-nlohmann::json stages_json(const std::vector<Stage>& stages) {
-  nlohmann::json out = nlohmann::json::array();
-  for (const auto& s : stages) out.push_back({{"name", s.name}, {"seconds", s.seconds}});
-  return out;
-}
-
-/// Runs the steps in turn, each a driftlab subcommand with its output kept in its file, and notes their times in
-/// `stages`; `total` counts them and the report after them. The exit code of the first that fails (the demo's:
-/// 2 when it was given bad input, 1 otherwise), with its last error line, or 0.
-int run_steps(const std::vector<batch::DemoStage>& steps, int total, bool json, const fs::path& dir,
-              std::vector<Stage>& stages) {
-  std::error_code ec;
-  const std::string errors = (dir / "stage.err").string();
-  for (size_t i = 0; i < steps.size(); ++i) {
-    const batch::DemoStage& s = steps[i];
-    if (!json) std::printf("== %s\n", join_args(s.args).c_str());
-    std::fflush(stdout);
-    const Stopwatch stage;
-    int code = 0;
-    {
-      StageLine line(stage_label(static_cast<int>(i) + 1, total, s.what));
-      // The stage's errors go to a file (its progress would fight with ours): the last line is the one to show.
-      code = run_process(s.args, s.stdout_file, errors);
-    }
-    stages.push_back({s.args[1], stage.seconds()});
-    if (code != 0) {
-      const std::string why = last_line_of(errors);
-      // The failed stage's output is not kept (it is empty or cut short).
-      fs::remove(s.stdout_file, ec);
-      fs::remove(errors, ec);
-      return fail("demo: " + join_args(s.args) + " failed (exit " + std::to_string(code) + ")" +
-                      (why.empty() ? "" : ": " + why),
-                  code == kExitBadInput ? kExitBadInput : kExitFailure);
-    }
-  }
-  fs::remove(errors, ec);
-  return kExitOk;
-}
-
-/// Draws the report as the demo's last stage.
-Result<std::string> draw_report(const report::ReportOptions& r, int total, bool json, std::vector<Stage>& stages) {
-  if (!json) {
-    std::printf("== driftlab report");
-    for (const auto& log : r.logs) std::printf(" %s", log.c_str());
-    std::printf(" --diagnosis %s", r.diagnosis.c_str());
-    for (const auto& e : r.evals) std::printf(" --eval %s", e.c_str());
-    std::printf(" -o %s\n", r.out.c_str());
-  }
-  std::fflush(stdout);
-  const Stopwatch drawing;
-  Result<std::string> page = Error{""};
-  {
-    StageLine line(stage_label(total, total, "drawing the report"));
-    page = report::make_report(r);
-  }
-  if (page) stages.push_back({"report", drawing.seconds()});
-  return page;
-}
-
 int run_demo(const batch::DemoSettings& a, const JsonOutput& json) {
   std::error_code ec;
   fs::create_directories(a.out, ec);
   if (ec) return fail(a.out + ": cannot create the demo folder: " + ec.message());
   auto plan = batch::plan_demo(a, self_path());
   if (!plan) return fail("demo: " + plan.error().message, kExitFailure);
+  // Each stage printed as its command line (unless --json), with a progress line while it runs; the report is
+  // drawn in-process as the last.
   const int total = static_cast<int>(plan->stages.size()) + 1;
-  std::vector<Stage> stages;
-  if (int code = run_steps(plan->stages, total, json.print, a.out, stages); code != kExitOk) return code;
-
-  report::ReportOptions r;
-  r.logs = plan->report_logs;
-  r.out = plan->report_dir;
-  r.diagnosis = plan->diagnosis;
-  r.evals = plan->evals;
-  r.title = plan->title;
-  auto page = draw_report(r, total, json.print, stages);
+  auto announce = [&json](const std::vector<std::string>& args) {
+    if (!json.print) std::printf("== %s\n", batch::command_text(args).c_str());
+    std::fflush(stdout);
+  };
+  std::vector<batch::StageRun> stages =
+      batch::run_stages(*plan, a.out, [&](size_t i, const std::function<void()>& run) {
+        announce(plan->stages[i].args);
+        const StageLine line(stage_label(static_cast<int>(i) + 1, total, plan->stages[i].what));
+        run();
+      });
+  if (const batch::StageRun& last = stages.back(); last.code != 0) {
+    // The demo's exit code: 2 when the stage was given bad input, 1 otherwise.
+    return fail("demo: " + batch::command_text(plan->stages[stages.size() - 1].args) + " failed (exit " +
+                    std::to_string(last.code) + ")" + (last.said.empty() ? "" : ": " + last.said),
+                last.code == kExitBadInput ? kExitBadInput : kExitFailure);
+  }
+  announce(plan->report_command);
+  const report::ReportOptions r{.logs = plan->report_logs,
+                                .out = plan->report_dir,
+                                .diagnosis = plan->diagnosis,
+                                .evals = plan->evals,
+                                .title = plan->title};
+  const Stopwatch drawing;
+  Result<std::string> page = Error{""};
+  {
+    const StageLine line(stage_label(total, total, "drawing the report"));
+    page = report::make_report(r);
+  }
   if (!page) return fail("demo: " + page.error().message, kExitFailure);
+  stages.push_back({"report", 0, "", drawing.seconds()});
   auto summary = batch::read_demo(a, *plan);
   if (!summary) return fail("demo: " + summary.error().message, kExitFailure);
   if (json.wanted()) {
     nlohmann::json j = to_json(a, *summary);
     j["report"] = *page;
     j["dir"] = a.out;
-    j["stages"] = stages_json(stages);
+    j["stages"] = to_json(stages);
     if (!json.emit(j.dump(2) + "\n")) return kExitFailure;
     if (json.print) return kExitOk;
   }

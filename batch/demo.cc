@@ -8,6 +8,8 @@
 #include "analyzers/log_series.h"
 #include "core/install_layout.h"
 #include "core/number_text.h"
+#include "core/process.h"
+#include "core/wall_clock.h"
 #include "runtime/module_report.h"
 
 namespace driftlab::batch {
@@ -157,8 +159,48 @@ std::string worst_and_clocks(const analyzers::DiagnosisSummary& summary) {
 
 Result<DemoPlan> plan_demo(const DemoSettings& settings, const std::string& exe) {
   auto p = settings.drone ? Result<DemoPlan>(drone_plan(settings, exe)) : ground_plan(settings, exe);
-  if (p) p->report_dir = in_dir(settings, "report");
+  if (!p) return p;
+  p->report_dir = in_dir(settings, "report");
+  p->report_command = {exe, "report"};
+  p->report_command.insert(p->report_command.end(), p->report_logs.begin(), p->report_logs.end());
+  p->report_command.insert(p->report_command.end(), {"--diagnosis", p->diagnosis});
+  for (const auto& e : p->evals) p->report_command.insert(p->report_command.end(), {"--eval", e});
+  p->report_command.insert(p->report_command.end(), {"-o", p->report_dir});
   return p;
+}
+
+std::vector<StageRun> run_stages(const DemoPlan& plan, const std::string& dir,
+                                 const std::function<void(size_t, const std::function<void()>&)>& around) {
+  std::error_code ec;
+  const std::string errors = (fs::path(dir) / "stage.err").string();
+  std::vector<StageRun> runs;
+  for (size_t i = 0; i < plan.stages.size(); ++i) {
+    const DemoStage& s = plan.stages[i];
+    StageRun run{s.args.at(1)};
+    const Stopwatch stage;
+    around(i, [&] { run.code = run_process(s.args, s.stdout_file, errors); });
+    run.seconds = stage.seconds();
+    if (run.code != 0) {
+      run.said = last_line_of(errors);
+      fs::remove(s.stdout_file, ec);
+    }
+    runs.push_back(std::move(run));
+    if (runs.back().code != 0) break;
+  }
+  fs::remove(errors, ec);
+  return runs;
+}
+
+std::string command_text(const std::vector<std::string>& args) {
+  std::string s = "driftlab";
+  for (size_t i = 1; i < args.size(); ++i) s += " " + args[i];
+  return s;
+}
+
+nlohmann::json to_json(const std::vector<StageRun>& stages) {
+  nlohmann::json out = nlohmann::json::array();
+  for (const auto& s : stages) out.push_back({{"name", s.name}, {"seconds", s.seconds}});
+  return out;
 }
 
 double ImuRejections::percent() const {

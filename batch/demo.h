@@ -7,6 +7,7 @@
 #include <nlohmann/json.hpp>
 
 #include <cstdint>
+#include <functional>
 #include <map>
 #include <string>
 #include <vector>
@@ -39,11 +40,31 @@ struct DemoPlan {
   std::vector<std::string> report_logs;
   std::string report_dir, diagnosis, title;
   std::vector<std::string> evals;  ///< the evaluations the report tabulates
+  /// `driftlab report` with the arguments above: what the demo prints for the report it draws in-process.
+  std::vector<std::string> report_command;
 };
 
 /// The story's stages, `exe` being the driftlab program to run. The ground story's module settings are written
 /// into the folder (replay.yaml), which must exist. Errors: that file could not be written.
 Result<DemoPlan> plan_demo(const DemoSettings& settings, const std::string& exe);
+
+/// How a stage ran: its subcommand, its exit code, the last line it wrote on stderr, how long it took [s].
+struct StageRun {
+  std::string name;
+  int code = 0;
+  std::string said;
+  double seconds = 0;
+};
+/// Runs the plan's stages in turn until one fails, each one's standard output kept in its file and its errors in
+/// DIR/stage.err (removed at the end), so that a failed stage's last line can be said; a failed stage's output is
+/// removed (empty or cut short). `around(i, run)` is called with each stage's index and a function that runs it:
+/// to print the stage, to draw a progress line while it runs. The last stage returned failed when its code is not 0.
+std::vector<StageRun> run_stages(const DemoPlan& plan, const std::string& dir,
+                                 const std::function<void(size_t, const std::function<void()>&)>& around);
+/// A stage's command line as one would type it: "driftlab sim ...".
+std::string command_text(const std::vector<std::string>& args);
+/// The stages' names and times, as `demo --json` gives them.
+nlohmann::json to_json(const std::vector<StageRun>& stages);
 
 /// What the drone's estimator did with its IMU, from the last driftlab.estimator_status_t of a log: rejected
 /// (stale, future or late) of all it received, and how many of the rejections were from the future.

@@ -50,6 +50,10 @@ TEST(DemoPlan, TheGroundStoryReplaysAsLoggedAndCorrectedAndScoresBoth) {
             (std::vector<std::string>{dir.file("sim.lcm"), dir.file("replay.lcm"), dir.file("restamped.lcm")}));
   EXPECT_EQ(p->report_dir, dir.file("report"));
   EXPECT_EQ(p->title, "driftlab demo: 20 s of the default scenario");
+  EXPECT_EQ(command_text(p->report_command),
+            "driftlab report " + dir.file("sim.lcm") + " " + dir.file("replay.lcm") + " " + dir.file("restamped.lcm") +
+                " --diagnosis " + dir.file("diagnosis.json") + " --eval " + dir.file("eval-before.json") + " --eval " +
+                dir.file("eval-after.json") + " -o " + dir.file("report"));
 
   // A folder the settings cannot be written to: one line naming the file.
   s.out = dir.file("absent");
@@ -77,6 +81,33 @@ TEST(DemoPlan, TheDroneStoryFliesAgainInClosedLoopAndScoresThreeFlights) {
   EXPECT_EQ(p->evals,
             (std::vector<std::string>{dir.file("estimate-logged.json"), dir.file("estimate-restamped.json")}));
   EXPECT_EQ(p->title, "driftlab demo --drone: drone_timebase, as flown and flown again");
+}
+
+TEST(RunStages, StopsAtTheFirstFailureSayingItsLastLineAndDroppingItsOutput) {
+  test::TempDir dir;
+  DemoPlan p;
+  p.stages = {{"first", {"/bin/sh", "-c", "echo made; echo working >&2"}, dir.file("first.txt")},
+              {"second", {"/bin/sh", "-c", "echo half; echo 'x.lcm: not a log' >&2; exit 2"}, dir.file("second.txt")},
+              {"third", {"/bin/sh", "-c", "echo never"}, dir.file("third.txt")}};
+  std::vector<size_t> around;
+  const auto runs = run_stages(p, dir.path(), [&](size_t i, const std::function<void()>& run) {
+    around.push_back(i);
+    run();
+  });
+  ASSERT_EQ(runs.size(), 2u);
+  EXPECT_EQ(around, (std::vector<size_t>{0, 1}));
+  EXPECT_EQ(runs[0].name, "-c");  // a stage is named by its subcommand, args[1]
+  EXPECT_EQ(runs[0].code, 0);
+  EXPECT_EQ(runs[1].code, 2);
+  EXPECT_EQ(runs[1].said, "x.lcm: not a log");
+  // The finished stage's output is kept; the failed one's (cut short) is not, nor the errors file; the third never ran.
+  EXPECT_EQ(test::read_file(dir.file("first.txt")), (std::vector<uint8_t>{'m', 'a', 'd', 'e', '\n'}));
+  EXPECT_FALSE(fs::exists(dir.file("second.txt")));
+  EXPECT_FALSE(fs::exists(dir.file("stage.err")));
+  EXPECT_FALSE(fs::exists(dir.file("third.txt")));
+  const nlohmann::json j = to_json(runs);
+  EXPECT_EQ(j.size(), 2u);
+  EXPECT_GE(j[1]["seconds"].get<double>(), 0.0);
 }
 
 /// An evaluation `eval --json-out` would write: a straight line estimated `offset` metres to its side.
