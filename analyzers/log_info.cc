@@ -12,6 +12,7 @@
 #include "driftlab/channel_source_t.hpp"
 #include "formats/ulog_messages.h"
 #include "lcmtypes/seq_origin.h"
+#include "lcmtypes/stream_header.h"
 #include "lcmtypes/type_registry.h"
 #include "lcmtypes/validate.h"
 
@@ -192,7 +193,13 @@ nlohmann::json recorder_json(const driftlab::recorder_stats_t& r) {
 }  // namespace
 
 Result<LogInfo> log_info(const std::string& path, const std::function<void(uint64_t, uint64_t)>& progress) {
-  auto index = LogIndex::load_or_build(path, progress);
+  // The channels' stamp counts: read by the message layer's word on which types carry a stream header.
+  const HeaderReader headers = [](std::span<const uint8_t> data, int64_t utime) -> std::optional<HeaderFields> {
+    const auto h = lcmtypes::read_header(data, utime);
+    if (!h) return std::nullopt;
+    return HeaderFields{h->seq, h->utime};
+  };
+  auto index = LogIndex::load_or_build(path, progress, LogIndex::kDefaultCacheMinBytes, headers);
   if (!index) return index.error();
   LogInfo info;
   info.path = path;

@@ -13,12 +13,11 @@
 #include "core/log_format.h"
 #include "core/mapped_file.h"
 #include "core/string_hash.h"
-#include "lcmtypes/stream_header.h"
 
 namespace driftlab {
 namespace {
 
-constexpr char kMagic[8] = {'D', 'L', 'I', 'D', 'X', '0', '0', '2'};
+constexpr char kMagic[8] = {'D', 'L', 'I', 'D', 'X', '0', '0', '3'};
 constexpr uint64_t kSampleBytes = 64 << 10;
 
 uint64_t fnv1a(std::span<const uint8_t> bytes, uint64_t h = 1469598103934665603ull) {
@@ -104,6 +103,7 @@ std::vector<uint8_t> serialise(const LogSummary& s, const std::vector<LogIndex::
   o.put(s.start_utime);
   o.put(s.end_utime);
   o.put(s.problems_total);
+  o.put(static_cast<uint8_t>(s.stamps_counted));
   o.put(static_cast<uint64_t>(s.channels.size()));
   for (const auto& c : s.channels) {
     o.put_string(c.name);
@@ -138,10 +138,12 @@ bool deserialise(std::span<const uint8_t> bytes, const FileIdentity& expected, L
   In in(bytes.subspan(sizeof(kMagic), bytes.size() - sizeof(kMagic) - 8));
   FileIdentity id;
   uint64_t n = 0;
+  uint8_t stamps_counted = 0;
   if (!in.get(id) || !(id == expected)) return false;
   if (!in.get(s.file_bytes) || !in.get(s.events) || !in.get(s.start_utime) || !in.get(s.end_utime) ||
-      !in.get(s.problems_total) || !in.get_count(n, 4 + 8 * 8 + 1))
+      !in.get(s.problems_total) || !in.get(stamps_counted) || !in.get_count(n, 4 + 8 * 8 + 1))
     return false;
+  s.stamps_counted = stamps_counted != 0;
   s.channels.resize(n);
   for (auto& c : s.channels) {
     uint8_t mixed = 0;
@@ -178,9 +180,11 @@ void save_cache(const std::string& path, const std::vector<uint8_t>& bytes) {
 
 }  // namespace
 
-LogIndex LogIndex::build(std::span<const uint8_t> bytes, const std::function<void(uint64_t)>& on_progress) {
+LogIndex LogIndex::build(std::span<const uint8_t> bytes, const std::function<void(uint64_t)>& on_progress,
+                         const HeaderReader& headers) {
   LogIndex index;
   LogSummary& s = index.summary_;
+  s.stamps_counted = static_cast<bool>(headers);
   s.file_bytes = bytes.size();
   ProblemCallback on_problem = [&s](const Problem& p) {
     if (s.problems.size() < kMaxStoredProblems) s.problems.push_back(p);
@@ -221,7 +225,7 @@ LogIndex LogIndex::build(std::span<const uint8_t> bytes, const std::function<voi
     Previous& before = previous[last_index];
     if (c.count > 0 && e.utime < before.utime) ++c.times_back;
     before.utime = e.utime;
-    const auto header = lcmtypes::read_header(e.data, e.utime);
+    const std::optional<HeaderFields> header = headers ? headers(e.data, e.utime) : std::nullopt;
     if (header) {
       ++c.stamped;
       if (before.stamped && header->utime == before.stamp && header->seq != before.seq) ++c.stamps_repeated;
@@ -247,21 +251,26 @@ LogIndex LogIndex::build(std::span<const uint8_t> bytes, const std::function<voi
 
 Result<LogIndex> LogIndex::load_or_build(const std::string& log_path,
                                          const std::function<void(uint64_t, uint64_t)>& on_progress,
-                                         uint64_t cache_min_bytes) {
+                                         uint64_t cache_min_bytes, const HeaderReader& headers) {
   auto mapped = MappedFile::open(log_path);
   if (!mapped) return mapped.error();
   const FileIdentity id = identify(log_path, mapped->bytes());
   const std::string cache = cache_path(log_path);
   LogIndex index;
-  if (auto cached = MappedFile::open(cache); cached && deserialise(cached->bytes(), id, index.summary_, index.entries_)) {
+  if (auto cached = MappedFile::open(cache); cached &&
+                                             deserialise(cached->bytes(), id, index.summary_, index.entries_) &&
+                                             (!headers || index.summary_.stamps_counted)) {
     index.from_cache_ = true;
     return index;
   }
   const uint64_t total = mapped->bytes().size();
-  index = build(mapped->bytes(), [&](uint64_t offset) {
-    mapped->release_before(offset);
-    if (on_progress) on_progress(offset, total);
-  });
+  index = build(
+      mapped->bytes(),
+      [&](uint64_t offset) {
+        mapped->release_before(offset);
+        if (on_progress) on_progress(offset, total);
+      },
+      headers);
   if (total >= cache_min_bytes && index.summary_.events > 0) {
     save_cache(cache, serialise(index.summary_, index.entries_, id));
   }

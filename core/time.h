@@ -11,6 +11,7 @@
 #include <cmath>
 #include <compare>
 #include <cstdint>
+#include <limits>
 
 namespace driftlab {
 
@@ -73,6 +74,16 @@ class Time {
   static constexpr Time from_us(int64_t us) { return Time(us); }
   /// `s` seconds after the clock's zero, to the nearest microsecond, halves away from zero (std::llround).
   static Time from_seconds_rounded(double s) { return Time(Duration::from_seconds_rounded(s).us()); }
+  /// The ends of the clock: before and after every time a log can hold.
+  static constexpr Time min() { return Time(std::numeric_limits<int64_t>::min()); }
+  static constexpr Time max() { return Time(std::numeric_limits<int64_t>::max()); }
+  /// This time plus `s` >= 0 seconds to the nearest microsecond, max() when that is past the end of the clock: a
+  /// --start or --end of 1e308 s is after any log, not an overflow back before it.
+  Time plus_seconds_saturated(double s) const {
+    const double us = s * 1e6;
+    const double room = static_cast<double>(std::numeric_limits<int64_t>::max() - us_);
+    return us >= room ? max() : Time(us_ + static_cast<int64_t>(std::llround(us)));
+  }
 
   constexpr int64_t us() const { return us_; }
   /// [s since the clock's zero]: us() * 1e-6.

@@ -50,11 +50,9 @@ Result<Restamp> load_restamp(const std::string& path) {
 
 namespace {
 
-constexpr int64_t kUs = 1000000;
-
 /// An input on its way to the modules.
 struct Item {
-  int64_t time = 0;      ///< delivery time [us]
+  Time time;             ///< delivery time
   int64_t order = 0;     ///< creation order: ties keep it
   const std::string* channel = nullptr;  ///< the delivered (remapped) name, interned
   std::vector<uint8_t> owned;            ///< the bytes when changed (restamped, injected)
@@ -81,36 +79,30 @@ class Merger {
       if (!r) return r.error();
       m.sources_.push_back({std::move(*r), {}, false});
     }
-    int64_t first = std::numeric_limits<int64_t>::max();
+    Time first = Time::max();
     for (auto& s : m.sources_) {
       s.has = s.reader.next(s.event);
-      if (s.has) first = std::min(first, s.event.utime);
+      if (s.has) first = std::min(first, Time::from_us(s.event.utime));
     }
-    if (first == std::numeric_limits<int64_t>::max()) return m;  // nothing to replay
+    if (first == Time::max()) return m;  // nothing to replay
     m.base_ = first;
-    // Offsets from the first event, saturated: 1e308 s is past any log, not an overflow back before its start.
-    auto after_first = [first](double seconds) {
-      const double us = seconds * kUs;
-      const double room = static_cast<double>(std::numeric_limits<int64_t>::max() - first);
-      return us >= room ? std::numeric_limits<int64_t>::max() : first + static_cast<int64_t>(std::llround(us));
-    };
     if (o.start_s > 0) {
-      const int64_t from = after_first(o.start_s);
+      const Time from = first.plus_seconds_saturated(o.start_s);
       for (auto& s : m.sources_) {
-        if (s.has && s.event.utime >= from) continue;
-        if (Status st = s.reader.seek(from); !st) return Error{st.message()};
+        if (s.has && Time::from_us(s.event.utime) >= from) continue;
+        if (Status st = s.reader.seek(from.us()); !st) return Error{st.message()};
         s.has = s.reader.next(s.event);
       }
     }
-    if (std::isfinite(o.end_s)) m.end_ = after_first(o.end_s);
+    if (std::isfinite(o.end_s)) m.end_ = first.plus_seconds_saturated(o.end_s);
     return m;
   }
 
   /// The time of the next event, or nullopt at the end.
-  std::optional<int64_t> peek() {
+  std::optional<Time> peek() {
     const Source* s = best();
     if (s == nullptr) return std::nullopt;
-    return s->event.utime;
+    return Time::from_us(s->event.utime);
   }
   bool next(Event& out) {
     Source* s = best();
@@ -119,7 +111,7 @@ class Merger {
     s->has = s->reader.next(s->event);
     return true;
   }
-  int64_t base() const { return base_; }
+  Time base() const { return base_; }
   /// Bytes of the logs read so far, and their total.
   std::pair<uint64_t, uint64_t> bytes() const {
     uint64_t done = 0, total = 0;
@@ -144,15 +136,15 @@ class Merger {
   Source* best() {
     Source* b = nullptr;
     for (auto& s : sources_) {
-      if (s.has && s.event.utime > end_) s.has = false;
+      if (s.has && Time::from_us(s.event.utime) > end_) s.has = false;
       if (s.has && (b == nullptr || s.event.utime < b->event.utime)) b = &s;
     }
     return b;
   }
   Merger() = default;
   std::vector<Source> sources_;
-  int64_t base_ = 0;
-  int64_t end_ = std::numeric_limits<int64_t>::max();
+  Time base_;
+  Time end_ = Time::max();
 };
 
 }  // namespace
@@ -175,7 +167,7 @@ runtime::HostOptions host_options(const ReplayOptions& o) {
 /// Hands one input to the modules at its time: the timer ticks before it, the statistics, the input itself (to the
 /// output log when it keeps inputs, and to the sink), and everything the modules publish in turn.
 Status deliver(runtime::ModuleHost& host, const ReplayOptions& o, ReplayReport& report, const Item& item) {
-  if (Status s = host.advance(Time::from_us(item.time)); !s) return s;
+  if (Status s = host.advance(item.time); !s) return s;
   if (report.dispatched == 0) report.start_utime = host.now().us();
   report.end_utime = host.now().us();
   ++report.dispatched;
@@ -318,22 +310,22 @@ Result<ReplayReport> Replayer::run(const Sink& sink, const std::atomic<bool>* st
   std::unordered_map<std::string, int64_t> unstamped_seq;
   if (o.inject) {
     for (const auto& [channel, f] : o.inject->streams) {
-      injectors.emplace(channel, StreamFaultInjector(channel, f, o.inject->seed, merger->base()));
+      injectors.emplace(channel, StreamFaultInjector(channel, f, o.inject->seed, merger->base().us()));
     }
   }
 
   ItemHeap arrivals;  // inputs delayed by injected latency, by arrival
   ItemHeap stamped;   // --order stamp: inputs waiting for stragglers, by stamp
   int64_t order = 0;
-  int64_t latest_arrival = std::numeric_limits<int64_t>::min();
-  const int64_t window = Duration::from_seconds_rounded(o.reorder_window_s).us();
+  Time latest_arrival = Time::min();
+  const Duration window = Duration::from_seconds_rounded(o.reorder_window_s);
   std::vector<Delivery> deliveries;
   Status failure;
 
   auto to_modules = [&](Item&& item) -> Status {
     if (o.order == Order::kReceived) return deliver(host, o, report, item);
     latest_arrival = std::max(latest_arrival, item.time);
-    if (auto stamp = lcmtypes::header_stamp(item.data(), item.time)) item.time = *stamp;
+    if (auto stamp = lcmtypes::header_stamp(item.data(), item.time.us())) item.time = Time::from_us(*stamp);
     stamped.push(std::move(item));
     while (!stamped.empty() && stamped.top().time <= latest_arrival - window) {
       if (Status s = deliver(host, o, report, stamped.top()); !s) return s;
@@ -342,7 +334,7 @@ Result<ReplayReport> Replayer::run(const Sink& sink, const std::atomic<bool>* st
     return {};
   };
   // Delayed inputs whose arrival has come, up to time t.
-  auto release = [&](int64_t t) -> Status {
+  auto release = [&](Time t) -> Status {
     while (!arrivals.empty() && arrivals.top().time <= t) {
       Item item = std::move(const_cast<Item&>(arrivals.top()));
       arrivals.pop();
@@ -360,15 +352,15 @@ Result<ReplayReport> Replayer::run(const Sink& sink, const std::atomic<bool>* st
     }
     const std::string input(e.channel);
     Item item;
-    item.time = e.utime;
+    item.time = Time::from_us(e.utime);
     item.order = order++;
     item.channel = deliver_as(input);
     item.view = e.data;
     if (auto r = o.restamp.find(input); r != o.restamp.end()) {
       const ClockCorrection& c = r->second;
       item.owned.assign(e.data.begin(), e.data.end());
-      const bool stamped_msg =
-          lcmtypes::map_stamps(item.owned, e.utime, [&](int64_t s) { return corrected_stamp(c, s, merger->base()); });
+      const bool stamped_msg = lcmtypes::map_stamps(
+          item.owned, e.utime, [&](int64_t s) { return corrected_stamp(c, s, merger->base().us()); });
       if (!stamped_msg) item.owned.clear();
     }
     if (auto inj = injectors.find(input); inj != injectors.end()) {
@@ -378,7 +370,7 @@ Result<ReplayReport> Replayer::run(const Sink& sink, const std::atomic<bool>* st
       inj->second.apply(seq, e.utime, deliveries);
       for (const Delivery& d : deliveries) {
         Item copy;
-        copy.time = d.arrival_utime;
+        copy.time = Time::from_us(d.arrival_utime);
         copy.order = order++;
         copy.channel = item.channel;
         copy.owned = item.owned;
@@ -393,13 +385,13 @@ Result<ReplayReport> Replayer::run(const Sink& sink, const std::atomic<bool>* st
       arrivals.push(std::move(item));
     }
     const auto next = merger->peek();
-    if (Status s = release(next ? *next : std::numeric_limits<int64_t>::max()); !s) {
+    if (Status s = release(next.value_or(Time::max())); !s) {
       failure = s;
       break;
     }
   }
   const bool interrupted = stop != nullptr && stop->load();
-  if (failure.ok() && !interrupted) failure = release(std::numeric_limits<int64_t>::max());
+  if (failure.ok() && !interrupted) failure = release(Time::max());
   while (failure.ok() && !stamped.empty()) {
     failure = deliver(host, o, report, stamped.top());
     stamped.pop();

@@ -68,6 +68,37 @@ TEST(LogIndex, CachesBesideTheLogAndRebuildsWhenStale) {
   EXPECT_EQ(third->summary().events, 10);
 }
 
+TEST(LogIndex, CountsStampsOnlyWithAHeaderReaderAndScansACacheWithoutThemOnce) {
+  test::TempDir dir;
+  const std::string log = dir.file("a.lcm");
+  write_log(log, 100);
+  // A reader that sees every message stamped 7 with its log time as seq: all but each channel's first repeat the
+  // stamp before them with another seq.
+  const HeaderReader headers = [](std::span<const uint8_t>, int64_t utime) {
+    return std::optional(HeaderFields{utime, 7});
+  };
+  auto seek = LogIndex::load_or_build(log, {}, 0);  // as LogReader builds it, to seek: no counts
+  ASSERT_TRUE(seek.ok());
+  EXPECT_FALSE(seek->summary().stamps_counted);
+  EXPECT_EQ(seek->summary().channels[0].stamped, 0);
+  auto counted = LogIndex::load_or_build(log, {}, 0, headers);  // as info asks: the cache lacks them, so a scan
+  ASSERT_TRUE(counted.ok());
+  EXPECT_FALSE(counted->from_cache());
+  EXPECT_TRUE(counted->summary().stamps_counted);
+  EXPECT_EQ(counted->summary().channels[0].stamped, 25);
+  EXPECT_EQ(counted->summary().channels[0].stamps_repeated, 24);
+  EXPECT_EQ(counted->summary().channels[1].stamped, 75);
+  EXPECT_EQ(counted->summary().channels[1].stamps_repeated, 74);
+  // Cached with the counts now: either caller takes the cache.
+  auto again = LogIndex::load_or_build(log, {}, 0, headers);
+  ASSERT_TRUE(again.ok());
+  EXPECT_TRUE(again->from_cache());
+  EXPECT_EQ(again->summary().channels[1].stamps_repeated, 74);
+  auto seek_again = LogIndex::load_or_build(log, {}, 0);
+  ASSERT_TRUE(seek_again.ok());
+  EXPECT_TRUE(seek_again->from_cache());
+}
+
 TEST(LogIndex, CorruptCacheIsIgnored) {
   test::TempDir dir;
   const std::string log = dir.file("a.lcm");

@@ -83,6 +83,17 @@ TEST(Time, InstantsAndDurations) {
   EXPECT_EQ(t.us(), 1700000000049999);
 }
 
+TEST(Time, PlusSecondsSaturatesAtTheEndOfTheClock) {
+  const Time t = Time::from_us(1000);
+  EXPECT_EQ(t.plus_seconds_saturated(1.5), Time::from_us(1501000));
+  EXPECT_EQ(t.plus_seconds_saturated(0), t);
+  // A --start or --end past any log is after it, not an overflow back before its start.
+  EXPECT_EQ(t.plus_seconds_saturated(1e308), Time::max());
+  EXPECT_EQ(Time::max().plus_seconds_saturated(1e-6), Time::max());
+  EXPECT_EQ(Time::min().us(), std::numeric_limits<int64_t>::min());
+  EXPECT_LT(Time::min(), Time::from_us(std::numeric_limits<int64_t>::min() + 1));
+}
+
 TEST(Time, SecondsSinceIsDefinedForAnyTwoTimes) {
   const auto a = Time::from_us(1700000000250000), b = Time::from_us(1700000000000000);
   EXPECT_EQ(a.seconds_since(b), (a - b).seconds());  // exact below 2^53 us
