@@ -16,7 +16,7 @@
 #include "batch/demo.h"
 #include "core/progress_line.h"
 #include "core/wall_clock.h"
-#include "report/report.h"
+#include "reporting/report.h"
 
 namespace driftlab::apps {
 namespace {

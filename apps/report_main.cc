@@ -8,7 +8,7 @@
 #include "apps/commands.h"
 #include "core/progress_line.h"
 #include "core/same_file.h"
-#include "report/report.h"
+#include "reporting/report.h"
 
 namespace driftlab::apps {
 
