@@ -1,22 +1,12 @@
 #include "apps/cli_util.h"
 
 #include "core/install_layout.h"
-#include "core/process.h"
 #include "core/text_file.h"
-#include "core/time.h"
 
 #include <signal.h>
-#include <sys/mman.h>
-#include <unistd.h>
 
-#include <algorithm>
 #include <atomic>
-#include <cerrno>
 #include <cstdio>
-#include <cstdlib>
-#include <cstring>
-#include <ctime>
-#include <filesystem>
 
 namespace driftlab::apps {
 
@@ -54,9 +44,7 @@ std::string self_path() {
   return p.empty() ? "driftlab" : p.string();
 }
 
-int exit_code_for_input(const Error& error) {
-  return error.code == ErrorCode::kCannotWrite ? kExitFailure : kExitBadInput;
-}
+int exit_code_for(const Error& error) { return error.code == ErrorCode::kCannotWrite ? kExitFailure : kExitBadInput; }
 
 bool write_output(const std::string& path, const std::string& text) {
   if (path == "-" && capture != nullptr) {
@@ -72,14 +60,6 @@ bool write_output(const std::string& path, const std::string& text) {
     return false;
   }
   return true;
-}
-
-int exit_code_for(const Error& error, std::string out) {
-  while (out.size() > 1 && out.back() == '/') out.pop_back();
-  const std::string& m = error.message;
-  if (out.empty() || m.rfind(out, 0) != 0) return kExitBadInput;
-  const char next = m.size() > out.size() ? m[out.size()] : '\0';
-  return next == ':' || next == '/' || m.compare(out.size(), 8, ".partial") == 0 ? kExitFailure : kExitBadInput;
 }
 
 }  // namespace driftlab::apps

@@ -36,7 +36,7 @@ std::string self_path();
 
 /// The exit code for an error, by its code: kExitFailure (1) when an output could not be written (the
 /// environment), kExitBadInput (2) otherwise (the input).
-int exit_code_for_input(const Error& error);
+int exit_code_for(const Error& error);
 
 /// A command run in-process (the Python module, python/): while one lives on a thread, fail() on that thread keeps
 /// the first message in `error` instead of printing it, and write_output("-") appends to `text` instead of writing
@@ -49,11 +49,6 @@ struct OutputCapture {
   OutputCapture(const OutputCapture&) = delete;
   OutputCapture& operator=(const OutputCapture&) = delete;
 };
-
-/// The exit code for an error of a command that writes `out` (a file or a folder): kExitFailure (the environment:
-/// a full disk, no permission) when the error names the output (out, its .partial or a file in it: errors name
-/// their file first), else kExitBadInput.
-int exit_code_for(const Error& error, std::string out);
 
 /// Writes text to path, or to standard output when path is "-". On failure prints one line naming the file and
 /// returns false.

@@ -87,7 +87,7 @@ void add_diagnose_command(CLI::App& app, int* exit_code) {
     }
     auto log = recordings::event_log_for(o->inputs);
     if (!log) {
-      *exit_code = fail(log.error().message, exit_code_for_input(log.error()));
+      *exit_code = fail(log.error().message, exit_code_for(log.error()));
       return;
     }
     o->log = *log;

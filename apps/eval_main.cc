@@ -53,7 +53,7 @@ int run_arm_eval(const EvalOptions& o) {
   }
   if (Status s = refuse_same_file(o.json.file, {o.arm}, "--json-out"); !s) return fail(s.message());
   auto log = recordings::event_log_for(o.arm);  // another tool's recording: its cached conversion
-  if (!log) return fail(log.error().message, exit_code_for_input(log.error()));
+  if (!log) return fail(log.error().message, exit_code_for(log.error()));
   auto a = evaluate_arm(*log, o.arm_options);
   if (!a) return fail(a.error().message);
   a->log = o.arm;
@@ -87,7 +87,7 @@ int run_eval(const EvalOptions& e) {
   for (std::string* src : {&options.gt, &options.est}) {
     if (src->empty()) continue;
     auto converted = recordings::log_channel_for(*src);
-    if (!converted) return fail(converted.error().message, exit_code_for_input(converted.error()));
+    if (!converted) return fail(converted.error().message, exit_code_for(converted.error()));
     *src = *converted;
   }
   for (const auto& [src, option] :

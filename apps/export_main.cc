@@ -35,7 +35,7 @@ struct CsvArgs {
 int run_csv(const CsvArgs& a) {
   auto done = formats::export_csv(
       {.log = a.log, .out = a.out, .channels = a.channels, .max_array = a.max_array, .bytes = a.bytes});
-  if (!done) return fail(done.error().message, exit_code_for_input(done.error()));
+  if (!done) return fail(done.error().message, exit_code_for(done.error()));
   std::fputs(formats::export_text(*done, a.log).c_str(), stdout);
   if (done->files.empty()) return fail(a.log + ": no channel of a driftlab type to export");
   return kExitOk;
@@ -47,13 +47,13 @@ int run_tum(TumArgs a) {
   }
   if (Status s = refuse_same_file(a.out, {a.log}); !s) return fail(s.message());
   auto log = recordings::event_log_for(a.log);
-  if (!log) return fail(log.error().message, exit_code_for_input(log.error()));
+  if (!log) return fail(log.error().message, exit_code_for(log.error()));
   auto t = analyzers::load_log_channel(*log, a.channel);
   if (!t) return fail(t.error().message);
   // In stamp order, as evo and every TUM reader expect (a log holds poses in arrival order: a late or reordered
   // message arrives after a newer one); said when it changed anything.
   const analyzers::StampOrder order = analyzers::sort_by_stamp(*t);
-  if (auto s = analyzers::write_tum(a.out, *t); !s) return fail(s.message(), kExitFailure);
+  if (auto s = analyzers::write_tum(a.out, *t); !s) return fail(s.message(), exit_code_for(s.error()));
   std::printf("%s:%s -> %s: %s poses", a.log.c_str(), a.channel.c_str(), a.out.c_str(),
               thousands(static_cast<int64_t>(t->size())).c_str());
   if (order.out_of_order > 0) {
@@ -102,7 +102,7 @@ void add_export_commands(CLI::App& exp, int* exit_code) {
     }
     auto log = recordings::event_log_for(csv->inputs);
     if (!log) {
-      *exit_code = fail(log.error().message, exit_code_for_input(log.error()));
+      *exit_code = fail(log.error().message, exit_code_for(log.error()));
       return;
     }
     csv->log = *log;

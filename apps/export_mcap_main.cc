@@ -46,7 +46,7 @@ int run_mcap(const McapArgs& a) {
   if (Status s = refuse_same_file(a.out, a.inputs, "-o", a.folder ? OutputKind::kFolder : OutputKind::kFile); !s)
     return fail(s.message());
   auto log = recordings::event_log_for(a.inputs);
-  if (!log) return fail(log.error().message, exit_code_for_input(log.error()));
+  if (!log) return fail(log.error().message, exit_code_for(log.error()));
   formats::McapExportOptions o;
   o.compression = a.compression == "zstd"  ? formats::McapCompression::kZstd
                   : a.compression == "lz4" ? formats::McapCompression::kLz4

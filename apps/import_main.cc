@@ -63,7 +63,7 @@ void add_import_file_command(CLI::App& import, int* exit_code) {
     std::string alignment;
     auto r = analyzers::import_recording(args->in, args->out, std::ref(problems), &alignment);
     if (!r) {
-      *exit_code = fail(r.error().message, exit_code_for(r.error(), args->out));
+      *exit_code = fail(r.error().message, exit_code_for(r.error()));
       return;
     }
     problems.finish();

@@ -44,7 +44,7 @@ void add_info_command(CLI::App& app, int* exit_code) {
   cmd->callback([opts, exit_code] {
     auto log = recordings::log_for(opts->inputs);
     if (!log) {
-      *exit_code = fail(log.error().message, exit_code_for_input(log.error()));
+      *exit_code = fail(log.error().message, exit_code_for(log.error()));
       return;
     }
     opts->log = *log;

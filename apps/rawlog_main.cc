@@ -45,7 +45,7 @@ void add_rawlog_commands(CLI::App& import, CLI::App& exp, int* exit_code) {
     }
     auto r = slam::import_rawlog(in->in, in->out);
     if (!r) {
-      *exit_code = fail(r.error().message, exit_code_for(r.error(), in->out));
+      *exit_code = fail(r.error().message, exit_code_for(r.error()));
       return;
     }
     print_counts(*r, in->in, in->out);
@@ -72,7 +72,7 @@ void add_rawlog_commands(CLI::App& import, CLI::App& exp, int* exit_code) {
     }
     auto log = recordings::event_log_for(out->in);  // another tool's recording: its cached conversion
     if (!log) {
-      *exit_code = fail(log.error().message, exit_code_for_input(log.error()));
+      *exit_code = fail(log.error().message, exit_code_for(log.error()));
       return;
     }
     auto r = slam::export_rawlog(*log, out->out);

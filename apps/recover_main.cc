@@ -31,7 +31,7 @@ int run_recover(const RecoverArgs& a) {
   options.progress = [&progress](uint64_t done, uint64_t total) { progress.update(done, total); };
   auto r = recorder::recover_log(a.log, a.out, options);
   progress.finish();
-  if (!r) return fail(r.error().message, exit_code_for(r.error(), a.out));
+  if (!r) return fail(r.error().message, exit_code_for(r.error()));
   if (a.json.wanted()) {
     if (!a.json.emit(to_json(*r).dump(2) + "\n")) return kExitFailure;
     if (a.json.print) return kExitOk;

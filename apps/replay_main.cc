@@ -133,7 +133,7 @@ int run_replay(ReplayArgs a) {
   if (Status s = a.json.check(a.o.logs, {a.o.out}); !s) return fail(s.message());
   for (auto& log : a.o.logs) {
     auto converted = recordings::event_log_for(log);  // another tool's recording: its cached conversion
-    if (!converted) return fail(converted.error().message, exit_code_for_input(converted.error()));
+    if (!converted) return fail(converted.error().message, exit_code_for(converted.error()));
     log = *converted;
   }
   replay::ReplayOptions o = a.o;
@@ -204,7 +204,7 @@ int run_replay(ReplayArgs a) {
   replay::Sink sink;
   if (live) sink = [&live](const BusMessage& m) { live->publish(m.channel, m.time, m.data); };
 
-  if (Status s = replayer.open(); !s) return fail(s.message());
+  if (Status s = replayer.open(); !s) return fail(s.message(), exit_code_for(s.error()));
   const Stopwatch running;
   auto report = replayer.run(sink, stop_on_signals());
   progress.finish();
@@ -237,7 +237,7 @@ int run_live(const RunArgs& a) {
   const SystemWallClock clock;
   runtime::LiveRunner runner(a.live, clock);
   for (auto& m : *modules) runner.add_module(std::move(m));
-  if (Status s = runner.open(); !s) return fail(s.message());
+  if (Status s = runner.open(); !s) return fail(s.message(), exit_code_for(s.error()));
   auto report = runner.run(stop_on_signals());
   if (!report) return fail(report.error().message, kExitFailure);
   if (a.json.wanted()) {

@@ -47,9 +47,7 @@ void add_report_command(CLI::App& app, int* exit_code) {
     auto page = report::make_report(options);
     line.finish();
     if (!page) {
-      *exit_code =
-          fail(page.error().message,
-               exit_code_for_input(page.error()) == kExitFailure ? kExitFailure : exit_code_for(page.error(), o->out));
+      *exit_code = fail(page.error().message, exit_code_for(page.error()));
       return;
     }
     std::printf("%s\n", page->c_str());

@@ -3,12 +3,14 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 
 #include "analyzers/evaluate.h"
 #include "analyzers/log_series.h"
 #include "core/install_layout.h"
 #include "core/number_text.h"
 #include "core/process.h"
+#include "core/text_file.h"
 #include "core/wall_clock.h"
 #include "runtime/module_report.h"
 
@@ -106,14 +108,12 @@ Result<DemoPlan> ground_plan(const DemoSettings& s, const std::string& exe) {
   // The estimator as robot_localization runs by default (smooth_lagged_data: false): a measurement stamped before
   // the filter's last update is dropped, not re-applied. That is where a skewed clock hurts a real robot.
   const std::string config = file("replay.yaml");
-  {
-    std::ofstream c(config);
-    c << "# Written by driftlab demo: the estimator re-applies late measurements within window_s [s]; 0 drops them,\n"
-         "# as robot_localization does by default (smooth_lagged_data: false).\n"
-         "estimator:\n  window_s: "
-      << s.estimator_window << "\n";
-    if (!c) return Error{config + ": cannot write"};
-  }
+  std::ostringstream c;
+  c << "# Written by driftlab demo: the estimator re-applies late measurements within window_s [s]; 0 drops them,\n"
+       "# as robot_localization does by default (smooth_lagged_data: false).\n"
+       "estimator:\n  window_s: "
+    << s.estimator_window << "\n";
+  if (Status st = write_file_atomically(config, c.str()); !st) return st.error();
   const std::string modules = "slam,estimator,controller", gt = sim + ":GROUND_TRUTH";
   DemoPlan p;
   p.stages = {

@@ -49,7 +49,7 @@ class LocalExecutor : public Executor {
     const fs::path logs = fs::path(dir) / "logs";
     std::error_code ec;
     fs::create_directories(logs, ec);
-    if (ec) return Error{logs.string() + ": cannot create: " + ec.message()};
+    if (ec) return Error{logs.string() + ": cannot create: " + ec.message(), ErrorCode::kCannotWrite};
     std::deque<std::string> queue(ids.begin(), ids.end());
     std::map<std::string, int> tries;
     std::map<pid_t, std::string> running;
@@ -140,13 +140,13 @@ class SlurmExecutor : public Executor {
     const fs::path slurm = dir / "slurm";
     std::error_code ec;
     fs::create_directories(slurm / "logs", ec);
-    if (ec) return Error{slurm.string() + ": cannot create: " + ec.message()};
+    if (ec) return Error{slurm.string() + ": cannot create: " + ec.message(), ErrorCode::kCannotWrite};
     int k = 0;
     while (fs::exists(slurm / ("array-" + std::to_string(k) + ".txt"))) ++k;
     const std::string stem = "array-" + std::to_string(k);
     std::string list;
     for (const auto& id : ids) list += id + "\n";
-    if (Status s = write_file_atomically((slurm / (stem + ".txt")).string(), list); !s) return Error{s.message()};
+    if (Status s = write_file_atomically((slurm / (stem + ".txt")).string(), list, kSynced); !s) return s.error();
 
     const std::string script = (slurm / (stem + ".sh")).string();
     std::ostringstream sh;
@@ -165,7 +165,7 @@ class SlurmExecutor : public Executor {
        << "  scontrol requeue \"${SLURM_ARRAY_JOB_ID}_${SLURM_ARRAY_TASK_ID}\"\n"
        << "fi\n"
        << "exit \"$rc\"\n";
-    if (Status s = write_file_atomically(script, sh.str()); !s) return Error{s.message()};
+    if (Status s = write_file_atomically(script, sh.str(), kSynced); !s) return s.error();
     fs::permissions(script, fs::perms::owner_exec | fs::perms::group_exec, fs::perm_options::add, ec);
 
     std::string array = "--array=0-" + std::to_string(ids.size() - 1);
@@ -179,8 +179,8 @@ class SlurmExecutor : public Executor {
     // be read and run again by hand.
     std::string command;
     for (const auto& a : argv) command += (command.empty() ? "" : " ") + sh_quote(a);
-    if (Status s = write_file_atomically((slurm / (stem + ".sbatch.cmd")).string(), command + "\n"); !s) {
-      return Error{s.message()};
+    if (Status s = write_file_atomically((slurm / (stem + ".sbatch.cmd")).string(), command + "\n", kSynced); !s) {
+      return s.error();
     }
     const std::string out = (slurm / (stem + ".sbatch.out")).string(), err = (slurm / (stem + ".sbatch.err")).string();
     const int code = run_process(argv, out, err);

@@ -106,16 +106,16 @@ int run_point(const Plan& plan, const Point& point, const std::string& dir, cons
                             {"attempt", attempt},
                             {"started", clock.now().us() / 1000000}};  // [s since the epoch]
   if (const char* job = std::getenv("SLURM_JOB_ID")) running["slurm_job"] = job;
-  (void)write_file_atomically(file("running.json"), running.dump() + "\n");
+  (void)write_file_atomically(file("running.json"), running.dump() + "\n", kSynced);
 
   nlohmann::json params = nlohmann::json::object();
   for (const auto& [k, v] : point.params) params[k] = v.json();
-  (void)write_file_atomically(file("params.json"), params.dump(1) + "\n");
+  (void)write_file_atomically(file("params.json"), params.dump(1) + "\n", kSynced);
 
   // The point's inputs.
   const std::string faults = faults_yaml(s, point), config = module_config_yaml(s, point);
-  if (!faults.empty()) (void)write_file_atomically(file("faults.yaml"), faults);
-  if (!config.empty()) (void)write_file_atomically(file("replay.yaml"), config);
+  if (!faults.empty()) (void)write_file_atomically(file("faults.yaml"), faults, kSynced);
+  if (!config.empty()) (void)write_file_atomically(file("replay.yaml"), config, kSynced);
   const Value* log = point.get("log");
   const std::string input = log != nullptr ? log->text : file("sim.lcm");
   const Value* seed = point.get("seed");
@@ -179,7 +179,7 @@ int run_point(const Plan& plan, const Point& point, const std::string& dir, cons
   auto fail_with = [&](const std::string& stage, int code, const std::string& why) {
     const nlohmann::json failed = {{"stage", stage}, {"exit_code", code}, {"error", why}, {"attempt", attempt},
                                    {"host", host_name()}, {"seconds", seconds}};
-    (void)write_file_atomically(file("failed.json"), failed.dump(1) + "\n");
+    (void)write_file_atomically(file("failed.json"), failed.dump(1) + "\n", kSynced);
     fs::remove(file("running.json"), ec);
     std::fprintf(stderr, "driftlab: point %s: %s\n", point.id.c_str(), why.c_str());
     return g_stop ? kPointInterrupted : kPointFailed;
@@ -217,7 +217,7 @@ int run_point(const Plan& plan, const Point& point, const std::string& dir, cons
   const nlohmann::json result = {{"id", point.id}, {"params", params}, {"metrics", metrics}, {"seconds", seconds},
                                  {"attempt", attempt}, {"host", host_name()}};
   // The done-marker, last: a point with result.json is whole and never runs again.
-  if (Status st = write_file_atomically(file("result.json"), result.dump(1) + "\n"); !st) {
+  if (Status st = write_file_atomically(file("result.json"), result.dump(1) + "\n", kSynced); !st) {
     return fail_with("collect", 1, st.message());
   }
   fs::remove(file("running.json"), ec);

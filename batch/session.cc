@@ -90,8 +90,9 @@ Result<std::string> write_tables(const std::string& dir, const Plan& plan) {
   for (Stage s : plan.spec.stages) j["stages"].push_back(stage_name(s));
   if (plan.spec.kind == "batch" || !plan.spec.logs.empty()) j["ranked"] = rank_batch(t);
   const std::string json_path = (fs::path(dir) / "results.json").string();
-  if (Status s = write_file_atomically((fs::path(dir) / "results.csv").string(), table_csv(t)); !s) return s.error();
-  if (Status s = write_file_atomically(json_path, j.dump(1) + "\n"); !s) return s.error();
+  if (Status s = write_file_atomically((fs::path(dir) / "results.csv").string(), table_csv(t), kSynced); !s)
+    return s.error();
+  if (Status s = write_file_atomically(json_path, j.dump(1) + "\n", kSynced); !s) return s.error();
   return json_path;
 }
 
@@ -218,7 +219,7 @@ Result<std::string> collect(const std::string& dir, const Plan& plan, bool plots
   if (!json_path) return json_path.error();
   if (!plots) return std::string();
   if (Status s = run_plot_script(kSweepPageScript, "sweep_page.py", dir, {*json_path, dir}); !s) {
-    return Error{"collect " + dir + ": " + s.message()};
+    return Error{"collect " + dir + ": " + s.message(), s.code()};
   }
   return (fs::path(dir) / "index.html").string();
 }

@@ -65,8 +65,8 @@ std::string result_path(const std::string& dir, const std::string& id) {
 Status save_plan(const std::string& dir, const Plan& plan) {
   std::error_code ec;
   fs::create_directories(fs::path(dir) / "points", ec);
-  if (ec) return Error{dir + ": cannot create the sweep folder: " + ec.message()};
-  return write_file_atomically(plan_path(dir), to_json(plan).dump(1) + "\n");
+  if (ec) return Error{dir + ": cannot create the sweep folder: " + ec.message(), ErrorCode::kCannotWrite};
+  return write_file_atomically(plan_path(dir), to_json(plan).dump(1) + "\n", kSynced);
 }
 
 Result<Plan> load_plan(const std::string& dir) {
@@ -122,7 +122,7 @@ int count_attempt(const std::string& dir, const std::string& id) {
     a >> n;
   }
   ++n;
-  (void)write_file_atomically(f.string(), std::to_string(n) + "\n");
+  (void)write_file_atomically(f.string(), std::to_string(n) + "\n", kSynced);
   return n;
 }
 

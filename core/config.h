@@ -353,7 +353,7 @@ class Table {
   Status read(const Value& v, T& out) const { return s_->read(v, &out); }
   /// The struct from `base` (default: a default-constructed T) and the keys given.
   Result<T> parse(const Value& v, T base = T{}) const {
-    if (Status st = read(v, base); !st) return Error{st.message()};
+    if (Status st = read(v, base); !st) return st.error();
     return base;
   }
   /// "a, b, c": the keys, in declaration order.

@@ -1,10 +1,8 @@
 #include "core/log_index.h"
 
 #include <sys/stat.h>
-#include <unistd.h>
 
 #include <algorithm>
-#include <cstdio>
 #include <cstring>
 #include <limits>
 #include <unordered_map>
@@ -13,6 +11,7 @@
 #include "core/log_format.h"
 #include "core/mapped_file.h"
 #include "core/string_hash.h"
+#include "core/text_file.h"
 
 namespace driftlab {
 namespace {
@@ -169,13 +168,11 @@ bool deserialise(std::span<const uint8_t> bytes, const FileIdentity& expected, L
   return in.at_end();
 }
 
-/// Writes the cache atomically (temporary file, then rename); failures are ignored: the cache is optional.
+/// Writes the cache atomically, through a partial file of its own (processes may index one log at once); failures
+/// are ignored: the cache is optional.
 void save_cache(const std::string& path, const std::vector<uint8_t>& bytes) {
-  const std::string tmp = path + ".tmp." + std::to_string(getpid());
-  FILE* f = std::fopen(tmp.c_str(), "wb");
-  if (f == nullptr) return;
-  const bool ok = std::fwrite(bytes.data(), 1, bytes.size(), f) == bytes.size();
-  if (std::fclose(f) != 0 || !ok || std::rename(tmp.c_str(), path.c_str()) != 0) std::remove(tmp.c_str());
+  (void)write_file_atomically(path, {reinterpret_cast<const char*>(bytes.data()), bytes.size()},
+                              {.partial_of_its_own = true});
 }
 
 }  // namespace

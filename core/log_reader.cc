@@ -70,14 +70,14 @@ Result<LogReader> LogReader::open(const std::string& path, ReadOptions options) 
   if (!mapped) return mapped.error();
   const auto bytes = mapped->bytes();
   auto impl = std::make_unique<Impl>(path, std::move(*mapped), bytes, std::move(options));
-  if (auto st = compile_filter(impl->options.channels, impl->filter); !st) return Error{st.message()};
+  if (auto st = compile_filter(impl->options.channels, impl->filter); !st) return st.error();
   return LogReader(std::move(impl));
 }
 
 Result<LogReader> LogReader::from_memory(std::span<const uint8_t> bytes, ReadOptions options) {
   auto impl = std::make_unique<Impl>("<memory>", MappedFile(), bytes, std::move(options));
   impl->in_memory = true;
-  if (auto st = compile_filter(impl->options.channels, impl->filter); !st) return Error{st.message()};
+  if (auto st = compile_filter(impl->options.channels, impl->filter); !st) return st.error();
   return LogReader(std::move(impl));
 }
 

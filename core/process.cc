@@ -73,7 +73,7 @@ Status run_plot_script(const char* script, const std::string& name, const std::s
     const size_t n = std::strlen(script);
     bool ok = f != nullptr && std::fwrite(script, 1, n, f) == n;
     if (f != nullptr && std::fclose(f) != 0) ok = false;
-    if (!ok) return Error{path + ": cannot write"};
+    if (!ok) return Error{path + ": cannot write", ErrorCode::kCannotWrite};
   }
   // The first Python that has matplotlib: $DRIFTLAB_PYTHON, the one on PATH, then Debian's (where
   // python3-matplotlib installs, should PATH lead to another, like pyenv's).
@@ -97,7 +97,8 @@ Status run_plot_script(const char* script, const std::string& name, const std::s
   if (code == 3 || code == 127) {
     return Error{"no python3 with matplotlib (Debian: apt-get install python3-matplotlib, or run scripts/bootstrap)"};
   }
-  if (code == 4 && !said.empty()) return Error{said};  // "DIR: cannot write the page: No space left on device"
+  // The script's exit 4: "DIR: cannot write the page: No space left on device".
+  if (code == 4 && !said.empty()) return Error{said, ErrorCode::kCannotWrite};
   if (code != 0) {
     return Error{"drawing the plots failed (python3 exited with " + std::to_string(code) + ")" +
                  (said.empty() ? std::string() : ": " + said)};

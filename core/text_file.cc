@@ -4,9 +4,11 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <atomic>
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
+#include <string>
 
 namespace driftlab {
 
@@ -40,9 +42,29 @@ Result<std::string> read_text_file(const std::string& path, const std::string& w
   return text;
 }
 
-Status write_file_atomically(const std::string& path, std::string_view bytes) {
-  const std::string partial = path + ".partial";
-  const int fd = ::open(partial.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+Result<PartialFile> create_partial_of_its_own(const std::string& path) {
+  static std::atomic<unsigned> counter{0};
+  for (int attempt = 0; attempt < 1000; ++attempt) {
+    PartialFile p;
+    p.path = path + ".partial." + std::to_string(::getpid()) + "." + std::to_string(counter++);
+    p.fd = ::open(p.path.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0644);
+    if (p.fd >= 0) return p;
+    if (errno != EEXIST) return Error{p.path + ": cannot create: " + std::strerror(errno), ErrorCode::kCannotWrite};
+  }
+  return Error{path + ".partial: cannot create a partial file of its own", ErrorCode::kCannotWrite};
+}
+
+Status write_file_atomically(const std::string& path, std::string_view bytes, AtomicWrite how) {
+  std::string partial = path + ".partial";
+  int fd = -1;
+  if (how.partial_of_its_own) {
+    auto own = create_partial_of_its_own(path);
+    if (!own) return own.error();
+    fd = own->fd;
+    partial = own->path;
+  } else {
+    fd = ::open(partial.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  }
   if (fd < 0) return Error{path + ": cannot write: " + std::strerror(errno), ErrorCode::kCannotWrite};
   size_t done = 0;
   bool ok = true;
@@ -55,8 +77,8 @@ Status write_file_atomically(const std::string& path, std::string_view bytes) {
     }
     done += static_cast<size_t>(n);
   }
-  const int err = errno;
-  if (ok && ::fsync(fd) != 0) ok = false;
+  const int err = ok ? 0 : errno;
+  if (ok && how.sync && ::fsync(fd) != 0) ok = false;
   if (::close(fd) != 0) ok = false;
   if (ok && std::rename(partial.c_str(), path.c_str()) != 0) ok = false;
   if (ok) return {};

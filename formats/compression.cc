@@ -285,7 +285,7 @@ Status decompress_file(Codec codec, const std::string& in, const std::string& ou
   if (!src) return Error(in + ": cannot open: " + std::strerror(errno));
   const std::string partial = out + ".partial";
   std::unique_ptr<FILE, int (*)(FILE*)> dst(std::fopen(partial.c_str(), "wb"), &std::fclose);
-  if (!dst) return Error(out + ": cannot create: " + std::strerror(errno));
+  if (!dst) return Error(out + ": cannot create: " + std::strerror(errno), ErrorCode::kCannotWrite);
   std::unique_ptr<ZSTD_DCtx, size_t (*)(ZSTD_DCtx*)> ctx(ZSTD_createDCtx(), &ZSTD_freeDCtx);
   std::vector<uint8_t> ibuf(ZSTD_DStreamInSize()), obuf(ZSTD_DStreamOutSize());
   std::string error;
@@ -297,6 +297,7 @@ Status decompress_file(Codec codec, const std::string& in, const std::string& ou
   const uint64_t bound = max_out != 0 ? max_out : DecodeBudget(in_bytes).total();
   uint64_t written = 0;
   bool bomb = false;
+  bool cannot_write = false;  // the output's fault, not the input's
   for (;;) {
     const size_t got = std::fread(ibuf.data(), 1, ibuf.size(), src.get());
     if (got == 0) break;
@@ -317,6 +318,7 @@ Status decompress_file(Codec codec, const std::string& in, const std::string& ou
       }
       if (output.pos && std::fwrite(obuf.data(), 1, output.pos, dst.get()) != output.pos) {
         error = "cannot write " + partial + ": " + std::strerror(errno);
+        cannot_write = true;
       }
     }
     read_total += got;
@@ -326,10 +328,12 @@ Status decompress_file(Codec codec, const std::string& in, const std::string& ou
     error = "the compressed file ends early (at byte " + std::to_string(read_total) + ")";
   const bool closed = std::fclose(dst.release()) == 0;
   if (error.empty() && !closed) error = "cannot write " + partial;
+  cannot_write = cannot_write || !closed;
   // What was decoded before damage is kept: the reader of the decompressed file reports the cut itself.
   if (!closed || bomb || std::rename(partial.c_str(), out.c_str()) != 0) {
     std::remove(partial.c_str());
-    return Error(in + ": " + (error.empty() ? "cannot rename into place" : error));
+    if (error.empty()) return Error(in + ": cannot rename into place", ErrorCode::kCannotWrite);
+    return Error(in + ": " + error, cannot_write ? ErrorCode::kCannotWrite : ErrorCode::kBadInput);
   }
   if (!error.empty()) return Error(in + ": " + error);
   return {};

@@ -79,11 +79,11 @@ void write_header(FILE* f, const std::vector<std::string>& names) {
 Status widen(const CsvFile& f) {
   const std::string from = f.path + ".partial", to = f.path + ".partial2";
   FILE* in = std::fopen(from.c_str(), "r");
-  if (in == nullptr) return Error{from + ": cannot read back: " + std::strerror(errno)};
+  if (in == nullptr) return Error{from + ": cannot read back: " + std::strerror(errno), ErrorCode::kCannotWrite};
   FILE* out = std::fopen(to.c_str(), "w");
   if (out == nullptr) {
     std::fclose(in);
-    return Error{to + ": cannot create: " + std::strerror(errno)};
+    return Error{to + ": cannot create: " + std::strerror(errno), ErrorCode::kCannotWrite};
   }
   write_header(out, f.names);
   const size_t width = f.names.size() + 1;
@@ -107,11 +107,11 @@ Status widen(const CsvFile& f) {
   std::fclose(in);
   if (std::fclose(out) != 0 || !read_ok) {
     std::remove(to.c_str());
-    return Error{to + ": write failed (disk full?)"};
+    return Error{to + ": write failed (disk full?)", ErrorCode::kCannotWrite};
   }
   std::error_code ec;
   fs::rename(to, from, ec);
-  if (ec) return Error{from + ": cannot replace: " + ec.message()};
+  if (ec) return Error{from + ": cannot replace: " + ec.message(), ErrorCode::kCannotWrite};
   return {};
 }
 
@@ -139,7 +139,7 @@ Result<CsvExport> export_csv(const CsvExportOptions& a) {
   if (!reader) return reader.error();
   std::error_code ec;
   fs::create_directories(a.out, ec);
-  if (ec) return Error{a.out + ": cannot create: " + ec.message()};
+  if (ec) return Error{a.out + ": cannot create: " + ec.message(), ErrorCode::kCannotWrite};
   std::map<std::string, CsvFile, std::less<>> files;
   std::set<std::string> file_names;  // taken, for channels that map to one name
   CsvExport done;
@@ -167,11 +167,12 @@ Result<CsvExport> export_csv(const CsvExportOptions& a) {
         if (g.f != nullptr && &g != &f && (oldest == nullptr || g.last_use < oldest->last_use)) oldest = &g;
       }
       if ((err != EMFILE && err != ENFILE) || oldest == nullptr) {
-        return Error{f.path + ".partial: cannot " + (*mode == 'w' ? "create" : "reopen") + ": " + std::strerror(err)};
+        return Error{f.path + ".partial: cannot " + (*mode == 'w' ? "create" : "reopen") + ": " + std::strerror(err),
+                     ErrorCode::kCannotWrite};
       }
       const bool ok = std::fclose(oldest->f) == 0;
       oldest->f = nullptr;
-      if (!ok) return Error{oldest->path + ".partial: write failed (disk full?)"};
+      if (!ok) return Error{oldest->path + ".partial: write failed (disk full?)", ErrorCode::kCannotWrite};
     }
   };
   Event e;
@@ -197,7 +198,7 @@ Result<CsvExport> export_csv(const CsvExportOptions& a) {
       f.path = (fs::path(a.out) / (unique_channel_file_name(e.channel, &file_names) + ".csv")).string();
       if (Status st = open_file(f, "w"); !st) {
         close_all(false);
-        return Error{st.message(), ErrorCode::kCannotWrite};
+        return st.error();
       }
       for (const auto& [c, v] : values) {
         if (f.column.emplace(c, f.names.size()).second) f.names.push_back(c);
@@ -211,7 +212,7 @@ Result<CsvExport> export_csv(const CsvExportOptions& a) {
     if (f.f == nullptr) {
       if (Status st = open_file(f, "a"); !st) {
         close_all(false);
-        return Error{st.message(), ErrorCode::kCannotWrite};
+        return st.error();
       }
     }
     for (auto& cell : f.row) cell.clear();
@@ -245,7 +246,7 @@ Result<CsvExport> export_csv(const CsvExportOptions& a) {
     if (f.names.size() > f.header_columns) {
       if (Status st = widen(f); !st) {
         close_all(false);
-        return Error{st.message(), ErrorCode::kCannotWrite};
+        return st.error();
       }
     }
     fs::rename(f.path + ".partial", f.path, ec);

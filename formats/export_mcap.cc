@@ -9,6 +9,7 @@
 
 #include "core/log_reader.h"
 #include "core/number_text.h"
+#include "core/text_file.h"
 #include "driftlab/barometer_t.hpp"
 #include "driftlab/channel_source_t.hpp"
 #include "driftlab/foreign_message_t.hpp"
@@ -373,9 +374,9 @@ Result<McapExportSummary> export_mcap(const std::string& log, const std::string&
   if (status && !problems.entries.empty()) status = writer->add_metadata(problems.name, problems.entries);
   if (!status) {
     writer->discard();
-    return Error(status.message());
+    return status.error();
   }
-  if (Status s = writer->close(); !s) return Error(s.message());
+  if (Status s = writer->close(); !s) return s.error();
   ex.summary.bytes = writer->bytes();
   return ex.summary;
 }
@@ -391,7 +392,9 @@ Result<McapExportSummary> export_rosbag2(const std::string& log, const std::stri
   }
   const std::string partial = dir + ".partial";
   fs::remove_all(partial, ec);
-  if (!fs::create_directories(partial, ec)) return Error(partial + ": cannot create: " + ec.message());
+  if (!fs::create_directories(partial, ec)) {
+    return Error(partial + ": cannot create: " + ec.message(), ErrorCode::kCannotWrite);
+  }
   const std::string name = fs::path(dir).filename().string() + "_0.mcap";
   auto summary = export_mcap(log, partial + "/" + name, options, on_problem);
   if (!summary) {
@@ -415,19 +418,15 @@ Result<McapExportSummary> export_rosbag2(const std::string& log, const std::stri
     topics.push_back(std::move(ti));
   }
   const Ros2FileInfo file{name, summary->start_ns, summary->end_ns - summary->start_ns, summary->messages};
-  {
-    std::ofstream m(partial + "/metadata.yaml", std::ios::binary);
-    m << ros2_metadata_yaml("mcap", topics, {file});
-    if (!m.flush()) {
-      fs::remove_all(partial, ec);
-      return Error(partial + "/metadata.yaml: cannot write");
-    }
+  if (Status s = write_file_atomically(partial + "/metadata.yaml", ros2_metadata_yaml("mcap", topics, {file})); !s) {
+    fs::remove_all(partial, ec);
+    return s.error();
   }
   if (fs::exists(dir, ec)) fs::remove(dir, ec);  // the empty folder given
   fs::rename(partial, dir, ec);
   if (ec) {
     fs::remove_all(partial, ec);
-    return Error(dir + ": cannot rename " + partial + " into place");
+    return Error(dir + ": cannot rename " + partial + " into place", ErrorCode::kCannotWrite);
   }
   return summary;
 }

@@ -5,7 +5,6 @@
 #include <unistd.h>
 
 #include <algorithm>
-#include <atomic>
 #include <cctype>
 #include <cerrno>
 #include <cstdint>
@@ -21,6 +20,7 @@
 
 #include "core/log_writer.h"
 #include "core/number_text.h"
+#include "core/text_file.h"
 #include "driftlab/channel_source_t.hpp"
 #include "driftlab/dropout_t.hpp"
 #include "driftlab/foreign_message_t.hpp"
@@ -883,12 +883,12 @@ std::vector<std::string> recording_files(const std::vector<std::string>& inputs)
 
 namespace {
 /// A partial output removed unless it was renamed into place (path cleared).
-struct PartialFile {
+struct RemovedUnlessKept {
   std::string path;
-  PartialFile() = default;
-  PartialFile(const PartialFile&) = delete;
-  PartialFile& operator=(const PartialFile&) = delete;
-  ~PartialFile() {
+  explicit RemovedUnlessKept(std::string p) : path(std::move(p)) {}
+  RemovedUnlessKept(const RemovedUnlessKept&) = delete;
+  RemovedUnlessKept& operator=(const RemovedUnlessKept&) = delete;
+  ~RemovedUnlessKept() {
     if (!path.empty()) std::remove(path.c_str());
   }
 };
@@ -943,21 +943,10 @@ Result<ImportSummary> import_log(const std::vector<std::string>& inputs, const s
   // Written under a name of its own beside the output, created exclusively, and renamed into place when whole: two
   // processes converting one recording into one cache at once each write their own file (they shared
   // OUT.partial, and one renamed the other's half-written log into place).
-  PartialFile partial;
-  for (int attempt = 0; attempt < 1000 && partial.path.empty(); ++attempt) {
-    static std::atomic<unsigned> counter{0};
-    const std::string name = out_path + ".partial." + std::to_string(::getpid()) + "." + std::to_string(counter++);
-    const int fd = ::open(name.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0644);
-    if (fd >= 0) {
-      ::close(fd);
-      partial.path = name;
-    } else if (errno != EEXIST) {
-      return Error(name + ": cannot create log: " + std::strerror(errno), ErrorCode::kCannotWrite);
-    }
-  }
-  if (partial.path.empty()) {
-    return Error(out_path + ".partial: cannot create a partial file of its own", ErrorCode::kCannotWrite);
-  }
+  auto own = create_partial_of_its_own(out_path);
+  if (!own) return own.error();
+  ::close(own->fd);
+  RemovedUnlessKept partial{own->path};
   // The kernel's copy into the file on a thread of its own, overlapping the conversion.
   auto writer = LogWriter::create(partial.path, {.background = true});
   if (!writer) return writer.error();

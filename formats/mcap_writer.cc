@@ -210,13 +210,15 @@ struct McapWriter::Impl {
 
   uint64_t offset() const { return flushed + out.size(); }  // with no writing thread running
   Status io_failure(const std::string& what, int err) const {
-    return Error(file_path + ": " + what + (err ? std::string(": ") + std::strerror(err) : ""));
+    return Error(file_path + ": " + what + (err ? std::string(": ") + std::strerror(err) : ""),
+                 ErrorCode::kCannotWrite);
   }
-  /// Keeps the first failure (the calling thread's side) and returns it.
+  /// Keeps the first failure (the calling thread's side) and returns it. Every failure of a writer is the output's.
   Status fail(const Status& st) {
     if (error.empty()) error = st.message();
-    return Error(error);
+    return failed();
   }
+  Status failed() const { return Error(error, ErrorCode::kCannotWrite); }
   Status fail(const std::string& what, int err) { return fail(io_failure(what, err)); }
 
   std::unique_ptr<Compressor> make_compressor() const {
@@ -375,7 +377,7 @@ struct McapWriter::Impl {
     }
     std::unique_lock lk(mu);
     cv.wait(lk, [&] { return jobs.size() + in_flight < kMaxJobs; });
-    if (!io_error.empty()) return fail(Error(io_error));
+    if (!io_error.empty()) return fail(Error(io_error, ErrorCode::kCannotWrite));
     j.number = handed++;
     jobs.push_back(std::move(j));
     cv.notify_all();
@@ -422,7 +424,7 @@ struct McapWriter::Impl {
       for (auto& t : threads) t.join();
       threads.clear();
     }
-    if (!io_error.empty()) return fail(Error(io_error));
+    if (!io_error.empty()) return fail(Error(io_error, ErrorCode::kCannotWrite));
     return {};
   }
 };
@@ -441,7 +443,7 @@ Result<McapWriter> McapWriter::create(const std::string& path, McapWriteOptions 
   s.path = path;
   s.file_path = s.options.atomic ? path + ".partial" : path;
   s.fd = ::open(s.file_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-  if (s.fd < 0) return Error(path + ": cannot create: " + std::strerror(errno));
+  if (s.fd < 0) return Error(path + ": cannot create: " + std::strerror(errno), ErrorCode::kCannotWrite);
   s.inline_packer.compressor = s.make_compressor();
   s.out.bytes(kMagic);
   const size_t at = s.out.begin_record(kHeader);
@@ -478,7 +480,7 @@ Status McapWriter::write(uint16_t channel_id, uint32_t sequence, uint64_t log_ti
 Status McapWriter::write(uint16_t channel_id, uint32_t sequence, uint64_t log_time, uint64_t publish_time, size_t size,
                          const std::function<void(uint8_t*)>& fill) {
   Impl& s = *impl_;
-  if (!s.error.empty()) return Error(s.error);
+  if (!s.error.empty()) return s.failed();
   DRIFTLAB_CHECK(channel_id < s.channels.size(), "a channel id comes from add_channel");
   ChannelEntry& c = s.channels[channel_id];
   if (!c.written) {
@@ -510,7 +512,7 @@ Status McapWriter::write(uint16_t channel_id, uint32_t sequence, uint64_t log_ti
 Status McapWriter::add_metadata(std::string_view name,
                                 const std::vector<std::pair<std::string, std::string>>& entries) {
   Impl& s = *impl_;
-  if (!s.error.empty()) return Error(s.error);
+  if (!s.error.empty()) return s.failed();
   if (Status st = s.close_chunk(); !st) return st;
   if (Status st = s.hand_out(); !st) return st;
   Buf record;
@@ -536,7 +538,7 @@ uint64_t McapWriter::bytes() const {
 
 Status McapWriter::close() {
   Impl& s = *impl_;
-  if (s.closed) return s.error.empty() ? Status{} : Status(Error(s.error));
+  if (s.closed) return s.error.empty() ? Status{} : s.failed();
   s.closed = true;
   Status st = s.close_chunk();
   if (st) st = s.hand_out();

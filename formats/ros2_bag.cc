@@ -195,7 +195,7 @@ Result<SqliteBagReader> SqliteBagReader::open(const std::string& path) {
           return m;
         }
       }
-      return Error(s.message());
+      return s.error();
     }
     return r;
   }
@@ -215,7 +215,7 @@ Result<SqliteBagReader> SqliteBagReader::from_memory(std::span<const uint8_t> by
     return Error(std::string("db3: ") + sqlite3_errmsg(r.db_->db));
   }
   r.db_->budget(bytes.size());
-  if (Status s = r.load_tables(); !s) return Error(s.message());
+  if (Status s = r.load_tables(); !s) return s.error();
   return r;
 }
 
@@ -397,7 +397,7 @@ Result<Ros2BagMetadata> read_ros2_metadata(const std::string& folder) {
       m.relative_file_paths.push_back(p);
     }
   } else if (Status s = r.status(); !s) {
-    return Error(s.message());
+    return s.error();
   } else {
     return Error(path + ": " + top + ".relative_file_paths: not a list");
   }
@@ -422,7 +422,7 @@ Result<Ros2BagMetadata> read_ros2_metadata(const std::string& folder) {
   } else if (topics && r.status()) {
     return Error(path + ": " + twmc + ": not a list");
   }
-  if (Status s = r.status(); !s) return Error(s.message());
+  if (Status s = r.status(); !s) return s.error();
   return m;
 }
 

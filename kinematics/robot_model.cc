@@ -173,7 +173,7 @@ Eigen::Isometry3d ModelJoint::transform(double q) const {
 Result<RobotModel> RobotModel::parse(const std::string& xml, const std::string& origin) {
   std::vector<std::string> links;
   std::vector<XmlJoint> structure;
-  if (Status s = read_structure(xml, origin, links, structure); !s) return Error{s.message()};
+  if (Status s = read_structure(xml, origin, links, structure); !s) return s.error();
 
   urdf::ModelInterfaceSharedPtr model;
   {

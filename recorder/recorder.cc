@@ -184,7 +184,7 @@ class Session {
   Status open_part() {
     const std::string path = splitting() ? split_path(o_.out, static_cast<int>(summary_.files.size())) : o_.out;
     auto w = LogWriter::create(path, {.buffer_bytes = 4 << 20});
-    if (!w) return Error{w.error().message};
+    if (!w) return w.error();
     writer_.emplace(std::move(*w));
     summary_.files.push_back(path);
     part_start_.restart();
@@ -197,7 +197,7 @@ class Session {
     const Status written = write();
     stop_.store(true);
     receiver.join();
-    if (!written.ok()) return Error{written.message()};
+    if (!written.ok()) return written.error();
     summary_.seconds = start_.seconds();
     return summary_;
   }
@@ -481,9 +481,9 @@ Result<RecordSummary> Recorder::run() {
   Session session(options_, clock_, stop_, *fd);
   Result<RecordSummary> result = Error{""};
   if (auto st = session.compile_filters(); !st) {
-    result = Error{st.message()};
+    result = st.error();
   } else if (auto opened = session.open_part(); !opened) {
-    result = Error{opened.message()};
+    result = opened.error();
   } else {
     if (options_.on_listening) options_.on_listening();
     result = session.run();

@@ -18,6 +18,7 @@
 
 #include "core/log_reader.h"
 #include "core/number_text.h"
+#include "core/text_file.h"
 #include "formats/import.h"
 
 namespace driftlab::recordings {
@@ -100,26 +101,6 @@ std::string untrusted(const std::string& path) {
   if (S_ISLNK(st.st_mode)) return "a symbolic link";
   if (!S_ISREG(st.st_mode)) return "not a regular file";
   if (st.st_uid != ::geteuid()) return "owned by another user";
-  return {};
-}
-
-/// Writes text to path through a partial file of its own (created exclusively) renamed into place.
-Status write_key(const std::string& path, const std::string& text) {
-  static int counter = 0;
-  std::string partial;
-  int fd = -1;
-  for (int attempt = 0; attempt < 1000 && fd < 0; ++attempt) {
-    partial = path + ".partial." + std::to_string(::getpid()) + "." + std::to_string(counter++);
-    fd = ::open(partial.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0644);
-    if (fd < 0 && errno != EEXIST) break;
-  }
-  if (fd < 0) return Error(path + ": cannot write");
-  bool ok = ::write(fd, text.data(), text.size()) == static_cast<ssize_t>(text.size());
-  ok = ::close(fd) == 0 && ok;
-  if (!ok || std::rename(partial.c_str(), path.c_str()) != 0) {
-    std::remove(partial.c_str());
-    return Error(path + ": cannot write");
-  }
   return {};
 }
 
@@ -271,8 +252,10 @@ Result<std::string> log_for(const std::vector<std::string>& inputs) {
   const std::string made = file_identity(cache, true);
   if (made.empty())
     return Error(named + kCannotWriteConversion + cache + ": cannot read it back", ErrorCode::kCannotWrite);
-  if (Status s = write_key(key_path, key + "cache " + made + "\nproblems " + std::to_string(problems.count()) + "\n" +
-                                         (alignment.empty() ? std::string() : "alignment " + alignment + "\n"));
+  if (Status s = write_file_atomically(key_path,
+                                       key + "cache " + made + "\nproblems " + std::to_string(problems.count()) + "\n" +
+                                           (alignment.empty() ? std::string() : "alignment " + alignment + "\n"),
+                                       {.partial_of_its_own = true});
       !s) {
     return Error(named + kCannotWriteConversion + cache + ": " + s.message(), ErrorCode::kCannotWrite);
   }
@@ -282,7 +265,7 @@ Result<std::string> log_for(const std::vector<std::string>& inputs) {
 Result<std::string> event_log_for(const std::vector<std::string>& inputs) {
   auto log = log_for(inputs);
   if (!log) return log;
-  if (Status s = check_event_log(*log); !s) return Error{s.message()};
+  if (Status s = check_event_log(*log); !s) return s.error();
   return log;
 }
 

@@ -90,7 +90,7 @@ class Merger {
       const Time from = first.plus_seconds_saturated(o.start_s);
       for (auto& s : m.sources_) {
         if (s.has && Time::from_us(s.event.utime) >= from) continue;
-        if (Status st = s.reader.seek(from.us()); !st) return Error{st.message()};
+        if (Status st = s.reader.seek(from.us()); !st) return st.error();
         s.has = s.reader.next(s.event);
       }
     }
@@ -282,7 +282,7 @@ Status Replayer::open() {
 }
 
 Result<ReplayReport> Replayer::run(const Sink& sink, const std::atomic<bool>* stop) {
-  if (Status s = open(); !s) return Error{s.message()};
+  if (Status s = open(); !s) return s.error();
   const ReplayOptions& o = options_;
   auto& merger = prepared_->merger;
   runtime::ModuleHost& host = *host_;
@@ -408,8 +408,8 @@ Result<ReplayReport> Replayer::run(const Sink& sink, const std::atomic<bool>* st
     failure = host.record(o.faults_channel, encode_manifest(o, host.now().us(), injected), true, false);
   }
   Status closed = host.close();
-  if (!failure.ok()) return Error{failure.message()};
-  if (!closed.ok()) return Error{closed.message()};
+  if (!failure.ok()) return failure.error();
+  if (!closed.ok()) return closed.error();
   report.outputs = host.outputs();
   report.log_problems = merger->problems();
   report.interrupted = interrupted;

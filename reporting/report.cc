@@ -103,7 +103,7 @@ Result<std::string> make_report(const ReportOptions& o) {
   if (!data) return Error{"--diagnosis " + o.diagnosis + ": " + data.error().message};
   std::error_code ec;
   fs::create_directories(o.out, ec);
-  if (ec) return Error{o.out + ": cannot create the report folder: " + ec.message()};
+  if (ec) return Error{o.out + ": cannot create the report folder: " + ec.message(), ErrorCode::kCannotWrite};
   for (const auto& l : inputs.logs) {
     for (const auto& m : l.maps) {
       const std::string_view png(reinterpret_cast<const char*>(m.png.data()), m.png.size());
@@ -118,7 +118,7 @@ Result<std::string> make_report(const ReportOptions& o) {
   if (auto st = write_file_atomically(json_path, data->dump() + "\n"); !st) return st.error();
   if (Status st = run_plot_script(kReportPageScript, "report_page.py", o.out, {json_path, o.out}); !st) {
     // A write error names the folder (exit 1, as every write error); anything else is the plotting's.
-    return Error{st.message().starts_with(o.out + ":") ? st.message() : "report: " + st.message()};
+    return st.code() == ErrorCode::kCannotWrite ? st.error() : Error{"report: " + st.message()};
   }
   return (fs::path(o.out) / "index.html").string();
 }

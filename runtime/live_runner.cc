@@ -68,7 +68,7 @@ Status LiveRunner::open() {
 }
 
 Result<LiveReport> LiveRunner::run(const std::atomic<bool>* stop) {
-  if (Status s = open(); !s) return Error{s.message()};
+  if (Status s = open(); !s) return s.error();
   Impl& d = *impl_;
   const Stopwatch running;
   auto failed = [&d] { return !d.failure.ok() || !d.host.failure().ok(); };
@@ -92,8 +92,8 @@ Result<LiveReport> LiveRunner::run(const std::atomic<bool>* stop) {
   Status closed = d.host.close();
   if (!d.failure.ok()) return Error{d.failure.message()};
   if (!d.host.failure().ok()) return Error{d.host.failure().message()};
-  if (!finished.ok()) return Error{finished.message()};
-  if (!closed.ok()) return Error{closed.message()};
+  if (!finished.ok()) return finished.error();
+  if (!closed.ok()) return closed.error();
   return report;
 }
 

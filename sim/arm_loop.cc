@@ -44,7 +44,7 @@ Result<std::unique_ptr<ArmLoop>> ArmLoop::create(const Scenario& sc, Robot& robo
   auto model = kinematics::RobotModel::load(sc.urdf_path);
   if (!model) return model.error();
   auto chain = kinematics::ArmChain::create(*model, c.commander.base_link, c.commander.tip_link, true);
-  if (!chain) return Error{chain.error().message};
+  if (!chain) return chain.error();
   bool has_joint_states = false;
   for (const SensorConfig& s : sc.sensors) has_joint_states = has_joint_states || s.type == SensorType::kJointState;
   if (!has_joint_states) {

@@ -103,7 +103,7 @@ struct UrdfDocument {
 
 Result<UrdfDocument> open_urdf(const std::string& xml, const std::string& origin) {
   // TinyXML parses recursively: elements nested 200,000 deep overflowed the stack.
-  if (Status s = kinematics::check_xml_depth(xml, origin); !s) return Error{s.message()};
+  if (Status s = kinematics::check_xml_depth(xml, origin); !s) return s.error();
   UrdfDocument u{origin, std::make_unique<TiXmlDocument>(), nullptr};
   u.doc->Parse(xml.c_str());
   if (u.doc->Error()) {

@@ -416,7 +416,7 @@ Result<Scenario> parse_scenario(const std::string& text, const std::string& orig
     if (!w) return w.error();
     sc.world = std::move(*w);
   }
-  if (Status s = scenario_table().read(doc, sc); !s) return Error{s.message()};
+  if (Status s = scenario_table().read(doc, sc); !s) return s.error();
   sc.world_path = resolve(base_dir, sc.world_path);
   sc.urdf_path = resolve(base_dir, sc.urdf_path);
   return sc;

@@ -6,7 +6,6 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
-#include <fstream>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <set>
@@ -14,6 +13,7 @@
 #include "core/log_index.h"
 #include "core/log_reader.h"
 #include "core/log_writer.h"
+#include "core/text_file.h"
 #include "core/time.h"
 #include "driftlab/fault_manifest_t.hpp"
 #include "driftlab/physics_step_t.hpp"
@@ -57,16 +57,7 @@ Status write_faults_json(const std::string& path, const Scenario& sc, int64_t en
                            {"params", params},
                            {"affected_seq", f.affected_seq}});
   }
-  const std::string tmp = path + ".partial";
-  {
-    std::ofstream out(tmp, std::ios::trunc);
-    out << j.dump(2) << '\n';
-    if (!out.flush()) return Error{tmp + ": cannot write the fault manifest"};
-  }
-  std::error_code ec;
-  std::filesystem::rename(tmp, path, ec);
-  if (ec) return Error{path + ": cannot write the fault manifest: " + ec.message()};
-  return {};
+  return write_file_atomically(path, j.dump(2) + "\n");
 }
 
 driftlab::vector3_t vec(const Eigen::Vector3d& v) { return {v.x(), v.y(), v.z()}; }
@@ -281,7 +272,7 @@ Result<SimReport> Simulation::run(const SimOptions& options) {
     m.encode(bytes.data(), 0, static_cast<int>(bytes.size()));
     if (Status s = out.write_now(sc.simulation_channel, sc.start_utime, bytes); !s) {
       writer->discard();
-      return Error{s.message()};
+      return s.error();
     }
   }
 
@@ -312,7 +303,7 @@ Result<SimReport> Simulation::run(const SimOptions& options) {
   if (drone != nullptr) {
     if (Status s = drone->attach(out, options.corrections.clocks, wall_clock); !s) {
       writer->discard();
-      return Error{s.message()};
+      return s.error();
     }
   }
   std::optional<GroundLoop> wheels;  // a wheeled robot, driven along the route
@@ -374,7 +365,7 @@ Result<SimReport> Simulation::run(const SimOptions& options) {
     if (arm != nullptr) arm->publish(now);
     if (Status s = out.flush(now); !s) {
       writer->discard();
-      return Error{s.message()};
+      return s.error();
     }
     if (arm != nullptr) arm->control(now, dt);
     if (drone != nullptr) drone->control(now, dt);
@@ -401,16 +392,16 @@ Result<SimReport> Simulation::run(const SimOptions& options) {
   }
   if (Status s = out.flush(INT64_MAX); !s) {
     writer->discard();
-    return Error{s.message()};
+    return s.error();
   }
   const std::vector<driftlab::fault_t> faults = out.manifest(end_utime);
   if (Status s = out.write_now(sc.faults_channel, end_utime, manifest_bytes(sc, faults, end_utime)); !s) {
     writer->discard();
-    return Error{s.message()};
+    return s.error();
   }
-  if (Status s = writer->close(); !s) return Error{s.message()};
+  if (Status s = writer->close(); !s) return s.error();
   report.faults_json = faults_json_path(options.out);
-  if (Status s = write_faults_json(report.faults_json, sc, end_utime, faults); !s) return Error{s.message()};
+  if (Status s = write_faults_json(report.faults_json, sc, end_utime, faults); !s) return s.error();
 
   report.simulated_s = Duration::from_us(std::min(t_us, end_us)).seconds();
   report.messages = out.written();

@@ -335,10 +335,10 @@ Result<RawlogCounts> import_rawlog(const std::string& rawlog, const std::string&
     }
     if (!s) {
       (void)w->close();
-      return Error{s.message()};
+      return s.error();
     }
   }
-  if (Status s = w->close(); !s) return Error{s.message()};
+  if (Status s = w->close(); !s) return s.error();
   if (counts.observations >= 2 && !importer.stamps_differ()) counts.one_stamp = counts.observations;
   if (counts.written.empty()) {
     std::filesystem::remove(out_log);
@@ -354,7 +354,7 @@ Result<RawlogCounts> export_rawlog(const std::string& log, const std::string& ou
   RawlogCounts counts;
   try {
     mrpt::io::CFileOutputStream out;
-    if (!out.open(tmp)) return Error{out_rawlog + ": cannot create the rawlog"};
+    if (!out.open(tmp)) return Error{out_rawlog + ": cannot create the rawlog", ErrorCode::kCannotWrite};
     auto archive = mrpt::serialization::archiveFrom(out);
     std::map<std::string, mrpt::poses::CPose2D> sensors;  // base_link -> frame, from TF_STATIC
     Event e;
@@ -416,11 +416,13 @@ Result<RawlogCounts> export_rawlog(const std::string& log, const std::string& ou
     }
   } catch (const std::exception& e) {
     std::filesystem::remove(tmp);
-    return Error{out_rawlog + ": cannot write the rawlog: " + one_line(e.what())};
+    return Error{out_rawlog + ": cannot write the rawlog: " + one_line(e.what()), ErrorCode::kCannotWrite};
   }
   std::error_code ec;
   std::filesystem::rename(tmp, out_rawlog, ec);
-  if (ec) return Error{out_rawlog + ": cannot rename " + tmp + " into place: " + ec.message()};
+  if (ec) {
+    return Error{out_rawlog + ": cannot rename " + tmp + " into place: " + ec.message(), ErrorCode::kCannotWrite};
+  }
   return counts;
 }
 

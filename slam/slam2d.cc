@@ -14,13 +14,9 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include <algorithm>
-#include <cerrno>
 #include <charconv>
 #include <cmath>
 #include <cstdint>
-#include <cstdio>
-#include <cstring>
-#include <filesystem>
 #include <fstream>
 #include <limits>
 #include <map>
@@ -30,6 +26,7 @@
 #include <string_view>
 
 #include "core/config.h"
+#include "core/text_file.h"
 #include "core/time.h"
 #include "driftlab/image_t.hpp"
 #include "driftlab/laser_scan_t.hpp"
@@ -48,29 +45,6 @@ namespace {
 
 /// The largest occupancy map drawn at the end [cells]: 100 MB, 500 m x 500 m at 5 cm.
 constexpr double kMaxMapCells = 1e8;
-
-/// Writes bytes to PATH.partial and renames it to PATH, so a failed write (a full disk, a folder in the way) never
-/// leaves half a file under PATH nor a PATH.partial behind. Why it failed, or nullopt.
-std::optional<std::string> write_aside(const std::string& path, std::string_view bytes) {
-  const std::string partial = path + ".partial";
-  std::error_code ec;
-  std::FILE* f = std::fopen(partial.c_str(), "wb");
-  if (f == nullptr) return "cannot write " + path + ": " + std::strerror(errno);
-  const bool written = std::fwrite(bytes.data(), 1, bytes.size(), f) == bytes.size();
-  const int write_errno = errno;
-  if (std::fclose(f) != 0 || !written) {
-    const std::string why = std::strerror(written ? errno : write_errno);
-    std::filesystem::remove(partial, ec);
-    return "cannot write " + path + ": " + why;
-  }
-  std::filesystem::rename(partial, path, ec);
-  if (ec) {
-    const std::string why = ec.message();
-    std::filesystem::remove(partial, ec);
-    return "cannot write " + path + ": " + why;
-  }
-  return std::nullopt;
-}
 
 /// v in the fewest digits that read back as exactly v (std::to_chars): a map origin at 1234.567 m is not 1234.57.
 std::string exact(double v) {
@@ -455,15 +429,15 @@ void Slam2d::finish(Bus& bus) {
       d.warnings.push_back("slam: cannot write " + image + ": the PNG encoder failed");
       return;
     }
-    if (auto why = write_aside(image, {reinterpret_cast<const char*>(png.data()), png.size()})) {
-      d.warnings.push_back("slam: " + *why);
+    if (Status s = write_file_atomically(image, {reinterpret_cast<const char*>(png.data()), png.size()}); !s) {
+      d.warnings.push_back("slam: " + s.message());
       return;
     }
     const std::string yaml = "image: " + image.substr(image.rfind('/') + 1) +
                              "\nresolution: " + exact(d.c.map_resolution) + "\norigin: [" + exact(grid.getXMin()) +
                              ", " + exact(grid.getYMin()) +
                              ", 0.0]\nnegate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\n";
-    if (auto why = write_aside(prefix + "-map.yaml", yaml)) d.warnings.push_back("slam: " + *why);
+    if (Status s = write_file_atomically(prefix + "-map.yaml", yaml); !s) d.warnings.push_back("slam: " + s.message());
   }
 }
 

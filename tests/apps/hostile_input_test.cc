@@ -690,20 +690,11 @@ std::vector<std::string> left_behind(const std::string& dir) {
   return out;
 }
 
-TEST(FullDisk, EveryCommandFailsWithCode1AndLeavesNothingBehind) {
-  // A file-size limit of 1 KiB (ulimit -f 1) stands for a full disk: the write fails with EFBIG. SIGXFSZ used to
-  // kill export csv and export rawlog halfway, leaving their partial files; sim and replay moved the log cut short
-  // over an existing file of the same name. Every command that writes a file, each over a file the user already
-  // has where it writes one: that file keeps what it held, and nothing empty or partial is left.
-  test::TempDir dir;
-  const std::string in = dir.file("in"), out = dir.file("out");
-  fs::create_directories(in);
-  fs::create_directories(out);
+/// Every command that writes a file, each writing into out: the command line, and the file it writes ("": a folder).
+/// in holds the rawlog and MCAP files it imports (made once by the caller).
+std::vector<std::pair<std::string, std::string>> writing_commands(const std::string& in, const std::string& out) {
   const std::string rawlog = in + "/s.rawlog", mcap = in + "/s.mcap";
-  ASSERT_EQ(driftlab("export rawlog " + kSample + " -o " + rawlog).code, 0);
-  ASSERT_EQ(driftlab("export mcap " + kSample + " -o " + mcap).code, 0);
-  const std::vector<std::pair<std::string, std::string>> cases = {
-      // command, the file it writes (or "": a folder)
+  return {
       {"diagnose --json-out " + out + "/d.json " + kSample, "d.json"},
       {"diagnose --html " + out + "/d.html " + kSample, "d.html"},
       {"export csv " + kSample + " -o " + out + "/csv", ""},
@@ -720,8 +711,26 @@ TEST(FullDisk, EveryCommandFailsWithCode1AndLeavesNothingBehind) {
       {"eval --gt " + kSample + ":GROUND_TRUTH --est " + kSample + ":ODOM --json-out " + out + "/e.json", "e.json"},
       {"report " + kSample + " -o " + out + "/report", ""},
   };
+}
+
+/// Makes in/ with the files writing_commands imports.
+void make_imported_inputs(const std::string& in) {
+  fs::create_directories(in);
+  ASSERT_EQ(driftlab("export rawlog " + kSample + " -o " + in + "/s.rawlog").code, 0);
+  ASSERT_EQ(driftlab("export mcap " + kSample + " -o " + in + "/s.mcap").code, 0);
+}
+
+TEST(FullDisk, EveryCommandFailsWithCode1AndLeavesNothingBehind) {
+  // A file-size limit of 1 KiB (ulimit -f 1) stands for a full disk: the write fails with EFBIG. SIGXFSZ used to
+  // kill export csv and export rawlog halfway, leaving their partial files; sim and replay moved the log cut short
+  // over an existing file of the same name. Every command that writes a file, each over a file the user already
+  // has where it writes one: that file keeps what it held, and nothing empty or partial is left.
+  test::TempDir dir;
+  const std::string in = dir.file("in"), out = dir.file("out");
+  fs::create_directories(out);
+  make_imported_inputs(in);
   const std::string precious = "the user's own file\n";
-  for (const auto& [cmd, file] : cases) {
+  for (const auto& [cmd, file] : writing_commands(in, out)) {
     if (!file.empty()) std::ofstream(out + "/" + file) << precious;
     const auto r = test::run_capture("ulimit -f 1; timeout 60 " + kDriftlab + " " + cmd);
     EXPECT_EQ(r.code, 1) << cmd << "\n" << r.err;
@@ -733,6 +742,33 @@ TEST(FullDisk, EveryCommandFailsWithCode1AndLeavesNothingBehind) {
     }
     EXPECT_EQ(left_behind(dir.path()), std::vector<std::string>{}) << cmd;
   }
+}
+
+TEST(UnwritableOutput, EveryCommandFailsWithCode1NamingTheOutput) {
+  // An output whose folder is a file (ENOTDIR) or a folder without write permission (EACCES; root may write anyway,
+  // so that half is checked only when the folder refuses a file): the environment's fault, exit 1 (a bad input is
+  // 2). The code comes from the error itself (ErrorCode::kCannotWrite) at every writer; exit_code_for once told
+  // them apart by whether the message began with the output's path.
+  test::TempDir dir;
+  const std::string in = dir.file("in"), file = dir.file("a-file"), locked = dir.file("locked");
+  make_imported_inputs(in);
+  std::ofstream(file) << "not a folder\n";
+  fs::create_directories(locked);
+  fs::permissions(locked, fs::perms::owner_read | fs::perms::owner_exec);
+  const bool locked_refuses = !std::ofstream(locked + "/probe");
+  fs::remove(locked + "/probe");
+  for (const std::string& out : {file, locked}) {
+    if (out == locked && !locked_refuses) continue;
+    for (const auto& [cmd, written] : writing_commands(in, out)) {
+      const auto r = driftlab(cmd);
+      EXPECT_EQ(r.code, 1) << cmd << "\n" << r.err;
+      EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << cmd << "\n" << r.err;
+      EXPECT_NE(r.err.find(out + "/"), std::string::npos) << cmd << "\n" << r.err;
+      EXPECT_FALSE(shows_internals(r.err)) << cmd << "\n" << r.err;
+    }
+  }
+  fs::permissions(locked, fs::perms::owner_all);
+  EXPECT_EQ(left_behind(dir.path()), std::vector<std::string>{});
 }
 
 // A disk that fills while report's Python draws (report.json written, the page not): a 51-line Python traceback and

@@ -59,7 +59,8 @@ TEST(DemoPlan, TheGroundStoryReplaysAsLoggedAndCorrectedAndScoresBoth) {
   s.out = dir.file("absent");
   auto bad = plan_demo(s, "driftlab");
   ASSERT_FALSE(bad);
-  EXPECT_EQ(bad.error().message, dir.file("absent/replay.yaml") + ": cannot write");
+  EXPECT_EQ(bad.error().message, dir.file("absent/replay.yaml") + ": cannot write: No such file or directory");
+  EXPECT_EQ(bad.error().code, ErrorCode::kCannotWrite);
 }
 
 TEST(DemoPlan, TheDroneStoryFliesAgainInClosedLoopAndScoresThreeFlights) {

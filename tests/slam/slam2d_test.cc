@@ -290,7 +290,7 @@ TEST(Slam2d, AMapThatCannotBeWrittenIsAWarningAndLeavesNoPartialFile) {
   std::vector<std::string> warnings;
   for (const auto& r : bus.reports()) warnings.insert(warnings.end(), r.warnings.begin(), r.warnings.end());
   ASSERT_EQ(warnings.size(), 1u) << ::testing::PrintToString(warnings);
-  EXPECT_EQ(warnings[0].rfind("slam: cannot write " + dir.file("slam-map.png") + ": ", 0), 0u) << warnings[0];
+  EXPECT_EQ(warnings[0].rfind("slam: " + dir.file("slam-map.png") + ": cannot write: ", 0), 0u) << warnings[0];
   EXPECT_TRUE(std::filesystem::is_directory(dir.file("slam-map.png")));
   EXPECT_FALSE(std::filesystem::exists(dir.file("slam-map.png.partial")));
   EXPECT_FALSE(std::filesystem::exists(dir.file("slam-map.yaml")));
