@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # scripts/check-layers on a scratch work tree holding docs/architecture.md: it passes on an include the table
 # allows, and fails, naming the file and line, on an arrow the table forbids, another folder's internal/ header, a
-# folder without a row, a stale exception and a table with a cycle.
+# folder without a row, a stale exception and a table with a cycle; and a test file outside tests/apps/ that runs
+# the program unlisted, or listed and no longer running it.
 #   tests/check_layers_test.sh SOURCE_DIR
 set -euo pipefail
 source=$(realpath "$1")
@@ -17,6 +18,10 @@ echo '#include "analyzers/internal/x.h"' >tests/analyzers/a_test.cc
 # The doc's exceptions, each needed once: copied from the real tree.
 sed -n 's/^- `\([^`]*\)` -> `\([^`]*\)`: .*/\1 \2/p' docs/architecture.md | while read -r file header; do
   mkdir -p "$(dirname "$file")" && echo "#include \"$header\"" >>"$file"
+done
+# The tests the doc lists as running the program, each running it.
+sed -n 's/^- `\(tests\/[^`]*\)`: .*/\1/p' docs/architecture.md | while read -r file; do
+  mkdir -p "$(dirname "$file")" && echo 'const std::string kDriftlab = "driftlab";' >>"$file"
 done
 "$check" --root "$tmp" || { echo "the allowed includes were refused"; exit 1; }
 
@@ -43,4 +48,10 @@ cp "$source/docs/architecture.md" docs/
 # lcmtypes may include core; core may include lcmtypes too: a cycle.
 sed -i 's/^| `core\/` | |$/| `core\/` | `lcmtypes\/` |/' docs/architecture.md
 expect_refused "a cycle" "the table has a cycle: "
+cp "$source/docs/architecture.md" docs/
+echo 'run(std::string(DRIFTLAB_BIN_DIR) + "/driftlab info x.lcm");' >tests/analyzers/a_test.cc
+expect_refused "an unlisted test running the program" "tests/analyzers/a_test.cc: runs the driftlab program"
+echo '' >tests/analyzers/a_test.cc
+echo '// no program here' >tests/formats/bombs_test.cc
+expect_refused "a listed test no longer running the program" "tests/formats/bombs_test.cc no longer runs it"
 echo "check-layers refuses what it must"

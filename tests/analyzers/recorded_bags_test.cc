@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "analyzers/arm_tracking.h"
+#include "analyzers/log_info.h"
 #include "analyzers/timing.h"
 #include "driftlab/joint_trajectory_state_t.hpp"
 #include "formats/import.h"
@@ -751,15 +752,15 @@ TEST(DiagnoseMavrosBag, AStampedMessageOfAnyTypeAndTheTimeSync) {
   EXPECT_EQ(channel(d, "/mavros/imu/data").verdict, "ok") << reasons(channel(d, "/mavros/imu/data"));
 
   // info: the ROS type beside driftlab's.
-  const auto info = test::run_capture(std::string(DRIFTLAB_BIN_DIR) + "/driftlab info " + dir.file("run.lcm"));
-  ASSERT_EQ(info.code, 0) << info.err;
-  EXPECT_NE(info.out.find("source type"), std::string::npos) << info.out;
+  auto info = analyzers::log_info(dir.file("run.lcm"));
+  ASSERT_TRUE(info) << info.error().message;
+  const std::string text = analyzers::log_info_text(*info, 20);
+  EXPECT_NE(text.find("source type"), std::string::npos) << text;
   std::string state_line;
-  for (size_t at = info.out.find("/mavros/state"); at != std::string::npos && state_line.empty();) {
-    state_line = info.out.substr(at, info.out.find('\n', at) - at);
+  for (size_t at = text.find("/mavros/state"); at != std::string::npos && state_line.empty();) {
+    state_line = text.substr(at, text.find('\n', at) - at);
   }
-  EXPECT_NE(state_line.find("driftlab.stamped_foreign_message_t  mavros_msgs/msg/State"), std::string::npos)
-      << info.out;
+  EXPECT_NE(state_line.find("driftlab.stamped_foreign_message_t  mavros_msgs/msg/State"), std::string::npos) << text;
 }
 
 }  // namespace

@@ -4,6 +4,7 @@
 // from 2 to 200 ms within 1 ms, drift within 20 ppm, nothing flagged on a clean log.
 #include "analyzers/timing.h"
 #include "analyzers/diagnosis_json.h"
+#include "analyzers/diagnosis_text.h"
 
 #include <gtest/gtest.h>
 
@@ -865,14 +866,15 @@ TEST(Diagnose, MissingFileIsAnErrorNamingIt) {
   EXPECT_NE(d.error().message.find("/nonexistent/x.lcm"), std::string::npos);
 }
 
-TEST(DiagnoseCommand, PrintsTheJsonTheIssueAsksFor) {
+// What `driftlab diagnose --json` and `driftlab diagnose` print (the command prints these two and nothing else).
+TEST(DiagnoseRun, GivesTheJsonTheIssueAsksForAndTheLines) {
   test::TempDir dir;
   Faults f;
   f.scan_drops = {5};
   write_log(dir.file("x.lcm"), f, 5);
-  std::string out;
-  ASSERT_EQ(test::run(std::string(DRIFTLAB_BIN_DIR) + "/driftlab diagnose --json " + dir.file("x.lcm"), &out), 0);
-  const auto j = nlohmann::json::parse(out);
+  auto run = run_diagnosis(dir.file("x.lcm"), {});
+  ASSERT_TRUE(run) << run.error().message;
+  const auto j = nlohmann::json::parse(diagnose_json(*run).dump());
   for (const char* key : {"log", "channels", "pairs", "tf"}) EXPECT_TRUE(j.contains(key)) << key;
   const auto& c = j["channels"][0];
   for (const char* key : {"name", "type", "count", "rate_hz", "expected_period_s", "drops", "duplicates",
@@ -888,8 +890,7 @@ TEST(DiagnoseCommand, PrintsTheJsonTheIssueAsksFor) {
     }
   }
   EXPECT_TRUE(found);
-  std::string table;
-  ASSERT_EQ(test::run(std::string(DRIFTLAB_BIN_DIR) + "/driftlab diagnose " + dir.file("x.lcm"), &table), 0);
+  const std::string table = to_text(diagnosis_text(*run));
   EXPECT_NE(table.find("SCAN: 1 messages missing"), std::string::npos) << table;
 }
 

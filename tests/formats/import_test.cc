@@ -23,21 +23,17 @@
 #include "formats/ros1_bag.h"
 #include "lcmtypes/seq_origin.h"
 #include "lcmtypes/validate.h"
+#include "tests/formats/import_in_process.h"
 #include "tests/test_util.h"
 
 namespace driftlab {
 namespace {
 
-using test::CmdResult;
 using test::OwnedEvent;
-using test::run_capture;
 
-const std::string kDriftlab = std::string(DRIFTLAB_BIN_DIR) + "/driftlab";
 const std::string kOracle = std::string(DRIFTLAB_SOURCE_DIR) + "/tests/formats/ros1_bag_oracle.py";
 
-CmdResult import(const std::string& in, const std::string& out) {
-  return run_capture(kDriftlab + " import '" + in + "' -o '" + out + "'");
-}
+test::Imported import(const std::string& in, const std::string& out) { return test::import_in_process({in}, out); }
 
 std::map<std::string, std::vector<OwnedEvent>> by_channel(const std::string& log) {
   std::map<std::string, std::vector<OwnedEvent>> m;
@@ -95,10 +91,9 @@ TEST(Import, Ros1BagsAgreeWithAnIndependentReader) {
     const std::string bag = test::shared_data(name);
     if (bag.empty()) return;
     test::TempDir dir;
-    const CmdResult r = import(bag, dir.file("out.lcm"));
-    ASSERT_EQ(r.code, 0) << r.err;
-    EXPECT_EQ(r.err, "");
-    EXPECT_NE(r.out.find("(ROS 1 bag)"), std::string::npos) << r.out;
+    const auto r = import(bag, dir.file("out.lcm"));
+    ASSERT_EQ(r.said(), "");
+    EXPECT_NE(r.text.find("(ROS 1 bag)"), std::string::npos) << r.text;
 
     std::string oracle_out;
     ASSERT_EQ(test::run(std::string(DRIFTLAB_PYTHON) + " " + kOracle + " '" + bag + "'", &oracle_out), 0);
@@ -139,12 +134,12 @@ TEST(Import, SummaryCountsEveryTopic) {
   const std::string bag = test::shared_data("carmen/intel.orig.bag");
   if (bag.empty()) return;
   test::TempDir dir;
-  const CmdResult r = import(bag, dir.file("intel.lcm"));
-  ASSERT_EQ(r.code, 0) << r.err;
-  EXPECT_NE(r.out.find("/scan"), std::string::npos);
-  EXPECT_NE(r.out.find("sensor_msgs/LaserScan"), std::string::npos);
-  EXPECT_NE(r.out.find("13,631"), std::string::npos) << r.out;
-  EXPECT_NE(r.out.find("26,915"), std::string::npos) << r.out;
+  const auto r = import(bag, dir.file("intel.lcm"));
+  ASSERT_EQ(r.said(), "");
+  EXPECT_NE(r.text.find("/scan"), std::string::npos);
+  EXPECT_NE(r.text.find("sensor_msgs/LaserScan"), std::string::npos);
+  EXPECT_NE(r.text.find("13,631"), std::string::npos) << r.text;
+  EXPECT_NE(r.text.find("26,915"), std::string::npos) << r.text;
 }
 
 // --- A ROS 1 bag written here, record by record, to break it in known ways. ---------------------------------
@@ -209,12 +204,13 @@ TEST(Import, UnindexedBagWithUnmappedAndMalformedMessages) {
   recs += message(0, 101, 0, scan_payload(1, 100).substr(0, 30));  // cut inside the header's frame
   recs += message(7, 101, 10, "x");                               // connection 7 never defined
   recs += message(0, 102, 0, scan_payload(2, 101));
-  const CmdResult r = import(write_bag(dir, bag_of(recs)), dir.file("out.lcm"));
-  EXPECT_EQ(r.code, 2) << r.err;
-  EXPECT_NE(r.err.find("in.bag: /scan at byte " + std::to_string(short_at) + ": not a sensor_msgs/LaserScan"),
+  const auto r = import(write_bag(dir, bag_of(recs)), dir.file("out.lcm"));
+  EXPECT_EQ(r.error, "");
+  EXPECT_EQ(r.problems.size(), 2u) << r.said();
+  EXPECT_NE(r.said().find("in.bag: /scan at byte " + std::to_string(short_at) + ": not a sensor_msgs/LaserScan"),
             std::string::npos)
-      << r.err;
-  EXPECT_NE(r.err.find("connection 7"), std::string::npos) << r.err;
+      << r.said();
+  EXPECT_NE(r.said().find("connection 7"), std::string::npos) << r.said();
 
   const auto log = by_channel(dir.file("out.lcm"));
   ASSERT_EQ(log.at("/scan").size(), 2u);
@@ -243,11 +239,12 @@ TEST(Import, CorruptBytesAreSkippedToTheNextRecord) {
   const size_t garbage_at = bag_of(recs).size();
   recs += std::string(300, '\xff');
   for (uint32_t i = 1; i < 4; ++i) recs += message(0, 1 + i, 0, scan_payload(i, 1 + i));
-  const CmdResult r = import(write_bag(dir, bag_of(recs)), dir.file("out.lcm"));
-  EXPECT_EQ(r.code, 2);
-  EXPECT_NE(r.err.find("at byte " + std::to_string(garbage_at) + ": a record header length"), std::string::npos)
-      << r.err;
-  EXPECT_NE(r.err.find("300 bytes skipped"), std::string::npos) << r.err;
+  const auto r = import(write_bag(dir, bag_of(recs)), dir.file("out.lcm"));
+  EXPECT_EQ(r.error, "");
+  EXPECT_EQ(r.problems.size(), 1u) << r.said();
+  EXPECT_NE(r.said().find("at byte " + std::to_string(garbage_at) + ": a record header length"), std::string::npos)
+      << r.said();
+  EXPECT_NE(r.said().find("300 bytes skipped"), std::string::npos) << r.said();
   EXPECT_EQ(by_channel(dir.file("out.lcm")).at("/scan").size(), 4u);
 }
 
@@ -259,10 +256,10 @@ TEST(Import, TruncatedBagKeepsEveryWholeMessage) {
   auto bytes = test::read_file(bag);
   bytes.resize(bytes.size() / 2);
   test::write_file(dir.file("half.bag"), bytes);
-  const CmdResult r = import(dir.file("half.bag"), dir.file("half.lcm"));
-  EXPECT_EQ(r.code, 2);
-  EXPECT_NE(r.err.find("half.bag: at byte "), std::string::npos) << r.err;
-  EXPECT_NE(r.err.find("the file ends inside this record"), std::string::npos) << r.err;
+  const auto r = import(dir.file("half.bag"), dir.file("half.lcm"));
+  EXPECT_EQ(r.error, "");
+  EXPECT_NE(r.said().find("half.bag: at byte "), std::string::npos) << r.said();
+  EXPECT_NE(r.said().find("the file ends inside this record"), std::string::npos) << r.said();
   const auto log = by_channel(dir.file("half.lcm"));
   // About half of the 7,374 scans: whole chunks only, and the cut chunk's messages decoded before the cut.
   ASSERT_TRUE(log.count("/scan"));
@@ -302,11 +299,10 @@ TEST(Import, UnknownChunkCompressionLeavesOutThatChunkOnly) {
   const std::string bag = indexed_bag_of(chunk("none", first) + chunk("zip", second) + chunk("none", third),
                                          connection(0, "/scan", "sensor_msgs/LaserScan"));
   const size_t zip_at = bag.find(chunk("zip", second));
-  const CmdResult r = import(write_bag(dir, bag), dir.file("out.lcm"));
-  EXPECT_EQ(r.code, 2);
-  EXPECT_EQ(r.err, "driftlab: " + dir.file("in.bag") + ": at byte " + std::to_string(zip_at) +
-                       ": a chunk compressed with \"zip\", which is not known (rosbag's are none, bz2 and lz4); its "
-                       "messages are left out\n");
+  const auto r = import(write_bag(dir, bag), dir.file("out.lcm"));
+  EXPECT_EQ(r.said(), dir.file("in.bag") + ": at byte " + std::to_string(zip_at) +
+                          ": a chunk compressed with \"zip\", which is not known (rosbag's are none, bz2 and lz4); its "
+                          "messages are left out\n");
   const auto log = by_channel(dir.file("out.lcm"));
   ASSERT_EQ(log.at("/scan").size(), 6u);
   const std::vector<int64_t> want = {0, 1, 2, 6, 7, 8};
@@ -407,17 +403,15 @@ TEST(Ros1Bag, ThrowingCallbackStopsThePipelinedRead) {
 TEST(Import, UnknownFormatsAreNamedInOneLine) {
   test::TempDir dir;
   test::write_file(dir.file("notes.txt"), {'h', 'e', 'l', 'l', 'o', '\n'});
-  CmdResult r = import(dir.file("notes.txt"), dir.file("out.lcm"));
-  EXPECT_EQ(r.code, 2);
-  EXPECT_EQ(r.err,
-            "driftlab: " + dir.file("notes.txt") +
+  auto r = import(dir.file("notes.txt"), dir.file("out.lcm"));
+  EXPECT_EQ(r.said(),
+            dir.file("notes.txt") +
                 ": not a format driftlab imports (ROS 1 bag, ROS 2 bag (MCAP, sqlite3, or its folder), MCAP file, "
                 "CARMEN log, PX4 ULog, MRPT rawlog): text starting "
                 "\"hello\"\n");
   test::write_file(dir.file("empty"), {});
   r = import(dir.file("empty"), dir.file("out.lcm"));
-  EXPECT_EQ(r.code, 2);
-  EXPECT_NE(r.err.find("an empty file"), std::string::npos) << r.err;
+  EXPECT_NE(r.error.find("an empty file"), std::string::npos) << r.said();
   EXPECT_FALSE(std::filesystem::exists(dir.file("out.lcm")));
 }
 
@@ -430,10 +424,10 @@ TEST(Import, CarmenCorrectedLog) {
   const std::string gz = test::shared_data("carmen/intel-corrected.log.gz");
   if (gz.empty()) return;
   test::TempDir dir;
-  const CmdResult r = import(gz, dir.file("c.lcm"));
-  ASSERT_EQ(r.code, 0) << r.err;
-  EXPECT_NE(r.out.find("(CARMEN log)"), std::string::npos);
-  EXPECT_NE(r.out.find("skipped NEFF"), std::string::npos) << r.out;
+  const auto r = import(gz, dir.file("c.lcm"));
+  ASSERT_EQ(r.said(), "");
+  EXPECT_NE(r.text.find("(CARMEN log)"), std::string::npos);
+  EXPECT_NE(r.text.find("skipped NEFF"), std::string::npos) << r.text;
   const auto log = by_channel(dir.file("c.lcm"));
   ASSERT_EQ(log.at("FLASER").size(), 910u);
   EXPECT_EQ(log.at("FLASER_POSE").size(), 910u);
@@ -498,10 +492,9 @@ TEST(Import, CarmenMessagesAndBrokenLines) {
       "RLASER 3 1.5 8.0 2.5 4.0 5.0 3.1 4.0 5.0 3.1 10.06 host 10.07\n"
       "SYNC 1 host 11\n";
   test::write_file(dir.file("in.log"), {text.begin(), text.end()});
-  const CmdResult r = import(dir.file("in.log"), dir.file("out.lcm"));
-  EXPECT_EQ(r.code, 2);
-  EXPECT_EQ(r.err, "driftlab: " + dir.file("in.log") + ":6: FLASER: \"x\" is not a number\n");
-  EXPECT_NE(r.out.find("skipped SYNC"), std::string::npos) << r.out;
+  const auto r = import(dir.file("in.log"), dir.file("out.lcm"));
+  EXPECT_EQ(r.said(), dir.file("in.log") + ":6: FLASER: \"x\" is not a number\n");
+  EXPECT_NE(r.text.find("skipped SYNC"), std::string::npos) << r.text;
   const auto log = by_channel(dir.file("out.lcm"));
 
   const auto o = test::decode<odometry_t>(log.at("ODOM")[0]);
@@ -546,7 +539,7 @@ TEST(Import, CarmenMessagesAndBrokenLines) {
   EXPECT_EQ(rear_pose.position.x, 4.0);
   EXPECT_EQ(rear_pose.position.y, 5.0);
   EXPECT_NEAR(2 * std::atan2(rear_pose.orientation.z, rear_pose.orientation.w), 3.1, 1e-12);
-  EXPECT_NE(r.out.find("RLASER"), std::string::npos) << r.out;
+  EXPECT_NE(r.text.find("RLASER"), std::string::npos) << r.text;
 
   const auto tf = test::decode<tf_t>(log.at("TF_STATIC")[0]);
   ASSERT_EQ(tf.ntransforms, 2);

@@ -21,6 +21,7 @@
 #include "formats/ros_messages.h"
 #include "lcmtypes/encode.h"
 #include "lcmtypes/validate.h"
+#include "tests/formats/import_in_process.h"
 #include "tests/test_util.h"
 
 namespace driftlab {
@@ -33,6 +34,9 @@ using test::run_capture;
 const std::string kDriftlab = std::string(DRIFTLAB_BIN_DIR) + "/driftlab";
 
 CmdResult driftlab(const std::string& args) { return run_capture(kDriftlab + " " + args); }
+test::Imported import(const std::vector<std::string>& in, const std::string& out) {
+  return test::import_in_process(in, out);
+}
 
 std::map<std::string, std::vector<test::OwnedEvent>> by_channel(const std::string& log) {
   std::map<std::string, std::vector<test::OwnedEvent>> m;
@@ -108,11 +112,11 @@ TEST(Ros2Import, SplitRecordingIsOneRecording) {
   write_text(bag + "/metadata.yaml",
              formats::ros2_metadata_yaml("mcap", {topic}, {{"b_2.mcap", 0, 0, 5}, {"b_10.mcap", 0, 0, 5}}));
 
-  CmdResult r = driftlab("import '" + bag + "' -o '" + dir.file("folder.lcm") + "'");
-  ASSERT_EQ(r.code, 0) << r.err;
-  EXPECT_NE(r.out.find("(ROS 2 bag (mcap), 2 files)"), std::string::npos) << r.out;
-  r = driftlab("import '" + bag + "/b_10.mcap' '" + bag + "/b_2.mcap' -o '" + dir.file("files.lcm") + "'");
-  ASSERT_EQ(r.code, 0) << r.err;
+  auto r = import({bag}, dir.file("folder.lcm"));
+  ASSERT_EQ(r.said(), "");
+  EXPECT_NE(r.text.find("(ROS 2 bag (mcap), 2 files)"), std::string::npos) << r.text;
+  r = import({bag + "/b_10.mcap", bag + "/b_2.mcap"}, dir.file("files.lcm"));
+  ASSERT_EQ(r.said(), "");
   EXPECT_EQ(test::read_file(dir.file("folder.lcm")), test::read_file(dir.file("files.lcm")));
 
   const auto log = by_channel(dir.file("folder.lcm"));
@@ -126,12 +130,7 @@ TEST(Ros2Import, SplitRecordingIsOneRecording) {
     EXPECT_EQ(log.at("/scan")[static_cast<size_t>(i)].utime, s.header.utime + 10'000);
   }
   // The ten scans and what the import says of their channel (CHANNEL_SOURCES).
-  r = driftlab("info --json '" + bag + "'");
-  ASSERT_EQ(r.code, 0) << r.err;
-  EXPECT_NE(r.out.find("\"events\": 11"), std::string::npos) << r.out;
-  r = driftlab("info --json '" + bag + "/b_2.mcap' '" + bag + "/b_10.mcap'");
-  ASSERT_EQ(r.code, 0) << r.err;
-  EXPECT_NE(r.out.find("\"events\": 11"), std::string::npos) << r.out;
+  EXPECT_EQ(r.summary.messages, 11);
 }
 
 // A NUL inside a ROS string (found by the fuzzer): the driftlab message keeps the string up to it, as LCM encodes
@@ -162,10 +161,8 @@ TEST(Ros2Import, MissingMetadataIsNamedAndTheFilesRead) {
   fs::create_directories(bag);
   write_scans(bag + "/b_0.mcap", 0, 3);
   write_scans(bag + "/b_1.mcap", 3, 3);
-  const CmdResult r = driftlab("import '" + bag + "' -o '" + dir.file("out.lcm") + "'");
-  EXPECT_EQ(r.code, 2);
-  EXPECT_EQ(r.err, "driftlab: " + bag + "/metadata.yaml: cannot be read; reading the bag files in the folder in "
-                   "name order\n");
+  const auto r = import({bag}, dir.file("out.lcm"));
+  EXPECT_EQ(r.said(), bag + "/metadata.yaml: cannot be read; reading the bag files in the folder in name order\n");
   EXPECT_EQ(by_channel(dir.file("out.lcm")).at("/scan").size(), 6u);
 }
 
@@ -211,13 +208,14 @@ TEST(Ros2Import, MissingMetadataKeysAreNamedInOneLine) {
        }) {
     write_text(bag + "/metadata.yaml", yaml);
     fs::remove(dir.file("out.lcm"));
-    const CmdResult r = driftlab("import '" + bag + "' -o '" + dir.file("out.lcm") + "'");
-    EXPECT_EQ(r.code, 2) << key << "\n" << r.err;
-    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << key << "\n" << r.err;
-    EXPECT_EQ(r.err.rfind("driftlab: " + bag + "/metadata.yaml:", 0), 0u) << r.err;
-    EXPECT_NE(r.err.find(key + "; reading the bag files in the folder in name order"), std::string::npos) << key << "\n"
-                                                                                                          << r.err;
-    ASSERT_TRUE(fs::exists(dir.file("out.lcm"))) << key << "\n" << r.err;
+    const auto r = import({bag}, dir.file("out.lcm"));
+    EXPECT_EQ(r.error, "") << key;
+    ASSERT_EQ(r.problems.size(), 1u) << key << "\n" << r.said();
+    EXPECT_EQ(r.problems[0].rfind(bag + "/metadata.yaml:", 0), 0u) << r.said();
+    EXPECT_NE(r.problems[0].find(key + "; reading the bag files in the folder in name order"), std::string::npos)
+        << key << "\n"
+        << r.said();
+    ASSERT_TRUE(fs::exists(dir.file("out.lcm"))) << key << "\n" << r.said();
     EXPECT_EQ(by_channel(dir.file("out.lcm")).at("/scan").size(), 4u) << key;  // nothing intact lost
     // Every command reading the bag through its conversion says the same, and none aborts.
     const CmdResult info = driftlab("info '" + bag + "'");
@@ -226,7 +224,7 @@ TEST(Ros2Import, MissingMetadataKeysAreNamedInOneLine) {
   }
   // The keys rosbag2 added later (or that only describe) may be absent.
   write_text(bag + "/metadata.yaml", without("  compression_format: \"\"\n  compression_mode: \"\"\n"));
-  EXPECT_EQ(driftlab("import '" + bag + "' -o '" + dir.file("out.lcm") + "'").code, 0);
+  EXPECT_EQ(import({bag}, dir.file("out.lcm")).said(), "");
 }
 
 // The same scans in big-endian CDR (encapsulation 00 00) give the same driftlab messages.
@@ -234,8 +232,8 @@ TEST(Ros2Import, BigEndianCdr) {
   test::TempDir dir;
   write_scans(dir.file("le.mcap"), 0, 4, false);
   write_scans(dir.file("be.mcap"), 0, 4, true);
-  ASSERT_EQ(driftlab("import '" + dir.file("le.mcap") + "' -o '" + dir.file("le.lcm") + "'").code, 0);
-  ASSERT_EQ(driftlab("import '" + dir.file("be.mcap") + "' -o '" + dir.file("be.lcm") + "'").code, 0);
+  ASSERT_EQ(import({dir.file("le.mcap")}, dir.file("le.lcm")).said(), "");
+  ASSERT_EQ(import({dir.file("be.mcap")}, dir.file("be.lcm")).said(), "");
   EXPECT_EQ(test::read_file(dir.file("le.lcm")), test::read_file(dir.file("be.lcm")));
 }
 
@@ -329,31 +327,30 @@ TEST(Ros2Import, BadInputIsNamedAndTheRestConverted) {
   m.message(1, 3'000'000'000, scan(false, 3, 0, 3.0F));
   test::write_file(dir.file("bad.mcap"), m.bytes());
 
-  const CmdResult r = driftlab("import '" + dir.file("bad.mcap") + "' -o '" + dir.file("out.lcm") + "'");
-  EXPECT_EQ(r.code, 2);
+  const auto r = import({dir.file("bad.mcap")}, dir.file("out.lcm"));
+  EXPECT_EQ(r.error, "");
   const std::string f = dir.file("bad.mcap");
-  EXPECT_NE(r.err.find("driftlab: " + f + ": /pair at byte " + std::to_string(short_at) +
-                       ": not a demo_msgs/msg/Pair: ends inside the message (9 bytes)\n"),
+  EXPECT_NE(r.said().find(f + ": /pair at byte " + std::to_string(short_at) +
+                          ": not a demo_msgs/msg/Pair: ends inside the message (9 bytes)\n"),
             std::string::npos)
-      << r.err;
-  EXPECT_NE(r.err.find("driftlab: " + f + ": /broken at byte " + std::to_string(broken_at) +
-                       ": the schema of demo_msgs/msg/Broken does not parse (line 2: type NoSuchType is not defined "
-                       "in the schema); its messages are carried unchecked\n"),
+      << r.said();
+  EXPECT_NE(r.said().find(f + ": /broken at byte " + std::to_string(broken_at) +
+                          ": the schema of demo_msgs/msg/Broken does not parse (line 2: type NoSuchType is not defined "
+                          "in the schema); its messages are carried unchecked\n"),
             std::string::npos)
-      << r.err;
-  EXPECT_NE(r.err.find("driftlab: " + f + ": at byte " + std::to_string(chunk_at) +
-                       ": a chunk compressed with \"brotli\", which is not known"),
+      << r.said();
+  EXPECT_NE(r.said().find(f + ": at byte " + std::to_string(chunk_at) +
+                          ": a chunk compressed with \"brotli\", which is not known"),
             std::string::npos)
-      << r.err;
-  EXPECT_NE(r.err.find("driftlab: " + f + ": /scan at byte " + std::to_string(scan_short_at) +
-                       ": not a sensor_msgs/LaserScan: "),
+      << r.said();
+  EXPECT_NE(r.said().find(f + ": /scan at byte " + std::to_string(scan_short_at) + ": not a sensor_msgs/LaserScan: "),
             std::string::npos)
-      << r.err;
+      << r.said();
   const auto log = by_channel(dir.file("out.lcm"));
   EXPECT_EQ(log.at("/scan").size(), 2u);
   EXPECT_EQ(log.at("/pair").size(), 1u);
   EXPECT_EQ(log.at("/broken").size(), 1u);
-  EXPECT_NE(r.out.find("(1 malformed, left out)"), std::string::npos) << r.out;
+  EXPECT_NE(r.text.find("(1 malformed, left out)"), std::string::npos) << r.text;
 }
 
 // A zstd chunk in the middle of a file that does not decompress (its frame's first bytes overwritten), while
@@ -379,16 +376,12 @@ TEST(Ros2Import, CorruptChunkInTheMiddleIsReportedOnceAndTheRestConverted) {
   std::fill_n(bytes.begin() + static_cast<ptrdiff_t>(frame), 4, 0);
   test::write_file(f, bytes);
 
-  const CmdResult r = driftlab("import '" + f + "' -o '" + dir.file("out.lcm") + "'");
-  EXPECT_EQ(r.code, 2);
-  const std::string line =
-      "driftlab: " + f + ": at byte " + std::to_string(victim) + ": chunk: zstd: Unknown frame descriptor\n";
-  ASSERT_EQ(r.err.find(line), 0u) << r.err;
-  EXPECT_EQ(r.err.find(line, 1), std::string::npos) << r.err;
-  const std::string rest = r.err.substr(line.size());
-  EXPECT_EQ(rest.find("driftlab: " + f + ": at byte "), 0u) << r.err;
-  EXPECT_NE(rest.find(": the data section fails its CRC ("), std::string::npos) << r.err;
-  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 2) << r.err;
+  const auto r = import({f}, dir.file("out.lcm"));
+  EXPECT_EQ(r.error, "");
+  ASSERT_EQ(r.problems.size(), 2u) << r.said();
+  EXPECT_EQ(r.problems[0], f + ": at byte " + std::to_string(victim) + ": chunk: zstd: Unknown frame descriptor");
+  EXPECT_EQ(r.problems[1].rfind(f + ": at byte ", 0), 0u) << r.said();
+  EXPECT_NE(r.problems[1].find(": the data section fails its CRC ("), std::string::npos) << r.said();
 
   std::vector<float> want;  // the scans outside the victim, in order
   for (int i = 0; i < 300; ++i)
@@ -411,9 +404,9 @@ TEST(Ros2Import, CorruptChunkInTheMiddleIsReportedOnceAndTheRestConverted) {
   serial->set_pipelined(false);
   serial->read([&](const formats::McapMessage&) { ++serial_messages; },
                [&](const formats::McapProblem& p) {
-                 serial_problems += "driftlab: " + f + ": at byte " + std::to_string(p.offset) + ": " + p.what + "\n";
+                 serial_problems += f + ": at byte " + std::to_string(p.offset) + ": " + p.what + "\n";
                });
-  EXPECT_EQ(serial_problems, r.err);
+  EXPECT_EQ(serial_problems, r.said());
   EXPECT_EQ(serial_messages, static_cast<int64_t>(want.size()));
 }
 
@@ -509,10 +502,10 @@ TEST(Ros2Import, FileAndMessageCompression) {
   std::vector<uint8_t> packed;
   ASSERT_EQ(zstd.run(test::read_file(mcap), packed), "");
   test::write_file(dir.file("nav2.mcap.zstd"), packed);
-  ASSERT_EQ(driftlab("import '" + mcap + "' -o '" + dir.file("plain.lcm") + "'").code, 0);
-  CmdResult r = driftlab("import '" + dir.file("nav2.mcap.zstd") + "' -o '" + dir.file("packed.lcm") + "'");
-  ASSERT_EQ(r.code, 0) << r.err;
-  EXPECT_NE(r.out.find("compressed whole with zstd"), std::string::npos) << r.out;
+  ASSERT_EQ(import({mcap}, dir.file("plain.lcm")).said(), "");
+  auto r = import({dir.file("nav2.mcap.zstd")}, dir.file("packed.lcm"));
+  ASSERT_EQ(r.said(), "");
+  EXPECT_NE(r.text.find("compressed whole with zstd"), std::string::npos) << r.text;
   EXPECT_EQ(test::read_file(dir.file("plain.lcm")), test::read_file(dir.file("packed.lcm")));
   EXPECT_FALSE(fs::exists(dir.file("packed.lcm.unzstd")));
 
@@ -539,9 +532,9 @@ TEST(Ros2Import, FileAndMessageCompression) {
   }
   sqlite3_finalize(st);
   sqlite3_close(db);
-  ASSERT_EQ(driftlab("import '" + db3 + "' -o '" + dir.file("db_plain.lcm") + "'").code, 0);
-  r = driftlab("import '" + dir.file("m.db3") + "' -o '" + dir.file("db_packed.lcm") + "'");
-  ASSERT_EQ(r.code, 0) << r.err;
+  ASSERT_EQ(import({db3}, dir.file("db_plain.lcm")).said(), "");
+  r = import({dir.file("m.db3")}, dir.file("db_packed.lcm"));
+  ASSERT_EQ(r.said(), "");
   EXPECT_EQ(test::read_file(dir.file("db_plain.lcm")), test::read_file(dir.file("db_packed.lcm")));
 }
 
@@ -553,10 +546,10 @@ TEST(Ros2Import, CutSqliteBag) {
   auto bytes = test::read_file(db3);
   bytes.resize(bytes.size() * 2 / 3);
   test::write_file(dir.file("cut.db3"), bytes);
-  const CmdResult r = driftlab("import '" + dir.file("cut.db3") + "' -o '" + dir.file("cut.lcm") + "'");
-  EXPECT_EQ(r.code, 2) << r.err;
-  EXPECT_NE(r.err.find(dir.file("cut.db3") + ": the file is cut short"), std::string::npos) << r.err;
-  EXPECT_NE(r.err.find("cannot be read (database disk image is malformed)"), std::string::npos) << r.err;
+  const auto r = import({dir.file("cut.db3")}, dir.file("cut.lcm"));
+  EXPECT_EQ(r.error, "");
+  EXPECT_NE(r.said().find(dir.file("cut.db3") + ": the file is cut short"), std::string::npos) << r.said();
+  EXPECT_NE(r.said().find("cannot be read (database disk image is malformed)"), std::string::npos) << r.said();
   // The rows on the pages before the cut: more than a third of the 517 transforms, fewer than all.
   const auto log = by_channel(dir.file("cut.lcm"));
   EXPECT_GT(log.at("/tf").size(), 517u / 3);
@@ -655,17 +648,14 @@ TEST(Ros2Import, AFileListedOrGivenTwiceIsReadOnce) {
   formats::Ros2TopicInfo topic{"/scan", "sensor_msgs/msg/LaserScan", "cdr", "", "", 4};
   write_text(bag + "/metadata.yaml",
              formats::ros2_metadata_yaml("mcap", {topic}, {{"b_0.mcap", 0, 0, 4}, {"./b_0.mcap", 0, 0, 4}}));
-  CmdResult r = driftlab("import '" + bag + "' -o '" + dir.file("out.lcm") + "'");
-  EXPECT_EQ(r.code, 2) << r.err;
-  EXPECT_EQ(r.err, "driftlab: " + bag + "/./b_0.mcap (the same file as " + bag +
-                       "/b_0.mcap): listed twice in metadata.yaml; read once\n");
+  auto r = import({bag}, dir.file("out.lcm"));
+  EXPECT_EQ(r.said(),
+            bag + "/./b_0.mcap (the same file as " + bag + "/b_0.mcap): listed twice in metadata.yaml; read once\n");
   EXPECT_EQ(by_channel(dir.file("out.lcm")).at("/scan").size(), 4u);
 
   fs::create_symlink(bag + "/b_0.mcap", dir.file("link.mcap"));
-  r = driftlab("import '" + bag + "/b_0.mcap' '" + dir.file("link.mcap") + "' -o '" + dir.file("two.lcm") + "'");
-  EXPECT_EQ(r.code, 2) << r.err;
-  EXPECT_EQ(r.err, "driftlab: " + dir.file("link.mcap") + " (the same file as " + bag +
-                       "/b_0.mcap): given twice; read once\n");
+  r = import({bag + "/b_0.mcap", dir.file("link.mcap")}, dir.file("two.lcm"));
+  EXPECT_EQ(r.said(), dir.file("link.mcap") + " (the same file as " + bag + "/b_0.mcap): given twice; read once\n");
   EXPECT_EQ(by_channel(dir.file("two.lcm")).at("/scan").size(), 4u);
 }
 
@@ -680,11 +670,11 @@ TEST(Ros2Import, AProblemInACompressedBagNamesItNotTheTemporaryFile) {
   std::vector<uint8_t> packed;
   ASSERT_EQ(zstd.run(bytes, packed), "");
   test::write_file(dir.file("cut.mcap.zstd"), packed);
-  const CmdResult r = driftlab("import '" + dir.file("cut.mcap.zstd") + "' -o '" + dir.file("out.lcm") + "'");
-  EXPECT_EQ(r.code, 2) << r.err;
-  EXPECT_EQ(r.err.rfind("driftlab: " + dir.file("cut.mcap.zstd") + " (decompressed): at byte ", 0), 0u) << r.err;
-  EXPECT_EQ(r.err.find("unzstd"), std::string::npos) << r.err;
-  EXPECT_EQ(r.err.find(".partial"), std::string::npos) << r.err;
+  const auto r = import({dir.file("cut.mcap.zstd")}, dir.file("out.lcm"));
+  EXPECT_EQ(r.error, "");
+  EXPECT_EQ(r.said().rfind(dir.file("cut.mcap.zstd") + " (decompressed): at byte ", 0), 0u) << r.said();
+  EXPECT_EQ(r.said().find("unzstd"), std::string::npos) << r.said();
+  EXPECT_EQ(r.said().find(".partial"), std::string::npos) << r.said();
 }
 
 }  // namespace

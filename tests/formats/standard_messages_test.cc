@@ -15,6 +15,7 @@
 #include "driftlab/magnetometer_t.hpp"
 #include "driftlab/velocity_command_t.hpp"
 #include "lcmtypes/validate.h"
+#include "tests/formats/import_in_process.h"
 #include "tests/formats/oracle.h"
 #include "tests/test_util.h"
 
@@ -23,8 +24,6 @@ namespace {
 
 using nlohmann::json;
 using test::OwnedEvent;
-
-const std::string kDriftlab = std::string(DRIFTLAB_BIN_DIR) + "/driftlab";
 
 /// A JPEG's first markers: APP0, then a baseline start-of-frame saying 320 x 240, then the end.
 const std::vector<int> kJpeg = {0xFF, 0xD8, 0xFF, 0xE0, 0x00, 0x10, 'J',  'F',  'I',  'F',  0x00, 0x01, 0x01, 0x00,
@@ -172,14 +171,13 @@ TEST_P(StandardMessages, ImportHoldsTheValuesFoxglovesWritersWrote) {
   ASSERT_EQ(dumped->size(), msgs.size());
   for (size_t i = 0; i < msgs.size(); ++i) EXPECT_EQ((*dumped)[i].at("msg"), as_dumped(msgs[i].at("msg"))) << i;
 
-  const auto r = test::run_capture(kDriftlab + " import '" + file + "' -o '" + dir.file("out.lcm") + "'");
-  ASSERT_EQ(r.code, 0) << r.err;
-  EXPECT_EQ(r.err, "");
+  const auto r = test::import_in_process({file}, dir.file("out.lcm"));
+  ASSERT_EQ(r.said(), "");
   for (const char* line : {"NavSatFix", "driftlab.gnss_t", "driftlab.magnetometer_t", "driftlab.barometer_t",
                            "driftlab.image_t", "driftlab.joint_state_t"}) {
-    EXPECT_NE(r.out.find(line), std::string::npos) << line << "\n" << r.out;
+    EXPECT_NE(r.text.find(line), std::string::npos) << line << "\n" << r.text;
   }
-  EXPECT_EQ(r.out.find("foreign_message_t"), std::string::npos) << r.out;  // every type mapped
+  EXPECT_EQ(r.text.find("foreign_message_t"), std::string::npos) << r.text;  // every type mapped
 
   std::map<std::string, std::vector<OwnedEvent>> log;
   for (auto& e : test::read_all(dir.file("out.lcm"))) log[e.channel].push_back(std::move(e));
