@@ -156,9 +156,13 @@ Result<SqliteBagReader> SqliteBagReader::open(const std::string& path) {
   r.name_ = path;
   std::error_code ec;
   if (!std::filesystem::is_regular_file(path, ec)) return Error(path + ": not a file");
-  // Read-only first (sees a write-ahead log a recorder left); a bag in a read-only folder whose journal cannot
-  // be opened is read as immutable (no locks, no journal).
+  // With a write-ahead log or a rollback journal beside it (a recorder writing, or killed), read-only first: it
+  // sees the log's transactions; then, in a read-only folder whose journal cannot be opened, as immutable (no locks,
+  // no journal). With neither, as immutable at once: a read-only connection to a bag in WAL mode leaves an empty
+  // -wal and a -shm file beside it, in the user's folder, which a reader must not write into.
+  const bool journal = std::filesystem::exists(path + "-wal", ec) || std::filesystem::exists(path + "-journal", ec);
   for (const bool immutable : {false, true}) {
+    if (!immutable && !journal) continue;
     if (r.db_->db) sqlite3_close(r.db_->db);
     r.db_->db = nullptr;
     int rc;

@@ -538,6 +538,44 @@ TEST(Ros2Import, FileAndMessageCompression) {
   EXPECT_EQ(test::read_file(dir.file("db_plain.lcm")), test::read_file(dir.file("db_packed.lcm")));
 }
 
+// Reading a bag leaves its folder as it was: a sqlite3 bag in WAL mode (ros2 bag record's) opened read-only left an
+// empty -wal and a 32 KiB -shm file beside it. And a bag whose recorder is still writing (its rows in the write-ahead
+// log, not yet in the file) is read with those rows.
+TEST(Ros2Import, ASqliteBagIsReadWithoutWritingBesideItAndWithItsWriteAheadLog) {
+  test::TempDir dir;
+  const std::string bag = dir.file("rec") + "/rec_0.db3";
+  fs::create_directories(dir.file("rec"));
+  sqlite3* db = nullptr;
+  ASSERT_EQ(sqlite3_open(bag.c_str(), &db), SQLITE_OK);
+  auto exec = [&](const std::string& sql) {
+    EXPECT_EQ(sqlite3_exec(db, sql.c_str(), nullptr, nullptr, nullptr), SQLITE_OK) << sqlite3_errmsg(db);
+  };
+  exec(
+      "PRAGMA journal_mode=WAL; PRAGMA wal_autocheckpoint=0;"
+      "CREATE TABLE topics(id INTEGER PRIMARY KEY, name TEXT, type TEXT, serialization_format TEXT, "
+      "offered_qos_profiles TEXT); INSERT INTO topics VALUES(1, '/x', 'std_msgs/msg/Empty', 'cdr', '');"
+      "CREATE TABLE messages(id INTEGER PRIMARY KEY, topic_id INTEGER, timestamp INTEGER, data BLOB);");
+  exec("PRAGMA wal_checkpoint(TRUNCATE);");  // the tables in the file; the rows below only in the log
+  for (int i = 1; i <= 5; ++i) {
+    exec("INSERT INTO messages VALUES(" + std::to_string(i) + ", 1, " + std::to_string(1000 * i) + ", x'00010000');");
+  }
+  ASSERT_GT(fs::file_size(bag + "-wal"), 0u);
+  auto r = import({bag}, dir.file("live.lcm"));
+  EXPECT_EQ(r.said(), "");
+  EXPECT_EQ(by_channel(dir.file("live.lcm")).at("/x").size(), 5u);  // the recorder's rows, from its log
+  sqlite3_close(db);  // the recorder stops: its log checkpointed into the file, -wal and -shm removed
+
+  ASSERT_FALSE(fs::exists(bag + "-wal"));
+  const auto before = fs::last_write_time(bag);
+  r = import({bag}, dir.file("done.lcm"));
+  EXPECT_EQ(r.said(), "");
+  EXPECT_EQ(by_channel(dir.file("done.lcm")).at("/x").size(), 5u);
+  std::vector<std::string> beside;
+  for (const auto& f : fs::directory_iterator(dir.file("rec"))) beside.push_back(f.path().filename().string());
+  EXPECT_EQ(beside, std::vector<std::string>{"rec_0.db3"});
+  EXPECT_EQ(fs::last_write_time(bag), before);
+}
+
 // A sqlite3 bag cut short: the rows before the damage are read, the damage is named, exit 2.
 TEST(Ros2Import, CutSqliteBag) {
   const std::string db3 = test::shared_data("bags/tf_example.db3");
