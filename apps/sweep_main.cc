@@ -16,6 +16,7 @@
 #include "apps/commands.h"
 #include "batch/runner.h"
 #include "batch/session.h"
+#include "batch/spec.h"
 #include "core/wall_clock.h"
 
 namespace driftlab::apps {

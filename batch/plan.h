@@ -2,6 +2,7 @@
 // to vary and the pipeline per point; it expands into points, each with an id that depends only on what the point
 // computes, so the same point keeps its id (and its finished results) across runs. A Plan is the resolved spec and
 // its points, stored as DIR/plan.json so that a task on any node that sees DIR runs exactly the point it was given.
+// Reading a spec file is batch/spec.h's; this header is what a spec is, its points and each point's files.
 // Thread-safety: plain values and pure functions.
 #pragma once
 
@@ -83,22 +84,6 @@ struct Plan {
   std::vector<Point> points;
 };
 
-/// Reads and checks a sweep spec. Every error is one line naming the spec file and the key ("spec.yaml: vary:
-/// faults.IMU.clock_ofset_s: unknown key ..."): an unknown parameter or setting, an empty grid, a value of the
-/// wrong type or out of range. Module settings are checked by validate_module_settings.
-Result<Spec> load_spec(const std::string& path);
-/// The keys of a sweep spec, from the table load_spec reads it with (`driftlab sweep --help-config`).
-std::string spec_reference();
-
-/// A batch over logs: one point per log (paths made absolute; the same log twice is one point). stage: diagnose,
-/// eval or report. Errors name the log.
-Result<Spec> batch_spec(const std::string& command, const std::vector<std::string>& logs);
-
-/// Whether a log argument is a pattern (*, ?, [...]); expand_pattern lists the regular files its last component
-/// matches (fnmatch, no hidden files), sorted; the folders before it are taken as they are.
-bool is_pattern(const std::string& s);
-std::vector<std::string> expand_pattern(const std::string& pattern);
-
 /// The points of a spec: the cartesian product of the logs (if any) and `vary` in the order given, each with a
 /// stable id (12 hex digits of a 64-bit FNV-1a hash of what the point computes: the resolved spec without `vary`,
 /// the logs and the name, and the point's values), so a point keeps its id when the grid around it grows.
@@ -114,10 +99,6 @@ std::string module_config_yaml(const Spec& spec, const Point& point);
 std::string faults_yaml(const Spec& spec, const Point& point);
 /// The restamp of a point: the spec's, or its varied value.
 std::string restamp_of(const Spec& spec, const Point& point);
-
-/// Checks the module settings every point can produce against the modules' tables (modules/settings.h), with as
-/// few configs as cover every value of every varied module key. Errors name the spec file and the key.
-Status validate_module_settings(const Spec& spec);
 
 nlohmann::json to_json(const Plan& plan);
 Result<Plan> plan_from_json(const nlohmann::json& j, const std::string& origin);

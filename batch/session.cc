@@ -1,4 +1,5 @@
 #include "batch/session.h"
+#include "batch/spec.h"
 
 #include <sys/stat.h>
 

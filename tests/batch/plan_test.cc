@@ -10,6 +10,7 @@
 #include <set>
 
 #include "batch/plan.h"
+#include "batch/spec.h"
 #include "batch/store.h"
 #include "core/text_file.h"
 #include "faults/faults.h"

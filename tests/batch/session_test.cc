@@ -10,6 +10,7 @@
 #include <fstream>
 
 #include "batch/session.h"
+#include "batch/spec.h"
 #include "tests/test_util.h"
 
 namespace driftlab::batch {
