@@ -62,7 +62,7 @@ int run_mcap(const McapArgs& a) {
   recordings::ProblemLines problems(a.inputs[0]);
   auto r = a.folder ? formats::export_rosbag2(*log, a.out, o, std::ref(problems))
                     : formats::export_mcap(*log, a.out, o, std::ref(problems));
-  if (!r) return fail(r.error().message, kExitFailure);
+  if (!r) return fail(r.error().message, exit_code_for(r.error()));
   problems.finish();
   std::fputs(formats::export_text(*r, a.inputs[0], a.out).c_str(), stdout);
   return problems.count() > 0 ? kExitBadInput : kExitOk;

@@ -76,8 +76,8 @@ void add_rawlog_commands(CLI::App& import, CLI::App& exp, int* exit_code) {
       return;
     }
     auto r = slam::export_rawlog(*log, out->out);
-    if (!r) {  // the log was checked above: what fails now is creating or writing the rawlog
-      *exit_code = fail(r.error().message, kExitFailure);
+    if (!r) {
+      *exit_code = fail(r.error().message, exit_code_for(r.error()));
       return;
     }
     print_counts(*r, out->in, out->out);

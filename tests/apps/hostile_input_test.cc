@@ -771,6 +771,22 @@ TEST(UnwritableOutput, EveryCommandFailsWithCode1NamingTheOutput) {
   EXPECT_EQ(left_behind(dir.path()), std::vector<std::string>{});
 }
 
+// A bag folder given that already holds files: the user's to clear or rename (exit 2, not 1: nothing failed to be
+// written), in one line naming it, and what it holds is left as it was.
+TEST(UnwritableOutput, ABagFolderThatIsNotEmptyIsTheUsersToClear) {
+  test::TempDir dir;
+  const std::string bag = dir.file("bag");
+  fs::create_directories(bag);
+  std::ofstream(bag + "/notes.txt") << "mine\n";
+  const auto r = driftlab("export rosbag2 " + kSample + " -o " + bag);
+  EXPECT_EQ(r.code, 2) << r.err;
+  EXPECT_EQ(r.err,
+            "driftlab: " + bag + ": exists and is not an empty folder (rosbag2 writes a bag into a new folder)\n");
+  const auto kept = test::read_file(bag + "/notes.txt");
+  EXPECT_EQ(std::string(kept.begin(), kept.end()), "mine\n");
+  EXPECT_EQ(left_behind(dir.path()), std::vector<std::string>{});
+}
+
 // A disk that fills while report's Python draws (report.json written, the page not): a 51-line Python traceback and
 // exit 2. Now one line naming the folder, exit 1, and the user's earlier page and plots kept whole.
 TEST(FullDisk, ReportWhilePlottingIsOneLineAndCode1) {
