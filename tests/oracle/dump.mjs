@@ -8,6 +8,7 @@
 // reads the rows (Node 20 has no sqlite), @foxglove/rosmsg2-serialization decodes them.
 import { execFileSync } from "node:child_process";
 import { readFileSync, openSync, readSync, fstatSync } from "node:fs";
+import { resolve } from "node:path";
 
 import { McapIndexedReader, McapStreamReader } from "@mcap/core";
 import { parse as parseDefinition } from "@foxglove/rosmsg";
@@ -147,8 +148,11 @@ async function dumpRos1(path) {
 }
 
 function dumpSqlite(path) {
+  // Immutable (as a URI): a read-only connection to a bag in WAL mode leaves an empty -wal and a -shm file beside
+  // it, which wrote into ../shared/data/bags. The bags read here are finished recordings, with no log to see.
+  const uri = "file:" + resolve(path).replace(/[%?#]/g, (c) => "%" + c.charCodeAt(0).toString(16)) + "?immutable=1";
   const q = (sql) =>
-    JSON.parse(execFileSync("sqlite3", ["-readonly", "-json", path, sql], { maxBuffer: 1 << 30 }).toString() || "[]");
+    JSON.parse(execFileSync("sqlite3", ["-readonly", "-json", uri, sql], { maxBuffer: 1 << 30 }).toString() || "[]");
   const tables = new Set(q("SELECT name FROM sqlite_master WHERE type = 'table'").map((r) => r.name));
   const defs = new Map();
   if (tables.has("message_definitions")) {
