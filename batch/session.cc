@@ -1,5 +1,4 @@
 #include "batch/session.h"
-#include "batch/spec.h"
 
 #include <sys/stat.h>
 
@@ -7,6 +6,7 @@
 #include <filesystem>
 #include <sstream>
 
+#include "batch/spec.h"
 #include "core/number_text.h"
 #include "core/process.h"
 #include "core/same_file.h"
