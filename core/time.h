@@ -77,12 +77,16 @@ class Time {
   /// The ends of the clock: before and after every time a log can hold.
   static constexpr Time min() { return Time(std::numeric_limits<int64_t>::min()); }
   static constexpr Time max() { return Time(std::numeric_limits<int64_t>::max()); }
-  /// This time plus `s` >= 0 seconds to the nearest microsecond, max() when that is past the end of the clock: a
-  /// --start or --end of 1e308 s is after any log, not an overflow back before it.
+  /// This time plus `s` seconds to the nearest microsecond, saturated at the clock's ends: a --start or --end of
+  /// 1e308 s is after any log (max()), not an overflow back before it; NaN is max() too.
   Time plus_seconds_saturated(double s) const {
     const double us = s * 1e6;
-    const double room = static_cast<double>(std::numeric_limits<int64_t>::max() - us_);
-    return us >= room ? max() : Time(us_ + static_cast<int64_t>(std::llround(us)));
+    if (!(us < 9.2e18)) return max();
+    if (us <= -9.2e18) return min();
+    // The sum is checked rather than the room (INT64_MAX - us_), which overflows for a time before the clock's zero.
+    int64_t sum = 0;
+    if (__builtin_add_overflow(us_, static_cast<int64_t>(std::llround(us)), &sum)) return us > 0 ? max() : min();
+    return Time(sum);
   }
 
   constexpr int64_t us() const { return us_; }

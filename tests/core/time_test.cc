@@ -3,6 +3,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstdint>
 #include <limits>
 
@@ -90,6 +91,12 @@ TEST(Time, PlusSecondsSaturatesAtTheEndOfTheClock) {
   // A --start or --end past any log is after it, not an overflow back before its start.
   EXPECT_EQ(t.plus_seconds_saturated(1e308), Time::max());
   EXPECT_EQ(Time::max().plus_seconds_saturated(1e-6), Time::max());
+  // Before the clock's zero (a hostile log's first stamp), the room to the end is more than INT64_MAX.
+  EXPECT_EQ(Time::from_us(-1'000'000).plus_seconds_saturated(2), Time::from_us(1'000'000));
+  EXPECT_EQ(Time::min().plus_seconds_saturated(1e308), Time::max());
+  EXPECT_EQ(Time::min().plus_seconds_saturated(std::nan("")), Time::max());
+  EXPECT_EQ(Time::from_us(-5).plus_seconds_saturated(-1e308), Time::min());
+  EXPECT_EQ(Time::min().plus_seconds_saturated(-1), Time::min());
   EXPECT_EQ(Time::min().us(), std::numeric_limits<int64_t>::min());
   EXPECT_LT(Time::min(), Time::from_us(std::numeric_limits<int64_t>::min() + 1));
 }
