@@ -1,0 +1,31 @@
+#!/usr/bin/env bash
+# scripts/slam-robustness on bad input: each gives one line naming the file (or the run) and exit status 2, before
+# any replay. Its runs on real logs are docs/tutorial-public-dataset.md's block (docs.run.tutorial-public-dataset).
+#   tests/slam_robustness_test.sh SOURCE_DIR BIN_DIR
+set -uo pipefail
+script=$(realpath "$1")/scripts/slam-robustness
+bin=$(realpath "$2")
+tmp=$(mktemp -d /tmp/driftlab-slam-robustness-test-XXXXXX)
+trap 'rm -rf "$tmp"' EXIT
+cd "$tmp" || exit 1
+printf '0 1 0 0 0 0 0 0\n' >ok.relations
+printf 'not a bag\n' >broken.bag
+failed=0
+expect() {  # expect MESSAGE ARGS...: exit 2 and exactly one line on stderr, containing MESSAGE
+  local want=$1
+  shift
+  "$script" --bin "$bin" "$@" >out.txt 2>err.txt
+  local status=$?
+  if [[ $status -ne 2 || $(wc -l <err.txt) -ne 1 ]] || ! grep -qF -- "$want" err.txt; then
+    echo "FAILED: slam-robustness $*: exit $status, wanted 2 and one line with '$want'; stderr:"
+    cat err.txt
+    failed=1
+  fi
+}
+expect "missing.lcm: no such file" missing.lcm:ok.relations
+expect "missing.relations: no such file" broken.bag:missing.relations
+expect "broken.lcm: expected LOG:RELATIONS" broken.lcm
+expect "broken.bag: driftlab import failed" broken.bag:ok.relations
+expect "--runs: no run named 'start-5'" --runs whole,start-5 broken.bag:ok.relations
+expect "nowhere/driftlab: no such program" --bin "$tmp/nowhere" broken.bag:ok.relations
+exit $failed
