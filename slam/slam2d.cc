@@ -30,6 +30,7 @@
 #include "core/time.h"
 #include "driftlab/image_t.hpp"
 #include "driftlab/laser_scan_t.hpp"
+#include "driftlab/loop_closure_t.hpp"
 #include "driftlab/odometry_t.hpp"
 #include "driftlab/pose_t.hpp"
 #include "driftlab/tf_t.hpp"
@@ -103,7 +104,7 @@ struct Slam2d::Impl {
   std::map<std::string, mrpt::poses::CPose2D> sensor_on_base;  ///< by scan frame, from TF_STATIC
   internal::OdometryBuffer odom;
   std::optional<mrpt::poses::CPose2D> last_odom_at_scan;
-  int64_t scans = 0, odometry = 0, undecodable = 0, seq = 0, keyframes = 0, before_odometry = 0;
+  int64_t scans = 0, odometry = 0, undecodable = 0, seq = 0, keyframes = 0, before_odometry = 0, loop_seq = 0;
   int64_t first_scan = -1;  ///< stamp of the first scan [us]
   int64_t first_odometry = std::numeric_limits<int64_t>::max();  ///< the earliest odometry stamp [us]
   NonFiniteInputs non_finite;
@@ -148,6 +149,32 @@ struct Slam2d::Impl {
     }
     keyframes = graph->stats().keyframes;
     bus.publish_message(c.pose_channel, p);
+    publish_loops(bus);
+  }
+
+  /// The loop tests decided since the last call, on loops_channel.
+  void publish_loops(Bus& bus) {
+    const auto& keyframes = graph->keyframes();
+    for (const auto& r : graph->take_loop_records()) {
+      if (c.loops_channel.empty()) continue;
+      driftlab::loop_closure_t m{};
+      m.header.seq = loop_seq++;
+      m.header.utime = keyframes[r.keyframe].stamp;
+      m.header.frame_id = "map";
+      m.old_utime = keyframes[r.old_keyframe].stamp;
+      m.keyframe = static_cast<int32_t>(r.keyframe);
+      m.old_keyframe = static_cast<int32_t>(r.old_keyframe);
+      m.search = r.far ? "far" : "near";
+      m.radius_m = r.radius;
+      m.outcome = internal::outcome_name(r.outcome);
+      m.reason = r.reason;
+      m.correction[0] = r.correction.x(), m.correction[1] = r.correction.y(), m.correction[2] = r.correction.phi();
+      m.measured[0] = r.measured.x(), m.measured[1] = r.measured.y(), m.measured[2] = r.measured.phi();
+      m.overlap = r.overlap;
+      m.pairs = static_cast<int32_t>(std::min<int64_t>(r.pairs, std::numeric_limits<int32_t>::max()));
+      m.chi2 = r.chi2;
+      bus.publish_message(c.loops_channel, m);
+    }
   }
 
   /// Matches the waiting scans the odometry has caught up with, and those that waited odom_wait_s (by the scans'
@@ -337,6 +364,7 @@ void Slam2d::finish(Bus& bus) {
   std::vector<std::pair<mrpt::obs::CObservation2DRangeScan::Ptr, mrpt::poses::CPose3D>> placed;
   if (d.graph) {
     d.graph->finish();
+    d.publish_loops(bus);
     // The trajectory as last optimised: a pose per scan, published now with the scans' stamps.
     int64_t seq = 0;
     if (!d.c.trajectory_channel.empty()) {
@@ -467,7 +495,7 @@ ModuleCounters Slam2d::counters() const {
                                        {"loop_rejected_unique", static_cast<double>(s.loop_rejected_unique)},
                                        {"loop_rejected_chi2", static_cast<double>(s.loop_rejected_chi2)},
                                        {"loop_undone", static_cast<double>(s.loop_undone)},
-                                       {"loop_unconfirmed", static_cast<double>(s.loop_pending)},
+                                       {"loop_unconfirmed", static_cast<double>(s.loop_unconfirmed)},
                                        {"optimisations", static_cast<double>(s.optimisations)}});
   }
   return c;

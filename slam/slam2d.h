@@ -38,6 +38,7 @@ struct Slam2dConfig {
   // (docs/slam.md says why each is what it is).
   std::string method = "graph";                        ///< graph | icp-slam (the default with `ini`)
   std::string trajectory_channel = "SLAM_TRAJECTORY";  ///< every scan's pose as last optimised, at the end
+  std::string loops_channel = "SLAM_LOOPS";            ///< driftlab.loop_closure_t: each loop test, decided
   double odom_wait_s = 2;           ///< how long a scan waits for the odometry at its stamp [s of scan stamps]
   double keyframe_distance = 0.5;   ///< travel that makes a new keyframe [m]
   double keyframe_angle = 20;       ///< turn that makes a new keyframe [deg]

@@ -31,6 +31,8 @@ const config::Table<Slam2dConfig>& slam2d_config_table() {
                   "runs it (the default when `ini` is given)")
           .text("trajectory_channel", &C::trajectory_channel,
                 "graph: driftlab.pose_t out at the end, every scan's pose as last optimised; \"\" for none")
+          .text("loops_channel", &C::loops_channel,
+                "graph: driftlab.loop_closure_t out, each loop test as it is decided and why; \"\" for none")
           .number("odom_wait_s", &C::odom_wait_s, between(0, 60), "s",
                   "graph: how long (in scan stamps) a scan waits for the odometry at its stamp")
           .number("keyframe_distance", &C::keyframe_distance, above(0, 1e3), "m",

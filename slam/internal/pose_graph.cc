@@ -96,7 +96,7 @@ void PoseGraph2d::optimise(int max_iterations) {
 }
 
 std::vector<size_t> PoseGraph2d::remove_contradicted(const std::vector<size_t>& candidates, double max_chi2,
-                                                     int max_iterations) {
+                                                     int max_iterations, std::vector<double>* chi2) {
   std::vector<size_t> removed;
   while (true) {
     size_t worst = edges_.size();
@@ -109,6 +109,7 @@ std::vector<size_t> PoseGraph2d::remove_contradicted(const std::vector<size_t>& 
     if (worst == edges_.size()) return removed;
     remove_edge(worst);
     removed.push_back(worst);
+    if (chi2 != nullptr) chi2->push_back(worst_chi2);
     optimise(max_iterations);
   }
 }

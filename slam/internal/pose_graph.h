@@ -34,8 +34,10 @@ class PoseGraph2d {
   double edge_chi2(size_t id) const;
   /// Of the edges `candidates` (loop closures), takes out the one the optimised graph leaves with the largest chi2
   /// above max_chi2, optimises again (at most max_iterations), and repeats until none is above: the rest of the
-  /// graph contradicts them. Returns the edges taken out, in that order. Call on an optimised graph.
-  std::vector<size_t> remove_contradicted(const std::vector<size_t>& candidates, double max_chi2, int max_iterations);
+  /// graph contradicts them. Returns the edges taken out, in that order, and their chi2 when taken out in `chi2`
+  /// if given. Call on an optimised graph.
+  std::vector<size_t> remove_contradicted(const std::vector<size_t>& candidates, double max_chi2, int max_iterations,
+                                          std::vector<double>* chi2 = nullptr);
 
   const Pose& node(size_t i) const { return nodes_[i]; }
   void set_node(size_t i, const Pose& pose) { nodes_[i] = pose; }

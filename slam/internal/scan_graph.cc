@@ -10,6 +10,7 @@
 #include <limits>
 #include <queue>
 
+#include "core/number_text.h"
 #include "slam/internal/correlative_matcher.h"
 
 namespace driftlab::slam::internal {
@@ -20,6 +21,14 @@ using mrpt::poses::CPose3D;
 namespace {
 
 double angle_of(const CPose2D& p) { return std::abs(mrpt::math::wrapToPi(p.phi())); }
+double degrees(double rad) { return rad * 180 / M_PI; }
+
+/// "0.12 m and 1.3 deg": how far a pose moved (no comma: a reason is one CSV field unquoted).
+std::string moved(const CPose2D& p) {
+  std::string s;
+  appendf(s, "%.2f m and %.1f deg", p.norm(), degrees(angle_of(p)));
+  return s;
+}
 PoseGraph2d::Pose array_of(const CPose2D& p) { return {p.x(), p.y(), p.phi()}; }
 
 /// What a match pins down, from its point pairs: each pair constrains the pose along the normal of the old surface
@@ -78,6 +87,26 @@ std::vector<Point2f> points_in(const mrpt::maps::CSimplePointsMap& map, size_t a
 }
 
 }  // namespace
+
+const char* outcome_name(LoopRecord::Outcome outcome) {
+  switch (outcome) {
+    case LoopRecord::Outcome::accepted: return "accepted";
+    case LoopRecord::Outcome::waiting: return "waiting";
+    case LoopRecord::Outcome::low_overlap: return "low_overlap";
+    case LoopRecord::Outcome::ambiguous: return "ambiguous";
+    case LoopRecord::Outcome::not_unique: return "not_unique";
+    case LoopRecord::Outcome::refused_chi2: return "refused_chi2";
+    case LoopRecord::Outcome::unconfirmed: return "unconfirmed";
+    case LoopRecord::Outcome::undone: return "undone";
+  }
+  return "?";
+}
+
+void ScanGraph::record(LoopRecord r, LoopRecord::Outcome outcome, std::string reason) {
+  r.outcome = outcome;
+  r.reason = std::move(reason);
+  records_.push_back(std::move(r));
+}
 
 ScanGraph::ScanGraph(ScanGraphOptions options) : o_(std::move(options)), icp_(o_.icp) {}
 
@@ -192,7 +221,13 @@ std::vector<double> ScanGraph::graph_distances(size_t from) const {
 void ScanGraph::close_loops() {
   const size_t k = current_keyframe_;
   // Large corrections wait a few keyframes for a second, consistent match; then they are dropped.
-  std::erase_if(pending_, [&](const LoopEdge& l) { return k - l.k > static_cast<size_t>(o_.loop_confirm_keyframes); });
+  std::erase_if(pending_, [&](const LoopEdge& l) {
+    if (k - l.k <= static_cast<size_t>(o_.loop_confirm_keyframes)) return false;
+    ++stats_.loop_unconfirmed;
+    record(l.record, LoopRecord::Outcome::unconfirmed,
+           "no match from the " + std::to_string(o_.loop_confirm_keyframes) + " keyframes after it agreed");
+    return true;
+  });
   // The old keyframe the graph places nearest, among those within reach of the drift since the graph last tied
   // the two together (the graph distance between them, loop edges counting as the short links they are).
   const CPose2D here = keyframe_pose(k);
@@ -218,6 +253,8 @@ bool ScanGraph::try_loop(size_t j, double radius) {
   const double path = keyframes_[k].path;
   const CPose2D here = keyframe_pose(k);
   const bool far = radius > o_.loop_far_radius;
+  LoopRecord rec;
+  rec.keyframe = k, rec.old_keyframe = j, rec.far = far, rec.radius = radius;
   // The current place: this keyframe and the ones just before it, in this keyframe's frame.
   mrpt::maps::CSimplePointsMap query;
   const auto q = static_cast<size_t>(o_.loop_query_keyframes);
@@ -255,6 +292,10 @@ bool ScanGraph::try_loop(size_t j, double radius) {
     const auto other = matcher.match(points, here.x(), here.y(), here.phi(), radius, o_.loop_far_yaw, &best, 0.5);
     if (other.score >= o_.loop_ambiguity * best.score) {
       ++stats_.loop_rejected_unique;
+      std::string why;
+      appendf(why, "another place 0.5 m or more from the best scores %.0f%% of it (at most %.0f%%)",
+              100 * other.score / best.score, 100 * o_.loop_ambiguity);
+      record(rec, LoopRecord::Outcome::ambiguous, why);
       return false;
     }
     start = CPose2D(best.x, best.y, best.yaw);
@@ -277,9 +318,20 @@ bool ScanGraph::try_loop(size_t j, double radius) {
   mrpt::maps::TMatchingExtraResults overlap;
   reference.determineMatching2D(&query, found, pairs, params, overlap);
   const CPose2D correction = found - here;
+  rec.correction = correction, rec.overlap = overlap.correspondencesRatio;
+  rec.pairs = static_cast<int64_t>(pairs.size());
   if (overlap.correspondencesRatio < o_.loop_min_goodness || static_cast<double>(pairs.size()) < o_.loop_min_points ||
       correction.norm() > radius) {
     ++stats_.loop_rejected_goodness;
+    std::string why;
+    if (correction.norm() > radius) {
+      appendf(why, "the match moved it %.2f m: beyond the search's reach (%.2f m)", correction.norm(), radius);
+    } else {
+      appendf(why, "%.0f%% of the current points (%zu) have an old point within %.2f m (at least %.0f%% and %.0f)",
+              100 * overlap.correspondencesRatio, pairs.size(), o_.loop_match_distance, 100 * o_.loop_min_goodness,
+              o_.loop_min_points);
+    }
+    record(rec, LoopRecord::Outcome::low_overlap, why);
     return false;
   }
   // What the match pins down. A corridor pins the pose across it and its heading, not along it: such a match is
@@ -288,6 +340,9 @@ bool ScanGraph::try_loop(size_t j, double radius) {
   Eigen::Matrix3d h = constraint_of(reference, pairs, found, lines);
   if (static_cast<double>(lines) < o_.loop_min_points / 2) {
     ++stats_.loop_rejected_unique;
+    record(rec, LoopRecord::Outcome::not_unique,
+           std::to_string(lines) + " of the matched points lie on a clear surface (at least " +
+               std::to_string(static_cast<int>(o_.loop_min_points / 2)) + ")");
     return false;
   }
   const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> axes(h.topLeftCorner<2, 2>());
@@ -305,10 +360,19 @@ bool ScanGraph::try_loop(size_t j, double radius) {
         restart.Align(&reference, &query, CPose2D(found.x() + off.x(), found.y() + off.y(), found.phi() + off.z()))
             ->getMeanVal();
     const Eigen::Vector2d step(back.x() - found.x(), back.y() - found.y());
-    bool same = std::abs(mrpt::math::wrapToPi(back.phi() - found.phi())) <= 0.02;
-    for (int a = corridor ? 1 : 0; a < 2; ++a) same &= std::abs(step.dot(axes.eigenvectors().col(a))) <= 0.05;
+    const double turned = std::abs(mrpt::math::wrapToPi(back.phi() - found.phi()));
+    constexpr double kSameXy = 0.05, kSameYaw = 0.02;  // ICP's own spread from nearby starts
+    bool same = turned <= kSameYaw;
+    for (int a = corridor ? 1 : 0; a < 2; ++a) same &= std::abs(step.dot(axes.eigenvectors().col(a))) <= kSameXy;
     if (!same) {
       ++stats_.loop_rejected_unique;
+      std::string why;
+      appendf(why,
+              "ICP started %.2f m and %.1f deg off came back %.3f m and %.2f deg away (at most %.2f m along what "
+              "the match pins down and %.2f deg)",
+              std::hypot(off.x(), off.y()), degrees(std::abs(off.z())), step.norm(), degrees(turned), kSameXy,
+              degrees(kSameYaw));
+      record(rec, LoopRecord::Outcome::not_unique, why);
       return false;
     }
   }
@@ -329,34 +393,43 @@ bool ScanGraph::try_loop(size_t j, double radius) {
   }
   const CPose2D there = keyframe_pose(j);
   const CPose2D measured = found - there;
+  rec.old_keyframe = j, rec.measured = measured;
   // Its information: what the match pinned down (h, per point, in the map frame) turned into the old keyframe's
   // frame, and scaled so that a place pinned down equally in x and y gives edge_sigma_xy in each.
   Eigen::Matrix3d rotate = Eigen::Matrix3d::Identity();
   rotate.topLeftCorner<2, 2>() = Eigen::Rotation2Dd(there.phi()).toRotationMatrix().transpose();
   const Eigen::Matrix3d info = rotate * h * rotate.transpose() * (2 / (o_.edge_sigma_xy * o_.edge_sigma_xy));
-  LoopEdge loop{j, k, measured, {}};
+  LoopEdge loop{j, k, measured, {}, rec};
   for (int r = 0; r < 3; ++r) {
     for (int c = 0; c < 3; ++c) loop.information[static_cast<size_t>(r) * 3 + static_cast<size_t>(c)] = info(r, c);
   }
   // A small correction is one the graph nearly agrees with already. A large one (the first return after a long
   // excursion, or a wrong match) waits for a second match, from one of the next keyframes, that puts this stretch
   // of the path in the same place; then both go in.
-  if (correction.norm() <= o_.loop_confirm_xy && angle_of(correction) <= o_.loop_confirm_yaw) return add_loops({loop});
+  if (correction.norm() <= o_.loop_confirm_xy && angle_of(correction) <= o_.loop_confirm_yaw) {
+    loop.record.reason = "moves the estimate " + moved(correction);
+    return add_loops({loop});
+  }
   for (auto it = pending_.begin(); it != pending_.end(); ++it) {
     const CPose2D predicted = (keyframe_pose(it->j) + it->measured) + (here - keyframe_pose(it->k));
     const CPose2D diff = found - predicted;
     if (diff.norm() <= o_.loop_consistency_xy && angle_of(diff) <= o_.loop_consistency_yaw) {
-      const LoopEdge first = *it;
+      LoopEdge first = *it;
       pending_.erase(it);
+      first.record.reason = "moves the estimate " + moved(first.record.correction) + "; keyframe " + std::to_string(k) +
+                            "'s match agrees within " + moved(diff);
+      loop.record.reason = "moves the estimate " + moved(correction) + "; agrees with keyframe " +
+                           std::to_string(first.k) + "'s match within " + moved(diff);
       return add_loops({first, loop});
     }
   }
+  record(loop.record, LoopRecord::Outcome::waiting,
+         "moves the estimate " + moved(correction) + ": waits for a second match that agrees");
   pending_.push_back(loop);
-  ++stats_.loop_pending;
   return false;
 }
 
-bool ScanGraph::add_loops(const std::vector<LoopEdge>& loops) {
+bool ScanGraph::add_loops(std::vector<LoopEdge> loops) {
   std::vector<PoseGraph2d::Pose> before(graph_.size());
   for (size_t i = 0; i < before.size(); ++i) before[i] = graph_.node(i);
   std::vector<size_t> edges;
@@ -372,6 +445,17 @@ bool ScanGraph::add_loops(const std::vector<LoopEdge>& loops) {
     // A match that contradicts the rest of the graph stays far from what the optimum makes of it.
     for (size_t e : edges) {
       if (graph_.edge_chi2(e) <= o_.loop_max_chi2) continue;
+      for (size_t i = 0; i < loops.size(); ++i) {
+        auto& r = loops[i].record;
+        r.chi2 = graph_.edge_chi2(edges[i]);
+        std::string why;
+        if (edges[i] == e || r.chi2 > o_.loop_max_chi2) {
+          appendf(why, "; after optimising its chi2 is %.1f (at most %.0f)", r.chi2, o_.loop_max_chi2);
+        } else {
+          appendf(why, "; after optimising its partner's chi2 is above %.0f (its own %.1f)", o_.loop_max_chi2, r.chi2);
+        }
+        record(r, LoopRecord::Outcome::refused_chi2, r.reason + why);
+      }
       for (size_t r : edges) graph_.remove_edge(r);
       for (size_t i = 0; i < before.size(); ++i) graph_.set_node(i, before[i]);
       stats_.loop_rejected_chi2 += static_cast<int64_t>(loops.size());
@@ -382,13 +466,19 @@ bool ScanGraph::add_loops(const std::vector<LoopEdge>& loops) {
     const auto& l = loops[i];
     adjacency_[l.j].push_back({static_cast<uint32_t>(l.k), l.measured.norm()});
     adjacency_[l.k].push_back({static_cast<uint32_t>(l.j), l.measured.norm()});
-    closures_.push_back({l.j, l.k, edges[i]});
+    closures_.push_back({l.j, l.k, edges[i], l.record});
+    record(l.record, LoopRecord::Outcome::accepted, l.record.reason);
     ++stats_.loop_closures;
   }
   return true;
 }
 
 void ScanGraph::finish() {
+  for (const auto& l : pending_) {
+    ++stats_.loop_unconfirmed;
+    record(l.record, LoopRecord::Outcome::unconfirmed, "the log ended before a second match agreed");
+  }
+  pending_.clear();
   if (stats_.loop_closures == 0) return;
   ++stats_.optimisations;
   graph_.optimise(100);
@@ -397,8 +487,16 @@ void ScanGraph::finish() {
   // has fewer closures to judge by, took out right ones (MIT CSAIL went from 0.034 to 0.49 m).
   std::vector<size_t> edges;
   for (const auto& c : closures_) edges.push_back(c.edge);
-  for (size_t e : graph_.remove_contradicted(edges, o_.loop_max_chi2, 100)) {
+  std::vector<double> chi2;
+  const auto undone = graph_.remove_contradicted(edges, o_.loop_max_chi2, 100, &chi2);
+  for (size_t u = 0; u < undone.size(); ++u) {
+    const size_t e = undone[u];
     const auto& c = *std::find_if(closures_.begin(), closures_.end(), [&](const Closure& x) { return x.edge == e; });
+    LoopRecord r = c.record;
+    r.chi2 = chi2[u];
+    std::string why;
+    appendf(why, "the graph with every closure in leaves it chi2 %.1f (at most %.0f)", r.chi2, o_.loop_max_chi2);
+    record(r, LoopRecord::Outcome::undone, why);
     std::erase_if(adjacency_[c.j], [&](const auto& n) { return n.first == c.k; });
     std::erase_if(adjacency_[c.k], [&](const auto& n) { return n.first == c.j; });
     ++stats_.loop_undone;

@@ -24,6 +24,8 @@
 
 #include <cstdint>
 #include <optional>
+#include <string>
+#include <utility>
 #include <vector>
 
 #include "slam/internal/pose_graph.h"
@@ -76,11 +78,32 @@ struct ScanGraphOptions {
   double optimize_threshold_yaw = 0.02;  ///< ... or by more than this
 };
 
+/// Every loop test ends in one of accepted, low_overlap, ambiguous, not_unique, refused_chi2 and unconfirmed, so
+/// loop_tests = loop_closures + loop_undone + loop_rejected_goodness + loop_rejected_unique + loop_rejected_chi2 +
+/// loop_unconfirmed.
 struct ScanGraphStats {
   int64_t scans = 0, matched = 0, unmatched = 0, still = 0, keyframes = 0;
   int64_t loop_tests = 0, loop_closures = 0, loop_rejected_goodness = 0, loop_rejected_unique = 0,
-          loop_rejected_chi2 = 0, loop_undone = 0, loop_pending = 0, optimisations = 0;
+          loop_rejected_chi2 = 0, loop_undone = 0, loop_unconfirmed = 0, optimisations = 0;
 };
+
+/// What became of one loop test, and why (published by the module as driftlab.loop_closure_t). A test's record
+/// comes when it is decided; a match waiting for its second one gives a `waiting` record first, then its final
+/// one; an accepted closure undone at the end gives an `undone` record.
+struct LoopRecord {
+  enum class Outcome { accepted, waiting, low_overlap, ambiguous, not_unique, refused_chi2, unconfirmed, undone };
+  size_t keyframe = 0, old_keyframe = 0;  ///< current and old keyframe
+  bool far = false;                       ///< a correlative search of the window, not ICP from the estimate
+  double radius = 0;                      ///< the search's reach [m]
+  Outcome outcome = Outcome::accepted;
+  std::string reason;               ///< the figures that decided it (one line, no commas)
+  mrpt::poses::CPose2D correction;  ///< the match's pose seen from the graph's estimate of the current keyframe
+  mrpt::poses::CPose2D measured;    ///< the current keyframe seen from the old one (the edge)
+  double overlap = 0;               ///< share of the current points with an old point within loop_match_distance
+  int64_t pairs = 0;                ///< those points
+  double chi2 = 0;                  ///< refused_chi2, undone: the edge's error at the optimum
+};
+const char* outcome_name(LoopRecord::Outcome outcome);
 
 class ScanGraph {
  public:
@@ -108,6 +131,8 @@ class ScanGraph {
   const std::vector<Keyframe>& keyframes() const { return keyframes_; }
   mrpt::poses::CPose2D keyframe_pose(size_t i) const;
   const ScanGraphStats& stats() const { return stats_; }
+  /// The loop records since the last call, in the order they were decided.
+  std::vector<LoopRecord> take_loop_records() { return std::exchange(records_, {}); }
 
  private:
   struct ScanRecord {
@@ -119,16 +144,19 @@ class ScanGraph {
     size_t j, k;                    ///< old and current keyframe
     mrpt::poses::CPose2D measured;  ///< k seen from j
     PoseGraph2d::Information information;
+    LoopRecord record;
   };
   struct Closure {
     size_t j, k, edge;  ///< old and current keyframe, the edge in the graph
+    LoopRecord record;
   };
   void add_keyframe(int64_t stamp, const mrpt::obs::CObservation2DRangeScan::Ptr& scan,
                     const mrpt::maps::CSimplePointsMap& points, const mrpt::poses::CPose2D& pose);
   void rebuild_local_map();
   void close_loops();
   bool try_loop(size_t j, double radius);  // j: the candidate keyframe
-  bool add_loops(const std::vector<LoopEdge>& loops);
+  bool add_loops(std::vector<LoopEdge> loops);
+  void record(LoopRecord r, LoopRecord::Outcome outcome, std::string reason);
   std::vector<double> graph_distances(size_t from) const;
   mrpt::maps::CSimplePointsMap points_of(const mrpt::obs::CObservation2DRangeScan& scan) const;
 
@@ -146,6 +174,7 @@ class ScanGraph {
   std::optional<mrpt::poses::CPose2D> last_odometry_;
   std::vector<LoopEdge> pending_;  ///< large corrections waiting for a second match
   std::vector<Closure> closures_;  ///< every loop edge accepted
+  std::vector<LoopRecord> records_;
   ScanGraphStats stats_;
 };
 

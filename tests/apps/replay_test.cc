@@ -248,8 +248,14 @@ TEST_F(ReplayCli, MrptRawlogsComeInAndGoOut) {
   EXPECT_NE(in.out.find("SCAN                         225"), std::string::npos) << in.out;
   const auto replay = driftlab("replay " + file("sena.lcm") + " --modules slam --json -o " + file("sena_slam.lcm"));
   ASSERT_EQ(replay.code, 0) << replay.err;
-  // A pose per scan as it went, the trajectory as last optimised (a pose per scan again), the map.
-  EXPECT_EQ(nlohmann::json::parse(replay.out)["modules"][0]["outputs"].get<int64_t>(), 224 + 224 + 1);
+  // A pose per scan as it went, the trajectory as last optimised (a pose per scan again), the map, and a record
+  // of each loop test (one each, more for those that waited for a second match or were undone).
+  const auto module = nlohmann::json::parse(replay.out)["modules"][0];
+  int64_t loop_records = 0;
+  for (const auto& e : test::read_all(file("sena_slam.lcm"))) loop_records += e.channel == "SLAM_LOOPS";
+  EXPECT_GE(loop_records, module["metrics"]["loop_tests"].get<int64_t>());
+  EXPECT_GT(module["metrics"]["loop_tests"].get<int64_t>(), 0);
+  EXPECT_EQ(module["outputs"].get<int64_t>(), 224 + 224 + 1 + loop_records);
   const auto out = driftlab("export rawlog " + log() + " -o " + file("session.rawlog"));
   ASSERT_EQ(out.code, 0) << out.err;
   EXPECT_NE(out.out.find("CObservation2DRangeScan"), std::string::npos);

@@ -147,6 +147,7 @@ TEST_P(SlamOnTheBenchmark, ClosesLoopsToCentimetresAndBeatsIcpSlam) {
   std::printf("%s: %s\n", run.name, metrics.dump().c_str());
   EXPECT_GT(metrics["loop_closures"].get<double>(), 20);
   EXPECT_TRUE(replay["modules"][0]["warnings"].empty()) << replay["modules"][0]["warnings"];
+  test::check_loop_records(out, metrics);
 
   // The trajectory as last optimised, against the benchmark's relations: loop-closing SLAM reaches 0.02-0.07 m
   // on these logs in the literature, scan matching alone about 0.2 m; 0.10 m is the bar (ours: 0.032 m
@@ -266,6 +267,7 @@ TEST_P(SlamOnMoreLogs, ClosesLoopsWithoutFoldingTheMap) {
   const auto replay =
       test::driftlab_json("replay " + dir.file("raw.lcm") + " --modules slam --json -o " + dir.file("slam.lcm"));
   EXPECT_TRUE(replay["modules"][0]["warnings"].empty()) << replay["modules"][0]["warnings"];
+  test::check_loop_records(dir.file("slam.lcm"), replay["modules"][0]["metrics"]);
   const auto error = test::relation_error(dir.file("slam.lcm") + ":SLAM_TRAJECTORY", relations);
   const double mean = error["trans_m"]["mean"].get<double>(), max = error["trans_m"]["max"].get<double>();
   std::printf("%s: relation error %.4f m, max %.3f m over %zu relations\n", run.name, mean, max,
