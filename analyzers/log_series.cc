@@ -12,6 +12,7 @@
 #include "driftlab/image_t.hpp"
 #include "driftlab/joint_state_t.hpp"
 #include "driftlab/joint_trajectory_t.hpp"
+#include "driftlab/loop_closure_t.hpp"
 #include "driftlab/odometry_t.hpp"
 #include "driftlab/pose_t.hpp"
 #include "lcmtypes/stream_header.h"
@@ -77,6 +78,7 @@ Result<LogSeries> read_log_series(const std::string& log, const std::string& cha
   const int64_t status_hash = driftlab::estimator_status_t::getHash();
   const int64_t command_hash = driftlab::joint_trajectory_t::getHash();
   const int64_t joint_state_hash = driftlab::joint_state_t::getHash();
+  const int64_t loop_hash = driftlab::loop_closure_t::getHash();
   std::map<std::string, internal::JointCommands> commands;
   std::map<std::string, internal::JointStates> joint_states;
   Event e;
@@ -145,6 +147,15 @@ Result<LogSeries> read_log_series(const std::string& log, const std::string& cha
         es->late[i].push_back(st.late[i]);
         es->outliers[i].push_back(st.outliers[i]);
       }
+    } else if (fp == loop_hash) {
+      driftlab::loop_closure_t r;
+      if (!lcmtypes::decode(e.data, r)) continue;
+      auto ls =
+          std::find_if(out.loops.begin(), out.loops.end(), [&](const LoopSeries& x) { return x.channel == s.channel; });
+      if (ls == out.loops.end()) ls = out.loops.insert(out.loops.end(), LoopSeries{s.channel});
+      ls->utime.push_back(r.header.utime);
+      ls->old_utime.push_back(r.old_utime);
+      ls->outcome.push_back(std::move(r.outcome));
     } else if (fp == image_hash) {
       driftlab::image_t image;
       if (!lcmtypes::decode(e.data, image) || image.encoding != "png" ||

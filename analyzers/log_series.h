@@ -28,6 +28,14 @@ struct MapImage {
   std::vector<uint8_t> png;  ///< the image as sent (driftlab.image_t with encoding "png")
 };
 
+/// A 2D SLAM's loop tests (driftlab.loop_closure_t), in the order published: the current and the old keyframe by
+/// their scans' stamps, and the outcome.
+struct LoopSeries {
+  std::string channel;
+  std::vector<int64_t> utime, old_utime;  ///< [us]
+  std::vector<std::string> outcome;       ///< accepted, waiting, low_overlap, ... (docs/slam.md)
+};
+
 /// An arm's command loop: the commanded and measured positions of its joints at the joint states' stamps, where the
 /// commanded motion is defined (the plan of the last command stamped at or before each time, as `driftlab
 /// diagnose` reads it); every joint state, or every k-th so that at most 20,000 are kept.
@@ -59,6 +67,7 @@ struct LogSeries {
   std::vector<MapImage> maps;                  ///< image_t channels whose frame is "map"
   std::vector<ArmSeries> arms;                 ///< per channel of joint trajectory commands
   std::vector<EstimatorSeries> estimators;     ///< per channel of driftlab.estimator_status_t
+  std::vector<LoopSeries> loops;               ///< per channel of driftlab.loop_closure_t
   uint64_t problems = 0;                       ///< corruption met while reading
 };
 

@@ -30,6 +30,59 @@ std::string label_of(const std::string& log, const std::string& channel) {
   return fs::path(log).filename().string() + ":" + channel;
 }
 
+/// A SLAM's loop tests drawn on its own trajectory: the pose channel of the same log that has the most of the
+/// tests' keyframe stamps, and of those the one that began last (the whole trajectory as last optimised, published
+/// at the end: the keyframes where the map has them; an estimator's poses at the same stamps come earlier), its
+/// path (at most 5,000 points), and each test as a segment from the current keyframe to the old one, with its
+/// outcome. Null when no pose channel has them.
+nlohmann::json loops_json(const LogSeries& l, const LoopSeries& loops) {
+  const auto at = [](const Trajectory& t, int64_t utime) -> std::optional<size_t> {
+    const double s = Time::from_us(utime).seconds();
+    const auto it = std::lower_bound(t.stamps.begin(), t.stamps.end(), s);
+    if (it == t.stamps.end() || *it != s) return std::nullopt;
+    return static_cast<size_t>(it - t.stamps.begin());
+  };
+  const auto began = [&](const std::string& name) {
+    for (const auto& s : l.streams) {
+      if (s.channel == name && !s.arrival.empty()) return s.arrival.front();
+    }
+    return 0.0;
+  };
+  const Trajectory* best = nullptr;
+  std::string channel;
+  size_t most = 0;
+  for (const auto& [name, t] : l.poses) {
+    if (!std::is_sorted(t.stamps.begin(), t.stamps.end())) continue;
+    size_t found = 0;
+    for (size_t i = 0; i < loops.utime.size(); ++i) found += at(t, loops.utime[i]) && at(t, loops.old_utime[i]);
+    if (found > most || (found == most && found > 0 && began(name) > began(channel))) {
+      most = found, best = &t, channel = name;
+    }
+  }
+  if (best == nullptr) return nullptr;
+  nlohmann::json path_x = nlohmann::json::array(), path_y = nlohmann::json::array();
+  const size_t every = std::max<size_t>(1, best->size() / 5000);
+  for (size_t i = 0; i < best->size(); i += every) {
+    path_x.push_back(r6(best->positions[i].x()));
+    path_y.push_back(r6(best->positions[i].y()));
+  }
+  nlohmann::json tests = nlohmann::json::array();
+  std::map<std::string, int64_t> counts;
+  for (size_t i = 0; i < loops.utime.size(); ++i) {
+    ++counts[loops.outcome[i]];
+    const auto a = at(*best, loops.utime[i]), b = at(*best, loops.old_utime[i]);
+    if (!a || !b) continue;
+    const auto &p = best->positions[*a], &q = best->positions[*b];
+    tests.push_back({{"outcome", loops.outcome[i]}, {"x", {r6(p.x()), r6(q.x())}}, {"y", {r6(p.y()), r6(q.y())}}});
+  }
+  return {{"label", label_of(l.log, loops.channel)},
+          {"trajectory", label_of(l.log, channel)},
+          {"path_x", path_x},
+          {"path_y", path_y},
+          {"counts", counts},
+          {"tests", tests}};
+}
+
 /// A stream's plot data: arrivals, latency, its latency spikes (above the diagnosed median by more than 10 ms and
 /// three times the p99's distance from it) and its drop gaps, from the diagnosis of its channel.
 /// The latency is the diagnosis' own: through the mapping of the stream's clock when it is of another epoch
@@ -291,6 +344,13 @@ Result<nlohmann::json> report_data(const ReportInputs& in) {
                           {"outliers", e.outliers[i]}});
       }
       data["estimators"].push_back({{"label", label_of(l.log, e.channel)}, {"t", rounded(e.t)}, {"inputs", inputs}});
+    }
+  }
+
+  data["loops"] = nlohmann::json::array();
+  for (const auto& l : logs) {
+    for (const auto& loops : l.loops) {
+      if (auto j = loops_json(l, loops); !j.is_null()) data["loops"].push_back(std::move(j));
     }
   }
 

@@ -563,6 +563,56 @@ def plot_maps(page, data, out_dir):
                   "The occupancy grid the SLAM built (free white, occupied black, unknown grey; north up).")
 
 
+# How each loop test is drawn: the closures the graph kept on top, the refused ones beneath them, faint.
+LOOP_STYLES = [  # outcome, label, colour, line width, alpha
+    ("low_overlap", "too little overlap", "#b0bec5", 0.6, 0.5),
+    ("not_unique", "no unique match", "#ffb74d", 0.7, 0.6),
+    ("ambiguous", "ambiguous (another place as good)", "#ba68c8", 0.8, 0.7),
+    ("unconfirmed", "no second match confirmed it", "#8d6e63", 0.9, 0.8),
+    ("refused_chi2", "refused: the graph contradicts it", "#e53935", 1.2, 0.9),
+    ("accepted", "closure kept", "#2e7d32", 0.9, 0.9),
+    ("undone", "closure undone at the end", "#b71c1c", 1.8, 1.0),
+]
+
+
+def plot_loops(page, data):
+    """Each SLAM's loop tests on its trajectory: a segment from the keyframe to the old one it was matched with."""
+    for i, lp in enumerate(data.get("loops", [])):
+        fig, ax = plt.subplots(figsize=(8.5, 7))
+        ax.plot(lp["path_x"], lp["path_y"], color="#90a4ae", linewidth=0.8, zorder=1, label="trajectory")
+        undone = {(t["x"][0], t["y"][0], t["x"][1], t["y"][1]) for t in lp["tests"] if t["outcome"] == "undone"}
+        counts = lp["counts"]
+        for z, (outcome, label, color, width, alpha) in enumerate(LOOP_STYLES):
+            tests = [t for t in lp["tests"] if t["outcome"] == outcome and
+                     (outcome != "accepted" or (t["x"][0], t["y"][0], t["x"][1], t["y"][1]) not in undone)]
+            if not tests:
+                continue
+            xs, ys = [], []
+            for t in tests:
+                xs += [t["x"][0], t["x"][1], None]
+                ys += [t["y"][0], t["y"][1], None]
+            n = counts.get(outcome, 0) - (counts.get("undone", 0) if outcome == "accepted" else 0)
+            ax.plot(xs, ys, color=color, linewidth=width, alpha=alpha, zorder=2 + z, label=f"{label} ({n})")
+            ax.plot([t["x"][0] for t in tests], [t["y"][0] for t in tests], "o", color=color, markersize=2,
+                    alpha=alpha, zorder=2 + z)
+        ax.set_aspect("equal", adjustable="datalim")
+        ax.set_xlabel("x [m]")
+        ax.set_ylabel("y [m]")
+        ax.set_title(f"Loop closures: {lp['label']}")
+        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8.5, frameon=False)
+        fig.tight_layout()
+        tests = sum(v for k, v in counts.items() if k not in ("waiting", "undone"))
+        page.save(fig, f"slam_loops_{i}.png", f"Loop closures ({lp['label']})",
+                  f"Each of the SLAM's {tests} loop tests, drawn from the keyframe that tried it to the old "
+                  f"keyframe it was matched against, on {lp['trajectory']} (the map frame, not aligned to anything). "
+                  "Green: the "
+                  "closures the graph kept; red: refused because the rest of the graph contradicts them, or "
+                  "undone at the end (thick); the faint ones found too little overlap, no unique or an "
+                  "ambiguous match, or no second match to confirm a large correction. A map folded by a wrong "
+                  "closure shows it as a long green or red segment between places that differ. Each test's "
+                  "figures are on its channel (driftlab.loop_closure_t, docs/slam.md).")
+
+
 # --- the page -------------------------------------------------------------------------------------------------
 
 CSS = """
@@ -890,6 +940,7 @@ def main(argv):
     plot_arms(page, data)
     plot_estimators(page, data)
     plot_maps(page, data, out_dir)
+    plot_loops(page, data)
     write_page(page, data, out_dir)
     return 0
 

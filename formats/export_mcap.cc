@@ -100,7 +100,6 @@ class Exporter {
     const std::string_view t = type;
     const uint64_t log_ns = static_cast<uint64_t>(std::max<int64_t>(0, e.utime)) * 1000;
     cdr_.reset();
-    std::span<const uint8_t> payload;
     std::string ros_type, encoding = "cdr", schema_encoding = "ros2msg", schema;
     int64_t seq = -1;
     bool ok = true;

@@ -251,6 +251,35 @@ TEST(ReportPages, DroneDemo) {
   EXPECT_NE(html.find("A run flown again is drawn with the others"), std::string::npos);
 }
 
+// A replay's 2D SLAM: each loop test drawn on the trajectory as last optimised, in the counts the SLAM reported.
+TEST(ReportPages, SlamLoopClosures) {
+  if (!have_chromium()) GTEST_SKIP() << "chromium missing";
+  test::TempDir dir;
+  auto r = driftlab("sim --duration 120 --seed 1 -o " + dir.file("sim.lcm"));
+  ASSERT_EQ(r.code, 0) << r.err;
+  r = driftlab("replay " + dir.file("sim.lcm") + " --modules slam --json -o " + dir.file("slam.lcm"));
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto metrics = nlohmann::json::parse(r.out)["modules"][0]["metrics"];
+  r = driftlab("report " + dir.file("sim.lcm") + " " + dir.file("slam.lcm") + " -o " + dir.file("report"));
+  ASSERT_EQ(r.code, 0) << r.err;
+  check_page(dir.file("report/index.html"), "slam", 1);
+  EXPECT_TRUE(std::filesystem::exists(dir.file("report/slam_loops_0.png")));
+  const auto data = read_json(dir.file("report/report.json"));
+  ASSERT_EQ(data["loops"].size(), 1u);
+  const auto& loops = data["loops"][0];
+  EXPECT_EQ(loops["label"], "slam.lcm:SLAM_LOOPS");
+  // The trajectory as last optimised, not an estimate with poses at the same stamps (SLAM_POSE, published as the
+  // scans came).
+  EXPECT_EQ(loops["trajectory"], "slam.lcm:SLAM_TRAJECTORY");
+  const auto& counts = loops["counts"];
+  EXPECT_GT(metrics["loop_closures"].get<int64_t>(), 10);  // the robot drives its loop again
+  EXPECT_EQ(counts.value("accepted", 0) - counts.value("undone", 0), metrics["loop_closures"].get<int64_t>());
+  int64_t records = 0;
+  for (const auto& [outcome, n] : counts.items()) records += n.get<int64_t>();
+  EXPECT_EQ(loops["tests"].size(), static_cast<size_t>(records));  // every keyframe of every test on the path
+  EXPECT_GE(records, metrics["loop_tests"].get<int64_t>());
+}
+
 TEST(ReportPages, ArmDemo) {
   if (!have_chromium()) GTEST_SKIP() << "chromium missing";
   test::TempDir dir;
