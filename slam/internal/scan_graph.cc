@@ -222,7 +222,7 @@ void ScanGraph::close_loops() {
   const size_t k = current_keyframe_;
   // Large corrections wait a few keyframes for a second, consistent match; then they are dropped.
   std::erase_if(pending_, [&](const LoopEdge& l) {
-    if (k - l.k <= static_cast<size_t>(o_.loop_confirm_keyframes)) return false;
+    if (k - l.record.keyframe <= static_cast<size_t>(o_.loop_confirm_keyframes)) return false;
     ++stats_.loop_unconfirmed;
     record(l.record, LoopRecord::Outcome::unconfirmed,
            "no match from the " + std::to_string(o_.loop_confirm_keyframes) + " keyframes after it agreed");
@@ -399,7 +399,7 @@ bool ScanGraph::try_loop(size_t j, double radius) {
   Eigen::Matrix3d rotate = Eigen::Matrix3d::Identity();
   rotate.topLeftCorner<2, 2>() = Eigen::Rotation2Dd(there.phi()).toRotationMatrix().transpose();
   const Eigen::Matrix3d info = rotate * h * rotate.transpose() * (2 / (o_.edge_sigma_xy * o_.edge_sigma_xy));
-  LoopEdge loop{j, k, measured, {}, rec};
+  LoopEdge loop{rec, {}};
   for (int r = 0; r < 3; ++r) {
     for (int c = 0; c < 3; ++c) loop.information[static_cast<size_t>(r) * 3 + static_cast<size_t>(c)] = info(r, c);
   }
@@ -411,7 +411,8 @@ bool ScanGraph::try_loop(size_t j, double radius) {
     return add_loops({loop});
   }
   for (auto it = pending_.begin(); it != pending_.end(); ++it) {
-    const CPose2D predicted = (keyframe_pose(it->j) + it->measured) + (here - keyframe_pose(it->k));
+    const LoopRecord& r = it->record;
+    const CPose2D predicted = (keyframe_pose(r.old_keyframe) + r.measured) + (here - keyframe_pose(r.keyframe));
     const CPose2D diff = found - predicted;
     if (diff.norm() <= o_.loop_consistency_xy && angle_of(diff) <= o_.loop_consistency_yaw) {
       LoopEdge first = *it;
@@ -419,7 +420,7 @@ bool ScanGraph::try_loop(size_t j, double radius) {
       first.record.reason = "moves the estimate " + moved(first.record.correction) + "; keyframe " + std::to_string(k) +
                             "'s match agrees within " + moved(diff);
       loop.record.reason = "moves the estimate " + moved(correction) + "; agrees with keyframe " +
-                           std::to_string(first.k) + "'s match within " + moved(diff);
+                           std::to_string(first.record.keyframe) + "'s match within " + moved(diff);
       return add_loops({first, loop});
     }
   }
@@ -435,8 +436,9 @@ bool ScanGraph::add_loops(std::vector<LoopEdge> loops) {
   std::vector<size_t> edges;
   bool disagree = false;
   for (const auto& l : loops) {
-    edges.push_back(graph_.add_edge(l.j, l.k, array_of(l.measured), l.information));
-    const CPose2D off = (keyframe_pose(l.k) - keyframe_pose(l.j)) - l.measured;
+    const LoopRecord& r = l.record;
+    edges.push_back(graph_.add_edge(r.old_keyframe, r.keyframe, array_of(r.measured), l.information));
+    const CPose2D off = (keyframe_pose(r.keyframe) - keyframe_pose(r.old_keyframe)) - r.measured;
     disagree |= off.norm() > o_.optimize_threshold_xy || angle_of(off) > o_.optimize_threshold_yaw;
   }
   if (disagree) {
@@ -463,11 +465,11 @@ bool ScanGraph::add_loops(std::vector<LoopEdge> loops) {
     }
   }
   for (size_t i = 0; i < loops.size(); ++i) {
-    const auto& l = loops[i];
-    adjacency_[l.j].push_back({static_cast<uint32_t>(l.k), l.measured.norm()});
-    adjacency_[l.k].push_back({static_cast<uint32_t>(l.j), l.measured.norm()});
-    closures_.push_back({l.j, l.k, edges[i], l.record});
-    record(l.record, LoopRecord::Outcome::accepted, l.record.reason);
+    const LoopRecord& r = loops[i].record;
+    adjacency_[r.old_keyframe].push_back({static_cast<uint32_t>(r.keyframe), r.measured.norm()});
+    adjacency_[r.keyframe].push_back({static_cast<uint32_t>(r.old_keyframe), r.measured.norm()});
+    closures_.push_back({edges[i], r});
+    record(r, LoopRecord::Outcome::accepted, r.reason);
     ++stats_.loop_closures;
   }
   return true;
@@ -497,8 +499,8 @@ void ScanGraph::finish() {
     std::string why;
     appendf(why, "the graph with every closure in leaves it chi2 %.1f (at most %.0f)", r.chi2, o_.loop_max_chi2);
     record(r, LoopRecord::Outcome::undone, why);
-    std::erase_if(adjacency_[c.j], [&](const auto& n) { return n.first == c.k; });
-    std::erase_if(adjacency_[c.k], [&](const auto& n) { return n.first == c.j; });
+    std::erase_if(adjacency_[c.record.old_keyframe], [&](const auto& n) { return n.first == c.record.keyframe; });
+    std::erase_if(adjacency_[c.record.keyframe], [&](const auto& n) { return n.first == c.record.old_keyframe; });
     ++stats_.loop_undone;
     --stats_.loop_closures;
     ++stats_.optimisations;

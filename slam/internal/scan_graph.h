@@ -141,13 +141,11 @@ class ScanGraph {
     mrpt::poses::CPose2D relative;  ///< the scan's pose in its keyframe's frame
   };
   struct LoopEdge {
-    size_t j, k;                    ///< old and current keyframe
-    mrpt::poses::CPose2D measured;  ///< k seen from j
+    LoopRecord record;  ///< its keyframes (old_keyframe, keyframe) and the edge (measured)
     PoseGraph2d::Information information;
-    LoopRecord record;
   };
   struct Closure {
-    size_t j, k, edge;  ///< old and current keyframe, the edge in the graph
+    size_t edge;  ///< the edge in the graph
     LoopRecord record;
   };
   void add_keyframe(int64_t stamp, const mrpt::obs::CObservation2DRangeScan::Ptr& scan,
