@@ -110,9 +110,14 @@ CorrelativeMatcher::Match CorrelativeMatcher::match(const std::vector<Point2f>& 
   auto bound = [&](int turn, int tx, int ty, int level) {
     const Cells& cells = turns[static_cast<size_t>(turn)];
     const auto& grid = levels_[static_cast<size_t>(level)];
+    // A coarse cell covers the 2^level cells from it: one left of or below the grid still covers the grid's first
+    // cells, whose maximum the grid's first coarse cell bounds.
+    const int below = 1 - (1 << level);
     double sum = 0;
     for (size_t i = 0; i < cells.x.size(); ++i) {
-      const int x = cells.x[i] + tx, y = cells.y[i] + ty;
+      int x = cells.x[i] + tx, y = cells.y[i] + ty;
+      if (x < 0 && x >= below) x = 0;
+      if (y < 0 && y >= below) y = 0;
       if (x >= 0 && y >= 0 && x < width_ && y < height_) {
         sum += grid[static_cast<size_t>(y) * static_cast<size_t>(width_) + static_cast<size_t>(x)];
       }
