@@ -109,6 +109,36 @@ std::vector<Point> expand(const Spec& spec) {
   return points;
 }
 
+namespace {
+
+/// One module's settings as a YAML map; a dotted key (`2d.loop_radius`) goes into the map of its section.
+void emit_settings(YAML::Emitter& e, const std::map<std::string, Value>& settings) {
+  e << YAML::BeginMap;
+  for (auto it = settings.begin(); it != settings.end();) {
+    const size_t dot = it->first.find('.');
+    if (dot == std::string::npos) {
+      e << YAML::Key << it->first << YAML::Value;
+      if (it->second.kind == Value::Kind::kString) {
+        e << YAML::DoubleQuoted << it->second.text;
+      } else {
+        e << it->second.text;
+      }
+      ++it;
+      continue;
+    }
+    // The keys of a section are adjacent in the map's order.
+    const std::string section = it->first.substr(0, dot + 1);
+    std::map<std::string, Value> inner;
+    for (; it != settings.end() && it->first.rfind(section, 0) == 0; ++it)
+      inner[it->first.substr(dot + 1)] = it->second;
+    e << YAML::Key << section.substr(0, dot) << YAML::Value;
+    emit_settings(e, inner);
+  }
+  e << YAML::EndMap;
+}
+
+}  // namespace
+
 std::string module_config_yaml(const Spec& spec, const Point& point) {
   auto settings = spec.settings;
   for (const auto& [k, v] : point.params) {
@@ -119,16 +149,8 @@ std::string module_config_yaml(const Spec& spec, const Point& point) {
   YAML::Emitter e;
   e << YAML::BeginMap;
   for (const auto& [module, kv] : settings) {
-    e << YAML::Key << module << YAML::Value << YAML::BeginMap;
-    for (const auto& [k, v] : kv) {
-      e << YAML::Key << k << YAML::Value;
-      if (v.kind == Value::Kind::kString) {
-        e << YAML::DoubleQuoted << v.text;
-      } else {
-        e << v.text;
-      }
-    }
-    e << YAML::EndMap;
+    e << YAML::Key << module << YAML::Value;
+    emit_settings(e, kv);
   }
   e << YAML::EndMap;
   return std::string(e.c_str()) + "\n";

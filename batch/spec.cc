@@ -7,6 +7,7 @@
 #include <charconv>
 #include <cmath>
 #include <filesystem>
+#include <functional>
 #include <optional>
 #include <set>
 #include <sstream>
@@ -298,12 +299,18 @@ Status read_settings(const config::Value& v, std::map<std::string, std::map<std:
     if (!is_module(module))
       return Error{key.place() + ": settings: " + module + ": unknown module (" + known_modules() + ")"};
     if (!m.node().IsMap()) return Error{m.place() + ": settings: " + module + ": a map of key: value"};
-    return m.entries([&](const std::string& name, const config::Value& x, const config::Value&) -> Status {
-      if (!x.node().IsScalar())
-        return Error{x.place() + ": settings: " + module + "." + name + ": expected a single value"};
-      out[module][name] = scalar_value(x.node());
-      return {};
-    });
+    // A section's map (slam: {2d: {loop_radius: 2}}) gives dotted keys (2d.loop_radius), as `vary` names them.
+    std::function<Status(const config::Value&, const std::string&)> read = [&](const config::Value& map,
+                                                                               const std::string& prefix) {
+      return map.entries([&](const std::string& name, const config::Value& x, const config::Value&) -> Status {
+        if (x.node().IsMap()) return read(x, prefix + name + ".");
+        if (!x.node().IsScalar())
+          return Error{x.place() + ": settings: " + module + "." + prefix + name + ": expected a single value"};
+        out[module][prefix + name] = scalar_value(x.node());
+        return {};
+      });
+    };
+    return read(m, "");
   });
 }
 
@@ -532,23 +539,29 @@ Status validate_module_settings(const Spec& spec) {
     if (dot != std::string::npos && is_module(p.key.substr(0, dot))) module_params.push_back(&p);
   }
   if (spec.settings.empty() && module_params.empty()) return {};
+  auto check = [&](const Point& pt) -> Status {
+    auto settings = modules::parse_module_settings(module_config_yaml(spec, pt), "settings");
+    return settings ? modules::check_module_settings(*settings, spec.modules) : Status{settings.error()};
+  };
   size_t rounds = 1;
   for (const auto* p : module_params) rounds = std::max(rounds, p->values.size());
   for (size_t i = 0; i < rounds; ++i) {
     Point pt;
     for (const auto* p : module_params) pt.params.emplace_back(p->key, p->values[i % p->values.size()]);
-    auto settings = modules::parse_module_settings(module_config_yaml(spec, pt), "settings");
-    const Status checked =
-        settings ? modules::check_module_settings(*settings, spec.modules) : Status{settings.error()};
+    const Status checked = check(pt);
     if (checked) continue;
-    const std::string& message = checked.message();
-    // Name the spec's key the program complained about.
+    // Name the spec's key refused: the fixed settings when they are refused on their own, else the first varied
+    // value refused with them alone (none alone: the values together, named as the settings).
     std::string key = "settings";
-    for (const auto* p : module_params) {
-      const std::string leaf = p->key.substr(p->key.find('.') + 1);
-      if (message.find(leaf) != std::string::npos) key = "vary: " + p->key + " = " + pt.get(p->key)->text;
+    if (check(Point{})) {
+      for (const auto& [k, v] : pt.params) {
+        if (!check(Point{"", {{k, v}}})) {
+          key = "vary: " + k + " = " + v.text;
+          break;
+        }
+      }
     }
-    return Error{spec.file + ": " + key + ": the modules refuse it: " + message};
+    return Error{spec.file + ": " + key + ": the modules refuse it: " + checked.message()};
   }
   return {};
 }

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 #include <unistd.h>
+#include <yaml-cpp/yaml.h>
 
 #include <algorithm>
 #include <filesystem>
@@ -206,6 +207,39 @@ TEST(SweepSpec, ModuleSettingsCheckedAgainstTheModulesTables) {
   st = validate_module_settings(*typo);
   ASSERT_FALSE(st);
   EXPECT_NE(st.message().find("backnd"), std::string::npos) << st.message();
+  // Of two varied keys with the same name in two sections, the one refused is named, checked on its own (the
+  // message names the key as the module's table does, which need not be how the spec spells it).
+  auto twin = load_spec(
+      write_spec(dir, "modules: slam\nvary:\n  slam.2d.keyframe_distance: [0.5]\n  slam.3d.keyframe_distance: [-1]\n",
+                 "twin.yaml"));
+  ASSERT_TRUE(twin) << twin.error().message;
+  st = validate_module_settings(*twin);
+  ASSERT_FALSE(st);
+  EXPECT_NE(st.message().find(": vary: slam.3d.keyframe_distance = -1: the modules refuse it:"), std::string::npos)
+      << st.message();
+}
+
+/// A module's sections (slam's 2d and 3d): a varied `slam.2d.KEY` and the spec's nested settings go into one map
+/// of the section, which the module's table reads as `driftlab replay --config` does.
+TEST(SweepSpec, SectionSettingsNestInTheConfigFile) {
+  test::TempDir dir;
+  auto s = load_spec(write_spec(dir,
+                                "modules: slam\nsettings:\n  slam: {backend: 2d, 2d: {keyframe_distance: 0.6}}\n"
+                                "vary:\n  slam.2d.loop_radius: [1, 2]\n  slam.3d.keyframe_distance: [0.5]\n"));
+  ASSERT_TRUE(s) << s.error().message;
+  EXPECT_TRUE(validate_module_settings(*s));
+  const std::string config = module_config_yaml(*s, expand(*s)[1]);
+  const YAML::Node root = YAML::Load(config);
+  EXPECT_EQ(root["slam"]["backend"].as<std::string>(), "2d") << config;
+  EXPECT_EQ(root["slam"]["2d"]["keyframe_distance"].as<double>(), 0.6) << config;
+  EXPECT_EQ(root["slam"]["2d"]["loop_radius"].as<double>(), 2) << config;
+  EXPECT_EQ(root["slam"]["3d"]["keyframe_distance"].as<double>(), 0.5) << config;
+  // A list where a value belongs, at any depth, is refused where it stands.
+  auto deep = load_spec(
+      write_spec(dir, "modules: slam\nsettings:\n  slam: {2d: {loop_radius: [1]}}\nvary:\n  seed: [1]\n", "deep.yaml"));
+  ASSERT_FALSE(deep);
+  EXPECT_NE(deep.error().message.find("settings: slam.2d.loop_radius: expected a single value"), std::string::npos)
+      << deep.error().message;
 }
 
 TEST(SweepSpec, PlanRoundTripsThroughJson) {

@@ -305,6 +305,41 @@ TEST(SweepCli, SweepOverLogsInjectsEachPointsFaults) {
   EXPECT_NE(header.find(",drops.ODOM"), std::string::npos) << header;
 }
 
+/// A setting of a module's section (slam's 2d) varied over a log, with the section's other settings fixed in the
+/// spec: each point's replay reads both from one `2d` map (a flat `2d.keyframe_distance` key was refused), and the
+/// SLAM makes a keyframe every 0.2 m in one point and every 1 m in the other.
+TEST(SweepCli, ASectionsSettingVariesTheModule) {
+  test::TempDir dir;
+  fs::create_directories(dir.file("logs"));
+  auto r = test::driftlab("sim --duration 12 --seed 1 -o " + dir.file("logs/run.lcm"));
+  ASSERT_EQ(r.code, 0) << r.err;
+  const std::string spec = dir.file("keyframes.yaml");
+  std::ofstream(spec) << R"(name: keyframes
+logs: ["logs/*.lcm"]
+modules: slam
+settings: {slam: {backend: 2d, 2d: {loop_closure: false}}}
+pipeline: [replay]
+vary: {slam.2d.keyframe_distance: [0.2, 1.0]}
+)";
+  const std::string out = dir.file("sweep");
+  r = test::driftlab("sweep " + spec + " -o " + out + " -j 2 --json");
+  ASSERT_EQ(r.code, 0) << r.err << r.out;
+  std::map<double, double> keyframes;  // keyframe_distance -> keyframes made
+  for (const auto& row : test::result_rows(out)) {
+    ASSERT_EQ(row["status"], "done") << row.dump();
+    std::ifstream f(out + "/points/" + row["id"].get<std::string>() + "/replay.json");
+    const auto replay = nlohmann::json::parse(f);
+    for (const auto& m : replay["modules"]) {
+      if (m["name"] != "slam") continue;
+      EXPECT_EQ(m["metrics"]["loop_tests"], 0) << m.dump();  // the fixed setting of the same section holds
+      keyframes[row["slam.2d.keyframe_distance"].get<double>()] = m["metrics"]["keyframes"].get<double>();
+    }
+  }
+  ASSERT_EQ(keyframes.size(), 2u);
+  // About 4 m travelled in 12 s: a keyframe each 0.2 m makes four times as many as one each metre, and more.
+  EXPECT_GT(keyframes[0.2], 3 * keyframes[1.0]);
+}
+
 /// `driftlab batch report`: each log diagnosed and given its report page, the batch ranked worst first.
 TEST(BatchCli, ReportWritesEachLogsPageAndRanksThem) {
   test::TempDir dir;
