@@ -1,7 +1,14 @@
 #pragma once
-// Keeping the ICP builder's points maps honest about their nearest-neighbour index.
+// Points maps for the 2D SLAM: keeping the ICP builder's maps honest about their nearest-neighbour index, and a
+// points map whose ICP correspondences come from a grid instead of a kd-tree.
 #include <mrpt/maps/CMultiMetricMap.h>
 #include <mrpt/maps/CPointsMap.h>
+#include <mrpt/maps/CSimplePointsMap.h>
+#include <mrpt/poses/CPose2D.h>
+
+#include <cstdint>
+#include <memory>
+#include <vector>
 
 namespace driftlab::slam::internal {
 
@@ -16,5 +23,34 @@ inline void mark_point_maps_modified(const mrpt::maps::CMultiMetricMap& maps) {
     if (const auto* points = dynamic_cast<const mrpt::maps::CPointsMap*>(m.get())) points->mark_as_modified();
   }
 }
+
+/// A points map whose 2D matching (what MRPT's ICP calls once per iteration, with this map as the reference) finds
+/// each point's nearest neighbour in a uniform grid of the map's points instead of MRPT's kd-tree: the same
+/// correspondences, distances and ratios as CPointsMap::determineMatching2D (the same float arithmetic; only
+/// points at exactly the same distance may be picked differently), faster: the search stops at the matching's
+/// distance limit instead of finding the nearest point however far, and the index is built in one counting pass
+/// instead of a kd-tree's sorting. The 2D SLAM's front end matches every scan against such a map, and its loop
+/// tests too; their kd-trees are no longer built for it.
+///
+/// The grid is built at the first matching after the points change size (or the map is cleared): fill the map,
+/// then match. Changing points in place (setPoint) without changing the count is not seen; nothing here does.
+class GridPointsMap : public mrpt::maps::CSimplePointsMap {
+ public:
+  void determineMatching2D(const mrpt::maps::CMetricMap* other, const mrpt::poses::CPose2D& other_pose,
+                           mrpt::tfest::TMatchingPairList& pairs, const mrpt::maps::TMatchingParams& params,
+                           mrpt::maps::TMatchingExtraResults& extra) const override;
+
+  /// The map's point nearest to (x, y) if its squared distance (in float, as nanoflann's) is below limit², else -1.
+  int64_t nearest(float x, float y, double limit, float& distance2) const;
+
+  struct Grid;  ///< the index (point_maps.cc)
+
+ protected:
+  void internal_clear() override;
+
+ private:
+  const Grid& grid() const;
+  mutable std::shared_ptr<const Grid> grid_;  ///< built lazily; shared by copies until either changes
+};
 
 }  // namespace driftlab::slam::internal

@@ -263,7 +263,7 @@ bool ScanGraph::try_loop(size_t j, double radius) {
   }
   // The old place, at the graph's poses: near, the candidate and its neighbours; far, every old keyframe within
   // reach.
-  mrpt::maps::CSimplePointsMap reference;
+  GridPointsMap reference;
   std::vector<size_t> old;
   if (far) {
     for (size_t i = 0; i < k; ++i) {

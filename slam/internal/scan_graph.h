@@ -28,6 +28,7 @@
 #include <utility>
 #include <vector>
 
+#include "slam/internal/point_maps.h"
 #include "slam/internal/pose_graph.h"
 
 namespace driftlab::slam::internal {
@@ -164,7 +165,7 @@ class ScanGraph {
   std::vector<Keyframe> keyframes_;
   std::vector<std::vector<std::pair<uint32_t, double>>> adjacency_;  ///< neighbour, length of the edge [m]
   std::vector<ScanRecord> scans_;
-  mrpt::maps::CSimplePointsMap local_map_;  ///< in the map frame
+  GridPointsMap local_map_;  ///< in the map frame
   uint32_t current_keyframe_ = 0;
   mrpt::poses::CPose2D relative_;  ///< the last scan's pose in its keyframe's frame
   uint32_t matched_keyframe_ = 0;  ///< the last matched scan's keyframe ...

@@ -1,0 +1,254 @@
+#include "slam/internal/point_maps.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace driftlab::slam::internal {
+
+/// The map's points sorted into square cells (a counting sort), each cell's points contiguous.
+struct GridPointsMap::Grid {
+  size_t points = 0;  ///< the map's size when built
+  double min_x = 0, min_y = 0, max_x = 0, max_y = 0, cell = 0;
+  int64_t nx = 0, ny = 0;
+  std::vector<uint32_t> start;  ///< by cell (row-major), where its points begin in x, y and index; one past the end
+  std::vector<float> x, y;
+  std::vector<uint32_t> index;  ///< the points' indices in the map
+  /// By cell, how many rings out (Chebyshev distance in cells) the nearest cell with points is: the search starts
+  /// there, and a point far from every point (none within the ICP's limit) costs one look-up.
+  std::vector<uint16_t> empty_rings;
+};
+
+namespace {
+// A cell of 0.2 m holds a few points of a wall at the scans' spacing, so the nearest point of a scan point that has
+// one within the ICP's distances (0.1-2 m) is found among the 3 x 3 cells around it, most often in its own. The
+// cell grows when the map's extent would need more than 4 cells per point (a few stray points far out).
+constexpr double kCell = 0.2;
+constexpr uint16_t kFarRings = std::numeric_limits<uint16_t>::max();  ///< no cell with points within this many
+}  // namespace
+
+const GridPointsMap::Grid& GridPointsMap::grid() const {
+  if (grid_ && grid_->points == size()) return *grid_;
+  auto g = std::make_shared<Grid>();
+  g->points = size();
+  const auto& xs = getPointsBufferRef_x();
+  const auto& ys = getPointsBufferRef_y();
+  std::vector<uint32_t> finite;
+  finite.reserve(xs.size());
+  for (size_t i = 0; i < xs.size(); ++i) {
+    if (std::isfinite(xs[i]) && std::isfinite(ys[i])) finite.push_back(static_cast<uint32_t>(i));
+  }
+  if (!finite.empty()) {
+    g->min_x = g->max_x = xs[finite[0]], g->min_y = g->max_y = ys[finite[0]];
+    for (uint32_t i : finite) {
+      g->min_x = std::min<double>(g->min_x, xs[i]), g->max_x = std::max<double>(g->max_x, xs[i]);
+      g->min_y = std::min<double>(g->min_y, ys[i]), g->max_y = std::max<double>(g->max_y, ys[i]);
+    }
+    const double most = 4.0 * static_cast<double>(finite.size()) + 4096;
+    g->cell = kCell;
+    const double w = g->max_x - g->min_x, h = g->max_y - g->min_y;
+    if ((w / g->cell + 1) * (h / g->cell + 1) > most) g->cell = std::max(g->cell, std::sqrt(w * h / most) * 1.01);
+    while ((std::floor(w / g->cell) + 1) * (std::floor(h / g->cell) + 1) > most) g->cell *= 1.5;
+    g->nx = static_cast<int64_t>(w / g->cell) + 1, g->ny = static_cast<int64_t>(h / g->cell) + 1;
+    auto cell_of = [&](uint32_t i) {
+      const auto cx = std::min(static_cast<int64_t>((xs[i] - g->min_x) / g->cell), g->nx - 1);
+      const auto cy = std::min(static_cast<int64_t>((ys[i] - g->min_y) / g->cell), g->ny - 1);
+      return static_cast<size_t>(cy * g->nx + cx);
+    };
+    g->start.assign(static_cast<size_t>(g->nx * g->ny) + 1, 0);
+    for (uint32_t i : finite) ++g->start[cell_of(i) + 1];
+    for (size_t c = 1; c < g->start.size(); ++c) g->start[c] += g->start[c - 1];
+    std::vector<uint32_t> next(g->start.begin(), g->start.end() - 1);
+    g->x.resize(finite.size()), g->y.resize(finite.size()), g->index.resize(finite.size());
+    for (uint32_t i : finite) {
+      const uint32_t at = next[cell_of(i)]++;
+      g->x[at] = xs[i], g->y[at] = ys[i], g->index[at] = i;
+    }
+    // The chessboard distance transform: a pass forward and one back over the 8 neighbours is exact for it.
+    const int64_t nx = g->nx, ny = g->ny;
+    auto& e = g->empty_rings;
+    e.assign(static_cast<size_t>(nx * ny), kFarRings);
+    for (size_t c = 0; c + 1 < g->start.size(); ++c) {
+      if (g->start[c + 1] > g->start[c]) e[c] = 0;
+    }
+    auto relax = [&](int64_t x, int64_t y, int64_t from_x, int64_t from_y) {
+      if (from_x < 0 || from_x >= nx || from_y < 0 || from_y >= ny) return;
+      const uint16_t via = e[static_cast<size_t>(from_y * nx + from_x)];
+      auto& here = e[static_cast<size_t>(y * nx + x)];
+      if (via != kFarRings && via + 1 < here) here = static_cast<uint16_t>(via + 1);
+    };
+    for (int64_t y = 0; y < ny; ++y) {
+      for (int64_t x = 0; x < nx; ++x) {
+        relax(x, y, x - 1, y), relax(x, y, x - 1, y - 1), relax(x, y, x, y - 1), relax(x, y, x + 1, y - 1);
+      }
+    }
+    for (int64_t y = ny - 1; y >= 0; --y) {
+      for (int64_t x = nx - 1; x >= 0; --x) {
+        relax(x, y, x + 1, y), relax(x, y, x + 1, y + 1), relax(x, y, x, y + 1), relax(x, y, x - 1, y + 1);
+      }
+    }
+  }
+  grid_ = std::move(g);
+  return *grid_;
+}
+
+void GridPointsMap::internal_clear() {
+  CSimplePointsMap::internal_clear();
+  grid_.reset();
+}
+
+namespace {
+
+/// The grid's point nearest to (qx, qy) if its squared distance (in float) is below limit², else -1 (an index into
+/// the grid's arrays). Cells are looked at ring by ring out from the query's, from the first ring with points, and
+/// no further out than the limit or the best point so far.
+int64_t nearest_in(const GridPointsMap::Grid& g, float qx, float qy, double limit, float& distance2) {
+  distance2 = std::numeric_limits<float>::max();
+  if (g.x.empty() || !(limit > 0) || !std::isfinite(qx) || !std::isfinite(qy)) return -1;
+  // Nothing within the limit when the grid's bounding box is beyond it (margins for the distances in float).
+  const double reach = limit * (1 + 1e-6) + 1e-5;
+  const double out_x = std::max({g.min_x - qx, qx - g.max_x, 0.0}), out_y = std::max({g.min_y - qy, qy - g.max_y, 0.0});
+  if (out_x * out_x + out_y * out_y > reach * reach) return -1;
+  const double fx = (qx - g.min_x) / g.cell, fy = (qy - g.min_y) / g.cell;
+  const auto cx = static_cast<int64_t>(std::floor(fx)), cy = static_cast<int64_t>(std::floor(fy));
+  const int64_t rings = std::max({cx, g.nx - 1 - cx, cy, g.ny - 1 - cy});
+  // No cell with points is nearer than `first` rings: from outside the grid, not before the grid's edge, nor
+  // before the nearest cell with points of the edge's cell, less the way to it.
+  const int64_t in_x = std::clamp<int64_t>(cx, 0, g.nx - 1), in_y = std::clamp<int64_t>(cy, 0, g.ny - 1);
+  const int64_t outside = std::max(std::abs(cx - in_x), std::abs(cy - in_y));
+  const uint16_t empty = g.empty_rings[static_cast<size_t>(in_y * g.nx + in_x)];
+  const int64_t first = empty == kFarRings ? outside : std::max<int64_t>(outside, empty - outside);
+  float best = std::numeric_limits<float>::max();
+  int64_t found = -1;
+  auto visit = [&](int64_t x, int64_t y) {
+    const size_t c = static_cast<size_t>(y * g.nx + x);
+    const uint32_t begin = g.start[c], end = g.start[c + 1];
+    if (begin == end) return;
+    for (uint32_t i = begin; i < end; ++i) {
+      const float dx = qx - g.x[i], dy = qy - g.y[i];
+      const float d = dx * dx + dy * dy;  // nanoflann's L2 in float, in its order
+      if (d < best) best = d, found = i;
+    }
+  };
+  for (int64_t k = first; k <= rings; ++k) {
+    if (k > 0) {  // the nearest a point k rings out can be: k - 1 whole cells, and the way to the own cell's edge
+      const double edge = std::min({fx - static_cast<double>(cx), static_cast<double>(cx + 1) - fx,
+                                    fy - static_cast<double>(cy), static_cast<double>(cy + 1) - fy});
+      const double bound = (static_cast<double>(k - 1) + edge) * g.cell * (1 - 1e-6) - 1e-5;
+      if (bound > limit || (found >= 0 && bound * bound > best)) break;
+    }
+    const int64_t x0 = std::max<int64_t>(cx - k, 0), x1 = std::min(cx + k, g.nx - 1);
+    for (const int64_t y : {cy - k, cy + k}) {  // the ring's bottom and top rows
+      if (y >= 0 && y < g.ny) {
+        for (int64_t x = x0; x <= x1; ++x) visit(x, y);
+      }
+      if (k == 0) break;
+    }
+    const int64_t y0 = std::max<int64_t>(cy - k + 1, 0), y1 = std::min(cy + k - 1, g.ny - 1);
+    for (const int64_t x : {cx - k, cx + k}) {  // its left and right columns, between those rows
+      if (k > 0 && x >= 0 && x < g.nx) {
+        for (int64_t y = y0; y <= y1; ++y) visit(x, y);
+      }
+    }
+  }
+  if (found < 0 || !(static_cast<double>(best) < limit * limit)) return -1;
+  distance2 = best;
+  return found;
+}
+
+}  // namespace
+
+int64_t GridPointsMap::nearest(float x, float y, double limit, float& distance2) const {
+  const Grid& g = grid();
+  const int64_t i = nearest_in(g, x, y, limit, distance2);
+  return i < 0 ? -1 : static_cast<int64_t>(g.index[static_cast<size_t>(i)]);
+}
+
+void GridPointsMap::determineMatching2D(const mrpt::maps::CMetricMap* other_map, const mrpt::poses::CPose2D& other_pose,
+                                        mrpt::tfest::TMatchingPairList& pairs,
+                                        const mrpt::maps::TMatchingParams& params,
+                                        mrpt::maps::TMatchingExtraResults& extra) const {
+  const auto* other = dynamic_cast<const mrpt::maps::CPointsMap*>(other_map);
+  if (other == nullptr || params.decimation_other_map_points == 0 ||
+      params.offset_other_map_points >= params.decimation_other_map_points ||
+      (params.onlyUniqueRobust && !params.onlyKeepTheClosest)) {
+    CSimplePointsMap::determineMatching2D(other_map, other_pose, pairs, params, extra);  // MRPT's checks and errors
+    return;
+  }
+  extra = mrpt::maps::TMatchingExtraResults();
+  pairs.clear();
+  const size_t n_other = other->size(), n_this = size();
+  if (n_other == 0 || n_this == 0) return;
+  pairs.reserve(n_other);
+
+  // The other map's points at other_pose, in float as MRPT computes them (its build without SSE2: Eigen arrays of
+  // float, the pose's cosine, sine and position cast to float), and their bounding box.
+  const auto& ox = other->getPointsBufferRef_x();
+  const auto& oy = other->getPointsBufferRef_y();
+  const auto& oz = other->getPointsBufferRef_z();
+  const auto c = static_cast<float>(std::cos(other_pose.phi())), s = static_cast<float>(std::sin(other_pose.phi()));
+  const auto x0 = static_cast<float>(other_pose.x()), y0 = static_cast<float>(other_pose.y());
+  static thread_local std::vector<float> lx, ly;  // scratch: a matching per ICP iteration, no allocation each
+  lx.resize(n_other), ly.resize(n_other);
+  {
+    const float* __restrict in_x = ox.data();
+    const float* __restrict in_y = oy.data();
+    float* __restrict out_x = lx.data();
+    float* __restrict out_y = ly.data();
+    for (size_t i = 0; i < n_other; ++i) {
+      out_x[i] = (x0 + c * in_x[i]) - s * in_y[i];
+      out_y[i] = (y0 + s * in_x[i]) + c * in_y[i];
+    }
+  }
+  float min_x = lx[0], max_x = lx[0], min_y = ly[0], max_y = ly[0];
+  for (size_t i = 1; i < n_other; ++i) {
+    min_x = lx[i] < min_x ? lx[i] : min_x, max_x = lx[i] > max_x ? lx[i] : max_x;
+    min_y = ly[i] < min_y ? ly[i] : min_y, max_y = ly[i] > max_y ? ly[i] : max_y;
+  }
+  const auto box = boundingBox();
+  if (min_x > box.max.x || max_x < box.min.x || min_y > box.max.y || max_y < box.min.y) return;  // no overlap
+
+  const Grid& g = grid();
+  const auto& tx = getPointsBufferRef_x();
+  const auto& ty = getPointsBufferRef_y();
+  const auto& tz = getPointsBufferRef_z();
+  static thread_local mrpt::tfest::TMatchingPairList found;
+  found.clear();
+  float sum = 0;
+  size_t with = 0;
+  const auto& pivot = params.angularDistPivotPoint;
+  const auto angular = static_cast<double>(params.maxAngularDistForCorrespondence);
+  const auto linear = static_cast<double>(params.maxDistForCorrespondence);
+  for (size_t i = params.offset_other_map_points; i < n_other; i += params.decimation_other_map_points) {
+    // The limit grows with the distance from the pivot (the pose), by the angular threshold: searched within a
+    // bound of it without the square root (|dx| + |dy| is at least the distance), then checked exactly, the
+    // square root taken only when the linear part alone does not decide.
+    const double dx = pivot.x - lx[i], dy = pivot.y - ly[i];
+    float d2 = 0;
+    const int64_t at = nearest_in(g, lx[i], ly[i], angular * (std::abs(dx) + std::abs(dy)) + linear, d2);
+    if (at < 0) continue;
+    if (!(d2 < linear * linear)) {
+      const double limit = angular * std::sqrt(dx * dx + dy * dy) + linear;
+      if (!(d2 < limit * limit)) continue;
+    }
+    const size_t j = g.index[static_cast<size_t>(at)];
+    auto& p = found.emplace_back();
+    p.globalIdx = static_cast<uint32_t>(j);
+    p.global = {tx[j], ty[j], tz[j]};
+    p.localIdx = static_cast<uint32_t>(i);
+    p.local = {ox[i], oy[i], oz[i]};
+    p.errorSquareAfterTransformation = d2;
+    sum += d2;
+    ++with;
+  }
+  if (params.onlyUniqueRobust) {
+    found.filterUniqueRobustPairs(n_this, pairs);
+  } else {
+    pairs.swap(found);
+  }
+  extra.sumSqrDist = with > 0 ? static_cast<float>(sum / static_cast<double>(with)) : 0.f;
+  extra.correspondencesRatio =
+      static_cast<float>(params.decimation_other_map_points * with) / static_cast<float>(static_cast<double>(n_other));
+}
+
+}  // namespace driftlab::slam::internal
