@@ -1,6 +1,7 @@
 #include "slam/internal/point_maps.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 
@@ -11,9 +12,9 @@ struct GridPointsMap::Grid {
   size_t points = 0;  ///< the map's size when built
   double min_x = 0, min_y = 0, max_x = 0, max_y = 0, cell = 0;
   int64_t nx = 0, ny = 0;
-  std::vector<uint32_t> start;  ///< by cell (row-major), where its points begin in x, y and index; one past the end
-  std::vector<float> x, y;
-  std::vector<uint32_t> index;  ///< the points' indices in the map
+  std::vector<uint32_t> start;  ///< by cell (row-major), where its points begin in xy and index; one past the end
+  std::vector<std::array<float, 2>> xy;  ///< the points, a cell's side by side
+  std::vector<uint32_t> index;           ///< the points' indices in the map
   /// By cell, how many rings out (Chebyshev distance in cells) the nearest cell with points is: the search starts
   /// there, and a point far from every point (none within the ICP's limit) costs one look-up.
   std::vector<uint16_t> empty_rings;
@@ -59,10 +60,10 @@ const GridPointsMap::Grid& GridPointsMap::grid() const {
     for (uint32_t i : finite) ++g->start[cell_of(i) + 1];
     for (size_t c = 1; c < g->start.size(); ++c) g->start[c] += g->start[c - 1];
     std::vector<uint32_t> next(g->start.begin(), g->start.end() - 1);
-    g->x.resize(finite.size()), g->y.resize(finite.size()), g->index.resize(finite.size());
+    g->xy.resize(finite.size()), g->index.resize(finite.size());
     for (uint32_t i : finite) {
       const uint32_t at = next[cell_of(i)]++;
-      g->x[at] = xs[i], g->y[at] = ys[i], g->index[at] = i;
+      g->xy[at] = {xs[i], ys[i]}, g->index[at] = i;
     }
     // The chessboard distance transform: a pass forward and one back over the 8 neighbours is exact for it.
     const int64_t nx = g->nx, ny = g->ny;
@@ -101,10 +102,13 @@ namespace {
 
 /// The grid's point nearest to (qx, qy) if its squared distance (in float) is below limit², else -1 (an index into
 /// the grid's arrays). Cells are looked at ring by ring out from the query's, from the first ring with points, and
-/// no further out than the limit or the best point so far.
-int64_t nearest_in(const GridPointsMap::Grid& g, float qx, float qy, double limit, float& distance2) {
+/// no further out than the limit or the best point so far. `hint`, any index into the grid's arrays (or -1), is
+/// the first best point: the nearest point of the same point at the ICP's previous iteration, or of the point
+/// before, is most often the nearest again, and the search then ends in the query's own cell. Any hint gives the
+/// same answer (but for a point at exactly the hint's distance found before it).
+int64_t nearest_in(const GridPointsMap::Grid& g, float qx, float qy, double limit, float& distance2, int64_t hint) {
   distance2 = std::numeric_limits<float>::max();
-  if (g.x.empty() || !(limit > 0) || !std::isfinite(qx) || !std::isfinite(qy)) return -1;
+  if (g.xy.empty() || !(limit > 0) || !std::isfinite(qx) || !std::isfinite(qy)) return -1;
   // Nothing within the limit when the grid's bounding box is beyond it (margins for the distances in float).
   const double reach = limit * (1 + 1e-6) + 1e-5;
   const double out_x = std::max({g.min_x - qx, qx - g.max_x, 0.0}), out_y = std::max({g.min_y - qy, qy - g.max_y, 0.0});
@@ -120,12 +124,16 @@ int64_t nearest_in(const GridPointsMap::Grid& g, float qx, float qy, double limi
   const int64_t first = empty == kFarRings ? outside : std::max<int64_t>(outside, empty - outside);
   float best = std::numeric_limits<float>::max();
   int64_t found = -1;
+  if (hint >= 0 && static_cast<size_t>(hint) < g.xy.size()) {
+    const float dx = qx - g.xy[static_cast<size_t>(hint)][0], dy = qy - g.xy[static_cast<size_t>(hint)][1];
+    best = dx * dx + dy * dy, found = hint;
+  }
   auto visit = [&](int64_t x, int64_t y) {
     const size_t c = static_cast<size_t>(y * g.nx + x);
     const uint32_t begin = g.start[c], end = g.start[c + 1];
     if (begin == end) return;
     for (uint32_t i = begin; i < end; ++i) {
-      const float dx = qx - g.x[i], dy = qy - g.y[i];
+      const float dx = qx - g.xy[i][0], dy = qy - g.xy[i][1];
       const float d = dx * dx + dy * dy;  // nanoflann's L2 in float, in its order
       if (d < best) best = d, found = i;
     }
@@ -136,6 +144,20 @@ int64_t nearest_in(const GridPointsMap::Grid& g, float qx, float qy, double limi
                                     fy - static_cast<double>(cy), static_cast<double>(cy + 1) - fy});
       const double bound = (static_cast<double>(k - 1) + edge) * g.cell * (1 - 1e-6) - 1e-5;
       if (bound > limit || (found >= 0 && bound * bound > best)) break;
+    }
+    if (k == 1 && found >= 0) {
+      // The 8 cells around the query's own: each only if its side (or corner) is nearer than the best point.
+      const double c2 = g.cell * g.cell * (1 - 1e-6), b = static_cast<double>(best) + 1e-10;
+      const double left = fx - static_cast<double>(cx), right = 1 - left;
+      const double down = fy - static_cast<double>(cy), up = 1 - down;
+      const double lx2 = left * left * c2, rx2 = right * right * c2, dy2 = down * down * c2, uy2 = up * up * c2;
+      auto cell = [&](int64_t x, int64_t y, double gap2) {
+        if (gap2 <= b && x >= 0 && x < g.nx && y >= 0 && y < g.ny) visit(x, y);
+      };
+      cell(cx - 1, cy, lx2), cell(cx + 1, cy, rx2), cell(cx, cy - 1, dy2), cell(cx, cy + 1, uy2);
+      cell(cx - 1, cy - 1, lx2 + dy2), cell(cx + 1, cy - 1, rx2 + dy2), cell(cx - 1, cy + 1, lx2 + uy2);
+      cell(cx + 1, cy + 1, rx2 + uy2);
+      continue;
     }
     const int64_t x0 = std::max<int64_t>(cx - k, 0), x1 = std::min(cx + k, g.nx - 1);
     for (const int64_t y : {cy - k, cy + k}) {  // the ring's bottom and top rows
@@ -160,7 +182,7 @@ int64_t nearest_in(const GridPointsMap::Grid& g, float qx, float qy, double limi
 
 int64_t GridPointsMap::nearest(float x, float y, double limit, float& distance2) const {
   const Grid& g = grid();
-  const int64_t i = nearest_in(g, x, y, limit, distance2);
+  const int64_t i = nearest_in(g, x, y, limit, distance2, -1);
   return i < 0 ? -1 : static_cast<int64_t>(g.index[static_cast<size_t>(i)]);
 }
 
@@ -212,10 +234,26 @@ void GridPointsMap::determineMatching2D(const mrpt::maps::CMetricMap* other_map,
   const auto& tx = getPointsBufferRef_x();
   const auto& ty = getPointsBufferRef_y();
   const auto& tz = getPointsBufferRef_z();
-  static thread_local mrpt::tfest::TMatchingPairList found;
+  // Each point's nearest map point, in the points' order: (the map point, the point, the squared distance).
+  struct Found {
+    uint32_t map, point;
+    float d2;
+  };
+  static thread_local std::vector<Found> found;  // scratch, as lx and ly
   found.clear();
+  // Where each point's nearest map point was at the previous matching of the same two maps (the ICP's previous
+  // iteration), as a hint: only a hint, so a map freed and another made at the same address does no harm.
+  static thread_local struct {
+    const void *map = nullptr, *other = nullptr;
+    size_t points = 0;
+    std::vector<int64_t> at;
+  } last;
+  if (last.map != &g || last.other != other || last.points != n_other) {
+    last.map = &g, last.other = other, last.points = n_other;
+    last.at.assign(n_other, -1);
+  }
+  int64_t before = -1;  // the previous point's
   float sum = 0;
-  size_t with = 0;
   const auto& pivot = params.angularDistPivotPoint;
   const auto angular = static_cast<double>(params.maxAngularDistForCorrespondence);
   const auto linear = static_cast<double>(params.maxDistForCorrespondence);
@@ -225,27 +263,42 @@ void GridPointsMap::determineMatching2D(const mrpt::maps::CMetricMap* other_map,
     // square root taken only when the linear part alone does not decide.
     const double dx = pivot.x - lx[i], dy = pivot.y - ly[i];
     float d2 = 0;
-    const int64_t at = nearest_in(g, lx[i], ly[i], angular * (std::abs(dx) + std::abs(dy)) + linear, d2);
+    const int64_t hint = last.at[i] >= 0 ? last.at[i] : before;
+    const int64_t at = nearest_in(g, lx[i], ly[i], angular * (std::abs(dx) + std::abs(dy)) + linear, d2, hint);
+    last.at[i] = at;
     if (at < 0) continue;
+    before = at;
     if (!(d2 < linear * linear)) {
       const double limit = angular * std::sqrt(dx * dx + dy * dy) + linear;
       if (!(d2 < limit * limit)) continue;
     }
-    const size_t j = g.index[static_cast<size_t>(at)];
-    auto& p = found.emplace_back();
-    p.globalIdx = static_cast<uint32_t>(j);
-    p.global = {tx[j], ty[j], tz[j]};
-    p.localIdx = static_cast<uint32_t>(i);
-    p.local = {ox[i], oy[i], oz[i]};
-    p.errorSquareAfterTransformation = d2;
+    found.push_back({g.index[static_cast<size_t>(at)], static_cast<uint32_t>(i), d2});
     sum += d2;
-    ++with;
+  }
+  // With onlyUniqueRobust, a map point keeps only its nearest point (the first of equal distances), as MRPT's
+  // filterUniqueRobustPairs does, without its allocation of a slot per map point at every call.
+  static thread_local std::vector<int32_t> best;  // by map point: its best entry in found, or -1
+  if (params.onlyUniqueRobust) {
+    if (best.size() < n_this) best.resize(n_this, -1);
+    for (size_t f = 0; f < found.size(); ++f) {
+      int32_t& b = best[found[f].map];
+      if (b < 0 || found[f].d2 < found[static_cast<size_t>(b)].d2) b = static_cast<int32_t>(f);
+    }
+  }
+  for (size_t f = 0; f < found.size(); ++f) {
+    const Found& m = found[f];
+    if (params.onlyUniqueRobust && best[m.map] != static_cast<int32_t>(f)) continue;
+    auto& p = pairs.emplace_back();
+    p.globalIdx = m.map;
+    p.global = {tx[m.map], ty[m.map], tz[m.map]};
+    p.localIdx = m.point;
+    p.local = {ox[m.point], oy[m.point], oz[m.point]};
+    p.errorSquareAfterTransformation = m.d2;
   }
   if (params.onlyUniqueRobust) {
-    found.filterUniqueRobustPairs(n_this, pairs);
-  } else {
-    pairs.swap(found);
+    for (const Found& m : found) best[m.map] = -1;
   }
+  const size_t with = found.size();
   extra.sumSqrDist = with > 0 ? static_cast<float>(sum / static_cast<double>(with)) : 0.f;
   extra.correspondencesRatio =
       static_cast<float>(params.decimation_other_map_points * with) / static_cast<float>(static_cast<double>(n_other));
