@@ -14,7 +14,6 @@
 #include <optional>
 
 #include <filesystem>
-#include <memory>
 
 #include "core/log_writer.h"
 #include "core/number_text.h"

@@ -1,10 +1,33 @@
 #include "slam/internal/correlative_matcher.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <functional>
 
 namespace driftlab::slam::internal {
+
+namespace {
+/// Grids of earlier matchers, kept for the next: a far loop test's grid over a long-range laser's reference can
+/// hold millions of cells a level, and freeing and allocating them for every test costs more in page faults and
+/// zeroing than the matching itself.
+thread_local std::vector<std::vector<float>> spare_grids;
+constexpr size_t kSpareGrids = 8;
+
+std::vector<float> grid_of(size_t cells) {
+  if (spare_grids.empty()) return std::vector<float>(cells);
+  std::vector<float> grid = std::move(spare_grids.back());
+  spare_grids.pop_back();
+  grid.resize(cells);
+  return grid;
+}
+}  // namespace
+
+CorrelativeMatcher::~CorrelativeMatcher() {
+  for (auto& level : levels_) {
+    if (spare_grids.size() < kSpareGrids) spare_grids.push_back(std::move(level));
+  }
+}
 
 CorrelativeMatcher::CorrelativeMatcher(const std::vector<Point2f>& reference, double resolution, double margin,
                                        int levels)
@@ -19,9 +42,11 @@ CorrelativeMatcher::CorrelativeMatcher(const std::vector<Point2f>& reference, do
   y0_ = min_y - margin;
   width_ = static_cast<int>(std::ceil((max_x - min_x + 2 * margin) / resolution)) + 1;
   height_ = static_cast<int>(std::ceil((max_y - min_y + 2 * margin) / resolution)) + 1;
-  const auto cells = static_cast<size_t>(width_) * static_cast<size_t>(height_);
-  levels_.assign(1, std::vector<float>(cells, 0.0f));
+  // Each level with a border of empty cells around it, where lookups off the grid land (score() and bound()).
+  const auto cells = static_cast<size_t>(width_ + 2) * static_cast<size_t>(height_ + 2);
+  levels_.push_back(grid_of(cells));
   auto& grid = levels_[0];
+  std::fill(grid.begin(), grid.end(), 0.0f);
   const int r = 3;  // cells: the likelihood is 1% three standard deviations away
   const double k = -1 / (2 * resolution * resolution);
   for (const auto& p : reference) {
@@ -31,7 +56,7 @@ CorrelativeMatcher::CorrelativeMatcher(const std::vector<Point2f>& reference, do
       const double dy = y0_ + (iy + 0.5) * resolution - p.y;
       for (int ix = std::max(0, cx - r); ix <= std::min(width_ - 1, cx + r); ++ix) {
         const double dx = x0_ + (ix + 0.5) * resolution - p.x;
-        float& cell = grid[static_cast<size_t>(iy) * static_cast<size_t>(width_) + static_cast<size_t>(ix)];
+        float& cell = grid[at(ix, iy)];
         cell = std::max(cell, static_cast<float>(std::exp(k * (dx * dx + dy * dy))));
       }
     }
@@ -40,16 +65,12 @@ CorrelativeMatcher::CorrelativeMatcher(const std::vector<Point2f>& reference, do
   for (int d = 1; d <= levels; ++d) {
     const auto& below = levels_.back();
     const int h = 1 << (d - 1);
-    std::vector<float> level(cells, 0.0f);
-    auto at = [&](int x, int y) {
-      return x < width_ && y < height_
-                 ? below[static_cast<size_t>(y) * static_cast<size_t>(width_) + static_cast<size_t>(x)]
-                 : 0.0f;
-    };
+    std::vector<float> level = grid_of(cells);
+    auto value = [&](int x, int y) { return x < width_ && y < height_ ? below[at(x, y)] : 0.0f; };
+    std::fill(level.begin(), level.end(), 0.0f);  // the border (and the rest, written next)
     for (int y = 0; y < height_; ++y) {
       for (int x = 0; x < width_; ++x) {
-        level[static_cast<size_t>(y) * static_cast<size_t>(width_) + static_cast<size_t>(x)] =
-            std::max({at(x, y), at(x + h, y), at(x, y + h), at(x + h, y + h)});
+        level[at(x, y)] = std::max({value(x, y), value(x + h, y), value(x, y + h), value(x + h, y + h)});
       }
     }
     levels_.push_back(std::move(level));
@@ -82,7 +103,7 @@ double CorrelativeMatcher::score(const std::vector<Point2f>& points, double x, d
     const auto ix = static_cast<int>(std::floor((c * p.x - s * p.y + x - x0_) / resolution_));
     const auto iy = static_cast<int>(std::floor((s * p.x + c * p.y + y - y0_) / resolution_));
     if (ix >= 0 && iy >= 0 && ix < width_ && iy < height_) {
-      sum += levels_[0][static_cast<size_t>(iy) * static_cast<size_t>(width_) + static_cast<size_t>(ix)];
+      sum += levels_[0][at(ix, iy)];
     }
   }
   return sum / static_cast<double>(points.size());
@@ -113,14 +134,13 @@ CorrelativeMatcher::Match CorrelativeMatcher::match(const std::vector<Point2f>& 
     // A coarse cell covers the 2^level cells from it: one left of or below the grid still covers the grid's first
     // cells, whose maximum the grid's first coarse cell bounds.
     const int below = 1 - (1 << level);
+    // Off the grid, a lookup lands in the empty border (x = -1 or width_): no branch per point.
     double sum = 0;
     for (size_t i = 0; i < cells.x.size(); ++i) {
       int x = cells.x[i] + tx, y = cells.y[i] + ty;
-      if (x < 0 && x >= below) x = 0;
-      if (y < 0 && y >= below) y = 0;
-      if (x >= 0 && y >= 0 && x < width_ && y < height_) {
-        sum += grid[static_cast<size_t>(y) * static_cast<size_t>(width_) + static_cast<size_t>(x)];
-      }
+      x = x < 0 ? (x >= below ? 0 : -1) : std::min(x, width_);
+      y = y < 0 ? (y >= below ? 0 : -1) : std::min(y, height_);
+      sum += grid[at(x, y)];
     }
     return sum / static_cast<double>(cells.x.size());
   };
@@ -142,8 +162,9 @@ CorrelativeMatcher::Match CorrelativeMatcher::match(const std::vector<Point2f>& 
   }
   std::sort(roots.begin(), roots.end(), by_bound);
   double best_score = -1;
-  std::function<void(const std::vector<Candidate>&, int)> branch = [&](const std::vector<Candidate>& list, int level) {
-    for (const Candidate& c : list) {
+  std::function<void(const Candidate*, size_t, int)> branch = [&](const Candidate* list, size_t count, int level) {
+    for (const Candidate* it = list; it != list + count; ++it) {
+      const Candidate& c = *it;
       if (c.bound <= best_score) return;  // sorted: nothing further down the list can do better
       if (level == 0) {
         const double x = guess_x + c.tx * res, y = guess_y + c.ty * res;
@@ -160,18 +181,22 @@ CorrelativeMatcher::Match CorrelativeMatcher::match(const std::vector<Point2f>& 
         if (std::hypot(far_x, far_y) <= exclude_xy) continue;
       }
       const int h = 1 << (level - 1);
-      std::vector<Candidate> children;
+      std::array<Candidate, 4> children;
+      size_t found = 0;
       for (int dy : {0, h}) {
         for (int dx : {0, h}) {
           if (c.tx + dx > n || c.ty + dy > n) continue;
-          children.push_back({bound(c.turn, c.tx + dx, c.ty + dy, level - 1), c.turn, c.tx + dx, c.ty + dy});
+          children[found++] = {bound(c.turn, c.tx + dx, c.ty + dy, level - 1), c.turn, c.tx + dx, c.ty + dy};
         }
       }
-      std::sort(children.begin(), children.end(), by_bound);
-      branch(children, level - 1);
+      for (size_t a = 1; a < found; ++a) {  // at most 4: an insertion sort (the keys are unique)
+        for (size_t b = a; b > 0 && by_bound(children[b], children[b - 1]); --b)
+          std::swap(children[b], children[b - 1]);
+      }
+      branch(children.data(), found, level - 1);
     }
   };
-  branch(roots, top);
+  branch(roots.data(), roots.size(), top);
   best.score = std::max(best_score, 0.0);
   return best;
 }

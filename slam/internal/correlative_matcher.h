@@ -22,6 +22,9 @@ class CorrelativeMatcher {
   /// The likelihood grid of `reference`: exp(-d^2 / (2 r^2)) of the distance d to the nearest point, at
   /// resolution r [m], over the points and `margin` [m] around them; `levels` coarse levels above it.
   CorrelativeMatcher(const std::vector<Point2f>& reference, double resolution, double margin, int levels);
+  ~CorrelativeMatcher();
+  CorrelativeMatcher(const CorrelativeMatcher&) = delete;
+  CorrelativeMatcher& operator=(const CorrelativeMatcher&) = delete;
 
   struct Match {
     double x = 0, y = 0, yaw = 0;  ///< the best pose in the window
@@ -38,7 +41,10 @@ class CorrelativeMatcher {
   double score(const std::vector<Point2f>& points, double x, double y, double yaw) const;
 
  private:
-  double score_at(const std::vector<Point2f>& rotated, int ix, int iy, int level) const;
+  /// Cell (x, y) of a level, x in -1..width_ and y in -1..height_ (the border's cells are empty).
+  size_t at(int x, int y) const {
+    return static_cast<size_t>(y + 1) * static_cast<size_t>(width_ + 2) + static_cast<size_t>(x + 1);
+  }
   double resolution_;
   double x0_ = 0, y0_ = 0;
   int width_ = 0, height_ = 0;
