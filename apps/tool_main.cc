@@ -3,6 +3,10 @@
 // `driftlab-replay replay LOG ...`.
 #include <CLI/CLI.hpp>
 
+#if defined(__GLIBC__)
+#include <malloc.h>
+#endif
+
 #include "apps/cli_util.h"
 #include "apps/commands.h"
 
@@ -16,6 +20,13 @@ int main(int argc, char** argv) {
 #if DRIFTLAB_TOOL == 1
   add_sim_command(app, &exit_code);
 #elif DRIFTLAB_TOOL == 2
+#if defined(__GLIBC__)
+  // The modules allocate and free large workspaces over and over (the 2D SLAM's optimiser and its sparse
+  // Cholesky at every loop closure, the far loop search's grids): with glibc's default 128 kB of padding the heap
+  // is grown and trimmed back each time and every page faulted in again. 64 MB of padding keeps them (only pages
+  // touched are resident): Intel's SLAM replay on one core 7.1 -> 6.5 s, its peak memory the same.
+  mallopt(M_TOP_PAD, 64 << 20);
+#endif
   add_replay_command(app, &exit_code);
   add_run_command(app, &exit_code);
 #elif DRIFTLAB_TOOL == 3
