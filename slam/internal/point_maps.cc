@@ -72,30 +72,20 @@ const GridPointsMap::Grid& GridPointsMap::grid() const {
     for (size_t c = 0; c + 1 < g->start.size(); ++c) {
       if (g->start[c + 1] > g->start[c]) e[c] = 0;
     }
-    auto relax = [&](uint16_t& here, uint16_t via) {
+    auto relax = [&](int64_t x, int64_t y, int64_t from_x, int64_t from_y) {
+      if (from_x < 0 || from_x >= nx || from_y < 0 || from_y >= ny) return;
+      const uint16_t via = e[static_cast<size_t>(from_y * nx + from_x)];
+      auto& here = e[static_cast<size_t>(y * nx + x)];
       if (via != kFarRings && via + 1 < here) here = static_cast<uint16_t>(via + 1);
     };
-    auto cell = [&](int64_t x, int64_t y) -> uint16_t& { return e[static_cast<size_t>(y * nx + x)]; };
-    for (int64_t y = 0; y < ny; ++y) {  // from the cells before: left, and the row below
+    for (int64_t y = 0; y < ny; ++y) {
       for (int64_t x = 0; x < nx; ++x) {
-        uint16_t& here = cell(x, y);
-        if (x > 0) relax(here, cell(x - 1, y));
-        if (y > 0) {
-          relax(here, cell(x, y - 1));
-          if (x > 0) relax(here, cell(x - 1, y - 1));
-          if (x + 1 < nx) relax(here, cell(x + 1, y - 1));
-        }
+        relax(x, y, x - 1, y), relax(x, y, x - 1, y - 1), relax(x, y, x, y - 1), relax(x, y, x + 1, y - 1);
       }
     }
-    for (int64_t y = ny - 1; y >= 0; --y) {  // from the cells after: right, and the row above
+    for (int64_t y = ny - 1; y >= 0; --y) {
       for (int64_t x = nx - 1; x >= 0; --x) {
-        uint16_t& here = cell(x, y);
-        if (x + 1 < nx) relax(here, cell(x + 1, y));
-        if (y + 1 < ny) {
-          relax(here, cell(x, y + 1));
-          if (x + 1 < nx) relax(here, cell(x + 1, y + 1));
-          if (x > 0) relax(here, cell(x - 1, y + 1));
-        }
+        relax(x, y, x + 1, y), relax(x, y, x + 1, y + 1), relax(x, y, x, y + 1), relax(x, y, x - 1, y + 1);
       }
     }
   }
@@ -124,13 +114,7 @@ int64_t nearest_in(const GridPointsMap::Grid& g, float qx, float qy, double limi
   const double out_x = std::max({g.min_x - qx, qx - g.max_x, 0.0}), out_y = std::max({g.min_y - qy, qy - g.max_y, 0.0});
   if (out_x * out_x + out_y * out_y > reach * reach) return -1;
   const double fx = (qx - g.min_x) / g.cell, fy = (qy - g.min_y) / g.cell;
-  if (std::abs(fx) > 1e12 || std::abs(fy) > 1e12) return -1;  // a limit of millions of kilometres: not an ICP's
-  // floor without the library call (fx and fy are now far inside int64's range).
-  auto floor_of = [](double v) {
-    const auto t = static_cast<int64_t>(v);
-    return t - (static_cast<double>(t) > v ? 1 : 0);
-  };
-  const int64_t cx = floor_of(fx), cy = floor_of(fy);
+  const auto cx = static_cast<int64_t>(std::floor(fx)), cy = static_cast<int64_t>(std::floor(fy));
   const int64_t rings = std::max({cx, g.nx - 1 - cx, cy, g.ny - 1 - cy});
   // No cell with points is nearer than `first` rings: from outside the grid, not before the grid's edge, nor
   // before the nearest cell with points of the edge's cell, less the way to it.
@@ -200,48 +184,6 @@ int64_t GridPointsMap::nearest(float x, float y, double limit, float& distance2)
   const Grid& g = grid();
   const int64_t i = nearest_in(g, x, y, limit, distance2, -1);
   return i < 0 ? -1 : static_cast<int64_t>(g.index[static_cast<size_t>(i)]);
-}
-
-void GridPointsMap::nearest_k(float qx, float qy, size_t k, std::vector<size_t>& index,
-                              std::vector<float>& distance2) const {
-  const Grid& g = grid();
-  index.clear(), distance2.clear();
-  if (g.xy.empty() || k == 0 || !std::isfinite(qx) || !std::isfinite(qy)) return;
-  const double fx = (qx - g.min_x) / g.cell, fy = (qy - g.min_y) / g.cell;
-  if (std::abs(fx) > 1e12 || std::abs(fy) > 1e12) return;
-  const auto cx = static_cast<int64_t>(std::floor(fx)), cy = static_cast<int64_t>(std::floor(fy));
-  const int64_t rings = std::max({cx, g.nx - 1 - cx, cy, g.ny - 1 - cy});
-  const double edge = std::min({fx - static_cast<double>(cx), static_cast<double>(cx + 1) - fx,
-                                fy - static_cast<double>(cy), static_cast<double>(cy + 1) - fy});
-  // The k best so far, nearest first; a point joins only if nearer than the k-th (nanoflann's KNNResultSet).
-  std::vector<float> d(k, std::numeric_limits<float>::max());
-  std::vector<uint32_t> at(k, 0);
-  size_t count = 0;
-  auto visit = [&](int64_t x, int64_t y) {
-    const size_t c = static_cast<size_t>(y * g.nx + x);
-    for (uint32_t i = g.start[c]; i < g.start[c + 1]; ++i) {
-      const float dx = qx - g.xy[i][0], dy = qy - g.xy[i][1];
-      const float dist = dx * dx + dy * dy;
-      if (!(dist < d[k - 1])) continue;
-      size_t j = std::min(count, k - 1);
-      for (; j > 0 && d[j - 1] > dist; --j) d[j] = d[j - 1], at[j] = at[j - 1];
-      d[j] = dist, at[j] = i;
-      count = std::min(count + 1, k);
-    }
-  };
-  for (int64_t r = 0; r <= rings; ++r) {
-    if (r > 0 && count == k) {
-      const double bound = (static_cast<double>(r - 1) + edge) * g.cell * (1 - 1e-6) - 1e-5;
-      if (bound * bound > d[k - 1]) break;
-    }
-    for (int64_t y = std::max<int64_t>(cy - r, 0); y <= std::min(cy + r, g.ny - 1); ++y) {
-      const bool edge_row = y == cy - r || y == cy + r;
-      for (int64_t x = std::max<int64_t>(cx - r, 0); x <= std::min(cx + r, g.nx - 1); ++x) {
-        if (edge_row || x == cx - r || x == cx + r) visit(x, y);
-      }
-    }
-  }
-  for (size_t j = 0; j < count; ++j) index.push_back(g.index[at[j]]), distance2.push_back(d[j]);
 }
 
 void GridPointsMap::determineMatching2D(const mrpt::maps::CMetricMap* other_map, const mrpt::poses::CPose2D& other_pose,

@@ -43,10 +43,6 @@ class GridPointsMap : public mrpt::maps::CSimplePointsMap {
   /// The map's point nearest to (x, y) if its squared distance (in float, as nanoflann's) is below limit², else -1.
   int64_t nearest(float x, float y, double limit, float& distance2) const;
 
-  /// The map's k points nearest to (x, y), nearest first, and their squared distances (in float): as MRPT's
-  /// kdTreeNClosestPoint2DIdx, but only as many as the map has.
-  void nearest_k(float x, float y, size_t k, std::vector<size_t>& index, std::vector<float>& distance2) const;
-
   struct Grid;  ///< the index (point_maps.cc)
 
  protected:

@@ -112,28 +112,6 @@ TEST(GridPointsMap, MatchesAsMrptsKdTreeDoes) {
   EXPECT_EQ(calls, 120u);
 }
 
-TEST(GridPointsMap, NearestKAsMrptsKdTree) {
-  std::mt19937 rng(5);
-  std::uniform_real_distribution<float> u(-1.f, 1.f);
-  const auto reference = walls(rng, 10);
-  internal::GridPointsMap grid;
-  grid.insertAnotherMap(&reference, mrpt::poses::CPose3D());
-  std::vector<size_t> want, got;
-  std::vector<float> want_d2, got_d2;
-  for (int i = 0; i < 500; ++i) {  // on the walls (as the loop matches ask), between them, and off the map
-    const float x = i < 200 ? reference.getPointsBufferRef_x()[3 * static_cast<size_t>(i)] : 8 * u(rng);
-    const float y = i < 200 ? reference.getPointsBufferRef_y()[3 * static_cast<size_t>(i)] : 6 * u(rng);
-    reference.kdTreeNClosestPoint2DIdx(x, y, 8, want, want_d2);
-    grid.nearest_k(x, y, 8, got, got_d2);
-    ASSERT_EQ(got, want) << x << " " << y;
-    ASSERT_EQ(got_d2, want_d2);
-  }
-  internal::GridPointsMap few;  // fewer points than asked for: all of them, nearest first
-  few.insertPoint(1.f, 0.f), few.insertPoint(0.f, 0.f), few.insertPoint(3.f, 0.f);
-  few.nearest_k(0.1f, 0.f, 8, got, got_d2);
-  EXPECT_EQ(got, (std::vector<size_t>{1, 0, 2}));
-}
-
 TEST(GridPointsMap, EmptyMapsAndQueriesOutside) {
   std::mt19937 rng(3);
   internal::GridPointsMap grid;
