@@ -105,7 +105,7 @@ namespace {
 /// no further out than the limit or the best point so far. `hint`, any index into the grid's arrays (or -1), is
 /// the first best point: the nearest point of the same point at the ICP's previous iteration, or of the point
 /// before, is most often the nearest again, and the search then ends in the query's own cell. Any hint gives the
-/// same answer (but for a point at exactly the hint's distance found before it).
+/// same answer: of points at exactly the same distance, the one first in the map.
 int64_t nearest_in(const GridPointsMap::Grid& g, float qx, float qy, double limit, float& distance2, int64_t hint) {
   distance2 = std::numeric_limits<float>::max();
   if (g.xy.empty() || !(limit > 0) || !std::isfinite(qx) || !std::isfinite(qy)) return -1;
@@ -135,7 +135,10 @@ int64_t nearest_in(const GridPointsMap::Grid& g, float qx, float qy, double limi
     for (uint32_t i = begin; i < end; ++i) {
       const float dx = qx - g.xy[i][0], dy = qy - g.xy[i][1];
       const float d = dx * dx + dy * dy;  // nanoflann's L2 in float, in its order
-      if (d < best) best = d, found = i;
+      // The nearest, and of points at the same distance the first in the map: one answer whatever the hint, the
+      // order cells are looked at in, or the thread.
+      if (d < best || (d == best && found >= 0 && g.index[i] < g.index[static_cast<size_t>(found)]))
+        best = d, found = i;
     }
   };
   for (int64_t k = first; k <= rings; ++k) {
@@ -242,7 +245,8 @@ void GridPointsMap::determineMatching2D(const mrpt::maps::CMetricMap* other_map,
   static thread_local std::vector<Found> found;  // scratch, as lx and ly
   found.clear();
   // Where each point's nearest map point was at the previous matching of the same two maps (the ICP's previous
-  // iteration), as a hint: only a hint, so a map freed and another made at the same address does no harm.
+  // iteration), as a hint: only a hint (the answer is the same without), so a map freed and another made at the
+  // same address does no harm.
   static thread_local struct {
     const void *map = nullptr, *other = nullptr;
     size_t points = 0;

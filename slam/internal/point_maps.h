@@ -26,8 +26,9 @@ inline void mark_point_maps_modified(const mrpt::maps::CMultiMetricMap& maps) {
 
 /// A points map whose 2D matching (what MRPT's ICP calls once per iteration, with this map as the reference) finds
 /// each point's nearest neighbour in a uniform grid of the map's points instead of MRPT's kd-tree: the same
-/// correspondences, distances and ratios as CPointsMap::determineMatching2D (the same float arithmetic; only
-/// points at exactly the same distance may be picked differently), faster: the search stops at the matching's
+/// correspondences, distances and ratios as CPointsMap::determineMatching2D (the same float arithmetic; of points
+/// at exactly the same distance, the one first in the map, where the kd-tree takes the first it reaches: a pure
+/// function of the two maps and the pose, whatever was matched before), faster: the search stops at the matching's
 /// distance limit instead of finding the nearest point however far, and the index is built in one counting pass
 /// instead of a kd-tree's sorting. The 2D SLAM's front end matches every scan against such a map, and its loop
 /// tests too; their kd-trees are no longer built for it.

@@ -135,6 +135,41 @@ TEST(GridPointsMap, EmptyMapsAndQueriesOutside) {
   EXPECT_EQ(grid.nearest(-4.05f, 0.f, 0.2, d2), -1);
 }
 
+// Points at exactly the same distance from a query: the first in the map is its match, whether the search starts
+// from the other one (the hint left by the previous matching of the same two maps, as the ICP's iterations leave
+// it) or from nothing. Before, the hint won such ties, so a matching's answer depended on what was matched before
+// it, and (with the hints kept per thread) on the thread.
+TEST(GridPointsMap, EqualDistancesGoToTheFirstPointWhateverCameBefore) {
+  for (const bool reversed : {false, true}) {
+    internal::GridPointsMap grid;
+    const float xs[2] = {reversed ? 1.f : -1.f, reversed ? -1.f : 1.f};
+    for (const float x : xs) grid.insertPoint(x, 0.f);
+    grid.insertPoint(0.f, 5.f);  // a third point, so the two are not at the grid's corners
+    mrpt::maps::CSimplePointsMap query;
+    query.insertPoint(0.f, 0.f);
+    mrpt::maps::TMatchingParams params;
+    params.maxDistForCorrespondence = 2;
+    params.maxAngularDistForCorrespondence = 0;
+    params.onlyKeepTheClosest = true;
+    params.decimation_other_map_points = 1;
+    const auto match = [&](const mrpt::poses::CPose2D& pose) {
+      mrpt::tfest::TMatchingPairList pairs;
+      mrpt::maps::TMatchingExtraResults extra;
+      grid.determineMatching2D(&query, pose, pairs, params, extra);
+      EXPECT_EQ(pairs.size(), 1u);
+      return pairs.empty() ? -1 : static_cast<int64_t>(pairs[0].globalIdx);
+    };
+    const int64_t fresh = match(mrpt::poses::CPose2D(0, 0, 0));  // the first matching of the two: no hint
+    EXPECT_EQ(fresh, 0) << "reversed " << reversed;
+    // The point at x = 0.1 matches the second point (x = 1 or -1); that is the hint at the next matching, at x = 0.
+    EXPECT_EQ(match(mrpt::poses::CPose2D(xs[1] > 0 ? 0.1 : -0.1, 0, 0)), 1);
+    EXPECT_EQ(match(mrpt::poses::CPose2D(0, 0, 0)), 0) << "reversed " << reversed;
+    float d2 = 0;
+    EXPECT_EQ(grid.nearest(0.f, 0.f, 2.0, d2), 0);
+    EXPECT_EQ(d2, 1.f);
+  }
+}
+
 TEST(GridPointsMap, IcpGivesMrptsPoseBitForBit) {
   std::mt19937 rng(11);
   const auto reference = walls(rng, 10);
