@@ -2,7 +2,6 @@
 
 #include <pcl/common/transforms.h>
 #include <pcl/filters/voxel_grid.h>
-#include <pcl/io/pcd_io.h>
 #include <pcl/point_cloud.h>
 #include <pcl/point_types.h>
 #include <pcl/registration/gicp.h>
@@ -15,8 +14,10 @@
 #include <cstdint>
 #include <deque>
 #include <filesystem>
+#include <fstream>
 #include <limits>
 #include <map>
+#include <vector>
 
 #include "core/config.h"
 #include "core/time.h"
@@ -32,6 +33,26 @@ namespace driftlab::slam {
 namespace {
 
 using Cloud = pcl::PointCloud<pcl::PointXYZ>;
+
+// The map as a binary PCD, as pcl::io::savePCDFileBinary writes a PointXYZ cloud (the test compares them byte for
+// byte). Written here, not by PCL: libpcl_io links VTK, 67 shared libraries that every `driftlab replay` would load
+// at start, 2D or 3D.
+bool write_pcd(const std::string& path, const Cloud& cloud) {
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  out.imbue(std::locale::classic());
+  const Eigen::Vector4f& o = cloud.sensor_origin_;
+  const Eigen::Quaternionf& q = cloud.sensor_orientation_;
+  out << "# .PCD v0.7 - Point Cloud Data file format\nVERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\n"
+      << "COUNT 1 1 1\nWIDTH " << cloud.width << "\nHEIGHT " << cloud.height << "\nVIEWPOINT " << o[0] << ' ' << o[1]
+      << ' ' << o[2] << ' ' << q.w() << ' ' << q.x() << ' ' << q.y() << ' ' << q.z() << "\nPOINTS " << cloud.size()
+      << "\nDATA binary\n";
+  std::vector<float> xyz;
+  xyz.reserve(3 * cloud.size());
+  for (const auto& p : cloud) xyz.insert(xyz.end(), {p.x, p.y, p.z});
+  out.write(reinterpret_cast<const char*>(xyz.data()), static_cast<std::streamsize>(xyz.size() * sizeof(float)));
+  out.close();
+  return static_cast<bool>(out);
+}
 
 Eigen::Isometry3d planar(const Pose2& p) {
   Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
@@ -286,7 +307,7 @@ void Slam3d::finish(Bus& bus) {
   // Written aside and renamed, so a failed write leaves no half a map behind.
   const std::string path = prefix + "-map.pcd", partial = path + ".partial";
   std::error_code ec;
-  if (pcl::io::savePCDFileBinary(partial, *d.map) != 0) {
+  if (!write_pcd(partial, *d.map)) {
     std::filesystem::remove(partial, ec);
     d.warnings.push_back("slam3d: cannot write " + partial);
   } else if (std::filesystem::rename(partial, path, ec); ec) {
