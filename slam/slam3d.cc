@@ -10,6 +10,7 @@
 
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <deque>
@@ -35,8 +36,8 @@ namespace {
 using Cloud = pcl::PointCloud<pcl::PointXYZ>;
 
 // The map as a binary PCD, as pcl::io::savePCDFileBinary writes a PointXYZ cloud (the test compares them byte for
-// byte). Written here, not by PCL: libpcl_io links VTK, 67 shared libraries that every `driftlab replay` would load
-// at start, 2D or 3D.
+// byte). Written here, not by PCL: libpcl_io links VTK and more, 39 shared libraries that every `driftlab replay`
+// would load at start, 2D or 3D, for this one call (docs/benchmarks.md, start-up).
 bool write_pcd(const std::string& path, const Cloud& cloud) {
   std::ofstream out(path, std::ios::binary | std::ios::trunc);
   out.imbue(std::locale::classic());
@@ -46,10 +47,10 @@ bool write_pcd(const std::string& path, const Cloud& cloud) {
       << "COUNT 1 1 1\nWIDTH " << cloud.width << "\nHEIGHT " << cloud.height << "\nVIEWPOINT " << o[0] << ' ' << o[1]
       << ' ' << o[2] << ' ' << q.w() << ' ' << q.x() << ' ' << q.y() << ' ' << q.z() << "\nPOINTS " << cloud.size()
       << "\nDATA binary\n";
-  std::vector<float> xyz;
-  xyz.reserve(3 * cloud.size());
-  for (const auto& p : cloud) xyz.insert(xyz.end(), {p.x, p.y, p.z});
-  out.write(reinterpret_cast<const char*>(xyz.data()), static_cast<std::streamsize>(xyz.size() * sizeof(float)));
+  for (const auto& p : cloud) {  // x, y, z of each point, through the stream's buffer (no copy of the map)
+    const std::array<float, 3> xyz = {p.x, p.y, p.z};
+    out.write(reinterpret_cast<const char*>(xyz.data()), sizeof(xyz));
+  }
   out.close();
   return static_cast<bool>(out);
 }

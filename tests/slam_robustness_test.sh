@@ -13,18 +13,8 @@ cd "$tmp" || exit 1
 printf '0 1 0 0 0 0 0 0\n' >ok.relations
 printf 'not a bag\n' >broken.bag
 printf 'not a relation\n' >broken.relations
-failed=0
-expect() {  # expect MESSAGE ARGS...: exit 2 and exactly one line on stderr, containing MESSAGE
-  local want=$1
-  shift
-  "$script" --bin "$bin" "$@" >out.txt 2>err.txt
-  local status=$?
-  if [[ $status -ne 2 || $(wc -l <err.txt) -ne 1 ]] || ! grep -qF -- "$want" err.txt; then
-    echo "FAILED: slam-robustness $*: exit $status, wanted 2 and one line with '$want'; stderr:"
-    cat err.txt
-    failed=1
-  fi
-}
+# shellcheck source=tests/script_bad_input.sh
+source "$source/tests/script_bad_input.sh"
 expect "missing.lcm: no such file" missing.lcm:ok.relations
 expect "missing.relations: no such file" broken.bag:missing.relations
 expect "broken.lcm: expected LOG:RELATIONS" broken.lcm
