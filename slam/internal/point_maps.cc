@@ -2,13 +2,16 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <cmath>
+#include <cstring>
 #include <limits>
 
 namespace driftlab::slam::internal {
 
 /// The map's points sorted into square cells (a counting sort), each cell's points contiguous.
 struct GridPointsMap::Grid {
+  uint64_t id = 0;    ///< this grid's number, unique in the process: what a search's bounds were found in
   size_t points = 0;  ///< the map's size when built
   double min_x = 0, min_y = 0, max_x = 0, max_y = 0, cell = 0;
   int64_t nx = 0, ny = 0;
@@ -21,6 +24,8 @@ struct GridPointsMap::Grid {
 };
 
 namespace {
+thread_local GridPointsMap::Lookups lookups_here;  ///< GridPointsMap::lookups()
+
 // A cell of 0.2 m holds a few points of a wall at the scans' spacing, so the nearest point of a scan point that has
 // one within the ICP's distances (0.1-2 m) is found among the 3 x 3 cells around it, most often in its own. The
 // cell grows when the map's extent would need more than 4 cells per point (a few stray points far out).
@@ -30,7 +35,9 @@ constexpr uint16_t kFarRings = std::numeric_limits<uint16_t>::max();  ///< no ce
 
 const GridPointsMap::Grid& GridPointsMap::grid() const {
   if (grid_ && grid_->points == size()) return *grid_;
+  static std::atomic<uint64_t> grids{0};
   auto g = std::make_shared<Grid>();
+  g->id = ++grids;
   g->points = size();
   const auto& xs = getPointsBufferRef_x();
   const auto& ys = getPointsBufferRef_y();
@@ -105,8 +112,11 @@ namespace {
 /// no further out than the limit or the best point so far. `hint`, any index into the grid's arrays (or -1), is
 /// the first best point: the nearest point of the same point at the ICP's previous iteration, or of the point
 /// before, is most often the nearest again, and the search then ends in the query's own cell. Any hint gives the
-/// same answer: of points at exactly the same distance, the one first in the map.
-int64_t nearest_in(const GridPointsMap::Grid& g, float qx, float qy, double limit, float& distance2, int64_t hint) {
+/// same answer: of points at exactly the same distance, the one first in the map. When a point is found, `others2`
+/// is a lower bound on the squared distance from (qx, qy) to every other point of the map (the second nearest among
+/// the points looked at, and the nearest any cell not looked at can be).
+int64_t nearest_in(const GridPointsMap::Grid& g, float qx, float qy, double limit, float& distance2, int64_t hint,
+                   double& others2) {
   distance2 = std::numeric_limits<float>::max();
   if (g.xy.empty() || !(limit > 0) || !std::isfinite(qx) || !std::isfinite(qy)) return -1;
   // Nothing within the limit when the grid's bounding box is beyond it (margins for the distances in float).
@@ -124,6 +134,10 @@ int64_t nearest_in(const GridPointsMap::Grid& g, float qx, float qy, double limi
   const int64_t first = empty == kFarRings ? outside : std::max<int64_t>(outside, empty - outside);
   float best = std::numeric_limits<float>::max();
   int64_t found = -1;
+  // Lower bounds on the squared distance to every point but the best: of the points looked at, and of the cells not
+  // looked at.
+  float second = std::numeric_limits<float>::infinity();
+  double beyond = std::numeric_limits<double>::infinity();
   if (hint >= 0 && static_cast<size_t>(hint) < g.xy.size()) {
     const float dx = qx - g.xy[static_cast<size_t>(hint)][0], dy = qy - g.xy[static_cast<size_t>(hint)][1];
     best = dx * dx + dy * dy, found = hint;
@@ -137,16 +151,25 @@ int64_t nearest_in(const GridPointsMap::Grid& g, float qx, float qy, double limi
       const float d = dx * dx + dy * dy;  // nanoflann's L2 in float, in its order
       // The nearest, and of points at the same distance the first in the map: one answer whatever the hint, the
       // order cells are looked at in, or the thread.
-      if (d < best || (d == best && found >= 0 && g.index[i] < g.index[static_cast<size_t>(found)]))
-        best = d, found = i;
+      if (static_cast<int64_t>(i) == found) continue;
+      const bool better = d < best || (d == best && found >= 0 && g.index[i] < g.index[static_cast<size_t>(found)]);
+      const float other = better ? best : d;  // the one of the two that is not the best now
+      second = other < second ? other : second;
+      best = better ? d : best;
+      found = better ? static_cast<int64_t>(i) : found;
     }
   };
+  // The nearest a point k rings out can be: k - 1 whole cells, and the way to the own cell's edge.
+  const double edge = std::min({fx - static_cast<double>(cx), static_cast<double>(cx + 1) - fx,
+                                fy - static_cast<double>(cy), static_cast<double>(cy + 1) - fy});
+  const double ring = g.cell * (1 - 1e-6);
   for (int64_t k = first; k <= rings; ++k) {
-    if (k > 0) {  // the nearest a point k rings out can be: k - 1 whole cells, and the way to the own cell's edge
-      const double edge = std::min({fx - static_cast<double>(cx), static_cast<double>(cx + 1) - fx,
-                                    fy - static_cast<double>(cy), static_cast<double>(cy + 1) - fy});
-      const double bound = (static_cast<double>(k - 1) + edge) * g.cell * (1 - 1e-6) - 1e-5;
-      if (bound > limit || (found >= 0 && bound * bound > best)) break;
+    if (k > 0) {
+      const double bound = (static_cast<double>(k - 1) + edge) * ring - 1e-5;
+      if (bound > limit || (found >= 0 && bound * bound > best)) {
+        beyond = std::min(beyond, bound > 0 ? bound * bound : 0.0);
+        break;
+      }
     }
     if (k == 1 && found >= 0) {
       // The 8 cells around the query's own: each only if its side (or corner) is nearer than the best point.
@@ -155,7 +178,12 @@ int64_t nearest_in(const GridPointsMap::Grid& g, float qx, float qy, double limi
       const double down = fy - static_cast<double>(cy), up = 1 - down;
       const double lx2 = left * left * c2, rx2 = right * right * c2, dy2 = down * down * c2, uy2 = up * up * c2;
       auto cell = [&](int64_t x, int64_t y, double gap2) {
-        if (gap2 <= b && x >= 0 && x < g.nx && y >= 0 && y < g.ny) visit(x, y);
+        if (x < 0 || x >= g.nx || y < 0 || y >= g.ny) return;
+        if (gap2 <= b) {
+          visit(x, y);
+        } else {
+          beyond = std::min(beyond, gap2);
+        }
       };
       cell(cx - 1, cy, lx2), cell(cx + 1, cy, rx2), cell(cx, cy - 1, dy2), cell(cx, cy + 1, uy2);
       cell(cx - 1, cy - 1, lx2 + dy2), cell(cx + 1, cy - 1, rx2 + dy2), cell(cx - 1, cy + 1, lx2 + uy2);
@@ -178,14 +206,18 @@ int64_t nearest_in(const GridPointsMap::Grid& g, float qx, float qy, double limi
   }
   if (found < 0 || !(static_cast<double>(best) < limit * limit)) return -1;
   distance2 = best;
+  others2 = std::min(static_cast<double>(second), beyond);
   return found;
 }
 
 }  // namespace
 
+GridPointsMap::Lookups GridPointsMap::lookups() { return lookups_here; }
+
 int64_t GridPointsMap::nearest(float x, float y, double limit, float& distance2) const {
   const Grid& g = grid();
-  const int64_t i = nearest_in(g, x, y, limit, distance2, -1);
+  double others2 = 0;
+  const int64_t i = nearest_in(g, x, y, limit, distance2, -1, others2);
   return i < 0 ? -1 : static_cast<int64_t>(g.index[static_cast<size_t>(i)]);
 }
 
@@ -220,15 +252,39 @@ void GridPointsMap::determineMatching2D(const mrpt::maps::CMetricMap* other_map,
     const float* __restrict in_y = oy.data();
     float* __restrict out_x = lx.data();
     float* __restrict out_y = ly.data();
-    for (size_t i = 0; i < n_other; ++i) {
+    size_t i = 0;
+    using Float4 = float __attribute__((vector_size(16)));  // four at a time: the same operations on each
+    for (; i + 4 <= n_other; i += 4) {
+      Float4 px, py;
+      std::memcpy(&px, in_x + i, sizeof px), std::memcpy(&py, in_y + i, sizeof py);
+      const Float4 qx = (x0 + c * px) - s * py, qy = (y0 + s * px) + c * py;
+      std::memcpy(out_x + i, &qx, sizeof qx), std::memcpy(out_y + i, &qy, sizeof qy);
+    }
+    for (; i < n_other; ++i) {
       out_x[i] = (x0 + c * in_x[i]) - s * in_y[i];
       out_y[i] = (y0 + s * in_x[i]) + c * in_y[i];
     }
   }
-  float min_x = lx[0], max_x = lx[0], min_y = ly[0], max_y = ly[0];
-  for (size_t i = 1; i < n_other; ++i) {
-    min_x = lx[i] < min_x ? lx[i] : min_x, max_x = lx[i] > max_x ? lx[i] : max_x;
-    min_y = ly[i] < min_y ? ly[i] : min_y, max_y = ly[i] > max_y ? ly[i] : max_y;
+  // Their bounding box, in four lanes that the compiler runs side by side (MRPT's box: the same comparisons, so
+  // the same answer whatever the order, a NaN first point included).
+  float lo_x[4], hi_x[4], lo_y[4], hi_y[4];
+  for (int l = 0; l < 4; ++l) lo_x[l] = hi_x[l] = lx[0], lo_y[l] = hi_y[l] = ly[0];
+  size_t i = 1;
+  for (; i + 4 <= n_other; i += 4) {
+    for (int l = 0; l < 4; ++l) {
+      const float x = lx[i + static_cast<size_t>(l)], y = ly[i + static_cast<size_t>(l)];
+      lo_x[l] = x < lo_x[l] ? x : lo_x[l], hi_x[l] = x > hi_x[l] ? x : hi_x[l];
+      lo_y[l] = y < lo_y[l] ? y : lo_y[l], hi_y[l] = y > hi_y[l] ? y : hi_y[l];
+    }
+  }
+  for (; i < n_other; ++i) {
+    lo_x[0] = lx[i] < lo_x[0] ? lx[i] : lo_x[0], hi_x[0] = lx[i] > hi_x[0] ? lx[i] : hi_x[0];
+    lo_y[0] = ly[i] < lo_y[0] ? ly[i] : lo_y[0], hi_y[0] = ly[i] > hi_y[0] ? ly[i] : hi_y[0];
+  }
+  float min_x = lo_x[0], max_x = hi_x[0], min_y = lo_y[0], max_y = hi_y[0];
+  for (int l = 1; l < 4; ++l) {
+    min_x = lo_x[l] < min_x ? lo_x[l] : min_x, max_x = hi_x[l] > max_x ? hi_x[l] : max_x;
+    min_y = lo_y[l] < min_y ? lo_y[l] : min_y, max_y = hi_y[l] > max_y ? hi_y[l] : max_y;
   }
   const auto box = boundingBox();
   if (min_x > box.max.x || max_x < box.min.x || min_y > box.max.y || max_y < box.min.y) return;  // no overlap
@@ -244,17 +300,21 @@ void GridPointsMap::determineMatching2D(const mrpt::maps::CMetricMap* other_map,
   };
   static thread_local std::vector<Found> found;  // scratch, as lx and ly
   found.clear();
-  // Where each point's nearest map point was at the previous matching of the same two maps (the ICP's previous
-  // iteration), as a hint: only a hint (the answer is the same without), so a map freed and another made at the
-  // same address does no harm.
+  // By point, what the last full search for it found in this grid (at the ICP's previous iterations, or for the
+  // same point of the scan before): where it was, its nearest map point and how near every other map point may be.
+  // A fact about the grid, whatever the point is now: while the point is nearer to that map point than to where
+  // any other may be, less the way it moved since, that map point is still its nearest, and no search is needed
+  // (from an ICP's second iteration on, the pose moves by millimetres). Else the map point is the search's hint.
   static thread_local struct {
-    const void *map = nullptr, *other = nullptr;
+    uint64_t grid = 0;
     size_t points = 0;
-    std::vector<int64_t> at;
+    std::vector<int64_t> at;     ///< the nearest map point (an index into the grid's arrays), or -1
+    std::vector<float> x, y;     ///< where the point was
+    std::vector<double> others;  ///< every other map point at least this far from there [m]
   } last;
-  if (last.map != &g || last.other != other || last.points != n_other) {
-    last.map = &g, last.other = other, last.points = n_other;
-    last.at.assign(n_other, -1);
+  if (last.grid != g.id || last.points != n_other) {
+    last.grid = g.id, last.points = n_other;
+    last.at.assign(n_other, -1), last.x.resize(n_other), last.y.resize(n_other), last.others.resize(n_other);
   }
   int64_t before = -1;  // the previous point's
   float sum = 0;
@@ -267,9 +327,34 @@ void GridPointsMap::determineMatching2D(const mrpt::maps::CMetricMap* other_map,
     // square root taken only when the linear part alone does not decide.
     const double dx = pivot.x - lx[i], dy = pivot.y - ly[i];
     float d2 = 0;
-    const int64_t hint = last.at[i] >= 0 ? last.at[i] : before;
-    const int64_t at = nearest_in(g, lx[i], ly[i], angular * (std::abs(dx) + std::abs(dy)) + linear, d2, hint);
-    last.at[i] = at;
+    const double reach = angular * (std::abs(dx) + std::abs(dy)) + linear;
+    int64_t at = -1;
+    const int64_t known = last.at[i];
+    bool searched = true;
+    if (known >= 0 && reach > 0) {
+      // The way moved, bounded by |dx| + |dy|; margins of 1e-5 for the distances in float (the order of two
+      // squared distances in float is the order of the distances when they differ by more).
+      const double moved =
+          (std::abs(static_cast<double>(lx[i] - last.x[i])) + std::abs(static_cast<double>(ly[i] - last.y[i]))) *
+              (1 + 1e-6) +
+          1e-9;
+      const double room = last.others[i] - moved;
+      const auto& p = g.xy[static_cast<size_t>(known)];
+      const float ex = lx[i] - p[0], ey = ly[i] - p[1];
+      const float d = ex * ex + ey * ey;  // as nearest_in computes it
+      if (room > 0 && static_cast<double>(d) * (1 + 1e-5) < room * room) {
+        searched = false;
+        ++lookups_here.proved;
+        if (static_cast<double>(d) < reach * reach) at = known, d2 = d;
+      }
+    }
+    if (searched) {
+      ++lookups_here.searched;
+      double others2 = 0;
+      at = nearest_in(g, lx[i], ly[i], reach, d2, known >= 0 ? known : before, others2);
+      last.at[i] = at;
+      if (at >= 0) last.x[i] = lx[i], last.y[i] = ly[i], last.others[i] = std::sqrt(others2 * (1 - 1e-6));
+    }
     if (at < 0) continue;
     before = at;
     if (!(d2 < linear * linear)) {

@@ -31,7 +31,9 @@ inline void mark_point_maps_modified(const mrpt::maps::CMultiMetricMap& maps) {
 /// function of the two maps and the pose, whatever was matched before), faster: the search stops at the matching's
 /// distance limit instead of finding the nearest point however far, and the index is built in one counting pass
 /// instead of a kd-tree's sorting. The 2D SLAM's front end matches every scan against such a map, and its loop
-/// tests too; their kd-trees are no longer built for it.
+/// tests too; their kd-trees are no longer built for it. A point that moved little since the last matching against
+/// the same grid (the ICP's next iteration) keeps its nearest map point without a search when the bounds found
+/// then prove it (determineMatching2D).
 ///
 /// The grid is built at the first matching after the points change size (or the map is cleared): fill the map,
 /// then match. Changing points in place (setPoint) without changing the count is not seen; nothing here does.
@@ -43,6 +45,13 @@ class GridPointsMap : public mrpt::maps::CSimplePointsMap {
 
   /// The map's point nearest to (x, y) if its squared distance (in float, as nanoflann's) is below limit², else -1.
   int64_t nearest(float x, float y, double limit, float& distance2) const;
+
+  /// How the matchings on this thread found their points' nearest map points so far: searched in the grid, or
+  /// proved without a search (the point had moved too little since its last search to have another nearest).
+  struct Lookups {
+    uint64_t searched = 0, proved = 0;
+  };
+  static Lookups lookups();
 
   struct Grid;  ///< the index (point_maps.cc)
 

@@ -8,6 +8,7 @@
 #include <mrpt/poses/CPosePDFGaussian.h>
 #include <mrpt/slam/CICP.h>
 
+#include <array>
 #include <cmath>
 #include <random>
 
@@ -135,6 +136,16 @@ TEST(GridPointsMap, EmptyMapsAndQueriesOutside) {
   EXPECT_EQ(grid.nearest(-4.05f, 0.f, 0.2, d2), -1);
 }
 
+// Each scan point matched to its nearest map point within 2 m, whatever the angle.
+mrpt::maps::TMatchingParams nearest_within_2m() {
+  mrpt::maps::TMatchingParams params;
+  params.maxDistForCorrespondence = 2;
+  params.maxAngularDistForCorrespondence = 0;
+  params.onlyKeepTheClosest = true;
+  params.decimation_other_map_points = 1;
+  return params;
+}
+
 // Points at exactly the same distance from a query: the first in the map is its match, whether the search starts
 // from the other one (the hint left by the previous matching of the same two maps, as the ICP's iterations leave
 // it) or from nothing. Before, the hint won such ties, so a matching's answer depended on what was matched before
@@ -147,11 +158,7 @@ TEST(GridPointsMap, EqualDistancesGoToTheFirstPointWhateverCameBefore) {
     grid.insertPoint(0.f, 5.f);  // a third point, so the two are not at the grid's corners
     mrpt::maps::CSimplePointsMap query;
     query.insertPoint(0.f, 0.f);
-    mrpt::maps::TMatchingParams params;
-    params.maxDistForCorrespondence = 2;
-    params.maxAngularDistForCorrespondence = 0;
-    params.onlyKeepTheClosest = true;
-    params.decimation_other_map_points = 1;
+    const auto params = nearest_within_2m();
     const auto match = [&](const mrpt::poses::CPose2D& pose) {
       mrpt::tfest::TMatchingPairList pairs;
       mrpt::maps::TMatchingExtraResults extra;
@@ -196,6 +203,81 @@ TEST(GridPointsMap, IcpGivesMrptsPoseBitForBit) {
     EXPECT_NEAR(g.y(), truth.y(), 0.05);
     EXPECT_NEAR(g.phi(), truth.phi(), 0.01);
   }
+}
+
+// A point that moved little since its last search against the same grid keeps its nearest map point without a
+// search, but only when the bounds found at that search prove it. Walked across the perpendicular bisector of two
+// map points in steps of 0.1 mm, a scan point must change its match exactly where MRPT's kd-tree does (at the
+// bisector itself, the first of the two). And on a building's walls, with every seventh point doubled a millimetre
+// away (a second nearest about as near as the nearest), a scan walked in steps from a micrometre to 5 cm (the ICP's
+// last iterations to a new scan's first) is matched as MRPT matches it at every step, many points proved, many
+// searched: a bound that ignored the way moved, or missed a cell not looked at, would keep a stale match. (No
+// exact duplicates here: of points at exactly the same distance, the kd-tree takes the one it reaches first, the
+// grid the first in the map; EqualDistancesGoToTheFirstPointWhateverCameBefore.)
+TEST(GridPointsMap, PointsThatMovedLittleKeepTheirMatchOnlyWhenProved) {
+  {
+    internal::GridPointsMap grid;
+    mrpt::maps::CSimplePointsMap kdtree;
+    for (const float x : {-1.f, 1.f, 0.f}) {
+      grid.insertPoint(x, x == 0.f ? 5.f : 0.f);
+      kdtree.insertPoint(x, x == 0.f ? 5.f : 0.f);
+    }
+    mrpt::maps::CSimplePointsMap query;
+    query.insertPoint(0.f, 0.f);
+    const auto params = nearest_within_2m();
+    const auto before = internal::GridPointsMap::lookups();
+    size_t pairs = 0;
+    for (int step = -20; step <= 20; ++step) {
+      const mrpt::poses::CPose2D pose(1e-4 * step, 0, 0);
+      expect_same_matching(kdtree, grid, query, pose, params, &pairs);
+      mrpt::tfest::TMatchingPairList got;
+      mrpt::maps::TMatchingExtraResults extra;
+      grid.determineMatching2D(&query, pose, got, params, extra);
+      ASSERT_EQ(got.size(), 1u);
+      EXPECT_EQ(got[0].globalIdx, step <= 0 ? 0u : 1u) << "at x = " << pose.x();
+    }
+    const auto after = internal::GridPointsMap::lookups();
+    // Two matchings a step, 82 look-ups: far from the bisector the match is proved; near it (within the way moved
+    // since the last search) it is searched.
+    EXPECT_GT(after.proved - before.proved, 40u);
+    EXPECT_GT(after.searched - before.searched, 4u);
+  }
+
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> u(-1, 1);
+  auto reference = walls(rng, 10);
+  for (size_t i = 0, n = reference.size(); i < n; i += 7) {
+    float x = 0, y = 0, z = 0;
+    reference.getPoint(i, x, y, z);
+    const double a = M_PI * u(rng);
+    reference.insertPoint(x + static_cast<float>(1e-3 * std::cos(a)), y + static_cast<float>(1e-3 * std::sin(a)));
+  }
+  internal::GridPointsMap grid;
+  grid.insertAnotherMap(&reference, mrpt::poses::CPose3D());
+  const auto scan = walls(rng, 10);
+  const auto before = internal::GridPointsMap::lookups();
+  size_t pairs = 0;
+  double x = 0.1, y = -0.05, yaw = 0.02;
+  for (int step = 0; step < 300; ++step) {
+    const double scale = std::array{1e-6, 1e-4, 1e-3, 1e-2, 0.05}[static_cast<size_t>(step) % 5];
+    x += scale * u(rng), y += scale * u(rng), yaw += scale / 3 * u(rng);
+    const mrpt::poses::CPose2D pose(x, y, yaw);
+    mrpt::maps::TMatchingParams params;
+    params.maxDistForCorrespondence = static_cast<float>(0.05 + 0.3 * std::abs(u(rng)));
+    params.maxAngularDistForCorrespondence = step % 2 ? 0.f : 0.02f;
+    params.angularDistPivotPoint = {pose.x(), pose.y(), 0};
+    params.onlyUniqueRobust = step % 3 != 0;
+    params.decimation_other_map_points = step % 4 == 0 ? 2 : 1;
+    params.offset_other_map_points = step % 8 == 0 ? 1 : 0;
+    expect_same_matching(reference, grid, scan, pose, params, &pairs);
+  }
+  const auto after = internal::GridPointsMap::lookups();
+  const auto proved = after.proved - before.proved, searched = after.searched - before.searched;
+  // Two matchings a step, about 290,000 look-ups in all: a third proved (most of those after steps of a micrometre
+  // to a millimetre), the rest searched. Both must happen, or this test does not test the proof.
+  EXPECT_GT(proved, 50'000u) << searched << " searched";
+  EXPECT_GT(searched, 50'000u) << proved << " proved";
+  EXPECT_GT(pairs, 50'000u);
 }
 
 }  // namespace
