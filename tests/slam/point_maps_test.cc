@@ -273,7 +273,7 @@ TEST(GridPointsMap, PointsThatMovedLittleKeepTheirMatchOnlyWhenProved) {
   }
   const auto after = internal::GridPointsMap::lookups();
   const auto proved = after.proved - before.proved, searched = after.searched - before.searched;
-  // Two matchings a step, about 290,000 look-ups in all: a third proved (most of those after steps of a micrometre
+  // One matching a step, about 290,000 look-ups in all: a third proved (most of those after steps of a micrometre
   // to a millimetre), the rest searched. Both must happen, or this test does not test the proof.
   EXPECT_GT(proved, 50'000u) << searched << " searched";
   EXPECT_GT(searched, 50'000u) << proved << " proved";
