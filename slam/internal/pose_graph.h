@@ -1,6 +1,7 @@
-// A 2D pose graph optimised with Ceres (Debian's libceres-dev): nodes are poses (x, y, yaw), edges relative poses
-// with their information matrices; the first node is held fixed. Deterministic (one thread). Not thread-safe: one
-// caller. docs/slam.md says why Ceres and not MRPT's graph-slam optimiser.
+// A 2D pose graph optimised by Levenberg-Marquardt on its sparse normal equations (Eigen's sparse Cholesky):
+// nodes are poses (x, y, yaw), edges relative poses with their information matrices; the first node is held
+// fixed. Deterministic (one thread). Not thread-safe: one caller. docs/slam.md says why neither Ceres nor MRPT's
+// graph-slam optimiser.
 #pragma once
 
 #include <array>
@@ -24,7 +25,7 @@ class PoseGraph2d {
   /// Adds a node at its first estimate; returns its index (0, 1, ...). The first one is fixed.
   size_t add_node(const Pose& pose);
   /// Adds the measurement "b seen from a" with its information matrix (symmetric positive definite). Returns the
-  /// edge's id.
+  /// edge's id. a and b: two different nodes (std::invalid_argument otherwise).
   size_t add_edge(size_t a, size_t b, const Pose& b_in_a, const Information& information);
   /// Takes an edge out of the problem (a loop closure found wrong).
   void remove_edge(size_t id);
@@ -46,10 +47,9 @@ class PoseGraph2d {
 
  private:
   struct Edge;
-  struct Problem;
-  std::deque<Pose> nodes_;  ///< a deque: Ceres holds pointers to the poses
+  double cost(const std::deque<Pose>& nodes) const;  ///< half the sum of the squared whitened residuals
+  std::deque<Pose> nodes_;
   std::vector<std::unique_ptr<Edge>> edges_;
-  std::unique_ptr<Problem> problem_;
   size_t live_edges_ = 0;
 };
 

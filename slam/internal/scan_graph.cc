@@ -44,12 +44,13 @@ Eigen::Matrix3d constraint_of(const mrpt::maps::CSimplePointsMap& reference,
   lines = 0;
   std::vector<size_t> idx;
   std::vector<float> d2;
+  std::vector<Eigen::Vector2d> near;
   const size_t every = std::max<size_t>(1, pairs.size() / 200);
   for (size_t p = 0; p < pairs.size(); p += every) {
     const auto& pair = pairs[p];
     reference.kdTreeNClosestPoint2DIdx(pair.global.x, pair.global.y, 8, idx, d2);
     if (idx.size() < 4) continue;
-    std::vector<Eigen::Vector2d> near;
+    near.clear();
     Eigen::Vector2d mean = Eigen::Vector2d::Zero();
     for (size_t i : idx) {
       float x, y;

@@ -11,7 +11,7 @@
 //              one of the next keyframes agrees with it; its information comes from what the geometry pins down
 //              (little along a corridor). After optimising, a loop edge the rest of the graph contradicts is
 //              taken out again;
-//   back end:  the pose graph, optimised with Ceres (pose_graph.h) when a loop edge disagrees with the estimate,
+//   back end:  the pose graph, optimised (pose_graph.h) when a loop edge disagrees with the estimate,
 //              and once more at the end, when the closures the others then contradict are undone.
 // A scan's pose is kept relative to the keyframe it was matched after, so the whole trajectory follows the
 // keyframes whenever the graph is optimised. Deterministic. Not thread-safe: one caller.
