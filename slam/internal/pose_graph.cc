@@ -26,10 +26,7 @@ struct PoseGraph2d::Edge {
   Mat3 w;
   bool live = true;
 
-  Vec3 residual(const Pose& pa, const Pose& pb) const {
-    const double c = std::cos(pa[2]), s = std::sin(pa[2]), dx = pb[0] - pa[0], dy = pb[1] - pa[1];
-    return w * Vec3(c * dx + s * dy - z[0], -s * dx + c * dy - z[1], wrap_angle(pb[2] - pa[2] - z[2]));
-  }
+  Vec3 residual(const Pose& pa, const Pose& pb) const { return residual(pa, pb, std::cos(pa[2]), std::sin(pa[2])); }
   /// The residual and its Jacobians with respect to a and b.
   Vec3 linearise(const Pose& pa, const Pose& pb, Mat3& ja, Mat3& jb) const {
     const double c = std::cos(pa[2]), s = std::sin(pa[2]), dx = pb[0] - pa[0], dy = pb[1] - pa[1];
@@ -38,7 +35,13 @@ struct PoseGraph2d::Edge {
     eb << c, s, 0, -s, c, 0, 0, 0, 1;
     ja.noalias() = w * ea;
     jb.noalias() = w * eb;
-    return residual(pa, pb);
+    return residual(pa, pb, c, s);
+  }
+
+ private:
+  Vec3 residual(const Pose& pa, const Pose& pb, double c, double s) const {
+    const double dx = pb[0] - pa[0], dy = pb[1] - pa[1];
+    return w * Vec3(c * dx + s * dy - z[0], -s * dx + c * dy - z[1], wrap_angle(pb[2] - pa[2] - z[2]));
   }
 };
 
@@ -131,7 +134,14 @@ void PoseGraph2d::optimise(int max_iterations) {
 
   double* v = h.valuePtr();
   Eigen::VectorXd g(unknowns), scale(unknowns), hd(unknowns), damping(unknowns), y(unknowns), step(unknowns);
-  double radius = 1e4, decrease = 2, x_cost = cost(nodes_);
+  double radius = 1e4, decrease = 2, x_cost = cost(nodes_), x_norm = 0;
+  auto norm_of_nodes = [&] {
+    double sum = 0;
+    for (size_t i = 1; i < nodes_.size(); ++i) {
+      sum += nodes_[i][0] * nodes_[i][0] + nodes_[i][1] * nodes_[i][1] + nodes_[i][2] * nodes_[i][2];
+    }
+    return std::sqrt(sum);
+  };
   bool linearise = true;
   auto shrink = [&] {  // a step not taken: a smaller trust region, shrinking faster each time in a row
     radius /= decrease, decrease *= 2;
@@ -140,6 +150,7 @@ void PoseGraph2d::optimise(int max_iterations) {
   std::deque<Pose> candidate = nodes_;
   for (int iteration = 0; iteration < max_iterations; ++iteration) {
     if (linearise) {
+      x_norm = norm_of_nodes();
       std::fill(v, v + h.nonZeros(), 0.0);
       g.setZero();
       for (size_t k = 0; k < edges_.size(); ++k) {
@@ -148,20 +159,15 @@ void PoseGraph2d::optimise(int max_iterations) {
         Mat3 ja, jb;
         const Vec3 r = e.linearise(nodes_[e.a], nodes_[e.b], ja, jb);
         const Slots& s = slots[k];
-        if (e.a != 0) {
-          const Mat3 haa = ja.transpose() * ja;
+        auto own = [&](size_t node, const Mat3& j, const std::array<ptrdiff_t, 9>& at) {  // a node's block of H, g
+          if (node == 0) return;
+          const Mat3 hjj = j.transpose() * j;
           for (int i = 0; i < 9; ++i) {
-            if (s.aa[i] >= 0) v[s.aa[i]] += haa(i / 3, i % 3);
+            if (at[i] >= 0) v[at[i]] += hjj(i / 3, i % 3);
           }
-          g.segment<3>(3 * static_cast<Eigen::Index>(e.a - 1)) += ja.transpose() * r;
-        }
-        if (e.b != 0) {
-          const Mat3 hbb = jb.transpose() * jb;
-          for (int i = 0; i < 9; ++i) {
-            if (s.bb[i] >= 0) v[s.bb[i]] += hbb(i / 3, i % 3);
-          }
-          g.segment<3>(3 * static_cast<Eigen::Index>(e.b - 1)) += jb.transpose() * r;
-        }
+          g.segment<3>(3 * static_cast<Eigen::Index>(node - 1)) += j.transpose() * r;
+        };
+        own(e.a, ja, s.aa), own(e.b, jb, s.bb);
         if (s.ab[0] >= 0) {
           const Mat3 hab = e.a > e.b ? Mat3(ja.transpose() * jb) : Mat3(jb.transpose() * ja);
           for (int i = 0; i < 9; ++i) v[s.ab[i]] += hab(i / 3, i % 3);
@@ -203,12 +209,8 @@ void PoseGraph2d::optimise(int max_iterations) {
       for (int d = 0; d < 3; ++d) candidate[i][d] = nodes_[i][d] + step[3 * static_cast<Eigen::Index>(i - 1) + d];
     }
     const double c_cost = cost(candidate);
-    double x_norm = 0;
-    for (size_t i = 1; i < nodes_.size(); ++i) {
-      x_norm += nodes_[i][0] * nodes_[i][0] + nodes_[i][1] * nodes_[i][1] + nodes_[i][2] * nodes_[i][2];
-    }
     // Ceres's parameter_tolerance (1e-8) and function_tolerance (1e-6).
-    if (step.norm() <= 1e-8 * (std::sqrt(x_norm) + 1e-8)) break;
+    if (step.norm() <= 1e-8 * (x_norm + 1e-8)) break;
     const double change = x_cost - c_cost;
     const bool converged = std::abs(change) <= 1e-6 * x_cost;
     const double quality = model > 0 ? change / model : -1;

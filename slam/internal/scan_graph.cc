@@ -199,16 +199,23 @@ void ScanGraph::rebuild_local_map() {
   }
 }
 
-std::vector<double> ScanGraph::graph_distances(size_t from) const {
+std::vector<double> ScanGraph::graph_distances(size_t from, const std::vector<uint32_t>& targets) const {
   std::vector<double> d(keyframes_.size(), std::numeric_limits<double>::infinity());
+  // Dijkstra's, stopped once every target's distance is known or the rest are at least as far as the distance that
+  // gives the largest reach (their lengths so far, or infinity, are longer still: the same reach).
+  std::vector<uint8_t> wanted(keyframes_.size(), 0);
+  for (uint32_t t : targets) wanted[t] = 1;
+  size_t left = targets.size();
   using Item = std::pair<double, uint32_t>;
   std::priority_queue<Item, std::vector<Item>, std::greater<>> queue;
   d[from] = 0;
   queue.push({0, static_cast<uint32_t>(from)});
-  while (!queue.empty()) {
+  while (!queue.empty() && left > 0) {
     const auto [dist, node] = queue.top();
+    if (o_.loop_radius + o_.loop_drift * dist >= o_.loop_max_radius) break;
     queue.pop();
     if (dist > d[node]) continue;
+    if (wanted[node] != 0) wanted[node] = 0, --left;
     for (const auto& [next, length] : adjacency_[node]) {
       if (dist + length < d[next]) {
         d[next] = dist + length;
@@ -233,17 +240,22 @@ void ScanGraph::close_loops() {
   // the two together (the graph distance between them, loop edges counting as the short links they are).
   const CPose2D here = keyframe_pose(k);
   const double path = keyframes_[k].path;
-  std::vector<double> distance;  // computed when there is a candidate
-  double best = std::numeric_limits<double>::infinity(), best_radius = 0;
-  size_t nearest = k;
+  std::vector<uint32_t> candidates;  // within the largest reach
+  std::vector<double> away;
   for (size_t j = 0; j + static_cast<size_t>(o_.local_map_keyframes) < k; ++j) {
     if (path - keyframes_[j].path < o_.loop_min_travel) continue;
     const CPose2D there = keyframe_pose(j);
     const double d = std::hypot(there.x() - here.x(), there.y() - here.y());
-    if (d > o_.loop_max_radius || d >= best) continue;
-    if (distance.empty()) distance = graph_distances(k);
-    const double radius = std::min(o_.loop_max_radius, o_.loop_radius + o_.loop_drift * distance[j]);
-    if (d <= radius) best = d, best_radius = radius, nearest = j;
+    if (d <= o_.loop_max_radius) candidates.push_back(static_cast<uint32_t>(j)), away.push_back(d);
+  }
+  if (candidates.empty()) return;
+  const std::vector<double> distance = graph_distances(k, candidates);
+  double best = std::numeric_limits<double>::infinity(), best_radius = 0;
+  size_t nearest = k;
+  for (size_t c = 0; c < candidates.size(); ++c) {
+    if (away[c] >= best) continue;
+    const double radius = std::min(o_.loop_max_radius, o_.loop_radius + o_.loop_drift * distance[candidates[c]]);
+    if (away[c] <= radius) best = away[c], best_radius = radius, nearest = candidates[c];
   }
   if (nearest != k) try_loop(nearest, best_radius);
 }

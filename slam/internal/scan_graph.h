@@ -156,7 +156,9 @@ class ScanGraph {
   bool try_loop(size_t j, double radius);  // j: the candidate keyframe
   bool add_loops(std::vector<LoopEdge> loops);
   void record(LoopRecord r, LoopRecord::Outcome outcome, std::string reason);
-  std::vector<double> graph_distances(size_t from) const;
+  /// By keyframe, the length of the shortest path through the graph from `from` to each of `targets`, or, where
+  /// that is long enough to give the loop search its largest reach, some length at least that long.
+  std::vector<double> graph_distances(size_t from, const std::vector<uint32_t>& targets) const;
   mrpt::maps::CSimplePointsMap points_of(const mrpt::obs::CObservation2DRangeScan& scan) const;
 
   ScanGraphOptions o_;
