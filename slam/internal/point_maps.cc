@@ -72,29 +72,35 @@ const GridPointsMap::Grid& GridPointsMap::grid() const {
       const uint32_t at = next[cell_of(i)]++;
       g->xy[at] = {xs[i], ys[i]}, g->index[at] = i;
     }
-    // The chessboard distance transform: a pass forward and one back over the 8 neighbours is exact for it.
+    // The chessboard distance transform: a pass forward and one back over the 8 neighbours is exact for it. Each
+    // pass takes a row in two steps, the same minima in another order: the three neighbours in the row before (or
+    // after) first, in a loop the compiler runs several cells at a time, then the one before in the row.
     const int64_t nx = g->nx, ny = g->ny;
     auto& e = g->empty_rings;
     e.assign(static_cast<size_t>(nx * ny), kFarRings);
     for (size_t c = 0; c + 1 < g->start.size(); ++c) {
       if (g->start[c + 1] > g->start[c]) e[c] = 0;
     }
-    auto relax = [&](int64_t x, int64_t y, int64_t from_x, int64_t from_y) {
-      if (from_x < 0 || from_x >= nx || from_y < 0 || from_y >= ny) return;
-      const uint16_t via = e[static_cast<size_t>(from_y * nx + from_x)];
-      auto& here = e[static_cast<size_t>(y * nx + x)];
-      if (via != kFarRings && via + 1 < here) here = static_cast<uint16_t>(via + 1);
+    // A neighbour's rings plus one, unless that is more (from a far neighbour, kFarRings + 1 is more than any).
+    auto relaxed = [](uint16_t here, uint32_t via) { return static_cast<uint16_t>(std::min<uint32_t>(here, via + 1)); };
+    auto row = [&](int64_t y, int64_t beside, bool forward) {
+      uint16_t* here = e.data() + y * nx;
+      if (beside >= 0 && beside < ny) {
+        const uint16_t* other = e.data() + beside * nx;
+        here[0] = relaxed(here[0], std::min<uint32_t>(other[0], nx > 1 ? other[1] : kFarRings));
+        for (int64_t x = 1; x + 1 < nx; ++x) {
+          here[x] = relaxed(here[x], std::min({other[x - 1], other[x], other[x + 1]}));
+        }
+        if (nx > 1) here[nx - 1] = relaxed(here[nx - 1], std::min(other[nx - 2], other[nx - 1]));
+      }
+      if (forward) {
+        for (int64_t x = 1; x < nx; ++x) here[x] = relaxed(here[x], here[x - 1]);
+      } else {
+        for (int64_t x = nx - 2; x >= 0; --x) here[x] = relaxed(here[x], here[x + 1]);
+      }
     };
-    for (int64_t y = 0; y < ny; ++y) {
-      for (int64_t x = 0; x < nx; ++x) {
-        relax(x, y, x - 1, y), relax(x, y, x - 1, y - 1), relax(x, y, x, y - 1), relax(x, y, x + 1, y - 1);
-      }
-    }
-    for (int64_t y = ny - 1; y >= 0; --y) {
-      for (int64_t x = nx - 1; x >= 0; --x) {
-        relax(x, y, x + 1, y), relax(x, y, x + 1, y + 1), relax(x, y, x, y + 1), relax(x, y, x - 1, y + 1);
-      }
-    }
+    for (int64_t y = 0; y < ny; ++y) row(y, y - 1, true);
+    for (int64_t y = ny - 1; y >= 0; --y) row(y, y + 1, false);
   }
   grid_ = std::move(g);
   return *grid_;
