@@ -1,5 +1,8 @@
 #include "slam/internal/point_maps.h"
 
+#include <mrpt/math/TPose2D.h>
+#include <mrpt/tfest/se2.h>
+
 #include <algorithm>
 #include <array>
 #include <atomic>
@@ -397,6 +400,52 @@ void GridPointsMap::determineMatching2D(const mrpt::maps::CMetricMap* other_map,
   extra.sumSqrDist = with > 0 ? static_cast<float>(sum / static_cast<double>(with)) : 0.f;
   extra.correspondencesRatio =
       static_cast<float>(params.decimation_other_map_points * with) / static_cast<float>(static_cast<double>(n_other));
+}
+
+mrpt::poses::CPose2D icp_classic(const GridPointsMap& reference, const mrpt::maps::CSimplePointsMap& query,
+                                 const mrpt::poses::CPose2D& start, const mrpt::slam::CICP::TConfigParams& o,
+                                 const std::function<bool(const mrpt::poses::CPose2D&)>& settled) {
+  mrpt::poses::CPose2D pose = start;
+  if (query.isEmpty()) return pose;
+  mrpt::maps::TMatchingParams params;
+  params.maxDistForCorrespondence = static_cast<float>(o.thresholdDist);
+  params.maxAngularDistForCorrespondence = static_cast<float>(o.thresholdAng);
+  params.onlyKeepTheClosest = true;
+  params.onlyUniqueRobust = o.onlyUniqueRobust;
+  params.decimation_other_map_points = o.corresponding_points_decimation;
+  params.offset_other_map_points = 0;
+  const auto smallest = static_cast<float>(o.smallestThresholdDist);
+  mrpt::tfest::TMatchingPairList pairs;
+  mrpt::maps::TMatchingExtraResults extra;
+  mrpt::poses::CPose2D last;  // as MRPT's: the origin, not the start
+  unsigned int iterations = 0;
+  bool approaching = false;
+  do {
+    params.angularDistPivotPoint = mrpt::math::TPoint3D(pose.translation());
+    reference.determineMatching2D(&query, pose, pairs, params, extra);
+    approaching = !pairs.empty();
+    if (approaching) {
+      mrpt::math::TPose2D estimate;
+      mrpt::tfest::se2_l2(pairs, estimate);
+      pose = mrpt::poses::CPose2D(estimate);
+      if (!(std::fabs(last.x() - pose.x()) > o.minAbsStep_trans ||
+            std::fabs(last.y() - pose.y()) > o.minAbsStep_trans ||
+            std::fabs(mrpt::math::wrapToPi(last.phi() - pose.phi())) > o.minAbsStep_rot)) {
+        params.maxDistForCorrespondence *= static_cast<float>(o.ALFA);
+        params.maxAngularDistForCorrespondence *= static_cast<float>(o.ALFA);
+        if (params.maxDistForCorrespondence < smallest) approaching = false;
+        if (++params.offset_other_map_points >= o.corresponding_points_decimation) params.offset_other_map_points = 0;
+      }
+      last = pose;
+    }
+    ++iterations;
+    if (iterations >= o.maxIterations && params.maxDistForCorrespondence > smallest) {
+      params.maxDistForCorrespondence *= static_cast<float>(o.ALFA);
+    }
+    if (settled && settled(pose)) break;
+  } while ((approaching && iterations < o.maxIterations) ||
+           (iterations >= o.maxIterations && params.maxDistForCorrespondence > smallest));
+  return pose;
 }
 
 }  // namespace driftlab::slam::internal

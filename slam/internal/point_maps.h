@@ -1,12 +1,15 @@
 #pragma once
 // Points maps for the 2D SLAM: keeping the ICP builder's maps honest about their nearest-neighbour index, and a
-// points map whose ICP correspondences come from a grid instead of a kd-tree.
+// points map whose ICP correspondences come from a grid instead of a kd-tree, with MRPT's classic ICP on it, step
+// for step, for a caller that wants to stop it early.
 #include <mrpt/maps/CMultiMetricMap.h>
 #include <mrpt/maps/CPointsMap.h>
 #include <mrpt/maps/CSimplePointsMap.h>
 #include <mrpt/poses/CPose2D.h>
+#include <mrpt/slam/CICP.h>
 
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <vector>
 
@@ -62,5 +65,15 @@ class GridPointsMap : public mrpt::maps::CSimplePointsMap {
   const Grid& grid() const;
   mutable std::shared_ptr<const Grid> grid_;  ///< built lazily; shared by copies until either changes
 };
+
+/// MRPT's classic ICP (CICP::ICP_Method_Classic: each point of `query` at the pose matched to its nearest point of
+/// `reference` within the thresholds, the pose by least squares in closed form, the thresholds shrunk by ALFA
+/// whenever a step moves less than minAbsStep, until smallestThresholdDist or maxIterations), step for step the same
+/// floats as CICP::Align with these options: the pose it ends at. `settled`, if given, is asked after each
+/// iteration whether the pose reached is all the caller needs to know; if it says so, the ICP stops there.
+/// (ICP_algorithm, RANSAC, the covariance and the quality are not looked at: only the pose is returned.)
+mrpt::poses::CPose2D icp_classic(const GridPointsMap& reference, const mrpt::maps::CSimplePointsMap& query,
+                                 const mrpt::poses::CPose2D& start, const mrpt::slam::CICP::TConfigParams& options,
+                                 const std::function<bool(const mrpt::poses::CPose2D&)>& settled = nullptr);
 
 }  // namespace driftlab::slam::internal

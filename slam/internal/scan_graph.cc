@@ -362,19 +362,24 @@ bool ScanGraph::try_loop(size_t j, double radius) {
   const bool corridor = axes.eigenvalues()(0) < o_.loop_min_constraint;
   // A unique optimum: started loop_uniqueness off along each pinned-down axis, and turned, ICP must come back.
   const double u = o_.loop_uniqueness;
-  mrpt::slam::CICP restart(o_.icp);
-  restart.options.thresholdDist = std::max(o_.icp.thresholdDist, 2 * u);
-  restart.options.thresholdAng = std::max(o_.icp.thresholdAng, o_.loop_threshold_ang);
+  mrpt::slam::CICP::TConfigParams restart = o_.icp;
+  restart.thresholdDist = std::max(o_.icp.thresholdDist, 2 * u);
+  restart.thresholdAng = std::max(o_.icp.thresholdAng, o_.loop_threshold_ang);
+  constexpr double kSameXy = 0.05, kSameYaw = 0.02;  // ICP's own spread from nearby starts
   std::vector<Eigen::Vector3d> offsets = {{0, 0, 2 * u / 3}};
   for (int a = corridor ? 1 : 0; a < 2; ++a)
     offsets.emplace_back(u * axes.eigenvectors()(0, a), u * axes.eigenvectors()(1, a), 0);
   for (const Eigen::Vector3d& off : offsets) {
+    // Back within a fifth of the bars below, it has come back: what the finer thresholds do from there is ICP's
+    // own spread around the optimum, and stopping saves half the restarts' iterations (most run into the cap).
     const CPose2D back =
-        restart.Align(&reference, &query, CPose2D(found.x() + off.x(), found.y() + off.y(), found.phi() + off.z()))
-            ->getMeanVal();
+        icp_classic(reference, query, CPose2D(found.x() + off.x(), found.y() + off.y(), found.phi() + off.z()), restart,
+                    [&](const CPose2D& p) {
+                      return std::hypot(p.x() - found.x(), p.y() - found.y()) <= kSameXy / 5 &&
+                             std::abs(mrpt::math::wrapToPi(p.phi() - found.phi())) <= kSameYaw / 5;
+                    });
     const Eigen::Vector2d step(back.x() - found.x(), back.y() - found.y());
     const double turned = std::abs(mrpt::math::wrapToPi(back.phi() - found.phi()));
-    constexpr double kSameXy = 0.05, kSameYaw = 0.02;  // ICP's own spread from nearby starts
     bool same = turned <= kSameYaw;
     for (int a = corridor ? 1 : 0; a < 2; ++a) same &= std::abs(step.dot(axes.eigenvectors().col(a))) <= kSameXy;
     if (!same) {

@@ -205,6 +205,56 @@ TEST(GridPointsMap, IcpGivesMrptsPoseBitForBit) {
   }
 }
 
+// icp_classic is MRPT's classic ICP step for step (the loop tests' restarts run it to stop early): the same pose to
+// the bit as CICP::Align on the same grid, with the options of the test above, the SLAM's front end (decimation 5,
+// ALFA 0.8, 80 iterations) and a cap of 6 iterations that ends it mid-way (the cap's own threshold rule). Asked to
+// stop once within 5 cm and 0.01 rad of the truth, it stops at the first such pose, sooner than the full run.
+TEST(GridPointsMap, IcpClassicIsMrptsIcpStepForStep) {
+  std::mt19937 rng(11);
+  const auto reference = walls(rng, 10);
+  internal::GridPointsMap grid;
+  grid.insertAnotherMap(&reference, mrpt::poses::CPose3D());
+  mrpt::maps::CSimplePointsMap scan;
+  const auto seen = walls(rng, 10);
+  scan.insertAnotherMap(&seen, mrpt::poses::CPose3D(-0.4, 0.2, 0, -0.087, 0, 0));
+  const auto truth = mrpt::poses::CPose2D() - mrpt::poses::CPose2D(-0.4, 0.2, -0.087);
+  mrpt::slam::CICP::TConfigParams test, front, capped;
+  test.thresholdDist = 0.75, test.thresholdAng = 0.15 * M_PI / 180, test.ALFA = 0.5;
+  test.onlyUniqueRobust = true, test.corresponding_points_decimation = 2;
+  front.maxIterations = 80, front.thresholdDist = 0.3, front.thresholdAng = M_PI / 180, front.ALFA = 0.8;
+  front.smallestThresholdDist = 0.05, front.corresponding_points_decimation = 5, front.onlyUniqueRobust = true;
+  front.minAbsStep_trans = front.minAbsStep_rot = 1e-6;
+  capped = front;
+  capped.maxIterations = 6;
+  for (const auto* options : {&test, &front, &capped}) {
+    mrpt::slam::CICP icp(*options);
+    for (const auto& guess : {mrpt::poses::CPose2D(0, 0, 0), mrpt::poses::CPose2D(0.5, -0.3, 0.1)}) {
+      mrpt::slam::CICP::TReturnInfo info;
+      const auto want = icp.Align(&grid, &scan, guess, info)->getMeanVal();
+      const auto got = internal::icp_classic(grid, scan, guess, *options);
+      EXPECT_EQ(want.x(), got.x());
+      EXPECT_EQ(want.y(), got.y());
+      EXPECT_EQ(want.phi(), got.phi());
+
+      unsigned int asked = 0;
+      mrpt::poses::CPose2D first_near;
+      bool near_seen = false;
+      const auto stopped = internal::icp_classic(grid, scan, guess, *options, [&](const mrpt::poses::CPose2D& p) {
+        ++asked;
+        const bool near = std::hypot(p.x() - truth.x(), p.y() - truth.y()) <= 0.05 &&
+                          std::abs(mrpt::math::wrapToPi(p.phi() - truth.phi())) <= 0.01;
+        if (near && !near_seen) first_near = p, near_seen = true;
+        return near;
+      });
+      if (options == &capped && !near_seen) continue;  // six iterations may not get there
+      ASSERT_TRUE(near_seen);
+      EXPECT_EQ(stopped.x(), first_near.x());
+      EXPECT_EQ(stopped.phi(), first_near.phi());
+      EXPECT_LT(asked, info.nIterations) << "it should stop before the end";
+    }
+  }
+}
+
 // A point that moved little since its last search against the same grid keeps its nearest map point without a
 // search, but only when the bounds found at that search prove it. Walked across the perpendicular bisector of two
 // map points in steps of 0.1 mm, a scan point must change its match exactly where MRPT's kd-tree does (at the
