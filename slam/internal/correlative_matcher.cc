@@ -47,17 +47,29 @@ CorrelativeMatcher::CorrelativeMatcher(const std::vector<Point2f>& reference, do
   levels_.push_back(grid_of(cells));
   auto& grid = levels_[0];
   std::fill(grid.begin(), grid.end(), 0.0f);
-  const int r = 3;  // cells: the likelihood is 1% three standard deviations away
+  constexpr int r = 3;  // cells: the likelihood is 1% three standard deviations away
   const double k = -1 / (2 * resolution * resolution);
+  // exp(k (dx^2 + dy^2)) as exp(k dx^2) exp(k dy^2): 2 (2r + 1) exponentials a point instead of (2r + 1)^2.
+  std::array<double, 2 * r + 1> ex{}, ey{};
   for (const auto& p : reference) {
     const int cx = static_cast<int>(std::floor((p.x - x0_) / resolution));
     const int cy = static_cast<int>(std::floor((p.y - y0_) / resolution));
-    for (int iy = std::max(0, cy - r); iy <= std::min(height_ - 1, cy + r); ++iy) {
+    const int x_from = std::max(0, cx - r), x_to = std::min(width_ - 1, cx + r);
+    const int y_from = std::max(0, cy - r), y_to = std::min(height_ - 1, cy + r);
+    for (int ix = x_from; ix <= x_to; ++ix) {
+      const double dx = x0_ + (ix + 0.5) * resolution - p.x;
+      ex[static_cast<size_t>(ix - x_from)] = std::exp(k * dx * dx);
+    }
+    for (int iy = y_from; iy <= y_to; ++iy) {
       const double dy = y0_ + (iy + 0.5) * resolution - p.y;
-      for (int ix = std::max(0, cx - r); ix <= std::min(width_ - 1, cx + r); ++ix) {
-        const double dx = x0_ + (ix + 0.5) * resolution - p.x;
-        float& cell = grid[at(ix, iy)];
-        cell = std::max(cell, static_cast<float>(std::exp(k * (dx * dx + dy * dy))));
+      ey[static_cast<size_t>(iy - y_from)] = std::exp(k * dy * dy);
+    }
+    for (int iy = y_from; iy <= y_to; ++iy) {
+      float* row = &grid[at(x_from, iy)];
+      const double wy = ey[static_cast<size_t>(iy - y_from)];
+      for (int ix = x_from; ix <= x_to; ++ix) {
+        float& cell = row[ix - x_from];
+        cell = std::max(cell, static_cast<float>(wy * ex[static_cast<size_t>(ix - x_from)]));
       }
     }
   }
@@ -66,12 +78,18 @@ CorrelativeMatcher::CorrelativeMatcher(const std::vector<Point2f>& reference, do
     const auto& below = levels_.back();
     const int h = 1 << (d - 1);
     std::vector<float> level = grid_of(cells);
-    auto value = [&](int x, int y) { return x < width_ && y < height_ ? below[at(x, y)] : 0.0f; };
     std::fill(level.begin(), level.end(), 0.0f);  // the border (and the rest, written next)
+    // The maximum over x and x + h, then over y and y + h of that (in place: row y + h is read before it is
+    // written). Off the grid counts as 0, which no likelihood is below.
     for (int y = 0; y < height_; ++y) {
-      for (int x = 0; x < width_; ++x) {
-        level[at(x, y)] = std::max({value(x, y), value(x + h, y), value(x, y + h), value(x + h, y + h)});
-      }
+      const float* from = &below[at(0, y)];
+      float* to = &level[at(0, y)];
+      for (int x = 0; x < width_; ++x) to[x] = x + h < width_ ? std::max(from[x], from[x + h]) : from[x];
+    }
+    for (int y = 0; y + h < height_; ++y) {
+      float* to = &level[at(0, y)];
+      const float* up = &level[at(0, y + h)];
+      for (int x = 0; x < width_; ++x) to[x] = std::max(to[x], up[x]);
     }
     levels_.push_back(std::move(level));
   }
@@ -81,6 +99,9 @@ namespace {
 
 struct Cells {
   std::vector<int> x, y;  ///< each point's cell with the guess's translation
+  /// Each point's index into a level (at(x, y)) when no translation of the window takes it off the grid, or -1:
+  /// then the look-up needs no clamping.
+  std::vector<int64_t> inside;
 };
 
 /// The turn that moves the farthest points (the 90th percentile of distance, so one stray return does not decide)
@@ -111,7 +132,7 @@ double CorrelativeMatcher::score(const std::vector<Point2f>& points, double x, d
 
 CorrelativeMatcher::Match CorrelativeMatcher::match(const std::vector<Point2f>& points, double guess_x, double guess_y,
                                                     double guess_yaw, double window_xy, double window_yaw,
-                                                    const Match* exclude, double exclude_xy) const {
+                                                    const Match* exclude, double exclude_xy, double at_least) const {
   Match best{guess_x, guess_y, guess_yaw, 0};
   if (points.empty() || levels_.empty()) return best;
   const double res = resolution_;
@@ -123,8 +144,11 @@ CorrelativeMatcher::Match CorrelativeMatcher::match(const std::vector<Point2f>& 
     const double yaw = guess_yaw + k * step, c = std::cos(yaw), s = std::sin(yaw);
     Cells cells;
     for (const auto& p : points) {
-      cells.x.push_back(static_cast<int>(std::floor((c * p.x - s * p.y + guess_x - x0_) / res)));
-      cells.y.push_back(static_cast<int>(std::floor((s * p.x + c * p.y + guess_y - y0_) / res)));
+      const auto x = static_cast<int>(std::floor((c * p.x - s * p.y + guess_x - x0_) / res));
+      const auto y = static_cast<int>(std::floor((s * p.x + c * p.y + guess_y - y0_) / res));
+      cells.x.push_back(x), cells.y.push_back(y);
+      const bool in = x - n >= 0 && x + n <= width_ && y - n >= 0 && y + n <= height_;
+      cells.inside.push_back(in ? static_cast<int64_t>(at(x, y)) : -1);
     }
     turns.push_back(std::move(cells));
   }
@@ -136,7 +160,12 @@ CorrelativeMatcher::Match CorrelativeMatcher::match(const std::vector<Point2f>& 
     const int below = 1 - (1 << level);
     // Off the grid, a lookup lands in the empty border (x = -1 or width_): no branch per point.
     double sum = 0;
+    const int64_t shift = static_cast<int64_t>(ty) * (width_ + 2) + tx;
     for (size_t i = 0; i < cells.x.size(); ++i) {
+      if (cells.inside[i] >= 0) {
+        sum += grid[static_cast<size_t>(cells.inside[i] + shift)];
+        continue;
+      }
       int x = cells.x[i] + tx, y = cells.y[i] + ty;
       x = x < 0 ? (x >= below ? 0 : -1) : std::min(x, width_);
       y = y < 0 ? (y >= below ? 0 : -1) : std::min(y, height_);
@@ -161,9 +190,12 @@ CorrelativeMatcher::Match CorrelativeMatcher::match(const std::vector<Point2f>& 
     }
   }
   std::sort(roots.begin(), roots.end(), by_bound);
-  double best_score = -1;
+  // Only branches that may reach `at_least` are opened (the pruning a pose of that score would give from the
+  // start), and the first pose found ends the search.
+  double best_score = at_least > 0 ? std::nextafter(at_least, 0.0) : -1;
+  bool done = false;
   std::function<void(const Candidate*, size_t, int)> branch = [&](const Candidate* list, size_t count, int level) {
-    for (const Candidate* it = list; it != list + count; ++it) {
+    for (const Candidate* it = list; it != list + count && !done; ++it) {
       const Candidate& c = *it;
       if (c.bound <= best_score) return;  // sorted: nothing further down the list can do better
       if (level == 0) {
@@ -171,6 +203,7 @@ CorrelativeMatcher::Match CorrelativeMatcher::match(const std::vector<Point2f>& 
         if (exclude != nullptr && std::hypot(x - exclude->x, y - exclude->y) <= exclude_xy) continue;
         best_score = c.bound;
         best = {x, y, guess_yaw + (c.turn - n_yaw) * step, c.bound};
+        done = at_least > 0;  // all the caller asked
         continue;
       }
       if (exclude != nullptr) {  // a branch wholly inside the excluded disc holds no pose to find
@@ -197,7 +230,7 @@ CorrelativeMatcher::Match CorrelativeMatcher::match(const std::vector<Point2f>& 
     }
   };
   branch(roots.data(), roots.size(), top);
-  best.score = std::max(best_score, 0.0);
+  best.score = best_score >= at_least ? std::max(best_score, 0.0) : 0.0;
   return best;
 }
 

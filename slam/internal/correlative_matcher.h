@@ -33,9 +33,11 @@ class CorrelativeMatcher {
   /// The best pose of `points` (in their own frame) within guess +- window_xy [m] (in x and y) and +- window_yaw
   /// [rad]; translations on the grid's cells, turns moving the farthest points by about a cell. Poses within
   /// `exclude_xy` [m] of `exclude` (when given) are left out: the best pose elsewhere, to tell a unique place from
-  /// an ambiguous one.
+  /// an ambiguous one. With `at_least` > 0, a search that only needs to know whether some pose scores at least
+  /// that: the first such pose it finds (not always the best), or a score of 0 when there is none, which is
+  /// certain once every branch left is bounded below it.
   Match match(const std::vector<Point2f>& points, double guess_x, double guess_y, double guess_yaw, double window_xy,
-              double window_yaw, const Match* exclude = nullptr, double exclude_xy = 0) const;
+              double window_yaw, const Match* exclude = nullptr, double exclude_xy = 0, double at_least = 0) const;
 
   /// Mean likelihood of `points` at a pose (on the finest level).
   double score(const std::vector<Point2f>& points, double x, double y, double yaw) const;

@@ -292,6 +292,10 @@ bool ScanGraph::try_loop(size_t j, double radius) {
       if (path - keyframes_[i].path >= o_.loop_min_travel) old.push_back(i);
     }
   }
+  // Room for them all at once: MRPT's insertion grows a map by exactly what it adds, copying it each time.
+  size_t total = 0;
+  for (size_t i : old) total += keyframes_[i].points.size();
+  reference.reserve(total);
   for (size_t i : old) reference.insertAnotherMap(&keyframes_[i].points, CPose3D(keyframe_pose(i)));
 
   CPose2D start = here;
@@ -302,7 +306,10 @@ bool ScanGraph::try_loop(size_t j, double radius) {
                                      1.0, o_.loop_grid_levels);
     const auto points = points_in(query, static_cast<size_t>(o_.loop_search_points));
     const auto best = matcher.match(points, here.x(), here.y(), here.phi(), radius, o_.loop_far_yaw);
-    const auto other = matcher.match(points, here.x(), here.y(), here.phi(), radius, o_.loop_far_yaw, &best, 0.5);
+    // All the test needs to know is whether some place elsewhere scores loop_ambiguity of the best: the search
+    // stops at the first that does, and only opens branches that may.
+    const auto other = matcher.match(points, here.x(), here.y(), here.phi(), radius, o_.loop_far_yaw, &best, 0.5,
+                                     o_.loop_ambiguity * best.score);
     if (other.score >= o_.loop_ambiguity * best.score) {
       ++stats_.loop_rejected_unique;
       std::string why;

@@ -146,6 +146,41 @@ TEST(CorrelativeMatcher, TheSecondBestTellsARoomFromACorridor) {
   }
 }
 
+// The ambiguity test asks only whether some place away from the best scores 90% of it: with `at_least` the search
+// returns a pose that scores that much (its score the grid's at that pose, outside the excluded disc) when the full
+// search finds one, and a score of 0 when the full search's best there is below it; in the room and the corridor,
+// at thresholds either side of the full search's answer.
+TEST(CorrelativeMatcher, AtLeastAnswersWhetherSomePoseScoresThat) {
+  for (const bool in_corridor : {false, true}) {
+    SCOPED_TRACE(in_corridor ? "corridor" : "room");
+    const auto map = in_corridor ? corridor() : room();
+    const Pose truth = in_corridor ? Pose{15.0, 1.0, 0.0} : Pose{3.0, 2.0, 0.3};
+    const Pose guess = in_corridor ? Pose{14.0, 1.2, 0.05} : Pose{3.2, 1.8, 0.25};
+    const double window = in_corridor ? 3.0 : 1.5;
+    const CorrelativeMatcher matcher(map, kResolution, kMargin, kLevels);
+    const auto points = seen_from(map, truth, 2.8);
+    const auto best = matcher.match(points, guess.x, guess.y, guess.yaw, window, 0.35);
+    const auto other = matcher.match(points, guess.x, guess.y, guess.yaw, window, 0.35, &best, 0.5);
+    ASSERT_GT(other.score, 0.1);
+    for (const double share : {0.5, 0.9, 1.0, 1.001, 1.2}) {
+      const double at_least = share * other.score;
+      const auto found = matcher.match(points, guess.x, guess.y, guess.yaw, window, 0.35, &best, 0.5, at_least);
+      if (at_least <= other.score) {
+        EXPECT_GE(found.score, at_least) << share;
+        EXPECT_NEAR(found.score, matcher.score(points, found.x, found.y, found.yaw), 1e-9) << share;
+        EXPECT_GT(std::hypot(found.x - best.x, found.y - best.y), 0.5) << share;
+      } else {
+        EXPECT_EQ(found.score, 0.0) << share;
+      }
+    }
+    // The scan graph's question, answered the same either way.
+    const double bar = 0.9 * best.score;
+    const auto answer = matcher.match(points, guess.x, guess.y, guess.yaw, window, 0.35, &best, 0.5, bar);
+    EXPECT_EQ(answer.score >= bar, other.score >= bar);
+    EXPECT_EQ(other.score >= bar, in_corridor);
+  }
+}
+
 // Nothing to match, or nothing to match against: the guess comes back with a score of zero.
 TEST(CorrelativeMatcher, NoPointsScoreZero) {
   const CorrelativeMatcher matcher(room(), kResolution, kMargin, kLevels);
