@@ -158,7 +158,8 @@ CorrelativeMatcher::Match CorrelativeMatcher::match(const std::vector<Point2f>& 
     // A coarse cell covers the 2^level cells from it: one left of or below the grid still covers the grid's first
     // cells, whose maximum the grid's first coarse cell bounds.
     const int below = 1 - (1 << level);
-    // Off the grid, a lookup lands in the empty border (x = -1 or width_): no branch per point.
+    // A point no translation takes off the grid: its index moved by the translation. Another: clamped, so that off
+    // the grid the lookup lands in the empty border (x = -1 or width_). The sum in the points' order either way.
     double sum = 0;
     const int64_t shift = static_cast<int64_t>(ty) * (width_ + 2) + tx;
     for (size_t i = 0; i < cells.x.size(); ++i) {
