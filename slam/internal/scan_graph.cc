@@ -260,7 +260,7 @@ void ScanGraph::close_loops() {
   if (nearest != k) try_loop(nearest, best_radius);
 }
 
-bool ScanGraph::try_loop(size_t j, double radius) {
+bool ScanGraph::try_loop(size_t j, double radius, bool widened) {
   ++stats_.loop_tests;
   const size_t k = current_keyframe_;
   const double path = keyframes_[k].path;
@@ -305,10 +305,22 @@ bool ScanGraph::try_loop(size_t j, double radius) {
     const CorrelativeMatcher matcher(points_in(reference, std::numeric_limits<size_t>::max()), o_.loop_grid_resolution,
                                      1.0, o_.loop_grid_levels);
     const auto points = points_in(query, static_cast<size_t>(o_.loop_search_points));
-    const auto best = matcher.match(points, here.x(), here.y(), here.phi(), radius, o_.loop_far_yaw);
+    const double yaw_window = widened ? o_.loop_far_yaw * o_.loop_widen : o_.loop_far_yaw;
+    const auto best = matcher.match(points, here.x(), here.y(), here.phi(), radius, yaw_window);
+    // The best pose near the window's edge: the drift may have outrun the reach, the place lie just beyond the
+    // window, and what the window holds be the best of the wrong places (a door further down the corridor, the
+    // same room turned). The same test again in a wider window, once: there the place is the best, or it and the
+    // first best both score high and the test is ambiguous.
+    const double wider = std::min(radius * o_.loop_widen, o_.loop_max_radius);
+    if (!widened && wider > radius &&
+        (std::max(std::abs(best.x - here.x()), std::abs(best.y - here.y())) > o_.loop_edge * radius ||
+         std::abs(best.yaw - here.phi()) > o_.loop_edge * yaw_window)) {
+      --stats_.loop_tests;  // counted by the wider search
+      return try_loop(j, wider, true);
+    }
     // All the test needs to know is whether some place elsewhere scores loop_ambiguity of the best: the search
     // stops at the first that does, and only opens branches that may.
-    const auto other = matcher.match(points, here.x(), here.y(), here.phi(), radius, o_.loop_far_yaw, &best, 0.5,
+    const auto other = matcher.match(points, here.x(), here.y(), here.phi(), radius, yaw_window, &best, 0.5,
                                      o_.loop_ambiguity * best.score);
     if (other.score >= o_.loop_ambiguity * best.score) {
       ++stats_.loop_rejected_unique;

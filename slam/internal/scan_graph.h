@@ -6,7 +6,8 @@
 //   loops:     each new keyframe is matched against the old keyframe the graph places nearest, if the drift since
 //              the graph last tied the two places together can explain the distance (a radius growing with the
 //              graph distance between them). Near, ICP from the estimate; far, a correlative search of the whole
-//              window (correlative_matcher.h). A match is kept when it overlaps the old place, has a unique optimum
+//              window (correlative_matcher.h), widened once when its best pose lies near the window's edge (the
+//              place may lie beyond it). A match is kept when it overlaps the old place, has a unique optimum
 //              in the directions the geometry pins down, and, if it moves the estimate much, a second match from
 //              one of the next keyframes agrees with it; its information comes from what the geometry pins down
 //              (little along a corridor). After optimising, a loop edge the rest of the graph contradicts is
@@ -52,6 +53,8 @@ struct ScanGraphOptions {
   double loop_max_radius = 8;         ///< ... and never further
   double loop_far_radius = 2.5;       ///< beyond this radius, a correlative search instead of ICP from the estimate
   double loop_far_yaw = 0.35;         ///< the correlative search's turn window (+-)
+  double loop_edge = 0.8;             ///< its best pose beyond this share of the window (in x, y or turn) ...
+  double loop_widen = 1.5;            ///< ... searches again in a window this much wider (at most loop_max_radius)
   double loop_grid_resolution = 0.1;  ///< of its likelihood grid ...
   int loop_grid_levels = 4;           ///< ... and coarse levels above it (the top one 2^4 cells: 1.6 m)
   int loop_search_points = 200;       ///< current points it scores per pose
@@ -153,7 +156,8 @@ class ScanGraph {
                     const mrpt::maps::CSimplePointsMap& points, const mrpt::poses::CPose2D& pose);
   void rebuild_local_map();
   void close_loops();
-  bool try_loop(size_t j, double radius);  // j: the candidate keyframe
+  /// j: the candidate keyframe; widened: the far search's window (radius, turn) is loop_widen times the usual.
+  bool try_loop(size_t j, double radius, bool widened = false);
   bool add_loops(std::vector<LoopEdge> loops);
   void record(LoopRecord r, LoopRecord::Outcome outcome, std::string reason);
   /// By keyframe, the length of the shortest path through the graph from `from` to each of `targets`, or, where
