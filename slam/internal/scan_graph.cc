@@ -313,7 +313,7 @@ bool ScanGraph::try_loop(size_t j, double radius, bool widened) {
     // first best both score high and the test is ambiguous. It may reach past loop_max_radius (the first
     // search's limit, which keeps the many tests of a long excursion cheap): ACES's return after its 200 m circuit
     // lies 9 m from the estimate when the front end drifts more (`min_dist_between_points` 0.08).
-    const double wider = std::min(radius * o_.loop_widen, o_.loop_widen_max_radius);
+    const double wider = std::min(radius * o_.loop_widen, std::max(o_.loop_widen_max_radius, o_.loop_max_radius));
     if (!widened && wider > radius &&
         (std::max(std::abs(best.x - here.x()), std::abs(best.y - here.y())) > o_.loop_edge * radius ||
          std::abs(best.yaw - here.phi()) > o_.loop_edge * yaw_window)) {

@@ -55,7 +55,8 @@ struct ScanGraphOptions {
   double loop_far_yaw = 0.35;         ///< the correlative search's turn window (+-)
   double loop_edge = 0.8;             ///< its best pose beyond this share of the window (in x, y or turn) ...
   double loop_widen = 1.5;            ///< ... searches again in a window this much wider ...
-  double loop_widen_max_radius = 10;  ///< ... and at most this (beyond loop_max_radius: a return just out of reach)
+  double loop_widen_max_radius = 10;  ///< ... and at most this or loop_max_radius, the larger (a return just out of
+                                      ///< the first search's reach)
   double loop_grid_resolution = 0.1;  ///< of its likelihood grid ...
   int loop_grid_levels = 4;           ///< ... and coarse levels above it (the top one 2^4 cells: 1.6 m)
   int loop_search_points = 200;       ///< current points it scores per pose
