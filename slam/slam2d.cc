@@ -26,6 +26,7 @@
 #include <string_view>
 
 #include "core/config.h"
+#include "core/number_text.h"
 #include "core/text_file.h"
 #include "core/time.h"
 #include "driftlab/image_t.hpp"
@@ -37,6 +38,7 @@
 #include "lcmtypes/planar.h"
 #include "runtime/module_input.h"
 #include "slam/internal/mrpt_scan.h"
+#include "slam/internal/no_return.h"
 #include "slam/internal/odometry_buffer.h"
 #include "slam/internal/point_maps.h"
 #include "slam/internal/scan_graph.h"
@@ -108,6 +110,8 @@ struct Slam2d::Impl {
   int64_t first_scan = -1;  ///< stamp of the first scan [us]
   int64_t first_odometry = std::numeric_limits<int64_t>::max();  ///< the earliest odometry stamp [us]
   NonFiniteInputs non_finite;
+  internal::NoReturnCode no_return;  ///< found in the readings when max_range is 0
+  int64_t found_after = 0;           ///< the scans it took
   bool tf_missing_warned = false;
   std::vector<std::string> warnings;
   // Method graph: scans wait, in stamp order, for the odometry at their stamps (odom_wait_s).
@@ -302,7 +306,15 @@ Status Slam2d::start(Bus& bus) {
       d.warnings.push_back("slam: no " + d.c.base_frame + " -> " + scan.header.frame_id + " on " +
                            d.c.tf_static_channel + " before the first scan: the sensor_pose setting was used");
     }
-    auto obs = internal::to_mrpt(scan, sensor);
+    float no_return_from = INFINITY;
+    if (d.c.max_range > 0) {
+      no_return_from = static_cast<float>(d.c.max_range);
+    } else {
+      if (!d.no_return.from())
+        d.no_return.observe(scan.ranges, scan.range_min, scan.range_max), d.found_after = d.scans;
+      no_return_from = d.no_return.from().value_or(INFINITY);
+    }
+    auto obs = internal::to_mrpt(scan, sensor, no_return_from);
     obs->sensorLabel = m.channel;
 
     if (d.graph) {
@@ -475,6 +487,12 @@ ModuleCounters Slam2d::counters() const {
   c.dropped = d.undecodable + d.non_finite.dropped();
   c.warnings = d.warnings;
   if (auto w = d.non_finite.warning("slam")) c.warnings.push_back(*w);
+  if (auto from = d.no_return.from()) {
+    c.warnings.push_back(
+        "slam: readings on " + d.c.scan_channel + " at " + short_number(std::round(*from * 100) / 100) +
+        " m or more are the scanner's no-return code, not echoes (" + thousands(d.no_return.pile()) +
+        " of them by scan " + thousands(d.found_after) + "): left out; set slam.2d.max_range to choose");
+  }
   if (d.scans == 0) {
     c.warnings.push_back("slam: no driftlab.laser_scan_t on " + d.c.scan_channel + ": no map built");
   } else if (!d.c.odom_channel.empty() && d.odometry == 0) {

@@ -33,6 +33,7 @@ struct Slam2dConfig {
   std::string map_channel = "SLAM_MAP";         ///< driftlab.image_t (png) at the end
   std::string base_frame = "base_link";
   std::array<double, 3> sensor_pose = {0, 0, 0};  ///< x, y, yaw of the scanner on the base when TF has none
+  double max_range = 0;  ///< readings at or beyond it are no returns [m]; 0: range_max and a code found in them
   std::string ini;  ///< an MRPT icp-slam .ini file ([MappingApplication] and [ICP]); the keys below override it
   // Method and pose graph (method graph). Defaults chosen on the Intel and ACES logs and the simulator's sessions
   // (docs/slam.md says why each is what it is).

@@ -22,6 +22,9 @@ const config::Table<Slam2dConfig>& slam2d_config_table() {
           .text("base_frame", &C::base_frame, "the robot's base frame")
           .numbers("sensor_pose", &C::sensor_pose, between(-1e3, 1e3), "m, m, rad",
                    "x, y, yaw of the scanner on the base, when TF has none")
+          .number("max_range", &C::max_range, between(0, 1e6), "m",
+                  "readings at or beyond it are no returns; 0: those at the scan's range_max and at a no-return "
+                  "code found in the readings (a pile at their very top)")
           .text("ini", &C::ini,
                 "an MRPT icp-slam .ini file (relative to the config file), for method icp-slam: its "
                 "[MappingApplication] and [ICP] replace the defaults; the keys given here override it")

@@ -17,9 +17,11 @@ namespace driftlab::slam::internal {
 /// Readings at or above this share of range_max are a scanner's "no return" code, not an echo.
 inline constexpr float kNoReturnShare = 0.99f;
 
-/// Our scan (at least two beams) as an MRPT observation, for a scanner at `sensor_on_base` (x, y, yaw).
+/// Our scan (at least two beams) as an MRPT observation, for a scanner at `sensor_on_base` (x, y, yaw). Readings
+/// at or beyond `no_return_from` are no returns too (a code no_return.h found, or a maximum the user set).
 inline mrpt::obs::CObservation2DRangeScan::Ptr to_mrpt(const driftlab::laser_scan_t& scan,
-                                                       const mrpt::poses::CPose2D& sensor_on_base) {
+                                                       const mrpt::poses::CPose2D& sensor_on_base,
+                                                       float no_return_from = INFINITY) {
   auto obs = mrpt::obs::CObservation2DRangeScan::Create();
   const int n = scan.nranges;
   const double increment = scan.angle_increment;
@@ -34,7 +36,8 @@ inline mrpt::obs::CObservation2DRangeScan::Ptr to_mrpt(const driftlab::laser_sca
     // every beam without an echo; ROS bags made from CARMEN logs carry it as range_max, or a little above the
     // code: Freiburg's clinic log has range_max 81.9 with 81.83 and 81.91 as its no-echo readings): not a point.
     // Within 1% of range_max counts as there.
-    const bool valid = std::isfinite(r) && r >= scan.range_min && r < kNoReturnShare * scan.range_max;
+    const bool valid =
+        std::isfinite(r) && r >= scan.range_min && r < kNoReturnShare * scan.range_max && r < no_return_from;
     obs->setScanRange(i, valid ? r : scan.range_max);
     obs->setScanRangeValidity(i, valid);
   }
