@@ -48,7 +48,7 @@ struct Slam2dConfig {
   double loop_min_travel = 10;      ///< path between two keyframes before they may close a loop [m]
   double loop_radius = 1.5;         ///< old keyframes within this of the estimate are candidates [m] ...
   double loop_drift = 0.05;         ///< ... plus this fraction of the graph distance between the two
-  double loop_max_radius = 8;       ///< [m]
+  double loop_max_radius = 16;      ///< [m]
   double loop_min_goodness = 0.65;  ///< share of the current points an old place must explain [0, 1]
   // Map building (icp-slam's [MappingApplication], method icp-slam); defaults are MRPT's icp-slam_demo_classic.ini
   // but fuse_points.

@@ -26,6 +26,10 @@ class NoReturnCode {
     for (size_t i = 0; i < ranges.size(); ++i) {
       const float r = ranges[i];
       if (!(r >= range_min && r < 0.99f * range_max && r >= kLowest && r < kHighest)) continue;
+      // The test looks at most 14% below the largest reading (the pile within its top 3%, and 10% under the pile):
+      // readings a fifth or more below the largest so far never count.
+      if (r < 0.8f * top_) continue;
+      top_ = std::max(top_, r);
       const auto b = static_cast<size_t>(std::log(r / kLowest) / kBinLog);
       if (b >= bins_.size()) bins_.resize(b + 1);
       Bin& bin = bins_[b];
@@ -95,6 +99,7 @@ class NoReturnCode {
   }
 
   std::vector<Bin> bins_;
+  float top_ = 0;  // the largest reading counted
   std::optional<float> from_;
   int64_t pile_ = 0;
 };

@@ -199,31 +199,29 @@ void ScanGraph::rebuild_local_map() {
   }
 }
 
-std::vector<double> ScanGraph::graph_distances(size_t from, const std::vector<uint32_t>& targets) const {
-  std::vector<double> d(keyframes_.size(), std::numeric_limits<double>::infinity());
-  // Dijkstra's, stopped once every target's distance is known or the rest are at least as far as the distance that
-  // gives the largest reach (their lengths so far, or infinity, are longer still: the same reach).
-  std::vector<uint8_t> wanted(keyframes_.size(), 0);
-  for (uint32_t t : targets) wanted[t] = 1;
-  size_t left = targets.size();
-  using Item = std::pair<double, uint32_t>;
-  std::priority_queue<Item, std::vector<Item>, std::greater<>> queue;
-  d[from] = 0;
-  queue.push({0, static_cast<uint32_t>(from)});
-  while (!queue.empty() && left > 0) {
-    const auto [dist, node] = queue.top();
-    if (o_.loop_radius + o_.loop_drift * dist >= o_.loop_max_radius) break;
-    queue.pop();
-    if (dist > d[node]) continue;
-    if (wanted[node] != 0) wanted[node] = 0, --left;
-    for (const auto& [next, length] : adjacency_[node]) {
-      if (dist + length < d[next]) {
-        d[next] = dist + length;
-        queue.push({d[next], next});
+ScanGraph::GraphDistances::GraphDistances(const ScanGraph& graph, size_t from)
+    : g_(graph), d_(graph.keyframes_.size(), std::numeric_limits<double>::infinity()), done_(d_.size(), 0) {
+  d_[from] = 0;
+  queue_.push({0, static_cast<uint32_t>(from)});
+}
+
+double ScanGraph::GraphDistances::to(uint32_t target) {
+  const ScanGraphOptions& o = g_.o_;
+  while (done_[target] == 0 && !queue_.empty()) {
+    const auto [dist, node] = queue_.top();
+    // Every node not settled yet is at least this far: as far as the largest reach needs, or further.
+    if (o.loop_radius + o.loop_drift * dist >= o.loop_max_radius) break;
+    queue_.pop();
+    if (done_[node] != 0) continue;
+    done_[node] = 1;
+    for (const auto& [next, length] : g_.adjacency_[node]) {
+      if (dist + length < d_[next]) {
+        d_[next] = dist + length;
+        queue_.push({d_[next], next});
       }
     }
   }
-  return d;
+  return d_[target];
 }
 
 void ScanGraph::close_loops() {
@@ -240,24 +238,25 @@ void ScanGraph::close_loops() {
   // the two together (the graph distance between them, loop edges counting as the short links they are).
   const CPose2D here = keyframe_pose(k);
   const double path = keyframes_[k].path;
-  std::vector<uint32_t> candidates;  // within the largest reach
-  std::vector<double> away;
+  std::vector<std::pair<double, uint32_t>> candidates;  // within the largest reach: (distance, keyframe)
   for (size_t j = 0; j + static_cast<size_t>(o_.local_map_keyframes) < k; ++j) {
     if (path - keyframes_[j].path < o_.loop_min_travel) continue;
     const CPose2D there = keyframe_pose(j);
     const double d = std::hypot(there.x() - here.x(), there.y() - here.y());
-    if (d <= o_.loop_max_radius) candidates.push_back(static_cast<uint32_t>(j)), away.push_back(d);
+    if (d <= o_.loop_max_radius) candidates.emplace_back(d, static_cast<uint32_t>(j));
   }
-  if (candidates.empty()) return;
-  const std::vector<double> distance = graph_distances(k, candidates);
-  double best = std::numeric_limits<double>::infinity(), best_radius = 0;
-  size_t nearest = k;
-  for (size_t c = 0; c < candidates.size(); ++c) {
-    if (away[c] >= best) continue;
-    const double radius = std::min(o_.loop_max_radius, o_.loop_radius + o_.loop_drift * distance[candidates[c]]);
-    if (away[c] <= radius) best = away[c], best_radius = radius, nearest = candidates[c];
+  // Nearest first; the first within its reach is the one. The graph distances come from one Dijkstra's run from
+  // this keyframe, taken only as far as each candidate in turn needs: most keyframes are near in the graph too (the
+  // path just walked, places loops have tied), and settle at once.
+  std::sort(candidates.begin(), candidates.end());
+  GraphDistances graph_distance(*this, k);
+  for (const auto& [away, j] : candidates) {
+    const double radius = std::min(o_.loop_max_radius, o_.loop_radius + o_.loop_drift * graph_distance.to(j));
+    if (away <= radius) {
+      try_loop(j, radius);
+      return;
+    }
   }
-  if (nearest != k) try_loop(nearest, best_radius);
 }
 
 bool ScanGraph::try_loop(size_t j, double radius, bool widened) {
@@ -310,10 +309,8 @@ bool ScanGraph::try_loop(size_t j, double radius, bool widened) {
     // The best pose near the window's edge: the drift may have outrun the reach, the place lie just beyond the
     // window, and what the window holds be the best of the wrong places (a door further down the corridor, the
     // same room turned). The same test again in a wider window, once: there the place is the best, or it and the
-    // first best both score high and the test is ambiguous. It may reach past loop_max_radius (the first
-    // search's limit, which keeps the many tests of a long excursion cheap): ACES's return after its 200 m circuit
-    // lies 9 m from the estimate when the front end drifts more (`min_dist_between_points` 0.08).
-    const double wider = std::min(radius * o_.loop_widen, std::max(o_.loop_widen_max_radius, o_.loop_max_radius));
+    // first best both score high and the test is ambiguous.
+    const double wider = std::min(radius * o_.loop_widen, o_.loop_max_radius);
     if (!widened && wider > radius &&
         (std::max(std::abs(best.x - here.x()), std::abs(best.y - here.y())) > o_.loop_edge * radius ||
          std::abs(best.yaw - here.phi()) > o_.loop_edge * yaw_window)) {

@@ -25,6 +25,7 @@
 
 #include <cstdint>
 #include <optional>
+#include <queue>
 #include <string>
 #include <utility>
 #include <vector>
@@ -50,13 +51,11 @@ struct ScanGraphOptions {
   double loop_min_travel = 10;        ///< path between two keyframes before they may close a loop
   double loop_radius = 1.5;           ///< the old keyframe must be within this of the estimate ...
   double loop_drift = 0.05;           ///< ... plus this share of the graph distance between the two ...
-  double loop_max_radius = 8;         ///< ... and never further
+  double loop_max_radius = 16;        ///< ... and never further
   double loop_far_radius = 2.5;       ///< beyond this radius, a correlative search instead of ICP from the estimate
   double loop_far_yaw = 0.35;         ///< the correlative search's turn window (+-)
   double loop_edge = 0.8;             ///< its best pose beyond this share of the window (in x, y or turn) ...
-  double loop_widen = 1.5;            ///< ... searches again in a window this much wider ...
-  double loop_widen_max_radius = 10;  ///< ... and at most this or loop_max_radius, the larger (a return just out of
-                                      ///< the first search's reach)
+  double loop_widen = 1.5;            ///< ... searches again in a window this much wider (at most loop_max_radius)
   double loop_grid_resolution = 0.1;  ///< of its likelihood grid ...
   int loop_grid_levels = 4;           ///< ... and coarse levels above it (the top one 2^4 cells: 1.6 m)
   int loop_search_points = 200;       ///< current points it scores per pose
@@ -162,9 +161,21 @@ class ScanGraph {
   bool try_loop(size_t j, double radius, bool widened = false);
   bool add_loops(std::vector<LoopEdge> loops);
   void record(LoopRecord r, LoopRecord::Outcome outcome, std::string reason);
-  /// By keyframe, the length of the shortest path through the graph from `from` to each of `targets`, or, where
-  /// that is long enough to give the loop search its largest reach, some length at least that long.
-  std::vector<double> graph_distances(size_t from, const std::vector<uint32_t>& targets) const;
+  /// The length of the shortest path through the graph from one keyframe to others (loop edges counting as the
+  /// short links they are), or, where that is long enough to give the loop search its largest reach, some length at
+  /// least that long: Dijkstra's, run only as far as each question needs.
+  class GraphDistances {
+   public:
+    GraphDistances(const ScanGraph& graph, size_t from);
+    double to(uint32_t target);
+
+   private:
+    using Item = std::pair<double, uint32_t>;
+    const ScanGraph& g_;
+    std::vector<double> d_;
+    std::vector<uint8_t> done_;
+    std::priority_queue<Item, std::vector<Item>, std::greater<>> queue_;
+  };
   mrpt::maps::CSimplePointsMap points_of(const mrpt::obs::CObservation2DRangeScan& scan) const;
 
   ScanGraphOptions o_;

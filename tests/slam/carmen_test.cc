@@ -153,18 +153,18 @@ TEST_P(SlamOnTheBenchmark, ClosesLoopsToCentimetresAndBeatsIcpSlam) {
 
   // The trajectory as last optimised, against the benchmark's relations: loop-closing SLAM reaches 0.02-0.07 m
   // on these logs in the literature, scan matching alone about 0.2 m; 0.10 m is the bar (ours: 0.031 m
-  // on Intel, 0.045 m on ACES).
+  // on Intel, 0.048 m on ACES).
   const auto ours = test::relation_error(out + ":SLAM_TRAJECTORY", relations);
   EXPECT_EQ(ours["used"].get<size_t>(), run.relations);
   const double mean = ours["trans_m"]["mean"].get<double>();
   EXPECT_LT(mean, 0.10);
   // No relation 1.5 m off or more: a map folded by a wrong or missed closure is metres off (the bar; ours
-  // 0.51 m on Intel, 0.38 m on ACES).
+  // 0.51 m on Intel, 0.78 m on ACES).
   EXPECT_LT(ours["trans_m"]["max"].get<double>(), 1.5);
 
   // The figure belongs to the kind of recording, not to this file: the same log started 3 s and 10 s later is
   // another recording of the building (other keyframes, other loops), and must meet the same bar. Ours: Intel
-  // 0.031 m (max 0.65 m) and 0.042 m (0.88 m), ACES 0.056 m (1.30 m) and 0.049 m (0.86 m);
+  // 0.031 m (max 0.65 m) and 0.042 m (0.88 m), ACES 0.045 m (0.48 m) and 0.045 m (0.71 m);
   // docs/tutorial-public-dataset.md shows Intel's.
   for (const char* start : {"3", "10"}) {
     const std::string later = dir.file(std::string("from-") + start + ".lcm");
@@ -181,7 +181,7 @@ TEST_P(SlamOnTheBenchmark, ClosesLoopsToCentimetresAndBeatsIcpSlam) {
   }
 
   // Against GMapping's corrected trajectory (its scans matched to ours by their readings), aligned in the plane:
-  // below 0.3 m (ours: 0.16 m on Intel, 0.13 m on ACES; plain scan matching is off by metres after a loop).
+  // below 0.3 m (ours: 0.16 m on Intel, 0.16 m on ACES; plain scan matching is off by metres after a loop).
   auto gmapping = test::corrected_at_raw_stamps(raw, dir.file("corrected.lcm"));
   ASSERT_TRUE(gmapping) << gmapping.error().message;
   ASSERT_TRUE(analyzers::write_tum(dir.file("corrected.tum"), *gmapping).ok());
@@ -189,7 +189,7 @@ TEST_P(SlamOnTheBenchmark, ClosesLoopsToCentimetresAndBeatsIcpSlam) {
                                        ":SLAM_TRAJECTORY --align posyaw --max-dt 0.0001 --json")["ate"];
   EXPECT_LT(ate["rmse"].get<double>(), 0.3);
   // The poses as published scan by scan carry the drift since the last loop closure, no jumps: before the loop
-  // closures, a stale index in the map sent them 7-40 m back to the start (ours now: 0.28 m on Intel, 0.36 m on
+  // closures, a stale index in the map sent them 7-40 m back to the start (ours now: 0.28 m on Intel, 0.39 m on
   // ACES).
   const auto online = test::driftlab_json("eval --gt " + dir.file("corrected.tum") + " --est " + out +
                                           ":SLAM_POSE --align posyaw --max-dt 0.0001 --json")["ate"];
@@ -220,7 +220,7 @@ TEST_P(SlamOnTheBenchmark, ClosesLoopsToCentimetresAndBeatsIcpSlam) {
   // interpolated at the scans' stamps (as CARMEN's logger does) and the ranges in millimetres, so other keyframes
   // and other loops: within 1 cm of the bag's error, the spread of ACES's error over such changes (0.046-0.055 m
   // with the edges' deviations from 1.5 to 3 cm, or the odometry interpolated), and under the 0.10 m bar (Intel:
-  // 0.032 m from the .clf, 0.031 m from the bag; ACES 0.055 and 0.048 m; before, with the odometry ignored, 1,761
+  // 0.028 m from the .clf, 0.031 m from the bag; ACES 0.047 and 0.048 m; before, with the odometry ignored, 1,761
   // of 1,983 scans of such a log went unmatched and the error was 0.52 m; with it but matched in arrival order,
   // 1.75 m). SlamOnMoreLogs runs a .clf of the benchmark's own against its bag.
   ASSERT_NO_FATAL_FAILURE(write_clf(raw, dir.file("flaser.clf")));
@@ -241,12 +241,15 @@ TEST_P(SlamOnTheBenchmark, ClosesLoopsToCentimetresAndBeatsIcpSlam) {
 // (4,933 scans) and MIT CSAIL (1,988 scans) as INESC TEC's ricoslam converted them to ROS bags, and MIT CSAIL's own
 // CARMEN .clf as the benchmark distributes it (odometry only on its FLASER lines). The bar is the issue's: mean
 // relation error below 0.10 m and no relation off by 1.5 m or more (a map folded by a wrong or missed loop closure is
-// metres off). Ours: 0.062 m (max 0.24 m) and 0.037 m (max 0.59 m), the same from the .clf.
+// metres off). Ours: 0.062 m (max 0.24 m) and 0.037 m (max 0.59 m), the same from the .clf. And MIT Killian's .clf
+// (the benchmark's site has it; ricoslam's snapshot lists it without its content): a .clf written from ricoslam's
+// bag with the relations' stamps (SlamOnKillian's renumbering) gives 0.055 m (max 0.88 m).
 struct MoreLog {
   const char* name;
   const char* log;  ///< under ../shared/data/carmen
   const char* relations;
   const char* settings = "";  ///< slam.2d settings other than the defaults (YAML flow mapping), if any
+  const char* warning = "";   ///< what the module's one warning says, if it has one
 };
 
 class SlamOnMoreLogs : public ::testing::TestWithParam<MoreLog> {};
@@ -274,7 +277,13 @@ TEST_P(SlamOnMoreLogs, ClosesLoopsWithoutFoldingTheMap) {
   }
   const auto replay = test::driftlab_json("replay " + dir.file("raw.lcm") + " --modules slam --json" + config + " -o " +
                                           dir.file("slam.lcm"));
-  EXPECT_TRUE(replay["modules"][0]["warnings"].empty()) << replay["modules"][0]["warnings"];
+  const auto& warnings = replay["modules"][0]["warnings"];
+  if (*run.warning == 0) {
+    EXPECT_TRUE(warnings.empty()) << warnings;
+  } else {
+    ASSERT_EQ(warnings.size(), 1u) << warnings;
+    EXPECT_NE(warnings[0].get<std::string>().find(run.warning), std::string::npos) << warnings;
+  }
   test::check_loop_records(dir.file("slam.lcm"), replay["modules"][0]["metrics"]);
   const auto error = test::relation_error(dir.file("slam.lcm") + ":SLAM_TRAJECTORY", relations);
   const double mean = error["trans_m"]["mean"].get<double>(), max = error["trans_m"]["max"].get<double>();
@@ -294,7 +303,12 @@ INSTANTIATE_TEST_SUITE_P(Carmen, SlamOnMoreLogs,
                                            // front end drifts further, the place was just beyond the window, and
                                            // a door 1.7 m down the corridor inside it was taken (and confirmed).
                                            MoreLog{"mit_csail_decimation_3", "mit-csail.orig.bag",
-                                                   "mit-csail.relations", "{decimation: 3}"}),
+                                                   "mit-csail.relations", "{decimation: 3}"},
+                                           // Its FLASER lines do not say the scanner's maximum, and its longest
+                                           // reading (51.22 m) occurs once: the module finds the no-return code
+                                           // (51.06 m) itself and says so (SlamOnKillian).
+                                           MoreLog{"mit_killian_clf", "mit-killian.clf", "mit-killian.relations", "",
+                                                   "are the scanner's no-return code"}),
                          [](const auto& info) { return std::string(info.param.name); });
 
 // MIT Killian Court (17,480 scans over 2 h 8 min, 1.5 km through MIT's corridors), as INESC TEC's ricoslam made a ROS
@@ -304,7 +318,8 @@ INSTANTIATE_TEST_SUITE_P(Carmen, SlamOnMoreLogs,
 // the first stamp`, and `first` is where the wheel odometry turns as the relations do (over the relations a few
 // seconds long, whose turn the odometry measures to a degree). The renumbered relations score the bag as the
 // original would the .clf. Killian's scanner answers 51.05-51.12 m for a beam without an echo while the bag says
-// range_max 80 m: found by the module (no_return_test.cc), the relation error is 0.055 m (max 1.11 m); with those
+// range_max 80 m: found by the module (no_return_test.cc), the relation error is 0.057 m (max 1.41 m; with an 8 m
+// loop reach, 0.055 m and 1.11 m, but 2 of scripts/slam-robustness's 10 runs met the bar instead of 6); with those
 // readings taken for walls 3.8 m (36 m), the front end dragged along the corridors by points 51 m ahead.
 TEST(SlamOnKillian, TheRicoslamBagWithTheRelationsOnItsStamps) {
   const std::string bag = benchmark_file("mit-killian.clf2bag.bag");
