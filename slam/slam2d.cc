@@ -310,8 +310,10 @@ Status Slam2d::start(Bus& bus) {
     if (d.c.max_range > 0) {
       no_return_from = static_cast<float>(d.c.max_range);
     } else {
-      if (!d.no_return.from())
-        d.no_return.observe(scan.ranges, scan.range_min, scan.range_max), d.found_after = d.scans;
+      if (!d.no_return.from()) {
+        d.no_return.observe(scan.ranges, scan.range_min, scan.range_max);
+        if (d.no_return.from()) d.found_after = d.scans;
+      }
       no_return_from = d.no_return.from().value_or(INFINITY);
     }
     auto obs = internal::to_mrpt(scan, sensor, no_return_from);

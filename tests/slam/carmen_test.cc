@@ -14,10 +14,10 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
-#include <sstream>
 #include <string>
 #include <vector>
 
+#include "analyzers/relations.h"
 #include "analyzers/trajectory_io.h"
 #include "core/log_reader.h"
 #include "driftlab/laser_scan_t.hpp"
@@ -338,28 +338,15 @@ TEST(SlamOnKillian, TheRicoslamBagWithTheRelationsOnItsStamps) {
   }
   ASSERT_EQ(stamps.size(), 17480u);
   ASSERT_EQ(odometry.size(), stamps.size());
-  struct Relation {
-    double t1, t2;
-    std::string rest;  // x y z roll pitch yaw
-    double yaw;
-  };
-  std::vector<Relation> rel;
+  auto rel = analyzers::load_relations(relations);
+  ASSERT_TRUE(rel) << rel.error().message;
   std::vector<double> times;
-  {
-    std::ifstream in(relations);
-    std::string line;
-    while (std::getline(in, line)) {
-      if (line.empty() || line[0] == '#') continue;
-      std::istringstream f(line);
-      Relation r;
-      double v[6];
-      f >> r.t1 >> r.t2 >> v[0] >> v[1] >> v[2] >> v[3] >> v[4] >> v[5];
-      r.yaw = v[5];
-      r.rest = line.substr(line.find_first_not_of(' ', line.find(' ', line.find(' ') + 1)));
-      rel.push_back(r);
-      times.push_back(r.t1), times.push_back(r.t2);
-    }
-  }
+  for (const auto& r : *rel) times.push_back(r.t1), times.push_back(r.t2);
+  // A relation's roll, pitch and yaw (the file's order; R = Rz(yaw) Ry(pitch) Rx(roll)).
+  auto rpy = [](const analyzers::Relation& r) {
+    const Eigen::Matrix3d m = r.rotation.toRotationMatrix();
+    return Eigen::Vector3d(std::atan2(m(2, 1), m(2, 2)), std::asin(-m(2, 0)), std::atan2(m(1, 0), m(0, 0)));
+  };
   std::sort(times.begin(), times.end());
   times.erase(std::unique(times.begin(), times.end()), times.end());
   // The period: from the shortest gap, refined over all of them (each a whole number of periods).
@@ -384,11 +371,11 @@ TEST(SlamOnKillian, TheRicoslamBagWithTheRelationsOnItsStamps) {
   auto turn_error = [&](int64_t first) {
     double sum = 0;
     int count = 0;
-    for (const auto& r : rel) {
+    for (const auto& r : *rel) {
       if (std::abs(r.t2 - r.t1) > 5) continue;
       const auto& a = odometry[static_cast<size_t>(first + index[r.t1])];
       const auto& b = odometry[static_cast<size_t>(first + index[r.t2])];
-      sum += std::abs(std::remainder(b[2] - a[2] - r.yaw, 2 * M_PI)), ++count;
+      sum += std::abs(std::remainder(b[2] - a[2] - rpy(r)[2], 2 * M_PI)), ++count;
     }
     return sum / count;
   };
@@ -405,12 +392,14 @@ TEST(SlamOnKillian, TheRicoslamBagWithTheRelationsOnItsStamps) {
   const std::string restamped = dir.file("killian.relations");
   {
     std::ofstream out(restamped);
-    for (const auto& r : rel) {
-      char head[80];
-      std::snprintf(head, sizeof(head), "%.6f %.6f ",
+    for (const auto& r : *rel) {
+      const Eigen::Vector3d angles = rpy(r);
+      char line[200];
+      std::snprintf(line, sizeof(line), "%.6f %.6f %.9f %.9f %.9f %.9f %.9f %.9f\n",
                     static_cast<double>(stamps[static_cast<size_t>(first + index[r.t1])]) * 1e-6,
-                    static_cast<double>(stamps[static_cast<size_t>(first + index[r.t2])]) * 1e-6);
-      out << head << r.rest << "\n";
+                    static_cast<double>(stamps[static_cast<size_t>(first + index[r.t2])]) * 1e-6, r.translation.x(),
+                    r.translation.y(), r.translation.z(), angles[0], angles[1], angles[2]);
+      out << line;
     }
   }
   const auto replay =
@@ -423,7 +412,7 @@ TEST(SlamOnKillian, TheRicoslamBagWithTheRelationsOnItsStamps) {
   const double mean = error["trans_m"]["mean"].get<double>(), max = error["trans_m"]["max"].get<double>();
   std::printf("mit_killian: relation error %.4f m, max %.3f m over %zu relations\n", mean, max,
               error["used"].get<size_t>());
-  EXPECT_EQ(error["used"].get<size_t>(), rel.size());
+  EXPECT_EQ(error["used"].get<size_t>(), rel->size());
   EXPECT_LT(mean, 0.10);
   EXPECT_LT(max, 1.5);
 }
