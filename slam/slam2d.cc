@@ -236,6 +236,9 @@ Status Slam2d::start(Bus& bus) {
       o.loop_drift = c.loop_drift;
       o.loop_max_radius = c.loop_max_radius;
       o.loop_min_goodness = c.loop_min_goodness;
+      o.match_odometry = c.match_odometry;
+      o.match_sigma = c.match_sigma;
+      o.odometry_noise = c.odometry_noise;
       d.graph = std::make_unique<internal::ScanGraph>(o);
     } else {
       d.builder.setMinLoggingLevel(mrpt::system::LVL_ERROR);
@@ -517,6 +520,7 @@ ModuleCounters Slam2d::counters() const {
                                        {"loop_undone", static_cast<double>(s.loop_undone)},
                                        {"loop_unconfirmed", static_cast<double>(s.loop_unconfirmed)},
                                        {"optimisations", static_cast<double>(s.optimisations)}});
+    if (d.c.match_odometry) c.metrics.emplace_back("scans_weighed", static_cast<double>(s.weighed));
   }
   return c;
 }

@@ -50,6 +50,9 @@ struct Slam2dConfig {
   double loop_drift = 0.05;         ///< ... plus this fraction of the graph distance between the two
   double loop_max_radius = 16;      ///< [m]
   double loop_min_goodness = 0.65;  ///< share of the current points an old place must explain [0, 1]
+  bool match_odometry = false;      ///< weigh the odometry into each scan match (docs/slam.md)
+  double match_sigma = 0.15;        ///< a point's noise about its wall, for the match's information [m]
+  std::array<double, 4> odometry_noise = {0.05, 0.01, 0.05, 0.005};  ///< m/m, m, rad/rad, rad
   // Map building (icp-slam's [MappingApplication], method icp-slam); defaults are MRPT's icp-slam_demo_classic.ini
   // but fuse_points.
   double insertion_lin_distance = 1.2;    ///< [m]

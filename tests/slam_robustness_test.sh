@@ -20,6 +20,7 @@ expect "missing.relations: no such file" broken.bag:missing.relations
 expect "broken.lcm: expected LOG:RELATIONS" broken.lcm
 expect "broken.bag: driftlab import failed" broken.bag:ok.relations
 expect "--runs: no run named 'start-5'" --runs whole,start-5 broken.bag:ok.relations
+expect "--set match_odometry: expected KEY=VALUE" --set match_odometry broken.bag:ok.relations
 expect "nowhere/driftlab: no such program" --bin "$tmp/nowhere" broken.bag:ok.relations
 expect "broken.relations: driftlab eval failed" --runs whole,start-3,start-10 --jobs 3 \
   "$source/tests/data/sample.lcm:broken.relations"

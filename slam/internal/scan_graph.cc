@@ -76,6 +76,22 @@ Eigen::Matrix3d constraint_of(const mrpt::maps::CSimplePointsMap& reference,
   return h;
 }
 
+/// Each point of `query` at `pose` paired with its nearest point of `reference` within `distance` (all points
+/// looked at); `extra` receives the share of them paired.
+mrpt::tfest::TMatchingPairList pairs_within(const mrpt::maps::CSimplePointsMap& reference,
+                                            const mrpt::maps::CSimplePointsMap& query, const CPose2D& pose,
+                                            double distance, mrpt::maps::TMatchingExtraResults* extra = nullptr) {
+  mrpt::maps::TMatchingParams params;
+  params.maxDistForCorrespondence = static_cast<float>(distance);
+  params.maxAngularDistForCorrespondence = 0;
+  params.onlyKeepTheClosest = true;
+  params.decimation_other_map_points = 1;
+  mrpt::tfest::TMatchingPairList pairs;
+  mrpt::maps::TMatchingExtraResults unused;
+  reference.determineMatching2D(&query, pose, pairs, params, extra != nullptr ? *extra : unused);
+  return pairs;
+}
+
 std::vector<Point2f> points_in(const mrpt::maps::CSimplePointsMap& map, size_t at_most) {
   std::vector<Point2f> out;
   const size_t every = std::max<size_t>(1, map.size() / std::max<size_t>(at_most, 1));
@@ -88,6 +104,19 @@ std::vector<Point2f> points_in(const mrpt::maps::CSimplePointsMap& map, size_t a
 }
 
 }  // namespace
+
+Eigen::Matrix3d odometry_information(const CPose2D& step, const std::array<double, 4>& noise) {
+  const double xy = std::max(noise[0] * step.norm() + noise[1], 1e-6);  // a noise of zero: exact, not infinite
+  const double yaw = std::max(noise[2] * angle_of(step) + noise[3], 1e-6);
+  return Eigen::Vector3d(1 / (xy * xy), 1 / (xy * xy), 1 / (yaw * yaw)).asDiagonal();
+}
+
+CPose2D combine(const CPose2D& a, const Eigen::Matrix3d& a_information, const CPose2D& b,
+                const Eigen::Matrix3d& b_information) {
+  const Eigen::Vector3d towards_b(b.x() - a.x(), b.y() - a.y(), mrpt::math::wrapToPi(b.phi() - a.phi()));
+  const Eigen::Vector3d step = (a_information + b_information).ldlt().solve(b_information * towards_b);
+  return {a.x() + step.x(), a.y() + step.y(), mrpt::math::wrapToPi(a.phi() + step.z())};
+}
 
 const char* outcome_name(LoopRecord::Outcome outcome) {
   switch (outcome) {
@@ -138,7 +167,8 @@ CPose2D ScanGraph::add(int64_t stamp, const mrpt::obs::CObservation2DRangeScan::
   // Predict with the odometry's motion since the previous scan, then match against the local map.
   const CPose2D previous = keyframe_pose(current_keyframe_) + relative_;
   CPose2D pose = previous;
-  if (odometry && last_odometry_) pose = previous + (*odometry - *last_odometry_);
+  std::optional<CPose2D> step;  // the odometry's
+  if (odometry && last_odometry_) step = *odometry - *last_odometry_, pose = previous + *step;
   if (odometry) last_odometry_ = odometry;
   // Standing still by the odometry since the last matched scan: the prediction is as good as a match.
   const CPose2D since = pose - (keyframe_pose(matched_keyframe_) + matched_);
@@ -152,7 +182,11 @@ CPose2D ScanGraph::add(int64_t stamp, const mrpt::obs::CObservation2DRangeScan::
   const auto pdf = icp_.Align(&local_map_, &points, pose, info);
   if (points.size() >= 10 && info.goodness >= o_.min_icp_goodness) {
     ++stats_.matched;
-    pose = pdf->getMeanVal();
+    if (o_.match_odometry && step) {
+      pose = weigh_in_odometry(pdf->getMeanVal(), points, pose, *step);
+    } else {
+      pose = pdf->getMeanVal();
+    }
     const auto* gauss = dynamic_cast<const mrpt::poses::CPosePDFGaussian*>(pdf.get());
     if (covariance != nullptr && gauss != nullptr) *covariance = gauss->cov;
   } else {
@@ -167,6 +201,18 @@ CPose2D ScanGraph::add(int64_t stamp, const mrpt::obs::CObservation2DRangeScan::
     return keyframe_pose(current_keyframe_);  // loop closures may have moved it
   }
   return pose;
+}
+
+CPose2D ScanGraph::weigh_in_odometry(const CPose2D& matched, const mrpt::maps::CSimplePointsMap& points,
+                                     const CPose2D& predicted, const CPose2D& step) {
+  // What the match pins down: its pairs' point-to-line information at the matched pose (constraint_of, a mean
+  // over the pairs with a clear wall), times the pairs, over the noise of a point's distance to its wall.
+  const auto pairs = pairs_within(local_map_, points, matched, o_.loop_match_distance);  // as a loop test counts
+  size_t lines = 0;
+  const Eigen::Matrix3d per_pair = constraint_of(local_map_, pairs, matched, lines);
+  const Eigen::Matrix3d information = per_pair * static_cast<double>(lines) / (o_.match_sigma * o_.match_sigma);
+  ++stats_.weighed;
+  return combine(matched, information, predicted, odometry_information(step, o_.odometry_noise));
 }
 
 void ScanGraph::add_keyframe(int64_t stamp, const mrpt::obs::CObservation2DRangeScan::Ptr& scan,
@@ -340,14 +386,8 @@ bool ScanGraph::try_loop(size_t j, double radius, bool widened) {
   const CPose2D found = icp_.Align(&reference, &query, start)->getMeanVal();
 
   // Overlap: the share of the current points with an old point close by, all points counted.
-  mrpt::maps::TMatchingParams params;
-  params.maxDistForCorrespondence = static_cast<float>(o_.loop_match_distance);
-  params.maxAngularDistForCorrespondence = 0;
-  params.onlyKeepTheClosest = true;
-  params.decimation_other_map_points = 1;
-  mrpt::tfest::TMatchingPairList pairs;
   mrpt::maps::TMatchingExtraResults overlap;
-  reference.determineMatching2D(&query, found, pairs, params, overlap);
+  const auto pairs = pairs_within(reference, query, found, o_.loop_match_distance, &overlap);
   const CPose2D correction = found - here;
   rec.correction = correction, rec.overlap = overlap.correspondencesRatio;
   rec.pairs = static_cast<int64_t>(pairs.size());

@@ -1,6 +1,7 @@
 // 2D lidar SLAM as a pose graph over keyframes (the 2D SLAM module's default method; docs/slam.md):
 //   front end: each scan matched with MRPT's ICP against a local map (the points of the last keyframes at their
-//              graph poses), starting from the previous pose moved by the wheel odometry;
+//              graph poses), starting from the previous pose moved by the wheel odometry; with match_odometry,
+//              the match and that prediction combined by the information of each (combine);
 //   keyframes: a scan becomes a graph node when the robot has moved far enough from the last one; consecutive
 //              nodes are joined by the front end's relative pose;
 //   loops:     each new keyframe is matched against the old keyframe the graph places nearest, if the drift since
@@ -23,6 +24,9 @@
 #include <mrpt/poses/CPose2D.h>
 #include <mrpt/slam/CICP.h>
 
+#include <Eigen/Core>
+
+#include <array>
 #include <cstdint>
 #include <optional>
 #include <queue>
@@ -43,6 +47,13 @@ struct ScanGraphOptions {
   int local_map_keyframes = 10;           ///< keyframes in the local map the front end matches against
   double min_icp_goodness = 0.4;          ///< below it the front end keeps the odometry's prediction [0, 1]
   double min_dist_between_points = 0.05;  ///< points closer than this in a scan are merged
+  /// The odometry weighed into each match (off by default; docs/slam.md, "Odometry in the match"): the match and
+  /// the odometry's prediction combined by their information, so that along a featureless corridor, where the
+  /// match pins nothing down, the odometry's motion stands.
+  bool match_odometry = false;
+  double match_sigma = 0.15;  ///< the noise of a point's distance to its wall that a match's information assumes
+  /// The odometry's noise over a step: m per m of travel, m, rad per rad of turn, rad (standard deviations).
+  std::array<double, 4> odometry_noise = {0.05, 0.01, 0.05, 0.005};
   double still_distance = 0.005;          ///< odometry moving less than this since the last matched scan ...
   double still_angle = 0.005;             ///< ... and turning less: standing still, the scan is not matched
   mrpt::slam::CICP::TConfigParams icp;    ///< the front end's ICP (also the loop matches' final step)
@@ -90,6 +101,7 @@ struct ScanGraphStats {
   int64_t scans = 0, matched = 0, unmatched = 0, still = 0, keyframes = 0;
   int64_t loop_tests = 0, loop_closures = 0, loop_rejected_goodness = 0, loop_rejected_unique = 0,
           loop_rejected_chi2 = 0, loop_undone = 0, loop_unconfirmed = 0, optimisations = 0;
+  int64_t weighed = 0;  ///< matches with the odometry weighed in (match_odometry)
 };
 
 /// What became of one loop test, and why (published by the module as driftlab.loop_closure_t). A test's record
@@ -109,6 +121,16 @@ struct LoopRecord {
   double chi2 = 0;                  ///< refused_chi2, undone: the edge's error at the optimum
 };
 const char* outcome_name(LoopRecord::Outcome outcome);
+
+/// The information (inverse covariance; x, y, yaw) of an odometry step, from its noise model
+/// (ScanGraphOptions::odometry_noise): the same in x and y.
+Eigen::Matrix3d odometry_information(const mrpt::poses::CPose2D& step, const std::array<double, 4>& noise);
+
+/// One pose from two estimates of it, each with its information (x, y, yaw in the map frame; yaw about the pose's
+/// position): the minimum of the two quadratic costs, linearised at `a`. Where a's information is large b moves it
+/// little; where it is next to none (a corridor's axis for a scan match) b's value stands.
+mrpt::poses::CPose2D combine(const mrpt::poses::CPose2D& a, const Eigen::Matrix3d& a_information,
+                             const mrpt::poses::CPose2D& b, const Eigen::Matrix3d& b_information);
 
 class ScanGraph {
  public:
@@ -156,6 +178,10 @@ class ScanGraph {
   void add_keyframe(int64_t stamp, const mrpt::obs::CObservation2DRangeScan::Ptr& scan,
                     const mrpt::maps::CSimplePointsMap& points, const mrpt::poses::CPose2D& pose);
   void rebuild_local_map();
+  /// The matched pose with the odometry's prediction weighed in (match_odometry).
+  mrpt::poses::CPose2D weigh_in_odometry(const mrpt::poses::CPose2D& matched,
+                                         const mrpt::maps::CSimplePointsMap& points,
+                                         const mrpt::poses::CPose2D& predicted, const mrpt::poses::CPose2D& step);
   void close_loops();
   /// j: the candidate keyframe; widened: the far search's window (radius, turn) is loop_widen times the usual.
   bool try_loop(size_t j, double radius, bool widened = false);
