@@ -22,7 +22,6 @@
 #include "core/log_reader.h"
 #include "driftlab/laser_scan_t.hpp"
 #include "driftlab/odometry_t.hpp"
-#include "driftlab/pose_t.hpp"
 #include "lcmtypes/validate.h"
 #include "tests/carmen_reference.h"
 #include "tests/slam/carmen_slam.h"
@@ -418,19 +417,19 @@ TEST(SlamOnKillian, TheRicoslamBagWithTheRelationsOnItsStamps) {
   EXPECT_LT(max, 1.5);
 }
 
-/// Each pose of a channel (driftlab.odometry_t, else pose_t) by stamp [us]: x, y, yaw.
+double yaw_of(const Eigen::Quaterniond& q) {
+  const Eigen::Matrix3d m = q.toRotationMatrix();
+  return std::atan2(m(1, 0), m(0, 0));
+}
+
+/// Each pose of a channel (analyzers::load_log_channel: pose_t or odometry_t) by stamp [us]: x, y, yaw.
 using Poses2d = std::map<int64_t, std::array<double, 3>>;
-Poses2d poses_on(const std::string& log, const std::string& channel, bool odometry_t) {
+Poses2d poses_on(const std::string& log, const std::string& channel) {
+  const auto t = analyzers::load_log_channel(log, channel);
+  EXPECT_TRUE(t) << t.error().message;
   Poses2d out;
-  for (const auto& e : test::read_all(log)) {
-    if (e.channel != channel) continue;
-    if (odometry_t) {
-      const auto o = test::decode<driftlab::odometry_t>(e);
-      out[o.header.utime] = {o.position.x, o.position.y, 2 * std::atan2(o.orientation.z, o.orientation.w)};
-    } else {
-      const auto p = test::decode<driftlab::pose_t>(e);
-      out[p.header.utime] = {p.position.x, p.position.y, 2 * std::atan2(p.orientation.z, p.orientation.w)};
-    }
+  for (size_t i = 0; t && i < t->size(); ++i) {
+    out[std::llround(t->stamps[i] * 1e6)] = {t->positions[i].x(), t->positions[i].y(), yaw_of(t->orientations[i])};
   }
   return out;
 }
@@ -446,11 +445,6 @@ const std::array<double, 3>* pose_at(const Poses2d& poses, double t) {
 std::array<double, 3> seen_from(const std::array<double, 3>& a, const std::array<double, 3>& b) {
   const double c = std::cos(a[2]), s = std::sin(a[2]), dx = b[0] - a[0], dy = b[1] - a[1];
   return {c * dx + s * dy, -s * dx + c * dy, std::remainder(b[2] - a[2], 2 * M_PI)};
-}
-
-double relation_yaw(const analyzers::Relation& r) {
-  const Eigen::Matrix3d m = r.rotation.toRotationMatrix();
-  return std::atan2(m(1, 0), m(0, 0));
 }
 
 // slam.2d.match_odometry weighs the odometry's prediction into each scan match by the information of each (the
@@ -506,8 +500,8 @@ TEST(SlamMatchOdometry, TheClinicMeetsTheMeanAndMissesOnlyWhereTheOdometryContra
   EXPECT_EQ(error["used"].get<size_t>(), 2820u);
   EXPECT_LT(mean, 0.10);
 
-  const Poses2d ours = poses_on(dir.file("slam.lcm"), "SLAM_TRAJECTORY", false),
-                odometry = poses_on(dir.file("raw.lcm"), "/odom", true);
+  const Poses2d ours = poses_on(dir.file("slam.lcm"), "SLAM_TRAJECTORY"),
+                odometry = poses_on(dir.file("raw.lcm"), "/odom");
   auto rel = analyzers::load_relations(relations);
   ASSERT_TRUE(rel) << rel.error().message;
   const double start = static_cast<double>(odometry.begin()->first) * 1e-6;  // the log's first scan
@@ -520,7 +514,7 @@ TEST(SlamMatchOdometry, TheClinicMeetsTheMeanAndMissesOnlyWhereTheOdometryContra
     if (std::hypot(step[0] - r.translation.x(), step[1] - r.translation.y()) < 1.5) continue;
     ++far_off;
     const double odometry_turn = seen_from(*oa, *ob)[2];
-    const double reference_off = std::abs(std::remainder(relation_yaw(r) - odometry_turn, 2 * M_PI));
+    const double reference_off = std::abs(std::remainder(yaw_of(r.rotation) - odometry_turn, 2 * M_PI));
     const double ours_off = std::abs(std::remainder(step[2] - odometry_turn, 2 * M_PI));
     std::printf("clinic: relation %.1f -> %.1f s: the reference turns %.1f deg from the odometry, ours %.1f\n",
                 r.t1 - start, r.t2 - start, reference_off * 180 / M_PI, ours_off * 180 / M_PI);
