@@ -521,6 +521,23 @@ ModuleCounters Slam2d::counters() const {
                                        {"loop_unconfirmed", static_cast<double>(s.loop_unconfirmed)},
                                        {"optimisations", static_cast<double>(s.optimisations)}});
     if (d.c.match_odometry) c.metrics.emplace_back("scans_weighed", static_cast<double>(s.weighed));
+    c.metrics.emplace_back("odometry_heading_checks", static_cast<double>(d.graph->odometry_heading_checks()));
+    if (const auto q90 = d.graph->odometry_heading_q90()) {
+      c.metrics.emplace_back("odometry_heading_q90", *q90);
+      // Whether weighing the odometry into each match (match_odometry) suits this log: a true noise model gives
+      // 1.645; of the benchmark logs, the one it holds (the Freiburg clinic) 1.4-1.8, the four it folds and
+      // ACES 2.8-8.2 over the whole log (docs/slam.md, "Odometry in the match"). With it off the figure is only a
+      // metric: good odometry (the simulator's gives 0.7) is nothing to warn of.
+      constexpr double kAgrees = 2.0;
+      if (d.c.match_odometry && *q90 > kAgrees) {
+        c.warnings.push_back(
+            "slam: the odometry's heading disagrees with the scan matches beyond its noise model (90% within " +
+            short_number(std::round(*q90 * 100) / 100) + " of its standard deviations, over " +
+            thousands(static_cast<int64_t>(d.graph->odometry_heading_checks())) +
+            " matches; at most 2 where it holds): slam.2d.match_odometry weighs it into each match and may bend the "
+            "map; compare a run with it false (docs/slam.md)");
+      }
+    }
   }
   return c;
 }

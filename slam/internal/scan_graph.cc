@@ -11,6 +11,7 @@
 #include <queue>
 
 #include "core/number_text.h"
+#include "core/quantile.h"
 #include "slam/internal/correlative_matcher.h"
 
 namespace driftlab::slam::internal {
@@ -182,6 +183,11 @@ CPose2D ScanGraph::add(int64_t stamp, const mrpt::obs::CObservation2DRangeScan::
   const auto pdf = icp_.Align(&local_map_, &points, pose, info);
   if (points.size() >= 10 && info.goodness >= o_.min_icp_goodness) {
     ++stats_.matched;
+    if (step) {
+      const double noise = o_.odometry_noise[2] * std::abs(step->phi()) + o_.odometry_noise[3];
+      heading_z_.push_back(
+          static_cast<float>(std::abs(mrpt::math::wrapToPi(pdf->getMeanVal().phi() - pose.phi())) / noise));
+    }
     if (o_.match_odometry && step) {
       pose = weigh_in_odometry(pdf->getMeanVal(), points, pose, *step);
     } else {
@@ -201,6 +207,12 @@ CPose2D ScanGraph::add(int64_t stamp, const mrpt::obs::CObservation2DRangeScan::
     return keyframe_pose(current_keyframe_);  // loop closures may have moved it
   }
   return pose;
+}
+
+std::optional<double> ScanGraph::odometry_heading_q90() const {
+  if (heading_z_.size() < kMinHeadingChecks) return std::nullopt;
+  std::vector<float> z = heading_z_;
+  return quantile_in_place(z, 0.9);
 }
 
 CPose2D ScanGraph::weigh_in_odometry(const CPose2D& matched, const mrpt::maps::CSimplePointsMap& points,

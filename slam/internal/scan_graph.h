@@ -158,6 +158,13 @@ class ScanGraph {
   const std::vector<Keyframe>& keyframes() const { return keyframes_; }
   mrpt::poses::CPose2D keyframe_pose(size_t i) const;
   const ScanGraphStats& stats() const { return stats_; }
+  /// Whether the odometry's heading is as good as its noise model (odometry_noise) says, from every scan matched
+  /// with an odometry step: z = |the match's heading - the odometry's prediction's| over the heading noise the model
+  /// gives that step (5% of its turn + 0.005 rad). Were the model true, z would be half-normal, 90% of it under
+  /// 1.645. Their 90th percentile, once kMinHeadingChecks scans are in; how many there are.
+  static constexpr size_t kMinHeadingChecks = 100;
+  std::optional<double> odometry_heading_q90() const;
+  size_t odometry_heading_checks() const { return heading_z_.size(); }
   /// The loop records since the last call, in the order they were decided.
   std::vector<LoopRecord> take_loop_records() { return std::exchange(records_, {}); }
 
@@ -220,6 +227,7 @@ class ScanGraph {
   std::vector<Closure> closures_;  ///< every loop edge accepted
   std::vector<LoopRecord> records_;
   ScanGraphStats stats_;
+  std::vector<float> heading_z_;  ///< odometry_heading_q90's z, one per scan matched with an odometry step
 };
 
 }  // namespace driftlab::slam::internal
