@@ -125,6 +125,33 @@ struct Slam2d::Impl {
   /// for it already puts them in order.
   int64_t reorder = 0;
   bool pose_stream = false;  ///< the odometry came as driftlab.pose_t
+  // match_odometry auto: two graphs match each scan, one without the odometry weighed in (`graph`) and one with it
+  // (`weighed_graph`), until kDecideChecks scans have been checked against the odometry; then the weighed one goes
+  // on if the odometry's heading agrees with the matches (odometry_heading_q90, from the graph without it, at most
+  // kAutoAgrees), else the other. Meanwhile the poses published are the other's (where it goes on, the run is the
+  // one match_odometry false gives, in every message), and the loop records wait in both graphs; only the chosen
+  // one's are published. Where the weighed one goes on, the poses published jump to it, as a loop closure moves
+  // them, and from then on they, the trajectory, the loop records and the map are the ones true gives.
+  static constexpr size_t kDecideChecks = 600;
+  static constexpr int64_t kDecideScans = 3 * static_cast<int64_t>(kDecideChecks);  ///< no checks by then: off
+  static constexpr double kAutoAgrees = 2.2;
+  std::unique_ptr<internal::ScanGraph> weighed_graph;  ///< auto, until decided
+  int64_t undecided = 0;                               ///< the scans matched while deciding
+  std::optional<bool> auto_on;                         ///< auto: what was decided
+  std::optional<double> auto_q90;  ///< auto: odometry_heading_q90 when it was decided (with the checks in)
+
+  /// match_odometry auto: decides once the checks are in (or the scans are, or the log ends: off).
+  void decide(bool at_end) {
+    const size_t checks = graph->odometry_heading_checks();
+    if (!at_end && checks < kDecideChecks && undecided < kDecideScans) return;
+    if (checks >= kDecideChecks) auto_q90 = graph->odometry_heading_q90();
+    auto_on = auto_q90 && *auto_q90 <= kAutoAgrees;
+    if (*auto_on) graph = std::move(weighed_graph);
+    weighed_graph.reset();
+    keyframes = graph->stats().keyframes;
+  }
+  /// Whether the odometry was weighed into the matches.
+  bool weighed() const { return c.match_odometry == "true" || auto_on.value_or(false); }
 
   /// Whether a scan stamp is within the first second of the first scan's (or before it).
   bool in_first_second(int64_t stamp) const { return stamp < first_scan || us_after(first_scan, stamp) < 1000000; }
@@ -145,15 +172,20 @@ struct Slam2d::Impl {
     if (auto at = odom.at(stamp)) odometry = mrpt::poses::CPose2D(at->x, at->y, at->yaw);
     mrpt::math::CMatrixDouble33 cov;
     const mrpt::poses::CPose2D pose = graph->add(stamp, obs, odometry, &cov);
+    keyframes = graph->stats().keyframes;
+    if (weighed_graph) {
+      weighed_graph->add(stamp, obs, odometry, nullptr);
+      ++undecided;
+      decide(false);
+    }
     p.position = {pose.x(), pose.y(), 0};
     p.orientation = yaw_quaternion(pose.phi());
     const int ours[3] = {0, 1, 5};  // x, y, yaw in our x, y, z, roll, pitch, yaw
     for (int i = 0; i < 3; ++i) {
       for (int j = 0; j < 3; ++j) p.covariance[ours[i] * 6 + ours[j]] = cov(i, j);
     }
-    keyframes = graph->stats().keyframes;
     bus.publish_message(c.pose_channel, p);
-    publish_loops(bus);
+    if (!weighed_graph) publish_loops(bus);
   }
 
   /// The loop tests decided since the last call, on loops_channel.
@@ -236,10 +268,14 @@ Status Slam2d::start(Bus& bus) {
       o.loop_drift = c.loop_drift;
       o.loop_max_radius = c.loop_max_radius;
       o.loop_min_goodness = c.loop_min_goodness;
-      o.match_odometry = c.match_odometry;
+      o.match_odometry = c.match_odometry == "true";
       o.match_sigma = c.match_sigma;
       o.odometry_noise = c.odometry_noise;
       d.graph = std::make_unique<internal::ScanGraph>(o);
+      if (c.match_odometry == "auto") {
+        o.match_odometry = true;
+        d.weighed_graph = std::make_unique<internal::ScanGraph>(o);
+      }
     } else {
       d.builder.setMinLoggingLevel(mrpt::system::LVL_ERROR);
       d.builder.ICP_options.loadFromConfigFile(cfg, "MappingApplication");
@@ -380,6 +416,7 @@ void Slam2d::finish(Bus& bus) {
   // The keyframes' scans where the map places them (the graph's as last optimised).
   std::vector<std::pair<mrpt::obs::CObservation2DRangeScan::Ptr, mrpt::poses::CPose3D>> placed;
   if (d.graph) {
+    if (d.weighed_graph) d.decide(true);
     d.graph->finish();
     d.publish_loops(bus);
     // The trajectory as last optimised: a pose per scan, published now with the scans' stamps.
@@ -520,7 +557,9 @@ ModuleCounters Slam2d::counters() const {
                                        {"loop_undone", static_cast<double>(s.loop_undone)},
                                        {"loop_unconfirmed", static_cast<double>(s.loop_unconfirmed)},
                                        {"optimisations", static_cast<double>(s.optimisations)}});
-    if (d.c.match_odometry) c.metrics.emplace_back("scans_weighed", static_cast<double>(s.weighed));
+    if (d.auto_on) c.metrics.emplace_back("match_odometry_auto", *d.auto_on ? 1.0 : 0.0);
+    if (d.auto_q90) c.metrics.emplace_back("match_odometry_auto_q90", *d.auto_q90);
+    if (d.weighed()) c.metrics.emplace_back("scans_weighed", static_cast<double>(s.weighed));
     c.metrics.emplace_back("odometry_heading_checks", static_cast<double>(d.graph->odometry_heading_checks()));
     if (const auto q90 = d.graph->odometry_heading_q90()) {
       c.metrics.emplace_back("odometry_heading_q90", *q90);
@@ -529,7 +568,7 @@ ModuleCounters Slam2d::counters() const {
       // ACES 2.8-8.2 over the whole log (docs/slam.md, "Odometry in the match"). With it off the figure is only a
       // metric: good odometry (the simulator's gives 0.7) is nothing to warn of.
       constexpr double kAgrees = 2.0;
-      if (d.c.match_odometry && *q90 > kAgrees) {
+      if (d.weighed() && *q90 > kAgrees) {
         c.warnings.push_back(
             "slam: the odometry's heading disagrees with the scan matches beyond its noise model (90% within " +
             short_number(std::round(*q90 * 100) / 100) + " of its standard deviations, over " +

@@ -50,7 +50,10 @@ struct Slam2dConfig {
   double loop_drift = 0.05;         ///< ... plus this fraction of the graph distance between the two
   double loop_max_radius = 16;      ///< [m]
   double loop_min_goodness = 0.65;  ///< share of the current points an old place must explain [0, 1]
-  bool match_odometry = false;      ///< weigh the odometry into each scan match (docs/slam.md)
+  /// Weigh the odometry into each scan match (docs/slam.md): "false", "true", or "auto": on when the odometry's
+  /// heading agrees with the first 600 matches within its noise model (a graph with it weighed in from the first
+  /// scan runs beside the one without until then).
+  std::string match_odometry = "auto";
   double match_sigma = 0.15;        ///< a point's noise about its wall, for the match's information [m]
   std::array<double, 4> odometry_noise = {0.05, 0.01, 0.05, 0.005};  ///< m/m, m, rad/rad, rad
   // Map building (icp-slam's [MappingApplication], method icp-slam); defaults are MRPT's icp-slam_demo_classic.ini

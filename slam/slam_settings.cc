@@ -53,9 +53,11 @@ const config::Table<Slam2dConfig>& slam2d_config_table() {
           .number("loop_max_radius", &C::loop_max_radius, above(0, 1e3), "m", "graph: ... at most")
           .number("loop_min_goodness", &C::loop_min_goodness, between(0, 1), "",
                   "graph: share of the current points a loop match must put near old ones")
-          .flag("match_odometry", &C::match_odometry,
-                "graph: weigh the odometry's prediction into each scan match by the information of each (for wheel "
-                "odometry better than the scans along featureless corridors)")
+          .choice("match_odometry", &C::match_odometry, {"auto", "false", "true"},
+                  "graph: weigh the odometry's prediction into each scan match by the information of each (for "
+                  "wheel odometry better than the scans along featureless corridors); auto: once 600 scans are "
+                  "matched, on (as if from the first scan) when 90% of the matches' headings are within 2.2 of "
+                  "the odometry's standard deviations, else off")
           .number("match_sigma", &C::match_sigma, above(0, 10), "m",
                   "graph, match_odometry: a point's noise about its wall, for the match's information")
           .numbers("odometry_noise", &C::odometry_noise, between(0, 10), "m/m, m, rad/rad, rad",

@@ -97,6 +97,15 @@ std::vector<OwnedEvent> read_all(const std::string& path, std::vector<Problem>* 
   return drain(LogReader::open(path, collecting(problems)));
 }
 
+std::vector<std::pair<std::string, std::vector<uint8_t>>> messages_on(const std::string& path,
+                                                                      const std::string& prefix) {
+  std::vector<std::pair<std::string, std::vector<uint8_t>>> out;
+  for (auto& e : read_all(path)) {
+    if (e.channel.rfind(prefix, 0) == 0) out.emplace_back(e.channel, std::move(e.data));
+  }
+  return out;
+}
+
 std::vector<OwnedEvent> read_all_memory(const std::vector<uint8_t>& bytes, std::vector<Problem>* problems) {
   return drain(LogReader::from_memory(bytes, collecting(problems)));
 }

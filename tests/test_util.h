@@ -5,6 +5,7 @@
 
 #include <cstdint>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "core/log_event.h"
@@ -47,6 +48,10 @@ std::vector<OwnedEvent> without_offsets(std::vector<OwnedEvent> events);
 
 /// Every event of a log with LogReader, and the problems met.
 std::vector<OwnedEvent> read_all(const std::string& path, std::vector<Problem>* problems = nullptr);
+/// The messages of a log on the channels whose names start with `prefix`, in order, without the stamps: two runs
+/// of a module that give the same wrote the same.
+std::vector<std::pair<std::string, std::vector<uint8_t>>> messages_on(const std::string& path,
+                                                                      const std::string& prefix);
 std::vector<OwnedEvent> read_all_memory(const std::vector<uint8_t>& bytes, std::vector<Problem>* problems = nullptr);
 
 /// The path of a file of the shared real data (DRIFTLAB_SHARED_DATA, ../shared/data beside the checkout), e.g.

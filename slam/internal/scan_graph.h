@@ -47,9 +47,9 @@ struct ScanGraphOptions {
   int local_map_keyframes = 10;           ///< keyframes in the local map the front end matches against
   double min_icp_goodness = 0.4;          ///< below it the front end keeps the odometry's prediction [0, 1]
   double min_dist_between_points = 0.05;  ///< points closer than this in a scan are merged
-  /// The odometry weighed into each match (off by default; docs/slam.md, "Odometry in the match"): the match and
-  /// the odometry's prediction combined by their information, so that along a featureless corridor, where the
-  /// match pins nothing down, the odometry's motion stands.
+  /// The odometry weighed into each match (slam.2d.match_odometry; docs/slam.md, "Odometry in the match"): the
+  /// match and the odometry's prediction combined by their information, so that along a featureless corridor,
+  /// where the match pins nothing down, the odometry's motion stands.
   bool match_odometry = false;
   double match_sigma = 0.15;  ///< the noise of a point's distance to its wall that a match's information assumes
   /// The odometry's noise over a step: m per m of travel, m, rad per rad of turn, rad (standard deviations).

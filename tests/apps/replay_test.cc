@@ -196,6 +196,40 @@ TEST_F(ReplayCli, TheDroneModulesRunAndSayWhatTheyLackOnAGroundSession) {
   EXPECT_TRUE(std::filesystem::exists(file("d.lcm")));
 }
 
+// match_odometry auto (the default) on 90 s of the default scenario without faults (899 matches): the
+// simulator's wheel odometry turns as the module's noise model for it says (90% of the matches within 0.7-0.9 of
+// its heading standard deviations; on at 2.2 or less), so the odometry is weighed in, and the trajectory as last
+// optimised, the loop records and the map are the ones match_odometry true gives, to the last digit: the weighed
+// graph matched every scan from the first. (The poses published while it decided are the other graph's.)
+TEST_F(ReplayCli, SlamWeighsInGoodOdometry) {
+  std::ofstream(file("no-faults.yaml")) << "streams: {}\n";
+  ASSERT_EQ(driftlab("sim --duration 90 --faults " + file("no-faults.yaml") + " -o " + file("clean.lcm")).code, 0);
+  const auto r = driftlab("replay " + file("clean.lcm") + " --modules slam --json -o " + file("auto.lcm"));
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  const auto& metrics = j["modules"][0]["metrics"];
+  EXPECT_GE(metrics["odometry_heading_checks"].get<double>(), 600);
+  EXPECT_EQ(metrics["match_odometry_auto"].get<double>(), 1);
+  EXPECT_LE(metrics["match_odometry_auto_q90"].get<double>(), 2.2);
+  EXPECT_EQ(metrics["scans_weighed"].get<double>(), metrics["odometry_heading_checks"].get<double>());
+  std::ofstream(file("on.yaml")) << "slam:\n  2d: {match_odometry: true}\n";
+  ASSERT_EQ(
+      driftlab("replay " + file("clean.lcm") + " --modules slam --config " + file("on.yaml") + " -o " + file("on.lcm"))
+          .code,
+      0);
+  for (const char* channel : {"SLAM_TRAJECTORY", "SLAM_LOOPS", "SLAM_MAP"}) {
+    const auto ours = test::messages_on(file("auto.lcm"), channel);
+    EXPECT_FALSE(ours.empty()) << channel;
+    EXPECT_TRUE(ours == test::messages_on(file("on.lcm"), channel)) << channel;
+  }
+  // After the decision the poses published are the ones true gives too.
+  const auto published = test::messages_on(file("auto.lcm"), "SLAM_POSE"),
+             on = test::messages_on(file("on.lcm"), "SLAM_POSE");
+  ASSERT_EQ(published.size(), on.size());
+  EXPECT_TRUE(published.back() == on.back());
+  EXPECT_FALSE(published[100] == on[100]);
+}
+
 TEST_F(ReplayCli, SlamMapsTheSessionAndFeedsTheEstimator) {
   const auto r = driftlab("replay " + log() + " --modules slam,estimator --json -o " + file("slam.lcm"));
   ASSERT_EQ(r.code, 0) << r.err;
@@ -209,6 +243,10 @@ TEST_F(ReplayCli, SlamMapsTheSessionAndFeedsTheEstimator) {
   // Freiburg clinic is further off (tests/slam/carmen_test.cc), and slam.2d.match_odometry may be weighed in.
   EXPECT_GT(slam["metrics"]["odometry_heading_checks"].get<double>(), 500);
   EXPECT_LE(slam["metrics"]["odometry_heading_q90"].get<double>(), 2.0);
+  // match_odometry auto decides after 600 checks; a session with fewer stays off (SlamWeighsInGoodOdometry).
+  EXPECT_LT(slam["metrics"]["odometry_heading_checks"].get<double>(), 600);
+  EXPECT_EQ(slam["metrics"]["match_odometry_auto"].get<double>(), 0);
+  EXPECT_EQ(slam["metrics"].count("match_odometry_auto_q90"), 0u);
   EXPECT_GT(std::filesystem::file_size(file("slam-map.png")), 1000u);
   EXPECT_TRUE(std::filesystem::exists(file("slam-map.yaml")));
   EXPECT_NE(driftlab("info " + file("slam.lcm")).out.find("SLAM_MAP"), std::string::npos);
