@@ -136,14 +136,13 @@ struct Slam2d::Impl {
   static constexpr int64_t kDecideScans = 3 * static_cast<int64_t>(kDecideChecks);  ///< no checks by then: off
   static constexpr double kAutoAgrees = 2.2;
   std::unique_ptr<internal::ScanGraph> weighed_graph;  ///< auto, until decided
-  int64_t undecided = 0;                               ///< the scans matched while deciding
   std::optional<bool> auto_on;                         ///< auto: what was decided
   std::optional<double> auto_q90;  ///< auto: odometry_heading_q90 when it was decided (with the checks in)
 
   /// match_odometry auto: decides once the checks are in (or the scans are, or the log ends: off).
   void decide(bool at_end) {
     const size_t checks = graph->odometry_heading_checks();
-    if (!at_end && checks < kDecideChecks && undecided < kDecideScans) return;
+    if (!at_end && checks < kDecideChecks && graph->stats().scans < kDecideScans) return;
     if (checks >= kDecideChecks) auto_q90 = graph->odometry_heading_q90();
     auto_on = auto_q90 && *auto_q90 <= kAutoAgrees;
     if (*auto_on) graph = std::move(weighed_graph);
@@ -175,7 +174,6 @@ struct Slam2d::Impl {
     keyframes = graph->stats().keyframes;
     if (weighed_graph) {
       weighed_graph->add(stamp, obs, odometry, nullptr);
-      ++undecided;
       decide(false);
     }
     p.position = {pose.x(), pose.y(), 0};

@@ -185,8 +185,9 @@ CPose2D ScanGraph::add(int64_t stamp, const mrpt::obs::CObservation2DRangeScan::
     ++stats_.matched;
     if (step) {
       const double noise = o_.odometry_noise[2] * std::abs(step->phi()) + o_.odometry_noise[3];
-      heading_z_.push_back(
-          static_cast<float>(std::abs(mrpt::math::wrapToPi(pdf->getMeanVal().phi() - pose.phi())) / noise));
+      float z = static_cast<float>(std::abs(mrpt::math::wrapToPi(pdf->getMeanVal().phi() - pose.phi())) / noise);
+      if (std::isnan(z)) z = std::numeric_limits<float>::infinity();  // cannot be compared: as far off as any
+      heading_z_.insert(std::upper_bound(heading_z_.begin(), heading_z_.end(), z), z);
     }
     if (o_.match_odometry && step) {
       pose = weigh_in_odometry(pdf->getMeanVal(), points, pose, *step);
@@ -211,8 +212,7 @@ CPose2D ScanGraph::add(int64_t stamp, const mrpt::obs::CObservation2DRangeScan::
 
 std::optional<double> ScanGraph::odometry_heading_q90() const {
   if (heading_z_.size() < kMinHeadingChecks) return std::nullopt;
-  std::vector<float> z = heading_z_;
-  return quantile_in_place(z, 0.9);
+  return quantile_of_sorted(heading_z_.begin(), heading_z_.end(), 0.9);
 }
 
 CPose2D ScanGraph::weigh_in_odometry(const CPose2D& matched, const mrpt::maps::CSimplePointsMap& points,
@@ -299,8 +299,8 @@ void ScanGraph::close_loops() {
   std::vector<std::pair<double, uint32_t>> candidates;  // within the largest reach: (distance, keyframe)
   for (size_t j = 0; j + static_cast<size_t>(o_.local_map_keyframes) < k; ++j) {
     if (path - keyframes_[j].path < o_.loop_min_travel) continue;
-    const CPose2D there = keyframe_pose(j);
-    const double d = std::hypot(there.x() - here.x(), there.y() - here.y());
+    const auto& there = graph_.node(j);  // its position only: no sine and cosine of its heading
+    const double d = std::hypot(there[0] - here.x(), there[1] - here.y());
     if (d <= o_.loop_max_radius) candidates.emplace_back(d, static_cast<uint32_t>(j));
   }
   // Nearest first; the first within its reach is the one. The graph distances come from one Dijkstra's run from
@@ -337,9 +337,9 @@ bool ScanGraph::try_loop(size_t j, double radius, bool widened) {
   std::vector<size_t> old;
   if (far) {
     for (size_t i = 0; i < k; ++i) {
-      const CPose2D there = keyframe_pose(i);
+      const auto& there = graph_.node(i);
       if (path - keyframes_[i].path >= o_.loop_min_travel &&
-          std::hypot(there.x() - here.x(), there.y() - here.y()) <= radius) {
+          std::hypot(there[0] - here.x(), there[1] - here.y()) <= radius) {
         old.push_back(i);
       }
     }
@@ -474,8 +474,8 @@ bool ScanGraph::try_loop(size_t j, double radius, bool widened) {
   if (far) {
     double nearest = std::numeric_limits<double>::infinity();
     for (size_t i : old) {
-      const CPose2D there = keyframe_pose(i);
-      const double d = std::hypot(there.x() - found.x(), there.y() - found.y());
+      const auto& there = graph_.node(i);
+      const double d = std::hypot(there[0] - found.x(), there[1] - found.y());
       if (d < nearest) nearest = d, j = i;
     }
   }

@@ -227,7 +227,10 @@ class ScanGraph {
   std::vector<Closure> closures_;  ///< every loop edge accepted
   std::vector<LoopRecord> records_;
   ScanGraphStats stats_;
-  std::vector<float> heading_z_;  ///< odometry_heading_q90's z, one per scan matched with an odometry step
+  /// odometry_heading_q90's z, one per scan matched with an odometry step, kept sorted: the figure is asked for at
+  /// every statistics message, and a sorted insertion (a move of 25 KB on average on a long log) costs less than
+  /// a selection over them all each time.
+  std::vector<float> heading_z_;
 };
 
 }  // namespace driftlab::slam::internal

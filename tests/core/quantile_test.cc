@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cinttypes>
 #include <cmath>
 #include <cstdint>
@@ -49,6 +50,8 @@ void add_cases(const std::vector<double>& v, std::vector<Case>& cases) {
     std::string line = exact(q);
     for (double x : v) line += " " + exact(x);
     cases.push_back({line, quantile_in_place(copy, q)});
+    std::sort(copy.begin(), copy.end());  // quantile_of_sorted, on the same values, held to numpy too
+    cases.push_back({line, quantile_of_sorted(copy.begin(), copy.end(), q)});
   }
 }
 
@@ -112,6 +115,7 @@ TEST(Quantile, EqualsNumpysDefaultToTheLastBit) {
 TEST(Quantile, IsNanOnNothing) {
   std::vector<double> none;
   EXPECT_TRUE(std::isnan(quantile_in_place(none, 0.5)));
+  EXPECT_TRUE(std::isnan(quantile_of_sorted(none.begin(), none.end(), 0.5)));
 }
 
 }  // namespace
