@@ -11,7 +11,6 @@
 #include <queue>
 
 #include "core/number_text.h"
-#include "core/quantile.h"
 #include "slam/internal/correlative_matcher.h"
 
 namespace driftlab::slam::internal {
@@ -187,7 +186,7 @@ CPose2D ScanGraph::add(int64_t stamp, const mrpt::obs::CObservation2DRangeScan::
       const double noise = o_.odometry_noise[2] * std::abs(step->phi()) + o_.odometry_noise[3];
       float z = static_cast<float>(std::abs(mrpt::math::wrapToPi(pdf->getMeanVal().phi() - pose.phi())) / noise);
       if (std::isnan(z)) z = std::numeric_limits<float>::infinity();  // cannot be compared: as far off as any
-      heading_z_.insert(std::upper_bound(heading_z_.begin(), heading_z_.end(), z), z);
+      heading_z_.add(z);
     }
     if (o_.match_odometry && step) {
       pose = weigh_in_odometry(pdf->getMeanVal(), points, pose, *step);
@@ -212,7 +211,7 @@ CPose2D ScanGraph::add(int64_t stamp, const mrpt::obs::CObservation2DRangeScan::
 
 std::optional<double> ScanGraph::odometry_heading_q90() const {
   if (heading_z_.size() < kMinHeadingChecks) return std::nullopt;
-  return quantile_of_sorted(heading_z_.begin(), heading_z_.end(), 0.9);
+  return heading_z_.value();
 }
 
 CPose2D ScanGraph::weigh_in_odometry(const CPose2D& matched, const mrpt::maps::CSimplePointsMap& points,

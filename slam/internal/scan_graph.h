@@ -34,6 +34,7 @@
 #include <utility>
 #include <vector>
 
+#include "core/quantile.h"
 #include "slam/internal/point_maps.h"
 #include "slam/internal/pose_graph.h"
 
@@ -227,10 +228,9 @@ class ScanGraph {
   std::vector<Closure> closures_;  ///< every loop edge accepted
   std::vector<LoopRecord> records_;
   ScanGraphStats stats_;
-  /// odometry_heading_q90's z, one per scan matched with an odometry step, kept sorted: the figure is asked for at
-  /// every statistics message, and a sorted insertion (a move of 25 KB on average on a long log) costs less than
-  /// a selection over them all each time.
-  std::vector<float> heading_z_;
+  /// odometry_heading_q90's z, one per scan matched with an odometry step: the figure is asked for at every
+  /// statistics message, and a selection over them all each time made a long log's replay quadratic.
+  RunningQuantile<float> heading_z_{0.9};
 };
 
 }  // namespace driftlab::slam::internal
