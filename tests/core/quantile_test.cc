@@ -5,7 +5,6 @@
 
 #include <gtest/gtest.h>
 
-#include <algorithm>
 #include <cinttypes>
 #include <cmath>
 #include <cstdint>
@@ -134,9 +133,10 @@ TEST(Quantile, RunningQuantileIsTheSelectionAfterEveryValue) {
       RunningQuantile<float> running(q);
       std::vector<float> all;
       for (int k = 0; k < 700; ++k) {
+        // Random with repeats; ascending, each value three times; descending.
         const float v = order == 0   ? next()
                         : order == 1 ? std::floor(static_cast<float>(k) / 3)
-                                     : static_cast<float>(-k);  // ascending, in threes
+                                     : static_cast<float>(-k);
         running.add(v), all.push_back(v);
         std::vector<float> copy = all;
         ASSERT_EQ(running.value(), quantile_in_place(copy, q))
