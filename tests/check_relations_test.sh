@@ -21,6 +21,7 @@ expect "missing.relations: no such file" "$sample" missing.relations
 expect "broken.relations:3: expected 't1 t2 x y z roll pitch yaw'" "$sample" broken.relations
 expect "empty.lcm: no scans" "$source/tests/data/empty.lcm" ok.relations
 expect "sample.lcm: no driftlab.laser_scan_t channel named /scan" --channel /scan "$sample" ok.relations
+expect "sample.lcm: no driftlab.odometry_t or driftlab.pose_t channel named /nope" --odometry /nope "$sample" ok.relations
 # The sample's scans are stamped in 2025, the relation at 0 and 1 s.
 expect "ok.relations: no relation at most 30 s long has a scan of SCAN at both stamps" "$sample" ok.relations
 expect "nowhere/driftlab: no such program" --bin "$tmp/nowhere" "$sample" ok.relations
@@ -79,6 +80,63 @@ if found < 0.8 * len(made_wrong):
     print(f"FAILED: {found} of {len(made_wrong)} relations 5 degrees off found (at least 80%)"); ok = False
 if false_alarms > 0.01 * len(others):
     print(f"FAILED: {false_alarms} of the benchmark's {len(others)} relations flagged (at most 1%)"); ok = False
+sys.exit(0 if ok else 1)
+PY
+
+# The sideways check. Intel's relations never move 0.5 m within 30 s (none is checked), so these come from Intel's
+# own wheel odometry: a pair of its poses 3 s apart that moves 0.6-3 m and turns under 8 degrees every 20 s, as
+# it is (the chord where the odometry's is: not sideways), its chord turned 5 degrees (at most 7 off the heading
+# where the odometry's is within 2: under the 8 that count) or 12 (at least 10: sideways). The check reads the
+# odometry at stamps between its poses, so a pose or a sign it read wrong moves every one of these.
+"$bin/driftlab" export tum intel.lcm:/odom -o odom.tum >/dev/null || exit 1
+/usr/bin/python3 - odom.tum side.relations side.turned <<'PY' || exit 1
+import bisect, math, sys
+rows = sorted(tuple(map(float, line.split())) for line in open(sys.argv[1]) if not line.startswith("#"))
+t = [r[0] for r in rows]
+def pose(r):
+    return r[1], r[2], math.atan2(2 * (r[7] * r[6] + r[4] * r[5]), 1 - 2 * (r[5] ** 2 + r[6] ** 2))
+count, last = 0, -1e9
+with open(sys.argv[2], "w") as out, open(sys.argv[3], "w") as turned:
+    for i, r in enumerate(rows):
+        j = bisect.bisect_left(t, r[0] + 3.0)
+        if r[0] < last + 20 or j >= len(rows) or abs(t[j] - r[0] - 3.0) > 0.05:
+            continue
+        (ax, ay, ayaw), (bx, by, byaw) = pose(r), pose(rows[j])
+        c, s = math.cos(ayaw), math.sin(ayaw)
+        x, y = c * (bx - ax) + s * (by - ay), -s * (bx - ax) + c * (by - ay)
+        yaw = math.remainder(byaw - ayaw, 2 * math.pi)
+        if not 0.6 <= math.hypot(x, y) <= 3 or abs(math.degrees(yaw)) >= 8:
+            continue
+        last = r[0]
+        turn = (0, 5, 12)[count % 3]
+        count += 1
+        k, l = math.cos(math.radians(turn)), math.sin(math.radians(turn))
+        out.write(f"{r[0]:.6f} {t[j]:.6f} {k * x - l * y:.6f} {l * x + k * y:.6f} 0 0 0 {yaw:.6f}\n")
+        turned.write(f"{turn}\n")
+PY
+"$script" --bin "$bin" --json side.json intel.lcm side.relations >out.txt 2>err.txt || {
+  echo "FAILED: check-relations on Intel's odometry: exit $?"
+  cat err.txt
+  exit 1
+}
+grep '^sideways' out.txt
+/usr/bin/python3 - side.json side.turned <<'PY' || failed=1
+import json, sys
+j = json.load(open(sys.argv[1]))
+turned = [int(line) for line in open(sys.argv[2])]
+by_turn = {0: [], 5: [], 12: []}
+for r in j["per_relation_sideways"]:
+    by_turn[turned[r["line"] - 1]].append(r)
+print(", ".join(f"turned {k} deg: {sum(r['sideways'] for r in v)} of {len(v)} sideways" for k, v in by_turn.items()))
+ok = j["odometry"] == "/odom"
+# Intel's robot drives along its heading: its odometry's chord is within 2 degrees on most of these stretches.
+if min(len(v) for v in by_turn.values()) < 10:
+    print(f"FAILED: too few relations checked: {[len(v) for v in by_turn.values()]}"); ok = False
+straight = [r for r in by_turn[12] if abs(r["odometry_sideways_deg"]) <= 2]
+if sum(r["sideways"] for r in straight) != len(straight) or not straight:
+    print("FAILED: a relation turned 12 degrees where the odometry went straight was not found sideways"); ok = False
+if any(r["sideways"] for r in by_turn[0] + by_turn[5]):
+    print("FAILED: a relation within 7 degrees of the heading was found sideways"); ok = False
 sys.exit(0 if ok else 1)
 PY
 exit $failed
