@@ -21,7 +21,8 @@ expect "missing.relations: no such file" "$sample" missing.relations
 expect "broken.relations:3: expected 't1 t2 x y z roll pitch yaw'" "$sample" broken.relations
 expect "empty.lcm: no scans" "$source/tests/data/empty.lcm" ok.relations
 expect "sample.lcm: no driftlab.laser_scan_t channel named /scan" --channel /scan "$sample" ok.relations
-expect "sample.lcm: no driftlab.odometry_t or driftlab.pose_t channel named /nope" --odometry /nope "$sample" ok.relations
+expect "sample.lcm: no driftlab.odometry_t or driftlab.pose_t channel named /nope" \
+  --odometry /nope "$sample" ok.relations
 # The sample's scans are stamped in 2025, the relation at 0 and 1 s.
 expect "ok.relations: no relation at most 30 s long has a scan of SCAN at both stamps" "$sample" ok.relations
 expect "nowhere/driftlab: no such program" --bin "$tmp/nowhere" "$sample" ok.relations
