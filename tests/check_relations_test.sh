@@ -98,7 +98,7 @@ def pose(r):
     return r[1], r[2], math.atan2(2 * (r[7] * r[6] + r[4] * r[5]), 1 - 2 * (r[5] ** 2 + r[6] ** 2))
 count, last = 0, -1e9
 with open(sys.argv[2], "w") as out, open(sys.argv[3], "w") as turned:
-    for i, r in enumerate(rows):
+    for r in rows:
         j = bisect.bisect_left(t, r[0] + 3.0)
         if r[0] < last + 20 or j >= len(rows) or abs(t[j] - r[0] - 3.0) > 0.05:
             continue
@@ -129,7 +129,9 @@ by_turn = {0: [], 5: [], 12: []}
 for r in j["per_relation_sideways"]:
     by_turn[turned[r["line"] - 1]].append(r)
 print(", ".join(f"turned {k} deg: {sum(r['sideways'] for r in v)} of {len(v)} sideways" for k, v in by_turn.items()))
-ok = j["odometry"] == "/odom"
+ok = True
+if j["odometry"] != "/odom":
+    print(f"FAILED: the odometry read was {j['odometry']}, not /odom"); ok = False
 # Intel's robot drives along its heading: its odometry's chord is within 2 degrees on most of these stretches.
 if min(len(v) for v in by_turn.values()) < 10:
     print(f"FAILED: too few relations checked: {[len(v) for v in by_turn.values()]}"); ok = False
