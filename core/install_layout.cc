@@ -41,14 +41,23 @@ fs::path data_dir() {
 
 fs::path data_path(std::string_view relative) { return data_dir() / relative; }
 
-fs::path sibling_program(std::string_view name) {
+namespace {
+
+/// `name` beside the running program, else in PREFIX/lib/driftlab; with `executable`, only an executable file.
+fs::path sibling(std::string_view name, bool executable) {
   const fs::path self = self_executable();
   if (self.empty()) return {};
   for (const fs::path& p : {self.parent_path() / name, self.parent_path().parent_path() / kProgramDir / name}) {
     std::error_code ec;
-    if (fs::is_regular_file(p, ec) && ::access(p.c_str(), X_OK) == 0) return p;
+    if (fs::is_regular_file(p, ec) && (!executable || ::access(p.c_str(), X_OK) == 0)) return p;
   }
   return {};
 }
+
+}  // namespace
+
+fs::path sibling_program(std::string_view name) { return sibling(name, true); }
+
+fs::path sibling_library(std::string_view name) { return sibling(name, false); }
 
 }  // namespace driftlab

@@ -3,7 +3,8 @@
 //
 // One layout serves the install tree and the build tree (docs/install.md):
 //   PREFIX/bin/driftlab                the front end; build/bin/driftlab in the build tree
-//   PREFIX/lib/driftlab/driftlab-*     the programs it runs (apps/commands.h); beside it in the build tree
+//   PREFIX/lib/driftlab/driftlab-*     the programs it runs (apps/commands.h), and the libraries they load only
+//                                      when asked (driftlab-icp-slam.so); beside it in the build tree
 //   PREFIX/share/driftlab/             scenarios/, worlds/, robots/; in the build tree build/share/driftlab/ holds
 //                                      symlinks to sim/'s folders, made when CMake configures
 #pragma once
@@ -27,5 +28,9 @@ std::filesystem::path data_path(std::string_view relative);
 /// itself in lib/driftlab), else in PREFIX/lib/driftlab when the running one is PREFIX/bin/driftlab. Empty when
 /// neither is an executable file (the caller may then look in PATH).
 std::filesystem::path sibling_program(std::string_view name);
+
+/// A library loaded at run time (driftlab-icp-slam.so) where sibling_program finds programs; it need not be
+/// executable (Debian's CMake installs shared objects without the bit). Empty when neither is a file.
+std::filesystem::path sibling_library(std::string_view name);
 
 }  // namespace driftlab

@@ -1,5 +1,6 @@
 #include "slam/slam2d.h"
 
+#include <dlfcn.h>
 #include <mrpt/config/CConfigFileMemory.h>
 #include <mrpt/maps/COccupancyGridMap2D.h>
 #include <mrpt/maps/CSimpleMap.h>
@@ -8,8 +9,6 @@
 #include <mrpt/obs/CObservation2DRangeScan.h>
 #include <mrpt/obs/CSensoryFrame.h>
 #include <mrpt/poses/CPose3DPDF.h>
-#include <mrpt/slam/CMetricMapBuilderICP.h>
-#include <mrpt/system/COutputLogger.h>
 
 #include <opencv2/imgcodecs.hpp>
 
@@ -26,6 +25,7 @@
 #include <string_view>
 
 #include "core/config.h"
+#include "core/install_layout.h"
 #include "core/number_text.h"
 #include "core/text_file.h"
 #include "core/time.h"
@@ -37,6 +37,7 @@
 #include "driftlab/tf_t.hpp"
 #include "lcmtypes/planar.h"
 #include "runtime/module_input.h"
+#include "slam/internal/icp_slam.h"
 #include "slam/internal/mrpt_scan.h"
 #include "slam/internal/no_return.h"
 #include "slam/internal/odometry_buffer.h"
@@ -101,7 +102,7 @@ Result<Slam2dConfig> parse_slam2d_config(const YAML::Node& node, const std::stri
 struct Slam2d::Impl {
   Slam2dConfig c;
   std::unique_ptr<internal::ScanGraph> graph;  ///< method graph
-  mrpt::slam::CMetricMapBuilderICP builder;    ///< method icp-slam
+  std::unique_ptr<internal::IcpSlamBuilder> builder;  ///< method icp-slam
   mrpt::obs::CActionRobotMovement2D::TMotionModelOptions motion;
   std::map<std::string, mrpt::poses::CPose2D> sensor_on_base;  ///< by scan frame, from TF_STATIC
   internal::OdometryBuffer odom;
@@ -254,7 +255,7 @@ Status Slam2d::start(Bus& bus) {
     }
     if (c.method == "graph") {
       internal::ScanGraphOptions o;
-      o.icp.loadFromConfigFile(cfg, "ICP");
+      o.icp.load(cfg, "ICP");
       o.min_icp_goodness = c.min_icp_goodness;
       o.min_dist_between_points = c.min_dist_between_points;
       o.keyframe_distance = c.keyframe_distance;
@@ -275,14 +276,12 @@ Status Slam2d::start(Bus& bus) {
         d.weighed_graph = std::make_unique<internal::ScanGraph>(o);
       }
     } else {
-      d.builder.setMinLoggingLevel(mrpt::system::LVL_ERROR);
-      d.builder.ICP_options.loadFromConfigFile(cfg, "MappingApplication");
-      d.builder.ICP_params.loadFromConfigFile(cfg, "ICP");
-      d.builder.initialize();
+      const auto factory = internal::icp_slam_factory();
+      if (!factory) return factory.error();
+      d.builder.reset(factory.value()(&cfg));
     }
   } catch (const std::exception& e) {
-    return Error{(c.ini.empty() ? std::string("slam.2d") : c.ini) +
-                 ": MRPT rejected the ICP settings: " + one_line(e.what())};
+    return Error{(c.ini.empty() ? std::string("slam.2d") : c.ini) + ": bad ICP settings: " + one_line(e.what())};
   }
 
   if (!c.tf_static_channel.empty()) {
@@ -385,16 +384,11 @@ Status Slam2d::start(Bus& bus) {
     }
     mrpt::obs::CSensoryFrame frame;
     frame.insert(obs);
-    d.builder.processActionObservation(actions, frame);
-    const auto keyframes = static_cast<int64_t>(d.builder.getCurrentlyBuiltMapSize());
-    // A new keyframe means the scan went into the points map; with fuse_points the map's kd-tree is left stale
-    // by MRPT (see mark_point_maps_modified), so the next scans would match against the map as it was before.
-    if (keyframes != d.keyframes) internal::mark_point_maps_modified(*d.builder.getCurrentlyBuiltMetricMap());
-    d.keyframes = keyframes;
+    d.keyframes = static_cast<int64_t>(d.builder->process(actions, frame));
 
     mrpt::math::CMatrixDouble66 cov;
     mrpt::poses::CPose3D mean;
-    d.builder.getCurrentPoseEstimation()->getCovarianceAndMean(cov, mean);
+    d.builder->estimate(cov, mean);
     p.position = {mean.x(), mean.y(), 0};
     p.orientation = yaw_quaternion(mean.yaw());
     // MRPT orders (x, y, z, yaw, pitch, roll); ours (x, y, z, roll, pitch, yaw).
@@ -437,7 +431,7 @@ void Slam2d::finish(Bus& bus) {
     }
   } else {
     mrpt::maps::CSimpleMap keyframes;
-    d.builder.getCurrentlyBuiltMap(keyframes);
+    d.builder->keyframes(keyframes);
     for (size_t i = 0; i < keyframes.size(); ++i) {
       mrpt::poses::CPose3DPDF::Ptr pose;
       mrpt::obs::CSensoryFrame::Ptr frame;
@@ -579,4 +573,25 @@ ModuleCounters Slam2d::counters() const {
   return c;
 }
 
+namespace internal {
+
+Result<IcpSlamFactory> icp_slam_factory() {
+  static const Result<IcpSlamFactory> loaded = []() -> Result<IcpSlamFactory> {
+    const auto path = sibling_library(kIcpSlamLibrary);
+    if (path.empty()) {
+      return Error{std::string("slam.2d method icp-slam: ") + kIcpSlamLibrary + " is not beside " +
+                   self_executable().string() + " nor in its install tree's lib/driftlab (a partial install?)"};
+    }
+    void* library = dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL);  // kept for the process's life
+    void* factory = library == nullptr ? nullptr : dlsym(library, kIcpSlamFactory);
+    if (factory == nullptr) {
+      const std::string why = one_line(dlerror());  // names the file, when the file is what is wrong
+      return Error{why.rfind(path.string(), 0) == 0 ? why : path.string() + ": " + why};
+    }
+    return reinterpret_cast<IcpSlamFactory>(factory);
+  }();
+  return loaded;
+}
+
+}  // namespace internal
 }  // namespace driftlab::slam

@@ -37,6 +37,7 @@ echo "installed into $prefix [at $SECONDS s]"
 
 # The layout docs/install.md promises.
 for f in bin/driftlab lib/driftlab/driftlab-sim lib/driftlab/driftlab-replay lib/driftlab/driftlab-rawlog \
+  lib/driftlab/driftlab-icp-slam.so \
   share/driftlab/scenarios/indoor.yaml share/driftlab/worlds/building.yaml share/driftlab/robots/diffbot.urdf \
   share/bash-completion/completions/driftlab share/man/man1/driftlab.1 share/man/man1/driftlab-sim.1; do
   [[ -e $prefix/$f ]] || { echo "not installed: $f"; exit 1; }
@@ -69,7 +70,21 @@ run_installed() {
   "$driftlab" replay sim.lcm --modules estimator -o replay.lcm >/dev/null
   "$driftlab" export rawlog sim.lcm -o sim.rawlog >/dev/null
   [[ -s replay.lcm && -s sim.rawlog ]]
-  echo "sim, info, replay, export rawlog [$SECONDS s into the run]"
+  # The icp-slam method's library (slam/internal/icp_slam.h), loaded from lib/driftlab; without it, one line that
+  # names it and exit 2.
+  printf 'slam:\n  2d:\n    method: icp-slam\n' >icp.yaml
+  "$driftlab" replay sim.lcm --modules slam --config icp.yaml -o icp.lcm >/dev/null
+  "$driftlab" info icp.lcm | grep -q '^SLAM_POSE '
+  mv "$prefix/lib/driftlab/driftlab-icp-slam.so" "$work/away.so"
+  local rc=0
+  "$driftlab" replay sim.lcm --modules slam --config icp.yaml -o missing.lcm >/dev/null 2>missing.err || rc=$?
+  mv "$work/away.so" "$prefix/lib/driftlab/driftlab-icp-slam.so"
+  if ((rc != 2)) || [[ $(wc -l <missing.err) != 1 ]] || ! grep -q 'driftlab-icp-slam.so is not beside' missing.err; then
+    echo "icp-slam without its library: exit $rc, said:"
+    cat missing.err
+    exit 1
+  fi
+  echo "sim, info, replay (icp-slam too), export rawlog [$SECONDS s into the run]"
   # The demo: sim, diagnose, replay twice, eval and the report (python3 with matplotlib), as child processes; once
   # (the package holds the same programs, and making it takes long enough).
   if ((!deb)); then

@@ -1,14 +1,20 @@
 #include "slam/internal/point_maps.h"
 
+#include <mrpt/core/bits_math.h>
+#include <mrpt/math/CMatrixDynamic.h>
 #include <mrpt/math/TPose2D.h>
+#include <mrpt/poses/CPosePDFGaussian.h>
 #include <mrpt/tfest/se2.h>
+#include <Eigen/Dense>  // MRPT matrices' products and inverses
 
 #include <algorithm>
 #include <array>
 #include <atomic>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <limits>
+#include <stdexcept>
 
 namespace driftlab::slam::internal {
 
@@ -402,11 +408,105 @@ void GridPointsMap::determineMatching2D(const mrpt::maps::CMetricMap* other_map,
       static_cast<float>(params.decimation_other_map_points * with) / static_cast<float>(static_cast<double>(n_other));
 }
 
-mrpt::poses::CPose2D icp_classic(const GridPointsMap& reference, const mrpt::maps::CSimplePointsMap& query,
-                                 const mrpt::poses::CPose2D& start, const mrpt::slam::CICP::TConfigParams& o,
-                                 const std::function<bool(const mrpt::poses::CPose2D&)>& settled) {
-  mrpt::poses::CPose2D pose = start;
-  if (query.isEmpty()) return pose;
+void IcpOptions::load(const mrpt::config::CConfigFileBase& ini, const std::string& section) {
+  // In CICP::TConfigParams::loadFromConfigFile's order and with its readers: a number read as float is rounded to
+  // float even when absent (its default passes through read_float), as MRPT's are.
+  maxIterations = static_cast<unsigned int>(ini.read_int(section, "maxIterations", static_cast<int>(maxIterations)));
+  minAbsStep_trans = ini.read_float(section, "minAbsStep_trans", static_cast<float>(minAbsStep_trans));
+  minAbsStep_rot = ini.read_float(section, "minAbsStep_rot", static_cast<float>(minAbsStep_rot));
+  // An enum as MRPT reads one: its name, or a number.
+  const auto read_enum = [&](const char* key, const std::vector<std::string>& names, int value) {
+    const std::string word = ini.read_string_first_word(section, key, "");
+    if (word.empty()) return value;
+    if (std::isdigit(static_cast<unsigned char>(word[0])) != 0) return std::atoi(word.c_str());
+    for (size_t i = 0; i < names.size(); ++i) {
+      if (names[i] == word) return static_cast<int>(i);
+    }
+    throw std::runtime_error("[" + section + "] " + key + ": '" + word + "' is none of its values");
+  };
+  if (const int algorithm = read_enum("ICP_algorithm", {"icpClassic", "icpLevenbergMarquardt"}, 0); algorithm != 0) {
+    throw std::runtime_error("[" + section + "] ICP_algorithm: the graph method runs icpClassic only (given " +
+                             std::to_string(algorithm) + "); icp-slam runs the others");
+  }
+  const int method = read_enum("ICP_covariance_method", {"icpCovLinealMSE", "icpCovFiniteDifferences"},
+                               static_cast<int>(covariance_method));
+  if (method != 0 && method != 1) {
+    throw std::runtime_error("[" + section + "] ICP_covariance_method: " + std::to_string(method) +
+                             " is none of its values (0 icpCovLinealMSE, 1 icpCovFiniteDifferences)");
+  }
+  covariance_method = static_cast<Covariance>(method);
+  thresholdDist = ini.read_float(section, "thresholdDist", static_cast<float>(thresholdDist));
+  thresholdAng =
+      mrpt::DEG2RAD(ini.read_float(section, "thresholdAng_DEG", static_cast<float>(mrpt::RAD2DEG(thresholdAng))));
+  ALFA = ini.read_float(section, "ALFA", static_cast<float>(ALFA));
+  smallestThresholdDist = ini.read_float(section, "smallestThresholdDist", static_cast<float>(smallestThresholdDist));
+  onlyUniqueRobust = ini.read_bool(section, "onlyUniqueRobust", onlyUniqueRobust);
+  if (ini.read_bool(section, "doRANSAC", false)) {
+    throw std::runtime_error("[" + section + "] doRANSAC: the graph method's ICP has no RANSAC step; icp-slam has");
+  }
+  covariance_varPoints = ini.read_float(section, "covariance_varPoints", static_cast<float>(covariance_varPoints));
+  kernel_rho = ini.read_float(section, "kernel_rho", static_cast<float>(kernel_rho));
+  use_kernel = ini.read_bool(section, "use_kernel", use_kernel);
+  skip_cov_calculation = ini.read_bool(section, "skip_cov_calculation", skip_cov_calculation);
+  corresponding_points_decimation = static_cast<uint32_t>(
+      ini.read_int(section, "corresponding_points_decimation", static_cast<int>(corresponding_points_decimation)));
+  if (!(ALFA >= 0 && ALFA < 1)) throw std::runtime_error("[" + section + "] ALFA must be in [0, 1)");
+}
+
+namespace {
+
+/// CICP::kernel, in its float arguments.
+float icp_kernel(float x2, float rho2, bool use) { return use ? (x2 / (x2 + rho2)) : x2; }
+
+/// CICP's finite-difference covariance (ICP_covariance_method icpCovFiniteDifferences, "OXSMV2"): the pairs'
+/// residuals' derivatives by a parabola through three points 1 cm apart, COV = (D D^T + 1e-6 I)^-1.
+mrpt::math::CMatrixDouble33 finite_difference_covariance(const mrpt::tfest::TMatchingPairList& pairs,
+                                                         const mrpt::poses::CPose2D& pose, const IcpOptions& o) {
+  const size_t n = pairs.size();
+  mrpt::math::CMatrixDouble D(3, n);
+  const mrpt::math::TPose2D transf = pose.asTPose();
+  const double ccos = std::cos(transf.phi), csin = std::sin(transf.phi);
+  constexpr double kAxy = 0.01;
+  const double rho2 = o.kernel_rho * o.kernel_rho;
+  // The parabola through (w1, q1), (w2, q2), (w3, q3): its slope at w2.
+  const auto slope = [](double w1, double w2, double w3, double q1, double q2, double q3) {
+    const double a = ((q3 - q2) / ((w3 - w2) * (w3 - w1))) - ((q1 - q2) / ((w1 - w2) * (w3 - w1)));
+    const double b = ((q1 - q2) + (a * ((w2 * w2) - (w1 * w1)))) / (w1 - w2);
+    return (2 * a * w2) + b;
+  };
+  for (size_t i = 0; i < n; ++i) {
+    const auto& p = pairs[i];
+    const float x = static_cast<float>(transf.x + ccos * p.local.x - csin * p.local.y);
+    const float y = static_cast<float>(transf.y + csin * p.local.x + ccos * p.local.y);
+    // The residual with one coordinate moved (in double, as MRPT's w) and the other as found (in float, as its).
+    const auto moved_x = [&](double w) {
+      return icp_kernel(static_cast<float>(mrpt::square(p.global.x - w) + mrpt::square(p.global.y - y)),
+                        static_cast<float>(rho2), o.use_kernel);
+    };
+    const auto moved_y = [&](double w) {
+      return icp_kernel(static_cast<float>(mrpt::square(p.global.x - x) + mrpt::square(p.global.y - w)),
+                        static_cast<float>(rho2), o.use_kernel);
+    };
+    const double wx = x, wy = y;
+    D(0, i) = slope(wx - kAxy, wx, wx + kAxy, moved_x(wx - kAxy), moved_x(wx), moved_x(wx + kAxy));
+    D(1, i) = slope(wy - kAxy, wy, wy + kAxy, moved_y(wy - kAxy), moved_y(wy), moved_y(wy + kAxy));
+    D(2, i) = D(0, i) * (-csin * p.local.x - ccos * p.local.y) + D(1, i) * (ccos * p.local.x - csin * p.local.y);
+  }
+  mrpt::math::CMatrixDouble33 DDt;
+  DDt.matProductOf_AAt(D);
+  for (int i = 0; i < 3; ++i) DDt(i, i) += 1e-6;  // not singular, the covariance hardly changed
+  return DDt.inverse_LLt();
+}
+
+}  // namespace
+
+IcpResult icp_align(const GridPointsMap& reference, const mrpt::maps::CSimplePointsMap& query,
+                    const mrpt::poses::CPose2D& start, const IcpOptions& o,
+                    const std::function<bool(const mrpt::poses::CPose2D&)>& settled) {
+  IcpResult r;
+  r.pose = start;
+  r.covariance.setZero();
+  if (query.isEmpty()) return r;
   mrpt::maps::TMatchingParams params;
   params.maxDistForCorrespondence = static_cast<float>(o.thresholdDist);
   params.maxAngularDistForCorrespondence = static_cast<float>(o.thresholdAng);
@@ -414,38 +514,58 @@ mrpt::poses::CPose2D icp_classic(const GridPointsMap& reference, const mrpt::map
   params.onlyUniqueRobust = o.onlyUniqueRobust;
   params.decimation_other_map_points = o.corresponding_points_decimation;
   params.offset_other_map_points = 0;
-  const auto smallest = static_cast<float>(o.smallestThresholdDist);
+  // MRPT's arithmetic: the float thresholds shrunk in double, compared with the double limit.
+  const auto shrink = [&](float& threshold) { threshold = static_cast<float>(threshold * o.ALFA); };
   mrpt::tfest::TMatchingPairList pairs;
   mrpt::maps::TMatchingExtraResults extra;
   mrpt::poses::CPose2D last;  // as MRPT's: the origin, not the start
-  unsigned int iterations = 0;
   bool approaching = false;
   do {
-    params.angularDistPivotPoint = mrpt::math::TPoint3D(pose.translation());
-    reference.determineMatching2D(&query, pose, pairs, params, extra);
+    params.angularDistPivotPoint = mrpt::math::TPoint3D(r.pose.translation());
+    reference.determineMatching2D(&query, r.pose, pairs, params, extra);
     approaching = !pairs.empty();
     if (approaching) {
       mrpt::math::TPose2D estimate;
       mrpt::tfest::se2_l2(pairs, estimate);
-      pose = mrpt::poses::CPose2D(estimate);
-      if (!(std::fabs(last.x() - pose.x()) > o.minAbsStep_trans ||
-            std::fabs(last.y() - pose.y()) > o.minAbsStep_trans ||
-            std::fabs(mrpt::math::wrapToPi(last.phi() - pose.phi())) > o.minAbsStep_rot)) {
-        params.maxDistForCorrespondence *= static_cast<float>(o.ALFA);
-        params.maxAngularDistForCorrespondence *= static_cast<float>(o.ALFA);
-        if (params.maxDistForCorrespondence < smallest) approaching = false;
+      r.pose = mrpt::poses::CPose2D(estimate);
+      if (!(std::fabs(last.x() - r.pose.x()) > o.minAbsStep_trans ||
+            std::fabs(last.y() - r.pose.y()) > o.minAbsStep_trans ||
+            std::fabs(mrpt::math::wrapToPi(last.phi() - r.pose.phi())) > o.minAbsStep_rot)) {
+        shrink(params.maxDistForCorrespondence);
+        shrink(params.maxAngularDistForCorrespondence);
+        if (params.maxDistForCorrespondence < o.smallestThresholdDist) approaching = false;
         if (++params.offset_other_map_points >= o.corresponding_points_decimation) params.offset_other_map_points = 0;
       }
-      last = pose;
+      last = r.pose;
     }
-    ++iterations;
-    if (iterations >= o.maxIterations && params.maxDistForCorrespondence > smallest) {
-      params.maxDistForCorrespondence *= static_cast<float>(o.ALFA);
+    ++r.iterations;
+    if (r.iterations >= o.maxIterations && params.maxDistForCorrespondence > o.smallestThresholdDist) {
+      shrink(params.maxDistForCorrespondence);
     }
-    if (settled && settled(pose)) break;
-  } while ((approaching && iterations < o.maxIterations) ||
-           (iterations >= o.maxIterations && params.maxDistForCorrespondence > smallest));
-  return pose;
+    if (settled && settled(r.pose)) return r;  // asked for the pose only
+  } while ((approaching && r.iterations < o.maxIterations) ||
+           (r.iterations >= o.maxIterations && params.maxDistForCorrespondence > o.smallestThresholdDist));
+  if (!o.skip_cov_calculation && !pairs.empty()) {
+    if (o.covariance_method == IcpOptions::Covariance::linear_mse) {
+      mrpt::poses::CPosePDFGaussian gauss(r.pose);
+      mrpt::tfest::se2_l2(pairs, gauss);  // the mean too, from the same pairs, as MRPT keeps it
+      r.pose = gauss.mean;
+      gauss.cov *= o.covariance_varPoints;
+      r.covariance = gauss.cov;
+    } else {
+      r.covariance = finite_difference_covariance(pairs, r.pose, o);
+    }
+  }
+  r.goodness = extra.correspondencesRatio;
+  return r;
+}
+
+mrpt::poses::CPose2D icp_classic(const GridPointsMap& reference, const mrpt::maps::CSimplePointsMap& query,
+                                 const mrpt::poses::CPose2D& start, const IcpOptions& o,
+                                 const std::function<bool(const mrpt::poses::CPose2D&)>& settled) {
+  IcpOptions pose_only = o;
+  pose_only.skip_cov_calculation = true;
+  return icp_align(reference, query, start, pose_only, settled).pose;
 }
 
 }  // namespace driftlab::slam::internal

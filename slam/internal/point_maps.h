@@ -2,15 +2,18 @@
 // Points maps for the 2D SLAM: keeping the ICP builder's maps honest about their nearest-neighbour index, and a
 // points map whose ICP correspondences come from a grid instead of a kd-tree, with MRPT's classic ICP on it, step
 // for step, for a caller that wants to stop it early.
+#include <mrpt/config/CConfigFileBase.h>
 #include <mrpt/maps/CMultiMetricMap.h>
 #include <mrpt/maps/CPointsMap.h>
 #include <mrpt/maps/CSimplePointsMap.h>
+#include <mrpt/math/CMatrixFixed.h>
 #include <mrpt/poses/CPose2D.h>
-#include <mrpt/slam/CICP.h>
 
+#include <cmath>
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <string>
 #include <vector>
 
 namespace driftlab::slam::internal {
@@ -66,14 +69,51 @@ class GridPointsMap : public mrpt::maps::CSimplePointsMap {
   mutable std::shared_ptr<const Grid> grid_;  ///< built lazily; shared by copies until either changes
 };
 
+/// The settings of MRPT's classic ICP (mrpt::slam::CICP::TConfigParams' members of the same names and defaults, the
+/// ones its classic method reads), so that the graph method needs no part of MRPT's SLAM library.
+struct IcpOptions {
+  unsigned int maxIterations = 40;
+  double minAbsStep_trans = 1e-6, minAbsStep_rot = 1e-6;          ///< a step smaller than both shrinks the thresholds
+  double thresholdDist = 0.75, thresholdAng = 0.15 * M_PI / 180;  ///< the first matching's limits (m, rad)
+  double ALFA = 0.5;                                              ///< the thresholds' shrink factor
+  double smallestThresholdDist = 0.1;                             ///< thresholds shrunk below this: converged
+  bool onlyUniqueRobust = false;                                  ///< a map point matched by one query point at most
+  uint32_t corresponding_points_decimation = 5;
+  enum class Covariance { linear_mse = 0, finite_differences = 1 };
+  Covariance covariance_method = Covariance::finite_differences;
+  double covariance_varPoints = 0.02 * 0.02;  ///< linear_mse: a point's variance
+  double kernel_rho = 0.07;                   ///< finite_differences: the robust kernel's scale (m) ...
+  bool use_kernel = true;                     ///< ... and whether it is applied
+  bool skip_cov_calculation = false;
+
+  /// Reads `section` of an MRPT .ini file as CICP::TConfigParams::loadFromConfigFile does: the same keys, the
+  /// same parsing (numbers read as float, thresholdAng_DEG in degrees), a key absent keeping its value. Throws
+  /// std::runtime_error naming the key for what only another ICP would do (ICP_algorithm other than icpClassic,
+  /// doRANSAC) and for a value MRPT would reject.
+  void load(const mrpt::config::CConfigFileBase& ini, const std::string& section);
+};
+
+/// What icp_align found: the pose, the last matching's share of query points matched (CICP's `goodness`), the
+/// iterations, and the pose's covariance as CICP computes it (zero when skipped or when nothing matched).
+struct IcpResult {
+  mrpt::poses::CPose2D pose;
+  float goodness = 1;
+  unsigned int iterations = 0;
+  mrpt::math::CMatrixDouble33 covariance;
+};
+
 /// MRPT's classic ICP (CICP::ICP_Method_Classic: each point of `query` at the pose matched to its nearest point of
 /// `reference` within the thresholds, the pose by least squares in closed form, the thresholds shrunk by ALFA
 /// whenever a step moves less than minAbsStep, until smallestThresholdDist or maxIterations), step for step the same
-/// floats as CICP::Align with these options: the pose it ends at. `settled`, if given, is asked after each
-/// iteration whether the pose reached is all the caller needs to know; if it says so, the ICP stops there.
-/// (ICP_algorithm, RANSAC, the covariance and the quality are not looked at: only the pose is returned.)
+/// floats as CICP::Align with these options, goodness and covariance included. `settled`, if given, is asked after
+/// each iteration whether the pose reached is all the caller needs to know; if it says so, the ICP stops there.
+IcpResult icp_align(const GridPointsMap& reference, const mrpt::maps::CSimplePointsMap& query,
+                    const mrpt::poses::CPose2D& start, const IcpOptions& options,
+                    const std::function<bool(const mrpt::poses::CPose2D&)>& settled = nullptr);
+
+/// icp_align without the covariance: only the pose.
 mrpt::poses::CPose2D icp_classic(const GridPointsMap& reference, const mrpt::maps::CSimplePointsMap& query,
-                                 const mrpt::poses::CPose2D& start, const mrpt::slam::CICP::TConfigParams& options,
+                                 const mrpt::poses::CPose2D& start, const IcpOptions& options,
                                  const std::function<bool(const mrpt::poses::CPose2D&)>& settled = nullptr);
 
 }  // namespace driftlab::slam::internal

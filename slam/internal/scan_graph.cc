@@ -138,7 +138,7 @@ void ScanGraph::record(LoopRecord r, LoopRecord::Outcome outcome, std::string re
   records_.push_back(std::move(r));
 }
 
-ScanGraph::ScanGraph(ScanGraphOptions options) : o_(std::move(options)), icp_(o_.icp) {}
+ScanGraph::ScanGraph(const ScanGraphOptions& options) : o_(options) {}
 
 CPose2D ScanGraph::keyframe_pose(size_t i) const {
   const auto& p = graph_.node(i);
@@ -178,23 +178,21 @@ CPose2D ScanGraph::add(int64_t stamp, const mrpt::obs::CObservation2DRangeScan::
     scans_.push_back({stamp, current_keyframe_, relative_});
     return pose;
   }
-  mrpt::slam::CICP::TReturnInfo info;
-  const auto pdf = icp_.Align(&local_map_, &points, pose, info);
-  if (points.size() >= 10 && info.goodness >= o_.min_icp_goodness) {
+  const IcpResult match = icp_align(local_map_, points, pose, o_.icp);
+  if (points.size() >= 10 && match.goodness >= o_.min_icp_goodness) {
     ++stats_.matched;
     if (step) {
       const double noise = o_.odometry_noise[2] * std::abs(step->phi()) + o_.odometry_noise[3];
-      float z = static_cast<float>(std::abs(mrpt::math::wrapToPi(pdf->getMeanVal().phi() - pose.phi())) / noise);
+      float z = static_cast<float>(std::abs(mrpt::math::wrapToPi(match.pose.phi() - pose.phi())) / noise);
       if (std::isnan(z)) z = std::numeric_limits<float>::infinity();  // cannot be compared: as far off as any
       heading_z_.add(z);
     }
     if (o_.match_odometry && step) {
-      pose = weigh_in_odometry(pdf->getMeanVal(), points, pose, *step);
+      pose = weigh_in_odometry(match.pose, points, pose, *step);
     } else {
-      pose = pdf->getMeanVal();
+      pose = match.pose;
     }
-    const auto* gauss = dynamic_cast<const mrpt::poses::CPosePDFGaussian*>(pdf.get());
-    if (covariance != nullptr && gauss != nullptr) *covariance = gauss->cov;
+    if (covariance != nullptr) *covariance = match.covariance;
   } else {
     ++stats_.unmatched;  // the prediction stands
   }
@@ -389,12 +387,12 @@ bool ScanGraph::try_loop(size_t j, double radius, bool widened) {
     start = CPose2D(best.x, best.y, best.yaw);
   } else {
     // Near: ICP from the estimate, correspondences first as far apart as the drift may have carried it.
-    mrpt::slam::CICP coarse(o_.icp);
-    coarse.options.thresholdDist = std::clamp(radius, o_.icp.thresholdDist, 2.0);
-    coarse.options.thresholdAng = std::max(o_.icp.thresholdAng, o_.loop_threshold_ang);
-    start = coarse.Align(&reference, &query, here)->getMeanVal();
+    IcpOptions coarse = o_.icp;
+    coarse.thresholdDist = std::clamp(radius, o_.icp.thresholdDist, 2.0);
+    coarse.thresholdAng = std::max(o_.icp.thresholdAng, o_.loop_threshold_ang);
+    start = icp_classic(reference, query, here, coarse);
   }
-  const CPose2D found = icp_.Align(&reference, &query, start)->getMeanVal();
+  const CPose2D found = icp_classic(reference, query, start, o_.icp);
 
   // Overlap: the share of the current points with an old point close by, all points counted.
   mrpt::maps::TMatchingExtraResults overlap;
@@ -431,7 +429,7 @@ bool ScanGraph::try_loop(size_t j, double radius, bool widened) {
   const bool corridor = axes.eigenvalues()(0) < o_.loop_min_constraint;
   // A unique optimum: started loop_uniqueness off along each pinned-down axis, and turned, ICP must come back.
   const double u = o_.loop_uniqueness;
-  mrpt::slam::CICP::TConfigParams restart = o_.icp;
+  IcpOptions restart = o_.icp;
   restart.thresholdDist = std::max(o_.icp.thresholdDist, 2 * u);
   restart.thresholdAng = std::max(o_.icp.thresholdAng, o_.loop_threshold_ang);
   constexpr double kSameXy = 0.05, kSameYaw = 0.02;  // ICP's own spread from nearby starts

@@ -22,7 +22,6 @@
 #include <mrpt/maps/CSimplePointsMap.h>
 #include <mrpt/obs/CObservation2DRangeScan.h>
 #include <mrpt/poses/CPose2D.h>
-#include <mrpt/slam/CICP.h>
 
 #include <Eigen/Core>
 
@@ -57,7 +56,7 @@ struct ScanGraphOptions {
   std::array<double, 4> odometry_noise = {0.05, 0.01, 0.05, 0.005};
   double still_distance = 0.005;          ///< odometry moving less than this since the last matched scan ...
   double still_angle = 0.005;             ///< ... and turning less: standing still, the scan is not matched
-  mrpt::slam::CICP::TConfigParams icp;    ///< the front end's ICP (also the loop matches' final step)
+  IcpOptions icp;                         ///< the front end's ICP (also the loop matches' final step)
   // Loop closure: which old place.
   bool loop_closure = true;
   double loop_min_travel = 10;        ///< path between two keyframes before they may close a loop
@@ -135,7 +134,7 @@ mrpt::poses::CPose2D combine(const mrpt::poses::CPose2D& a, const Eigen::Matrix3
 
 class ScanGraph {
  public:
-  explicit ScanGraph(ScanGraphOptions options);
+  explicit ScanGraph(const ScanGraphOptions& options);
 
   /// Adds a scan (sensor pose inside `scan`), with the wheel odometry's pose at its stamp when there is one.
   /// Returns the base's pose in the map frame (the first scan's base is the origin) and the front end's
@@ -213,7 +212,6 @@ class ScanGraph {
   mrpt::maps::CSimplePointsMap points_of(const mrpt::obs::CObservation2DRangeScan& scan) const;
 
   ScanGraphOptions o_;
-  mrpt::slam::CICP icp_;
   PoseGraph2d graph_;
   std::vector<Keyframe> keyframes_;
   std::vector<std::vector<std::pair<uint32_t, double>>> adjacency_;  ///< neighbour, length of the edge [m]

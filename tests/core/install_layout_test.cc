@@ -30,6 +30,9 @@ TEST(InstallLayout, SiblingProgramsAreExecutablesBesideThisOne) {
   EXPECT_EQ(sibling_program(self_executable().filename().string()), self_executable());
   EXPECT_TRUE(sibling_program("no-such-driftlab-program").empty());
   EXPECT_TRUE(sibling_program("..").empty());  // a folder is not a program
+  EXPECT_EQ(sibling_library(self_executable().filename().string()), self_executable());
+  EXPECT_TRUE(sibling_library("no-such-driftlab-library.so").empty());
+  EXPECT_TRUE(sibling_library("..").empty());
 }
 
 }  // namespace

@@ -3,6 +3,7 @@
 // map: the same correspondences as MRPT's kd-tree matching, and so the same ICP results.
 #include <gtest/gtest.h>
 
+#include <mrpt/config/CConfigFileMemory.h>
 #include <mrpt/maps/CMultiMetricMap.h>
 #include <mrpt/maps/CSimplePointsMap.h>
 #include <mrpt/poses/CPosePDFGaussian.h>
@@ -11,6 +12,9 @@
 #include <array>
 #include <cmath>
 #include <random>
+#include <stdexcept>
+#include <string>
+#include <vector>
 
 #include "slam/internal/point_maps.h"
 
@@ -205,11 +209,14 @@ TEST(GridPointsMap, IcpGivesMrptsPoseBitForBit) {
   }
 }
 
-// icp_classic is MRPT's classic ICP step for step (the loop tests' restarts run it to stop early): the same pose to
-// the bit as CICP::Align on the same grid, with the options of the test above, the SLAM's front end (decimation 5,
-// ALFA 0.8, 80 iterations) and a cap of 6 iterations that ends it mid-way (the cap's own threshold rule). Asked to
-// stop once within 5 cm and 0.01 rad of the truth, it stops at the first such pose, sooner than the full run.
-TEST(GridPointsMap, IcpClassicIsMrptsIcpStepForStep) {
+// icp_align is MRPT's classic ICP step for step (the SLAM's front end and loop tests run it instead of CICP, so that
+// the graph method needs no part of MRPT's SLAM library; the restarts stop it early): the same pose, goodness,
+// iterations and covariance to the bit as CICP::Align on the same grid, each read from the same .ini text by
+// CICP::TConfigParams::loadFromConfigFile and IcpOptions::load. The settings: the test above's, the SLAM's front
+// end's (decimation 5, ALFA 0.8, 80 iterations), a cap of 6 iterations that ends it mid-way (the cap's own
+// threshold rule), a threshold limit that float rounds down (0.07), and the other covariance method and kernel.
+// Asked to stop once within 5 cm and 0.01 rad of the truth, it stops at the first such pose, sooner than the full run.
+TEST(GridPointsMap, IcpAlignIsMrptsIcpStepForStep) {
   std::mt19937 rng(11);
   const auto reference = walls(rng, 10);
   internal::GridPointsMap grid;
@@ -218,39 +225,85 @@ TEST(GridPointsMap, IcpClassicIsMrptsIcpStepForStep) {
   const auto seen = walls(rng, 10);
   scan.insertAnotherMap(&seen, mrpt::poses::CPose3D(-0.4, 0.2, 0, -0.087, 0, 0));
   const auto truth = mrpt::poses::CPose2D() - mrpt::poses::CPose2D(-0.4, 0.2, -0.087);
-  mrpt::slam::CICP::TConfigParams test, front, capped;
-  test.thresholdDist = 0.75, test.thresholdAng = 0.15 * M_PI / 180, test.ALFA = 0.5;
-  test.onlyUniqueRobust = true, test.corresponding_points_decimation = 2;
-  front.maxIterations = 80, front.thresholdDist = 0.3, front.thresholdAng = M_PI / 180, front.ALFA = 0.8;
-  front.smallestThresholdDist = 0.05, front.corresponding_points_decimation = 5, front.onlyUniqueRobust = true;
-  front.minAbsStep_trans = front.minAbsStep_rot = 1e-6;
-  capped = front;
-  capped.maxIterations = 6;
-  for (const auto* options : {&test, &front, &capped}) {
-    mrpt::slam::CICP icp(*options);
+  const std::string test =
+      "thresholdDist=0.75\nthresholdAng_DEG=0.15\nALFA=0.5\nonlyUniqueRobust=true\n"
+      "corresponding_points_decimation=2\n";
+  const std::string front =
+      "maxIterations=80\nthresholdDist=0.3\nthresholdAng_DEG=1\nALFA=0.8\n"
+      "smallestThresholdDist=0.05\ncorresponding_points_decimation=5\nonlyUniqueRobust=true\n"
+      "minAbsStep_trans=1e-6\nminAbsStep_rot=1e-6\nICP_algorithm=icpClassic\n";
+  const std::vector<std::string> settings = {
+      test,
+      front,
+      front + "maxIterations=6\n",
+      front + "ALFA=0.7\nsmallestThresholdDist=0.07\n",
+      test + "ICP_covariance_method=icpCovLinealMSE\ncovariance_varPoints=0.001\n",
+      front + "use_kernel=false\nkernel_rho=0.1\n",
+      front + "skip_cov_calculation=true\n"};
+  for (const auto& text : settings) {
+    SCOPED_TRACE(text);
+    const mrpt::config::CConfigFileMemory ini("[ICP]\n" + text);
+    mrpt::slam::CICP::TConfigParams mrpts;
+    mrpts.loadFromConfigFile(ini, "ICP");
+    internal::IcpOptions ours;
+    ours.load(ini, "ICP");
+    EXPECT_EQ(ours.thresholdAng, mrpts.thresholdAng);
+    EXPECT_EQ(ours.smallestThresholdDist, mrpts.smallestThresholdDist);
+    mrpt::slam::CICP icp(mrpts);
     for (const auto& guess : {mrpt::poses::CPose2D(0, 0, 0), mrpt::poses::CPose2D(0.5, -0.3, 0.1)}) {
       mrpt::slam::CICP::TReturnInfo info;
-      const auto want = icp.Align(&grid, &scan, guess, info)->getMeanVal();
-      const auto got = internal::icp_classic(grid, scan, guess, *options);
-      EXPECT_EQ(want.x(), got.x());
-      EXPECT_EQ(want.y(), got.y());
-      EXPECT_EQ(want.phi(), got.phi());
+      const auto pdf = icp.Align(&grid, &scan, guess, info);
+      const auto want = pdf->getMeanVal();
+      const auto got = internal::icp_align(grid, scan, guess, ours);
+      EXPECT_EQ(want.x(), got.pose.x());
+      EXPECT_EQ(want.y(), got.pose.y());
+      EXPECT_EQ(want.phi(), got.pose.phi());
+      EXPECT_EQ(info.goodness, got.goodness);
+      EXPECT_EQ(info.nIterations, got.iterations);
+      const auto& cov = dynamic_cast<const mrpt::poses::CPosePDFGaussian&>(*pdf).cov;
+      for (int r = 0; r < 3; ++r) {
+        for (int c = 0; c < 3; ++c) EXPECT_EQ(cov(r, c), got.covariance(r, c)) << r << "," << c;
+      }
+      if (text.find("skip_cov") == std::string::npos) {
+        EXPECT_GT(got.covariance(0, 0), 0) << "a covariance is computed";
+      }
+      const auto pose_only = internal::icp_classic(grid, scan, guess, ours);
+      EXPECT_EQ(pose_only.x(), want.x());
+      EXPECT_EQ(pose_only.phi(), want.phi());
 
       unsigned int asked = 0;
       mrpt::poses::CPose2D first_near;
       bool near_seen = false;
-      const auto stopped = internal::icp_classic(grid, scan, guess, *options, [&](const mrpt::poses::CPose2D& p) {
+      const auto stopped = internal::icp_classic(grid, scan, guess, ours, [&](const mrpt::poses::CPose2D& p) {
         ++asked;
         const bool near = std::hypot(p.x() - truth.x(), p.y() - truth.y()) <= 0.05 &&
                           std::abs(mrpt::math::wrapToPi(p.phi() - truth.phi())) <= 0.01;
         if (near && !near_seen) first_near = p, near_seen = true;
         return near;
       });
-      if (options == &capped && !near_seen) continue;  // six iterations may not get there
+      if (ours.maxIterations == 6 && !near_seen) continue;  // six iterations may not get there
       ASSERT_TRUE(near_seen);
       EXPECT_EQ(stopped.x(), first_near.x());
       EXPECT_EQ(stopped.phi(), first_near.phi());
       EXPECT_LT(asked, info.nIterations) << "it should stop before the end";
+    }
+  }
+}
+
+// What only another ICP does is refused by name, not run as the classic one: the Levenberg-Marquardt method (by name
+// or number), RANSAC; and what MRPT refuses (an unknown method, ALFA of 1 or more) too.
+TEST(IcpOptions, RefusesWhatTheClassicIcpDoesNot) {
+  for (const char* text : {"ICP_algorithm=icpLevenbergMarquardt", "ICP_algorithm=1", "doRANSAC=true",
+                           "ICP_covariance_method=icpCovSomething", "ICP_covariance_method=7", "ALFA=1"}) {
+    const mrpt::config::CConfigFileMemory ini("[ICP]\n" + std::string(text) + "\n");
+    internal::IcpOptions o;
+    try {
+      o.load(ini, "ICP");
+      ADD_FAILURE() << text << " was taken";
+    } catch (const std::runtime_error& e) {
+      const std::string what = e.what();
+      const std::string key = std::string(text).substr(0, std::string(text).find('='));
+      EXPECT_NE(what.find(key), std::string::npos) << what;
     }
   }
 }
