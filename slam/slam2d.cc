@@ -585,7 +585,8 @@ Result<IcpSlamFactory> icp_slam_factory() {
     void* library = dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL);  // kept for the process's life
     void* factory = library == nullptr ? nullptr : dlsym(library, kIcpSlamFactory);
     if (factory == nullptr) {
-      const std::string why = one_line(dlerror());  // names the file, when the file is what is wrong
+      const char* error = dlerror();  // names the file, when the file is what is wrong
+      const std::string why = error != nullptr ? one_line(error) : std::string("no ") + kIcpSlamFactory + " in it";
       return Error{why.rfind(path.string(), 0) == 0 ? why : path.string() + ": " + why};
     }
     return reinterpret_cast<IcpSlamFactory>(factory);

@@ -2,8 +2,8 @@
 // The icp-slam method, MRPT's ICP map builder (mrpt::slam::CMetricMapBuilderICP), behind an interface of its own:
 // it lives in a library loaded only when the method is chosen (driftlab-icp-slam.so, beside the programs), so that
 // a program running the graph method (every default run of `driftlab replay`) neither loads nor binds MRPT's SLAM
-// library and the hundred-odd libraries it brings (MRPT vision, OpenCV's whole set): a fifth of a second at every
-// start (docs/slam.md, "How fast").
+// library and the hundred-odd libraries it brings (MRPT vision, OpenCV's whole set) at every start
+// (docs/benchmarks.md, "Start-up").
 #include <mrpt/config/CConfigFileBase.h>
 #include <mrpt/maps/CSimpleMap.h>
 #include <mrpt/math/CMatrixFixed.h>

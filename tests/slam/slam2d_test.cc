@@ -447,5 +447,26 @@ TEST(Slam2dConfig, UnknownKeysAndBadValuesNameTheFileLineAndKey) {
   EXPECT_NE(ini.error().message.find("cannot open /nonexistent.ini"), std::string::npos);
 }
 
+// An .ini is icp-slam's: MRPT's map builder, from its own library (slam/internal/icp_slam.h), takes one that asks
+// for MRPT's Levenberg-Marquardt ICP, which the graph method (icp_align: the classic ICP) does not run; the graph
+// method is refused an .ini at all, with the file and the key named.
+TEST(Slam2d, AnIniIsForTheIcpSlamMethod) {
+  test::TempDir dir;
+  const std::string ini = dir.file("lm.ini");
+  std::ofstream(ini) << "[ICP]\nICP_algorithm=icpLevenbergMarquardt\n";
+  auto graph = parse_slam2d_config(YAML::Load("ini: " + ini + "\nmethod: graph\n"), "r.yaml");
+  ASSERT_FALSE(graph);
+  EXPECT_EQ(graph.error().message, "r.yaml:1: slam.2d.ini: an icp-slam .ini file is for method icp-slam");
+
+  auto icp_slam = parse_slam2d_config(YAML::Load("ini: " + ini + "\n"), "r.yaml");
+  ASSERT_TRUE(icp_slam) << icp_slam.error().message;
+  ASSERT_EQ(icp_slam->method, "icp-slam");
+  Slam2d taken{*icp_slam};
+  test::FakeBus bus;
+  bus.add(taken);
+  const auto started = bus.start();
+  EXPECT_TRUE(started.ok()) << started.message();
+}
+
 }  // namespace
 }  // namespace driftlab::slam
