@@ -199,7 +199,7 @@ struct Slam2d::Impl {
       m.old_utime = keyframes[r.old_keyframe].stamp;
       m.keyframe = static_cast<int32_t>(r.keyframe);
       m.old_keyframe = static_cast<int32_t>(r.old_keyframe);
-      m.search = r.far ? "far" : "near";
+      m.search = r.rescued ? "near-far" : r.far ? "far" : "near";
       m.radius_m = r.radius;
       m.outcome = internal::outcome_name(r.outcome);
       m.reason = r.reason;
@@ -267,6 +267,7 @@ Status Slam2d::start(Bus& bus) {
       o.loop_drift = c.loop_drift;
       o.loop_max_radius = c.loop_max_radius;
       o.loop_min_goodness = c.loop_min_goodness;
+      o.loop_rescue_near = c.loop_rescue_near;
       o.match_odometry = c.match_odometry == "true";
       o.match_sigma = c.match_sigma;
       o.odometry_noise = c.odometry_noise;

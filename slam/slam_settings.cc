@@ -53,6 +53,9 @@ const config::Table<Slam2dConfig>& slam2d_config_table() {
           .number("loop_max_radius", &C::loop_max_radius, above(0, 1e3), "m", "graph: ... at most")
           .number("loop_min_goodness", &C::loop_min_goodness, between(0, 1), "",
                   "graph: share of the current points a loop match must put near old ones")
+          .flag("loop_rescue_near", &C::loop_rescue_near,
+                "graph: a near loop test whose ICP was pulled beyond its reach searches the same window as a far "
+                "test does (turned up to 30 deg) instead of failing; docs/slam.md says what it does to robustness")
           .choice("match_odometry", &C::match_odometry, {"auto", "false", "true"},
                   "graph: weigh the odometry's prediction into each scan match by the information of each (for "
                   "wheel odometry better than the scans along featureless corridors); auto: once 600 scans are "

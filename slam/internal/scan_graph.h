@@ -65,6 +65,7 @@ struct ScanGraphOptions {
   double loop_max_radius = 16;        ///< ... and never further
   double loop_far_radius = 2.5;       ///< beyond this radius, a correlative search instead of ICP from the estimate
   double loop_far_yaw = 0.35;         ///< the correlative search's turn window (+-)
+  bool loop_rescue_near = false;      ///< a near test whose ICP left the reach searches its window correlatively
   double loop_edge = 0.8;             ///< its best pose beyond this share of the window (in x, y or turn) ...
   double loop_widen = 1.5;            ///< ... searches again in a window this much wider (at most loop_max_radius)
   double loop_grid_resolution = 0.1;  ///< of its likelihood grid ...
@@ -111,6 +112,7 @@ struct LoopRecord {
   enum class Outcome { accepted, waiting, low_overlap, ambiguous, not_unique, refused_chi2, unconfirmed, undone };
   size_t keyframe = 0, old_keyframe = 0;  ///< current and old keyframe
   bool far = false;                       ///< a correlative search of the window, not ICP from the estimate
+  bool rescued = false;                   ///< far: a near test's, its ICP having left the reach (loop_rescue_near)
   double radius = 0;                      ///< the search's reach [m]
   Outcome outcome = Outcome::accepted;
   std::string reason;               ///< the figures that decided it (one line, no commas)
@@ -190,8 +192,9 @@ class ScanGraph {
                                          const mrpt::maps::CSimplePointsMap& points,
                                          const mrpt::poses::CPose2D& predicted, const mrpt::poses::CPose2D& step);
   void close_loops();
-  /// j: the candidate keyframe; widened: the far search's window (radius, turn) is loop_widen times the usual.
-  bool try_loop(size_t j, double radius, bool widened = false);
+  /// j: the candidate keyframe; widened: the far search's window (radius, turn) is loop_widen times the usual;
+  /// rescue: a near test's window searched as a far one (loop_rescue_near).
+  bool try_loop(size_t j, double radius, bool widened = false, bool rescue = false);
   bool add_loops(std::vector<LoopEdge> loops);
   void record(LoopRecord r, LoopRecord::Outcome outcome, std::string reason);
   /// The length of the shortest path through the graph from one keyframe to others (loop edges counting as the
