@@ -396,8 +396,8 @@ bool ScanGraph::try_loop(size_t j, double radius, bool widened, bool rescue) {
   // Near, ICP pulled beyond the reach: it started where the estimate is, and its first correspondences, as far apart
   // as the reach, let it slide off to a lookalike or a stretch of wall (on the benchmark logs the right place mostly
   // lay within centimetres of the estimate, or turned by more than those correspondences allow: MIT CSAIL from 3 s,
-  // its first turn on the spot lost 23 degrees). With loop_rescue_near, the same window searched as a far test is,
-  // turned as far as a widened one (docs/slam.md, "How robust").
+  // its first turn on the spot lost 23 degrees). With loop_rescue_near, the same window is searched as a far test
+  // searches its own, turned as far as a widened one (docs/slam.md, "How robust").
   if (!far && o_.loop_rescue_near && (found - here).norm() > radius) {
     --stats_.loop_tests;  // counted by the search
     return try_loop(j, radius, true, true);
