@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # scripts/slam-robustness on bad input: each gives one line naming the file (or the run) and exit status 2; a
 # relations file driftlab eval refuses, found after the replays, too, however many runs failed on it. Its runs on
-# real logs are docs/tutorial-public-dataset.md's block (docs.run.tutorial-public-dataset).
+# real logs are docs/tutorial-public-dataset.md's block (docs.run.tutorial-public-dataset). And --compare on two
+# --json files: the runs that now meet the bar and those that no longer do, with McNemar's exact test on them.
 #   tests/slam_robustness_test.sh SOURCE_DIR BIN_DIR
 set -uo pipefail
 source=$(realpath "$1")
@@ -24,4 +25,52 @@ expect "--set match_odometry: expected KEY=VALUE" --set match_odometry broken.ba
 expect "nowhere/driftlab: no such program" --bin "$tmp/nowhere" broken.bag:ok.relations
 expect "broken.relations: driftlab eval failed" --runs whole,start-3,start-10 --jobs 3 \
   "$source/tests/data/sample.lcm:broken.relations"
+
+# Seven runs in both files: five now meet the bar, none lost, one more with other figures and the same verdict;
+# one run in the earlier file only. Five of five discordant runs one way: p = 2 / 2^5 = 0.0625.
+run_json() {  # NAME MEAN MAX MEETS
+  printf '{"log": "intel", "run": "%s", "label": "%s", "mean_m": %s, "max_m": %s, "loop_closures": 1, "meets_bar": %s}' \
+    "$1" "$1" "$2" "$3" "$4"
+}
+{
+  echo '{"runs": ['
+  for r in whole start-3 start-10 start-20 decimation-3; do run_json $r 0.2 3.0 false && echo ,; done
+  run_json decimation-10 0.05 1.0 true && echo ,
+  run_json max-iterations-40 0.05 1.0 true && echo ,
+  run_json keyframe-distance-0.6 0.05 1.0 true
+  echo ']}'
+} >earlier.json
+{
+  echo '{"runs": ['
+  for r in whole start-3 start-10 start-20 decimation-3; do run_json $r 0.04 0.9 true && echo ,; done
+  run_json decimation-10 0.06 1.1 true && echo ,
+  run_json max-iterations-40 0.05 1.0 true
+  echo ']}'
+} >later.json
+"$script" --compare earlier.json later.json >out.txt 2>err.txt
+status=$?
+want=(
+  "against earlier.json (7 runs in both): 2 -> 7 meet the bar; 5 now meet it, 0 no longer do (McNemar's exact test: p = 0.06); 6 runs' figures changed"
+  "  now meets  intel  start-20                        0.200 / 3.00 m -> 0.040 / 0.90 m"
+  "  in one file only, left out: intel keyframe-distance-0.6"
+)
+for line in "${want[@]}"; do
+  if [[ $status -ne 0 ]] || ! grep -qxF -- "$line" out.txt; then
+    echo "FAILED: --compare: exit $status, wanted 0 and the line '$line'; stdout:"
+    cat out.txt err.txt
+    failed=1
+  fi
+done
+if [[ $(grep -c "^  now meets" out.txt) -ne 5 ]] || grep -q "^  no longer" out.txt; then
+  echo "FAILED: --compare: wanted five runs that now meet the bar and none lost:"
+  cat out.txt
+  failed=1
+fi
+printf '{"runs": [%s]}' "$(run_json other 0.05 1.0 true | sed 's/"intel"/"aces"/')" >other.json
+expect "missing.json: no such file" --compare missing.json later.json
+expect "broken.relations: not a slam-robustness --json file" --compare broken.relations later.json
+expect "other.json: no run in common" --compare other.json later.json
+expect "--compare takes two --json files and no logs" --compare earlier.json later.json broken.bag:ok.relations
+expect "missing.json: no such file" --against missing.json broken.bag:ok.relations
+expect "no LOG:RELATIONS given" --runs whole
 exit $failed
