@@ -70,6 +70,12 @@ printf '{"runs": [%s]}' "$(run_json other 0.05 1.0 true | sed 's/"intel"/"aces"/
 expect "missing.json: no such file" --compare missing.json later.json
 expect "broken.relations: not a slam-robustness --json file" --compare broken.relations later.json
 expect "other.json: no run in common" --compare other.json later.json
+# A run without its figures (hand-edited, or from another tool) is refused by the key it lacks, not silently dropped:
+# dropping it would leave the count and the test on fewer runs than the file holds.
+printf '{"runs": [%s, {"log": "intel", "run": "start-3", "label": "start-3"}]}' \
+  "$(run_json whole 0.05 1.0 true)" >nofigures.json
+expect "nofigures.json: not a slam-robustness --json file (KeyError: \"run 2 has no 'mean_m'\")" \
+  --compare nofigures.json later.json
 expect "--compare takes two --json files and no logs" --compare earlier.json later.json broken.bag:ok.relations
 expect "missing.json: no such file" --against missing.json broken.bag:ok.relations
 expect "no LOG:RELATIONS given" --runs whole
