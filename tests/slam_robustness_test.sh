@@ -2,7 +2,8 @@
 # scripts/slam-robustness on bad input: each gives one line naming the file (or the run) and exit status 2; a
 # relations file driftlab eval refuses, found after the replays, too, however many runs failed on it. Its runs on
 # real logs are docs/tutorial-public-dataset.md's block (docs.run.tutorial-public-dataset). And --compare on two
-# --json files: the runs that now meet the bar and those that no longer do, with McNemar's exact test on them.
+# --json files: the runs that now meet the bar and those that no longer do, with McNemar's exact test on them. And
+# --more: the ten further runs, each replayed once with its own arguments and settings (a stand-in driftlab).
 #   tests/slam_robustness_test.sh SOURCE_DIR BIN_DIR
 set -uo pipefail
 source=$(realpath "$1")
@@ -20,7 +21,7 @@ expect "missing.lcm: no such file" missing.lcm:ok.relations
 expect "missing.relations: no such file" broken.bag:missing.relations
 expect "broken.lcm: expected LOG:RELATIONS" broken.lcm
 expect "broken.bag: driftlab import failed" broken.bag:ok.relations
-expect "--runs: no run named 'start-5'" --runs whole,start-5 broken.bag:ok.relations
+expect "--runs: no run named 'start-7'" --runs whole,start-7 broken.bag:ok.relations
 expect "--set match_odometry: expected KEY=VALUE" --set match_odometry broken.bag:ok.relations
 expect "nowhere/driftlab: no such program" --bin "$tmp/nowhere" broken.bag:ok.relations
 expect "broken.relations: driftlab eval failed" --runs whole,start-3,start-10 --jobs 3 \
@@ -79,4 +80,52 @@ expect "nofigures.json: not a slam-robustness --json file (KeyError: \"run 2 has
 expect "--compare takes two --json files and no logs" --compare earlier.json later.json broken.bag:ok.relations
 expect "missing.json: no such file" --against missing.json broken.bag:ok.relations
 expect "no LOG:RELATIONS given" --runs whole
+
+# --more: which runs it replays and with what. A stand-in driftlab (the real one's replays take minutes) notes each
+# replay's arguments and settings and answers as the real one does; every run must reach it, in order, once.
+mkdir fake
+cat >fake/driftlab <<'FAKE'
+#!/usr/bin/env bash
+# replay LOG --modules slam --json -o OUT [--start S] [--config YAML]: one line "[--start S] | settings" in calls.txt
+if [[ $1 == eval ]]; then
+  echo '{"relations": {"trans_m": {"mean": 0.05, "max": 1.0}}}'
+  exit 0
+fi
+[[ $1 == replay ]] || exit 1
+shift 2
+start="" settings=""
+while (($#)); do
+  case $1 in
+    -o) : >"$2" && shift ;;
+    --start) start="--start $2" && shift ;;
+    --config) settings=$(grep -v ':$' "$2" | tr -d ' ' | paste -sd ' ') && shift ;;
+  esac
+  shift
+done
+echo "$start | $settings" >>"$(dirname "$0")/calls.txt"
+echo '{"modules": [{"name": "slam", "metrics": {"loop_closures": 3}}]}'
+FAKE
+chmod +x fake/driftlab
+cp "$source/tests/data/sample.lcm" s.lcm
+"$source/scripts/slam-robustness" --bin fake --jobs 1 --runs whole,start-5 --more --set loop_radius=2 \
+  --json more.json s.lcm:ok.relations >out.txt 2>err.txt
+status=$?
+python3 - more.json fake/calls.txt <<'PY' || failed=1
+import json, sys
+runs = [r["run"] for r in json.load(open(sys.argv[1]))["runs"]]
+want = ["whole", "start-5", "start-15", "start-30", "decimation-4", "decimation-7", "max-iterations-60",
+        "keyframe-distance-0.4", "keyframe-distance-0.45", "local-map-keyframes-12", "min-dist-between-points-0.065"]
+calls = open(sys.argv[2]).read().splitlines()
+ok = runs == want and len(calls) == len(want)
+for line in ("--start 30 | loop_radius:2", " | loop_radius:2 decimation:7", " | loop_radius:2 min_dist_between_points:0.065"):
+    ok &= line in calls
+if not ok:
+    print("FAILED: --more: runs", runs, "replays", calls)
+    sys.exit(1)
+PY
+if [[ $status -ne 0 ]] || ! grep -q "^11 of 11 runs meet the bar" out.txt; then
+  echo "FAILED: --more: exit $status, wanted 0 and '11 of 11 runs meet the bar':"
+  cat out.txt err.txt
+  failed=1
+fi
 exit $failed
