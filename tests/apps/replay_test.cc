@@ -12,6 +12,7 @@
 #include "core/log_reader.h"
 #include "core/log_writer.h"
 #include "lcmtypes/stream_header.h"
+#include "tests/doc_figures.h"
 #include "tests/test_util.h"
 
 namespace driftlab {
@@ -243,6 +244,9 @@ TEST_F(ReplayCli, SlamMapsTheSessionAndFeedsTheEstimator) {
   // Freiburg clinic is further off (tests/slam/carmen_test.cc), and slam.2d.match_odometry may be weighed in.
   EXPECT_GT(slam["metrics"]["odometry_heading_checks"].get<double>(), 500);
   EXPECT_LE(slam["metrics"]["odometry_heading_q90"].get<double>(), 2.0);
+  test::expect_doc_figures("docs/slam.md", "**Which logs it suits: the odometry's heading against the matches.**",
+                           "the simulator's default scenario (60 s)", 1,
+                           {slam["metrics"]["odometry_heading_q90"].get<double>()});
   // match_odometry auto decides after 600 checks; a session with fewer stays off (SlamWeighsInGoodOdometry).
   EXPECT_LT(slam["metrics"]["odometry_heading_checks"].get<double>(), 600);
   EXPECT_EQ(slam["metrics"]["match_odometry_auto"].get<double>(), 0);

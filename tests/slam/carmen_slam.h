@@ -17,6 +17,7 @@
 
 #include "driftlab/loop_closure_t.hpp"
 #include "driftlab/pose_t.hpp"
+#include "tests/doc_figures.h"
 #include "tests/test_util.h"
 
 namespace driftlab::test {
@@ -42,6 +43,28 @@ inline nlohmann::json driftlab_json(const std::string& args) {
 /// The relation error (Kuemmerle et al.) of a pose source against a relations file: `driftlab eval --relations`.
 inline nlohmann::json relation_error(const std::string& est, const std::string& relations) {
   return driftlab_json("eval --est " + est + " --relations " + relations + " --json")["relations"];
+}
+
+/// docs/slam.md's table of every benchmark log: the row `label` holds a run's figures (its scans, the relation
+/// error's mean and maximum, loop closures with those refused by chi2 and those undone), `metrics` the replay's and
+/// `error` relation_error's.
+inline void expect_benchmark_row(const std::string& label, const nlohmann::json& metrics, const nlohmann::json& error) {
+  const std::string page = "docs/slam.md", table = "### Every benchmark log we could obtain";
+  const auto metric = [&](const char* name) { return metrics[name].get<double>(); };
+  expect_doc_figures(page, table, label, 1, {metric("scans")});
+  expect_doc_figures(page, table, label, 2, {error["trans_m"]["mean"].get<double>()});
+  expect_doc_figures(page, table, label, 3, {error["trans_m"]["max"].get<double>()});
+  expect_doc_figures(page, table, label, 4,
+                     {metric("loop_closures"), metric("loop_rejected_chi2"), metric("loop_undone")});
+}
+
+/// docs/slam.md's tables of what the odometry's heading says of a log ("Odometry in the match"): its row `label`
+/// holds `odometry_heading_q90` and, where `auto_q90` is set, `match_odometry_auto_q90` of the defaults' run.
+inline void expect_heading_rows(const std::string& label, const nlohmann::json& metrics) {
+  expect_doc_figures("docs/slam.md", "**Which logs it suits: the odometry's heading against the matches.**", label, 1,
+                     {metrics["odometry_heading_q90"].get<double>()});
+  expect_doc_figures("docs/slam.md", "**`auto`, the default: the log decides.**", label, 1,
+                     {metrics["match_odometry_auto_q90"].get<double>()});
 }
 
 /// SLAM_LOOPS says what became of every loop test: one final record per test, in the counts the metrics give, and

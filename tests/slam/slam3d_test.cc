@@ -22,6 +22,7 @@
 #include "sim/scenario.h"
 #include "sim/simulator.h"
 #include "slam/slam3d.h"
+#include "tests/doc_figures.h"
 #include "tests/fakes/fake_bus.h"
 #include "tests/test_util.h"
 
@@ -166,7 +167,13 @@ class Slam3dSession : public ::testing::Test {
                 metric(r.counters, "max_fitness_m2"));
     EXPECT_LT(r.ate, bound) << label;
     EXPECT_LT(r.ate, 0.03 * still) << label;
+    expect_doc_row(label, {r.ate});
     return r.ate;
+  }
+
+  /// docs/slam.md's table of these runs (3D, "Accuracy"): the row `label` holds `values`.
+  static void expect_doc_row(const std::string& label, const std::vector<double>& values) {
+    test::expect_doc_figures("docs/slam.md", "`tests/slam/slam3d_test.cc` simulates 25 s", label, 1, values);
   }
 
   static test::TempDir* dir_;
@@ -193,6 +200,9 @@ TEST_F(Slam3dSession, NdtFollowsTheRobotAndWritesAPcdMap) {
   EXPECT_LT(r.ate, 0.02 * still);
   EXPECT_EQ(r.counters.dropped, 0);
   EXPECT_TRUE(r.counters.warnings.empty());
+  expect_doc_row("ndt", {r.ate});
+  expect_doc_row("standing still (a wrong answer)", {still});
+  expect_doc_row("the wheel odometry alone", {odo});
   // Poses are stamped with their cloud's stamp, base_link in map, the first at the origin.
   EXPECT_NEAR(r.path.positions[0].norm(), 0, 1e-9);
 
@@ -239,6 +249,7 @@ TEST_F(Slam3dSession, NdtFollowsTheRobotWithoutOdometry) {
   EXPECT_LT(r.ate, 0.02 * still);
   EXPECT_EQ(r.counters.dropped, 0);
   EXPECT_TRUE(r.counters.warnings.empty());  // odom_channel "" asks for no odometry: nothing to warn about
+  expect_doc_row("ndt without odometry (registration alone)", {r.ate});
 }
 
 TEST_F(Slam3dSession, RegistrationCorrectsAWrongPrior) {
@@ -256,6 +267,7 @@ TEST_F(Slam3dSession, RegistrationCorrectsAWrongPrior) {
   EXPECT_LT(r.ate, 0.05);
   EXPECT_LT(r.ate, 0.1 * prior);
   EXPECT_EQ(r.counters.dropped, 0);
+  expect_doc_row("ndt with the odometry made 10% too long", {r.ate, prior});
 }
 
 TEST_F(Slam3dSession, CountsRejectedAndUnusableCloudsAsDropped) {
