@@ -127,23 +127,28 @@ struct Dataset {
   const char* accuracy;  ///< ... but the one of "Accuracy on real data"
 };
 
-/// docs/slam.md's table of the logs with `match_odometry: true` ("Odometry in the match"): the row `label` holds
-/// what the log `raw` (imported) gives with it, scored against `relations`: the relation error's mean and maximum,
-/// loop closures (refused by chi2, undone). Returns the mean.
-double expect_match_odometry_row(const std::string& label, const test::TempDir& dir, const std::string& raw,
-                                 const std::string& relations) {
-  std::ofstream(dir.file("match-odometry.yaml")) << "slam:\n  2d: {match_odometry: true}\n";
-  const std::string out = dir.file("match-odometry.lcm");
-  const auto replay = test::driftlab_json("replay " + raw + " --modules slam --config " +
-                                          dir.file("match-odometry.yaml") + " --json -o " + out);
-  const auto& metrics = replay["modules"][0]["metrics"];
-  const auto error = test::relation_error(out + ":SLAM_TRAJECTORY", relations);
+/// docs/slam.md's table of the logs with `match_odometry: true` ("Odometry in the match"): the row `label` holds a
+/// run's relation error (mean and maximum) and loop closures (refused by chi2, undone).
+void expect_match_odometry_figures(const std::string& label, const nlohmann::json& metrics,
+                                   const nlohmann::json& error) {
   const auto metric = [&](const char* name) { return metrics[name].get<double>(); };
   const std::string page = "docs/slam.md", table = "### Odometry in the match";
   test::expect_doc_figures(page, table, label, 1, {error["trans_m"]["mean"].get<double>()});
   test::expect_doc_figures(page, table, label, 2, {error["trans_m"]["max"].get<double>()});
   test::expect_doc_figures(page, table, label, 3,
                            {metric("loop_closures"), metric("loop_rejected_chi2"), metric("loop_undone")});
+}
+
+/// The same row for the log `raw` (imported) replayed with the setting, scored against `relations`. Returns the
+/// mean.
+double expect_match_odometry_row(const std::string& label, const test::TempDir& dir, const std::string& raw,
+                                 const std::string& relations) {
+  std::ofstream(dir.file("match-odometry.yaml")) << "slam:\n  2d: {match_odometry: true}\n";
+  const std::string out = dir.file("match-odometry.lcm");
+  const auto replay = test::driftlab_json("replay " + raw + " --modules slam --config " +
+                                          dir.file("match-odometry.yaml") + " --json -o " + out);
+  const auto error = test::relation_error(out + ":SLAM_TRAJECTORY", relations);
+  expect_match_odometry_figures(label, replay["modules"][0]["metrics"], error);
   return error["trans_m"]["mean"].get<double>();
 }
 
@@ -618,12 +623,7 @@ TEST(SlamMatchOdometry, OnAcesEveryMatchWeighsItInAndTheBarHolds) {
   std::printf("aces with match_odometry: relation error %.4f m, max %.3f m\n", mean, max);
   EXPECT_LT(mean, 0.10);
   EXPECT_LT(max, 1.5);
-  const std::string page = "docs/slam.md", table = "### Odometry in the match";
-  test::expect_doc_figures(page, table, "ACES", 1, {mean});
-  test::expect_doc_figures(page, table, "ACES", 2, {max});
-  test::expect_doc_figures(page, table, "ACES", 3,
-                           {metrics["loop_closures"].get<double>(), metrics["loop_rejected_chi2"].get<double>(),
-                            metrics["loop_undone"].get<double>()});
+  expect_match_odometry_figures("ACES", metrics, error);
 }
 
 // Not on Intel: its odometry's heading is further from its matches than ACES's (SlamOnTheBenchmark; auto leaves it
@@ -730,12 +730,8 @@ TEST(SlamMatchOdometry, TheClinicMeetsTheMeanAndMissesOnlyWhereTheOdometryAndThe
   const auto& metrics = replay["modules"][0]["metrics"];
   test::expect_benchmark_row("Freiburg clinic (bag)", metrics, error);
   test::expect_benchmark_row("Freiburg clinic (bag), `match_odometry: false`", off["modules"][0]["metrics"], off_error);
-  const std::string page = "docs/slam.md", table = "### Odometry in the match";
-  test::expect_doc_figures(page, table, "Freiburg clinic", 1, {mean});
-  test::expect_doc_figures(page, table, "Freiburg clinic", 2, {error["trans_m"]["max"].get<double>()});
-  test::expect_doc_figures(page, table, "Freiburg clinic", 3,
-                           {metrics["loop_closures"].get<double>(), metrics["loop_rejected_chi2"].get<double>(),
-                            metrics["loop_undone"].get<double>()});
+  expect_match_odometry_figures("Freiburg clinic", metrics, error);
+  const std::string page = "docs/slam.md";
   test::expect_doc_figures(page, "**Which logs it suits: the odometry's heading against the matches.**",
                            "Freiburg clinic", 1,
                            {metrics["odometry_heading_q90"].get<double>(),
