@@ -58,8 +58,8 @@ inline void expect_benchmark_row(const std::string& label, const nlohmann::json&
                      {metric("loop_closures"), metric("loop_rejected_chi2"), metric("loop_undone")});
 }
 
-/// docs/slam.md's tables of what the odometry's heading says of a log ("Odometry in the match"): its row `label`
-/// holds `odometry_heading_q90` and, where `auto_q90` is set, `match_odometry_auto_q90` of the defaults' run.
+/// docs/slam.md's two tables of what the odometry's heading says of a log ("Odometry in the match"): their rows
+/// `label` hold the defaults' run's `odometry_heading_q90` and `match_odometry_auto_q90`.
 inline void expect_heading_rows(const std::string& label, const nlohmann::json& metrics) {
   expect_doc_figures("docs/slam.md", "**Which logs it suits: the odometry's heading against the matches.**", label, 1,
                      {metrics["odometry_heading_q90"].get<double>()});

@@ -368,14 +368,12 @@ INSTANTIATE_TEST_SUITE_P(
         MoreLog{"fr079", "fr079.orig.bag", "fr079.relations", "", "", "Freiburg 079 (bag)", "Freiburg 079"},
         MoreLog{"mit_csail", "mit-csail.orig.bag", "mit-csail.relations", "", "", "MIT CSAIL (bag)", "MIT CSAIL"},
         MoreLog{"mit_csail_clf", "mit-csail.clf", "mit-csail.relations", "", "", "MIT CSAIL (`.clf`)"},
-        // Folded (2.03 m) until a far search whose best pose lay near its
-        // window's edge searched again in a wider one: with one point in 3 the
-        // front end drifts further, the place was just beyond the window, and
-        // a door 1.7 m down the corridor inside it was taken (and confirmed).
+        // Folded (2.03 m) until a far search whose best pose lay near its window's edge searched again in a wider
+        // one: with one point in 3 the front end drifts further, the place was just beyond the window, and a door
+        // 1.7 m down the corridor inside it was taken (and confirmed).
         MoreLog{"mit_csail_decimation_3", "mit-csail.orig.bag", "mit-csail.relations", "{decimation: 3}"},
-        // Its FLASER lines do not say the scanner's maximum, and its longest
-        // reading (51.22 m) occurs once: the module finds the no-return code
-        // (51.06 m) itself and says so (SlamOnKillian).
+        // Its FLASER lines do not say the scanner's maximum, and its longest reading (51.22 m) occurs once: the
+        // module finds the no-return code (51.06 m) itself and says so (SlamOnKillian).
         MoreLog{"mit_killian_clf", "mit-killian.clf", "mit-killian.relations", "", "are the scanner's no-return code"}),
     [](const auto& info) { return std::string(info.param.name); });
 
