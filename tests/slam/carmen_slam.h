@@ -45,24 +45,34 @@ inline nlohmann::json relation_error(const std::string& est, const std::string& 
   return driftlab_json("eval --est " + est + " --relations " + relations + " --json")["relations"];
 }
 
-/// docs/slam.md's table of every benchmark log: the row `label` holds a run's figures (its scans, the relation
-/// error's mean and maximum, loop closures with those refused by chi2 and those undone), `metrics` the replay's and
-/// `error` relation_error's.
-inline void expect_benchmark_row(const std::string& label, const nlohmann::json& metrics, const nlohmann::json& error) {
-  const std::string page = "docs/slam.md", table = "### Every benchmark log we could obtain";
+/// A run's figures in a table of docs/slam.md (the one after the line holding `table`): from `column` on, the row
+/// `label` holds the relation error's mean and maximum and the loop closures with those refused by chi2 and those
+/// undone; `metrics` are the replay's, `error` relation_error's.
+inline void expect_run_row(const std::string& table, const std::string& label, size_t column,
+                           const nlohmann::json& metrics, const nlohmann::json& error) {
   const auto metric = [&](const char* name) { return metrics[name].get<double>(); };
-  expect_doc_figures(page, table, label, 1, {metric("scans")});
-  expect_doc_figures(page, table, label, 2, {error["trans_m"]["mean"].get<double>()});
-  expect_doc_figures(page, table, label, 3, {error["trans_m"]["max"].get<double>()});
-  expect_doc_figures(page, table, label, 4,
+  expect_doc_figures("docs/slam.md", table, label, column, {error["trans_m"]["mean"].get<double>()});
+  expect_doc_figures("docs/slam.md", table, label, column + 1, {error["trans_m"]["max"].get<double>()});
+  expect_doc_figures("docs/slam.md", table, label, column + 2,
                      {metric("loop_closures"), metric("loop_rejected_chi2"), metric("loop_undone")});
 }
 
+/// docs/slam.md's table of every benchmark log: the row `label` holds a run's scans, then its figures as above.
+inline void expect_benchmark_row(const std::string& label, const nlohmann::json& metrics, const nlohmann::json& error) {
+  const std::string table = "### Every benchmark log we could obtain";
+  expect_doc_figures("docs/slam.md", table, label, 1, {metrics["scans"].get<double>()});
+  expect_run_row(table, label, 2, metrics, error);
+}
+
 /// docs/slam.md's two tables of what the odometry's heading says of a log ("Odometry in the match"): their rows
-/// `label` hold the defaults' run's `odometry_heading_q90` and `match_odometry_auto_q90`.
-inline void expect_heading_rows(const std::string& label, const nlohmann::json& metrics) {
+/// `label` hold the defaults' run's `odometry_heading_q90` (then `also`, where the row has more) and
+/// `match_odometry_auto_q90`.
+inline void expect_heading_rows(const std::string& label, const nlohmann::json& metrics,
+                                const std::vector<double>& also = {}) {
+  std::vector<double> heading = {metrics["odometry_heading_q90"].get<double>()};
+  heading.insert(heading.end(), also.begin(), also.end());
   expect_doc_figures("docs/slam.md", "**Which logs it suits: the odometry's heading against the matches.**", label, 1,
-                     {metrics["odometry_heading_q90"].get<double>()});
+                     heading);
   expect_doc_figures("docs/slam.md", "**`auto`, the default: the log decides.**", label, 1,
                      {metrics["match_odometry_auto_q90"].get<double>()});
 }

@@ -127,20 +127,8 @@ struct Dataset {
   const char* accuracy;  ///< ... but the one of "Accuracy on real data"
 };
 
-/// docs/slam.md's table of the logs with `match_odometry: true` ("Odometry in the match"): the row `label` holds a
-/// run's relation error (mean and maximum) and loop closures (refused by chi2, undone).
-void expect_match_odometry_figures(const std::string& label, const nlohmann::json& metrics,
-                                   const nlohmann::json& error) {
-  const auto metric = [&](const char* name) { return metrics[name].get<double>(); };
-  const std::string page = "docs/slam.md", table = "### Odometry in the match";
-  test::expect_doc_figures(page, table, label, 1, {error["trans_m"]["mean"].get<double>()});
-  test::expect_doc_figures(page, table, label, 2, {error["trans_m"]["max"].get<double>()});
-  test::expect_doc_figures(page, table, label, 3,
-                           {metric("loop_closures"), metric("loop_rejected_chi2"), metric("loop_undone")});
-}
-
-/// The same row for the log `raw` (imported) replayed with the setting, scored against `relations`. Returns the
-/// mean.
+/// docs/slam.md's table of the logs with `match_odometry: true` ("Odometry in the match"): the row `label` holds
+/// what the log `raw` (imported) gives with it, scored against `relations` (test::expect_run_row). Returns the mean.
 double expect_match_odometry_row(const std::string& label, const test::TempDir& dir, const std::string& raw,
                                  const std::string& relations) {
   std::ofstream(dir.file("match-odometry.yaml")) << "slam:\n  2d: {match_odometry: true}\n";
@@ -148,7 +136,7 @@ double expect_match_odometry_row(const std::string& label, const test::TempDir& 
   const auto replay = test::driftlab_json("replay " + raw + " --modules slam --config " +
                                           dir.file("match-odometry.yaml") + " --json -o " + out);
   const auto error = test::relation_error(out + ":SLAM_TRAJECTORY", relations);
-  expect_match_odometry_figures(label, replay["modules"][0]["metrics"], error);
+  test::expect_run_row("### Odometry in the match", label, 1, replay["modules"][0]["metrics"], error);
   return error["trans_m"]["mean"].get<double>();
 }
 
@@ -621,7 +609,7 @@ TEST(SlamMatchOdometry, OnAcesEveryMatchWeighsItInAndTheBarHolds) {
   std::printf("aces with match_odometry: relation error %.4f m, max %.3f m\n", mean, max);
   EXPECT_LT(mean, 0.10);
   EXPECT_LT(max, 1.5);
-  expect_match_odometry_figures("ACES", metrics, error);
+  test::expect_run_row("### Odometry in the match", "ACES", 1, metrics, error);
 }
 
 // Not on Intel: its odometry's heading is further from its matches than ACES's (SlamOnTheBenchmark; auto leaves it
@@ -728,19 +716,19 @@ TEST(SlamMatchOdometry, TheClinicMeetsTheMeanAndMissesOnlyWhereTheOdometryAndThe
   const auto& metrics = replay["modules"][0]["metrics"];
   test::expect_benchmark_row("Freiburg clinic (bag)", metrics, error);
   test::expect_benchmark_row("Freiburg clinic (bag), `match_odometry: false`", off["modules"][0]["metrics"], off_error);
-  expect_match_odometry_figures("Freiburg clinic", metrics, error);
-  const std::string page = "docs/slam.md";
-  test::expect_doc_figures(page, "**Which logs it suits: the odometry's heading against the matches.**",
-                           "Freiburg clinic", 1,
-                           {metrics["odometry_heading_q90"].get<double>(),
-                            off["modules"][0]["metrics"]["odometry_heading_q90"].get<double>()});
-  test::expect_doc_figures(page, "**`auto`, the default: the log decides.**", "Freiburg clinic", 1,
-                           {metrics["match_odometry_auto_q90"].get<double>()});
+  test::expect_run_row("### Odometry in the match", "Freiburg clinic", 1, metrics, error);
+  test::expect_heading_rows("Freiburg clinic", metrics,
+                            {off["modules"][0]["metrics"]["odometry_heading_q90"].get<double>()});
 
   const Poses2d ours = poses_on(dir.file("slam.lcm"), "SLAM_TRAJECTORY"),
                 odometry = poses_on(dir.file("raw.lcm"), "/odom");
   auto rel = analyzers::load_relations(relations);
   ASSERT_TRUE(rel) << rel.error().message;
+  const Scans2d scans = scans_on(dir.file("raw.lcm"));
+  const double start = static_cast<double>(odometry.begin()->first) * 1e-6;  // the log's first scan
+  auto stamp = [&](double t) { return ours.lower_bound(std::llround(t * 1e6) - 100)->first; };
+  int far_off = 0;
+  std::vector<double> agreeing;  // control: reference's overlap over ours, on loop relations where the two agree
   // Where the mean comes from: the relation errors summed over the short relations (at most 30 s) and the long
   // ones, ours and the wheel odometry's alone. Over the short ones ours is within 15% of the wheels' (ours 1.08
   // times): it weighs them in where a scan is weak, and the front end without them was 0.081 m in median against
@@ -750,37 +738,13 @@ TEST(SlamMatchOdometry, TheClinicMeetsTheMeanAndMissesOnlyWhereTheOdometryAndThe
     const auto *a = pose_at(ours, r.t1), *b = pose_at(ours, r.t2);
     const auto *oa = pose_at(odometry, r.t1), *ob = pose_at(odometry, r.t2);
     ASSERT_TRUE(a && b && oa && ob) << r.t1 << " " << r.t2;
-    const size_t k = r.t2 - r.t1 > 30 ? 1 : 0;
     const auto step = seen_from(*a, *b), wheels = seen_from(*oa, *ob);
-    count[k] += 1;
-    ours_sum[k] += std::hypot(step[0] - r.translation.x(), step[1] - r.translation.y());
-    odometry_sum[k] += std::hypot(wheels[0] - r.translation.x(), wheels[1] - r.translation.y());
-  }
-  std::printf(
-      "clinic: relations' errors summed: %.0f short ones, ours %.1f m, the odometry's %.1f m; %.0f long ones, "
-      "%.1f m and %.1f m\n",
-      count[0], ours_sum[0], odometry_sum[0], count[1], ours_sum[1], odometry_sum[1]);
-  EXPECT_LT(ours_sum[0], 1.15 * odometry_sum[0]);
-  for (size_t k : {0, 1}) {
-    const char* row = k == 0 ? "at most 30 s apart" : "longer";
-    const std::string table = "| the clinic's relations |";
-    test::expect_doc_figures("docs/slam.md", table, row, 1, {count[k]});
-    test::expect_doc_figures("docs/slam.md", table, row, 2, {ours_sum[k]});
-    test::expect_doc_figures("docs/slam.md", table, row, 3, {odometry_sum[k]});
-  }
-
-  const Scans2d scans = scans_on(dir.file("raw.lcm"));
-  const double start = static_cast<double>(odometry.begin()->first) * 1e-6;  // the log's first scan
-  auto stamp = [&](double t) { return ours.lower_bound(std::llround(t * 1e6) - 100)->first; };
-  int far_off = 0;
-  std::vector<double> agreeing;  // control: reference's overlap over ours, on loop relations where the two agree
-  for (const auto& r : *rel) {
-    const auto *a = pose_at(ours, r.t1), *b = pose_at(ours, r.t2);
-    const auto *oa = pose_at(odometry, r.t1), *ob = pose_at(odometry, r.t2);
-    ASSERT_TRUE(a && b && oa && ob) << r.t1 << " " << r.t2;
-    const auto step = seen_from(*a, *b);
     const std::array<double, 3> reference = {r.translation.x(), r.translation.y(), yaw_of(r.rotation)};
     const double off = std::hypot(step[0] - reference[0], step[1] - reference[1]);
+    const size_t span = r.t2 - r.t1 > 30 ? 1 : 0;
+    count[span] += 1;
+    ours_sum[span] += off;
+    odometry_sum[span] += std::hypot(wheels[0] - reference[0], wheels[1] - reference[1]);
     const bool loop = r.t2 - r.t1 > 100;
     if (off < 1.5 && !(loop && off < 0.1)) continue;
     const auto first = place_around(scans, ours, stamp(r.t1), kPlaceWindow),
@@ -792,7 +756,7 @@ TEST(SlamMatchOdometry, TheClinicMeetsTheMeanAndMissesOnlyWhereTheOdometryAndThe
       continue;
     }
     ++far_off;
-    const double odometry_turn = seen_from(*oa, *ob)[2];
+    const double odometry_turn = wheels[2];
     const double reference_off = std::abs(std::remainder(reference[2] - odometry_turn, 2 * M_PI));
     const double ours_off = std::abs(std::remainder(step[2] - odometry_turn, 2 * M_PI));
     std::printf(
@@ -815,6 +779,18 @@ TEST(SlamMatchOdometry, TheClinicMeetsTheMeanAndMissesOnlyWhereTheOdometryAndThe
   EXPECT_NEAR(agreeing[agreeing.size() / 2], 1.0, 0.2);
   EXPECT_GT(agreeing.front(), 1.0 / 3);  // no agreeing relation where ours overlaps 3 times the reference's
   EXPECT_LE(far_off, 20);  // a handful of relations, not a fold (the defaults: 115, up to 73 m off)
+  std::printf(
+      "clinic: relations' errors summed: %.0f short ones, ours %.1f m, the odometry's %.1f m; %.0f long ones, "
+      "%.1f m and %.1f m\n",
+      count[0], ours_sum[0], odometry_sum[0], count[1], ours_sum[1], odometry_sum[1]);
+  EXPECT_LT(ours_sum[0], 1.15 * odometry_sum[0]);
+  for (size_t k : {0, 1}) {
+    const char* row = k == 0 ? "at most 30 s apart" : "longer";
+    const std::string table = "| the clinic's relations |";
+    test::expect_doc_figures("docs/slam.md", table, row, 1, {count[k]});
+    test::expect_doc_figures("docs/slam.md", table, row, 2, {ours_sum[k]});
+    test::expect_doc_figures("docs/slam.md", table, row, 3, {odometry_sum[k]});
+  }
 }
 
 INSTANTIATE_TEST_SUITE_P(Carmen, SlamOnTheBenchmark,
