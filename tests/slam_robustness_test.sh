@@ -3,7 +3,8 @@
 # relations file driftlab eval refuses, found after the replays, too, however many runs failed on it. Its runs on
 # real logs are docs/tutorial-public-dataset.md's block (docs.run.tutorial-public-dataset). And --compare on two
 # --json files: the runs that now meet the bar and those that no longer do, with McNemar's exact test on them. And
-# --more: the ten further runs, each replayed once with its own arguments and settings (a stand-in driftlab).
+# --more: the ten further runs, and --vary's, each replayed once with its own arguments and settings (a stand-in
+# driftlab).
 #   tests/slam_robustness_test.sh SOURCE_DIR BIN_DIR
 set -uo pipefail
 source=$(realpath "$1")
@@ -23,6 +24,9 @@ expect "broken.lcm: expected LOG:RELATIONS" broken.lcm
 expect "broken.bag: driftlab import failed" broken.bag:ok.relations
 expect "--runs: no run named 'start-7'" --runs whole,start-7 broken.bag:ok.relations
 expect "--set match_odometry: expected KEY=VALUE" --set match_odometry broken.bag:ok.relations
+expect "--vary threshold_ang: expected KEY=VALUE" --vary threshold_ang broken.bag:ok.relations
+expect "--vary keyframe_distance=0.4: given twice" --vary keyframe_distance=0.4 --vary keyframe_distance=0.4 \
+  broken.bag:ok.relations
 expect "nowhere/driftlab: no such program" --bin "$tmp/nowhere" broken.bag:ok.relations
 expect "broken.relations: driftlab eval failed" --runs whole,start-3,start-10 --jobs 3 \
   "$source/tests/data/sample.lcm:broken.relations"
@@ -107,9 +111,21 @@ echo '{"modules": [{"name": "slam", "metrics": {"loop_closures": 3}}]}'
 FAKE
 chmod +x fake/driftlab
 cp "$source/tests/data/sample.lcm" s.lcm
-"$source/scripts/slam-robustness" --bin fake --jobs 1 --runs whole,start-5 --more --set loop_radius=2 \
-  --json more.json s.lcm:ok.relations >out.txt 2>err.txt
-status=$?
+# fake_run NAME PATTERN ARGS...: the script with the stand-in, one replay at a time, calls.txt fresh, its --json
+# NAME.json; wants exit status 0 and a line of what it prints matching PATTERN.
+fake_run() {
+  local name=$1 pattern=$2
+  shift 2
+  rm -f fake/calls.txt
+  "$source/scripts/slam-robustness" --bin fake --jobs 1 --json "$name.json" "$@" s.lcm:ok.relations >out.txt 2>err.txt
+  local status=$?
+  if [[ $status -ne 0 ]] || ! grep -q -- "$pattern" out.txt; then
+    echo "FAILED: --$name: exit $status, wanted 0 and a line matching '$pattern':"
+    cat out.txt err.txt
+    failed=1
+  fi
+}
+fake_run more "^11 of 11 runs meet the bar" --runs whole,start-5 --more --set loop_radius=2
 python3 - more.json fake/calls.txt <<'PY' || failed=1
 import json, sys
 runs = [r["run"] for r in json.load(open(sys.argv[1]))["runs"]]
@@ -123,9 +139,19 @@ if not ok:
     print("FAILED: --more: runs", runs, "replays", calls)
     sys.exit(1)
 PY
-if [[ $status -ne 0 ]] || ! grep -q "^11 of 11 runs meet the bar" out.txt; then
-  echo "FAILED: --more: exit $status, wanted 0 and '11 of 11 runs meet the bar':"
-  cat out.txt err.txt
-  failed=1
-fi
+
+# --vary: one run per setting after the named ones, that setting on top of --set's, named and labelled by it.
+fake_run vary "^s  threshold_ang: 5  *0.050 m    1.00 m      3$" --runs whole --vary threshold_ang=5 \
+  --vary loop_min_goodness=0.6 --set loop_radius=2
+python3 - vary.json fake/calls.txt <<'PY' || failed=1
+import json, sys
+runs = [(r["run"], r["label"]) for r in json.load(open(sys.argv[1]))["runs"]]
+want = [("whole", "the whole log"), ("threshold_ang=5", "threshold_ang: 5"),
+        ("loop_min_goodness=0.6", "loop_min_goodness: 0.6")]
+calls = open(sys.argv[2]).read().splitlines()
+if runs != want or calls != [" | loop_radius:2", " | loop_radius:2 threshold_ang:5",
+                             " | loop_radius:2 loop_min_goodness:0.6"]:
+    print("FAILED: --vary: runs", runs, "replays", calls)
+    sys.exit(1)
+PY
 exit $failed

@@ -650,7 +650,9 @@ TEST(SlamRescueNear, OnIntelWithFortyIterationsTheRescuedTestsCloseLoopsAndTheBa
       const auto r = test::decode<driftlab::loop_closure_t>(e);
       ++searches[rescue][r.search];
       if (r.outcome == "accepted") ++searches[rescue][r.search + " accepted"];
-      if (r.search == "near-far") EXPECT_LE(r.radius_m, 2.5) << "a near test's reach";
+      if (r.search == "near-far") {
+        EXPECT_LE(r.radius_m, 2.5) << "a near test's reach";
+      }
     }
     if (rescue == "false") continue;
     const auto error = test::relation_error(out + ":SLAM_TRAJECTORY", files.relations);
