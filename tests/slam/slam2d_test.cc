@@ -21,6 +21,7 @@
 #include "replayer/replayer.h"
 #include "slam/rawlog.h"
 #include "slam/slam2d.h"
+#include "tests/doc_figures.h"
 #include "tests/fakes/fake_bus.h"
 #include "tests/slam/icp_slam.h"
 #include "tests/test_util.h"
@@ -120,6 +121,13 @@ TEST(Slam2d, AgreesWithMrptIcpSlamOnTheSenaDataset) {
   EXPECT_LT(rms, 0.03);
   EXPECT_LT(worst, 0.15);
   EXPECT_LT(worst_yaw, 0.02);
+  const std::string page = "docs/slam.md", table = "### The icp-slam method against MRPT's icp-slam";
+  const std::string row = "ours against icp-slam's";
+  test::expect_doc_figures(page, table, row, 1, {static_cast<double>(k)});
+  test::expect_doc_figures(page, table, row, 2, {100 * rms});
+  test::expect_doc_figures(page, table, row, 3, {100 * worst});
+  test::expect_doc_figures(page, table, row, 4, {worst_yaw * 180 / M_PI});
+  test::expect_doc_figures(page, table, row, 5, {std::hypot(icp.back().x, icp.back().y)});
   // The occupancy map beside the output log.
   EXPECT_GT(std::filesystem::file_size(dir.file("slam-map.png")), 1000u);
   std::ifstream yaml(dir.file("slam-map.yaml"));
