@@ -57,15 +57,17 @@ inline std::vector<std::string> printed_numbers(const std::string& text) {
 
 /// Expects a number as a page prints it to be `value`: a decimal within one unit of its last digit (0.031 takes
 /// 0.030 to 0.032), as the doc runner compares a console block's numbers; a whole number rounded (118 takes 117.99;
-/// a count of 563 only 563). A failure names `where` and asks for the figure to be regenerated.
-inline void expect_printed(const std::string& where, const std::string& printed, double value) {
+/// a count of 563 only 563). A failure names `where` and asks for the figure to be regenerated; `source` is what
+/// gives the value (the code, or the page a figure is quoted from).
+inline void expect_printed(const std::string& where, const std::string& printed, double value,
+                           const std::string& source = "the code") {
   std::string digits = printed;
   digits.erase(std::remove(digits.begin(), digits.end(), ','), digits.end());
   const size_t point = digits.find('.');
   const double unit =
       point == std::string::npos ? 0.5 : std::pow(10.0, -static_cast<double>(digits.size() - point - 1));
   EXPECT_LE(std::abs(std::strtod(digits.c_str(), nullptr) - value), unit * (1 + 1e-9))
-      << where << " says " << printed << "; the code gives " << value
+      << where << " says " << printed << "; " << source << " gives " << value
       << " now: run the commands that measure it again and put their figures in";
 }
 
@@ -98,14 +100,16 @@ inline std::string doc_text_between(const std::string& page, const std::string& 
 /// Expects the figures of such a stretch of prose to be `values` as printed (expect_printed), NaN for a figure
 /// another test checks (the README's sentence on Intel and ACES, each log's test checking its own).
 inline void expect_doc_text_figures(const std::string& page, const std::string& from, const std::string& to,
-                                    const std::vector<double>& values) {
+                                    const std::vector<double>& values, const std::string& source = "the code") {
   const std::string where = page + ", the text after \"" + from + "\"";
   const std::string text = doc_text_between(page, from, to);
   ASSERT_FALSE(text.empty()) << where << ": no such text up to \"" << to << "\"";
   const auto printed = printed_numbers(text);
   ASSERT_EQ(printed.size(), values.size()) << where << ": \"" << text << "\"";
   for (size_t i = 0; i < values.size(); ++i) {
-    if (!std::isnan(values[i])) expect_printed(where + ", figure " + std::to_string(i + 1), printed[i], values[i]);
+    if (!std::isnan(values[i])) {
+      expect_printed(where + ", figure " + std::to_string(i + 1), printed[i], values[i], source);
+    }
   }
 }
 

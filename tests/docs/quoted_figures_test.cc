@@ -1,0 +1,115 @@
+// Figures a page quotes from another page, where that other page is the one kept up to date: timings measured by
+// scripts/bench live in docs/benchmarks.md (never asserted in a timed test), so the README's speed claims and the
+// pages that repeat them are held to it; and docs/slam.md's robustness count to the table that tests check row by
+// row. When a benchmark is run again and its figure moves, the quoting page fails here until it says the same.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cstdlib>
+#include <string>
+#include <vector>
+
+#include "tests/doc_figures.h"
+
+namespace driftlab {
+namespace {
+
+/// The numbers of `text` as values (printed_numbers, thousands' commas dropped).
+std::vector<double> values_of(const std::string& text) {
+  std::vector<double> values;
+  for (std::string printed : test::printed_numbers(text)) {
+    printed.erase(std::remove(printed.begin(), printed.end(), ','), printed.end());
+    values.push_back(std::strtod(printed.c_str(), nullptr));
+  }
+  return values;
+}
+
+/// The numbers of a cell of a table row (test::doc_table_row); fails the test when the row or column is not there.
+std::vector<double> cell_numbers(const std::string& page, const std::string& after, const std::string& label,
+                                 size_t column) {
+  const auto row = test::doc_table_row(page, after, label);
+  EXPECT_GT(row.size(), column) << page << ", the table after \"" << after << "\": no row \"" << label
+                                << "\" with a column " << column;
+  return row.size() > column ? values_of(row[column]) : std::vector<double>{};
+}
+
+/// The numbers of a stretch of prose (test::doc_text_between); fails the test when it is not there.
+std::vector<double> text_numbers(const std::string& page, const std::string& from, const std::string& to) {
+  const std::string text = test::doc_text_between(page, from, to);
+  EXPECT_FALSE(text.empty()) << page << ": no text from \"" << from << "\" to \"" << to << "\"";
+  return values_of(text);
+}
+
+const char* const kBenchmarks = "docs/benchmarks.md";
+const char* const kMeasured = "docs/benchmarks.md (scripts/bench)";
+
+// The simulator's speed: the README says the slowest of the three runs of the default scenario, as the target does.
+TEST(QuotedFigures, TheReadmeSaysTheSimulatorsRealTimeFactor) {
+  const auto runs = cell_numbers(kBenchmarks, "## Simulator", "indoor (default)", 1);
+  ASSERT_EQ(runs.size(), 3u) << "docs/benchmarks.md's simulator table: three runs of the default scenario";
+  test::expect_doc_text_figures("README.md", "written to a log with the fault manifest; ", "x real time on one core",
+                                {*std::min_element(runs.begin(), runs.end())}, kMeasured);
+}
+
+// Trajectory evaluation: the README's "over N times faster" is against evo's own time (the benchmark's second
+// ratio; its first is against the slower numpy reference), so N must not exceed it.
+TEST(QuotedFigures, TheReadmeSaysHowMuchFasterThanEvo) {
+  const auto ratios = cell_numbers(kBenchmarks, "## Trajectory evaluation", "100,000", 3);
+  ASSERT_EQ(ratios.size(), 3u) << "docs/benchmarks.md's eval table: \"NNNx (about NNNx against evo's reported N s)\"";
+  const auto claim = text_numbers("README.md", "with evo's numbers (to 1e-6) over ", " times faster");
+  ASSERT_EQ(claim.size(), 1u);
+  EXPECT_LE(claim[0], ratios[1]) << "README.md says over " << claim[0] << " times evo's speed; docs/benchmarks.md "
+                                 << "measured " << ratios[1] << "x";
+}
+
+// The recorder: no loss at 200k msg/s where lcm-logger lost its share (README), and the loss at 100k msg/s and of
+// 1 MB messages (docs/recorder.md).
+TEST(QuotedFigures, TheRecorderPagesSayTheMeasuredLosses) {
+  const auto peer_200k = cell_numbers(kBenchmarks, "## Recorder", "200,000", 2);
+  const auto ours_200k = cell_numbers(kBenchmarks, "## Recorder", "200,000", 3);
+  ASSERT_EQ(peer_200k.size(), 2u) << "lcm-logger's loss: \"N (P%)\"";
+  ASSERT_EQ(ours_200k.size(), 1u);
+  EXPECT_EQ(ours_200k[0], 0) << "README.md says driftlab record loses none at 200k msg/s";
+  // "none at 200k msg/s here, where `lcm-logger` loses P%": the row's rate in thousands, and its loss.
+  test::expect_doc_text_figures("README.md", "without the losses of stock `lcm-logger` (none at ", "%), and writes",
+                                {200, peer_200k[1]}, kMeasured);
+
+  const auto peer_100k = cell_numbers(kBenchmarks, "## Recorder", "100,000", 2);
+  const auto ours_100k = cell_numbers(kBenchmarks, "## Recorder", "100,000", 3);
+  ASSERT_EQ(peer_100k.size(), 2u);
+  ASSERT_EQ(ours_100k.size(), 1u);
+  const auto large = text_numbers(kBenchmarks, "for 60 s: `lcm-logger` lost ", "%;");
+  ASSERT_EQ(large.size(), 3u) << "docs/benchmarks.md: \"lost N of M (P%\" for 1 MB messages";
+  const auto ours_large = text_numbers(kBenchmarks, "`driftlab record` lost ", " (15 GB written)");
+  ASSERT_EQ(ours_large.size(), 1u);
+  EXPECT_EQ(ours_100k[0] + ours_large[0], 0) << "docs/recorder.md says driftlab loses none";
+  // "P% of 64-byte messages at 100k msg/s, and P% of 1 MB messages at 250 MB/s": the sizes and rates are the
+  // benchmark's conditions, not figures it measures.
+  test::expect_doc_text_figures("docs/recorder.md",
+                                "the machine carries (`docs/benchmarks.md`: ", ", while driftlab loses none)",
+                                {peer_100k[1], NAN, NAN, large[2], NAN, NAN}, kMeasured);
+}
+
+// The log reader: docs/architecture.md's "reads Nx faster for small messages" is the benchmark's 100 B read ratio.
+TEST(QuotedFigures, TheArchitectureSaysTheReadersSpeedUp) {
+  const auto ratio = cell_numbers(kBenchmarks, "## Log I/O", "read 100 B", 3);
+  ASSERT_EQ(ratio.size(), 1u);
+  test::expect_doc_text_figures("docs/architecture.md", "(`docs/benchmarks.md`: reads ", "x faster for small",
+                                {ratio[0]}, kMeasured);
+}
+
+// docs/slam.md's "N of the M runs meet the bar": the sum of the robustness table's counts, each row of which a
+// test checks (Intel's and ACES's the tutorial's block, the other four SlamRobustness).
+TEST(QuotedFigures, TheRobustnessCountIsTheTablesSum) {
+  double met = 0, runs = 0;
+  for (const char* log : {"Intel", "ACES", "Freiburg 079", "MIT CSAIL", "Freiburg clinic", "MIT Killian Court"}) {
+    const auto count = cell_numbers("docs/slam.md", "### How robust: ten runs of each log", log, 1);
+    ASSERT_EQ(count.size(), 2u) << "docs/slam.md's robustness table, " << log << ": \"N of M\"";
+    met += count[0], runs += count[1];
+  }
+  test::expect_doc_text_figures("docs/slam.md", "all ten folded (0.14-2.9 m mean). ", " runs meet the bar", {met, runs},
+                                "the robustness table's rows");
+}
+
+}  // namespace
+}  // namespace driftlab
