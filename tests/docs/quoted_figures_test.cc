@@ -1,7 +1,8 @@
 // Figures a page quotes from another page, where that other page is the one kept up to date: timings measured by
 // scripts/bench live in docs/benchmarks.md (never asserted in a timed test), so the README's speed claims and the
-// pages that repeat them are held to it; and docs/slam.md's robustness count to the table that tests check row by
-// row. When a benchmark is run again and its figure moves, the quoting page fails here until it says the same.
+// pages that repeat them are held to it; docs/simulator.md's drone figures to the tutorial whose blocks run; and
+// docs/slam.md's robustness count to the table that tests check row by row. When the page quoted moves a figure (a
+// benchmark run again, a tutorial regenerated), the quoting page fails here until it says the same.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -96,6 +97,31 @@ TEST(QuotedFigures, TheArchitectureSaysTheReadersSpeedUp) {
   ASSERT_EQ(ratio.size(), 1u);
   test::expect_doc_text_figures("docs/architecture.md", "(`docs/benchmarks.md`: reads ", "x faster for small",
                                 {ratio[0]}, kMeasured);
+}
+
+// docs/simulator.md's account of the drone with its IMU 110 ms ahead quotes the tutorial that runs it: the share of
+// the IMU rejected, how much worse the setpoints are tracked, and the clock offset diagnose finds.
+TEST(QuotedFigures, TheSimulatorPageSaysWhatTheDroneTutorialMeasures) {
+  const char* const tutorial = "docs/tutorial-why-does-my-drone-ignore-its-imu.md";
+  const auto late = cell_numbers(tutorial, "| flight | IMU rejected", "IMU 110 ms ahead, as logged", 1);
+  const auto late_tracking = cell_numbers(tutorial, "| flight | IMU rejected", "IMU 110 ms ahead, as logged", 2);
+  const auto clean_tracking = cell_numbers(tutorial, "| flight | IMU rejected", "clean (`drone.yaml`)", 2);
+  const auto offset = text_numbers(tutorial, "restamp IMU: +", " ms, +0 ppm");
+  ASSERT_EQ(late.size(), 1u);
+  ASSERT_EQ(late_tracking.size(), 1u);
+  ASSERT_EQ(clean_tracking.size(), 1u);
+  ASSERT_EQ(offset.size(), 1u);
+  test::expect_doc_text_figures("docs/simulator.md", "(PX4 EKF2's rule) and rejects ", " ms ahead; `driftlab replay",
+                                {late[0], late_tracking[0] / clean_tracking[0], offset[0]}, tutorial);
+}
+
+// docs/report.md's arm plot moves the measured motion by the delay diagnose measures, which docs/replay.md's block
+// prints when it re-times the same run's commands.
+TEST(QuotedFigures, TheReportPageSaysTheArmsDelay) {
+  const auto delay = text_numbers("docs/replay.md", "retime ARM_CMD: each command starts ", " ms before it arrived");
+  ASSERT_EQ(delay.size(), 1u);
+  test::expect_doc_text_figures("docs/report.md", "late, and the measured motion moved ", " ms earlier", {delay[0]},
+                                "docs/replay.md");
 }
 
 // docs/slam.md's "N of the M runs meet the bar": the sum of the robustness table's counts, each row of which a
