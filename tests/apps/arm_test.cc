@@ -23,6 +23,7 @@
 #include "driftlab/pose_t.hpp"
 #include "driftlab/robot_description_t.hpp"
 #include "kinematics/arm_chain.h"
+#include "tests/doc_figures.h"
 #include "tests/test_util.h"
 
 namespace driftlab {
@@ -175,6 +176,16 @@ TEST(ArmEval, MobileRunReachesTheGoalWithItsOdometryAndTheArmTracksOnTheMovingBa
       "(%.3f, %.3f); EE %.2f mm max, %.3f deg max\n",
       travelled, worst_m, worst_heading * 180 / kPi, veer * 180 / kPi, end.x(), end.y(),
       a["ee"]["position_m"]["max"].get<double>() * 1e3, a["ee"]["rotation_deg"]["max"].get<double>());
+  // The simulator's page and the arm tutorial say these figures (the run's 22 s and the route's 6 m are settings).
+  const double ee_mm = a["ee"]["position_m"]["max"].get<double>() * 1e3;
+  const double ee_deg = a["ee"]["rotation_deg"]["max"].get<double>();
+  test::expect_doc_text_figures("docs/simulator.md", "The base ends at (", " degree of the commanded plan",
+                                {end.x(), end.y(), NAN, worst_m, worst_heading * 180 / kPi, NAN, ee_mm, ee_deg});
+  test::expect_doc_text_figures("docs/tutorial-why-does-my-arm-oscillate.md",
+                                "so the base's motion is not counted as the arm's error: ", "° at most over the first",
+                                {ee_mm, ee_deg});
+  test::expect_doc_text_figures("docs/tutorial-why-does-my-arm-oscillate.md", "and the odometry stays within ",
+                                " m of the truth over the", {worst_m});
 }
 
 // Against the controller's desired state, eval's numbers are what the URDF's FK of ARM_STATE's desired joints gives
@@ -317,6 +328,8 @@ TEST(ArmClosedLoop, RestampedTheDriftingCommandersCommandsAreNoLongerStale) {
   };
   EXPECT_GT(stale(log), 100);
   EXPECT_EQ(stale(fixed), 0);
+  test::expect_doc_text_figures("docs/tutorial-why-does-my-arm-oscillate.md", "as stale, where it rejected ",
+                                " (tests/apps/arm_test.cc", {static_cast<double>(stale(log))});
 }
 
 TEST(ArmEval, BadInputIsOneLineAndExitCode2) {

@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cstdlib>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "tests/doc_figures.h"
@@ -122,6 +123,31 @@ TEST(QuotedFigures, TheReportPageSaysTheArmsDelay) {
   ASSERT_EQ(delay.size(), 1u);
   test::expect_doc_text_figures("docs/report.md", "late, and the measured motion moved ", " ms earlier", {delay[0]},
                                 "docs/replay.md");
+}
+
+// The SLAM tutorial's table "side by side" is its evaluations' rmse column and drift: each row against the block that
+// prints it (the blocks run as the doc test; the table is prose to the runner).
+TEST(QuotedFigures, TheSlamDriftTutorialsTableSaysItsBlocks) {
+  const std::string page = "docs/tutorial-why-does-my-slam-drift.md";
+  const std::pair<const char*, const char*> rows[] = {
+      {"wheel odometry (`ODOM`)", "--est clean.lcm:ODOM --align posyaw"},
+      {"2D SLAM (`SLAM_POSE`, MRPT ICP)", "--est slam.lcm:SLAM_POSE --align posyaw"}};
+  for (const auto& [label, command] : rows) {
+    // ATE's six statistics, RPE's six, then the drift in % of distance.
+    const auto printed = text_numbers(page, command, " % of distance");
+    ASSERT_EQ(printed.size(), 13u) << page << ", the block of " << command;
+    const double ate = printed[0], rpe = printed[6], drift = printed[12];
+    const std::string where = page + ", the table \"side by side\", row \"" + label + "\"";
+    const std::string source = "its block (" + std::string(command) + ")";
+    const std::vector<std::pair<size_t, double>> cells = {{1, ate}, {2, rpe}, {3, drift}};
+    for (const auto& [column, value] : cells) {
+      const auto row = test::doc_table_row(page, "| estimate | ATE |", label);
+      ASSERT_GT(row.size(), column) << where;
+      const auto figures = test::printed_numbers(row[column]);
+      ASSERT_EQ(figures.size(), 1u) << where << ", column " << column;
+      test::expect_printed(where + ", column " + std::to_string(column), figures[0], value, source);
+    }
+  }
 }
 
 // docs/slam.md's "N of the M runs meet the bar": the sum of the robustness table's counts, each row of which a

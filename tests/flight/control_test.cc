@@ -12,6 +12,7 @@
 #include <string>
 
 #include "flight/vehicle.h"
+#include "tests/doc_figures.h"
 #include "tests/flight/rigid_body.h"
 
 namespace driftlab::flight {
@@ -98,6 +99,8 @@ TEST(Cascade, TakesOffHoldsAgainstWindAndTracksALeg) {
     ++n;
   });
   RecordProperty("leg_rms_m", std::to_string(std::sqrt(sum / n)));
+  driftlab::test::expect_doc_text_figures("docs/flight.md", "the cascade held the hover within ",
+                                          " m RMS; the modules'", {worst, std::sqrt(sum / n)});
   EXPECT_LT(std::sqrt(sum / n), 0.3);
   EXPECT_LT((f.body().p - Eigen::Vector3d(4, 0, 2)).norm(), 0.1);
   EXPECT_LT(Eigen::AngleAxisd(f.body().q).angle(), 0.2);  // level, but for the tilt into the wind

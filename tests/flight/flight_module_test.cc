@@ -19,6 +19,7 @@
 #include "driftlab/vehicle_status_t.hpp"
 #include "flight/offboard_module.h"
 #include "runtime/module_input.h"
+#include "tests/doc_figures.h"
 #include "tests/fakes/fake_bus.h"
 #include "tests/flight/rigid_body.h"
 
@@ -155,6 +156,8 @@ TEST(FlightModule, FliesTheMissionAndLands) {
   RecordProperty("hover_worst_m", std::to_string(hover_worst));
   RecordProperty("tracking_rms_m", std::to_string(std::sqrt(sum / std::max(n, 1))));
   RecordProperty("top_m", std::to_string(world.top));
+  driftlab::test::expect_doc_text_figures("docs/flight.md", "mission topped out at ", " m RMS.",
+                                          {world.top, hover_worst, std::sqrt(sum / std::max(n, 1))});
   EXPECT_GT(world.top, 1.95);
   EXPECT_LT(world.top, 2.25);  // the climb stops at 1 m/s: a 10% overshoot at most
   EXPECT_LT(hover_worst, 0.1);

@@ -14,6 +14,7 @@
 #include "driftlab/trajectory_setpoint_t.hpp"
 #include "driftlab/vehicle_status_t.hpp"
 #include "sim/simulator.h"
+#include "tests/doc_figures.h"
 #include "tests/test_util.h"
 
 namespace driftlab::sim {
@@ -168,6 +169,11 @@ TEST_F(Drone, TakesOffHoversFliesTheSquareAndLands) {
   EXPECT_LT(t.climb_top, 2.4) << "the climb overshoots little";
   EXPECT_LT(t.mission_rms, 0.3);
   EXPECT_TRUE(t.landed_disarmed);
+  // The pages that tell this flight say these figures.
+  test::expect_doc_text_figures("docs/simulator.md", "The clean scenario takes off, hovers ", " m RMS from take-off",
+                                {t.hover_height, t.climb_top, t.hover_spread, NAN, t.mission_rms});
+  test::expect_doc_text_figures("docs/flight.md", "judged on the true path): hovers ", " m RMS and lands",
+                                {t.hover_height, t.climb_top, t.hover_spread, t.mission_rms});
 }
 
 }  // namespace

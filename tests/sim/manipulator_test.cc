@@ -18,6 +18,7 @@
 #include "driftlab/tf_t.hpp"
 #include "kinematics/arm_chain.h"
 #include "sim/simulator.h"
+#include "tests/doc_figures.h"
 #include "tests/test_util.h"
 
 namespace driftlab::sim {
@@ -130,6 +131,10 @@ TEST_F(Manipulator, EndEffectorTracksThePlanWithin1cmAnd1Degree) {
   EXPECT_GT(travel, 0.3);  // it did move: the pick and place are 0.55 m apart
   std::printf("EE vs desired: max %.4f m, %.4f deg; FK vs physics %.5f m\n", worst_m, worst_rad * 180 / kPi,
               worst_fk_m);
+  test::expect_doc_text_figures("docs/simulator.md", "The clean scenario tracks the plan within ",
+                                " degree at the end effector", {worst_m * 1e3, worst_rad * 180 / kPi});
+  test::expect_doc_text_figures("docs/simulator.md", "and the links sit within ", " mrad of the URDF's FK",
+                                {worst_fk_m * 1e3, worst_fk_rad * 1e3});
 }
 
 TEST_F(Manipulator, JointsStayWithinTheirLimitsAndEveryCommandIsTaken) {
@@ -246,6 +251,9 @@ TEST_F(Manipulator, LatencyScenarioDelaysEveryCommandAndTheArmLags) {
   }
   std::printf("latency: hand %.4f m RMS from the clean run, %.4f m at its best shift of %lld ms\n", same_time, best,
               static_cast<long long>(best_shift / 1000));
+  test::expect_doc_text_figures("docs/simulator.md",
+                                "follows the clean run's motion late: ", " ms (the commander's correction",
+                                {same_time * 1e3, best * 1e3, static_cast<double>(best_shift) / 1e3});
 }
 
 TEST(ManipulatorClock, CommandsStampedInThePastAreRejectedAsStale) {
