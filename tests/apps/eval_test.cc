@@ -9,12 +9,14 @@
 #include <functional>
 #include <nlohmann/json.hpp>
 #include <random>
+#include <vector>
 
 #include "analyzers/trajectory.h"
 #include "analyzers/trajectory_io.h"
 #include "core/log_writer.h"
 #include "driftlab/pose_t.hpp"
 #include "driftlab/trajectory_setpoint_t.hpp"
+#include "tests/doc_figures.h"
 #include "tests/test_util.h"
 
 namespace driftlab {
@@ -121,6 +123,7 @@ TEST(EvalOffsetAuto, FindsTheShiftOfARealTrajectoryAndNoneWhereThereIsNone) {
   const std::pair<const char*, const char*> pairs[] = {{"freiburg1_xyz-groundtruth.txt", "freiburg1_xyz-rgbdslam.txt"},
                                                        {"fr2_desk_groundtruth.txt", "fr2_desk_ORB.txt"},
                                                        {"fr2_desk_groundtruth.txt", "fr2_desk_ORB_kf_mono.txt"}};
+  std::vector<double> found_ms, confidence;  // each pair's, as published
   for (const auto& [gt_name, est_name] : pairs) {
     SCOPED_TRACE(est_name);
     const std::string gt = evo_data(gt_name), est = evo_data(est_name);
@@ -137,6 +140,8 @@ TEST(EvalOffsetAuto, FindsTheShiftOfARealTrajectoryAndNoneWhereThereIsNone) {
     // capture: what is found is small, a fraction of the camera's 33 ms frame (the evaluator's --max-dt is 10 ms).
     EXPECT_LT(std::abs(found), 0.015);
     EXPECT_GE(as_published["offset_auto"]["confidence"].get<double>(), 0.9);
+    found_ms.push_back(found * 1e3);
+    confidence.push_back(as_published["offset_auto"]["confidence"].get<double>());
     test::TempDir dir;
     for (const double shift : {0.35, 1e6}) {
       ASSERT_NO_FATAL_FAILURE(write_shifted(est, dir.file("shifted.txt"), shift));
@@ -145,6 +150,11 @@ TEST(EvalOffsetAuto, FindsTheShiftOfARealTrajectoryAndNoneWhereThereIsNone) {
       EXPECT_NEAR(shifted["offset"].get<double>(), found - shift, 1e-4);
     }
   }
+  // docs/trajectory-evaluation.md says what it finds on each (the other figures of the sentence are names: fr1, fr2,
+  // ORB-SLAM2).
+  test::expect_doc_text_figures(
+      "docs/trajectory-evaluation.md", "RGB-D trajectories it finds ", ", and the same motion restamped",
+      {found_ms[0], NAN, found_ms[1], NAN, NAN, found_ms[2], NAN, confidence[0], confidence[1], confidence[2]});
 }
 
 // KITTI (with and without its times file) and EuRoC files of a real trajectory give what its TUM file gives.

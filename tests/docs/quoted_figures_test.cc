@@ -116,13 +116,15 @@ TEST(QuotedFigures, TheSimulatorPageSaysWhatTheDroneTutorialMeasures) {
                                 {late[0], late_tracking[0] / clean_tracking[0], offset[0]}, tutorial);
 }
 
-// docs/report.md's arm plot moves the measured motion by the delay diagnose measures, which docs/replay.md's block
-// prints when it re-times the same run's commands.
-TEST(QuotedFigures, TheReportPageSaysTheArmsDelay) {
+// The latency arm's delay, as diagnose measures it: docs/replay.md's block prints it when it re-times the run's
+// commands; docs/report.md's arm plot moves the measured motion by it, and docs/simulator.md quotes it.
+TEST(QuotedFigures, ThePagesSayTheArmsDelayAsTheReplayMeasuresIt) {
   const auto delay = text_numbers("docs/replay.md", "retime ARM_CMD: each command starts ", " ms before it arrived");
   ASSERT_EQ(delay.size(), 1u);
   test::expect_doc_text_figures("docs/report.md", "late, and the measured motion moved ", " ms earlier", {delay[0]},
                                 "docs/replay.md");
+  test::expect_doc_text_figures("docs/simulator.md", "arrived less the delay diagnose measured (",
+                                " ms), on a controller", {delay[0]}, "docs/replay.md");
 }
 
 // The SLAM tutorial's table "side by side" is its evaluations' rmse column and drift: each row against the block that
