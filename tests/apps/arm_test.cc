@@ -326,10 +326,11 @@ TEST(ArmClosedLoop, RestampedTheDriftingCommandersCommandsAreNoLongerStale) {
     }
     return n;
   };
-  EXPECT_GT(stale(log), 100);
+  const int stale_as_logged = stale(log);
+  EXPECT_GT(stale_as_logged, 100);
   EXPECT_EQ(stale(fixed), 0);
   test::expect_doc_text_figures("docs/tutorial-why-does-my-arm-oscillate.md", "as stale, where it rejected ",
-                                " (tests/apps/arm_test.cc", {static_cast<double>(stale(log))});
+                                " (tests/apps/arm_test.cc", {static_cast<double>(stale_as_logged)});
 }
 
 TEST(ArmEval, BadInputIsOneLineAndExitCode2) {
