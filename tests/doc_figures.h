@@ -55,6 +55,12 @@ inline std::vector<std::string> printed_numbers(const std::string& text) {
   return printed;
 }
 
+/// The value of a number as a page prints it ("13,631" is 13631).
+inline double printed_value(std::string printed) {
+  printed.erase(std::remove(printed.begin(), printed.end(), ','), printed.end());
+  return std::strtod(printed.c_str(), nullptr);
+}
+
 /// Expects a number as a page prints it to be `value`: a decimal within one unit of its last digit (0.031 takes
 /// 0.030 to 0.032), as the doc runner compares a console block's numbers; a whole number rounded (118 takes 117.99;
 /// a count of 563 only 563). A failure names `where` and asks for the figure to be regenerated; `source` is what
@@ -66,14 +72,15 @@ inline void expect_printed(const std::string& where, const std::string& printed,
   const size_t point = digits.find('.');
   const double unit =
       point == std::string::npos ? 0.5 : std::pow(10.0, -static_cast<double>(digits.size() - point - 1));
-  EXPECT_LE(std::abs(std::strtod(digits.c_str(), nullptr) - value), unit * (1 + 1e-9))
+  EXPECT_LE(std::abs(printed_value(digits) - value), unit * (1 + 1e-9))
       << where << " says " << printed << "; " << source << " gives " << value
       << " now: run the commands that measure it again and put their figures in";
 }
 
 /// Expects the numbers in one cell of such a row (in their order) to be `values` as printed (expect_printed).
 inline void expect_doc_figures(const std::string& page, const std::string& after, const std::string& label,
-                               size_t column, const std::vector<double>& values) {
+                               size_t column, const std::vector<double>& values,
+                               const std::string& source = "the code") {
   const std::string where = page + ", the table after \"" + after + "\", row \"" + label + "\"";
   const auto row = doc_table_row(page, after, label);
   ASSERT_GT(row.size(), column) << where << ": no such row or column " << column;
@@ -81,7 +88,7 @@ inline void expect_doc_figures(const std::string& page, const std::string& after
   const auto printed = printed_numbers(cell);
   ASSERT_EQ(printed.size(), values.size()) << where << ", column " << column << ": \"" << cell << "\"";
   for (size_t i = 0; i < values.size(); ++i) {
-    expect_printed(where + ", column " + std::to_string(column) + " (\"" + cell + "\")", printed[i], values[i]);
+    expect_printed(where + ", column " + std::to_string(column) + " (\"" + cell + "\")", printed[i], values[i], source);
   }
 }
 

@@ -6,7 +6,6 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
-#include <cstdlib>
 #include <string>
 #include <utility>
 #include <vector>
@@ -16,13 +15,10 @@
 namespace driftlab {
 namespace {
 
-/// The numbers of `text` as values (printed_numbers, thousands' commas dropped).
+/// The numbers of `text` as values.
 std::vector<double> values_of(const std::string& text) {
   std::vector<double> values;
-  for (std::string printed : test::printed_numbers(text)) {
-    printed.erase(std::remove(printed.begin(), printed.end(), ','), printed.end());
-    values.push_back(std::strtod(printed.c_str(), nullptr));
-  }
+  for (const std::string& printed : test::printed_numbers(text)) values.push_back(test::printed_value(printed));
   return values;
 }
 
@@ -139,16 +135,10 @@ TEST(QuotedFigures, TheSlamDriftTutorialsTableSaysItsBlocks) {
     const auto printed = text_numbers(page, command, " % of distance");
     ASSERT_EQ(printed.size(), 13u) << page << ", the block of " << command;
     const double ate = printed[0], rpe = printed[6], drift = printed[12];
-    const std::string where = page + ", the table \"side by side\", row \"" + label + "\"";
     const std::string source = "its block (" + std::string(command) + ")";
-    const std::vector<std::pair<size_t, double>> cells = {{1, ate}, {2, rpe}, {3, drift}};
-    for (const auto& [column, value] : cells) {
-      const auto row = test::doc_table_row(page, "| estimate | ATE |", label);
-      ASSERT_GT(row.size(), column) << where;
-      const auto figures = test::printed_numbers(row[column]);
-      ASSERT_EQ(figures.size(), 1u) << where << ", column " << column;
-      test::expect_printed(where + ", column " + std::to_string(column), figures[0], value, source);
-    }
+    test::expect_doc_figures(page, "| estimate | ATE |", label, 1, {ate}, source);
+    test::expect_doc_figures(page, "| estimate | ATE |", label, 2, {rpe}, source);
+    test::expect_doc_figures(page, "| estimate | ATE |", label, 3, {drift}, source);
   }
 }
 
