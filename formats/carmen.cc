@@ -14,6 +14,7 @@
 
 #include <zlib.h>
 #include <algorithm>
+#include <array>
 
 #include <charconv>
 #include <climits>
@@ -97,10 +98,34 @@ std::string laser_frame(std::string_view name) {
   return k == "1" ? "laser" : k == "2" ? "rear_laser" : "laser" + std::string(k);
 }
 
-/// What a pass over the log learns before converting: the PARAM values and, for FLASER/RLASER (which do not
-/// carry their maximum range), the largest reading and how often it occurs.
+/// The pose of a ROBOTLASERk line's laser in its robot's frame (x, y, yaw): the line carries both poses, so its
+/// laser's mounting, where no PARAM says it (the Freiburg clinic's log: the laser 0.22 m ahead of the robot).
+/// Empty when the line is too short or a pose is not a finite number (the second pass says what is wrong).
+std::optional<std::array<double, 3>> robotlaser_mounting(const Tokens& t) {
+  auto count = [&](size_t i) -> std::optional<size_t> {
+    auto x = i < t.size() ? number(t[i]) : std::nullopt;
+    if (!x || *x < 0 || *x != std::floor(*x) || *x >= static_cast<double>(t.size())) return std::nullopt;
+    return static_cast<size_t>(*x);
+  };
+  const auto n = count(8);  // after the name: type start fov resolution max_range accuracy remission_mode n
+  const auto m = n ? count(9 + *n) : std::nullopt;
+  if (!m) return std::nullopt;
+  std::array<double, 6> pose{};  // laser x y theta, robot x y theta
+  for (size_t i = 0; i < pose.size(); ++i) {
+    auto x = 10 + *n + *m + i < t.size() ? number(t[10 + *n + *m + i]) : std::nullopt;
+    if (!x || !std::isfinite(*x)) return std::nullopt;
+    pose[i] = *x;
+  }
+  const double dx = pose[0] - pose[3], dy = pose[1] - pose[4], c = std::cos(pose[5]), s = std::sin(pose[5]);
+  return std::array<double, 3>{c * dx + s * dy, -s * dx + c * dy,
+                               std::remainder(pose[2] - pose[5], 2 * std::numbers::pi)};
+}
+
+/// What a pass over the log learns before converting: the PARAM values; for FLASER/RLASER (which do not carry
+/// their maximum range), the largest reading and how often it occurs; for ROBOTLASERk, its first line's mounting.
 struct Preamble {
   std::map<std::string, double, std::less<>> params;
+  std::map<std::string, std::array<double, 3>, std::less<>> mounting;      // laser frame -> x, y, yaw
   std::map<std::string, std::pair<double, int64_t>, std::less<>> longest;  // laser -> (reading, count)
   std::map<std::string, int64_t, std::less<>> readings;                   // laser -> readings seen
 
@@ -272,6 +297,11 @@ int64_t CarmenReader::read(const std::function<void(const CarmenMessage&)>& on_m
   for_lines([&](size_t, const Tokens& t) {
     if (t[0] == "PARAM" && t.size() >= 3) {
       if (auto v = number(t[2])) pre.params[std::string(t[1])] = *v;
+    } else if (t[0].starts_with("ROBOTLASER") && !laser_number(t[0]).empty()) {
+      const std::string frame = laser_frame(t[0]);
+      if (!pre.mounting.contains(frame)) {
+        if (auto mount = robotlaser_mounting(t)) pre.mounting[frame] = *mount;
+      }
     } else if ((t[0] == "FLASER" || t[0] == "RLASER") && t.size() > 2) {
       auto n = number(t[1]);
       if (!n || *n < 0 || *n + 2 > static_cast<double>(t.size())) return;
@@ -301,15 +331,24 @@ int64_t CarmenReader::read(const std::function<void(const CarmenMessage&)>& on_m
     tf_t tf{};
     tf.header.utime = stamp;
     tf.header.frame_id = "base_link";
-    for (const auto& [frame, offset, yaw] :
-         {std::tuple{"laser", pre.param("robot_frontlaser_offset").value_or(0), 0.0},
-          std::tuple{"rear_laser", pre.param("robot_rearlaser_offset").value_or(0), std::numbers::pi}}) {
+    // A laser's mounting: PARAM robot_{front,rear}laser_offset (CARMEN's robot module, straight ahead or behind),
+    // else what its ROBOTLASER lines say, else on the robot's centre.
+    std::map<std::string, std::array<double, 3>, std::less<>> mounts = pre.mounting;
+    for (const auto& [frame, param, yaw] : {std::tuple{"laser", "robot_frontlaser_offset", 0.0},
+                                            std::tuple{"rear_laser", "robot_rearlaser_offset", std::numbers::pi}}) {
+      if (auto offset = pre.param(param)) {
+        mounts[frame] = {*offset, 0, yaw};
+      } else if (!mounts.contains(frame)) {
+        mounts[frame] = {0, 0, yaw};
+      }
+    }
+    for (const auto& [frame, mount] : mounts) {
       transform_t x{};
       x.header.utime = stamp;
       x.header.frame_id = "base_link";
       x.child_frame_id = frame;
-      x.translation = {offset, 0, 0};
-      x.rotation = yaw_quaternion(yaw);
+      x.translation = {mount[0], mount[1], 0};
+      x.rotation = yaw_quaternion(mount[2]);
       tf.transforms.push_back(x);
     }
     tf.ntransforms = static_cast<int32_t>(tf.transforms.size());

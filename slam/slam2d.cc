@@ -126,6 +126,7 @@ struct Slam2d::Impl {
   /// for it already puts them in order.
   int64_t reorder = 0;
   bool pose_stream = false;  ///< the odometry came as driftlab.pose_t
+  int64_t odometry_of_sensor = 0;  ///< odometry messages that gave a sensor's pose, turned into the robot's
   // match_odometry auto: two graphs match each scan, one without the odometry weighed in (`graph`) and one with it
   // (`weighed_graph`), until kDecideChecks scans have been checked against the odometry; then the weighed one goes
   // on if the odometry's heading agrees with the matches (odometry_heading_q90, from the graph without it, at most
@@ -305,10 +306,24 @@ Status Slam2d::start(Bus& bus) {
   }
   if (!c.odom_channel.empty()) {
     bus.subscribe(c.odom_channel, [this, &bus](const BusMessage& m) {
-      const auto o = internal::planar_odometry(m, impl_->non_finite, &impl_->undecodable, &impl_->pose_stream);
+      std::string frame;
+      const auto o = internal::planar_odometry(m, impl_->non_finite, &impl_->undecodable, &impl_->pose_stream, &frame);
       if (!o) return;
       ++impl_->odometry;
-      impl_->odom.add(o->first, o->second);
+      // The pose of a sensor mounted on the robot (a CARMEN laser line's laser pose, its mounting on TF_STATIC):
+      // the robot's is that pose with the mounting taken off. Taken as the robot's, a turn on the spot would read
+      // as the robot driving the mounting's arc.
+      Pose2 pose = o->second;
+      const auto mount = impl_->sensor_on_base.find(frame);
+      if (frame != impl_->c.base_frame && mount != impl_->sensor_on_base.end() &&
+          !(mount->second.x() == 0 && mount->second.y() == 0 && mount->second.phi() == 0)) {
+        const auto& m = mount->second;  // sensor = robot (+) m, so robot = sensor (+) m^-1
+        const double yaw = wrap_angle(pose.yaw - m.phi());
+        pose = Pose2{pose.x - std::cos(yaw) * m.x() + std::sin(yaw) * m.y(),
+                     pose.y - std::sin(yaw) * m.x() - std::cos(yaw) * m.y(), yaw};
+        ++impl_->odometry_of_sensor;
+      }
+      impl_->odom.add(o->first, pose);
       impl_->first_odometry = std::min(impl_->first_odometry, o->first);
       if (impl_->graph) {
         impl_->newest_odometry = std::max(impl_->newest_odometry, o->first);
@@ -553,6 +568,9 @@ ModuleCounters Slam2d::counters() const {
     if (d.auto_on) c.metrics.emplace_back("match_odometry_auto", *d.auto_on ? 1.0 : 0.0);
     if (d.auto_q90) c.metrics.emplace_back("match_odometry_auto_q90", *d.auto_q90);
     if (d.weighed()) c.metrics.emplace_back("scans_weighed", static_cast<double>(s.weighed));
+    if (d.odometry_of_sensor > 0) {
+      c.metrics.emplace_back("odometry_of_sensor", static_cast<double>(d.odometry_of_sensor));
+    }
     c.metrics.emplace_back("odometry_heading_checks", static_cast<double>(d.graph->odometry_heading_checks()));
     if (const auto q90 = d.graph->odometry_heading_q90()) {
       c.metrics.emplace_back("odometry_heading_q90", *q90);

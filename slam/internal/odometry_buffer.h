@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <deque>
 #include <optional>
+#include <string>
 #include <utility>
 
 #include "core/time.h"
@@ -53,9 +54,11 @@ class OdometryBuffer {
 /// The stamp [us] and planar pose of an odometry message on the bus (driftlab.odometry_t, or any pose stream as
 /// driftlab.pose_t: a CARMEN laser line's odometry, a robot's pose topic), or nullopt when it is malformed (counted
 /// in *malformed) or a number of it is not finite or beyond lcmtypes::kMaxMagnitude (counted by `in`, naming it).
-/// *pose_stream, when given, is set when the message is a driftlab.pose_t.
+/// *pose_stream, when given, is set when the message is a driftlab.pose_t; *child_frame to the frame whose pose it
+/// is (its child_frame_id: base_link, or a sensor's when the pose is the sensor's, as a CARMEN laser line's is).
 inline std::optional<std::pair<int64_t, Pose2>> planar_odometry(const BusMessage& m, NonFiniteInputs& in,
-                                                                int64_t* malformed, bool* pose_stream = nullptr) {
+                                                                int64_t* malformed, bool* pose_stream = nullptr,
+                                                                std::string* child_frame = nullptr) {
   driftlab::odometry_t o;
   if (driftlab::pose_t p; !decode_message(m, o)) {
     if (!decode_message(m, p)) {
@@ -66,7 +69,9 @@ inline std::optional<std::pair<int64_t, Pose2>> planar_odometry(const BusMessage
     o.header = p.header;
     o.position = p.position;
     o.orientation = p.orientation;
+    o.child_frame_id = p.child_frame_id;
   }
+  if (child_frame != nullptr) *child_frame = o.child_frame_id;
   if (!in.finite(m)) return std::nullopt;
   const double yaw = yaw_of(o.orientation);  // NaN for a quaternion of huge numbers
   if (!std::isfinite(yaw)) {

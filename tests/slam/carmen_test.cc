@@ -812,6 +812,108 @@ TEST(SlamMatchOdometry, TheClinicMeetsTheMeanAndMissesOnlyWhereTheOdometryAndThe
   }
 }
 
+// The Freiburg clinic as the benchmark distributes it: a CARMEN log of ODOM and ROBOTLASER1 lines (ricoslam's
+// parser counted 6,917 of each in it, and no FLASER), each ROBOTLASER1 line carrying its laser's pose and its
+// robot's. That file is not in ricoslam's snapshot; this writes one of the same form from ricoslam's bag of it (each
+// scan with the odometry of its stamp, the laser 0.22 m ahead of the robot as the bag's /tf_static says, no PARAM
+// line), imports it as a .clf and replays it: the figures are the bag's, to their last digit (the row of docs/slam.md's
+// table the bag's run fills). With the laser put on the robot's centre, as the importer did before it read the
+// mounting from the lines, the relation error is over the bar's mean (ours: 0.104 m, max 2.44 m): a turn then
+// moves the scans 0.22 m sideways where the odometry says the robot only turned. The benchmark's own file, where it is
+// ($DRIFTLAB_CARMEN_DATA or ../shared/data/carmen), is held to the bar's mean (below).
+TEST(SlamOnTheClinicsClf, ARobotlaserLogGivesTheBagsFigures) {
+  const std::string bag = benchmark_file("fr-clinic_robotlaser.orig.bag");
+  const std::string relations = benchmark_file("fr-clinic.relations");
+  if (bag.empty() || relations.empty()) GTEST_SKIP() << "not in ../shared/data/carmen yet: fr-clinic_robotlaser";
+  test::TempDir dir;
+  ASSERT_EQ(test::run(test::kDriftlabProgram + " import " + bag + " -o " + dir.file("raw.lcm") + " >/dev/null"), 0);
+  std::map<int64_t, driftlab::odometry_t> odometry;
+  std::vector<driftlab::laser_scan_t> scans;
+  double mount = 0;
+  for (const auto& e : test::read_all(dir.file("raw.lcm"))) {
+    if (e.channel == "/scan") scans.push_back(test::decode<driftlab::laser_scan_t>(e));
+    if (e.channel == "/odom") {
+      const auto o = test::decode<driftlab::odometry_t>(e);
+      odometry[o.header.utime] = o;
+    }
+    if (e.channel == "/tf_static") mount = test::decode<driftlab::tf_t>(e).transforms.at(0).translation.x;
+  }
+  ASSERT_EQ(scans.size(), 6917u);
+  ASSERT_NEAR(mount, 0.22, 1e-9);
+  auto write_clf = [&](const std::string& path, const std::string& param, bool odom_lines = true) {
+    std::ofstream out(path);
+    out << "# CARMEN Logfile\n" << param;
+    char buf[160];
+    for (const auto& s : scans) {
+      const auto it = odometry.find(s.header.utime);  // the bag has the odometry at each scan's stamp
+      ASSERT_NE(it, odometry.end()) << s.header.utime;
+      const auto& o = it->second;
+      const double x = o.position.x, y = o.position.y, th = 2 * std::atan2(o.orientation.z, o.orientation.w);
+      const double t = static_cast<double>(s.header.utime) * 1e-6, tv = o.linear_velocity.x, rv = o.angular_velocity.z;
+      std::snprintf(buf, sizeof buf, "ODOM %.6f %.6f %.6f %.6f %.6f 0 %.6f clinic %.6f\n", x, y, th, tv, rv, t, t);
+      if (odom_lines) out << buf;
+      std::snprintf(buf, sizeof buf, "ROBOTLASER1 0 %.6f %.6f %.6f %.2f 0.01 0 %d", s.angle_min,
+                    s.angle_max - s.angle_min, s.angle_increment, s.range_max, s.nranges);
+      out << buf;
+      for (const float r : s.ranges) {
+        std::snprintf(buf, sizeof buf, " %.3f", r);
+        out << buf;
+      }
+      std::snprintf(buf, sizeof buf, " 0 %.6f %.6f %.6f %.6f %.6f %.6f %.6f %.6f 0 0 0 %.6f clinic %.6f\n",
+                    x + mount * std::cos(th), y + mount * std::sin(th), th, x, y, th, tv, rv, t, t);
+      out << buf;
+    }
+  };
+  // Imports and replays a .clf; returns the replay's metrics and the relation error.
+  auto run = [&](const std::string& clf, const std::string& name) {
+    EXPECT_EQ(test::run(test::kDriftlabProgram + " import " + clf + " -o " + dir.file(name + ".lcm") + " >/dev/null"),
+              0);
+    const auto replay = test::driftlab_json("replay " + dir.file(name + ".lcm") + " --modules slam --json -o " +
+                                            dir.file(name + "-slam.lcm"));
+    const auto error = test::relation_error(dir.file(name + "-slam.lcm") + ":SLAM_TRAJECTORY", relations);
+    std::printf("clinic %s: relation error %.4f m, max %.3f m\n", name.c_str(), error["trans_m"]["mean"].get<double>(),
+                error["trans_m"]["max"].get<double>());
+    return std::pair{replay["modules"][0]["metrics"], error};
+  };
+  ASSERT_NO_FATAL_FAILURE(write_clf(dir.file("clinic.clf"), ""));
+  const auto [metrics, error] = run(dir.file("clinic.clf"), "clf");
+  // The mounting came from the lines.
+  for (const auto& e : test::read_all(dir.file("clf.lcm"))) {
+    if (e.channel != "TF_STATIC") continue;
+    const auto tf = test::decode<driftlab::tf_t>(e);
+    ASSERT_EQ(tf.transforms.at(0).child_frame_id, "laser");
+    EXPECT_NEAR(tf.transforms.at(0).translation.x, 0.22, 1e-6);
+  }
+  EXPECT_EQ(error["used"].get<size_t>(), 2820u);
+  test::expect_benchmark_row("Freiburg clinic (bag)", metrics, error);
+
+  ASSERT_NO_FATAL_FAILURE(write_clf(dir.file("centre.clf"), "PARAM robot_frontlaser_offset 0 nohost 0\n"));
+  const auto centre = run(dir.file("centre.clf"), "centre").second;
+  EXPECT_GT(centre["trans_m"]["mean"].get<double>(), 0.10);
+  test::expect_doc_text_figures("docs/slam.md", "robot's centre, as before,", "From its ROBOTLASER1",
+                                {centre["trans_m"]["mean"].get<double>(), centre["trans_m"]["max"].get<double>()});
+
+  // Without its ODOM lines the odometry is the pose on the ROBOTLASER1 lines, the laser's (ROBOTLASER1_POSE, child
+  // frame "laser"): the module takes the mounting off each (Slam2d.ASensorsPose...). Another draw of the same log
+  // (the prior rides on its scan, without velocities): within 0.01 m of the bag's mean (ours: 0.102 m, 0.0035 m
+  // above it); with the laser's pose taken as the robot's, 0.127 m.
+  ASSERT_NO_FATAL_FAILURE(write_clf(dir.file("lines.clf"), "", false));
+  const auto [lines_metrics, lines] = run(dir.file("lines.clf"), "lines");
+  EXPECT_EQ(lines_metrics["odometry_of_sensor"].get<double>(), 6917);
+  EXPECT_NEAR(lines["trans_m"]["mean"].get<double>(), error["trans_m"]["mean"].get<double>(), 0.01);
+  test::expect_doc_text_figures("docs/slam.md", "From its ROBOTLASER1 lines alone", "Its wheel odometry",
+                                {lines["trans_m"]["mean"].get<double>(), lines["trans_m"]["max"].get<double>()});
+
+  const std::string own = benchmark_file("fr-clinic_robotlaser.clf");
+  if (own.empty()) return;
+  // Its lines beside these (PARAM, other messages) and its odometry's own stamps make it another draw of the same
+  // log: held to the bar's mean and to a largest error within 0.5 m of the bag's (that error is at the relations its
+  // reference gets wrong, SlamMatchOdometry; a fold is metres).
+  const auto own_error = run(own, "own").second;
+  EXPECT_LT(own_error["trans_m"]["mean"].get<double>(), 0.10);
+  EXPECT_NEAR(own_error["trans_m"]["max"].get<double>(), error["trans_m"]["max"].get<double>(), 0.5);
+}
+
 INSTANTIATE_TEST_SUITE_P(Carmen, SlamOnTheBenchmark,
                          ::testing::Values(Dataset{"intel", 2984, "Intel", "Intel (13,631 scans, 2,691 s)"},
                                            Dataset{"aces", 1279, "ACES", "ACES (7,374 scans, 1,366 s)"}),
