@@ -98,21 +98,28 @@ std::string laser_frame(std::string_view name) {
   return k == "1" ? "laser" : k == "2" ? "rear_laser" : "laser" + std::string(k);
 }
 
-/// The pose of a ROBOTLASERk line's laser in its robot's frame (x, y, yaw): the line carries both poses, so its
-/// laser's mounting, where no PARAM says it (the Freiburg clinic's log: the laser 0.22 m ahead of the robot).
-/// Empty when the line is too short or a pose is not a finite number (the second pass says what is wrong).
-std::optional<std::array<double, 3>> robotlaser_mounting(const Tokens& t) {
+/// The pose of a laser line's laser in its robot's frame (x, y, yaw), from the two poses the line carries: FLASER
+/// and RLASER give the laser's and then the robot's after their readings, ROBOTLASERk after its remissions
+/// (CARMEN's readlog.c reads them so). Empty when the line is too short or a pose is not a finite number (the second
+/// pass says what is wrong).
+std::optional<std::array<double, 3>> mounting_on_line(const Tokens& t) {
   auto count = [&](size_t i) -> std::optional<size_t> {
     auto x = i < t.size() ? number(t[i]) : std::nullopt;
     if (!x || *x < 0 || *x != std::floor(*x) || *x >= static_cast<double>(t.size())) return std::nullopt;
     return static_cast<size_t>(*x);
   };
-  const auto n = count(8);  // after the name: type start fov resolution max_range accuracy remission_mode n
-  const auto m = n ? count(9 + *n) : std::nullopt;
-  if (!m) return std::nullopt;
+  std::optional<size_t> at;  // the laser pose's first token
+  if (t[0] == "FLASER" || t[0] == "RLASER") {
+    if (const auto n = count(1)) at = 2 + *n;
+  } else {
+    const auto n = count(8);  // after the name: type start fov resolution max_range accuracy remission_mode n
+    const auto m = n ? count(9 + *n) : std::nullopt;
+    if (m) at = 10 + *n + *m;
+  }
+  if (!at) return std::nullopt;
   std::array<double, 6> pose{};  // laser x y theta, robot x y theta
   for (size_t i = 0; i < pose.size(); ++i) {
-    auto x = 10 + *n + *m + i < t.size() ? number(t[10 + *n + *m + i]) : std::nullopt;
+    auto x = *at + i < t.size() ? number(t[*at + i]) : std::nullopt;
     if (!x || !std::isfinite(*x)) return std::nullopt;
     pose[i] = *x;
   }
@@ -121,11 +128,28 @@ std::optional<std::array<double, 3>> robotlaser_mounting(const Tokens& t) {
                                std::remainder(pose[2] - pose[5], 2 * std::numbers::pi)};
 }
 
+/// A laser's mounting as its lines say it: the same on every line (to 1 mm and 0.001 rad, what their six decimals
+/// and a turn's rounding leave) is a mounting (the Freiburg clinic's ROBOTLASER1 lines: the laser 0.22 m ahead);
+/// one that varies is not (a corrected log's first pose is the corrected one, its second the odometry's).
+struct LineMounting {
+  std::array<double, 3> first{};
+  bool seen = false, constant = true;
+  void add(const std::array<double, 3>& m) {
+    if (!seen) {
+      first = m, seen = true;
+    } else if (std::hypot(m[0] - first[0], m[1] - first[1]) > 1e-3 ||
+               std::abs(std::remainder(m[2] - first[2], 2 * std::numbers::pi)) > 1e-3) {
+      constant = false;
+    }
+  }
+};
+
 /// What a pass over the log learns before converting: the PARAM values; for FLASER/RLASER (which do not carry
-/// their maximum range), the largest reading and how often it occurs; for ROBOTLASERk, its first line's mounting.
+/// their maximum range), the largest reading and how often it occurs; for each laser, its mounting as its lines say
+/// it.
 struct Preamble {
   std::map<std::string, double, std::less<>> params;
-  std::map<std::string, std::array<double, 3>, std::less<>> mounting;      // laser frame -> x, y, yaw
+  std::map<std::string, LineMounting, std::less<>> mounting;               // by laser frame
   std::map<std::string, std::pair<double, int64_t>, std::less<>> longest;  // laser -> (reading, count)
   std::map<std::string, int64_t, std::less<>> readings;                   // laser -> readings seen
 
@@ -297,12 +321,11 @@ int64_t CarmenReader::read(const std::function<void(const CarmenMessage&)>& on_m
   for_lines([&](size_t, const Tokens& t) {
     if (t[0] == "PARAM" && t.size() >= 3) {
       if (auto v = number(t[2])) pre.params[std::string(t[1])] = *v;
-    } else if (t[0].starts_with("ROBOTLASER") && !laser_number(t[0]).empty()) {
-      const std::string frame = laser_frame(t[0]);
-      if (!pre.mounting.contains(frame)) {
-        if (auto mount = robotlaser_mounting(t)) pre.mounting[frame] = *mount;
-      }
-    } else if ((t[0] == "FLASER" || t[0] == "RLASER") && t.size() > 2) {
+    }
+    if (t[0] == "FLASER" || t[0] == "RLASER" || (t[0].starts_with("ROBOTLASER") && !laser_number(t[0]).empty())) {
+      if (auto mount = mounting_on_line(t)) pre.mounting[laser_frame(t[0])].add(*mount);
+    }
+    if ((t[0] == "FLASER" || t[0] == "RLASER") && t.size() > 2) {
       auto n = number(t[1]);
       if (!n || *n < 0 || *n + 2 > static_cast<double>(t.size())) return;
       auto& [longest, count] = pre.longest[std::string(t[0])];
@@ -333,7 +356,10 @@ int64_t CarmenReader::read(const std::function<void(const CarmenMessage&)>& on_m
     tf.header.frame_id = "base_link";
     // A laser's mounting: PARAM robot_{front,rear}laser_offset (CARMEN's robot module, straight ahead or behind),
     // else what its ROBOTLASER lines say, else on the robot's centre.
-    std::map<std::string, std::array<double, 3>, std::less<>> mounts = pre.mounting;
+    std::map<std::string, std::array<double, 3>, std::less<>> mounts;
+    for (const auto& [frame, lines] : pre.mounting) {
+      if (lines.constant) mounts[frame] = lines.first;
+    }
     for (const auto& [frame, param, yaw] : {std::tuple{"laser", "robot_frontlaser_offset", 0.0},
                                             std::tuple{"rear_laser", "robot_rearlaser_offset", std::numbers::pi}}) {
       if (auto offset = pre.param(param)) {

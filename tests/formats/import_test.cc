@@ -545,7 +545,7 @@ TEST(Import, CarmenMessagesAndBrokenLines) {
   const auto tf = test::decode<tf_t>(log.at("TF_STATIC")[0]);
   ASSERT_EQ(tf.ntransforms, 2);
   EXPECT_EQ(tf.transforms[0].child_frame_id, "laser");
-  EXPECT_EQ(tf.transforms[0].translation.x, 0.25);  // the PARAM, not the ROBOTLASER1 line's poses (next test)
+  EXPECT_EQ(tf.transforms[0].translation.x, 0.25);  // the PARAM before the lines' poses (next test)
   // The rear laser looks backwards from its offset.
   EXPECT_EQ(tf.transforms[1].child_frame_id, "rear_laser");
   EXPECT_EQ(tf.transforms[1].translation.x, -0.2);
@@ -558,43 +558,61 @@ TEST(Import, CarmenMessagesAndBrokenLines) {
   }
 }
 
-// A ROBOTLASER line carries its laser's pose and its robot's: where no PARAM says where the laser sits, the two
-// do. The Freiburg clinic's log has only such lines (its laser 0.22 m ahead): with the laser put on the robot's
-// centre, the SLAM's relation error there was 0.104 m instead of the bag's 0.099 m (SlamOnTheClinicsClf).
-TEST(Import, CarmenRobotlaserLinesSayWhereTheirLasersSit) {
-  // The robot at (1, 2) facing +y; the front laser 0.3 m ahead and 0.05 m to its left, the rear one 0.2 m behind
-  // and facing backwards.
-  auto log = formats::CarmenReader::from_text(
-      "ODOM 1 2 1.5707963268 0 0 0 10.0 host 10.0\n"
-      "ROBOTLASER1 0 -1.5708 3.1416 1.5708 30 0.01 0 3 1 2 3 0 0.95 2.3 1.5707963268 1 2 1.5707963268 0 0 0 0 0 "
-      "10.0 host 10.0\n"
-      "ROBOTLASER2 0 -1.5708 3.1416 1.5708 30 0.01 0 3 1 2 3 0 1 1.8 4.7123889804 1 2 1.5707963268 0 0 0 0 0 "
-      "10.0 host 10.0\n"
-      "ROBOTLASER1 0 -1.5708 3.1416 1.5708 30 0.01 0 3 1 2 3 0 5 5 0 1 2 1.5707963268 0 0 0 0 0 10.1 host 10.1\n");
+/// The transforms of the one TF_STATIC a CARMEN log given as text imports to.
+std::vector<transform_t> carmen_mounts(const std::string& text) {
+  auto log = formats::CarmenReader::from_text(text);
   std::vector<std::string> problems;
   std::optional<tf_t> tf;
   log.read(
       [&](const formats::CarmenMessage& m) {
         if (m.channel != "TF_STATIC") return;
-        ASSERT_FALSE(tf) << "one TF_STATIC";
+        EXPECT_FALSE(tf) << "one TF_STATIC";
         tf.emplace();
-        ASSERT_TRUE(lcmtypes::decode(m.lcm, *tf));
+        EXPECT_TRUE(lcmtypes::decode(m.lcm, *tf));
       },
       [&](size_t line, const std::string& what) { problems.push_back(std::to_string(line) + ": " + what); });
-  EXPECT_TRUE(problems.empty());
-  ASSERT_TRUE(tf);
-  ASSERT_EQ(tf->ntransforms, 2);
-  // The first line of each laser counts (the last line's poses, made up, are not a mounting).
-  const auto& front = tf->transforms[0];
+  EXPECT_TRUE(problems.empty()) << ::testing::PrintToString(problems);
+  return tf ? tf->transforms : std::vector<transform_t>{};
+}
+
+// A laser line carries its laser's pose and its robot's (FLASER and RLASER after the readings, ROBOTLASERk after
+// the remissions): where no PARAM says where the laser sits and every line says the same, the lines do. The
+// Freiburg clinic's log has only ROBOTLASER1 lines, its laser 0.22 m ahead: with the laser put on the robot's
+// centre, the SLAM's relation error there was 0.104 m instead of the bag's 0.099 m (SlamOnTheClinicsClf).
+TEST(Import, CarmenLaserLinesSayWhereTheirLasersSit) {
+  // The robot at (1, 2) facing +y, then at (3, 2) facing +x; the front laser 0.3 m ahead and 0.05 m to its left,
+  // the rear one 0.2 m behind and facing backwards.
+  const auto robotlaser = carmen_mounts(
+      "ODOM 1 2 1.5707963268 0 0 0 10.0 host 10.0\n"
+      "ROBOTLASER1 0 -1.5708 3.1416 1.5708 30 0.01 0 3 1 2 3 0 0.95 2.3 1.5707963268 1 2 1.5707963268 0 0 0 0 0 "
+      "10.0 host 10.0\n"
+      "ROBOTLASER2 0 -1.5708 3.1416 1.5708 30 0.01 0 3 1 2 3 0 1 1.8 4.7123889804 1 2 1.5707963268 0 0 0 0 0 "
+      "10.0 host 10.0\n"
+      "ROBOTLASER1 0 -1.5708 3.1416 1.5708 30 0.01 0 3 1 2 3 0 3.3 2.05 0 3 2 0 0 0 0 0 0 10.1 host 10.1\n");
+  ASSERT_EQ(robotlaser.size(), 2u);
+  const auto& front = robotlaser[0];
   EXPECT_EQ(front.child_frame_id, "laser");
   EXPECT_NEAR(front.translation.x, 0.3, 1e-9);
   EXPECT_NEAR(front.translation.y, 0.05, 1e-9);
   EXPECT_NEAR(front.rotation.z, 0, 1e-9);
-  const auto& rear = tf->transforms[1];
+  const auto& rear = robotlaser[1];
   EXPECT_EQ(rear.child_frame_id, "rear_laser");
   EXPECT_NEAR(rear.translation.x, -0.2, 1e-9);
   EXPECT_NEAR(rear.translation.y, 0, 1e-9);
   EXPECT_NEAR(std::abs(2 * std::atan2(rear.rotation.z, rear.rotation.w)), std::numbers::pi, 1e-9);
+
+  // FLASER lines the same way: the laser 0.3 m ahead on both.
+  const std::string first = "FLASER 3 1 2 3 0.3 0 0 0 0 0 10.0 host 10.0\n";
+  const auto flaser = carmen_mounts(first + "FLASER 3 1 2 3 1 1.3 1.5707963268 1 1 1.5707963268 10.1 host 10.1\n");
+  ASSERT_EQ(flaser.size(), 2u);
+  EXPECT_NEAR(flaser[0].translation.x, 0.3, 1e-9);
+  EXPECT_NEAR(flaser[0].translation.y, 0, 1e-9);
+  // Two poses that do not keep one offset are no mounting (a corrected log: its first pose is the corrected one,
+  // its second the odometry's): the laser stays on the robot's centre.
+  const auto corrected = carmen_mounts(first + "FLASER 3 1 2 3 1.2 1.3 1.6 1 1 1.5707963268 10.1 host 10.1\n");
+  ASSERT_EQ(corrected.size(), 2u);
+  EXPECT_EQ(corrected[0].translation.x, 0);
+  EXPECT_EQ(corrected[0].translation.y, 0);
 }
 
 // Reading counts larger than the numbers on their line are broken lines, named with the count: one beyond
