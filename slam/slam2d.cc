@@ -117,6 +117,16 @@ struct Slam2d::Impl {
   std::vector<std::string> warnings;
   // Method graph: scans wait, in stamp order, for the odometry at their stamps (odom_wait_s).
   std::multimap<int64_t, mrpt::obs::CObservation2DRangeScan::Ptr> waiting;
+  /// Method graph: the first scans that came before their frame's mounting on TF_STATIC, with the sensor_pose
+  /// they took. They wait for it as for the odometry: a bag sorted by stamp may hold the first scan before
+  /// /tf_static of the same stamp (ricoslam's sorted bag of the Freiburg clinic), and that scan on the robot's centre
+  /// put the laser 0.22 m off on the map's first keyframe. Once a scan has waited out, scans no longer wait.
+  struct Unmounted {
+    std::string frame;
+    mrpt::poses::CPose2D fallback;
+  };
+  std::map<const mrpt::obs::CObservation2DRangeScan*, Unmounted> unmounted;
+  bool mount_waited_out = false;
   int64_t newest_odometry = std::numeric_limits<int64_t>::min(), newest_scan = std::numeric_limits<int64_t>::min();
   int64_t waited_out = 0;  ///< scans matched before their odometry arrived (the wait ran out)
   /// How far back in stamps a scan has arrived after a newer one, at most odom_wait_s [us]. When the odometry is
@@ -213,6 +223,26 @@ struct Slam2d::Impl {
     }
   }
 
+  /// Puts a scan that came before its frame's mounting where TF_STATIC has put that frame since, or says that it
+  /// stays at sensor_pose.
+  void mount(mrpt::obs::CObservation2DRangeScan& obs, const Unmounted& u) {
+    const auto it = sensor_on_base.find(u.frame);
+    if (it == sensor_on_base.end()) {
+      mount_waited_out = true;
+      warn_unmounted(u.frame, "within odom_wait_s of its first scan");
+      return;
+    }
+    const mrpt::poses::CPose2D& m = it->second;  // the yaw keeps the scan's centre angle to_mrpt added
+    obs.sensorPose = mrpt::poses::CPose3D(m.x(), m.y(), 0, obs.sensorPose.yaw() - u.fallback.phi() + m.phi(), 0, 0);
+  }
+
+  void warn_unmounted(const std::string& frame, const std::string& when) {
+    if (tf_missing_warned) return;
+    tf_missing_warned = true;
+    warnings.push_back("slam: no " + c.base_frame + " -> " + frame + " on " + c.tf_static_channel + " " + when +
+                       ": the sensor_pose setting was used");
+  }
+
   /// Matches the waiting scans the odometry has caught up with, and those that waited odom_wait_s (by the scans'
   /// stamps) or, with `all`, every one.
   void drain(Bus& bus, bool all = false) {
@@ -223,8 +253,14 @@ struct Slam2d::Impl {
       // newest_scan is the largest stamp waiting or gone; unsigned, as hostile stamps may be far apart
       const uint64_t behind = us_after(it->first, newest_scan);
       const bool in_order = !pose_stream || behind >= static_cast<uint64_t>(reorder);
-      if (!all && ((!covered && behind < static_cast<uint64_t>(wait)) || !in_order)) break;
+      const auto un = unmounted.find(it->second.get());
+      const bool mounted = un == unmounted.end() || sensor_on_base.contains(un->second.frame);
+      if (!all && (((!covered || !mounted) && behind < static_cast<uint64_t>(wait)) || !in_order)) break;
       if (!covered) ++waited_out;
+      if (un != unmounted.end()) {
+        mount(*it->second, un->second);
+        unmounted.erase(un);
+      }
       process(bus, it->first, it->second);
       waiting.erase(it);
     }
@@ -351,12 +387,12 @@ Status Slam2d::start(Bus& bus) {
     }
     ++d.scans;
     mrpt::poses::CPose2D sensor(d.c.sensor_pose[0], d.c.sensor_pose[1], d.c.sensor_pose[2]);
-    if (auto it = d.sensor_on_base.find(scan.header.frame_id); it != d.sensor_on_base.end()) {
-      sensor = it->second;
-    } else if (!d.tf_missing_warned && !d.c.tf_static_channel.empty()) {
-      d.tf_missing_warned = true;
-      d.warnings.push_back("slam: no " + d.c.base_frame + " -> " + scan.header.frame_id + " on " +
-                           d.c.tf_static_channel + " before the first scan: the sensor_pose setting was used");
+    const auto mount = d.sensor_on_base.find(scan.header.frame_id);
+    const bool unmounted = mount == d.sensor_on_base.end() && !d.c.tf_static_channel.empty();
+    if (mount != d.sensor_on_base.end()) {
+      sensor = mount->second;
+    } else if (unmounted && (!d.graph || d.mount_waited_out)) {
+      d.warn_unmounted(scan.header.frame_id, "before the first scan");
     }
     float no_return_from = INFINITY;
     if (d.c.max_range > 0) {
@@ -372,6 +408,7 @@ Status Slam2d::start(Bus& bus) {
     obs->sensorLabel = m.channel;
 
     if (d.graph) {
+      if (unmounted && !d.mount_waited_out) d.unmounted[obs.get()] = {scan.header.frame_id, sensor};
       d.waiting.emplace(scan.header.utime, obs);
       if (scan.header.utime < d.newest_scan) {
         const uint64_t back = us_after(scan.header.utime, d.newest_scan);
