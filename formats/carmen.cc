@@ -355,7 +355,7 @@ int64_t CarmenReader::read(const std::function<void(const CarmenMessage&)>& on_m
     tf.header.utime = stamp;
     tf.header.frame_id = "base_link";
     // A laser's mounting: PARAM robot_{front,rear}laser_offset (CARMEN's robot module, straight ahead or behind),
-    // else what its ROBOTLASER lines say, else on the robot's centre.
+    // else what its lines say when they all say the same (LineMounting), else on the robot's centre.
     std::map<std::string, std::array<double, 3>, std::less<>> mounts;
     for (const auto& [frame, lines] : pre.mounting) {
       if (lines.constant) mounts[frame] = lines.first;
