@@ -871,13 +871,14 @@ TEST(SlamOnTheClinicsClf, ARobotlaserLogGivesTheBagsFigures) {
       out << buf;
     }
   };
-  // Imports and replays a .clf; returns the replay's metrics and the relation error.
-  auto run = [&](const std::string& clf, const std::string& name) {
+  // Imports and replays a .clf; returns the replay's metrics and the relation error. Ours give no warning (none of
+  // a mounting missing); the benchmark's own file may say more of itself.
+  auto run = [&](const std::string& clf, const std::string& name, bool ours = true) {
     EXPECT_EQ(test::run(test::kDriftlabProgram + " import " + clf + " -o " + dir.file(name + ".lcm") + " >/dev/null"),
               0);
     const auto replay = test::driftlab_json("replay " + dir.file(name + ".lcm") + " --modules slam --json -o " +
                                             dir.file(name + "-slam.lcm"));
-    EXPECT_TRUE(replay["modules"][0]["warnings"].empty()) << name << ": " << replay["modules"][0]["warnings"];
+    if (ours) EXPECT_TRUE(replay["modules"][0]["warnings"].empty()) << name << ": " << replay["modules"][0]["warnings"];
     const auto error = test::relation_error(dir.file(name + "-slam.lcm") + ":SLAM_TRAJECTORY", relations);
     std::printf("clinic %s: relation error %.4f m, max %.3f m\n", name.c_str(), error["trans_m"]["mean"].get<double>(),
                 error["trans_m"]["max"].get<double>());
@@ -926,7 +927,7 @@ TEST(SlamOnTheClinicsClf, ARobotlaserLogGivesTheBagsFigures) {
   // Its lines beside these (PARAM, other messages) and its odometry's own stamps make it another draw of the same
   // log: held to the bar's mean and to a largest error within 0.5 m of the bag's (that error is at the relations its
   // reference gets wrong, SlamMatchOdometry; a fold is metres).
-  const auto own_error = run(own, "own").second;
+  const auto own_error = run(own, "own", false).second;
   EXPECT_LT(own_error["trans_m"]["mean"].get<double>(), 0.10);
   EXPECT_NEAR(own_error["trans_m"]["max"].get<double>(), error["trans_m"]["max"].get<double>(), 0.5);
 }
