@@ -353,10 +353,10 @@ Status Slam2d::start(Bus& bus) {
       const auto mount = impl_->sensor_on_base.find(frame);
       if (frame != impl_->c.base_frame && mount != impl_->sensor_on_base.end() &&
           !(mount->second.x() == 0 && mount->second.y() == 0 && mount->second.phi() == 0)) {
-        const auto& m = mount->second;  // sensor = robot (+) m, so robot = sensor (+) m^-1
-        const double yaw = wrap_angle(pose.yaw - m.phi());
-        pose = Pose2{pose.x - std::cos(yaw) * m.x() + std::sin(yaw) * m.y(),
-                     pose.y - std::sin(yaw) * m.x() - std::cos(yaw) * m.y(), yaw};
+        mrpt::poses::CPose2D off = mount->second;  // sensor = robot (+) mounting, so robot = sensor (+) mounting^-1
+        off.inverse();
+        const mrpt::poses::CPose2D robot = mrpt::poses::CPose2D(pose.x, pose.y, pose.yaw) + off;
+        pose = Pose2{robot.x(), robot.y(), robot.phi()};
         ++impl_->odometry_of_sensor;
       }
       impl_->odom.add(o->first, pose);
