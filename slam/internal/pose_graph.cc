@@ -26,7 +26,12 @@ struct PoseGraph2d::Edge {
   Mat3 w;
   bool live = true;
 
-  Vec3 residual(const Pose& pa, const Pose& pb) const { return residual(pa, pb, std::cos(pa[2]), std::sin(pa[2])); }
+  Vec3 residual(const Pose& pa, const Pose& pb) const { return w * error(pa, pb, std::cos(pa[2]), std::sin(pa[2])); }
+  /// e, unwhitened.
+  Vec3 error(const Pose& pa, const Pose& pb, double c, double s) const {
+    const double dx = pb[0] - pa[0], dy = pb[1] - pa[1];
+    return {c * dx + s * dy - z[0], -s * dx + c * dy - z[1], wrap_angle(pb[2] - pa[2] - z[2])};
+  }
   /// The residual and its Jacobians with respect to a and b.
   Vec3 linearise(const Pose& pa, const Pose& pb, Mat3& ja, Mat3& jb) const {
     const double c = std::cos(pa[2]), s = std::sin(pa[2]), dx = pb[0] - pa[0], dy = pb[1] - pa[1];
@@ -35,13 +40,7 @@ struct PoseGraph2d::Edge {
     eb << c, s, 0, -s, c, 0, 0, 0, 1;
     ja.noalias() = w * ea;
     jb.noalias() = w * eb;
-    return residual(pa, pb, c, s);
-  }
-
- private:
-  Vec3 residual(const Pose& pa, const Pose& pb, double c, double s) const {
-    const double dx = pb[0] - pa[0], dy = pb[1] - pa[1];
-    return w * Vec3(c * dx + s * dy - z[0], -s * dx + c * dy - z[1], wrap_angle(pb[2] - pa[2] - z[2]));
+    return w * error(pa, pb, c, s);
   }
 };
 
@@ -244,6 +243,38 @@ std::vector<size_t> PoseGraph2d::remove_contradicted(const std::vector<size_t>& 
     if (chi2 != nullptr) chi2->push_back(worst_chi2);
     optimise(max_iterations);
   }
+}
+
+std::vector<size_t> PoseGraph2d::leave_out_contradicted(const std::vector<size_t>& candidates, double max_xy,
+                                                        double max_yaw, int max_iterations) {
+  std::vector<size_t> removed;
+  while (true) {
+    const std::deque<Pose> with = nodes_;
+    size_t worst = edges_.size();
+    double worst_off = 1;  // in units of max_xy or max_yaw, whichever is more
+    for (size_t id : candidates) {
+      if (!edges_[id]->live) continue;
+      remove_edge(id);
+      optimise(max_iterations);
+      const Pose e = edge_error(id);
+      const double off = std::max(std::hypot(e[0], e[1]) / max_xy, std::abs(e[2]) / max_yaw);
+      if (off > worst_off) worst = id, worst_off = off;
+      edges_[id]->live = true;  // back in, and the estimates of before
+      ++live_edges_;
+      nodes_ = with;
+    }
+    if (worst == edges_.size()) return removed;
+    remove_edge(worst);
+    removed.push_back(worst);
+    optimise(max_iterations);
+  }
+}
+
+PoseGraph2d::Pose PoseGraph2d::edge_error(size_t id) const {
+  const Edge& e = *edges_[id];
+  const Pose& a = nodes_[e.a];
+  const Vec3 v = e.error(a, nodes_[e.b], std::cos(a[2]), std::sin(a[2]));
+  return {v[0], v[1], v[2]};
 }
 
 double PoseGraph2d::edge_chi2(size_t id) const {

@@ -31,7 +31,8 @@ class PoseGraph2d {
   void remove_edge(size_t id);
   /// Levenberg-Marquardt from the current estimates, at most max_iterations.
   void optimise(int max_iterations);
-  /// The squared Mahalanobis error of an edge at the current estimates (its chi2, without the loss).
+  /// The squared Mahalanobis error of an edge at the current estimates (its chi2, without the loss); of a removed
+  /// edge too.
   double edge_chi2(size_t id) const;
   /// Of the edges `candidates` (loop closures), takes out the one the optimised graph leaves with the largest chi2
   /// above max_chi2, optimises again (at most max_iterations), and repeats until none is above: the rest of the
@@ -39,6 +40,18 @@ class PoseGraph2d {
   /// if given. Call on an optimised graph.
   std::vector<size_t> remove_contradicted(const std::vector<size_t>& candidates, double max_chi2, int max_iterations,
                                           std::vector<double>* chi2 = nullptr);
+
+  /// How far the current estimates are from an edge's measurement: "b seen from a" less it, in a's frame (x, y,
+  /// yaw wrapped); of a removed edge too.
+  Pose edge_error(size_t id) const;
+  /// Of the edges `candidates`, each in turn is taken out and the graph optimised without it (at most
+  /// max_iterations), then put back with the estimates of before; the one the rest of the graph left furthest
+  /// beyond max_xy [m] or max_yaw [rad] from its measurement (edge_error) stays out, and the rest are judged
+  /// again. remove_contradicted judges an edge with it in, where the graph may bend to keep it; this, by what the
+  /// others say of it. Worst first: a wrong edge in bends the graph where a right one is judged. Returns the edges
+  /// taken out, in that order. Call on an optimised graph; one optimisation per candidate and round.
+  std::vector<size_t> leave_out_contradicted(const std::vector<size_t>& candidates, double max_xy, double max_yaw,
+                                             int max_iterations);
 
   const Pose& node(size_t i) const { return nodes_[i]; }
   void set_node(size_t i, const Pose& pose) { nodes_[i] = pose; }
