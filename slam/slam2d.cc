@@ -129,13 +129,13 @@ struct Slam2d::Impl {
   bool mount_waited_out = false;
   int64_t newest_odometry = std::numeric_limits<int64_t>::min(), newest_scan = std::numeric_limits<int64_t>::min();
   int64_t waited_out = 0;  ///< scans matched before their odometry arrived (the wait ran out)
-  /// How far back in stamps a scan has arrived after a newer one, at most odom_wait_s [us]. When the odometry is
-  /// a pose stream riding on the scans (a CARMEN log's laser lines, written in the logger's order with the
-  /// odometry on each), scans wait this long (in scan stamps) for the scans before them, so that they are matched
-  /// in stamp order: Intel's step back up to 0.9 s. Odometry on a stream of its own lags the scans, and waiting
-  /// for it already puts them in order.
-  int64_t reorder = 0;
-  bool pose_stream = false;  ///< the odometry came as driftlab.pose_t
+  /// How far back in stamps a scan, and an odometry message, has arrived after a newer one of its kind, at most
+  /// odom_wait_s [us]: a log written in arrival order is not in stamp order (Intel's bag: scans and odometry step
+  /// back up to 0.9 s; a CARMEN log's laser lines, in the logger's order with the odometry on each). Scans wait
+  /// this long (in scan stamps) for the scans before them, and for the odometry around their stamps to be final
+  /// (`OdometryBuffer::settled`), so that they are matched in stamp order and predicted from the odometry the log
+  /// sorted by stamp gives, once it has shown how late its messages come. In order, nothing waits for them.
+  int64_t reorder = 0, odom_reorder = 0;
   int64_t odometry_of_sensor = 0;  ///< odometry messages that gave a sensor's pose, turned into the robot's
   // match_odometry auto: two graphs match each scan, one without the odometry weighed in (`graph`) and one with it
   // (`weighed_graph`), until kDecideChecks scans have been checked against the odometry; then the weighed one goes
@@ -243,20 +243,31 @@ struct Slam2d::Impl {
                        ": the sensor_pose setting was used");
   }
 
+  /// Widens `late` to how far back in stamps `stamp` came after `newest`, at most odom_wait_s.
+  void widen(int64_t& late, int64_t stamp, int64_t newest) const {
+    if (stamp >= newest) return;
+    const auto wait = static_cast<uint64_t>(Duration::from_seconds_truncated(c.odom_wait_s).us());
+    late = std::max(late, static_cast<int64_t>(std::min(us_after(stamp, newest), wait)));
+  }
+
   /// Matches the waiting scans the odometry has caught up with, and those that waited odom_wait_s (by the scans'
   /// stamps) or, with `all`, every one.
   void drain(Bus& bus, bool all = false) {
     const int64_t wait = Duration::from_seconds_truncated(c.odom_wait_s).us();
     while (!waiting.empty()) {
       const auto it = waiting.begin();
-      const bool covered = it->first <= newest_odometry || c.odom_channel.empty();
+      // the odometry past its stamp; and around it final (none of it still to come), or the log at its end
+      const bool past = c.odom_channel.empty() || it->first <= newest_odometry;
+      const bool covered =
+          c.odom_channel.empty() ||
+          (past && (all || odom.settled(it->first, newest_odometry, static_cast<uint64_t>(odom_reorder))));
       // newest_scan is the largest stamp waiting or gone; unsigned, as hostile stamps may be far apart
       const uint64_t behind = us_after(it->first, newest_scan);
-      const bool in_order = !pose_stream || behind >= static_cast<uint64_t>(reorder);
+      const bool in_order = behind >= static_cast<uint64_t>(reorder);
       const auto un = unmounted.find(it->second.get());
       const bool mounted = un == unmounted.end() || sensor_on_base.contains(un->second.frame);
       if (!all && (((!covered || !mounted) && behind < static_cast<uint64_t>(wait)) || !in_order)) break;
-      if (!covered) ++waited_out;
+      if (!past) ++waited_out;  // predicted from the odometry before it (a sample late around it: not counted)
       if (un != unmounted.end()) {
         mount(*it->second, un->second);
         unmounted.erase(un);
@@ -343,7 +354,7 @@ Status Slam2d::start(Bus& bus) {
   if (!c.odom_channel.empty()) {
     bus.subscribe(c.odom_channel, [this, &bus](const BusMessage& m) {
       std::string frame;
-      const auto o = internal::planar_odometry(m, impl_->non_finite, &impl_->undecodable, &impl_->pose_stream, &frame);
+      const auto o = internal::planar_odometry(m, impl_->non_finite, &impl_->undecodable, &frame);
       if (!o) return;
       ++impl_->odometry;
       // The pose of a sensor mounted on the robot (a CARMEN laser line's laser pose, its mounting on TF_STATIC):
@@ -362,6 +373,7 @@ Status Slam2d::start(Bus& bus) {
       impl_->odom.add(o->first, pose);
       impl_->first_odometry = std::min(impl_->first_odometry, o->first);
       if (impl_->graph) {
+        impl_->widen(impl_->odom_reorder, o->first, impl_->newest_odometry);
         impl_->newest_odometry = std::max(impl_->newest_odometry, o->first);
         impl_->drain(bus);
       }
@@ -410,11 +422,7 @@ Status Slam2d::start(Bus& bus) {
     if (d.graph) {
       if (unmounted && !d.mount_waited_out) d.unmounted[obs.get()] = {scan.header.frame_id, sensor};
       d.waiting.emplace(scan.header.utime, obs);
-      if (scan.header.utime < d.newest_scan) {
-        const uint64_t back = us_after(scan.header.utime, d.newest_scan);
-        const auto wait = static_cast<uint64_t>(Duration::from_seconds_truncated(d.c.odom_wait_s).us());
-        d.reorder = std::max(d.reorder, static_cast<int64_t>(std::min(back, wait)));
-      }
+      d.widen(d.reorder, scan.header.utime, d.newest_scan);
       d.newest_scan = std::max(d.newest_scan, scan.header.utime);
       d.drain(bus);
       return;

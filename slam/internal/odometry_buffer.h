@@ -28,14 +28,24 @@ class OdometryBuffer {
   }
   bool empty() const { return q_.empty(); }
 
+  /// Whether at(stamp) is final, when a sample comes at most `late` [us of stamps] after a newer one and the
+  /// newest stamp yet is `newest`: the sample at the stamp is there, or the first after it is and `newest` is
+  /// `late` past that one, so that every sample before it has come (the two around the stamp are the ones the
+  /// stream sorted by stamp gives).
+  bool settled(int64_t stamp, int64_t newest, uint64_t late) const {
+    const auto hi = first_from(stamp);
+    if (hi == q_.end()) return false;
+    return hi->stamp == stamp || (hi->stamp <= newest && us_after(hi->stamp, newest) >= late);
+  }
+
   /// The pose at a stamp: interpolated between the samples around it (yaw along the shorter way), or the nearest
   /// at either end.
   std::optional<Pose2> at(int64_t stamp) const {
     if (q_.empty()) return std::nullopt;
     if (stamp <= q_.front().stamp) return q_.front().pose;
     if (stamp >= q_.back().stamp) return q_.back().pose;
-    auto hi = std::lower_bound(q_.begin(), q_.end(), stamp, [](const Sample& s, int64_t t) { return s.stamp < t; });
-    auto lo = std::prev(hi);
+    const auto hi = first_from(stamp);
+    const auto lo = std::prev(hi);
     const double f =
         static_cast<double>(us_after(lo->stamp, stamp)) / static_cast<double>(us_after(lo->stamp, hi->stamp));
     const double dyaw = wrap_angle(hi->pose.yaw - lo->pose.yaw);
@@ -49,15 +59,20 @@ class OdometryBuffer {
     Pose2 pose;
   };
   std::deque<Sample> q_;
+
+  /// The first sample at the stamp or after it.
+  std::deque<Sample>::const_iterator first_from(int64_t stamp) const {
+    return std::lower_bound(q_.begin(), q_.end(), stamp, [](const Sample& s, int64_t t) { return s.stamp < t; });
+  }
 };
 
 /// The stamp [us] and planar pose of an odometry message on the bus (driftlab.odometry_t, or any pose stream as
 /// driftlab.pose_t: a CARMEN laser line's odometry, a robot's pose topic), or nullopt when it is malformed (counted
 /// in *malformed) or a number of it is not finite or beyond lcmtypes::kMaxMagnitude (counted by `in`, naming it).
-/// *pose_stream, when given, is set when the message is a driftlab.pose_t; *child_frame to the frame whose pose it
-/// is (its child_frame_id: base_link, or a sensor's when the pose is the sensor's, as a CARMEN laser line's is).
+/// *child_frame, when given, is set to the frame whose pose it is (its child_frame_id: base_link, or a sensor's
+/// when the pose is the sensor's, as a CARMEN laser line's is).
 inline std::optional<std::pair<int64_t, Pose2>> planar_odometry(const BusMessage& m, NonFiniteInputs& in,
-                                                                int64_t* malformed, bool* pose_stream = nullptr,
+                                                                int64_t* malformed,
                                                                 std::string* child_frame = nullptr) {
   driftlab::odometry_t o;
   if (driftlab::pose_t p; !decode_message(m, o)) {
@@ -65,7 +80,6 @@ inline std::optional<std::pair<int64_t, Pose2>> planar_odometry(const BusMessage
       ++*malformed;
       return std::nullopt;
     }
-    if (pose_stream != nullptr) *pose_stream = true;
     o.header = p.header;
     o.position = p.position;
     o.orientation = p.orientation;
