@@ -80,7 +80,8 @@ struct ScanGraphOptions {
   double loop_match_distance = 0.15;
   double loop_min_points = 60;          ///< matched points a loop match needs
   double loop_min_constraint = 0.1;     ///< the weakest direction's share of the point-to-line information; below:
-                                        ///< a corridor
+                                        ///< a corridor (0.15 and 0.2 let a corridor's lookalikes in: docs/slam.md,
+                                        ///< "Where MIT Killian Court misses the bar")
   double loop_uniqueness = 0.3;         ///< restarts this far off must come back to the same pose
   double loop_confirm_xy = 0.5;         ///< a match moving the estimate further ...
   double loop_confirm_yaw = 0.09;       ///< ... or turning it more waits for a second one ...
