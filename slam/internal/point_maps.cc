@@ -122,6 +122,25 @@ void GridPointsMap::internal_clear() {
 
 namespace {
 
+/// Calls visit(x, y) for each of the grid's cells `r` rings (Chebyshev distance in cells) out from the cell (cx, cy),
+/// which may lie outside the grid: the ring's bottom and top rows, then its left and right columns between them.
+template <typename Visit>
+void visit_ring(const GridPointsMap::Grid& g, int64_t cx, int64_t cy, int64_t r, Visit& visit) {
+  const int64_t x0 = std::max<int64_t>(cx - r, 0), x1 = std::min(cx + r, g.nx - 1);
+  for (const int64_t y : {cy - r, cy + r}) {
+    if (y >= 0 && y < g.ny) {
+      for (int64_t x = x0; x <= x1; ++x) visit(x, y);
+    }
+    if (r == 0) return;
+  }
+  const int64_t y0 = std::max<int64_t>(cy - r + 1, 0), y1 = std::min(cy + r - 1, g.ny - 1);
+  for (const int64_t x : {cx - r, cx + r}) {
+    if (x >= 0 && x < g.nx) {
+      for (int64_t y = y0; y <= y1; ++y) visit(x, y);
+    }
+  }
+}
+
 /// The grid's point nearest to (qx, qy) if its squared distance (in float) is below limit², else -1 (an index into
 /// the grid's arrays). Cells are looked at ring by ring out from the query's, from the first ring with points, and
 /// no further out than the limit or the best point so far. `hint`, any index into the grid's arrays (or -1), is
@@ -205,19 +224,7 @@ int64_t nearest_in(const GridPointsMap::Grid& g, float qx, float qy, double limi
       cell(cx + 1, cy + 1, rx2 + uy2);
       continue;
     }
-    const int64_t x0 = std::max<int64_t>(cx - k, 0), x1 = std::min(cx + k, g.nx - 1);
-    for (const int64_t y : {cy - k, cy + k}) {  // the ring's bottom and top rows
-      if (y >= 0 && y < g.ny) {
-        for (int64_t x = x0; x <= x1; ++x) visit(x, y);
-      }
-      if (k == 0) break;
-    }
-    const int64_t y0 = std::max<int64_t>(cy - k + 1, 0), y1 = std::min(cy + k - 1, g.ny - 1);
-    for (const int64_t x : {cx - k, cx + k}) {  // its left and right columns, between those rows
-      if (k > 0 && x >= 0 && x < g.nx) {
-        for (int64_t y = y0; y <= y1; ++y) visit(x, y);
-      }
-    }
+    visit_ring(g, cx, cy, k, visit);
   }
   if (found < 0 || !(static_cast<double>(best) < limit * limit)) return -1;
   distance2 = best;
@@ -234,6 +241,49 @@ int64_t GridPointsMap::nearest(float x, float y, double limit, float& distance2)
   double others2 = 0;
   const int64_t i = nearest_in(g, x, y, limit, distance2, -1, others2);
   return i < 0 ? -1 : static_cast<int64_t>(g.index[static_cast<size_t>(i)]);
+}
+
+bool GridPointsMap::nearest_k(float x, float y, size_t k, std::vector<size_t>& out) const {
+  out.clear();
+  const Grid& g = grid();
+  if (k == 0 || g.xy.size() < k || !std::isfinite(x) || !std::isfinite(y)) return false;
+  // The k + 1 nearest so far, nearest first: (squared distance, index into the grid's arrays).
+  static thread_local std::vector<std::pair<float, uint32_t>> best;
+  best.clear();
+  const size_t keep = k + 1;
+  const double fx = (x - g.min_x) / g.cell, fy = (y - g.min_y) / g.cell;
+  const auto cx = static_cast<int64_t>(std::floor(fx)), cy = static_cast<int64_t>(std::floor(fy));
+  const int64_t rings = std::max({cx, g.nx - 1 - cx, cy, g.ny - 1 - cy});
+  // As in nearest_in: a point k rings out is at least k - 1 whole cells and the way to the own cell's edge away.
+  const double edge = std::min({fx - static_cast<double>(cx), static_cast<double>(cx + 1) - fx,
+                                fy - static_cast<double>(cy), static_cast<double>(cy + 1) - fy});
+  const double ring = g.cell * (1 - 1e-6);
+  auto visit = [&](int64_t cell_x, int64_t cell_y) {
+    const size_t c = static_cast<size_t>(cell_y * g.nx + cell_x);
+    for (uint32_t i = g.start[c]; i < g.start[c + 1]; ++i) {
+      const float dx = x - g.xy[i][0], dy = y - g.xy[i][1];
+      const float d = dx * dx + dy * dy;  // nanoflann's L2 in float
+      if (best.size() == keep && !(d < best.back().first)) continue;
+      const auto at = std::upper_bound(best.begin(), best.end(), std::make_pair(d, i),
+                                       [](const auto& a, const auto& b) { return a.first < b.first; });
+      best.insert(at, {d, i});
+      if (best.size() > keep) best.pop_back();
+    }
+  };
+  for (int64_t r = 0; r <= rings; ++r) {
+    if (r > 0 && best.size() == keep) {
+      // Every point from this ring out is further than the (k + 1)-th so far: none can take a place or tie.
+      const double bound = (static_cast<double>(r - 1) + edge) * ring - 1e-5;
+      if (bound > 0 && bound * bound > static_cast<double>(best.back().first)) break;
+    }
+    visit_ring(g, cx, cy, r, visit);
+  }
+  if (best.size() < k) return false;
+  for (size_t i = 1; i < std::min(best.size(), keep); ++i) {
+    if (best[i].first == best[i - 1].first) return false;  // a tie: the kd-tree's order is its own
+  }
+  for (size_t i = 0; i < k; ++i) out.push_back(g.index[best[i].second]);
+  return true;
 }
 
 void GridPointsMap::determineMatching2D(const mrpt::maps::CMetricMap* other_map, const mrpt::poses::CPose2D& other_pose,

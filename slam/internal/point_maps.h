@@ -52,6 +52,14 @@ class GridPointsMap : public mrpt::maps::CSimplePointsMap {
   /// The map's point nearest to (x, y) if its squared distance (in float, as nanoflann's) is below limit², else -1.
   int64_t nearest(float x, float y, double limit, float& distance2) const;
 
+  /// The map's `k` points nearest to (x, y), nearest first, into `out` (indices in the map), when MRPT's kd-tree
+  /// (kdTreeNClosestPoint2DIdx, nanoflann) gives exactly these: the same squared distances in float, so the same
+  /// points in the same order whenever none of the k + 1 nearest lie at exactly the same distance as another. When
+  /// two do, which of them the kd-tree returns, and in which order, depends on its tree: then false, `out` empty,
+  /// and the caller asks the kd-tree (as it does for a map with fewer than k points). Faster than the kd-tree for a
+  /// map queried a few hundred times: its grid is built already, where the kd-tree would be built for them.
+  bool nearest_k(float x, float y, size_t k, std::vector<size_t>& out) const;
+
   /// How the matchings on this thread found their points' nearest map points so far: searched in the grid, or
   /// proved without a search (the point had moved too little since its last search to have another nearest).
   struct Lookups {

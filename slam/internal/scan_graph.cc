@@ -39,8 +39,8 @@ PoseGraph2d::Pose array_of(const CPose2D& p) { return {p.x(), p.y(), p.phi()}; }
 /// spread, are looked at; `lines` receives how many had a clear surface (a line through their 8 nearest old
 /// points: spread along it by 2 cm at least, so dense scans (the simulator's 360 beams, several keyframes on top
 /// of each other) still show their walls, and ten times less across it).
-Eigen::Matrix3d constraint_of(const mrpt::maps::CSimplePointsMap& reference,
-                              const mrpt::tfest::TMatchingPairList& pairs, const CPose2D& pose, size_t& lines) {
+Eigen::Matrix3d constraint_of(const GridPointsMap& reference, const mrpt::tfest::TMatchingPairList& pairs,
+                              const CPose2D& pose, size_t& lines) {
   Eigen::Matrix3d h = Eigen::Matrix3d::Zero();
   lines = 0;
   std::vector<size_t> idx;
@@ -49,7 +49,11 @@ Eigen::Matrix3d constraint_of(const mrpt::maps::CSimplePointsMap& reference,
   const size_t every = std::max<size_t>(1, pairs.size() / 200);
   for (size_t p = 0; p < pairs.size(); p += every) {
     const auto& pair = pairs[p];
-    reference.kdTreeNClosestPoint2DIdx(pair.global.x, pair.global.y, 8, idx, d2);
+    // From the grid the matching built; the kd-tree (built at the first such call) only where the grid cannot
+    // tell which points it would give: the same points in the same order either way.
+    if (!reference.nearest_k(pair.global.x, pair.global.y, 8, idx)) {
+      reference.kdTreeNClosestPoint2DIdx(pair.global.x, pair.global.y, 8, idx, d2);
+    }
     if (idx.size() < 4) continue;
     near.clear();
     Eigen::Vector2d mean = Eigen::Vector2d::Zero();

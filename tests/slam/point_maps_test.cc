@@ -140,6 +140,58 @@ TEST(GridPointsMap, EmptyMapsAndQueriesOutside) {
   EXPECT_EQ(grid.nearest(-4.05f, 0.f, 0.2, d2), -1);
 }
 
+// The surface test's 8 nearest points (constraint_of in scan_graph.cc) from the grid: the kd-tree's points in the
+// kd-tree's order wherever the grid answers, so the loop tests' information is the same to the last bit; where two of
+// the 9 nearest are equally far (which of them the kd-tree gives, and first, is its tree's), no answer.
+TEST(GridPointsMap, NearestKAreTheKdTreesOrNone) {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> u(-1, 1);
+  size_t answered = 0, queries = 0;
+  for (const double stray : {10.0, 400.0}) {  // 400 m: the grid's cells grow, so more points share a cell
+    const auto reference = walls(rng, stray);
+    internal::GridPointsMap grid;
+    grid.insertAnotherMap(&reference, mrpt::poses::CPose3D());
+    std::vector<size_t> want, got;
+    std::vector<float> d2;
+    for (size_t i = 0; i < reference.size(); i += 3) {  // at map points, as the surface test asks
+      float x = 0, y = 0;
+      reference.getPoint(i, x, y);
+      for (const float dx : {0.f, static_cast<float>(0.3 * u(rng))}) {  // and beside them
+        ++queries;
+        reference.kdTreeNClosestPoint2DIdx(x + dx, y, 8, want, d2);
+        if (grid.nearest_k(x + dx, y, 8, got)) {
+          ++answered;
+          ASSERT_EQ(got, want) << "at " << x + dx << " " << y;
+        } else {
+          EXPECT_TRUE(got.empty());
+        }
+      }
+    }
+  }
+  // Noisy walls have no two points at exactly the same distance from a point: the grid answers (nearly) all.
+  EXPECT_GT(answered, queries * 99 / 100) << answered << " of " << queries;
+
+  // Equal distances: none, whichever of them comes first in the map; the rest is answered.
+  internal::GridPointsMap ring;
+  // 12 points on a circle of 1 m, 30 degrees apart: from (0, 0) the four on the axes tie to the last bit.
+  for (int i = 0; i < 12; ++i) {
+    ring.insertPoint(static_cast<float>(std::cos(i * M_PI / 6)), static_cast<float>(std::sin(i * M_PI / 6)));
+  }
+  std::vector<size_t> got;
+  EXPECT_FALSE(ring.nearest_k(0.f, 0.f, 8, got));
+  EXPECT_TRUE(got.empty());
+  mrpt::maps::CSimplePointsMap pair;  // two points equally far from (0, 0) but 2 nearer ones: the 3rd and 4th tie
+  for (const auto& p : std::vector<std::array<float, 2>>{{0.1f, 0}, {0, 0.2f}, {1, 0}, {-1, 0}, {5, 5}}) {
+    pair.insertPoint(p[0], p[1]);
+  }
+  internal::GridPointsMap tie;
+  tie.insertAnotherMap(&pair, mrpt::poses::CPose3D());
+  EXPECT_FALSE(tie.nearest_k(0.f, 0.f, 3, got));  // which of the two is 3rd is the kd-tree's
+  EXPECT_TRUE(tie.nearest_k(0.f, 0.f, 1, got));   // the nearest and the next (0.2 m) are not equally far
+  EXPECT_EQ(got, std::vector<size_t>{0});
+  EXPECT_FALSE(tie.nearest_k(0.f, 0.f, 6, got));  // more asked than the map holds: the kd-tree's answer is its own
+}
+
 // Each scan point matched to its nearest map point within 2 m, whatever the angle.
 mrpt::maps::TMatchingParams nearest_within_2m() {
   mrpt::maps::TMatchingParams params;
