@@ -316,6 +316,7 @@ Status Slam2d::start(Bus& bus) {
       o.loop_max_radius = c.loop_max_radius;
       o.loop_min_goodness = c.loop_min_goodness;
       o.loop_rescue_near = c.loop_rescue_near;
+      o.loop_seen_only = c.loop_seen_only;
       o.match_odometry = c.match_odometry == "true";
       o.match_sigma = c.match_sigma;
       o.odometry_noise = c.odometry_noise;

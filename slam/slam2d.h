@@ -51,6 +51,7 @@ struct Slam2dConfig {
   double loop_max_radius = 16;      ///< [m]
   double loop_min_goodness = 0.65;  ///< share of the current points an old place must explain [0, 1]
   bool loop_rescue_near = false;    ///< a near loop test whose ICP left its reach searches the window instead
+  bool loop_seen_only = false;      ///< a near loop test's ICP takes only the points an old scan could see
   /// Weigh the odometry into each scan match (docs/slam.md): "false", "true", or "auto": on when the odometry's
   /// heading agrees with the first 600 matches within its noise model (a graph with it weighed in from the first
   /// scan runs beside the one without until then).

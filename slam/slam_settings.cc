@@ -56,6 +56,9 @@ const config::Table<Slam2dConfig>& slam2d_config_table() {
           .flag("loop_rescue_near", &C::loop_rescue_near,
                 "graph: a near loop test whose ICP was pulled beyond its reach searches the same window as a far "
                 "test does (turned up to 30 deg) instead of failing; docs/slam.md says what it does to robustness")
+          .flag("loop_seen_only", &C::loop_seen_only,
+                "graph: a near loop test's ICP takes only the current points one of the old place's scans could "
+                "have seen (a corridor passed the other way); docs/slam.md says what it does to robustness")
           .choice("match_odometry", &C::match_odometry, {"auto", "false", "true"},
                   "graph: weigh the odometry's prediction into each scan match by the information of each (for "
                   "wheel odometry better than the scans along featureless corridors); auto: once 600 scans are "

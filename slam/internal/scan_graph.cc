@@ -21,6 +21,10 @@ using mrpt::poses::CPose3D;
 
 namespace {
 
+/// How far beyond an old scan's hit a current point still counts as seen by it (loop_seen_only): the spread of a
+/// wall's points over a few scans, and the near test's reach of the estimate's drift (docs/slam.md).
+constexpr double kSeenMargin = 0.3;
+
 double angle_of(const CPose2D& p) { return std::abs(mrpt::math::wrapToPi(p.phi())); }
 double degrees(double rad) { return rad * 180 / M_PI; }
 
@@ -109,6 +113,41 @@ std::vector<Point2f> points_in(const mrpt::maps::CSimplePointsMap& map, size_t a
 }
 
 }  // namespace
+
+mrpt::maps::CSimplePointsMap seen_points(
+    const std::vector<std::pair<const mrpt::obs::CObservation2DRangeScan*, CPose2D>>& scans,
+    const mrpt::maps::CSimplePointsMap& query, const CPose2D& pose, double margin) {
+  const auto& qx = query.getPointsBufferRef_x();
+  const auto& qy = query.getPointsBufferRef_y();
+  std::vector<double> mx(qx.size()), my(qx.size());
+  for (size_t i = 0; i < qx.size(); ++i) pose.composePoint(qx[i], qy[i], mx[i], my[i]);
+  std::vector<char> seen(qx.size(), 0);
+  for (const auto& [scan, base] : scans) {
+    const size_t n = scan->getScanSize();
+    if (n < 2 || !(scan->aperture > 0)) continue;
+    const CPose2D sensor = base + CPose2D(scan->sensorPose);
+    const double half = scan->aperture / 2, step = scan->aperture / static_cast<double>(n - 1);
+    for (size_t i = 0; i < qx.size(); ++i) {
+      if (seen[i]) continue;
+      double lx = 0, ly = 0;
+      sensor.inverseComposePoint(mx[i], my[i], lx, ly);
+      const double range = std::hypot(lx, ly);
+      // The bearing from the first beam: beams go counterclockwise from -aperture/2, or clockwise from +aperture/2.
+      const double bearing = scan->rightToLeft ? std::atan2(ly, lx) + half : half - std::atan2(ly, lx);
+      if (bearing < -step / 2 || bearing > scan->aperture + step / 2) continue;
+      const auto beam = static_cast<size_t>(std::clamp(std::lround(bearing / step), 0L, static_cast<long>(n - 1)));
+      for (size_t k = beam > 0 ? beam - 1 : 0; k <= std::min(beam + 1, n - 1) && !seen[i]; ++k) {
+        seen[i] = scan->getScanRangeValidity(k) ? scan->getScanRange(k) + margin >= range : range < scan->maxRange;
+      }
+    }
+  }
+  mrpt::maps::CSimplePointsMap out;
+  out.reserve(qx.size());
+  for (size_t i = 0; i < qx.size(); ++i) {
+    if (seen[i]) out.insertPointFast(qx[i], qy[i], 0);
+  }
+  return out;
+}
 
 Eigen::Matrix3d odometry_information(const CPose2D& step, const std::array<double, 4>& noise) {
   const double xy = std::max(noise[0] * step.norm() + noise[1], 1e-6);  // a noise of zero: exact, not infinite
@@ -357,6 +396,21 @@ bool ScanGraph::try_loop(size_t j, double radius, bool widened, bool rescue) {
   reference.reserve(total);
   for (size_t i : old) reference.insertAnotherMap(&keyframes_[i].points, CPose3D(keyframe_pose(i)));
 
+  // With loop_seen_only, a near test's ICP takes only the current points one of the old place's scans could have
+  // seen from where the estimate, then the coarse ICP, puts them (docs/slam.md, "What an old place saw").
+  const bool seen_only = o_.loop_seen_only && !far;
+  std::vector<std::pair<const mrpt::obs::CObservation2DRangeScan*, CPose2D>> old_scans;
+  if (seen_only) {
+    for (size_t i : old) old_scans.emplace_back(keyframes_[i].scan.get(), keyframe_pose(i));
+  }
+  const auto icp_points = [&](const CPose2D& at) {
+    mrpt::maps::CSimplePointsMap seen;
+    if (seen_only) seen = seen_points(old_scans, query, at, kSeenMargin);
+    return seen;
+  };
+  const auto or_query = [&](const mrpt::maps::CSimplePointsMap& seen) -> const mrpt::maps::CSimplePointsMap& {
+    return seen_only && static_cast<double>(seen.size()) >= o_.loop_min_points ? seen : query;
+  };
   CPose2D start = here;
   if (far) {
     // Further than ICP reaches from the estimate (the first return after a long excursion): the best pose in the
@@ -395,9 +449,11 @@ bool ScanGraph::try_loop(size_t j, double radius, bool widened, bool rescue) {
     IcpOptions coarse = o_.icp;
     coarse.thresholdDist = std::clamp(radius, o_.icp.thresholdDist, 2.0);
     coarse.thresholdAng = std::max(o_.icp.thresholdAng, o_.loop_threshold_ang);
-    start = icp_classic(reference, query, here, coarse);
+    start = icp_classic(reference, or_query(icp_points(here)), here, coarse);
   }
-  const CPose2D found = icp_classic(reference, query, start, o_.icp);
+  const mrpt::maps::CSimplePointsMap seen = icp_points(start);
+  const mrpt::maps::CSimplePointsMap& icp_query = or_query(seen);
+  const CPose2D found = icp_classic(reference, icp_query, start, o_.icp);
   // Near, ICP pulled beyond the reach: it started where the estimate is, and its first correspondences, as far apart
   // as the reach, let it slide off to a lookalike or a stretch of wall (on the benchmark logs the right place mostly
   // lay within centimetres of the estimate, or turned by more than those correspondences allow: MIT CSAIL from 3 s,
@@ -454,8 +510,8 @@ bool ScanGraph::try_loop(size_t j, double radius, bool widened, bool rescue) {
     // Back within a fifth of the bars below, it has come back: what the finer thresholds do from there is ICP's
     // own spread around the optimum, and stopping saves half the restarts' iterations (most run into the cap).
     const CPose2D back =
-        icp_classic(reference, query, CPose2D(found.x() + off.x(), found.y() + off.y(), found.phi() + off.z()), restart,
-                    [&](const CPose2D& p) {
+        icp_classic(reference, icp_query, CPose2D(found.x() + off.x(), found.y() + off.y(), found.phi() + off.z()),
+                    restart, [&](const CPose2D& p) {
                       return std::hypot(p.x() - found.x(), p.y() - found.y()) <= kSameXy / 5 &&
                              std::abs(mrpt::math::wrapToPi(p.phi() - found.phi())) <= kSameYaw / 5;
                     });

@@ -66,6 +66,7 @@ struct ScanGraphOptions {
   double loop_far_radius = 2.5;       ///< beyond this radius, a correlative search instead of ICP from the estimate
   double loop_far_yaw = 0.35;         ///< the correlative search's turn window (+-)
   bool loop_rescue_near = false;      ///< a near test whose ICP left the reach searches its window correlatively
+  bool loop_seen_only = false;        ///< a near test's ICP takes only the current points an old scan could see
   double loop_edge = 0.8;             ///< its best pose beyond this share of the window (in x, y or turn) ...
   double loop_widen = 1.5;            ///< ... searches again in a window this much wider (at most loop_max_radius)
   double loop_grid_resolution = 0.1;  ///< of its likelihood grid ...
@@ -124,6 +125,14 @@ struct LoopRecord {
   double chi2 = 0;                  ///< refused_chi2, undone: the edge's error at the optimum
 };
 const char* outcome_name(LoopRecord::Outcome outcome);
+
+/// The points of `query` (in the frame of `pose`) that at least one of `scans`, each at its base's pose in the map,
+/// could have seen: within its aperture, and not further than its beam at that bearing, or the one either side, hit
+/// plus `margin` (a beam with no return sees as far as the scanner's range). A loop test's old place seen from the
+/// other way along a corridor saw only part of what the current scans see (ScanGraphOptions::loop_seen_only).
+mrpt::maps::CSimplePointsMap seen_points(
+    const std::vector<std::pair<const mrpt::obs::CObservation2DRangeScan*, mrpt::poses::CPose2D>>& scans,
+    const mrpt::maps::CSimplePointsMap& query, const mrpt::poses::CPose2D& pose, double margin);
 
 /// The information (inverse covariance; x, y, yaw) of an odometry step, from its noise model
 /// (ScanGraphOptions::odometry_noise): the same in x and y.

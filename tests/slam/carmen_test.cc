@@ -726,6 +726,55 @@ TEST(SlamRescueNear, OnIntelWithFortyIterationsTheRescuedTestsCloseLoops) {
   EXPECT_GT(searches["true"]["near-far accepted"], 5);
 }
 
+// slam.2d.loop_seen_only (off by default): a near loop test's ICP takes only the current points one of the old place's
+// scans could have seen (seen_points, scan_graph_test.cc). Where a corridor was passed the other way, the current
+// scans see ahead what the old ones did not, and those points, paired with the old place's nearest, pull the match
+// along the corridor. docs/slam.md's table "What an old place saw" holds each log's run with it; Intel and ACES run
+// in CI, the other four with their files ($DRIFTLAB_CARMEN_DATA or ../shared/data/carmen). The bar is the issue's
+// (0.10 m, 1.5 m) on every log but the clinic, whose reference gets its largest relations wrong (below) and whose
+// mean lies at the bar either way (0.099 m with the defaults); the rows are the code's figures.
+TEST(SlamSeenOnly, EveryLogWithTheNearTestsOnWhatTheOldPlaceSaw) {
+  test::TempDir dir;
+  std::ofstream(dir.file("seen.yaml")) << "slam:\n  2d: {loop_seen_only: true}\n";
+  const auto run = [&](const std::string& name, const std::string& log, const std::string& relations,
+                       const std::string& label, bool bar) {
+    const std::string raw = dir.file(name + ".lcm"), out = dir.file(name + "-slam.lcm");
+    if (!std::filesystem::exists(raw)) {
+      ASSERT_EQ(test::run(test::kDriftlabProgram + " import " + log + " -o " + raw + " >/dev/null"), 0);
+    }
+    const auto replay = test::driftlab_json("replay " + raw + " --modules slam --config " + dir.file("seen.yaml") +
+                                            " --json -o " + out);
+    test::check_loop_records(out, replay["modules"][0]["metrics"]);
+    const auto error = test::relation_error(out + ":SLAM_TRAJECTORY", relations);
+    const double mean = error["trans_m"]["mean"].get<double>(), max = error["trans_m"]["max"].get<double>();
+    std::printf("%s, loop_seen_only: relation error %.4f m, max %.3f m\n", name.c_str(), mean, max);
+    if (bar) {
+      EXPECT_LT(mean, 0.10) << name;
+      EXPECT_LT(max, 1.5) << name;
+    }
+    test::expect_run_row("**What an old place saw", label, 1, replay["modules"][0]["metrics"], error);
+  };
+  for (const std::string name : {"intel", "aces"}) {
+    const auto files = test::carmen_run(name);
+    if (files.empty()) return;
+    run(name, files.bag, files.relations, name == "intel" ? "Intel" : "ACES", true);
+  }
+  const std::vector<std::array<std::string, 3>> more = {
+      {"fr079.orig.bag", "fr079.relations", "Freiburg 079"},
+      {"mit-csail.orig.bag", "mit-csail.relations", "MIT CSAIL"},
+      {"fr-clinic_robotlaser.orig.bag", "fr-clinic.relations", "Freiburg clinic"}};
+  for (const auto& [log, relations, label] : more) {
+    if (benchmark_file(log).empty() || benchmark_file(relations).empty()) continue;
+    run(log.substr(0, log.find('.')), benchmark_file(log), benchmark_file(relations), label,
+        label != "Freiburg clinic");
+  }
+  const std::string bag = benchmark_file("mit-killian.clf2bag.bag"),
+                    relations = benchmark_file("mit-killian.relations");
+  if (bag.empty() || relations.empty()) return;
+  ASSERT_NO_FATAL_FAILURE(import_killian(bag, relations, dir.file("killian.lcm"), dir.file("killian.relations")));
+  run("killian", bag, dir.file("killian.relations"), "MIT Killian Court", true);
+}
+
 // The Freiburg clinic (6,917 scans over 80 minutes of a hospital's corridors, at 1.4 Hz; its files as for
 // SlamOnMoreLogs, skipped until they are in ../shared/data/carmen). Without the odometry in the match
 // (match_odometry false) it folds (2.52 m, max 73 m): ICP slides along corridors where the wheel odometry holds,

@@ -2,10 +2,13 @@
 // match and the odometry's prediction combined by their information. Along a corridor, where the match pins
 // nothing down, the odometry's position stands; across it and in heading, the match's.
 #include <gtest/gtest.h>
+#include <mrpt/obs/CObservation2DRangeScan.h>
 
 #include <Eigen/Geometry>
 
 #include <cmath>
+#include <utility>
+#include <vector>
 
 #include "slam/internal/scan_graph.h"
 
@@ -55,6 +58,59 @@ TEST(Combine, HeadingsEitherSideOfPiMeetNearPi) {
   const Eigen::Matrix3d equal = Eigen::Matrix3d::Identity();
   const CPose2D both = combine(CPose2D(0, 0, M_PI - 0.02), equal, CPose2D(0, 0, -M_PI + 0.02), equal);
   EXPECT_NEAR(std::abs(both.phi()), M_PI, 1e-9);  // not 0, the mean of the two numbers
+}
+
+/// A SICK-like scan: 181 beams over 180 degrees, every one hitting at `range` (or none where `range` is 0), its
+/// sensor 0.2 m ahead of the base.
+mrpt::obs::CObservation2DRangeScan scan_at(float range, bool right_to_left = true) {
+  mrpt::obs::CObservation2DRangeScan scan;
+  scan.aperture = static_cast<float>(M_PI);
+  scan.rightToLeft = right_to_left;
+  scan.maxRange = 80;
+  scan.sensorPose = mrpt::poses::CPose3D(0.2, 0, 0, 0, 0, 0);
+  scan.resizeScan(181);
+  for (size_t i = 0; i < 181; ++i) {
+    scan.setScanRange(i, range);
+    scan.setScanRangeValidity(i, range > 0);
+  }
+  return scan;
+}
+
+// loop_seen_only: of the current points, a loop test's ICP takes those an old scan could have seen. An old scan at
+// (10, 0) facing along -x (the way back along a corridor) whose beams hit at 4 m: it saw the 4 m in front of its
+// sensor, out to 10 - 0.2 - 4 = 5.8 m on the x axis, and nothing behind it.
+TEST(SeenPoints, OnlyWhatAnOldScanCouldHaveSeen) {
+  const auto old = scan_at(4);
+  const std::vector<std::pair<const mrpt::obs::CObservation2DRangeScan*, CPose2D>> scans = {
+      {&old, CPose2D(10, 0, M_PI)}};
+  mrpt::maps::CSimplePointsMap query;  // in the frame of the current pose, (1, 0) facing +x
+  query.insertPoint(6, 0, 0);          // at (7, 0): 2.8 m in front of the old sensor, within its 4 m
+  query.insertPoint(4.7, 0, 0);        // at (5.7, 0): 4.1 m, beyond the hit but within the 0.3 m margin
+  query.insertPoint(4.3, 0, 0);        // at (5.3, 0): 4.5 m, behind what the beam hit
+  query.insertPoint(10, 0, 0);         // at (11, 0): behind the old sensor, outside its aperture
+  query.insertPoint(8.5, 3.5, 0);      // at (9.5, 3.5): 3.5 m off, 5 degrees inside the old aperture's right edge
+  const auto seen = seen_points(scans, query, CPose2D(1, 0, 0), 0.3);
+  ASSERT_EQ(seen.size(), 3u);
+  float x = 0, y = 0;
+  seen.getPoint(0, x, y);
+  EXPECT_FLOAT_EQ(x, 6);
+  seen.getPoint(1, x, y);
+  EXPECT_FLOAT_EQ(x, 4.7f);
+  seen.getPoint(2, x, y);
+  EXPECT_FLOAT_EQ(x, 8.5f);
+  EXPECT_FLOAT_EQ(y, 3.5f);
+
+  // Beams clockwise instead: the same field of view, the same points.
+  const auto clockwise = scan_at(4, false);
+  EXPECT_EQ(seen_points({{&clockwise, CPose2D(10, 0, M_PI)}}, query, CPose2D(1, 0, 0), 0.3).size(), 3u);
+  // Beams without a return see as far as the scanner's range: every point in front of the sensor.
+  const auto no_return = scan_at(0);
+  EXPECT_EQ(seen_points({{&no_return, CPose2D(10, 0, M_PI)}}, query, CPose2D(1, 0, 0), 0.3).size(), 4u);
+  // Two old scans: what either saw (the second at the origin facing +x saw (11, 0), 10.8 m from its sensor).
+  const auto long_range = scan_at(20);
+  EXPECT_EQ(seen_points({{&old, CPose2D(10, 0, M_PI)}, {&long_range, CPose2D()}}, query, CPose2D(1, 0, 0), 0.3).size(),
+            5u);
+  EXPECT_EQ(seen_points({}, query, CPose2D(1, 0, 0), 0.3).size(), 0u);
 }
 
 TEST(OdometryInformation, GrowsLooserWithTravelAndTurnAndNeverInfinite) {
