@@ -1,6 +1,7 @@
 // The 2D scan graph's front end with the odometry weighed in (slam/internal/scan_graph.h, match_odometry): a scan
 // match and the odometry's prediction combined by their information. Along a corridor, where the match pins
-// nothing down, the odometry's position stands; across it and in heading, the match's.
+// nothing down, the odometry's position stands; across it and in heading, the match's. And what of the current
+// points an old place's scans could have seen, for its loop tests (loop_seen_only).
 #include <gtest/gtest.h>
 #include <mrpt/obs/CObservation2DRangeScan.h>
 
