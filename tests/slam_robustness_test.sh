@@ -32,17 +32,21 @@ expect "broken.relations: driftlab eval failed" --runs whole,start-3,start-10 --
   "$source/tests/data/sample.lcm:broken.relations"
 
 # Seven runs in both files: five now meet the bar, none lost, one more with other figures and the same verdict;
-# one run in the earlier file only. Five of five discordant runs one way: p = 2 / 2^5 = 0.0625.
+# one run in the earlier file only. Five of five discordant runs one way: p = 2 / 2^5 = 0.0625. One run in both
+# folded before and none after (a relation 5 m or more off: 5.0 counts, 4.99 does not; the run in one file only,
+# folded too, is not counted).
 run_json() {  # NAME MEAN MAX MEETS
   printf '{"log": "intel", "run": "%s", "label": "%s", "mean_m": %s, "max_m": %s, "loop_closures": 1, "meets_bar": %s}' \
     "$1" "$1" "$2" "$3" "$4"
 }
 {
   echo '{"runs": ['
-  for r in whole start-3 start-10 start-20 decimation-3; do run_json $r 0.2 3.0 false && echo ,; done
+  for r in whole start-3 start-10; do run_json $r 0.2 3.0 false && echo ,; done
+  run_json start-20 0.2 4.99 false && echo ,
+  run_json decimation-3 0.2 5.0 false && echo ,
   run_json decimation-10 0.05 1.0 true && echo ,
   run_json max-iterations-40 0.05 1.0 true && echo ,
-  run_json keyframe-distance-0.6 0.05 1.0 true
+  run_json keyframe-distance-0.6 0.5 12.0 false
   echo ']}'
 } >earlier.json
 {
@@ -55,8 +59,8 @@ run_json() {  # NAME MEAN MAX MEETS
 "$script" --compare earlier.json later.json >out.txt 2>err.txt
 status=$?
 want=(
-  "against earlier.json (7 runs in both): 2 -> 7 meet the bar; 5 now meet it, 0 no longer do (McNemar's exact test: p = 0.06); 6 runs' figures changed"
-  "  now meets  intel  start-20                        0.200 / 3.00 m -> 0.040 / 0.90 m"
+  "against earlier.json (7 runs in both): 2 -> 7 meet the bar; 5 now meet it, 0 no longer do (McNemar's exact test: p = 0.06); 1 -> 0 folded; 6 runs' figures changed"
+  "  now meets  intel  start-20                        0.200 / 4.99 m -> 0.040 / 0.90 m"
   "  in one file only, left out: intel keyframe-distance-0.6"
 )
 for line in "${want[@]}"; do
@@ -92,7 +96,7 @@ cat >fake/driftlab <<'FAKE'
 #!/usr/bin/env bash
 # replay LOG --modules slam --json -o OUT [--start S] [--config YAML]: one line "[--start S] | settings" in calls.txt
 if [[ $1 == eval ]]; then
-  echo '{"relations": {"trans_m": {"mean": 0.05, "max": 1.0}}}'
+  echo "{\"relations\": {\"trans_m\": {\"mean\": 0.05, \"max\": ${FAKE_MAX_M:-1.0}}}}"
   exit 0
 fi
 [[ $1 == replay ]] || exit 1
@@ -125,7 +129,8 @@ fake_run() {
     failed=1
   fi
 }
-fake_run more "^11 of 11 runs meet the bar" --runs whole,start-5 --more --set loop_radius=2
+fake_run more "^11 of 11 runs meet the bar (.*); none folded (a relation 5 m or more off)$" --runs whole,start-5 \
+  --more --set loop_radius=2
 python3 - more.json fake/calls.txt <<'PY' || failed=1
 import json, sys
 runs = [r["run"] for r in json.load(open(sys.argv[1]))["runs"]]
@@ -139,6 +144,15 @@ if not ok:
     print("FAILED: --more: runs", runs, "replays", calls)
     sys.exit(1)
 PY
+
+# A run 5 m or more off is marked as folded, and counted.
+FAKE_MAX_M=5.0 fake_run folded "^0 of 1 runs meet the bar (.*); 1 folded (a relation 5 m or more off)$" \
+  --runs whole
+if ! grep -q "^s  the whole log .*5.00 m      3  <- fails the bar, folded$" out.txt; then
+  echo "FAILED: a run 5 m off not marked as folded:"
+  cat out.txt
+  failed=1
+fi
 
 # --vary: one run per setting after the named ones, that setting on top of --set's, named and labelled by it.
 fake_run vary "^s  threshold_ang: 5  *0.050 m    1.00 m      3$" --runs whole --vary threshold_ang=5 \
