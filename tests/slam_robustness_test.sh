@@ -133,11 +133,12 @@ fake_run more "^11 of 11 runs meet the bar (.*); none folded (a relation 5 m or 
   --more --set loop_radius=2
 python3 - more.json fake/calls.txt <<'PY' || failed=1
 import json, sys
-runs = [r["run"] for r in json.load(open(sys.argv[1]))["runs"]]
+written = json.load(open(sys.argv[1]))
+runs = [r["run"] for r in written["runs"]]
 want = ["whole", "start-5", "start-15", "start-30", "decimation-4", "decimation-7", "max-iterations-60",
         "keyframe-distance-0.4", "keyframe-distance-0.45", "local-map-keyframes-12", "min-dist-between-points-0.065"]
 calls = open(sys.argv[2]).read().splitlines()
-ok = runs == want and len(calls) == len(want)
+ok = runs == want and len(calls) == len(want) and written["fold_m"] == 5.0
 for line in ("--start 30 | loop_radius:2", " | loop_radius:2 decimation:7", " | loop_radius:2 min_dist_between_points:0.065"):
     ok &= line in calls
 if not ok:
