@@ -164,6 +164,21 @@ bool oracle_write_mcap(const json& spec, const std::string& out) {
   return true;
 }
 
+bool oracle_relayout_mcap(const std::string& in, const std::string& out, const json& layout) {
+  if (!have_oracle()) return false;
+  TempDir dir;
+  const std::string spec = dir.file("layout.json"), err = dir.file("relayout.err");
+  const std::string text = layout.dump();
+  write_file(spec, {text.begin(), text.end()});
+  if (run("node '" + kOracleDir + "/relayout_mcap.mjs' '" + in + "' '" + out + "' '" + spec + "' 2>'" + err + "'") !=
+      0) {
+    const auto e = read_file(err);
+    ADD_FAILURE() << "the oracle cannot write " << in << " again: " << std::string(e.begin(), e.end());
+    return false;
+  }
+  return true;
+}
+
 std::optional<std::vector<json>> oracle_messages(const std::string& file) {
   if (!have_oracle()) return std::nullopt;
   TempDir dir;

@@ -23,6 +23,12 @@ std::optional<std::vector<nlohmann::json>> oracle_messages(const std::string& fi
 /// hold as "NaN", "Infinity", "-Infinity". False (the test skipped, or failed under CI) without node.
 bool oracle_write_mcap(const nlohmann::json& spec, const std::string& out);
 
+/// Writes the MCAP file in again as out with Foxglove's writer (tests/oracle/relayout_mcap.mjs: @mcap/core's
+/// McapWriter), every schema, channel, message, metadata and attachment kept, in the layout the writer's options
+/// give (layout: McapWriter's options, "compression": "zstd"|"none", an "attachment" and a "metadata" record to
+/// add). False (the test skipped, or failed under CI) without node.
+bool oracle_relayout_mcap(const std::string& in, const std::string& out, const nlohmann::json& layout);
+
 /// Compares a ROS message as the oracle decoded it (`ros` is one dump line: topic, type, time_ns, msg) with the
 /// driftlab event driftlab made of it: the event time, header.utime from header.stamp, header.seq (`seq`), and
 /// every field the mapping carries; foreign messages by walking their payload with their schema.

@@ -333,6 +333,92 @@ INSTANTIATE_TEST_SUITE_P(Export, RoundTrip,
                                            "bags/tf_example.db3", "bags/tf_example.bag", "carmen/aces.orig.bag"),
                          bag_name);
 
+/// The records an MCAP file holds outside its chunks, counted by opcode (the file walked record by record).
+std::map<int, int> top_level_records(const std::vector<uint8_t>& f) {
+  std::map<int, int> n;
+  for (size_t p = 8; p + 9 <= f.size();) {
+    uint64_t len;
+    std::memcpy(&len, f.data() + p + 1, 8);
+    ++n[f[p]];
+    if (f[p] == 0x02 || len > f.size() - p - 9) break;  // the footer, or a length that is no record's
+    p += 9 + len;
+  }
+  return n;
+}
+
+/// A layout Foxglove's writer can give a recording, and what it puts outside the chunks.
+struct McapLayout {
+  const char* name;
+  const char* options;  // relayout_mcap.mjs's LAYOUT
+  bool chunks, message_indexes, chunk_indexes, statistics, added_records;
+};
+
+class McapLayouts : public ::testing::TestWithParam<std::tuple<const char*, McapLayout>> {};
+
+// A shared ROS 2 MCAP written again by Foxglove's McapWriter in each layout a writer may choose (rosbag2's MCAP
+// storage exposes the same choices: noChunking, the fastwrite preset, noMessageIndex, noSummary, the chunk size and
+// compression) imports into the same log as the file itself, byte for byte, with nothing reported: a reader that
+// leaned on the chunks, the message or chunk indexes, the statistics or the summary would lose messages or report
+// the file as damaged in one of them. Each written file is first checked to have the layout asked for.
+TEST_P(McapLayouts, ImportAsTheSameRecording) {
+  const auto& [name, layout] = GetParam();
+  const std::string bag = test::shared_data(name);
+  if (bag.empty()) return;
+  test::TempDir dir;
+  const std::string relaid = dir.file("relaid.mcap");
+  if (!test::oracle_relayout_mcap(bag, relaid, json::parse(layout.options))) return;
+  auto n = top_level_records(test::read_file(relaid));
+  EXPECT_EQ(n[0x02], 1) << "the walk did not reach the footer";
+  EXPECT_EQ(n[0x06] > 0, layout.chunks);
+  EXPECT_EQ(n[0x05] > 0, !layout.chunks);  // messages outside chunks
+  EXPECT_EQ(n[0x07] > 0, layout.message_indexes);
+  EXPECT_EQ(n[0x08] > 0, layout.chunk_indexes);
+  EXPECT_EQ(n[0x0B], layout.statistics ? 1 : 0);
+  if (layout.added_records) {
+    EXPECT_GE(n[0x09], 1);  // attachment
+    EXPECT_GE(n[0x0C], 1);  // metadata
+  }
+  auto r = test::run_capture(kDriftlab + " import '" + bag + "' -o '" + dir.file("a.lcm") + "'");
+  ASSERT_EQ(r.code, 0) << r.err;
+  r = test::run_capture(kDriftlab + " import '" + relaid + "' -o '" + dir.file("b.lcm") + "'");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(r.err, "");
+  const auto a = test::read_file(dir.file("a.lcm"));
+  EXPECT_GT(a.size(), 1000u);
+  EXPECT_EQ(a, test::read_file(dir.file("b.lcm")));
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Import, McapLayouts,
+    ::testing::Combine(
+        ::testing::Values("bags/nav2_turtlebot.mcap", "bags/mcap_cdr_test_cdr_test_0.mcap"),
+        ::testing::Values(McapLayout{"zstd_chunks", R"({"compression": "zstd"})", true, true, true, true, false},
+                          McapLayout{"no_chunks", R"({"useChunks": false})", false, false, false, true, false},
+                          McapLayout{"uncompressed_chunks", R"({"compression": "none"})", true, true, true, true,
+                                     false},
+                          McapLayout{"small_chunks_no_message_index",
+                                     R"({"compression": "zstd", "chunkSize": 2048, "useMessageIndex": false})", true,
+                                     false, true, true, false},
+                          McapLayout{"no_chunk_index", R"({"compression": "zstd", "useChunkIndex": false})", true, true,
+                                     false, true, false},
+                          McapLayout{"no_summary",
+                                     R"({"compression": "zstd", "useStatistics": false, "useSummaryOffsets": false,
+                           "useChunkIndex": false, "useAttachmentIndex": false, "useMetadataIndex": false,
+                           "repeatSchemas": false, "repeatChannels": false})",
+                                     true, true, false, false, false},
+                          McapLayout{"attachment_and_metadata",
+                                     R"({"compression": "zstd", "startChannelId": 7,
+                           "attachment": {"name": "calibration.yaml", "media_type": "application/yaml",
+                                          "text": "camera_matrix: [1, 0, 0, 0, 1, 0, 0, 0, 1]\n"},
+                           "metadata": {"name": "rosbag2", "entries": {"ros_distro": "humble"}}})",
+                                     true, true, true, true, true})),
+    [](const auto& info) {
+      std::string n = std::string(std::get<0>(info.param)) + "_" + std::get<1>(info.param).name;
+      for (char& c : n)
+        if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
+      return n;
+    });
+
 // A log of every driftlab type (as the simulator and the analyzers write them, with channel names that are not
 // ROS names) exported and read by Foxglove's readers: each message equals the log's, field by field, through the
 // standard messages, driftlab_msgs and a foreign type; the diagnosis travels as metadata.
